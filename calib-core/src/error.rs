@@ -1,0 +1,50 @@
+//! The error of the kinematics layer: what is wrong with a model, a parameter set or a joint input.
+
+use crate::parameters::Parameter;
+use core::fmt;
+
+/// Why a kinematic model or input was refused. Every variant names the offending item.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum KinematicsError {
+    /// A nominal model value (the named parameter's nominal counterpart) is NaN or infinite.
+    NonFiniteNominal(Parameter),
+    /// A parameter error is NaN or infinite.
+    NonFiniteError(Parameter),
+    /// A joint reading (1-based joint number) is NaN or infinite.
+    NonFiniteJoint {
+        /// Joint number, 1-based.
+        joint: u8,
+    },
+    /// The limits of a joint (1-based) are NaN or have `lower > upper`.
+    InvalidLimits {
+        /// Joint number, 1-based.
+        joint: u8,
+    },
+    /// The identification mask selects a different number of parameters than the vector holds.
+    ParameterCount {
+        /// Number of parameters the packed vector holds (the const generic `D`).
+        expected: u16,
+        /// Number of parameters the mask selects.
+        found: u16,
+    },
+}
+
+impl fmt::Display for KinematicsError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::NonFiniteNominal(p) => write!(f, "nominal value of {p} is not finite"),
+            Self::NonFiniteError(p) => write!(f, "parameter error {p} is not finite"),
+            Self::NonFiniteJoint { joint } => write!(f, "joint reading q{joint} is not finite"),
+            Self::InvalidLimits { joint } => {
+                write!(f, "limits of joint {joint} are NaN or lower > upper")
+            }
+            Self::ParameterCount { expected, found } => write!(
+                f,
+                "the identification mask selects {found} parameters, the vector holds {expected}"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for KinematicsError {}

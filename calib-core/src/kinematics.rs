@@ -1,0 +1,215 @@
+//! Forward kinematics of the actual model: `T = T_base A_1 ... A_N T_tool` (paper eq. 2-3).
+
+use crate::error::KinematicsError;
+use crate::mdh::PreparedJoint;
+use crate::model::{Robot, joint_number};
+use crate::parameters::{FrameErrors, ParameterErrors};
+use crate::scalar::Real;
+use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, Translation3, Vector3};
+
+/// A rigid pose: rotation matrix and translation (mm).
+pub type Pose<T> = IsometryMatrix3<T>;
+
+/// Sine and cosine of N joint readings, computed once per measured pose (no trig afterwards).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct JointAngles<T, const N: usize> {
+    /// `cos q_i`.
+    pub cos: [T; N],
+    /// `sin q_i`.
+    pub sin: [T; N],
+}
+
+impl<T: Real, const N: usize> JointAngles<T, N> {
+    /// From joint readings `q` (rad); an error names the first non-finite reading.
+    pub fn new(q: &[T; N]) -> Result<Self, KinematicsError> {
+        let mut angles = Self {
+            cos: [T::one(); N],
+            sin: [T::zero(); N],
+        };
+        for (j, ((qi, c), s)) in q
+            .iter()
+            .zip(angles.cos.iter_mut())
+            .zip(angles.sin.iter_mut())
+            .enumerate()
+        {
+            if !qi.finite() {
+                return Err(KinematicsError::NonFiniteJoint {
+                    joint: joint_number(j),
+                });
+            }
+            (*s, *c) = qi.sin_cos_libm();
+        }
+        Ok(angles)
+    }
+}
+
+/// The actual model (nominal + errors) prepared for evaluation: constant trigonometry done once.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Kinematics<T: Real, const N: usize> {
+    joints: [PreparedJoint<T>; N],
+    base: Pose<T>,
+    tool: Pose<T>,
+    /// World axes of the base rotation errors `rx, ry, rz` (columns), relative to the parent.
+    base_axes: Matrix3<T>,
+    /// Axes of the tool rotation errors `rx, ry, rz` (columns) in the flange frame.
+    tool_axes: Matrix3<T>,
+}
+
+/// A frame with the rotation-error axes of its `R_nominal Rz(rz) Ry(ry) Rx(rx)` parametrisation.
+fn frame_with_errors<T: Real>(nominal: &Pose<T>, errors: &FrameErrors<T>) -> (Pose<T>, Matrix3<T>) {
+    let [tx, ty, tz] = errors.translation;
+    let [rx, ry, rz] = errors.rotation;
+    let r_nominal = nominal.rotation.matrix();
+    let rotation = nominal.rotation * Rotation3::from_euler_angles(rx, ry, rz);
+    let yaw_then = r_nominal * Rotation3::from_euler_angles(T::zero(), T::zero(), rz).matrix();
+    let axes = Matrix3::from_columns(&[
+        rotation.matrix().column(0).into_owned(),
+        yaw_then.column(1).into_owned(),
+        r_nominal.column(2).into_owned(),
+    ]);
+    let translation = nominal.translation.vector + Vector3::new(tx, ty, tz);
+    (
+        Pose::from_parts(Translation3::from(translation), rotation),
+        axes,
+    )
+}
+
+/// Every intermediate quantity of one forward kinematics, kept for the Jacobians.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Chain<T: Real, const N: usize> {
+    /// Origin of the frame before joint i (`o_{i-1}`), world, mm.
+    pub before_origin: [Vector3<T>; N],
+    /// z axis of the frame before joint i (`z_{i-1}`): the axis of `theta` and `d`.
+    pub before_z: [Vector3<T>; N],
+    /// x axis of `F_{i-1} Rz(theta_i)`: the axis of `a` and `alpha`.
+    pub x_axis: [Vector3<T>; N],
+    /// Origin of the frame of joint i (`o_i`), world, mm.
+    pub origin: [Vector3<T>; N],
+    /// y axis of the frame of joint i: the axis of `beta`.
+    pub y_axis: [Vector3<T>; N],
+    /// Flange frame `T_base A_1 ... A_N`.
+    pub flange: Pose<T>,
+    /// End pose, flange * tool.
+    pub end: Pose<T>,
+}
+
+impl<T: Real, const N: usize> Kinematics<T, N> {
+    /// The actual model `robot + errors`; an error names the first non-finite value.
+    pub fn new(
+        robot: &Robot<T, N>,
+        errors: &ParameterErrors<T, N>,
+    ) -> Result<Self, KinematicsError> {
+        robot.validate()?;
+        errors.validate()?;
+        let mut joints =
+            [PreparedJoint::new(T::zero(), T::zero(), T::zero(), T::zero(), T::zero()); N];
+        for (prepared, (n, e)) in joints
+            .iter_mut()
+            .zip(robot.joints.iter().zip(&errors.joints))
+        {
+            *prepared = PreparedJoint::new(
+                n.a + e.da,
+                n.alpha + e.dalpha,
+                n.theta_offset + e.dtheta,
+                n.d + e.dd,
+                n.beta + e.dbeta,
+            );
+        }
+        let (base, base_axes) = frame_with_errors(&robot.base.isometry(), &errors.base);
+        let (tool, tool_axes) = frame_with_errors(&robot.tool.isometry(), &errors.tool);
+        Ok(Self {
+            joints,
+            base,
+            tool,
+            base_axes,
+            tool_axes,
+        })
+    }
+
+    /// The nominal model (all errors zero).
+    pub fn nominal(robot: &Robot<T, N>) -> Result<Self, KinematicsError> {
+        Self::new(robot, &ParameterErrors::zero())
+    }
+
+    /// The base frame of the actual model.
+    pub fn base(&self) -> &Pose<T> {
+        &self.base
+    }
+
+    /// The tool frame of the actual model.
+    pub fn tool(&self) -> &Pose<T> {
+        &self.tool
+    }
+
+    /// The prepared joints, joint 1 first.
+    pub fn joints(&self) -> &[PreparedJoint<T>; N] {
+        &self.joints
+    }
+
+    /// End pose (mm) for joint readings `q` (rad). Error: a non-finite reading.
+    pub fn forward(&self, q: &[T; N]) -> Result<Pose<T>, KinematicsError> {
+        Ok(self.forward_angles(&JointAngles::new(q)?))
+    }
+
+    /// End pose (mm) for precomputed joint sines and cosines; does no trigonometry.
+    pub fn forward_angles(&self, angles: &JointAngles<T, N>) -> Pose<T> {
+        let mut rotation = *self.base.rotation.matrix();
+        let mut origin = self.base.translation.vector;
+        for ((joint, c), s) in self.joints.iter().zip(&angles.cos).zip(&angles.sin) {
+            let (ct, st) = joint.theta(*c, *s);
+            joint.append(&mut rotation, &mut origin, ct, st);
+        }
+        let flange = Pose::from_parts(
+            Translation3::from(origin),
+            Rotation3::from_matrix_unchecked(rotation),
+        );
+        flange * self.tool
+    }
+
+    /// Forward kinematics keeping every joint's axes and origins (for the Jacobians).
+    pub(crate) fn chain(&self, angles: &JointAngles<T, N>) -> Chain<T, N> {
+        let zero = [Vector3::zeros(); N];
+        let mut chain = Chain {
+            before_origin: zero,
+            before_z: zero,
+            x_axis: zero,
+            origin: zero,
+            y_axis: zero,
+            flange: self.base,
+            end: self.base,
+        };
+        let mut rotation = *self.base.rotation.matrix();
+        let mut origin = self.base.translation.vector;
+        let per_joint = chain
+            .before_origin
+            .iter_mut()
+            .zip(chain.before_z.iter_mut())
+            .zip(chain.x_axis.iter_mut())
+            .zip(chain.origin.iter_mut())
+            .zip(chain.y_axis.iter_mut());
+        let inputs = self.joints.iter().zip(&angles.cos).zip(&angles.sin);
+        for (((((o_prev, z_prev), x_axis), o), y_axis), ((joint, c), s)) in per_joint.zip(inputs) {
+            *o_prev = origin;
+            *z_prev = rotation.column(2).into_owned();
+            let (ct, st) = joint.theta(*c, *s);
+            *x_axis = joint.append(&mut rotation, &mut origin, ct, st);
+            *o = origin;
+            *y_axis = rotation.column(1).into_owned();
+        }
+        chain.flange = Pose::from_parts(
+            Translation3::from(origin),
+            Rotation3::from_matrix_unchecked(rotation),
+        );
+        chain.end = chain.flange * self.tool;
+        chain
+    }
+
+    pub(crate) fn base_axes(&self) -> &Matrix3<T> {
+        &self.base_axes
+    }
+
+    pub(crate) fn tool_axes(&self) -> &Matrix3<T> {
+        &self.tool_axes
+    }
+}

@@ -1,0 +1,127 @@
+//! The Hayati modified DH joint transform of the paper's eq. (1):
+//! `A = Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta)`.
+
+use crate::scalar::Real;
+use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, Translation3, Vector3};
+
+/// A joint of the actual model prepared for fast evaluation: the constant trigonometry of
+/// `alpha`, `beta` and `theta_offset` is computed once, so a pose needs only `sin q`, `cos q`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PreparedJoint<T: Real> {
+    /// Link length `a`, mm.
+    pub a: T,
+    /// Link offset `d`, mm.
+    pub d: T,
+    /// `(cos, sin)` of the joint zero offset `theta_offset + dtheta`.
+    pub offset: (T, T),
+    /// `Rx(alpha) Ry(beta)`, the constant right factor of the joint rotation.
+    pub twist: Matrix3<T>,
+}
+
+impl<T: Real> PreparedJoint<T> {
+    /// Prepares a joint from its actual MDH values (mm, rad).
+    pub fn new(a: T, alpha: T, theta_offset: T, d: T, beta: T) -> Self {
+        let (sa, ca) = alpha.sin_cos_libm();
+        let (sb, cb) = beta.sin_cos_libm();
+        let (so, co) = theta_offset.sin_cos_libm();
+        // Rx(alpha) Ry(beta) in closed form.
+        #[rustfmt::skip]
+        let twist = Matrix3::new(
+            cb,       T::zero(), sb,
+            sa * sb,  ca,        -sa * cb,
+            -ca * sb, sa,        ca * cb,
+        );
+        Self {
+            a,
+            d,
+            offset: (co, so),
+            twist,
+        }
+    }
+
+    /// `(cos theta, sin theta)` for a joint reading with `(cos q, sin q)`, by angle addition.
+    #[inline(always)]
+    pub fn theta(&self, cos_q: T, sin_q: T) -> (T, T) {
+        let (co, so) = self.offset;
+        (cos_q * co - sin_q * so, sin_q * co + cos_q * so)
+    }
+
+    /// The joint transform `A` (eq. 1) in closed form for `(cos theta, sin theta)`.
+    pub fn transform(&self, cos_theta: T, sin_theta: T) -> IsometryMatrix3<T> {
+        let (c, s) = (cos_theta, sin_theta);
+        #[rustfmt::skip]
+        let rz = Matrix3::new(
+            c,         -s,        T::zero(),
+            s,         c,         T::zero(),
+            T::zero(), T::zero(), T::one(),
+        );
+        IsometryMatrix3::from_parts(
+            Translation3::new(self.a * c, self.a * s, self.d),
+            Rotation3::from_matrix_unchecked(rz * self.twist),
+        )
+    }
+
+    /// Appends this joint to the frame `(rotation, origin)` of the previous joint, in place:
+    /// `F <- F * A`. Returns the x axis of `F_prev Rz(theta)` (the axis of `a` and `alpha`).
+    ///
+    /// Cost: 45 multiplications, against 63 for a general rigid product.
+    #[inline(always)]
+    pub fn append(
+        &self,
+        rotation: &mut Matrix3<T>,
+        origin: &mut Vector3<T>,
+        cos_theta: T,
+        sin_theta: T,
+    ) -> Vector3<T> {
+        let (c, s) = (cos_theta, sin_theta);
+        let r1 = rotation.column(0).into_owned();
+        let r2 = rotation.column(1).into_owned();
+        let z = rotation.column(2).into_owned();
+        // Columns of F_prev Rz(theta).
+        let x = r1 * c + r2 * s;
+        let y = r2 * c - r1 * s;
+        *origin += x * self.a + z * self.d;
+        *rotation = Matrix3::from_columns(&[x, y, z]) * self.twist;
+        x
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Eq. (1) from the elementary transforms, as nalgebra products.
+    fn elementary(a: f64, alpha: f64, theta: f64, d: f64, beta: f64) -> IsometryMatrix3<f64> {
+        let rz = IsometryMatrix3::rotation(Vector3::z() * theta);
+        let tz = IsometryMatrix3::translation(0.0, 0.0, d);
+        let tx = IsometryMatrix3::translation(a, 0.0, 0.0);
+        let rx = IsometryMatrix3::rotation(Vector3::x() * alpha);
+        let ry = IsometryMatrix3::rotation(Vector3::y() * beta);
+        rz * tz * tx * rx * ry
+    }
+
+    #[test]
+    fn closed_form_equals_the_product_of_elementary_transforms() {
+        let (a, alpha, offset, d, beta) = (170.0, -1.3, 0.4, 55.0, 0.02);
+        let joint = PreparedJoint::new(a, alpha, offset, d, beta);
+        for q in [-3.0, -0.5, 0.0, 1.0, 2.5] {
+            let (s, c) = libm::sincos(q);
+            let (ct, st) = joint.theta(c, s);
+            let closed = joint.transform(ct, st);
+            let expected = elementary(a, alpha, q + offset, d, beta);
+            assert!((closed.to_homogeneous() - expected.to_homogeneous()).norm() < 1e-12);
+
+            let previous = elementary(10.0, 0.3, -0.2, 20.0, 0.1);
+            let mut rotation = *previous.rotation.matrix();
+            let mut origin = previous.translation.vector;
+            let x = joint.append(&mut rotation, &mut origin, ct, st);
+            let composed = previous * expected;
+            assert!((rotation - composed.rotation.matrix()).norm() < 1e-12);
+            assert!((origin - composed.translation.vector).norm() < 1e-12);
+            let x_expected = (previous * IsometryMatrix3::rotation(Vector3::z() * (q + offset)))
+                .rotation
+                * Vector3::x();
+            assert!((x - x_expected).norm() < 1e-12);
+        }
+    }
+}

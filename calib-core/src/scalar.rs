@@ -1,0 +1,57 @@
+//! The scalar type of every computation: `f64` on a PC, `f32` on the controller.
+//!
+//! [`Real`] adds to nalgebra's `RealField` the few operations the core needs with a fixed
+//! implementation: the sine and cosine come from `libm` (never from the host's C library) so that
+//! x86_64 and Cortex-M compute the same bits for the same input.
+
+use nalgebra::RealField;
+
+/// A floating-point scalar usable by the core (`f32` or `f64`).
+pub trait Real: RealField + Copy {
+    /// Sine and cosine of `self` (radians) in one call, from `libm`.
+    fn sin_cos_libm(self) -> (Self, Self);
+    /// Converts an `f64` constant or input to this scalar (rounding to nearest for `f32`).
+    fn of(value: f64) -> Self;
+    /// Widens this scalar to `f64` (exact for both `f32` and `f64`).
+    fn to_f64(self) -> f64;
+    /// `true` when the value is neither infinite nor NaN.
+    fn finite(self) -> bool;
+}
+
+impl Real for f64 {
+    #[inline]
+    fn sin_cos_libm(self) -> (Self, Self) {
+        libm::sincos(self)
+    }
+    #[inline]
+    fn of(value: f64) -> Self {
+        value
+    }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self
+    }
+    #[inline]
+    fn finite(self) -> bool {
+        self.is_finite()
+    }
+}
+
+impl Real for f32 {
+    #[inline]
+    fn sin_cos_libm(self) -> (Self, Self) {
+        libm::sincosf(self)
+    }
+    #[inline]
+    fn of(value: f64) -> Self {
+        value as f32
+    }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+    #[inline]
+    fn finite(self) -> bool {
+        self.is_finite()
+    }
+}

@@ -1,0 +1,63 @@
+//! Test fixtures: the ER10L-C10 of the paper (Table 1) and its simulated errors (Table 2).
+
+use crate::model::{FramePose, MdhJoint, Robot};
+use crate::parameters::{JointErrors, ParameterErrors};
+use crate::scalar::Real;
+
+const DEG: f64 = core::f64::consts::PI / 180.0;
+
+/// Table 1: (a mm, alpha deg, theta_offset deg, d mm).
+const TABLE1: [(f64, f64, f64, f64); 6] = [
+    (170.0, -90.0, 0.0, 0.0),
+    (780.0, 0.0, -90.0, 0.0),
+    (140.0, -90.0, 0.0, 0.0),
+    (0.0, 90.0, 0.0, 1060.0),
+    (0.0, -90.0, 0.0, 0.0),
+    (0.0, 0.0, 0.0, 125.0),
+];
+
+/// Table 2: (da mm, dalpha rad, dtheta rad, dd mm, dbeta rad).
+const TABLE2: [(f64, f64, f64, f64, f64); 6] = [
+    (-0.4751, 0.0058, 0.0091, -0.4221, 0.0),
+    (0.2565, 0.0092, -0.0003, 0.0, -0.0028),
+    (-0.3366, 0.0031, 0.0060, 0.3409, 0.0),
+    (-0.1827, -0.0093, -0.0072, 0.1420, 0.0),
+    (-0.1117, 0.0070, -0.0016, 0.1753, 0.0),
+    (-0.2536, 0.0087, 0.0083, 0.1531, 0.0),
+];
+
+pub fn er10l<T: Real>() -> Robot<T, 6> {
+    Robot::from_joints(TABLE1.map(|(a, alpha, offset, d)| MdhJoint {
+        a: T::of(a),
+        alpha: T::of(alpha * DEG),
+        theta_offset: T::of(offset * DEG),
+        d: T::of(d),
+        beta: T::zero(),
+    }))
+}
+
+pub fn table2<T: Real>() -> ParameterErrors<T, 6> {
+    let mut errors = ParameterErrors::zero();
+    errors.joints = TABLE2.map(|(da, dalpha, dtheta, dd, dbeta)| JointErrors {
+        da: T::of(da),
+        dalpha: T::of(dalpha),
+        dtheta: T::of(dtheta),
+        dd: T::of(dd),
+        dbeta: T::of(dbeta),
+    });
+    errors
+}
+
+/// The ER10L-C10 on a tilted base with an offset probe, to exercise the frame terms.
+pub fn er10l_with_frames() -> Robot<f64, 6> {
+    let mut robot = er10l::<f64>();
+    robot.base = FramePose {
+        xyz: [1500.0, -300.0, 250.0],
+        rpy: [0.2, -0.4, 2.5],
+    };
+    robot.tool = FramePose {
+        xyz: [12.0, -30.0, 85.0],
+        rpy: [1.1, 0.3, -0.7],
+    };
+    robot
+}
