@@ -1,1 +1,107 @@
-//! Shared helpers of the cross-crate tests.
+//! Shared helpers of the cross-crate tests: test data paths, the paper's tables, seeded random
+//! joint configurations, and small comparisons.
+
+use calib_core::{JointErrors, ParameterErrors, Pose, Real};
+use host_tools::reference::Mat4;
+use host_tools::robot_file::RobotFile;
+use rand_core::Rng;
+use std::path::PathBuf;
+
+/// Path of a file under `tests/data/` (a copy of `../shared`, so a fresh clone passes alone).
+pub fn data(relative: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("data")
+        .join(relative)
+}
+
+/// Path of a file under the repository root.
+pub fn repo(relative: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(relative)
+}
+
+/// The ER10L-C10 robot file (Table 1).
+pub fn er10l_file() -> RobotFile {
+    RobotFile::read(&repo("host-tools/robots/er10l-c10.toml")).expect("robot file")
+}
+
+/// Rows of a CSV file with a header, skipping `#` comments: (header, rows of fields).
+pub fn read_csv(relative: &str) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(data(relative)).expect("test data");
+    let mut lines = text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty());
+    let header = lines
+        .next()
+        .expect("header")
+        .split(',')
+        .map(str::to_owned)
+        .collect();
+    let rows = lines
+        .map(|l| l.split(',').map(str::to_owned).collect())
+        .collect();
+    (header, rows)
+}
+
+/// Table 2 of the paper as `[da, dalpha, dtheta, dd, dbeta]` per joint (mm, rad), read from the
+/// copy of the paper's table.
+pub fn table2() -> Vec<[f64; 5]> {
+    let (header, rows) = read_csv("paper/er10l-c10-table2-errors.csv");
+    assert_eq!(
+        header,
+        [
+            "joint",
+            "da_mm",
+            "dalpha_rad",
+            "dtheta_rad",
+            "dd_mm",
+            "dbeta_rad"
+        ]
+    );
+    rows.iter()
+        .map(|r| {
+            let v: Vec<f64> = r[1..].iter().map(|s| s.parse().unwrap()).collect();
+            [v[0], v[1], v[2], v[3], v[4]]
+        })
+        .collect()
+}
+
+/// Table 2 as core parameter errors in scalar `T`.
+pub fn table2_errors<T: Real>() -> ParameterErrors<T, 6> {
+    let mut errors = ParameterErrors::zero();
+    for (e, t) in errors.joints.iter_mut().zip(table2()) {
+        *e = JointErrors {
+            da: T::of(t[0]),
+            dalpha: T::of(t[1]),
+            dtheta: T::of(t[2]),
+            dd: T::of(t[3]),
+            dbeta: T::of(t[4]),
+        };
+    }
+    errors
+}
+
+/// A uniform value in `[lo, hi)` from a seeded generator.
+pub fn uniform(rng: &mut impl Rng, lo: f64, hi: f64) -> f64 {
+    let unit = (rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64);
+    lo + (hi - lo) * unit
+}
+
+/// Position distance (mm) and rotation angle (rad) between a core pose and a reference transform.
+/// The angle comes from the Frobenius norm, `|R1 - R2|_F = 2 sqrt(2) sin(angle / 2)`, which is
+/// accurate for small angles (unlike `acos` of the trace).
+pub fn distance<T: Real>(core: &Pose<T>, reference: &Mat4) -> (f64, f64) {
+    let p = core.translation.vector;
+    let r = core.rotation.matrix();
+    let mut dp2 = 0.0;
+    let mut dr2 = 0.0;
+    for i in 0..3 {
+        dp2 += (p[i].to_f64() - reference[i][3]).powi(2);
+        for j in 0..3 {
+            dr2 += (r[(i, j)].to_f64() - reference[i][j]).powi(2);
+        }
+    }
+    let angle = 2.0 * (dr2.sqrt() / (2.0 * 2f64.sqrt())).asin();
+    (dp2.sqrt(), angle)
+}

@@ -27,7 +27,7 @@ enum Command {
             long,
             value_name = "DEG,...",
             value_delimiter = ',',
-            allow_negative_numbers = true,
+            allow_hyphen_values = true,
             required = true
         )]
         joints_deg: Vec<f64>,
