@@ -44,7 +44,9 @@ fn errors<T: Real>() -> ParameterErrors<T, 6> {
 fn forward<T: Real>(c: &mut Criterion, name: &str) {
     let kinematics = Kinematics::new(&er10l::<T>(), &errors()).unwrap();
     let q = [0.3, -0.7, 1.1, 2.0, -1.4, 0.6].map(T::of);
-    c.bench_function(name, |b| b.iter(|| black_box(&kinematics).forward(black_box(&q))));
+    c.bench_function(name, |b| {
+        b.iter(|| black_box(&kinematics).forward(black_box(&q)))
+    });
 }
 
 fn benches(c: &mut Criterion) {
@@ -55,12 +57,13 @@ fn benches(c: &mut Criterion) {
     let kinematics = Kinematics::nominal(&robot).unwrap();
     let set = ParameterSet::<6, 24>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
     let q = [0.3, -0.7, 1.1, 2.0, -1.4, 0.6];
-    let measured = Kinematics::new(&robot, &errors()).unwrap().forward(&q).unwrap();
+    let measured = Kinematics::new(&robot, &errors())
+        .unwrap()
+        .forward(&q)
+        .unwrap();
     let angles = JointAngles::new(&q).unwrap();
     c.bench_function("pose_error_and_parameter_jacobian_24_f64", |b| {
-        b.iter(|| {
-            pose_error_jacobian(black_box(&kinematics), &set, black_box(&angles), &measured)
-        })
+        b.iter(|| pose_error_jacobian(black_box(&kinematics), &set, black_box(&angles), &measured))
     });
 }
 
