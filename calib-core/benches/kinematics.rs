@@ -3,6 +3,9 @@
 //!
 //! Run: `cargo bench -p calib-core --bench kinematics`.
 
+// Set-up of fixed, valid inputs: a failure here is a bug in the benchmark itself.
+#![allow(clippy::unwrap_used)]
+
 use calib_core::kinematics::JointAngles;
 use calib_core::pose_error::pose_error_jacobian;
 use calib_core::{Kinematics, MdhJoint, ParameterErrors, ParameterMask, ParameterSet, Real, Robot};
