@@ -7,30 +7,11 @@
 #![allow(clippy::unwrap_used)]
 
 use calib_core::kinematics::JointAngles;
+use calib_core::paper::er10l_c10 as er10l;
 use calib_core::pose_error::pose_error_jacobian;
-use calib_core::{Kinematics, MdhJoint, ParameterErrors, ParameterMask, ParameterSet, Real, Robot};
+use calib_core::{Kinematics, ParameterErrors, ParameterMask, ParameterSet, Real};
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
-
-const DEG: f64 = std::f64::consts::PI / 180.0;
-
-fn er10l<T: Real>() -> Robot<T, 6> {
-    let table1 = [
-        (170.0, -90.0, 0.0, 0.0),
-        (780.0, 0.0, -90.0, 0.0),
-        (140.0, -90.0, 0.0, 0.0),
-        (0.0, 90.0, 0.0, 1060.0),
-        (0.0, -90.0, 0.0, 0.0),
-        (0.0, 0.0, 0.0, 125.0),
-    ];
-    Robot::from_joints(table1.map(|(a, alpha, offset, d)| MdhJoint {
-        a: T::of(a),
-        alpha: T::of(alpha * DEG),
-        theta_offset: T::of(offset * DEG),
-        d: T::of(d),
-        beta: T::zero(),
-    }))
-}
 
 fn errors<T: Real>() -> ParameterErrors<T, 6> {
     let mut e = ParameterErrors::zero();

@@ -101,9 +101,9 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
 mod tests {
     use super::*;
     use crate::model::Robot;
+    use crate::paper::{er10l_with_frames, table2};
     use crate::parameters::{ParameterErrors, ParameterMask, all_parameters};
     use crate::pose_error::{PoseError, pose_error_jacobian};
-    use crate::test_fixtures::{er10l_with_frames, table2};
 
     const Q: [[f64; 6]; 3] = [
         [0.3, -0.7, 1.1, 2.0, -1.4, 0.6],

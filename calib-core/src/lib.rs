@@ -16,7 +16,8 @@
 //! - [`kinematics`]: forward kinematics of the actual model (nominal + errors);
 //! - [`so3`]: the exact rotation log map and its Jacobian;
 //! - [`pose_error`]: the pose error of a measurement and its parameter Jacobian;
-//! - [`jacobian`]: the geometric (joint) Jacobian and the parameter Jacobian of the end pose.
+//! - [`jacobian`]: the geometric (joint) Jacobian and the parameter Jacobian of the end pose;
+//! - [`paper`]: the ER10L-C10 of the source paper (Table 1 nominal, Table 2 errors).
 #![no_std]
 #![deny(missing_docs)]
 
@@ -25,13 +26,11 @@ pub mod jacobian;
 pub mod kinematics;
 pub mod mdh;
 pub mod model;
+pub mod paper;
 pub mod parameters;
 pub mod pose_error;
 pub mod scalar;
 pub mod so3;
-
-#[cfg(test)]
-mod test_fixtures;
 
 pub use error::KinematicsError;
 pub use kinematics::{Kinematics, Pose};

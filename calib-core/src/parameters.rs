@@ -499,7 +499,7 @@ impl<const N: usize, const D: usize> ParameterSet<N, D> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_fixtures::{er10l, table2};
+    use crate::paper::{er10l_c10 as er10l, table2};
     extern crate std;
     use std::string::ToString;
     use std::vec::Vec;

@@ -1,6 +1,8 @@
-//! Test fixtures: the ER10L-C10 of the paper (Table 1) and its simulated errors (Table 2).
+//! The robot of the source paper, the Efort ER10L-C10: nominal geometry (Table 1) and the
+//! geometric errors of its simulation (Table 2). Used by the paper's simulation, the benchmarks
+//! and the firmware; the tests check these values against the copies of the paper's tables.
 
-use crate::model::{FramePose, MdhJoint, Robot};
+use crate::model::{MdhJoint, Robot};
 use crate::parameters::{JointErrors, ParameterErrors};
 use crate::scalar::Real;
 
@@ -26,7 +28,8 @@ const TABLE2: [(f64, f64, f64, f64, f64); 6] = [
     (-0.2536, 0.0087, 0.0083, 0.1531, 0.0),
 ];
 
-pub fn er10l<T: Real>() -> Robot<T, 6> {
+/// The nominal ER10L-C10 of Table 1 (mm, rad): no joint limits, identity base and tool.
+pub fn er10l_c10<T: Real>() -> Robot<T, 6> {
     Robot::from_joints(TABLE1.map(|(a, alpha, offset, d)| MdhJoint {
         a: T::of(a),
         alpha: T::of(alpha * DEG),
@@ -36,6 +39,7 @@ pub fn er10l<T: Real>() -> Robot<T, 6> {
     }))
 }
 
+/// The parameter errors of Table 2 (mm, rad); base and tool errors zero.
 pub fn table2<T: Real>() -> ParameterErrors<T, 6> {
     let mut errors = ParameterErrors::zero();
     errors.joints = TABLE2.map(|(da, dalpha, dtheta, dd, dbeta)| JointErrors {
@@ -48,14 +52,15 @@ pub fn table2<T: Real>() -> ParameterErrors<T, 6> {
     errors
 }
 
-/// The ER10L-C10 on a tilted base with an offset probe, to exercise the frame terms.
-pub fn er10l_with_frames() -> Robot<f64, 6> {
-    let mut robot = er10l::<f64>();
-    robot.base = FramePose {
+/// The ER10L-C10 on a tilted base with an offset probe, to exercise the frame terms in tests.
+#[cfg(test)]
+pub(crate) fn er10l_with_frames() -> Robot<f64, 6> {
+    let mut robot = er10l_c10::<f64>();
+    robot.base = crate::model::FramePose {
         xyz: [1500.0, -300.0, 250.0],
         rpy: [0.2, -0.4, 2.5],
     };
-    robot.tool = FramePose {
+    robot.tool = crate::model::FramePose {
         xyz: [12.0, -30.0, 85.0],
         rpy: [1.1, 0.3, -0.7],
     };
