@@ -5,6 +5,7 @@ use crate::mdh::PreparedJoint;
 use crate::model::{Robot, joint_number};
 use crate::parameters::{FrameErrors, ParameterErrors};
 use crate::scalar::Real;
+use crate::trig;
 use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, Translation3, Vector3};
 
 /// A rigid pose: rotation matrix and translation (mm).
@@ -58,6 +59,11 @@ pub struct Kinematics<T: Real, const N: usize> {
 
 /// A frame with the rotation-error axes of its `R_nominal Rz(rz) Ry(ry) Rx(rx)` parametrisation.
 fn frame_with_errors<T: Real>(nominal: &Pose<T>, errors: &FrameErrors<T>) -> (Pose<T>, Matrix3<T>) {
+    let zero = |v: &[T; 3]| v.iter().all(|x| *x == T::zero());
+    if zero(&errors.translation) && zero(&errors.rotation) {
+        // Rz(0) = I: the error axes are the nominal frame's own axes.
+        return (*nominal, *nominal.rotation.matrix());
+    }
     let [tx, ty, tz] = errors.translation;
     let [rx, ry, rz] = errors.rotation;
     let r_nominal = nominal.rotation.matrix();
@@ -73,6 +79,98 @@ fn frame_with_errors<T: Real>(nominal: &Pose<T>, errors: &FrameErrors<T>) -> (Po
         Pose::from_parts(Translation3::from(translation), rotation),
         axes,
     )
+}
+
+/// The nominal robot with its constant trigonometry done once, ready to produce the actual model
+/// for many candidate error vectors (the swarm and least squares evaluate thousands).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PreparedRobot<T: Real, const N: usize> {
+    joints: [NominalJoint<T>; N],
+    base: Pose<T>,
+    tool: Pose<T>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct NominalJoint<T> {
+    a: T,
+    d: T,
+    /// `(cos, sin)` of the nominal alpha, beta and theta_offset.
+    alpha: (T, T),
+    beta: (T, T),
+    offset: (T, T),
+}
+
+impl<T: Real, const N: usize> PreparedRobot<T, N> {
+    /// Prepares a nominal robot (not validated: see [`Robot::validate`]).
+    pub fn new(robot: &Robot<T, N>) -> Self {
+        let cos_sin = |x: T| {
+            let (s, c) = x.sin_cos_libm();
+            (c, s)
+        };
+        let mut joints = [NominalJoint {
+            a: T::zero(),
+            d: T::zero(),
+            alpha: (T::one(), T::zero()),
+            beta: (T::one(), T::zero()),
+            offset: (T::one(), T::zero()),
+        }; N];
+        for (prepared, joint) in joints.iter_mut().zip(&robot.joints) {
+            *prepared = NominalJoint {
+                a: joint.a,
+                d: joint.d,
+                alpha: cos_sin(joint.alpha),
+                beta: cos_sin(joint.beta),
+                offset: cos_sin(joint.theta_offset),
+            };
+        }
+        Self {
+            joints,
+            base: robot.base.isometry(),
+            tool: robot.tool.isometry(),
+        }
+    }
+
+    /// The actual model for `errors` (mm, rad). The trigonometry of the joint errors uses angle
+    /// addition and the small-angle polynomial of [`trig::sin_cos_small`], so for errors within
+    /// 0.1 rad no libm call is made. Non-finite errors give a model that evaluates to NaN (no panic);
+    /// [`Kinematics::new`] checks them first.
+    pub fn actual(&self, errors: &ParameterErrors<T, N>) -> Kinematics<T, N> {
+        let mut joints = [PreparedJoint::from_trig(
+            T::zero(),
+            T::zero(),
+            (T::one(), T::zero()),
+            (T::one(), T::zero()),
+            (T::one(), T::zero()),
+        ); N];
+        for (prepared, (n, e)) in joints
+            .iter_mut()
+            .zip(self.joints.iter().zip(&errors.joints))
+        {
+            let with_error = |nominal: (T, T), error: T| {
+                if error == T::zero() {
+                    return nominal;
+                }
+                let (s, c) = trig::sin_cos_small(error);
+                trig::add(nominal, (c, s))
+            };
+            *prepared = PreparedJoint::from_trig(
+                n.a + e.da,
+                n.d + e.dd,
+                with_error(n.alpha, e.dalpha),
+                with_error(n.beta, e.dbeta),
+                with_error(n.offset, e.dtheta),
+            );
+        }
+        let (base, base_axes) = frame_with_errors(&self.base, &errors.base);
+        let (tool, tool_axes) = frame_with_errors(&self.tool, &errors.tool);
+        Kinematics {
+            joints,
+            base,
+            tool,
+            base_axes,
+            tool_axes,
+        }
+    }
 }
 
 /// Every intermediate quantity of one forward kinematics, kept for the Jacobians.
@@ -102,29 +200,7 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
     ) -> Result<Self, KinematicsError> {
         robot.validate()?;
         errors.validate()?;
-        let mut joints =
-            [PreparedJoint::new(T::zero(), T::zero(), T::zero(), T::zero(), T::zero()); N];
-        for (prepared, (n, e)) in joints
-            .iter_mut()
-            .zip(robot.joints.iter().zip(&errors.joints))
-        {
-            *prepared = PreparedJoint::new(
-                n.a + e.da,
-                n.alpha + e.dalpha,
-                n.theta_offset + e.dtheta,
-                n.d + e.dd,
-                n.beta + e.dbeta,
-            );
-        }
-        let (base, base_axes) = frame_with_errors(&robot.base.isometry(), &errors.base);
-        let (tool, tool_axes) = frame_with_errors(&robot.tool.isometry(), &errors.tool);
-        Ok(Self {
-            joints,
-            base,
-            tool,
-            base_axes,
-            tool_axes,
-        })
+        Ok(PreparedRobot::new(robot).actual(errors))
     }
 
     /// The nominal model (all errors zero).

@@ -22,6 +22,7 @@
 #![deny(missing_docs)]
 
 pub mod error;
+pub mod halton;
 pub mod jacobian;
 pub mod kinematics;
 pub mod mdh;
@@ -31,9 +32,10 @@ pub mod parameters;
 pub mod pose_error;
 pub mod scalar;
 pub mod so3;
+pub mod trig;
 
 pub use error::KinematicsError;
-pub use kinematics::{Kinematics, Pose};
+pub use kinematics::{JointAngles, Kinematics, Pose, PreparedRobot};
 pub use model::{FramePose, JointLimits, MdhJoint, Robot};
 pub use parameters::{
     FrameErrors, FrameParameter, JointErrors, JointParameter, Parameter, ParameterErrors,

@@ -16,14 +16,23 @@ pub struct PreparedJoint<T: Real> {
     pub offset: (T, T),
     /// `Rx(alpha) Ry(beta)`, the constant right factor of the joint rotation.
     pub twist: Matrix3<T>,
+    /// `(cos alpha, sin alpha)`, and whether `beta` is exactly zero (then `twist = Rx(alpha)`,
+    /// which [`PreparedJoint::append`] applies with 12 instead of 27 multiplications).
+    alpha_only: Option<(T, T)>,
 }
 
 impl<T: Real> PreparedJoint<T> {
     /// Prepares a joint from its actual MDH values (mm, rad).
     pub fn new(a: T, alpha: T, theta_offset: T, d: T, beta: T) -> Self {
-        let (sa, ca) = alpha.sin_cos_libm();
-        let (sb, cb) = beta.sin_cos_libm();
-        let (so, co) = theta_offset.sin_cos_libm();
+        let cos_sin = |x: T| {
+            let (s, c) = x.sin_cos_libm();
+            (c, s)
+        };
+        Self::from_trig(a, d, cos_sin(alpha), cos_sin(beta), cos_sin(theta_offset))
+    }
+
+    /// Prepares a joint from `a`, `d` (mm) and `(cos, sin)` of `alpha`, `beta`, `theta_offset`.
+    pub fn from_trig(a: T, d: T, (ca, sa): (T, T), (cb, sb): (T, T), offset: (T, T)) -> Self {
         // Rx(alpha) Ry(beta) in closed form.
         #[rustfmt::skip]
         let twist = Matrix3::new(
@@ -31,11 +40,13 @@ impl<T: Real> PreparedJoint<T> {
             sa * sb,  ca,        -sa * cb,
             -ca * sb, sa,        ca * cb,
         );
+        let alpha_only = (sb == T::zero() && cb == T::one()).then_some((ca, sa));
         Self {
             a,
             d,
-            offset: (co, so),
+            offset,
             twist,
+            alpha_only,
         }
     }
 
@@ -64,7 +75,7 @@ impl<T: Real> PreparedJoint<T> {
     /// Appends this joint to the frame `(rotation, origin)` of the previous joint, in place:
     /// `F <- F * A`. Returns the x axis of `F_prev Rz(theta)` (the axis of `a` and `alpha`).
     ///
-    /// Cost: 45 multiplications, against 63 for a general rigid product.
+    /// Cost: 30 multiplications when `beta = 0`, 45 otherwise (63 for a general rigid product).
     #[inline(always)]
     pub fn append(
         &self,
@@ -81,7 +92,11 @@ impl<T: Real> PreparedJoint<T> {
         let x = r1 * c + r2 * s;
         let y = r2 * c - r1 * s;
         *origin += x * self.a + z * self.d;
-        *rotation = Matrix3::from_columns(&[x, y, z]) * self.twist;
+        *rotation = match self.alpha_only {
+            // [x, y, z] Rx(alpha) = [x, c y + s z, c z - s y].
+            Some((ca, sa)) => Matrix3::from_columns(&[x, y * ca + z * sa, z * ca - y * sa]),
+            None => Matrix3::from_columns(&[x, y, z]) * self.twist,
+        };
         x
     }
 }
@@ -102,8 +117,14 @@ mod tests {
 
     #[test]
     fn closed_form_equals_the_product_of_elementary_transforms() {
-        let (a, alpha, offset, d, beta) = (170.0, -1.3, 0.4, 55.0, 0.02);
+        for beta in [0.02, 0.0] {
+            check_joint(170.0, -1.3, 0.4, 55.0, beta);
+        }
+    }
+
+    fn check_joint(a: f64, alpha: f64, offset: f64, d: f64, beta: f64) {
         let joint = PreparedJoint::new(a, alpha, offset, d, beta);
+        assert_eq!(joint.alpha_only.is_some(), beta == 0.0);
         for q in [-3.0, -0.5, 0.0, 1.0, 2.5] {
             let (s, c) = libm::sincos(q);
             let (ct, st) = joint.theta(c, s);
