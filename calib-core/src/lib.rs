@@ -23,15 +23,18 @@
 
 pub mod error;
 pub mod halton;
+pub mod ipso;
 pub mod jacobian;
 pub mod kinematics;
 pub mod mdh;
 pub mod model;
+pub mod objective;
 pub mod paper;
 pub mod parameters;
 pub mod pose_error;
 pub mod scalar;
 pub mod so3;
+pub mod statistics;
 pub mod trig;
 
 pub use error::KinematicsError;

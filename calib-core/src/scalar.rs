@@ -16,6 +16,8 @@ pub trait Real: RealField + Copy {
     fn to_f64(self) -> f64;
     /// `true` when the value is neither infinite nor NaN.
     fn finite(self) -> bool;
+    /// A uniform value in `[0, 1)` from 64 random bits (the top 53 bits for `f64`, 24 for `f32`).
+    fn unit_from_bits(bits: u64) -> Self;
 }
 
 impl Real for f64 {
@@ -35,6 +37,10 @@ impl Real for f64 {
     fn finite(self) -> bool {
         self.is_finite()
     }
+    #[inline]
+    fn unit_from_bits(bits: u64) -> Self {
+        (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
 }
 
 impl Real for f32 {
@@ -53,5 +59,9 @@ impl Real for f32 {
     #[inline]
     fn finite(self) -> bool {
         self.is_finite()
+    }
+    #[inline]
+    fn unit_from_bits(bits: u64) -> Self {
+        (bits >> 40) as f32 * (1.0 / (1u32 << 24) as f32)
     }
 }

@@ -62,6 +62,24 @@ pub fn log<T: Real>(r: &Matrix3<T>) -> Vector3<T> {
     n * theta
 }
 
+/// Rotation angle (rad) between two rotation matrices, `|log(a b^T)|`, without forming the product
+/// and, for angles up to 0.1 rad, without any libm call: `|a - b|_F^2 = 8 sin^2(angle / 2)`, then
+/// `angle = 2 asin(x)` by its series (first omitted term below 2e-19 for x <= 0.05), libm beyond.
+pub fn angle_between<T: Real>(a: &Matrix3<T>, b: &Matrix3<T>) -> T {
+    let x = ((a - b).norm_squared() / T::of(8.0)).sqrt();
+    if x > T::of(0.05) {
+        return T::of(2.0) * x.min(T::one()).asin();
+    }
+    let x2 = x * x;
+    // asin x = x (1 + x^2/6 + 3x^4/40 + 5x^6/112 + 35x^8/1152 + 63x^10/2816).
+    let series = T::one()
+        + x2 * (T::of(1.0 / 6.0)
+            + x2 * (T::of(3.0 / 40.0)
+                + x2 * (T::of(5.0 / 112.0)
+                    + x2 * (T::of(35.0 / 1152.0) + x2 * T::of(63.0 / 2816.0)))));
+    T::of(2.0) * x * series
+}
+
 /// Inverse of the right Jacobian of SO(3) at `phi` (rad):
 /// `Jr^-1 = I + [phi]x / 2 + (1/theta^2 - (1 + cos theta) / (2 theta sin theta)) [phi]x^2`.
 ///
@@ -125,6 +143,21 @@ mod tests {
         let phi: Vector3<f64> = log(&r);
         assert!((phi.norm() - core::f64::consts::PI).abs() < 1e-15);
         assert!((phi.normalize().x.abs() - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn angle_between_equals_the_norm_of_the_log() {
+        let a = exp(&Vector3::new(0.4, -1.0, 2.0));
+        for angle in [0.0, 1e-10, 1e-6, 1e-3, 0.03, 0.0999, 0.1001, 0.5, 3.0] {
+            let delta = exp(&(Vector3::new(1.0, 2.0, -0.5).normalize() * angle));
+            let b = delta * a;
+            let got = angle_between(&b, &a);
+            assert!(
+                (got - angle).abs() <= 2e-15 * (1.0 + angle),
+                "{angle}: {got}"
+            );
+            assert!((got - log(&(b * a.transpose())).norm()).abs() <= 2e-15 * (1.0 + angle));
+        }
     }
 
     #[test]

@@ -1,0 +1,534 @@
+//! The improved particle swarm optimiser (IPSO) of the paper, section 2.2: particles start from
+//! Halton points (eq. 8-9) and fly with the constriction-factor velocity update (eq. 10):
+//!
+//! `v <- K (v + c1 r1 (pbest - x) + c2 r2 (gbest - x))`, `x <- x + v` (time step 1),
+//! `K = 2 / |2 - phi - sqrt(phi^2 - 4 phi)|`, `phi = c1 + c2 > 4`.
+//!
+//! Swarm size `P` and dimension `D` are const generics; the whole swarm lives on the stack
+//! (`3 P D + P` scalars: 15.5 KiB for P = 20, D = 24 in f64, half in f32). `r1, r2` are drawn per
+//! particle and per dimension from `Xoshiro256PlusPlus` seeded by the caller, so the same seed and
+//! data give bit-identical results on every target.
+//!
+//! Initialisation: particle `i` (0-based) takes Halton point `start + i` for its position,
+//! `center + (2h - 1) half_width`, and Halton point `start + P + i` (the continuation of the same
+//! sequence) for its velocity, `(2h - 1) half_width`. Updates are synchronous: all particles move,
+//! then personal and global bests are updated (paper steps 5-9).
+//!
+//! Bounds: a coordinate that leaves `[lower, upper]` is set onto the bound and its velocity
+//! component to zero (an absorbing wall), so the swarm never evaluates outside the search box.
+
+use crate::halton::{self, MAX_DIMENSION, Scrambling};
+use crate::scalar::Real;
+use core::fmt;
+use nalgebra::SVector;
+use rand_core::{Rng, SeedableRng};
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+/// Something to minimise: the cost of a packed parameter vector. Non-finite costs count as +inf.
+pub trait CostFunction<T: Real, const D: usize> {
+    /// The cost at `x`.
+    fn cost(&mut self, x: &SVector<T, D>) -> T;
+
+    /// The costs of several points (`out[i]` for `xs[i]`); the swarm calls this once per
+    /// generation. The default evaluates one after the other; a host may evaluate in parallel.
+    fn cost_batch(&mut self, xs: &[SVector<T, D>], out: &mut [T]) {
+        for (x, c) in xs.iter().zip(out.iter_mut()) {
+            *c = self.cost(x);
+        }
+    }
+}
+
+impl<T: Real, const D: usize, F: FnMut(&SVector<T, D>) -> T> CostFunction<T, D> for F {
+    fn cost(&mut self, x: &SVector<T, D>) -> T {
+        self(x)
+    }
+}
+
+/// What an observer wants after a generation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Control {
+    /// Go on.
+    Continue,
+    /// Stop now; the result says [`StopReason::Cancelled`].
+    Cancel,
+}
+
+/// Called once per generation (0 = the initial swarm) with the best cost so far.
+pub trait Observer<T> {
+    /// Reports a finished generation.
+    fn generation(&mut self, generation: u32, best_cost: T) -> Control;
+}
+
+impl<T, F: FnMut(u32, T) -> Control> Observer<T> for F {
+    fn generation(&mut self, generation: u32, best_cost: T) -> Control {
+        self(generation, best_cost)
+    }
+}
+
+/// An observer that never cancels.
+pub struct Silent;
+
+impl<T> Observer<T> for Silent {
+    fn generation(&mut self, _: u32, _: T) -> Control {
+        Control::Continue
+    }
+}
+
+/// Where the swarm starts and where it may search (per parameter, mm or rad).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SearchSpace<T: Real, const D: usize> {
+    /// Centre of the initial swarm (usually the current estimate, e.g. zero errors).
+    pub center: SVector<T, D>,
+    /// Half width of the initial positions and velocities (paper: 0.01 rad, 0.5 mm).
+    pub half_width: SVector<T, D>,
+    /// Lower search bound.
+    pub lower: SVector<T, D>,
+    /// Upper search bound.
+    pub upper: SVector<T, D>,
+}
+
+impl<T: Real, const D: usize> SearchSpace<T, D> {
+    /// The box `center +- half_width` for the start and `center +- bound_factor * half_width` for
+    /// the search.
+    pub fn around(center: SVector<T, D>, half_width: SVector<T, D>, bound_factor: T) -> Self {
+        let reach = half_width * bound_factor;
+        Self {
+            center,
+            half_width,
+            lower: center - reach,
+            upper: center + reach,
+        }
+    }
+}
+
+/// Settings of a swarm run; [`IpsoSettings::paper`] gives the paper's values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct IpsoSettings<T> {
+    /// Cognitive acceleration coefficient (paper: 2.05).
+    pub c1: T,
+    /// Social acceleration coefficient (paper: 2.05).
+    pub c2: T,
+    /// Maximum number of generations after the initial swarm (paper: 2000).
+    pub max_generations: u32,
+    /// Stop as soon as the best cost is at most this (default: -inf, i.e. never).
+    pub target_cost: T,
+    /// Stop after this many generations without improvement of the best cost (0: never).
+    pub stall_generations: u32,
+    /// Halton index of the first particle (the paper's k; default 1, skipping the zero point).
+    pub halton_start: u64,
+    /// Digit scrambling of the Halton points (default none, as in the paper).
+    pub scrambling: Scrambling,
+    /// Seed of the generator of `r1, r2`.
+    pub seed: u64,
+}
+
+impl<T: Real> IpsoSettings<T> {
+    /// The paper's settings: c1 = c2 = 2.05, 2000 generations, plain Halton from k = 1, seed 0.
+    pub fn paper() -> Self {
+        Self {
+            c1: T::of(2.05),
+            c2: T::of(2.05),
+            max_generations: 2000,
+            target_cost: T::of(f64::NEG_INFINITY),
+            stall_generations: 0,
+            halton_start: 1,
+            scrambling: Scrambling::None,
+            seed: 0,
+        }
+    }
+}
+
+/// Why the swarm stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum StopReason {
+    /// The maximum number of generations ran.
+    MaxGenerations,
+    /// The best cost reached the target.
+    TargetReached,
+    /// The best cost did not improve for the configured number of generations.
+    Stalled,
+    /// The observer cancelled the run.
+    Cancelled,
+}
+
+/// Why a swarm run was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum IpsoError {
+    /// `c1`, `c2` are not finite and positive with `c1 + c2 > 4` (eq. 10 needs phi > 4).
+    InvalidCoefficients,
+    /// A bound or width is not finite, a width is negative, or a lower bound exceeds its upper one.
+    InvalidSearchSpace,
+    /// `D` exceeds the number of Halton bases (64) or `P` is zero.
+    InvalidSize,
+}
+
+impl fmt::Display for IpsoError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::InvalidCoefficients => "c1 and c2 must be positive with c1 + c2 > 4",
+            Self::InvalidSearchSpace => {
+                "search space: bounds and widths must be finite, widths >= 0, lower <= upper"
+            }
+            Self::InvalidSize => "swarm size must be at least 1 and dimension at most 64",
+        })
+    }
+}
+
+impl core::error::Error for IpsoError {}
+
+/// The outcome of a swarm run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IpsoResult<T: Real, const D: usize> {
+    /// Best position found (mm, rad).
+    pub best: SVector<T, D>,
+    /// Its cost.
+    pub best_cost: T,
+    /// Cost of the best initial particle.
+    pub initial_cost: T,
+    /// Generations run after the initial swarm.
+    pub generations: u32,
+    /// Cost evaluations.
+    pub evaluations: u64,
+    /// Why it stopped.
+    pub stop: StopReason,
+}
+
+/// The constriction factor `K` of eq. (10) for `phi = c1 + c2 > 4`.
+pub fn constriction<T: Real>(c1: T, c2: T) -> Result<T, IpsoError> {
+    let phi = c1 + c2;
+    if !(c1.finite() && c2.finite() && c1 > T::zero() && c2 > T::zero() && phi > T::of(4.0)) {
+        return Err(IpsoError::InvalidCoefficients);
+    }
+    let two = T::of(2.0);
+    Ok(two / (two - phi - (phi * phi - T::of(4.0) * phi).sqrt()).abs())
+}
+
+fn sanitize<T: Real>(cost: T) -> T {
+    if cost.finite() {
+        cost
+    } else {
+        T::of(f64::INFINITY)
+    }
+}
+
+/// Runs the swarm of `P` particles in `D` dimensions on `cost`.
+pub fn optimize<T, const P: usize, const D: usize>(
+    cost: &mut impl CostFunction<T, D>,
+    space: &SearchSpace<T, D>,
+    settings: &IpsoSettings<T>,
+    observer: &mut impl Observer<T>,
+) -> Result<IpsoResult<T, D>, IpsoError>
+where
+    T: Real,
+{
+    if P == 0 || D > MAX_DIMENSION {
+        return Err(IpsoError::InvalidSize);
+    }
+    let k = constriction(settings.c1, settings.c2)?;
+    let valid = |v: &SVector<T, D>| v.iter().all(|x| x.finite());
+    if !(valid(&space.center)
+        && valid(&space.half_width)
+        && valid(&space.lower)
+        && valid(&space.upper))
+        || space.half_width.iter().any(|w| *w < T::zero())
+        || space
+            .lower
+            .iter()
+            .zip(space.upper.iter())
+            .any(|(lo, hi)| lo > hi)
+    {
+        return Err(IpsoError::InvalidSearchSpace);
+    }
+
+    let mut positions = [SVector::<T, D>::zeros(); P];
+    let mut velocities = [SVector::<T, D>::zeros(); P];
+    let mut unit = [0.0f64; D];
+    let two = T::of(2.0);
+    let start = settings.halton_start;
+    for (i, (x, v)) in positions.iter_mut().zip(velocities.iter_mut()).enumerate() {
+        let i = i as u64;
+        halton::halton_point(start.wrapping_add(i), settings.scrambling, &mut unit);
+        for (((xj, h), c), w) in x
+            .iter_mut()
+            .zip(&unit)
+            .zip(space.center.iter())
+            .zip(space.half_width.iter())
+        {
+            *xj = *c + (two * T::of(*h) - T::one()) * *w;
+        }
+        halton::halton_point(
+            start.wrapping_add(P as u64 + i),
+            settings.scrambling,
+            &mut unit,
+        );
+        for ((vj, h), w) in v.iter_mut().zip(&unit).zip(space.half_width.iter()) {
+            *vj = (two * T::of(*h) - T::one()) * *w;
+        }
+        clamp(x, v, space);
+    }
+
+    let mut costs = [T::zero(); P];
+    cost.cost_batch(&positions, &mut costs);
+    let mut evaluations = P as u64;
+    let mut best_positions = positions;
+    let mut best_costs = costs.map(sanitize);
+    let (mut global, mut global_cost) = best_of(&best_positions, &best_costs);
+    let initial_cost = global_cost;
+
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(settings.seed);
+    let (c1, c2) = (settings.c1, settings.c2);
+    let mut generations = 0;
+    let mut stalled = 0u32;
+    let mut stop = StopReason::MaxGenerations;
+    if observer.generation(0, global_cost) == Control::Cancel {
+        stop = StopReason::Cancelled;
+    } else if global_cost <= settings.target_cost {
+        stop = StopReason::TargetReached;
+    } else {
+        while generations < settings.max_generations {
+            generations += 1;
+            for ((x, v), pbest) in positions
+                .iter_mut()
+                .zip(velocities.iter_mut())
+                .zip(&best_positions)
+            {
+                for (((xj, vj), pj), gj) in x
+                    .iter_mut()
+                    .zip(v.iter_mut())
+                    .zip(pbest.iter())
+                    .zip(global.iter())
+                {
+                    let r1 = T::unit_from_bits(rng.next_u64());
+                    let r2 = T::unit_from_bits(rng.next_u64());
+                    // Eq. (10): constriction-factor velocity update, then x <- x + v.
+                    *vj = k * (*vj + c1 * r1 * (*pj - *xj) + c2 * r2 * (*gj - *xj));
+                    *xj += *vj;
+                }
+                clamp(x, v, space);
+            }
+            cost.cost_batch(&positions, &mut costs);
+            evaluations += P as u64;
+            for ((c, best_c), (x, best_x)) in costs
+                .iter()
+                .zip(best_costs.iter_mut())
+                .zip(positions.iter().zip(best_positions.iter_mut()))
+            {
+                let c = sanitize(*c);
+                if c < *best_c {
+                    *best_c = c;
+                    *best_x = *x;
+                }
+            }
+            let (candidate, candidate_cost) = best_of(&best_positions, &best_costs);
+            if candidate_cost < global_cost {
+                global = candidate;
+                global_cost = candidate_cost;
+                stalled = 0;
+            } else {
+                stalled += 1;
+            }
+            if observer.generation(generations, global_cost) == Control::Cancel {
+                stop = StopReason::Cancelled;
+                break;
+            }
+            if global_cost <= settings.target_cost {
+                stop = StopReason::TargetReached;
+                break;
+            }
+            if settings.stall_generations > 0 && stalled >= settings.stall_generations {
+                stop = StopReason::Stalled;
+                break;
+            }
+        }
+    }
+    Ok(IpsoResult {
+        best: global,
+        best_cost: global_cost,
+        initial_cost,
+        generations,
+        evaluations,
+        stop,
+    })
+}
+
+/// Absorbing walls: a coordinate outside its bounds goes onto the bound and stops.
+fn clamp<T: Real, const D: usize>(
+    x: &mut SVector<T, D>,
+    v: &mut SVector<T, D>,
+    space: &SearchSpace<T, D>,
+) {
+    for (((xj, vj), lo), hi) in x
+        .iter_mut()
+        .zip(v.iter_mut())
+        .zip(space.lower.iter())
+        .zip(space.upper.iter())
+    {
+        if *xj < *lo {
+            *xj = *lo;
+            *vj = T::zero();
+        } else if *xj > *hi {
+            *xj = *hi;
+            *vj = T::zero();
+        }
+    }
+}
+
+/// The position with the lowest cost (the first one on ties; all costs are sanitised, never NaN).
+fn best_of<T: Real, const P: usize, const D: usize>(
+    positions: &[SVector<T, D>; P],
+    costs: &[T; P],
+) -> (SVector<T, D>, T) {
+    let mut pairs = positions.iter().zip(costs);
+    let Some((first, first_cost)) = pairs.next() else {
+        return (SVector::zeros(), T::of(f64::INFINITY));
+    };
+    pairs.fold((*first, *first_cost), |best, (x, c)| {
+        if *c < best.1 { (*x, *c) } else { best }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A convex quadratic in 24 dimensions with minimum 0 at `x*` (well inside the box).
+    fn quadratic(x: &SVector<f64, 24>) -> f64 {
+        x.iter()
+            .enumerate()
+            .map(|(i, v)| {
+                let target = 0.003 * (i as f64 - 11.5);
+                (1.0 + i as f64) * (v - target).powi(2)
+            })
+            .sum()
+    }
+
+    fn space() -> SearchSpace<f64, 24> {
+        SearchSpace::around(SVector::zeros(), SVector::repeat(0.05), 2.0)
+    }
+
+    #[test]
+    fn constriction_factor_of_the_paper() {
+        // phi = 4.1: K = 2 / |2 - 4.1 - sqrt(4.1^2 - 16.4)| = 0.729843788...
+        let k: f64 = constriction(2.05, 2.05).unwrap();
+        assert!((k - 0.729_843_788_128_357_8).abs() < 1e-15, "{k}");
+        assert_eq!(constriction(2.0, 2.0), Err(IpsoError::InvalidCoefficients));
+        assert_eq!(
+            constriction(f64::NAN, 3.0),
+            Err(IpsoError::InvalidCoefficients)
+        );
+    }
+
+    #[test]
+    fn reaches_1e_10_on_a_convex_quadratic_in_24_dimensions() {
+        let mut settings = IpsoSettings::paper();
+        settings.seed = 7;
+        let result =
+            optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
+        assert!(result.best_cost < 1e-10, "best {}", result.best_cost);
+        assert!(result.initial_cost > 1e-3);
+        assert_eq!(result.generations, 2000);
+        assert_eq!(result.evaluations, 20 * 2001);
+        assert_eq!(result.stop, StopReason::MaxGenerations);
+    }
+
+    #[test]
+    fn same_seed_gives_bit_identical_results_and_another_seed_differs() {
+        let mut settings = IpsoSettings::<f64>::paper();
+        settings.max_generations = 300;
+        settings.seed = 42;
+        let a = optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
+        let b = optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(a.best_cost.to_bits(), b.best_cost.to_bits());
+        settings.seed = 43;
+        let c = optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
+        assert_ne!(a.best, c.best);
+    }
+
+    #[test]
+    fn stops_on_target_stall_and_cancel() {
+        let mut settings = IpsoSettings::<f64>::paper();
+        settings.target_cost = 1e-4;
+        let r = optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
+        assert_eq!(r.stop, StopReason::TargetReached);
+        assert!(r.best_cost <= 1e-4 && r.generations < 2000);
+
+        // A constant cost never improves.
+        settings = IpsoSettings::paper();
+        settings.stall_generations = 25;
+        let r = optimize::<f64, 5, 24>(
+            &mut |_: &SVector<f64, 24>| 1.0,
+            &space(),
+            &settings,
+            &mut Silent,
+        )
+        .unwrap();
+        assert_eq!((r.stop, r.generations), (StopReason::Stalled, 25));
+
+        let mut seen = 0;
+        let mut cancel_at_3 = |g: u32, _: f64| {
+            seen += 1;
+            if g == 3 {
+                Control::Cancel
+            } else {
+                Control::Continue
+            }
+        };
+        let r = optimize::<f64, 5, 24>(
+            &mut quadratic,
+            &space(),
+            &IpsoSettings::paper(),
+            &mut cancel_at_3,
+        )
+        .unwrap();
+        assert_eq!((r.stop, r.generations, seen), (StopReason::Cancelled, 3, 4));
+    }
+
+    #[test]
+    fn never_leaves_the_bounds_and_survives_nan_costs() {
+        let s = space();
+        let mut inside = true;
+        let mut nan_sometimes = |x: &SVector<f64, 24>| {
+            inside &= x
+                .iter()
+                .zip(s.lower.iter().zip(s.upper.iter()))
+                .all(|(v, (lo, hi))| lo <= v && v <= hi);
+            if x[0] > 0.02 { f64::NAN } else { quadratic(x) }
+        };
+        let mut settings = IpsoSettings::paper();
+        settings.max_generations = 200;
+        let r = optimize::<f64, 20, 24>(&mut nan_sometimes, &s, &settings, &mut Silent).unwrap();
+        assert!(inside);
+        assert!(r.best_cost.is_finite() && r.best[0] <= 0.02);
+    }
+
+    #[test]
+    fn rejects_bad_spaces_and_sizes() {
+        let mut bad = space();
+        bad.lower[3] = 1.0;
+        let settings = IpsoSettings::paper();
+        assert_eq!(
+            optimize::<f64, 20, 24>(&mut quadratic, &bad, &settings, &mut Silent),
+            Err(IpsoError::InvalidSearchSpace)
+        );
+        let s0 = SearchSpace::around(SVector::<f64, 65>::zeros(), SVector::repeat(1.0), 1.0);
+        assert_eq!(
+            optimize::<f64, 4, 65>(&mut |_: &SVector<f64, 65>| 0.0, &s0, &settings, &mut Silent),
+            Err(IpsoError::InvalidSize)
+        );
+    }
+
+    #[test]
+    fn works_in_f32() {
+        let mut settings = IpsoSettings::<f32>::paper();
+        settings.seed = 7;
+        let space = SearchSpace::around(SVector::<f32, 24>::zeros(), SVector::repeat(0.05), 2.0);
+        let mut f = |x: &SVector<f32, 24>| quadratic(&x.map(f64::from)) as f32;
+        let r = optimize::<f32, 20, 24>(&mut f, &space, &settings, &mut Silent).unwrap();
+        assert!(r.best_cost < 1e-9, "{}", r.best_cost);
+    }
+}
