@@ -31,6 +31,15 @@ fn forward<T: Real>(c: &mut Criterion, name: &str) {
     c.bench_function(name, |b| {
         b.iter(|| black_box(&kinematics).forward(black_box(&q)))
     });
+    let angles = JointAngles::new(&q).unwrap();
+    c.bench_function(&format!("{name}_precomputed_sin_cos"), |b| {
+        b.iter(|| black_box(&kinematics).forward_angles(black_box(&angles)))
+    });
+    let prepared = calib_core::PreparedRobot::new(&er10l::<T>());
+    let e = errors::<T>();
+    c.bench_function(&format!("prepare_actual_model_{name}"), |b| {
+        b.iter(|| black_box(&prepared).actual(black_box(&e)))
+    });
 }
 
 fn benches(c: &mut Criterion) {

@@ -55,6 +55,8 @@ pub struct Kinematics<T: Real, const N: usize> {
     base_axes: Matrix3<T>,
     /// Axes of the tool rotation errors `rx, ry, rz` (columns) in the flange frame.
     tool_axes: Matrix3<T>,
+    /// The tool frame is exactly the identity (its product is skipped).
+    tool_is_identity: bool,
 }
 
 /// A frame with the rotation-error axes of its `R_nominal Rz(rz) Ry(ry) Rx(rx)` parametrisation.
@@ -169,6 +171,7 @@ impl<T: Real, const N: usize> PreparedRobot<T, N> {
             tool,
             base_axes,
             tool_axes,
+            tool_is_identity: tool == Pose::identity(),
         }
     }
 }
@@ -236,11 +239,14 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
             let (ct, st) = joint.theta(*c, *s);
             joint.append(&mut rotation, &mut origin, ct, st);
         }
-        let flange = Pose::from_parts(
+        if !self.tool_is_identity {
+            origin += rotation * self.tool.translation.vector;
+            rotation *= self.tool.rotation.matrix();
+        }
+        Pose::from_parts(
             Translation3::from(origin),
             Rotation3::from_matrix_unchecked(rotation),
-        );
-        flange * self.tool
+        )
     }
 
     /// Forward kinematics keeping every joint's axes and origins (for the Jacobians).

@@ -234,8 +234,7 @@ impl<'a, T: Real, const N: usize, const D: usize> Objective<'a, T, N, D> {
             let dp2 = (m.position - pose.translation.vector).norm_squared();
             let term = match &m.rotation {
                 Some(r) => {
-                    let angle = so3::angle_between(r, pose.rotation.matrix());
-                    (self.k * angle * angle + dp2).sqrt()
+                    (self.k * so3::angle_squared_between(r, pose.rotation.matrix()) + dp2).sqrt()
                 }
                 None => dp2.sqrt(),
             };

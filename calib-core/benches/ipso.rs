@@ -1,0 +1,68 @@
+//! Swarm benchmarks: one eq. (7) evaluation over 32 poses, and the paper's whole run
+//! (20 particles, 24 parameters, 2000 generations, 32 poses) in f64 and f32.
+//!
+//! Run: `cargo bench -p calib-core --bench ipso`.
+
+// Set-up of fixed, valid inputs: a failure here is a bug in the benchmark itself.
+#![allow(clippy::unwrap_used)]
+
+use calib_core::ipso::{self, IpsoSettings, SearchSpace, Silent};
+use calib_core::objective::{DEFAULT_K, Measurement, MeasurementSet, Objective};
+use calib_core::paper::{er10l_c10, table2};
+use calib_core::{Kinematics, ParameterErrors, ParameterMask, ParameterSet, Real};
+use criterion::{Criterion, criterion_group, criterion_main};
+use nalgebra::SVector;
+use std::hint::black_box;
+
+fn measurements<T: Real>() -> MeasurementSet<T, 6, 32> {
+    let truth = Kinematics::new(&er10l_c10::<T>(), &table2::<T>()).unwrap();
+    let mut set = MeasurementSet::new();
+    for i in 0..32 {
+        let q = std::array::from_fn(|j| T::of(((i * 6 + j) as f64 * 2.399_963).sin() * 3.1));
+        set.push(Measurement::from_pose(&q, &truth.forward(&q).unwrap()).unwrap())
+            .unwrap();
+    }
+    set
+}
+
+fn paper_run<T: Real>(c: &mut Criterion, name: &str) {
+    let robot = er10l_c10::<T>();
+    let set = ParameterSet::<6, 24>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
+    let data = measurements::<T>();
+    let objective = Objective::new(
+        &robot,
+        &ParameterErrors::zero(),
+        set,
+        data.as_slice(),
+        T::of(DEFAULT_K),
+    )
+    .unwrap();
+    let widths = SVector::<T, 24>::from_iterator(
+        set.parameters()
+            .iter()
+            .map(|p| T::of(if p.is_angle() { 0.01 } else { 0.5 })),
+    );
+    let space = SearchSpace::around(SVector::zeros(), widths, T::of(10.0));
+    let x = SVector::<T, 24>::repeat(T::of(1e-3));
+    c.bench_function(&format!("objective_32_poses_{name}"), |b| {
+        b.iter(|| objective.value(black_box(&x)))
+    });
+    let mut group = c.benchmark_group("paper_run");
+    group.sample_size(10);
+    group.bench_function(format!("ipso_20x24x2000_32_poses_{name}"), |b| {
+        b.iter(|| {
+            let mut cost = |x: &SVector<T, 24>| objective.value(x);
+            ipso::optimize::<T, 20, 24>(&mut cost, &space, &IpsoSettings::paper(), &mut Silent)
+                .unwrap()
+        })
+    });
+    group.finish();
+}
+
+fn benches(c: &mut Criterion) {
+    paper_run::<f64>(c, "f64");
+    paper_run::<f32>(c, "f32");
+}
+
+criterion_group!(swarm, benches);
+criterion_main!(swarm);
