@@ -176,7 +176,10 @@ mod tests {
             );
             assert!((got - log(&(b * a.transpose())).norm()).abs() <= 2e-15 * (1.0 + angle));
             let squared = angle_squared_between(&b, &a);
-            assert!((squared.sqrt() - angle).abs() <= 2e-15 * (1.0 + angle), "{angle}");
+            assert!(
+                (squared.sqrt() - angle).abs() <= 2e-15 * (1.0 + angle),
+                "{angle}"
+            );
         }
     }
 

@@ -1,7 +1,14 @@
-//! host-tools: everything around the core that needs `std`: the robot file, the independent
-//! float64 reference, and the `calib` command line.
+//! host-tools: everything around the core that needs `std`: robot and tracker files, the
+//! independent float64 reference, simulation, calibration runs, reports, plots and the `calib`
+//! command line.
 #![deny(missing_docs)]
 
+pub mod calibrate;
+pub mod files;
 pub mod fk;
+pub mod plots;
 pub mod reference;
+pub mod report;
 pub mod robot_file;
+pub mod simulate;
+pub mod tracker_data;

@@ -17,7 +17,8 @@
 //! ```
 
 use calib_core::{
-    FramePose, JointLimits, JointParameter, MdhJoint, Parameter, ParameterMask, Robot,
+    FramePose, JointLimits, JointParameter, MdhJoint, Parameter, ParameterErrors, ParameterMask,
+    Robot,
 };
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -98,6 +99,26 @@ pub struct RobotFile {
     /// Tool frame (default identity).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tool: Option<FrameEntry>,
+    /// Present in a file of identified (or simulated true) parameters: the errors that were added
+    /// to the nominal model to give the values above.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<CalibrationSection>,
+}
+
+/// The errors behind a file of identified parameters. Units follow the parameter: mm for `da`,
+/// `dd` and frame translations, rad for `dalpha`, `dbeta`, `dtheta` and frame rotations.
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalibrationSection {
+    /// How the values were obtained (`ipso`, `simulated truth`, ...).
+    pub method: String,
+    /// The nominal robot file the errors were added to.
+    pub nominal: String,
+    /// Error of each parameter (name -> mm or rad), in canonical order when written.
+    pub errors: toml::Table,
+    /// Standard error of each identified parameter (mm or rad), when known.
+    #[serde(default, skip_serializing_if = "toml::Table::is_empty")]
+    pub std_errors: toml::Table,
 }
 
 /// A robot file checked and converted to the core's units (mm, rad).
@@ -252,5 +273,110 @@ impl<const N: usize> RobotModel<N> {
     /// Reads, checks and converts the robot file at `path`.
     pub fn load(path: &Path) -> Result<Self, RobotFileError> {
         RobotFile::read(path)?.to_model(path)
+    }
+}
+
+impl RobotFile {
+    /// The errors of the `[calibration]` section for an N-joint robot (zero when absent).
+    pub fn calibration_errors<const N: usize>(
+        &self,
+        path: &Path,
+    ) -> Result<ParameterErrors<f64, N>, RobotFileError> {
+        let mut errors = ParameterErrors::zero();
+        let Some(section) = &self.calibration else {
+            return Ok(errors);
+        };
+        for (name, value) in &section.errors {
+            let invalid = |message: String| RobotFileError::Invalid {
+                path: path.to_owned(),
+                message,
+            };
+            let parameter = Parameter::from_name(name, N).ok_or_else(|| {
+                invalid(format!(
+                    "[calibration.errors]: unknown parameter \"{name}\""
+                ))
+            })?;
+            let value = value
+                .as_float()
+                .or_else(|| value.as_integer().map(|i| i as f64))
+                .ok_or_else(|| invalid(format!("[calibration.errors]: {name} must be a number")))?;
+            errors.set(parameter, value);
+        }
+        Ok(errors)
+    }
+
+    /// The file of the actual robot `nominal + errors`: every joint value, base and tool replaced
+    /// by the actual one, and a `[calibration]` section listing the errors (all errors of the
+    /// `listed` parameters, in canonical order) and their standard errors.
+    pub fn with_errors<const N: usize>(
+        &self,
+        errors: &ParameterErrors<f64, N>,
+        listed: impl IntoIterator<Item = Parameter>,
+        std_errors: &[(Parameter, f64)],
+        method: &str,
+        nominal: &str,
+    ) -> Self {
+        let mut out = self.clone();
+        for (entry, e) in out.joint.iter_mut().zip(&errors.joints) {
+            entry.a_mm += e.da;
+            entry.alpha_deg += e.dalpha.to_degrees();
+            entry.theta_offset_deg += e.dtheta.to_degrees();
+            entry.d_mm += e.dd;
+            entry.beta_deg += e.dbeta.to_degrees();
+        }
+        let frame =
+            |entry: &Option<FrameEntry>, e: &calib_core::FrameErrors<f64>| -> Option<FrameEntry> {
+                if e.translation == [0.0; 3] && e.rotation == [0.0; 3] {
+                    return entry.clone();
+                }
+                let (xyz, rpy) = entry.as_ref().map_or(([0.0; 3], [0.0; 3]), |f| {
+                    (f.xyz_mm, f.rpy_deg.map(f64::to_radians))
+                });
+                let nominal = nalgebra::Rotation3::from_euler_angles(rpy[0], rpy[1], rpy[2]);
+                let [rx, ry, rz] = e.rotation;
+                let (roll, pitch, yaw) =
+                    (nominal * nalgebra::Rotation3::from_euler_angles(rx, ry, rz)).euler_angles();
+                Some(FrameEntry {
+                    xyz_mm: [
+                        xyz[0] + e.translation[0],
+                        xyz[1] + e.translation[1],
+                        xyz[2] + e.translation[2],
+                    ],
+                    rpy_deg: [roll, pitch, yaw].map(f64::to_degrees),
+                })
+            };
+        out.base = frame(&self.base, &errors.base);
+        out.tool = frame(&self.tool, &errors.tool);
+        let mut table = toml::Table::new();
+        for p in listed {
+            table.insert(
+                p.to_string(),
+                toml::Value::Float(errors.get(p).unwrap_or(0.0)),
+            );
+        }
+        let mut std_table = toml::Table::new();
+        for (p, s) in std_errors {
+            std_table.insert(p.to_string(), toml::Value::Float(*s));
+        }
+        out.calibration = Some(CalibrationSection {
+            method: method.to_string(),
+            nominal: nominal.to_string(),
+            errors: table,
+            std_errors: std_table,
+        });
+        out
+    }
+
+    /// The file as TOML text, with a comment header.
+    pub fn to_toml(&self, comment: &str) -> String {
+        let body = toml::to_string(self).unwrap_or_default();
+        let mut text = String::new();
+        for line in comment.lines() {
+            text.push_str("# ");
+            text.push_str(line);
+            text.push('\n');
+        }
+        text.push_str(&body);
+        text
     }
 }

@@ -1,0 +1,415 @@
+//! `calib calibrate`: identify the parameter errors of a robot from tracker data with the
+//! paper's swarm, and report Table 3 before and after.
+
+use crate::files::write_atomic;
+use crate::report::{Table3, TruthRow, table3_text, truth_text, unit_of};
+use crate::robot_file::{RobotFile, RobotModel};
+use crate::tracker_data::TrackerData;
+use anyhow::{Context, bail};
+use calib_core::halton::Scrambling;
+use calib_core::ipso::{self, Control, CostFunction, IpsoSettings, SearchSpace, StopReason};
+use calib_core::objective::{Measurement, Objective};
+use calib_core::statistics::PoseStatistics;
+use calib_core::{ParameterErrors, ParameterSet};
+use nalgebra::{SVector, Vector3};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Swarm sizes `calib` is built for (the core takes the swarm size as a const generic).
+pub const SWARM_SIZES: [usize; 6] = [10, 20, 30, 40, 50, 100];
+
+/// Everything `calib calibrate` needs.
+#[derive(Clone, Debug)]
+pub struct CalibrateOptions {
+    /// Nominal robot file.
+    pub robot: PathBuf,
+    /// Tracker data file.
+    pub data: PathBuf,
+    /// Swarm size (one of [`SWARM_SIZES`]).
+    pub swarm: usize,
+    /// Maximum generations.
+    pub generations: u32,
+    /// Cognitive coefficient.
+    pub c1: f64,
+    /// Social coefficient.
+    pub c2: f64,
+    /// Orientation weight of eq. (7), mm^2/rad^2.
+    pub k: f64,
+    /// Seed of the swarm's random numbers.
+    pub seed: u64,
+    /// Initial half range of angle errors, rad.
+    pub init_angle_rad: f64,
+    /// Initial half range of length errors, mm.
+    pub init_length_mm: f64,
+    /// Search bounds as a multiple of the initial half range.
+    pub bound_factor: f64,
+    /// Stop after this many generations without improvement (0: never).
+    pub stall_generations: u32,
+    /// Stop when the objective reaches this value.
+    pub target: f64,
+    /// Halton index of the first particle.
+    pub halton_start: u64,
+    /// Digit scrambling of the Halton points.
+    pub scrambling: Scrambling,
+    /// Show a progress bar on a terminal.
+    pub progress: bool,
+    /// Robot file with the true errors (simulations), for the parameter comparison.
+    pub truth: Option<PathBuf>,
+}
+
+/// The JSON report of a calibration.
+#[derive(Debug, Serialize)]
+pub struct Report {
+    /// `ipso`.
+    pub method: String,
+    /// Robot file.
+    pub robot: String,
+    /// Data file.
+    pub data: String,
+    /// Identified errors: name -> { value, unit }.
+    pub parameters: serde_json::Map<String, serde_json::Value>,
+    /// Objective (eq. 7) at the nominal model and at the result.
+    pub objective: ObjectiveValues,
+    /// Generations run.
+    pub generations: u32,
+    /// Cost evaluations.
+    pub evaluations: u64,
+    /// Why the swarm stopped.
+    pub stop: String,
+    /// Table 3 statistics with the nominal model.
+    pub before: Table3,
+    /// Table 3 statistics with the identified model.
+    pub after: Table3,
+    /// Settings used.
+    pub settings: serde_json::Value,
+    /// Comparison with the truth, when `--truth` was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub truth: Option<Vec<TruthRow>>,
+    /// Wall-clock time of the optimisation, s.
+    pub seconds: f64,
+}
+
+/// Initial and final objective.
+#[derive(Debug, Serialize)]
+pub struct ObjectiveValues {
+    /// At zero errors (the nominal model).
+    pub initial: f64,
+    /// At the identified errors.
+    pub r#final: f64,
+    /// Best of the initial swarm.
+    pub initial_swarm_best: f64,
+    /// `k`, mm^2/rad^2.
+    pub k: f64,
+}
+
+/// Result of `calibrate`: the report, the identified robot file, the text for people, the
+/// convergence history and the per-pose position errors before and after.
+pub struct Calibration {
+    /// JSON report.
+    pub report: Report,
+    /// Identified robot file (TOML text).
+    pub robot_toml: String,
+    /// Text output (Table 3 and the truth comparison).
+    pub text: String,
+    /// `(generation, best objective)`.
+    pub history: Vec<(u32, f64)>,
+    /// `|dp|` per pose with the nominal model, mm.
+    pub before: Vec<f64>,
+    /// `|dp|` per pose with the identified model, mm.
+    pub after: Vec<f64>,
+}
+
+/// Evaluates the swarm's particles in parallel on the host (the core evaluates one by one).
+struct Parallel<'o, 'a, const D: usize>(&'o Objective<'a, f64, 6, D>);
+
+impl<const D: usize> CostFunction<f64, D> for Parallel<'_, '_, D> {
+    fn cost(&mut self, x: &SVector<f64, D>) -> f64 {
+        self.0.value(x)
+    }
+    fn cost_batch(&mut self, xs: &[SVector<f64, D>], out: &mut [f64]) {
+        let objective = self.0;
+        out.par_iter_mut()
+            .zip(xs.par_iter())
+            .for_each(|(c, x)| *c = objective.value(x));
+    }
+}
+
+/// Runs the calibration.
+pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
+    let file = RobotFile::read(&options.robot)?;
+    let model: RobotModel<6> = file.to_model(&options.robot)?;
+    let data = TrackerData::read(&options.data)?;
+    if data.joints != 6 {
+        bail!(
+            "{}: has {} joint columns, the robot {} has 6 joints",
+            options.data.display(),
+            data.joints,
+            model.name
+        );
+    }
+    if !data.base_frame {
+        bail!(
+            "{}: the data are in the tracker's frame (no '# frame: base' line); this version identifies \
+             only the robot's geometry, so the measurements must be in the robot's base frame",
+            options.data.display()
+        );
+    }
+    if !SWARM_SIZES.contains(&options.swarm) {
+        bail!(
+            "--swarm {} is not available; choose one of {:?}",
+            options.swarm,
+            SWARM_SIZES
+        );
+    }
+    for (name, v) in [
+        ("--k", options.k),
+        ("--init-angle-rad", options.init_angle_rad),
+        ("--init-length-mm", options.init_length_mm),
+        ("--bound-factor", options.bound_factor),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            bail!("{name} must be a finite number >= 0, got {v}");
+        }
+    }
+    let mut measurements = Vec::with_capacity(data.records.len());
+    for r in &data.records {
+        let q: [f64; 6] = std::array::from_fn(|i| r.q[i]);
+        let m = Measurement::new(&q, Vector3::from(r.position), r.rotation, r.weight)
+            .with_context(|| format!("{}:{}", options.data.display(), r.line))?;
+        measurements.push(m);
+    }
+    let count = model.mask.count();
+    macro_rules! dispatch {
+        ($($d:literal)*) => {
+            match count {
+                $($d => run::<$d>(options, &file, &model, &data, &measurements),)*
+                _ => bail!("{count} identified parameters; calib supports 1 to 42"),
+            }
+        };
+    }
+    dispatch!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24 25 26 27 28 29 30 31 32 33 34 35 36 37 38 39 40 41 42)
+}
+
+fn run<const D: usize>(
+    options: &CalibrateOptions,
+    file: &RobotFile,
+    model: &RobotModel<6>,
+    data: &TrackerData,
+    measurements: &[Measurement<f64, 6>],
+) -> anyhow::Result<Calibration> {
+    let set = ParameterSet::<6, D>::from_mask(&model.mask)?;
+    if measurements.len()
+        * if data.orientation == crate::tracker_data::OrientationColumns::None {
+            3
+        } else {
+            6
+        }
+        < D
+    {
+        bail!(
+            "{} poses give fewer equations than the {D} identified parameters",
+            measurements.len()
+        );
+    }
+    let objective = Objective::new(
+        &model.robot,
+        &ParameterErrors::zero(),
+        set,
+        measurements,
+        options.k,
+    )?;
+    let widths = SVector::<f64, D>::from_iterator(set.parameters().iter().map(|p| {
+        if p.is_angle() {
+            options.init_angle_rad
+        } else {
+            options.init_length_mm
+        }
+    }));
+    let space = SearchSpace::around(SVector::zeros(), widths, options.bound_factor);
+    let settings = IpsoSettings {
+        c1: options.c1,
+        c2: options.c2,
+        max_generations: options.generations,
+        target_cost: options.target,
+        stall_generations: options.stall_generations,
+        halton_start: options.halton_start,
+        scrambling: options.scrambling,
+        seed: options.seed,
+    };
+    let bar = if options.progress {
+        indicatif::ProgressBar::new(u64::from(options.generations))
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "IPSO {bar:40} {pos}/{len} generations, best f = {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let mut history = Vec::with_capacity(options.generations as usize + 1);
+    let mut observer = |generation: u32, best: f64| {
+        history.push((generation, best));
+        if generation.is_multiple_of(20) {
+            bar.set_position(u64::from(generation));
+            bar.set_message(format!("{best:.6e}"));
+        }
+        Control::Continue
+    };
+    let started = Instant::now();
+    let result = {
+        let mut cost = Parallel(&objective);
+        macro_rules! swarm {
+            ($($p:literal)*) => {
+                match options.swarm {
+                    $($p => ipso::optimize::<f64, $p, D>(&mut cost, &space, &settings, &mut observer)?,)*
+                    other => bail!("--swarm {other} is not available"),
+                }
+            };
+        }
+        swarm!(10 20 30 40 50 100)
+    };
+    let seconds = started.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+
+    let statistics = |x: &SVector<f64, D>| {
+        let mut stats = PoseStatistics::default();
+        let mut per_pose = Vec::with_capacity(measurements.len());
+        objective.pose_errors(x, |m, e| {
+            stats.add(&e, m.rotation.is_some());
+            per_pose.push(e.position.norm());
+        });
+        (Table3::from_statistics(&stats), per_pose)
+    };
+    let zero = SVector::<f64, D>::zeros();
+    let (before, before_poses) = statistics(&zero);
+    let (after, after_poses) = statistics(&result.best);
+
+    let identified = set.unpack(&result.best);
+    let mut parameters = serde_json::Map::new();
+    for (p, v) in set.parameters().iter().zip(result.best.iter()) {
+        parameters.insert(
+            p.to_string(),
+            serde_json::json!({ "value": v, "unit": unit_of(*p) }),
+        );
+    }
+    let truth = match &options.truth {
+        None => None,
+        Some(path) => {
+            let truth_file = RobotFile::read(path)?;
+            let truth_errors = truth_file.calibration_errors::<6>(path)?;
+            Some(
+                set.parameters()
+                    .iter()
+                    .map(|p| {
+                        TruthRow::new(
+                            *p,
+                            identified.get(*p).unwrap_or(0.0),
+                            truth_errors.get(*p).unwrap_or(0.0),
+                        )
+                    })
+                    .collect::<Vec<_>>(),
+            )
+        }
+    };
+    let stop = match result.stop {
+        StopReason::MaxGenerations => "maximum generations",
+        StopReason::TargetReached => "target objective reached",
+        StopReason::Stalled => "no improvement",
+        StopReason::Cancelled => "cancelled",
+    };
+    let mut text = format!(
+        "calibrated {} with {} poses of {}: IPSO, {} particles, {} generations ({stop}), {} evaluations, {seconds:.3} s\n\
+         objective (eq. 7, k = {:e} mm^2/rad^2): {:.6e} at the nominal model -> {:.6e}\n\n",
+        model.name,
+        measurements.len(),
+        options.data.display(),
+        options.swarm,
+        result.generations,
+        result.evaluations,
+        options.k,
+        objective.value(&zero),
+        result.best_cost,
+    );
+    text.push_str(&table3_text(
+        "Table 3 statistics on the calibration poses",
+        &before,
+        &after,
+    ));
+    if let Some(rows) = &truth {
+        text.push_str("\nidentified errors against the truth\n");
+        text.push_str(&truth_text(rows));
+    }
+    let robot_toml = file
+        .with_errors(&identified, set.parameters().iter().copied(), &[], "ipso", &options.robot.display().to_string())
+        .to_toml(&format!(
+            "{} identified by calib calibrate (IPSO) from {}.\nValues are nominal + identified errors; [calibration.errors] lists the errors in mm and rad.",
+            model.name,
+            options.data.display()
+        ));
+    let report = Report {
+        method: "ipso".into(),
+        robot: options.robot.display().to_string(),
+        data: options.data.display().to_string(),
+        parameters,
+        objective: ObjectiveValues {
+            initial: objective.value(&zero),
+            r#final: result.best_cost,
+            initial_swarm_best: result.initial_cost,
+            k: options.k,
+        },
+        generations: result.generations,
+        evaluations: result.evaluations,
+        stop: stop.into(),
+        before,
+        after,
+        settings: serde_json::json!({
+            "swarm": options.swarm, "generations": options.generations, "c1": options.c1, "c2": options.c2,
+            "seed": options.seed, "init_angle_rad": options.init_angle_rad, "init_length_mm": options.init_length_mm,
+            "bound_factor": options.bound_factor, "stall_generations": options.stall_generations,
+            "target": options.target, "halton_start": options.halton_start,
+            "scrambling": format!("{:?}", options.scrambling).to_lowercase(),
+        }),
+        truth,
+        seconds,
+    };
+    Ok(Calibration {
+        report,
+        robot_toml,
+        text,
+        history,
+        before: before_poses,
+        after: after_poses,
+    })
+}
+
+/// Writes the outputs of a calibration that were asked for (each atomically).
+pub fn write_outputs(
+    calibration: &Calibration,
+    out: Option<&std::path::Path>,
+    report: Option<&std::path::Path>,
+    plot: Option<&std::path::Path>,
+) -> anyhow::Result<Vec<PathBuf>> {
+    let mut written = Vec::new();
+    if let Some(path) = out {
+        write_atomic(path, calibration.robot_toml.as_bytes())?;
+        written.push(path.to_owned());
+    }
+    if let Some(path) = report {
+        let json = serde_json::to_string_pretty(&calibration.report)?;
+        write_atomic(path, json.as_bytes())?;
+        written.push(path.to_owned());
+    }
+    if let Some(dir) = plot {
+        written.extend(crate::plots::write_plots(
+            dir,
+            &calibration.history,
+            "absolute position error per calibration pose",
+            &calibration.before,
+            &calibration.after,
+        )?);
+    }
+    Ok(written)
+}

@@ -1,0 +1,158 @@
+//! Reports: the paper's Table 3 statistics as JSON and as a fixed-width text table, and the
+//! parameter comparison against a known truth.
+
+use calib_core::Parameter;
+use calib_core::statistics::{PoseStatistics, Summary};
+use serde::Serialize;
+
+/// Mean, sample standard deviation and maximum of one quantity.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Stat {
+    /// Mean.
+    pub mean: f64,
+    /// Sample standard deviation (n - 1).
+    pub std: f64,
+    /// Maximum.
+    pub max: f64,
+}
+
+impl Stat {
+    fn from_summary(s: &Summary<f64>, scale: f64) -> Self {
+        Self {
+            mean: s.mean * scale,
+            std: s.std() * scale,
+            max: s.max * scale,
+        }
+    }
+}
+
+/// Per-axis orientation statistics, degrees.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct AxisStats {
+    /// `|dr_x|`, deg.
+    pub x: Stat,
+    /// `|dr_y|`, deg.
+    pub y: Stat,
+    /// `|dr_z|`, deg.
+    pub z: Stat,
+}
+
+/// Table 3 statistics of one model on one data set.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Table3 {
+    /// Number of poses.
+    pub poses: u32,
+    /// Absolute position error `|dp|`, mm.
+    pub position_mm: Stat,
+    /// Orientation error per axis, deg (`null` for position-only data).
+    pub orientation_deg: Option<AxisStats>,
+}
+
+impl Table3 {
+    /// From the core's accumulated statistics.
+    pub fn from_statistics(s: &PoseStatistics<f64>) -> Self {
+        let deg = 180.0 / std::f64::consts::PI;
+        let [x, y, z] = s.orientation.map(|o| Stat::from_summary(&o, deg));
+        Self {
+            poses: s.position.count,
+            position_mm: Stat::from_summary(&s.position, 1.0),
+            orientation_deg: (s.with_orientation > 0).then_some(AxisStats { x, y, z }),
+        }
+    }
+}
+
+/// The paper's Table 3 layout, before and after, as fixed-width text.
+pub fn table3_text(title: &str, before: &Table3, after: &Table3) -> String {
+    let mut out = format!(
+        "{title} ({} poses)\n{:<30} {:^32}   {:^32}\n{:<30} {:>10} {:>10} {:>10}   {:>10} {:>10} {:>10}\n",
+        before.poses,
+        "",
+        "before calibration",
+        "after calibration",
+        "",
+        "mean",
+        "std",
+        "max",
+        "mean",
+        "std",
+        "max"
+    );
+    let row = |name: &str, b: &Stat, a: &Stat| {
+        format!(
+            "{name:<30} {:>10} {:>10} {:>10}   {:>10} {:>10} {:>10}\n",
+            number(b.mean),
+            number(b.std),
+            number(b.max),
+            number(a.mean),
+            number(a.std),
+            number(a.max)
+        )
+    };
+    out.push_str(&row(
+        "absolute position error (mm)",
+        &before.position_mm,
+        &after.position_mm,
+    ));
+    if let (Some(b), Some(a)) = (&before.orientation_deg, &after.orientation_deg) {
+        out.push_str(&row("orientation error x (deg)", &b.x, &a.x));
+        out.push_str(&row("orientation error y (deg)", &b.y, &a.y));
+        out.push_str(&row("orientation error z (deg)", &b.z, &a.z));
+    } else {
+        out.push_str("orientation error              (position-only data)\n");
+    }
+    out
+}
+
+/// Four decimals, or three significant digits in scientific notation below 1e-3 (so that a
+/// sub-micrometre result does not print as 0.0000).
+fn number(v: f64) -> String {
+    if v != 0.0 && v.abs() < 1e-3 { format!("{v:.3e}") } else { format!("{v:.4}") }
+}
+
+/// One row of the comparison against a known truth (mm or rad).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TruthRow {
+    /// Parameter name.
+    pub name: String,
+    /// Unit: `mm` or `rad`.
+    pub unit: &'static str,
+    /// Identified error.
+    pub identified: f64,
+    /// True error.
+    pub truth: f64,
+    /// `identified - truth`.
+    pub difference: f64,
+}
+
+impl TruthRow {
+    /// A comparison row.
+    pub fn new(parameter: Parameter, identified: f64, truth: f64) -> Self {
+        Self {
+            name: parameter.to_string(),
+            unit: unit_of(parameter),
+            identified,
+            truth,
+            difference: identified - truth,
+        }
+    }
+}
+
+/// `mm` for lengths, `rad` for angles.
+pub fn unit_of(parameter: Parameter) -> &'static str {
+    if parameter.is_angle() { "rad" } else { "mm" }
+}
+
+/// The comparison as fixed-width text.
+pub fn truth_text(rows: &[TruthRow]) -> String {
+    let mut out = format!(
+        "{:<10} {:>4} {:>16} {:>16} {:>13}\n",
+        "parameter", "unit", "identified", "true", "difference"
+    );
+    for r in rows {
+        out.push_str(&format!(
+            "{:<10} {:>4} {:>16.9} {:>16.9} {:>13.3e}\n",
+            r.name, r.unit, r.identified, r.truth, r.difference
+        ));
+    }
+    out
+}

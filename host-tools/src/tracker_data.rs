@@ -1,0 +1,390 @@
+//! Tracker data files (CSV, DESIGN.md): a header row whose column names carry their unit, `#`
+//! comment lines, and one measured pose per row.
+//!
+//! Columns: joints `q1_deg..qN_deg` (or `_rad`), position `x_mm, y_mm, z_mm` (or `_m`), optional
+//! orientation as a unit quaternion `qw, qx, qy, qz` or fixed-axis angles `rx_deg, ry_deg, rz_deg`
+//! (`R = Rz Ry Rx`), optional `id` and `weight`. A comment line `# frame: base` says the
+//! measurements are in the robot's base frame. Line numbers in errors are the file's physical lines
+//! (the header, and any comment above it, count).
+
+use crate::files::write_atomic;
+use nalgebra::{Matrix3, Quaternion, Rotation3, UnitQuaternion};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// How far a quaternion's norm may be from 1 before it is refused.
+pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
+
+/// A problem with a tracker data file, located by file, line and column.
+#[derive(Debug, thiserror::Error)]
+pub enum DataError {
+    /// The file could not be read.
+    #[error("{path}: cannot read the data file: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// A problem at a place in the file.
+    #[error("{path}:{line}{}: {message}", column.as_ref().map(|c| format!(": column {c}")).unwrap_or_default())]
+    At {
+        /// The file.
+        path: PathBuf,
+        /// Physical line, 1-based.
+        line: u64,
+        /// Column name (and number), if the problem is in one column.
+        column: Option<String>,
+        /// What was expected.
+        message: String,
+    },
+}
+
+/// How the orientation of each pose is given.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OrientationColumns {
+    /// Position only (a spherical reflector).
+    None,
+    /// `qw, qx, qy, qz`.
+    Quaternion,
+    /// `rx_deg, ry_deg, rz_deg`, `R = Rz Ry Rx`.
+    FixedAngles,
+}
+
+/// One measured pose.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Record {
+    /// Physical line in the file.
+    pub line: u64,
+    /// The `id` column, or the line number.
+    pub id: String,
+    /// Joint readings, rad.
+    pub q: Vec<f64>,
+    /// Measured position, mm.
+    pub position: [f64; 3],
+    /// Measured orientation (rotation matrix), if the file has orientation columns.
+    pub rotation: Option<Matrix3<f64>>,
+    /// Weight (1 when there is no weight column).
+    pub weight: f64,
+}
+
+/// A parsed tracker data file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrackerData {
+    /// The file.
+    pub path: PathBuf,
+    /// `true` when a `# frame: base` line says the data are in the robot's base frame.
+    pub base_frame: bool,
+    /// Number of joint columns.
+    pub joints: usize,
+    /// The orientation columns.
+    pub orientation: OrientationColumns,
+    /// The poses, in file order.
+    pub records: Vec<Record>,
+}
+
+#[derive(Clone, Copy)]
+enum Column {
+    Joint(usize, f64),
+    Position(usize, f64),
+    Quaternion(usize),
+    Angle(usize),
+    Id,
+    Weight,
+}
+
+fn parse_column(name: &str) -> Option<Column> {
+    let deg = std::f64::consts::PI / 180.0;
+    if let Some(rest) = name.strip_prefix('q') {
+        if let Some((number, unit)) = rest.split_once('_') {
+            let i: usize = number.parse().ok()?;
+            let scale = match unit {
+                "deg" => deg,
+                "rad" => 1.0,
+                _ => return None,
+            };
+            return (i >= 1).then_some(Column::Joint(i - 1, scale));
+        }
+        return match rest {
+            "w" => Some(Column::Quaternion(0)),
+            "x" => Some(Column::Quaternion(1)),
+            "y" => Some(Column::Quaternion(2)),
+            "z" => Some(Column::Quaternion(3)),
+            _ => None,
+        };
+    }
+    Some(match name {
+        "x_mm" => Column::Position(0, 1.0),
+        "y_mm" => Column::Position(1, 1.0),
+        "z_mm" => Column::Position(2, 1.0),
+        "x_m" => Column::Position(0, 1000.0),
+        "y_m" => Column::Position(1, 1000.0),
+        "z_m" => Column::Position(2, 1000.0),
+        "rx_deg" => Column::Angle(0),
+        "ry_deg" => Column::Angle(1),
+        "rz_deg" => Column::Angle(2),
+        "id" => Column::Id,
+        "weight" => Column::Weight,
+        _ => return None,
+    })
+}
+
+impl TrackerData {
+    /// Reads and checks a tracker data file.
+    pub fn read(path: &Path) -> Result<Self, DataError> {
+        let text = std::fs::read_to_string(path).map_err(|source| DataError::Read {
+            path: path.to_owned(),
+            source,
+        })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses tracker-data text; `path` only names the source in errors.
+    pub fn parse(text: &str, path: &Path) -> Result<Self, DataError> {
+        let at = |line: u64, column: Option<String>, message: String| DataError::At {
+            path: path.to_owned(),
+            line,
+            column,
+            message,
+        };
+        let base_frame = text.lines().any(|l| {
+            l.strip_prefix('#')
+                .is_some_and(|c| c.trim().replace(' ', "") == "frame:base")
+        });
+        let mut reader = csv::ReaderBuilder::new()
+            .comment(Some(b'#'))
+            .trim(csv::Trim::All)
+            .flexible(true)
+            .from_reader(text.as_bytes());
+        let header = reader
+            .headers()
+            .map_err(|e| at(1, None, format!("cannot read the header: {e}")))?
+            .clone();
+        let header_line = header.position().map_or(1, |p| p.line());
+        if header.is_empty() || (header.len() == 1 && header.get(0) == Some("")) {
+            return Err(at(header_line, None, "the file has no header row".into()));
+        }
+        let mut columns = Vec::with_capacity(header.len());
+        for (i, name) in header.iter().enumerate() {
+            let column = parse_column(name).ok_or_else(|| {
+                at(
+                    header_line,
+                    Some(format!("{} (\"{name}\")", i + 1)),
+                    "unknown column; expected q<i>_deg or q<i>_rad, x_mm/y_mm/z_mm (or _m), qw/qx/qy/qz, rx_deg/ry_deg/rz_deg, id, weight".into(),
+                )
+            })?;
+            columns.push(column);
+        }
+        // Which columns are present, and no duplicates.
+        let mut seen = std::collections::HashSet::new();
+        for (name, column) in header.iter().zip(&columns) {
+            let key = match column {
+                Column::Joint(j, _) => format!("q{}", j + 1),
+                Column::Position(k, _) => ["x", "y", "z"][*k].to_string(),
+                _ => name.to_string(),
+            };
+            if !seen.insert(key.clone()) {
+                return Err(at(
+                    header_line,
+                    Some(name.into()),
+                    format!("{key} appears twice"),
+                ));
+            }
+        }
+        let joints = columns
+            .iter()
+            .filter(|c| matches!(c, Column::Joint(..)))
+            .count();
+        if joints == 0 {
+            return Err(at(
+                header_line,
+                None,
+                "no joint columns (q1_deg, q2_deg, ...)".into(),
+            ));
+        }
+        for j in 0..joints {
+            if !seen.contains(&format!("q{}", j + 1)) {
+                return Err(at(
+                    header_line,
+                    None,
+                    format!("missing joint column q{}_deg (or q{}_rad)", j + 1, j + 1),
+                ));
+            }
+        }
+        for axis in ["x", "y", "z"] {
+            if !seen.contains(axis) {
+                return Err(at(
+                    header_line,
+                    None,
+                    format!("missing position column {axis}_mm (or {axis}_m)"),
+                ));
+            }
+        }
+        let quaternions = columns
+            .iter()
+            .filter(|c| matches!(c, Column::Quaternion(_)))
+            .count();
+        let angles = columns
+            .iter()
+            .filter(|c| matches!(c, Column::Angle(_)))
+            .count();
+        let orientation = match (quaternions, angles) {
+            (0, 0) => OrientationColumns::None,
+            (4, 0) => OrientationColumns::Quaternion,
+            (0, 3) => OrientationColumns::FixedAngles,
+            _ => {
+                return Err(at(
+                    header_line,
+                    None,
+                    "orientation needs all of qw, qx, qy, qz or all of rx_deg, ry_deg, rz_deg, not a mix".into(),
+                ));
+            }
+        };
+
+        let mut records = Vec::new();
+        let mut ids = std::collections::HashMap::new();
+        for result in reader.records() {
+            let row = result.map_err(|e| {
+                let line = e.position().map_or(0, |p| p.line());
+                at(line, None, format!("cannot read the row: {e}"))
+            })?;
+            let line = row.position().map_or(0, |p| p.line());
+            if row.len() != columns.len() {
+                return Err(at(
+                    line,
+                    None,
+                    format!("has {} fields, the header has {}", row.len(), columns.len()),
+                ));
+            }
+            let mut q = vec![0.0; joints];
+            let mut position = [0.0; 3];
+            let mut quaternion = [0.0; 4];
+            let mut angle = [0.0; 3];
+            let mut weight = 1.0;
+            let mut id = line.to_string();
+            for (i, ((field, column), name)) in
+                row.iter().zip(&columns).zip(header.iter()).enumerate()
+            {
+                let where_ = || Some(format!("{} (\"{name}\")", i + 1));
+                if let Column::Id = column {
+                    id = field.to_string();
+                    continue;
+                }
+                let value: f64 = field
+                    .parse()
+                    .map_err(|_| at(line, where_(), format!("\"{field}\" is not a number")))?;
+                if !value.is_finite() {
+                    return Err(at(
+                        line,
+                        where_(),
+                        format!("{field} is not a finite number"),
+                    ));
+                }
+                match *column {
+                    Column::Joint(j, scale) => q[j] = value * scale,
+                    Column::Position(k, scale) => position[k] = value * scale,
+                    Column::Quaternion(k) => quaternion[k] = value,
+                    Column::Angle(k) => angle[k] = value.to_radians(),
+                    Column::Weight => {
+                        if value < 0.0 {
+                            return Err(at(line, where_(), "weight must be >= 0".into()));
+                        }
+                        weight = value;
+                    }
+                    Column::Id => {}
+                }
+            }
+            if let Some(previous) = ids.insert(id.clone(), line) {
+                return Err(at(
+                    line,
+                    Some("id".into()),
+                    format!("id \"{id}\" already used on line {previous}"),
+                ));
+            }
+            let rotation = match orientation {
+                OrientationColumns::None => None,
+                OrientationColumns::Quaternion => {
+                    let [w, x, y, z] = quaternion;
+                    let norm = (w * w + x * x + y * y + z * z).sqrt();
+                    if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
+                        return Err(at(
+                            line,
+                            Some("qw..qz".into()),
+                            format!(
+                                "quaternion norm {norm:.6} is not 1 (tolerance {QUATERNION_NORM_TOLERANCE})"
+                            ),
+                        ));
+                    }
+                    let unit = UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z));
+                    Some(*unit.to_rotation_matrix().matrix())
+                }
+                OrientationColumns::FixedAngles => {
+                    let [rx, ry, rz] = angle;
+                    Some(*Rotation3::from_euler_angles(rx, ry, rz).matrix())
+                }
+            };
+            records.push(Record {
+                line,
+                id,
+                q,
+                position,
+                rotation,
+                weight,
+            });
+        }
+        if records.is_empty() {
+            return Err(at(header_line, None, "the file has no data rows".into()));
+        }
+        Ok(Self {
+            path: path.to_owned(),
+            base_frame,
+            joints,
+            orientation,
+            records,
+        })
+    }
+}
+
+/// One pose to write: joints (rad), position (mm), optional rotation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PoseRow {
+    /// Identifier written in the `id` column.
+    pub id: String,
+    /// Joint readings, rad (written in degrees).
+    pub q: Vec<f64>,
+    /// Position, mm.
+    pub position: [f64; 3],
+    /// Orientation, written as a quaternion with `qw >= 0`.
+    pub rotation: Option<Matrix3<f64>>,
+}
+
+/// Writes poses as tracker CSV (atomically): `comments` become `#` lines at the top.
+pub fn write_tracker_csv(path: &Path, comments: &[String], rows: &[PoseRow]) -> anyhow::Result<()> {
+    let joints = rows.first().map_or(0, |r| r.q.len());
+    let orientation = rows.first().is_some_and(|r| r.rotation.is_some());
+    let mut text = String::new();
+    for c in comments {
+        let _ = writeln!(text, "# {c}");
+    }
+    let mut header: Vec<String> = vec!["id".into()];
+    header.extend((1..=joints).map(|i| format!("q{i}_deg")));
+    header.extend(["x_mm", "y_mm", "z_mm"].map(String::from));
+    if orientation {
+        header.extend(["qw", "qx", "qy", "qz"].map(String::from));
+    }
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    writer.write_record(&header)?;
+    for row in rows {
+        let mut fields = vec![row.id.clone()];
+        fields.extend(row.q.iter().map(|q| q.to_degrees().to_string()));
+        fields.extend(row.position.iter().map(f64::to_string));
+        if let Some(r) = &row.rotation {
+            let q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*r));
+            let sign = if q.w < 0.0 { -1.0 } else { 1.0 };
+            fields.extend([q.w, q.i, q.j, q.k].map(|v| (sign * v + 0.0).to_string()));
+        }
+        writer.write_record(&fields)?;
+    }
+    text.push_str(std::str::from_utf8(&writer.into_inner()?)?);
+    write_atomic(path, text.as_bytes())
+}
