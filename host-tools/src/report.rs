@@ -106,7 +106,11 @@ pub fn table3_text(title: &str, before: &Table3, after: &Table3) -> String {
 /// Four decimals, or three significant digits in scientific notation below 1e-3 (so that a
 /// sub-micrometre result does not print as 0.0000).
 fn number(v: f64) -> String {
-    if v != 0.0 && v.abs() < 1e-3 { format!("{v:.3e}") } else { format!("{v:.4}") }
+    if v != 0.0 && v.abs() < 1e-3 {
+        format!("{v:.3e}")
+    } else {
+        format!("{v:.4}")
+    }
 }
 
 /// One row of the comparison against a known truth (mm or rad).

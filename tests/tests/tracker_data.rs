@@ -1,0 +1,101 @@
+//! Tracker CSV: units, orientation forms, comments, and errors with file, line and column.
+
+use host_tools::tracker_data::{OrientationColumns, TrackerData};
+use std::path::Path;
+
+fn parse(text: &str) -> Result<TrackerData, String> {
+    TrackerData::parse(text, Path::new("cell/data.csv")).map_err(|e| e.to_string())
+}
+
+const HEADER: &str = "q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,x_mm,y_mm,z_mm";
+
+#[test]
+fn units_comments_and_orientation_forms() {
+    let text = "# frame: base\n# a comment\nid,q1_rad,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,x_m,y_m,z_m,rx_deg,ry_deg,rz_deg,weight\n\
+                A,0.5,90,0,0,0,0,1.5,-0.25,0.001,90,0,0,2\n";
+    let d = parse(text).unwrap();
+    assert!(d.base_frame);
+    assert_eq!(d.orientation, OrientationColumns::FixedAngles);
+    let r = &d.records[0];
+    assert_eq!((r.id.as_str(), r.line, r.weight), ("A", 4, 2.0));
+    assert_eq!(r.q[0], 0.5);
+    assert!((r.q[1] - std::f64::consts::FRAC_PI_2).abs() < 1e-15);
+    assert_eq!(r.position, [1500.0, -250.0, 1.0]);
+    // rx = 90 deg: y axis goes to z.
+    let m = r.rotation.unwrap();
+    assert!((m[(2, 1)] - 1.0).abs() < 1e-15);
+
+    let q = parse(&format!(
+        "{HEADER},qw,qx,qy,qz\n0,0,0,0,0,0,1,2,3,0,0,0,1\n"
+    ))
+    .unwrap();
+    assert!(!q.base_frame);
+    assert_eq!(q.orientation, OrientationColumns::Quaternion);
+    // qz = 1: 180 deg about z.
+    assert!((q.records[0].rotation.unwrap()[(0, 0)] + 1.0).abs() < 1e-15);
+    assert_eq!(q.records[0].id, "2");
+
+    let p = parse(&format!("{HEADER}\n0,0,0,0,0,0,1,2,3\n")).unwrap();
+    assert_eq!(p.orientation, OrientationColumns::None);
+    assert!(p.records[0].rotation.is_none());
+}
+
+#[test]
+fn errors_name_file_line_and_column() {
+    let e = parse(&format!("{HEADER},temperature\n")).unwrap_err();
+    assert!(
+        e.starts_with("cell/data.csv:1: column 10 (\"temperature\"): unknown column"),
+        "{e}"
+    );
+
+    let e = parse("q1_deg,q2_deg,x_mm,y_mm\n0,0,1,2\n").unwrap_err();
+    assert!(
+        e.contains("cell/data.csv:1: missing position column z_mm"),
+        "{e}"
+    );
+
+    let e = parse(&format!(
+        "# c\n{HEADER}\n0,0,0,0,0,0,1,2,3\n0,0,0,abc,0,0,1,2,3\n"
+    ))
+    .unwrap_err();
+    assert_eq!(
+        e,
+        "cell/data.csv:4: column 4 (\"q4_deg\"): \"abc\" is not a number"
+    );
+
+    let e = parse(&format!("{HEADER}\n0,0,0,0,0,0,1,inf,3\n")).unwrap_err();
+    assert!(
+        e.contains(":2: column 8 (\"y_mm\"): inf is not a finite number"),
+        "{e}"
+    );
+
+    let e = parse(&format!(
+        "{HEADER},qw,qx,qy,qz\n0,0,0,0,0,0,1,2,3,0.9,0,0,0\n"
+    ))
+    .unwrap_err();
+    assert!(
+        e.contains(":2: column qw..qz: quaternion norm 0.900000 is not 1"),
+        "{e}"
+    );
+
+    let e = parse(&format!(
+        "id,{HEADER}\nP1,0,0,0,0,0,0,1,2,3\nP1,0,0,0,0,0,0,1,2,3\n"
+    ))
+    .unwrap_err();
+    assert!(
+        e.contains(":3: column id: id \"P1\" already used on line 2"),
+        "{e}"
+    );
+
+    let e = parse(&format!("{HEADER},qw,qx\n")).unwrap_err();
+    assert!(e.contains("not a mix"), "{e}");
+
+    let e = parse(&format!("{HEADER}\n0,0,0,0,0,0,1,2\n")).unwrap_err();
+    assert!(e.contains(":2: has 8 fields, the header has 9"), "{e}");
+
+    let e = parse(&format!("{HEADER}\n")).unwrap_err();
+    assert!(e.contains("no data rows"), "{e}");
+
+    let e = parse("q1_deg,q1_rad,x_mm,y_mm,z_mm\n").unwrap_err();
+    assert!(e.contains("q1 appears twice"), "{e}");
+}
