@@ -6,7 +6,8 @@
 //!
 //! Swarm size `P` and dimension `D` are const generics; the whole swarm lives on the stack
 //! (`3 P D + P` scalars: 15.5 KiB for P = 20, D = 24 in f64, half in f32). `r1, r2` are drawn per
-//! particle and per dimension from `Xoshiro256PlusPlus` seeded by the caller, so the same seed and
+//! particle and per dimension from `Xoshiro256Plus` (the xoshiro variant meant for floating-point
+//! numbers; the top 53 or 24 bits are used) seeded by the caller, so the same seed and
 //! data give bit-identical results on every target.
 //!
 //! Initialisation: particle `i` (0-based) takes Halton point `start + i` for its position,
@@ -22,7 +23,7 @@ use crate::scalar::Real;
 use core::fmt;
 use nalgebra::SVector;
 use rand_core::{Rng, SeedableRng};
-use rand_xoshiro::Xoshiro256PlusPlus;
+use rand_xoshiro::Xoshiro256Plus;
 
 /// Something to minimise: the cost of a packed parameter vector. Non-finite costs count as +inf.
 pub trait CostFunction<T: Real, const D: usize> {
@@ -279,7 +280,7 @@ where
     let (mut global, mut global_cost) = best_of(&best_positions, &best_costs);
     let initial_cost = global_cost;
 
-    let mut rng = Xoshiro256PlusPlus::seed_from_u64(settings.seed);
+    let mut rng = Xoshiro256Plus::seed_from_u64(settings.seed);
     let (c1, c2) = (settings.c1, settings.c2);
     let mut generations = 0;
     let mut stalled = 0u32;

@@ -1,7 +1,7 @@
 //! Forward kinematics of the actual model: `T = T_base A_1 ... A_N T_tool` (paper eq. 2-3).
 
 use crate::error::KinematicsError;
-use crate::mdh::PreparedJoint;
+use crate::mdh::{LaneFrame, Lanes, PreparedJoint};
 use crate::model::{Robot, joint_number};
 use crate::parameters::{FrameErrors, ParameterErrors};
 use crate::scalar::Real;
@@ -247,6 +247,39 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
             Translation3::from(origin),
             Rotation3::from_matrix_unchecked(rotation),
         )
+    }
+
+    /// End frames of [`LANES`] poses at once from their joint cosines and sines as lanes (the
+    /// structure-of-arrays form of [`Kinematics::forward_angles`], which the compiler vectorises).
+    pub fn forward_lanes(&self, cos: &[Lanes<T>; N], sin: &[Lanes<T>; N]) -> LaneFrame<T> {
+        let r = self.base.rotation.matrix();
+        let t = &self.base.translation.vector;
+        let column = |j: usize| [0, 1, 2].map(|i| Lanes::repeat(r[(i, j)]));
+        let mut frame = LaneFrame {
+            columns: [column(0), column(1), column(2)],
+            origin: [Lanes::repeat(t.x), Lanes::repeat(t.y), Lanes::repeat(t.z)],
+        };
+        for ((joint, c), s) in self.joints.iter().zip(cos).zip(sin) {
+            joint.append_lanes(&mut frame, c, s);
+        }
+        if !self.tool_is_identity {
+            let rt = self.tool.rotation.matrix();
+            let tt = &self.tool.translation.vector;
+            let [c0, c1, c2] = frame.columns;
+            let mix = |a: T, b: T, c: T| -> [Lanes<T>; 3] {
+                [0, 1, 2].map(|i| {
+                    let pick =
+                        |col: &[Lanes<T>; 3]| col.get(i).copied().unwrap_or_else(Lanes::zeros);
+                    pick(&c0) * a + pick(&c1) * b + pick(&c2) * c
+                })
+            };
+            let offset = mix(tt.x, tt.y, tt.z);
+            for (o, d) in frame.origin.iter_mut().zip(&offset) {
+                *o += d;
+            }
+            frame.columns = [0, 1, 2].map(|j| mix(rt[(0, j)], rt[(1, j)], rt[(2, j)]));
+        }
+        frame
     }
 
     /// Forward kinematics keeping every joint's axes and origins (for the Jacobians).

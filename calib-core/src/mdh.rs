@@ -2,7 +2,48 @@
 //! `A = Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta)`.
 
 use crate::scalar::Real;
-use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, Translation3, Vector3};
+use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, SVector, Translation3, Vector3};
+
+/// Number of poses evaluated side by side by [`PreparedJoint::append_lanes`].
+pub const LANES: usize = 4;
+
+/// One value for each of [`LANES`] poses (structure of arrays, so the compiler vectorises).
+pub type Lanes<T> = SVector<T, LANES>;
+
+/// A frame for [`LANES`] poses at once: the columns of the rotation and the origin, each
+/// coordinate as lanes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LaneFrame<T: Real> {
+    /// Columns x, y, z of the rotation; `columns[j][i]` is entry (i, j) in every lane.
+    pub columns: [[Lanes<T>; 3]; 3],
+    /// Origin, mm.
+    pub origin: [Lanes<T>; 3],
+}
+
+/// `a * ca + b * cb` for three lane coordinates.
+#[inline(always)]
+fn combine<T: Real>(
+    a: &[Lanes<T>; 3],
+    ca: &Lanes<T>,
+    b: &[Lanes<T>; 3],
+    cb: &Lanes<T>,
+) -> [Lanes<T>; 3] {
+    let [a0, a1, a2] = a;
+    let [b0, b1, b2] = b;
+    [
+        a0.component_mul(ca) + b0.component_mul(cb),
+        a1.component_mul(ca) + b1.component_mul(cb),
+        a2.component_mul(ca) + b2.component_mul(cb),
+    ]
+}
+
+/// `a * ca + b * cb` for three lane coordinates and scalar factors.
+#[inline(always)]
+fn combine_scalar<T: Real>(a: &[Lanes<T>; 3], ca: T, b: &[Lanes<T>; 3], cb: T) -> [Lanes<T>; 3] {
+    let [a0, a1, a2] = a;
+    let [b0, b1, b2] = b;
+    [a0 * ca + b0 * cb, a1 * ca + b1 * cb, a2 * ca + b2 * cb]
+}
 
 /// A joint of the actual model prepared for fast evaluation: the constant trigonometry of
 /// `alpha`, `beta` and `theta_offset` is computed once, so a pose needs only `sin q`, `cos q`.
@@ -98,6 +139,44 @@ impl<T: Real> PreparedJoint<T> {
             None => Matrix3::from_columns(&[x, y, z]) * self.twist,
         };
         x
+    }
+}
+
+impl<T: Real> PreparedJoint<T> {
+    /// [`PreparedJoint::append`] for [`LANES`] poses at once, with `cos q` and `sin q` as lanes.
+    #[inline(always)]
+    pub fn append_lanes(&self, frame: &mut LaneFrame<T>, cos_q: &Lanes<T>, sin_q: &Lanes<T>) {
+        let (co, so) = self.offset;
+        let ct = cos_q * co - sin_q * so;
+        let st = sin_q * co + cos_q * so;
+        let neg_st = -st;
+        let [r1, r2, z] = &frame.columns;
+        let x = combine(r1, &ct, r2, &st);
+        let y = combine(r2, &ct, r1, &neg_st);
+        let [o0, o1, o2] = &mut frame.origin;
+        let [x0, x1, x2] = &x;
+        let [z0, z1, z2] = z;
+        *o0 += x0 * self.a + z0 * self.d;
+        *o1 += x1 * self.a + z1 * self.d;
+        *o2 += x2 * self.a + z2 * self.d;
+        frame.columns = match self.alpha_only {
+            Some((ca, sa)) => {
+                let new_y = combine_scalar(&y, ca, z, sa);
+                let new_z = combine_scalar(z, ca, &y, -sa);
+                [x, new_y, new_z]
+            }
+            None => {
+                let t = &self.twist;
+                let column = |j: usize| {
+                    let (t0, t1, t2) = (t[(0, j)], t[(1, j)], t[(2, j)]);
+                    let xy = combine_scalar(&x, t0, &y, t1);
+                    let [a0, a1, a2] = xy;
+                    let [z0, z1, z2] = z;
+                    [a0 + z0 * t2, a1 + z1 * t2, a2 + z2 * t2]
+                };
+                [column(0), column(1), column(2)]
+            }
+        };
     }
 }
 

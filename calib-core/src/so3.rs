@@ -85,9 +85,14 @@ pub fn angle_between<T: Real>(a: &Matrix3<T>, b: &Matrix3<T>) -> T {
 /// `angle^2 = 4 asin^2(x) = 4 x^2 (1 + x^2/3 + 8x^4/45 + 4x^6/35 + 128x^8/1575 + 256x^10/4158)`;
 /// the first omitted term is below 2e-17 relative for x <= 0.05.
 pub fn angle_squared_between<T: Real>(a: &Matrix3<T>, b: &Matrix3<T>) -> T {
-    let x2 = (a - b).norm_squared() / T::of(8.0);
+    angle_squared_from_chord((a - b).norm_squared())
+}
+
+/// [`angle_squared_between`] from the squared chord `|a - b|_F^2` of the two rotations.
+pub fn angle_squared_from_chord<T: Real>(chord_squared: T) -> T {
+    let x2 = chord_squared / T::of(8.0);
     if x2 > T::of(0.05 * 0.05) {
-        let angle = angle_between(a, b);
+        let angle = T::of(2.0) * x2.sqrt().min(T::one()).asin();
         return angle * angle;
     }
     let series = T::one()

@@ -121,8 +121,9 @@ pub struct Calibration {
     pub after: Vec<f64>,
 }
 
-/// Evaluates the swarm's particles in parallel on the host (the core evaluates one by one).
-struct Parallel<'o, 'a, const D: usize>(&'o Objective<'a, f64, 6, D>);
+/// Evaluates the swarm's particles in parallel on the host's cores (rayon); the core's default
+/// evaluates them one by one. Results are identical: each particle's cost is computed alone.
+pub struct Parallel<'o, 'a, const D: usize>(pub &'o Objective<'a, f64, 6, D>);
 
 impl<const D: usize> CostFunction<f64, D> for Parallel<'_, '_, D> {
     fn cost(&mut self, x: &SVector<f64, D>) -> f64 {
