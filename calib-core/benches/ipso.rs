@@ -37,12 +37,7 @@ fn paper_run<T: Real>(c: &mut Criterion, name: &str) {
         T::of(DEFAULT_K),
     )
     .unwrap();
-    let widths = SVector::<T, 24>::from_iterator(
-        set.parameters()
-            .iter()
-            .map(|p| T::of(if p.is_angle() { 0.01 } else { 0.5 })),
-    );
-    let space = SearchSpace::around(SVector::zeros(), widths, T::of(10.0));
+    let space = SearchSpace::paper(&set);
     let x = SVector::<T, 24>::repeat(T::of(1e-3));
     c.bench_function(&format!("objective_32_poses_{name}"), |b| {
         b.iter(|| objective.value(black_box(&x)))

@@ -375,12 +375,7 @@ mod tests {
             T::of(DEFAULT_K),
         )
         .unwrap();
-        let widths = SVector::<T, 24>::from_iterator(
-            set.parameters()
-                .iter()
-                .map(|p| T::of(if p.is_angle() { 0.01 } else { 0.5 })),
-        );
-        let space = SearchSpace::around(SVector::zeros(), widths, T::of(10.0));
+        let space = SearchSpace::paper(&set);
         let mut cost = |x: &SVector<T, 24>| objective.value(x);
         let r = ipso::optimize::<T, 20, 24>(&mut cost, &space, &IpsoSettings::paper(), &mut Silent)
             .unwrap();

@@ -12,7 +12,7 @@ use calib_core::{ParameterErrors, ParameterMask, ParameterSet};
 use criterion::{Criterion, criterion_group, criterion_main};
 use host_tools::calibrate::Parallel;
 use host_tools::tracker_data::TrackerData;
-use nalgebra::{SVector, Vector3};
+use nalgebra::Vector3;
 use std::path::Path;
 
 fn paper_run(c: &mut Criterion) {
@@ -39,12 +39,7 @@ fn paper_run(c: &mut Criterion) {
         DEFAULT_K,
     )
     .unwrap();
-    let widths = SVector::<f64, 24>::from_iterator(
-        set.parameters()
-            .iter()
-            .map(|p| if p.is_angle() { 0.01 } else { 0.5 }),
-    );
-    let space = SearchSpace::around(SVector::zeros(), widths, 10.0);
+    let space = SearchSpace::paper(&set);
     let mut group = c.benchmark_group("paper_run");
     group.sample_size(10);
     group.bench_function("ipso_20x24x2000_32_poses_f64_parallel", |b| {

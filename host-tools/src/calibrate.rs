@@ -14,49 +14,104 @@ use calib_core::{ParameterErrors, ParameterSet};
 use nalgebra::{SVector, Vector3};
 use rayon::prelude::*;
 use serde::Serialize;
+use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
 
 /// Swarm sizes `calib` is built for (the core takes the swarm size as a const generic).
 pub const SWARM_SIZES: [usize; 6] = [10, 20, 30, 40, 50, 100];
 
-/// Everything `calib calibrate` needs.
-#[derive(Clone, Debug)]
+/// Identification method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Method {
+    /// The paper's improved particle swarm (Halton start, constriction factor).
+    Ipso,
+}
+
+/// Halton digit scrambling, as chosen on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ScramblingChoice {
+    /// Plain Halton, as in the paper.
+    None,
+    /// Reverse Halton (Vandewoestyne and Cools 2006).
+    Reverse,
+}
+
+impl From<ScramblingChoice> for Scrambling {
+    fn from(choice: ScramblingChoice) -> Self {
+        match choice {
+            ScramblingChoice::None => Scrambling::None,
+            ScramblingChoice::Reverse => Scrambling::Reverse,
+        }
+    }
+}
+
+/// Everything `calib calibrate` needs: its command-line options.
+#[derive(Clone, Debug, clap::Args)]
 pub struct CalibrateOptions {
-    /// Nominal robot file.
+    /// Nominal robot model file.
+    #[arg(long, value_name = "FILE")]
     pub robot: PathBuf,
-    /// Tracker data file.
+    /// Tracker data file (CSV).
+    #[arg(long, value_name = "FILE")]
     pub data: PathBuf,
-    /// Swarm size (one of [`SWARM_SIZES`]).
+    /// Identification method.
+    #[arg(long, value_enum, default_value_t = Method::Ipso)]
+    pub method: Method,
+    /// Swarm size (10, 20, 30, 40, 50 or 100).
+    #[arg(long, default_value_t = 20)]
     pub swarm: usize,
-    /// Maximum generations.
+    /// Maximum number of generations.
+    #[arg(long, default_value_t = 2000)]
     pub generations: u32,
-    /// Cognitive coefficient.
+    /// Cognitive acceleration coefficient c1 (c1 + c2 > 4).
+    #[arg(long, default_value_t = 2.05)]
     pub c1: f64,
-    /// Social coefficient.
+    /// Social acceleration coefficient c2.
+    #[arg(long, default_value_t = 2.05)]
     pub c2: f64,
-    /// Orientation weight of eq. (7), mm^2/rad^2.
+    /// Orientation weight k of eq. (7), mm^2/rad^2: 1e6 makes 1 mrad weigh like 1 mm.
+    #[arg(long, default_value_t = calib_core::objective::DEFAULT_K)]
     pub k: f64,
-    /// Seed of the swarm's random numbers.
+    /// Seed of the swarm's random numbers r1, r2.
+    #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Initial half range of angle errors, rad.
+    /// Initial half range of angle errors, rad (paper: 0.01).
+    #[arg(long, default_value_t = ipso::PAPER_ANGLE_RANGE)]
     pub init_angle_rad: f64,
-    /// Initial half range of length errors, mm.
+    /// Initial half range of length errors, mm (paper: 0.5).
+    #[arg(long, default_value_t = ipso::PAPER_LENGTH_RANGE)]
     pub init_length_mm: f64,
-    /// Search bounds as a multiple of the initial half range.
+    /// Search bounds as a multiple of the initial half range (absorbing walls).
+    #[arg(long, default_value_t = ipso::DEFAULT_BOUND_FACTOR)]
     pub bound_factor: f64,
     /// Stop after this many generations without improvement (0: never).
+    #[arg(long, default_value_t = 0)]
     pub stall_generations: u32,
-    /// Stop when the objective reaches this value.
+    /// Stop as soon as the objective reaches this value.
+    #[arg(long, default_value_t = f64::NEG_INFINITY, allow_hyphen_values = true)]
     pub target: f64,
-    /// Halton index of the first particle.
+    /// Halton index of the first particle (the paper's k; 0 is the all-zero point).
+    #[arg(long, default_value_t = 1)]
     pub halton_start: u64,
-    /// Digit scrambling of the Halton points.
-    pub scrambling: Scrambling,
-    /// Show a progress bar on a terminal.
-    pub progress: bool,
-    /// Robot file with the true errors (simulations), for the parameter comparison.
+    /// Halton digit scrambling.
+    #[arg(long, value_enum, default_value_t = ScramblingChoice::None)]
+    pub scrambling: ScramblingChoice,
+    /// Robot file with the true errors (from calib simulate): prints each parameter's error.
+    #[arg(long, value_name = "FILE")]
     pub truth: Option<PathBuf>,
+    /// Identified robot file to write.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+    /// JSON report to write.
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
+    /// Directory for plots (convergence and position errors, SVG and PNG).
+    #[arg(long, value_name = "DIR")]
+    pub plot: Option<PathBuf>,
+    /// Never show the progress bar (it is shown only on a terminal anyway).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// The JSON report of a calibration.
@@ -221,14 +276,12 @@ fn run<const D: usize>(
         measurements,
         options.k,
     )?;
-    let widths = SVector::<f64, D>::from_iterator(set.parameters().iter().map(|p| {
-        if p.is_angle() {
-            options.init_angle_rad
-        } else {
-            options.init_length_mm
-        }
-    }));
-    let space = SearchSpace::around(SVector::zeros(), widths, options.bound_factor);
+    let space = SearchSpace::for_parameters(
+        &set,
+        options.init_angle_rad,
+        options.init_length_mm,
+        options.bound_factor,
+    );
     let settings = IpsoSettings {
         c1: options.c1,
         c2: options.c2,
@@ -236,10 +289,10 @@ fn run<const D: usize>(
         target_cost: options.target,
         stall_generations: options.stall_generations,
         halton_start: options.halton_start,
-        scrambling: options.scrambling,
+        scrambling: options.scrambling.into(),
         seed: options.seed,
     };
-    let bar = if options.progress {
+    let bar = if !options.quiet && std::io::stderr().is_terminal() {
         indicatif::ProgressBar::new(u64::from(options.generations))
     } else {
         indicatif::ProgressBar::hidden()
@@ -389,21 +442,19 @@ fn run<const D: usize>(
 /// Writes the outputs of a calibration that were asked for (each atomically).
 pub fn write_outputs(
     calibration: &Calibration,
-    out: Option<&std::path::Path>,
-    report: Option<&std::path::Path>,
-    plot: Option<&std::path::Path>,
+    options: &CalibrateOptions,
 ) -> anyhow::Result<Vec<PathBuf>> {
     let mut written = Vec::new();
-    if let Some(path) = out {
+    if let Some(path) = &options.out {
         write_atomic(path, calibration.robot_toml.as_bytes())?;
-        written.push(path.to_owned());
+        written.push(path.clone());
     }
-    if let Some(path) = report {
+    if let Some(path) = &options.report {
         let json = serde_json::to_string_pretty(&calibration.report)?;
         write_atomic(path, json.as_bytes())?;
-        written.push(path.to_owned());
+        written.push(path.clone());
     }
-    if let Some(dir) = plot {
+    if let Some(dir) = &options.plot {
         written.extend(crate::plots::write_plots(
             dir,
             &calibration.history,

@@ -15,43 +15,66 @@ use rand::RngExt;
 use rand_core::SeedableRng;
 use rand_distr::{Distribution, Normal, Uniform};
 use rand_xoshiro::Xoshiro256PlusPlus;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Which errors the simulated robot has.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum TrueErrors {
     /// Table 2 of the paper (the ER10L-C10's 24 identified parameters).
     Table2,
-    /// Uniform random errors of the identified parameters within +-length mm and +-angle rad.
-    Random {
-        /// Half range of length errors, mm.
-        length_mm: f64,
-        /// Half range of angle errors, rad.
-        angle_rad: f64,
-    },
+    /// Uniform random errors of the identified parameters (see --random-length-mm,
+    /// --random-angle-rad).
+    Random,
 }
 
-/// Settings of a simulation.
-#[derive(Clone, Debug, PartialEq)]
+/// Settings of a simulation: the options of `calib simulate`.
+#[derive(Clone, Debug, PartialEq, clap::Args)]
 pub struct Simulation {
-    /// The nominal robot file.
+    /// Nominal robot model file.
+    #[arg(
+        long,
+        value_name = "FILE",
+        default_value = "host-tools/robots/er10l-c10.toml"
+    )]
     pub robot: PathBuf,
-    /// The true errors.
+    /// True errors: the paper's Table 2, or random ones.
+    #[arg(long, value_enum, default_value_t = TrueErrors::Table2)]
     pub errors: TrueErrors,
+    /// Half range of random length errors, mm (with --errors random).
+    #[arg(long, default_value_t = 0.5)]
+    pub random_length_mm: f64,
+    /// Half range of random angle errors, rad (with --errors random).
+    #[arg(long, default_value_t = 0.01)]
+    pub random_angle_rad: f64,
     /// Number of poses.
+    #[arg(long, default_value_t = 32)]
     pub poses: usize,
-    /// Draw joints within the robot's joint limits instead of [-180, 180] deg.
+    /// Draw joints within the robot file's limits instead of uniformly in [-180, 180] deg.
+    #[arg(long)]
     pub within_limits: bool,
-    /// Half range of the uniform commanded-joint noise, rad (paper: 0.1; default 0).
+    /// Half range (rad) of uniform noise added to the commanded joints before the true pose is
+    /// computed. The paper uses 0.1 rad, which taken literally moves the tool by about 100 mm:
+    /// errors no geometric calibration can remove. Default 0.
+    #[arg(long, default_value_t = 0.0)]
     pub joint_noise_rad: f64,
-    /// Standard deviation of the tracker's position noise per axis, mm.
+    /// Tracker position noise, standard deviation per axis, mm.
+    #[arg(long, default_value_t = 0.0)]
     pub position_sigma_mm: f64,
-    /// Standard deviation of the tracker's orientation noise per axis, rad.
+    /// Tracker orientation noise, standard deviation per axis, rad.
+    #[arg(long, default_value_t = 0.0)]
     pub orientation_sigma_rad: f64,
-    /// Write position-only data (a spherical reflector) instead of full poses.
+    /// Write position-only data (a spherical reflector) instead of full 6-DoF poses.
+    #[arg(long)]
     pub position_only: bool,
-    /// Seed of every random draw.
+    /// Seed of all random draws.
+    #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Tracker data output (CSV).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// True robot output (robot file with a [calibration] section of the true errors).
+    #[arg(long, value_name = "FILE")]
+    pub truth_out: PathBuf,
 }
 
 /// The outcome of a simulation: the rows written and the true errors.
@@ -62,12 +85,10 @@ pub struct Simulated {
     pub errors: ParameterErrors<f64, 6>,
 }
 
-/// Runs a simulation and writes the tracker CSV to `data_out` and the true robot to `truth_out`.
-pub fn simulate(
-    settings: &Simulation,
-    data_out: &Path,
-    truth_out: &Path,
-) -> anyhow::Result<Simulated> {
+/// Runs a simulation and writes the tracker CSV to `settings.out` and the true robot to
+/// `settings.truth_out`.
+pub fn simulate(settings: &Simulation) -> anyhow::Result<Simulated> {
+    let (data_out, truth_out) = (&settings.out, &settings.truth_out);
     let file = RobotFile::read(&settings.robot)?;
     let model: RobotModel<6> = file.to_model(&settings.robot)?;
     if settings.poses == 0 {
@@ -85,10 +106,8 @@ pub fn simulate(
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(settings.seed);
     let errors = match settings.errors {
         TrueErrors::Table2 => paper::table2::<f64>(),
-        TrueErrors::Random {
-            length_mm,
-            angle_rad,
-        } => {
+        TrueErrors::Random => {
+            let (length_mm, angle_rad) = (settings.random_length_mm, settings.random_angle_rad);
             let mut e = ParameterErrors::zero();
             for p in model.mask.iter() {
                 let half = if p.is_angle() { angle_rad } else { length_mm };
@@ -137,12 +156,10 @@ pub fn simulate(
     }
     let errors_text = match settings.errors {
         TrueErrors::Table2 => "Table 2 of the paper".to_string(),
-        TrueErrors::Random {
-            length_mm,
-            angle_rad,
-        } => {
-            format!("random, uniform within +-{length_mm} mm and +-{angle_rad} rad")
-        }
+        TrueErrors::Random => format!(
+            "random, uniform within +-{} mm and +-{} rad",
+            settings.random_length_mm, settings.random_angle_rad
+        ),
     };
     let comments = vec![
         "frame: base".to_string(),
