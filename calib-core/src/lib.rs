@@ -26,6 +26,7 @@ pub mod halton;
 pub mod ipso;
 pub mod jacobian;
 pub mod kinematics;
+pub mod lm;
 pub mod mdh;
 pub mod model;
 pub mod objective;

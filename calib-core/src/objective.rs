@@ -341,24 +341,10 @@ mod tests {
     use super::*;
     use crate::Kinematics;
     use crate::ipso::{self, IpsoSettings, SearchSpace, Silent};
-    use crate::paper::{er10l_c10, table2};
+    use crate::paper::{er10l_c10, paper_measurements, table2};
     use crate::parameters::ParameterMask;
     use rand_core::{Rng, SeedableRng};
     use rand_xoshiro::Xoshiro256PlusPlus;
-
-    fn paper_measurements<T: Real>(seed: u64) -> MeasurementSet<T, 6, 32> {
-        let truth = Kinematics::new(&er10l_c10::<T>(), &table2::<T>()).unwrap();
-        let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
-        let mut set = MeasurementSet::new();
-        for _ in 0..32 {
-            let q = [(); 6].map(|_| {
-                T::of(core::f64::consts::PI * (2.0 * f64::unit_from_bits(rng.next_u64()) - 1.0))
-            });
-            let m = Measurement::from_pose(&q, &truth.forward(&q).unwrap()).unwrap();
-            set.push(m).unwrap();
-        }
-        set
-    }
 
     /// Runs the paper's swarm (20 particles, 2000 generations, plain Halton, seed 0, bounds 10
     /// times the initial range) on the noise-free 32-pose scenario; returns the worst length error

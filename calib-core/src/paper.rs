@@ -66,3 +66,22 @@ pub(crate) fn er10l_with_frames() -> Robot<f64, 6> {
     };
     robot
 }
+
+/// The noise-free simulation of the paper's section 3.1 for tests: 32 joint vectors uniform in
+/// [-pi, pi] (seeded), measured as full poses of the robot with Table 2 errors.
+#[cfg(test)]
+pub(crate) fn paper_measurements<T: Real>(seed: u64) -> crate::objective::MeasurementSet<T, 6, 32> {
+    use crate::objective::{Measurement, MeasurementSet};
+    use rand_core::{Rng, SeedableRng};
+    let truth = crate::Kinematics::new(&er10l_c10::<T>(), &table2::<T>()).unwrap();
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
+    let mut set = MeasurementSet::new();
+    for _ in 0..32 {
+        let q = [(); 6].map(|_| {
+            T::of(core::f64::consts::PI * (2.0 * f64::unit_from_bits(rng.next_u64()) - 1.0))
+        });
+        let m = Measurement::from_pose(&q, &truth.forward(&q).unwrap()).unwrap();
+        set.push(m).unwrap();
+    }
+    set
+}

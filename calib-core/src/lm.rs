@@ -1,0 +1,552 @@
+//! Levenberg-Marquardt least squares on the stacked residual of DESIGN.md: per pose
+//! `[dp; sqrt(k) dr]` (mm; 3 rows for position-only poses), each row scaled by `sqrt(weight)`,
+//! with the analytic parameter Jacobian.
+//!
+//! Each step is solved by a QR factorisation built with Givens rotations, one residual row at a
+//! time, so `J^T J` is never formed (it would square the condition number, fatal in f32) and the
+//! memory is `O(D^2)` (the triangular factor `R`, `Q^T r` and one row), whatever the number of poses.
+//! The damped step solves `[R; sqrt(lambda) S] delta = -[Q^T r; 0]` by `D` more rotations, with
+//! Moré's scaling `S` (the largest column norms of `J` seen so far) and Nielsen's update of lambda.
+//!
+//! Stops on: zero residual, scaled gradient (`max_i |J_i^T r| / (|J_i| |r|) <= gtol`, MINPACK's
+//! test), step (`|S delta| <= xtol (|S x| + xtol)`), relative cost change (actual and predicted
+//! below `ftol`), or the iteration cap. The result carries `R` at the solution, from which the
+//! covariance `sigma^2 (J^T J)^-1 = sigma^2 R^-1 R^-T` and the standard errors follow.
+
+use crate::kinematics::PreparedRobot;
+use crate::model::Robot;
+use crate::objective::{Measurement, ObjectiveError};
+use crate::parameters::{ParameterErrors, ParameterSet};
+use crate::pose_error::pose_error_jacobian;
+use crate::scalar::Real;
+use core::fmt;
+use nalgebra::{SMatrix, SVector};
+
+/// Settings of a least-squares run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LmSettings<T> {
+    /// Iteration cap (accepted or rejected steps; one Jacobian each at most).
+    pub max_iterations: u32,
+    /// Relative cost change tolerance.
+    pub ftol: T,
+    /// Scaled step tolerance.
+    pub xtol: T,
+    /// Scaled gradient tolerance (cosine between residual and Jacobian columns).
+    pub gtol: T,
+    /// Initial damping relative to the scaled diagonal (Nielsen's tau).
+    pub initial_damping: T,
+}
+
+impl<T: Real> Default for LmSettings<T> {
+    fn default() -> Self {
+        // f32 resolves relative changes only down to about 1e-7.
+        let tight = if core::mem::size_of::<T>() >= 8 {
+            1e-14
+        } else {
+            1e-7
+        };
+        Self {
+            max_iterations: 100,
+            ftol: T::of(tight),
+            xtol: T::of(tight),
+            gtol: T::of(tight),
+            initial_damping: T::of(1e-3),
+        }
+    }
+}
+
+/// Why least squares stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum LmStop {
+    /// The residual is exactly zero.
+    ZeroResidual,
+    /// The scaled gradient fell below `gtol`.
+    Gradient,
+    /// The scaled step fell below `xtol`.
+    Step,
+    /// The relative cost change fell below `ftol`.
+    CostChange,
+    /// The iteration cap was reached.
+    MaxIterations,
+    /// The damping grew without a cost decrease (rounding floor reached).
+    NoProgress,
+}
+
+/// Why least squares could not run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum LmError {
+    /// Fewer residual rows than parameters.
+    TooFewResiduals {
+        /// Residual rows.
+        rows: u32,
+        /// Parameters.
+        parameters: u16,
+    },
+    /// A parameter does not change any residual (its Jacobian column is zero): index in the set.
+    UnobservableParameter(u16),
+    /// The model, measurements or `k` are invalid.
+    Objective(ObjectiveError),
+    /// The start point or a residual is not finite.
+    NonFinite,
+}
+
+impl fmt::Display for LmError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::TooFewResiduals { rows, parameters } => write!(
+                f,
+                "{rows} residual rows cannot determine {parameters} parameters"
+            ),
+            Self::UnobservableParameter(i) => {
+                write!(f, "parameter {i} of the set does not affect any residual")
+            }
+            Self::Objective(e) => write!(f, "{e}"),
+            Self::NonFinite => f.write_str("a parameter or residual is not finite"),
+        }
+    }
+}
+
+impl core::error::Error for LmError {}
+
+impl From<ObjectiveError> for LmError {
+    fn from(e: ObjectiveError) -> Self {
+        Self::Objective(e)
+    }
+}
+
+/// The outcome of a least-squares run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LmResult<T: Real, const D: usize> {
+    /// The parameters (mm, rad).
+    pub x: SVector<T, D>,
+    /// `0.5 |r|^2` at the start.
+    pub initial_cost: T,
+    /// `0.5 |r|^2` at the result.
+    pub cost: T,
+    /// Iterations (steps tried).
+    pub iterations: u32,
+    /// Residual evaluations (with or without Jacobian).
+    pub evaluations: u32,
+    /// Residual rows.
+    pub rows: u32,
+    /// Why it stopped.
+    pub stop: LmStop,
+    /// The triangular factor of `J` at the result (`J = Q R`).
+    pub r: SMatrix<T, D, D>,
+}
+
+impl<T: Real, const D: usize> LmResult<T, D> {
+    /// Residual standard deviation `sqrt(|r|^2 / (m - D))` (mm-equivalent units).
+    pub fn sigma(&self) -> T {
+        let dof = self
+            .rows
+            .saturating_sub(u32::try_from(D).unwrap_or(u32::MAX));
+        if dof == 0 {
+            return T::zero();
+        }
+        (T::of(2.0) * self.cost / T::of(f64::from(dof))).sqrt()
+    }
+
+    /// Standard error of every parameter, `sigma sqrt(diag((J^T J)^-1))` from `R^-1` (mm, rad).
+    /// `None` if `R` is singular.
+    pub fn standard_errors(&self) -> Option<SVector<T, D>> {
+        let r_inv = self
+            .r
+            .solve_upper_triangular(&SMatrix::<T, D, D>::identity())?;
+        let sigma = self.sigma();
+        Some(SVector::from_iterator(
+            r_inv.row_iter().map(|row| sigma * row.norm()),
+        ))
+    }
+}
+
+/// The least-squares problem: the parameters of `set` over a set of measurements.
+#[derive(Clone, Debug)]
+pub struct LeastSquares<'a, T: Real, const N: usize, const D: usize> {
+    robot: PreparedRobot<T, N>,
+    fixed: ParameterErrors<T, N>,
+    set: ParameterSet<N, D>,
+    measurements: &'a [Measurement<T, N>],
+    sqrt_k: T,
+}
+
+/// Triangular factor, `Q^T r` and `|r|^2` of the stacked residual, accumulated row by row.
+struct Factor<T: Real, const D: usize> {
+    r: SMatrix<T, D, D>,
+    qtr: SVector<T, D>,
+    sum_squares: T,
+}
+
+impl<T: Real, const D: usize> Factor<T, D> {
+    fn new() -> Self {
+        Self {
+            r: SMatrix::zeros(),
+            qtr: SVector::zeros(),
+            sum_squares: T::zero(),
+        }
+    }
+
+    /// Rotates the row `(a, b)` (Jacobian row and residual) into `R` and `Q^T r`.
+    fn add_row(&mut self, mut a: SVector<T, D>, mut b: T) {
+        self.sum_squares += b * b;
+        for i in 0..D {
+            let ai = a.get(i).copied().unwrap_or_else(T::zero);
+            if ai == T::zero() {
+                continue;
+            }
+            let rii = self.r.get((i, i)).copied().unwrap_or_else(T::zero);
+            let h = rii.hypot(ai);
+            let (c, s) = (rii / h, ai / h);
+            for j in i..D {
+                if let (Some(rij), Some(aj)) = (self.r.get((i, j)).copied(), a.get(j).copied()) {
+                    if let Some(v) = self.r.get_mut((i, j)) {
+                        *v = c * rij + s * aj;
+                    }
+                    if let Some(v) = a.get_mut(j) {
+                        *v = c * aj - s * rij;
+                    }
+                }
+            }
+            if let Some(q) = self.qtr.get_mut(i) {
+                let qi = *q;
+                *q = c * qi + s * b;
+                b = c * b - s * qi;
+            }
+        }
+    }
+}
+
+impl<'a, T: Real, const N: usize, const D: usize> LeastSquares<'a, T, N, D> {
+    /// The problem for the parameters of `set`; others keep the values of `fixed`. `k` weights
+    /// orientation (mm^2/rad^2), as in eq. (7).
+    pub fn new(
+        robot: &Robot<T, N>,
+        fixed: &ParameterErrors<T, N>,
+        set: ParameterSet<N, D>,
+        measurements: &'a [Measurement<T, N>],
+        k: T,
+    ) -> Result<Self, LmError> {
+        robot.validate().map_err(ObjectiveError::from)?;
+        fixed.validate().map_err(ObjectiveError::from)?;
+        if !k.finite() || k < T::zero() {
+            return Err(ObjectiveError::InvalidK.into());
+        }
+        Ok(Self {
+            robot: PreparedRobot::new(robot),
+            fixed: *fixed,
+            set,
+            measurements,
+            sqrt_k: k.sqrt(),
+        })
+    }
+
+    /// Number of residual rows: 6 per full pose, 3 per position-only pose.
+    pub fn rows(&self) -> u32 {
+        self.measurements
+            .iter()
+            .map(|m| if m.rotation.is_some() { 6 } else { 3 })
+            .sum()
+    }
+
+    fn errors(&self, x: &SVector<T, D>) -> ParameterErrors<T, N> {
+        let mut errors = self.fixed;
+        self.set.unpack_into(x, &mut errors);
+        errors
+    }
+
+    /// Calls `row(jacobian_row, residual)` for every residual row at `x`.
+    fn for_each_row(&self, x: &SVector<T, D>, mut row: impl FnMut(SVector<T, D>, T)) {
+        let kinematics = self.robot.actual(&self.errors(x));
+        for m in self.measurements {
+            let w = m.weight.sqrt();
+            let measured = crate::Pose::from_parts(
+                m.position.into(),
+                nalgebra::Rotation3::from_matrix_unchecked(
+                    m.rotation.unwrap_or_else(nalgebra::Matrix3::identity),
+                ),
+            );
+            let (error, jacobian) =
+                pose_error_jacobian(&kinematics, &self.set, &m.angles, &measured);
+            let rows = if m.rotation.is_some() { 6 } else { 3 };
+            for (i, j_row) in jacobian.row_iter().enumerate().take(rows) {
+                let (scale, value) = if i < 3 {
+                    (w, error.position.get(i).copied())
+                } else {
+                    (w * self.sqrt_k, error.rotation.get(i - 3).copied())
+                };
+                row(
+                    j_row.transpose() * scale,
+                    value.unwrap_or_else(T::zero) * scale,
+                );
+            }
+        }
+    }
+
+    /// `0.5 |r|^2` at `x`.
+    pub fn cost(&self, x: &SVector<T, D>) -> T {
+        let mut sum = T::zero();
+        self.for_each_row(x, |_, r| sum += r * r);
+        sum / T::of(2.0)
+    }
+
+    fn factor(&self, x: &SVector<T, D>) -> Factor<T, D> {
+        let mut factor = Factor::new();
+        self.for_each_row(x, |a, b| factor.add_row(a, b));
+        factor
+    }
+
+    /// Runs Levenberg-Marquardt from `x0`.
+    pub fn solve(
+        &self,
+        x0: &SVector<T, D>,
+        settings: &LmSettings<T>,
+    ) -> Result<LmResult<T, D>, LmError> {
+        let rows = self.rows();
+        if (rows as usize) < D {
+            return Err(LmError::TooFewResiduals {
+                rows,
+                parameters: u16::try_from(D).unwrap_or(u16::MAX),
+            });
+        }
+        if !x0.iter().all(|v| v.finite()) {
+            return Err(LmError::NonFinite);
+        }
+        let half = T::of(0.5);
+        let mut x = *x0;
+        let mut factor = self.factor(&x);
+        let mut evaluations = 1;
+        let mut cost = factor.sum_squares * half;
+        if !cost.finite() {
+            return Err(LmError::NonFinite);
+        }
+        let initial_cost = cost;
+        let mut scale = column_norms(&factor.r);
+        if let Some(i) = scale.iter().position(|s| *s == T::zero()) {
+            return Err(LmError::UnobservableParameter(
+                u16::try_from(i).unwrap_or(u16::MAX),
+            ));
+        }
+        let mut lambda = settings.initial_damping;
+        let mut nu = T::of(2.0);
+        let mut iterations = 0;
+        let stop = loop {
+            if cost == T::zero() {
+                break LmStop::ZeroResidual;
+            }
+            // Scaled gradient J^T r = R^T Q^T r.
+            let gradient = factor.r.transpose() * factor.qtr;
+            let r_norm = (T::of(2.0) * cost).sqrt();
+            let cosine = gradient
+                .iter()
+                .zip(column_norms(&factor.r).iter())
+                .map(|(g, n)| {
+                    if *n > T::zero() {
+                        g.abs() / (*n * r_norm)
+                    } else {
+                        T::zero()
+                    }
+                })
+                .fold(T::zero(), |a, b| a.max(b));
+            if cosine <= settings.gtol {
+                break LmStop::Gradient;
+            }
+            if iterations >= settings.max_iterations {
+                break LmStop::MaxIterations;
+            }
+            iterations += 1;
+            let Some(delta) = damped_step(&factor, &scale, lambda) else {
+                break LmStop::NoProgress;
+            };
+            let scaled_step = delta.component_mul(&scale).norm();
+            let scaled_x = x.component_mul(&scale).norm();
+            if scaled_step <= settings.xtol * (scaled_x + settings.xtol) {
+                break LmStop::Step;
+            }
+            // Predicted reduction 0.5 (|Q^T r|^2 - |R delta + Q^T r|^2).
+            let predicted =
+                half * (factor.qtr.norm_squared() - (factor.r * delta + factor.qtr).norm_squared());
+            let candidate = x + delta;
+            let candidate_cost = self.cost(&candidate);
+            evaluations += 1;
+            let actual = cost - candidate_cost;
+            let rho = if predicted > T::zero() {
+                actual / predicted
+            } else {
+                -T::one()
+            };
+            if candidate_cost.finite() && rho > T::zero() {
+                x = candidate;
+                let previous = cost;
+                factor = self.factor(&x);
+                evaluations += 1;
+                cost = factor.sum_squares * half;
+                for (s, n) in scale.iter_mut().zip(column_norms(&factor.r).iter()) {
+                    *s = s.max(*n);
+                }
+                let t = T::of(2.0) * rho - T::one();
+                lambda *= T::of(1.0 / 3.0).max(T::one() - t * t * t);
+                nu = T::of(2.0);
+                if actual <= settings.ftol * previous && predicted <= settings.ftol * previous {
+                    break LmStop::CostChange;
+                }
+            } else {
+                lambda *= nu;
+                nu *= T::of(2.0);
+                if !lambda.finite() || lambda > T::of(1e30) {
+                    break LmStop::NoProgress;
+                }
+            }
+        };
+        Ok(LmResult {
+            x,
+            initial_cost,
+            cost,
+            iterations,
+            evaluations,
+            rows,
+            stop,
+            r: factor.r,
+        })
+    }
+}
+
+/// Column norms of `R` (equal to those of `J`, since `Q` is orthogonal).
+fn column_norms<T: Real, const D: usize>(r: &SMatrix<T, D, D>) -> SVector<T, D> {
+    SVector::from_iterator(r.column_iter().map(|c| c.norm()))
+}
+
+/// Solves `[R; sqrt(lambda) S] delta = -[Q^T r; 0]` in the least-squares sense.
+fn damped_step<T: Real, const D: usize>(
+    factor: &Factor<T, D>,
+    scale: &SVector<T, D>,
+    lambda: T,
+) -> Option<SVector<T, D>> {
+    let mut damped = Factor {
+        r: factor.r,
+        qtr: factor.qtr,
+        sum_squares: T::zero(),
+    };
+    let root = lambda.sqrt();
+    for (i, s) in scale.iter().enumerate() {
+        let mut row = SVector::<T, D>::zeros();
+        if let Some(v) = row.get_mut(i) {
+            *v = root * *s;
+        }
+        damped.add_row(row, T::zero());
+    }
+    let solution = damped.r.solve_upper_triangular(&damped.qtr)?;
+    let delta = -solution;
+    delta.iter().all(|v| v.finite()).then_some(delta)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::paper::{er10l_c10, paper_measurements, table2};
+    use crate::parameters::ParameterMask;
+
+    /// LM from the nominal model (zero errors) on the noise-free paper scenario; returns the worst
+    /// length (mm) and angle (rad) errors against Table 2 and the result.
+    fn recover<T: Real>() -> (f64, f64, LmResult<T, 24>) {
+        let robot = er10l_c10::<T>();
+        let set = ParameterSet::<6, 24>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
+        let data = paper_measurements::<T>(1);
+        let problem = LeastSquares::new(
+            &robot,
+            &ParameterErrors::zero(),
+            set,
+            data.as_slice(),
+            T::of(1e6),
+        )
+        .unwrap();
+        let result = problem
+            .solve(&SVector::zeros(), &LmSettings::default())
+            .unwrap();
+        let truth = set.pack(&table2::<T>());
+        let (mut mm, mut rad) = (0.0f64, 0.0f64);
+        for (p, (x, t)) in set
+            .parameters()
+            .iter()
+            .zip(result.x.iter().zip(truth.iter()))
+        {
+            let e = (x.to_f64() - t.to_f64()).abs();
+            if p.is_angle() {
+                rad = rad.max(e)
+            } else {
+                mm = mm.max(e)
+            }
+        }
+        (mm, rad, result)
+    }
+
+    #[test]
+    fn recovers_table2_from_nominal_in_f64() {
+        let (mm, rad, r) = recover::<f64>();
+        extern crate std;
+        std::println!(
+            "lm f64: {mm:.2e} mm {rad:.2e} rad, {} iterations, {:?}, cost {:.3e} -> {:.3e}",
+            r.iterations,
+            r.stop,
+            r.initial_cost,
+            r.cost
+        );
+        assert!(mm < 1e-6 && rad < 1e-9, "{mm} mm, {rad} rad");
+        assert_eq!(r.rows, 32 * 6);
+    }
+
+    #[test]
+    fn recovers_table2_from_nominal_in_f32() {
+        let (mm, rad, r) = recover::<f32>();
+        extern crate std;
+        std::println!(
+            "lm f32: {mm:.2e} mm {rad:.2e} rad, {} iterations, {:?}, cost {:.3e} -> {:.3e}",
+            r.iterations,
+            r.stop,
+            r.initial_cost,
+            r.cost
+        );
+        assert!(mm < 2e-3 && rad < 2e-6, "{mm} mm, {rad} rad");
+    }
+
+    #[test]
+    fn givens_factor_matches_the_normal_equations() {
+        // R^T R = J^T J and R^T Q^T r = J^T r for a small random system.
+        let rows = [
+            ([1.0, 2.0, 0.0], 1.0),
+            ([0.5, -1.0, 3.0], -2.0),
+            ([2.0, 0.0, 1.0], 0.5),
+            ([-1.0, 1.0, 1.0], 3.0),
+        ];
+        let mut factor = Factor::<f64, 3>::new();
+        let mut jtj = SMatrix::<f64, 3, 3>::zeros();
+        let mut jtr = SVector::<f64, 3>::zeros();
+        for (a, b) in rows {
+            let a = SVector::from(a);
+            jtj += a * a.transpose();
+            jtr += a * b;
+            factor.add_row(a, b);
+        }
+        assert!((factor.r.transpose() * factor.r - jtj).abs().max() < 1e-13);
+        assert!((factor.r.transpose() * factor.qtr - jtr).abs().max() < 1e-13);
+        assert!(factor.r.lower_triangle().abs().max() - factor.r.diagonal().abs().max() <= 0.0);
+    }
+
+    #[test]
+    fn too_few_poses_and_unobservable_parameters_are_errors() {
+        let robot = er10l_c10::<f64>();
+        let set = ParameterSet::<6, 24>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
+        let data = paper_measurements::<f64>(1);
+        let three = &data.as_slice()[..3];
+        let problem = LeastSquares::new(&robot, &ParameterErrors::zero(), set, three, 1e6).unwrap();
+        assert_eq!(
+            problem.solve(&SVector::zeros(), &LmSettings::default()),
+            Err(LmError::TooFewResiduals {
+                rows: 18,
+                parameters: 24
+            })
+        );
+    }
+}
