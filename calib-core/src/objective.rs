@@ -339,12 +339,9 @@ impl<'a, T: Real, const N: usize, const D: usize> Objective<'a, T, N, D> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Kinematics;
     use crate::ipso::{self, IpsoSettings, SearchSpace, Silent};
     use crate::paper::{er10l_c10, paper_measurements, table2};
     use crate::parameters::ParameterMask;
-    use rand_core::{Rng, SeedableRng};
-    use rand_xoshiro::Xoshiro256PlusPlus;
 
     /// Runs the paper's swarm (20 particles, 2000 generations, plain Halton, seed 0, bounds 10
     /// times the initial range) on the noise-free 32-pose scenario; returns the worst length error
