@@ -8,6 +8,7 @@ use crate::tracker_data::TrackerData;
 use anyhow::{Context, bail};
 use calib_core::halton::Scrambling;
 use calib_core::ipso::{self, Control, CostFunction, IpsoSettings, SearchSpace, StopReason};
+use calib_core::lm::{LeastSquares, LmError, LmResult, LmSettings, LmStop};
 use calib_core::objective::{Measurement, Objective};
 use calib_core::statistics::PoseStatistics;
 use calib_core::{ParameterErrors, ParameterSet};
@@ -26,6 +27,22 @@ pub const SWARM_SIZES: [usize; 6] = [10, 20, 30, 40, 50, 100];
 pub enum Method {
     /// The paper's improved particle swarm (Halton start, constriction factor).
     Ipso,
+    /// Levenberg-Marquardt least squares from the nominal model.
+    Lm,
+    /// The swarm for a global start, then least squares to the noise floor.
+    #[value(name = "ipso+lm")]
+    IpsoLm,
+}
+
+impl Method {
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ipso => "ipso",
+            Self::Lm => "lm",
+            Self::IpsoLm => "ipso+lm",
+        }
+    }
 }
 
 /// Halton digit scrambling, as chosen on the command line.
@@ -55,9 +72,12 @@ pub struct CalibrateOptions {
     /// Tracker data file (CSV).
     #[arg(long, value_name = "FILE")]
     pub data: PathBuf,
-    /// Identification method.
-    #[arg(long, value_enum, default_value_t = Method::Ipso)]
+    /// Identification method: the paper's swarm, least squares, or the swarm then least squares.
+    #[arg(long, value_enum, default_value_t = Method::IpsoLm)]
     pub method: Method,
+    /// Iteration cap of the least-squares stage.
+    #[arg(long, default_value_t = 100)]
+    pub lm_iterations: u32,
     /// Swarm size (10, 20, 30, 40, 50 or 100).
     #[arg(long, default_value_t = 20)]
     pub swarm: usize,
@@ -117,22 +137,25 @@ pub struct CalibrateOptions {
 /// The JSON report of a calibration.
 #[derive(Debug, Serialize)]
 pub struct Report {
-    /// `ipso`.
+    /// `ipso`, `lm` or `ipso+lm`.
     pub method: String,
     /// Robot file.
     pub robot: String,
     /// Data file.
     pub data: String,
-    /// Identified errors: name -> { value, unit }.
+    /// Identified errors: name -> { value, unit, std_error (after least squares) }.
     pub parameters: serde_json::Map<String, serde_json::Value>,
     /// Objective (eq. 7) at the nominal model and at the result.
     pub objective: ObjectiveValues,
-    /// Generations run.
+    /// Swarm generations run (0 without the swarm).
     pub generations: u32,
-    /// Cost evaluations.
+    /// Objective evaluations of the swarm plus residual evaluations of least squares.
     pub evaluations: u64,
-    /// Why the swarm stopped.
+    /// Why the last stage stopped.
     pub stop: String,
+    /// The least-squares stage, when it ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub least_squares: Option<LeastSquaresReport>,
     /// Table 3 statistics with the nominal model.
     pub before: Table3,
     /// Table 3 statistics with the identified model.
@@ -153,10 +176,31 @@ pub struct ObjectiveValues {
     pub initial: f64,
     /// At the identified errors.
     pub r#final: f64,
-    /// Best of the initial swarm.
+    /// Best of the initial swarm (without the swarm: the initial value).
     pub initial_swarm_best: f64,
+    /// After the swarm (without the swarm: the initial value).
+    pub after_swarm: f64,
     /// `k`, mm^2/rad^2.
     pub k: f64,
+}
+
+/// The least-squares stage of a calibration.
+#[derive(Debug, Serialize)]
+pub struct LeastSquaresReport {
+    /// Iterations.
+    pub iterations: u32,
+    /// Residual evaluations.
+    pub evaluations: u32,
+    /// Why it stopped.
+    pub stop: String,
+    /// `0.5 |r|^2` at its start and end (residual `[dp; sqrt(k) dr]`, mm).
+    pub cost_initial: f64,
+    /// `0.5 |r|^2` at the end.
+    pub cost_final: f64,
+    /// Residual rows.
+    pub rows: u32,
+    /// Residual standard deviation, mm.
+    pub sigma_mm: f64,
 }
 
 /// Result of `calibrate`: the report, the identified robot file, the text for people, the
@@ -276,8 +320,207 @@ fn run<const D: usize>(
         measurements,
         options.k,
     )?;
+    let zero = SVector::<f64, D>::zeros();
+    let started = Instant::now();
+    let swarm = match options.method {
+        Method::Ipso | Method::IpsoLm => Some(run_swarm(options, &objective, &set)?),
+        Method::Lm => None,
+    };
+    let swarm_end = swarm.as_ref().map_or(zero, |s| s.result.best);
+    let least_squares = match options.method {
+        Method::Lm | Method::IpsoLm => {
+            let problem = LeastSquares::new(
+                &model.robot,
+                &ParameterErrors::zero(),
+                set,
+                measurements,
+                options.k,
+            )
+            .map_err(|e| lm_error(e, &set))?;
+            let settings = LmSettings {
+                max_iterations: options.lm_iterations,
+                ..LmSettings::default()
+            };
+            Some(
+                problem
+                    .solve(&swarm_end, &settings)
+                    .map_err(|e| lm_error(e, &set))?,
+            )
+        }
+        Method::Ipso => None,
+    };
+    let seconds = started.elapsed().as_secs_f64();
+    let best = least_squares.as_ref().map_or(swarm_end, |l| l.x);
+    let standard_errors = least_squares.as_ref().and_then(LmResult::standard_errors);
+
+    let statistics = |x: &SVector<f64, D>| {
+        let mut stats = PoseStatistics::default();
+        let mut per_pose = Vec::with_capacity(measurements.len());
+        objective.pose_errors(x, |m, e| {
+            stats.add(&e, m.rotation.is_some());
+            per_pose.push(e.position.norm());
+        });
+        (Table3::from_statistics(&stats), per_pose)
+    };
+    let (before, before_poses) = statistics(&zero);
+    let (after, after_poses) = statistics(&best);
+
+    let identified = set.unpack(&best);
+    let mut parameters = serde_json::Map::new();
+    let mut std_error_list = Vec::new();
+    for (i, (p, v)) in set.parameters().iter().zip(best.iter()).enumerate() {
+        let mut entry = serde_json::json!({ "value": v, "unit": unit_of(*p) });
+        if let Some(se) = standard_errors.as_ref().and_then(|s| s.get(i)) {
+            entry["std_error"] = serde_json::json!(se);
+            std_error_list.push((*p, *se));
+        }
+        parameters.insert(p.to_string(), entry);
+    }
+    let truth = match &options.truth {
+        None => None,
+        Some(path) => {
+            let truth_file = RobotFile::read(path)?;
+            let truth_errors = truth_file.calibration_errors::<6>(path)?;
+            Some(
+                set.parameters()
+                    .iter()
+                    .map(|p| {
+                        TruthRow::new(
+                            *p,
+                            identified.get(*p).unwrap_or(0.0),
+                            truth_errors.get(*p).unwrap_or(0.0),
+                        )
+                    })
+                    .collect::<Vec<_>>(),
+            )
+        }
+    };
+    let initial = objective.value(&zero);
+    let final_objective = objective.value(&best);
+    let mut text = format!(
+        "calibrated {} with {} poses of {} by {} in {seconds:.3} s\n",
+        model.name,
+        measurements.len(),
+        options.data.display(),
+        options.method.name(),
+    );
+    if let Some(s) = &swarm {
+        text.push_str(&format!(
+            "  IPSO: {} particles, {} generations ({}), {} evaluations, objective {:.6e} -> {:.6e}\n",
+            options.swarm,
+            s.result.generations,
+            swarm_stop(s.result.stop),
+            s.result.evaluations,
+            initial,
+            s.result.best_cost
+        ));
+    }
+    if let Some(l) = &least_squares {
+        text.push_str(&format!(
+            "  least squares: {} iterations ({}), 0.5 |r|^2 {:.6e} -> {:.6e}, residual sigma {:.4e} mm\n",
+            l.iterations,
+            lm_stop(l.stop),
+            l.initial_cost,
+            l.cost,
+            l.sigma()
+        ));
+    }
+    text.push_str(&format!(
+        "objective (eq. 7, k = {:e} mm^2/rad^2): {initial:.6e} at the nominal model -> {final_objective:.6e}\n\n",
+        options.k
+    ));
+    text.push_str(&table3_text(
+        "Table 3 statistics on the calibration poses",
+        &before,
+        &after,
+    ));
+    if let Some(rows) = &truth {
+        text.push_str("\nidentified errors against the truth\n");
+        text.push_str(&truth_text(rows));
+    }
+    let robot_toml = file
+        .with_errors(
+            &identified,
+            set.parameters().iter().copied(),
+            &std_error_list,
+            options.method.name(),
+            &options.robot.display().to_string(),
+        )
+        .to_toml(&format!(
+            "{} identified by calib calibrate ({}) from {}.\nValues are nominal + identified errors; [calibration.errors] lists the errors and [calibration.std_errors] their standard errors, in mm and rad.",
+            model.name,
+            options.method.name(),
+            options.data.display()
+        ));
+    let swarm_evaluations = swarm.as_ref().map_or(0, |s| s.result.evaluations);
+    let lm_evaluations = least_squares
+        .as_ref()
+        .map_or(0, |l| u64::from(l.evaluations));
+    let stop = match (&least_squares, &swarm) {
+        (Some(l), _) => lm_stop(l.stop),
+        (None, Some(s)) => swarm_stop(s.result.stop),
+        (None, None) => "",
+    };
+    let report = Report {
+        method: options.method.name().into(),
+        robot: options.robot.display().to_string(),
+        data: options.data.display().to_string(),
+        parameters,
+        objective: ObjectiveValues {
+            initial,
+            r#final: final_objective,
+            initial_swarm_best: swarm.as_ref().map_or(initial, |s| s.result.initial_cost),
+            after_swarm: swarm.as_ref().map_or(initial, |s| s.result.best_cost),
+            k: options.k,
+        },
+        generations: swarm.as_ref().map_or(0, |s| s.result.generations),
+        evaluations: swarm_evaluations + lm_evaluations,
+        stop: stop.into(),
+        least_squares: least_squares.as_ref().map(|l| LeastSquaresReport {
+            iterations: l.iterations,
+            evaluations: l.evaluations,
+            stop: lm_stop(l.stop).into(),
+            cost_initial: l.initial_cost,
+            cost_final: l.cost,
+            rows: l.rows,
+            sigma_mm: l.sigma(),
+        }),
+        before,
+        after,
+        settings: serde_json::json!({
+            "swarm": options.swarm, "generations": options.generations, "c1": options.c1, "c2": options.c2,
+            "seed": options.seed, "init_angle_rad": options.init_angle_rad, "init_length_mm": options.init_length_mm,
+            "bound_factor": options.bound_factor, "stall_generations": options.stall_generations,
+            "target": options.target, "halton_start": options.halton_start,
+            "scrambling": format!("{:?}", options.scrambling).to_lowercase(),
+            "lm_iterations": options.lm_iterations,
+        }),
+        truth,
+        seconds,
+    };
+    Ok(Calibration {
+        report,
+        robot_toml,
+        text,
+        history: swarm.map(|s| s.history).unwrap_or_default(),
+        before: before_poses,
+        after: after_poses,
+    })
+}
+
+/// A swarm run and its convergence history.
+struct SwarmOutcome<const D: usize> {
+    result: ipso::IpsoResult<f64, D>,
+    history: Vec<(u32, f64)>,
+}
+
+fn run_swarm<const D: usize>(
+    options: &CalibrateOptions,
+    objective: &Objective<'_, f64, 6, D>,
+    set: &ParameterSet<6, D>,
+) -> anyhow::Result<SwarmOutcome<D>> {
     let space = SearchSpace::for_parameters(
-        &set,
+        set,
         options.init_angle_rad,
         options.init_length_mm,
         options.bound_factor,
@@ -312,131 +555,55 @@ fn run<const D: usize>(
         }
         Control::Continue
     };
-    let started = Instant::now();
-    let result = {
-        let mut cost = Parallel(&objective);
-        macro_rules! swarm {
-            ($($p:literal)*) => {
-                match options.swarm {
-                    $($p => ipso::optimize::<f64, $p, D>(&mut cost, &space, &settings, &mut observer)?,)*
-                    other => bail!("--swarm {other} is not available"),
-                }
-            };
-        }
-        swarm!(10 20 30 40 50 100)
-    };
-    let seconds = started.elapsed().as_secs_f64();
-    bar.finish_and_clear();
-
-    let statistics = |x: &SVector<f64, D>| {
-        let mut stats = PoseStatistics::default();
-        let mut per_pose = Vec::with_capacity(measurements.len());
-        objective.pose_errors(x, |m, e| {
-            stats.add(&e, m.rotation.is_some());
-            per_pose.push(e.position.norm());
-        });
-        (Table3::from_statistics(&stats), per_pose)
-    };
-    let zero = SVector::<f64, D>::zeros();
-    let (before, before_poses) = statistics(&zero);
-    let (after, after_poses) = statistics(&result.best);
-
-    let identified = set.unpack(&result.best);
-    let mut parameters = serde_json::Map::new();
-    for (p, v) in set.parameters().iter().zip(result.best.iter()) {
-        parameters.insert(
-            p.to_string(),
-            serde_json::json!({ "value": v, "unit": unit_of(*p) }),
-        );
+    let mut cost = Parallel(objective);
+    macro_rules! swarm {
+        ($($p:literal)*) => {
+            match options.swarm {
+                $($p => ipso::optimize::<f64, $p, D>(&mut cost, &space, &settings, &mut observer)?,)*
+                other => bail!("--swarm {other} is not available"),
+            }
+        };
     }
-    let truth = match &options.truth {
-        None => None,
-        Some(path) => {
-            let truth_file = RobotFile::read(path)?;
-            let truth_errors = truth_file.calibration_errors::<6>(path)?;
-            Some(
-                set.parameters()
-                    .iter()
-                    .map(|p| {
-                        TruthRow::new(
-                            *p,
-                            identified.get(*p).unwrap_or(0.0),
-                            truth_errors.get(*p).unwrap_or(0.0),
-                        )
-                    })
-                    .collect::<Vec<_>>(),
-            )
-        }
-    };
-    let stop = match result.stop {
+    let result = swarm!(10 20 30 40 50 100);
+    bar.finish_and_clear();
+    Ok(SwarmOutcome { result, history })
+}
+
+fn swarm_stop(stop: StopReason) -> &'static str {
+    match stop {
         StopReason::MaxGenerations => "maximum generations",
         StopReason::TargetReached => "target objective reached",
         StopReason::Stalled => "no improvement",
         StopReason::Cancelled => "cancelled",
-    };
-    let mut text = format!(
-        "calibrated {} with {} poses of {}: IPSO, {} particles, {} generations ({stop}), {} evaluations, {seconds:.3} s\n\
-         objective (eq. 7, k = {:e} mm^2/rad^2): {:.6e} at the nominal model -> {:.6e}\n\n",
-        model.name,
-        measurements.len(),
-        options.data.display(),
-        options.swarm,
-        result.generations,
-        result.evaluations,
-        options.k,
-        objective.value(&zero),
-        result.best_cost,
-    );
-    text.push_str(&table3_text(
-        "Table 3 statistics on the calibration poses",
-        &before,
-        &after,
-    ));
-    if let Some(rows) = &truth {
-        text.push_str("\nidentified errors against the truth\n");
-        text.push_str(&truth_text(rows));
     }
-    let robot_toml = file
-        .with_errors(&identified, set.parameters().iter().copied(), &[], "ipso", &options.robot.display().to_string())
-        .to_toml(&format!(
-            "{} identified by calib calibrate (IPSO) from {}.\nValues are nominal + identified errors; [calibration.errors] lists the errors in mm and rad.",
-            model.name,
-            options.data.display()
-        ));
-    let report = Report {
-        method: "ipso".into(),
-        robot: options.robot.display().to_string(),
-        data: options.data.display().to_string(),
-        parameters,
-        objective: ObjectiveValues {
-            initial: objective.value(&zero),
-            r#final: result.best_cost,
-            initial_swarm_best: result.initial_cost,
-            k: options.k,
-        },
-        generations: result.generations,
-        evaluations: result.evaluations,
-        stop: stop.into(),
-        before,
-        after,
-        settings: serde_json::json!({
-            "swarm": options.swarm, "generations": options.generations, "c1": options.c1, "c2": options.c2,
-            "seed": options.seed, "init_angle_rad": options.init_angle_rad, "init_length_mm": options.init_length_mm,
-            "bound_factor": options.bound_factor, "stall_generations": options.stall_generations,
-            "target": options.target, "halton_start": options.halton_start,
-            "scrambling": format!("{:?}", options.scrambling).to_lowercase(),
-        }),
-        truth,
-        seconds,
-    };
-    Ok(Calibration {
-        report,
-        robot_toml,
-        text,
-        history,
-        before: before_poses,
-        after: after_poses,
-    })
+}
+
+fn lm_stop(stop: LmStop) -> &'static str {
+    match stop {
+        LmStop::ZeroResidual => "zero residual",
+        LmStop::Gradient => "gradient below tolerance",
+        LmStop::Step => "step below tolerance",
+        LmStop::CostChange => "cost change below tolerance",
+        LmStop::MaxIterations => "iteration cap",
+        LmStop::NoProgress => "no further progress (rounding floor)",
+    }
+}
+
+/// A least-squares error in the user's terms (parameter names, not indices).
+fn lm_error<const D: usize>(error: LmError, set: &ParameterSet<6, D>) -> anyhow::Error {
+    match error {
+        LmError::UnobservableParameter(i) => {
+            let name = set
+                .parameters()
+                .get(usize::from(i))
+                .map(ToString::to_string)
+                .unwrap_or_default();
+            anyhow::anyhow!(
+                "the data cannot determine {name}: it changes no residual; remove it from the identified parameters"
+            )
+        }
+        other => anyhow::anyhow!("least squares: {other}"),
+    }
 }
 
 /// Writes the outputs of a calibration that were asked for (each atomically).
