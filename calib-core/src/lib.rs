@@ -23,6 +23,7 @@
 
 pub mod error;
 pub mod halton;
+pub mod identifiability;
 pub mod ipso;
 pub mod jacobian;
 pub mod kinematics;

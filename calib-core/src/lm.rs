@@ -292,6 +292,12 @@ impl<'a, T: Real, const N: usize, const D: usize> LeastSquares<'a, T, N, D> {
         sum / T::of(2.0)
     }
 
+    /// The triangular factor `R` of the Jacobian at `x` (`J = Q R`), for the identifiability
+    /// analysis.
+    pub fn jacobian_factor(&self, x: &SVector<T, D>) -> SMatrix<T, D, D> {
+        self.factor(x).r
+    }
+
     fn factor(&self, x: &SVector<T, D>) -> Factor<T, D> {
         let mut factor = Factor::new();
         self.for_each_row(x, |a, b| factor.add_row(a, b));
