@@ -17,7 +17,7 @@ use crate::kinematics::PreparedRobot;
 use crate::model::Robot;
 use crate::objective::{Measurement, ObjectiveError};
 use crate::parameters::{ParameterErrors, ParameterSet};
-use crate::pose_error::pose_error_jacobian;
+use crate::pose_error::{PoseError, pose_error_jacobian};
 use crate::scalar::Real;
 use core::fmt;
 use nalgebra::{SMatrix, SVector};
@@ -91,6 +91,10 @@ pub enum LmError {
     Objective(ObjectiveError),
     /// The start point or a residual is not finite.
     NonFinite,
+    /// The robust weight buffer does not have one entry per measurement.
+    WeightBuffer,
+    /// The robust loss scale is not a finite positive number.
+    InvalidLossScale,
 }
 
 impl fmt::Display for LmError {
@@ -105,6 +109,8 @@ impl fmt::Display for LmError {
             }
             Self::Objective(e) => write!(f, "{e}"),
             Self::NonFinite => f.write_str("a parameter or residual is not finite"),
+            Self::WeightBuffer => f.write_str("the weight buffer needs one entry per measurement"),
+            Self::InvalidLossScale => f.write_str("the loss scale must be a finite number > 0"),
         }
     }
 }
@@ -115,6 +121,52 @@ impl From<ObjectiveError> for LmError {
     fn from(e: ObjectiveError) -> Self {
         Self::Objective(e)
     }
+}
+
+/// At most this many reweightings of the robust loss.
+pub const MAX_REWEIGHTINGS: u32 = 30;
+
+/// Loss applied to each pose's residual norm `sqrt(|dp|^2 + k |dr|^2)` (mm).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Loss<T> {
+    /// Plain least squares.
+    L2,
+    /// Huber: weight 1 up to the scale (mm), `scale / norm` beyond.
+    Huber(T),
+    /// Cauchy: weight `1 / (1 + (norm / scale)^2)`.
+    Cauchy(T),
+}
+
+impl<T: Real> Loss<T> {
+    /// The IRLS weight of a pose with residual norm `norm` (mm).
+    pub fn weight(self, norm: T) -> T {
+        match self {
+            Self::L2 => T::one(),
+            Self::Huber(c) => {
+                if norm <= c {
+                    T::one()
+                } else {
+                    c / norm
+                }
+            }
+            Self::Cauchy(c) => {
+                let u = norm / c;
+                T::one() / (T::one() + u * u)
+            }
+        }
+    }
+}
+
+/// The outcome of a robust least-squares run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RobustResult<T: Real, const D: usize> {
+    /// The final weighted least-squares run.
+    pub result: LmResult<T, D>,
+    /// Reweightings done.
+    pub reweightings: u32,
+    /// Poses whose residual norm exceeds the loss scale at the result.
+    pub outliers: u32,
 }
 
 /// The outcome of a least-squares run.
@@ -257,50 +309,99 @@ impl<'a, T: Real, const N: usize, const D: usize> LeastSquares<'a, T, N, D> {
         errors
     }
 
-    /// Calls `row(jacobian_row, residual)` for every residual row at `x`.
-    fn for_each_row(&self, x: &SVector<T, D>, mut row: impl FnMut(SVector<T, D>, T)) {
+    /// Calls `row(jacobian_row, residual)` for every residual row at `x` (the Jacobian row is
+    /// zero unless `with_jacobian`). Row scale: `sqrt(weight * robust_weight)`, times `sqrt(k)`
+    /// for rotation rows; `robust` holds one weight per measurement (empty: all 1).
+    fn for_each_row(
+        &self,
+        x: &SVector<T, D>,
+        robust: &[T],
+        with_jacobian: bool,
+        mut row: impl FnMut(&SVector<T, D>, T),
+    ) {
         let kinematics = self.robot.actual(&self.errors(x));
-        for m in self.measurements {
-            let w = m.weight.sqrt();
+        let zero = SVector::<T, D>::zeros();
+        for (index, m) in self.measurements.iter().enumerate() {
+            let robust_weight = robust.get(index).copied().unwrap_or_else(T::one);
+            let w = (m.weight * robust_weight).sqrt();
             let measured = crate::Pose::from_parts(
                 m.position.into(),
                 nalgebra::Rotation3::from_matrix_unchecked(
                     m.rotation.unwrap_or_else(nalgebra::Matrix3::identity),
                 ),
             );
-            let (error, jacobian) =
-                pose_error_jacobian(&kinematics, &self.set, &m.angles, &measured);
+            let (error, jacobian) = if with_jacobian {
+                let (e, j) = pose_error_jacobian(&kinematics, &self.set, &m.angles, &measured);
+                (e, Some(j))
+            } else {
+                let predicted = kinematics.forward_angles(&m.angles);
+                (PoseError::between(&measured, &predicted), None)
+            };
             let rows = if m.rotation.is_some() { 6 } else { 3 };
-            for (i, j_row) in jacobian.row_iter().enumerate().take(rows) {
+            for i in 0..rows {
                 let (scale, value) = if i < 3 {
                     (w, error.position.get(i).copied())
                 } else {
                     (w * self.sqrt_k, error.rotation.get(i - 3).copied())
                 };
-                row(
-                    j_row.transpose() * scale,
-                    value.unwrap_or_else(T::zero) * scale,
-                );
+                let value = value.unwrap_or_else(T::zero) * scale;
+                match &jacobian {
+                    Some(j) => row(&(j.row(i).transpose() * scale), value),
+                    None => row(&zero, value),
+                }
             }
+        }
+    }
+
+    /// Residual norm of every pose at `x`, `sqrt(|dp|^2 + k |dr|^2)` (mm; `|dp|` for position-only
+    /// poses), without weights, into `out` (one entry per measurement).
+    pub fn pose_residual_norms(&self, x: &SVector<T, D>, out: &mut [T]) {
+        self.for_each_pose_norm(x, |index, norm| {
+            if let Some(o) = out.get_mut(index) {
+                *o = norm;
+            }
+        });
+    }
+
+    /// Calls `visit(index, norm)` with the residual norm of every pose at `x`.
+    fn for_each_pose_norm(&self, x: &SVector<T, D>, mut visit: impl FnMut(usize, T)) {
+        let kinematics = self.robot.actual(&self.errors(x));
+        for (index, m) in self.measurements.iter().enumerate() {
+            let predicted = kinematics.forward_angles(&m.angles);
+            let dp2 = (m.position - predicted.translation.vector).norm_squared();
+            let norm = match &m.rotation {
+                Some(r) => {
+                    let angle2 = crate::so3::angle_squared_between(r, predicted.rotation.matrix());
+                    (dp2 + self.sqrt_k * self.sqrt_k * angle2).sqrt()
+                }
+                None => dp2.sqrt(),
+            };
+            visit(index, norm);
         }
     }
 
     /// `0.5 |r|^2` at `x`.
     pub fn cost(&self, x: &SVector<T, D>) -> T {
         let mut sum = T::zero();
-        self.for_each_row(x, |_, r| sum += r * r);
+        self.for_each_row(x, &[], false, |_, r| sum += r * r);
+        sum / T::of(2.0)
+    }
+
+    fn weighted_cost(&self, x: &SVector<T, D>, robust: &[T]) -> T {
+        let mut sum = T::zero();
+        self.for_each_row(x, robust, false, |_, r| sum += r * r);
         sum / T::of(2.0)
     }
 
     /// The triangular factor `R` of the Jacobian at `x` (`J = Q R`), for the identifiability
     /// analysis.
     pub fn jacobian_factor(&self, x: &SVector<T, D>) -> SMatrix<T, D, D> {
-        self.factor(x).r
+        self.factor(x, &[]).r
     }
 
-    fn factor(&self, x: &SVector<T, D>) -> Factor<T, D> {
+    fn factor(&self, x: &SVector<T, D>, robust: &[T]) -> Factor<T, D> {
         let mut factor = Factor::new();
-        self.for_each_row(x, |a, b| factor.add_row(a, b));
+        self.for_each_row(x, robust, true, |a, b| factor.add_row(*a, b));
         factor
     }
 
@@ -309,6 +410,70 @@ impl<'a, T: Real, const N: usize, const D: usize> LeastSquares<'a, T, N, D> {
         &self,
         x0: &SVector<T, D>,
         settings: &LmSettings<T>,
+    ) -> Result<LmResult<T, D>, LmError> {
+        self.solve_weighted(x0, settings, &[])
+    }
+
+    /// Runs Levenberg-Marquardt with a robust loss by iteratively reweighted least squares:
+    /// solve, weight every pose by the loss at its residual norm, solve again, until no weight
+    /// changes by more than 1e-6 (at most 30 reweightings). `weights` (one per measurement) is the
+    /// caller's buffer and holds the final robust weights; poses whose residual norm exceeds the
+    /// loss scale are counted as outliers.
+    pub fn solve_robust(
+        &self,
+        x0: &SVector<T, D>,
+        settings: &LmSettings<T>,
+        loss: Loss<T>,
+        weights: &mut [T],
+    ) -> Result<RobustResult<T, D>, LmError> {
+        if weights.len() != self.measurements.len() {
+            return Err(LmError::WeightBuffer);
+        }
+        if let Loss::Huber(c) | Loss::Cauchy(c) = loss
+            && !(c.finite() && c > T::zero())
+        {
+            return Err(LmError::InvalidLossScale);
+        }
+        weights.fill(T::one());
+        let mut result = self.solve_weighted(x0, settings, weights)?;
+        let mut reweightings = 0;
+        if loss != Loss::L2 {
+            while reweightings < MAX_REWEIGHTINGS {
+                reweightings += 1;
+                let mut change = T::zero();
+                self.for_each_pose_norm(&result.x, |index, norm| {
+                    if let Some(w) = weights.get_mut(index) {
+                        let new = loss.weight(norm);
+                        change = change.max((new - *w).abs());
+                        *w = new;
+                    }
+                });
+                result = self.solve_weighted(&result.x, settings, weights)?;
+                if change < T::of(1e-6) {
+                    break;
+                }
+            }
+        }
+        let mut outliers = 0;
+        if let Loss::Huber(c) | Loss::Cauchy(c) = loss {
+            self.for_each_pose_norm(&result.x, |_, norm| {
+                if norm > c {
+                    outliers += 1;
+                }
+            });
+        }
+        Ok(RobustResult {
+            result,
+            reweightings,
+            outliers,
+        })
+    }
+
+    fn solve_weighted(
+        &self,
+        x0: &SVector<T, D>,
+        settings: &LmSettings<T>,
+        robust: &[T],
     ) -> Result<LmResult<T, D>, LmError> {
         let rows = self.rows();
         if (rows as usize) < D {
@@ -322,7 +487,7 @@ impl<'a, T: Real, const N: usize, const D: usize> LeastSquares<'a, T, N, D> {
         }
         let half = T::of(0.5);
         let mut x = *x0;
-        let mut factor = self.factor(&x);
+        let mut factor = self.factor(&x, robust);
         let mut evaluations = 1;
         let mut cost = factor.sum_squares * half;
         if !cost.finite() {
@@ -375,7 +540,7 @@ impl<'a, T: Real, const N: usize, const D: usize> LeastSquares<'a, T, N, D> {
             let predicted =
                 half * (factor.qtr.norm_squared() - (factor.r * delta + factor.qtr).norm_squared());
             let candidate = x + delta;
-            let candidate_cost = self.cost(&candidate);
+            let candidate_cost = self.weighted_cost(&candidate, robust);
             evaluations += 1;
             let actual = cost - candidate_cost;
             let rho = if predicted > T::zero() {
@@ -386,7 +551,7 @@ impl<'a, T: Real, const N: usize, const D: usize> LeastSquares<'a, T, N, D> {
             if candidate_cost.finite() && rho > T::zero() {
                 x = candidate;
                 let previous = cost;
-                factor = self.factor(&x);
+                factor = self.factor(&x, robust);
                 evaluations += 1;
                 cost = factor.sum_squares * half;
                 for (s, n) in scale.iter_mut().zip(column_norms(&factor.r).iter()) {
