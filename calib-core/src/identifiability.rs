@@ -85,7 +85,12 @@ impl<T: Real, const D: usize> Identifiability<T, D> {
             .map(|s| s.max(T::of(f64::MIN_POSITIVE)).ln())
             .fold(T::zero(), |a, b| a + b)
             / T::of(D as f64);
-        let observability = log_mean.exp() / T::of(poses.max(1) as f64).sqrt();
+        // The geometric mean is 0 as soon as one direction is undetermined.
+        let observability = if rank == D {
+            log_mean.exp() / T::of(poses.max(1) as f64).sqrt()
+        } else {
+            T::zero()
+        };
 
         let (pivots, pivoted) = pivoted_qr(&scaled);
         let mut status = [Status::Identifiable; D];

@@ -1,18 +1,18 @@
 //! `calib calibrate`: identify the parameter errors of a robot from tracker data with the
 //! paper's swarm, and report Table 3 before and after.
 
+use crate::check::{IdentifiabilityReport, Inputs, analyse};
 use crate::files::write_atomic;
 use crate::report::{Table3, TruthRow, table3_text, truth_text, unit_of};
-use crate::robot_file::{RobotFile, RobotModel};
-use crate::tracker_data::TrackerData;
-use anyhow::{Context, bail};
+use crate::robot_file::RobotFile;
+use anyhow::bail;
 use calib_core::halton::Scrambling;
 use calib_core::ipso::{self, Control, CostFunction, IpsoSettings, SearchSpace, StopReason};
-use calib_core::lm::{LeastSquares, LmError, LmResult, LmSettings, LmStop};
-use calib_core::objective::{Measurement, Objective};
+use calib_core::lm::{LeastSquares, LmError, LmResult, LmSettings, LmStop, Loss};
+use calib_core::objective::Objective;
 use calib_core::statistics::PoseStatistics;
-use calib_core::{ParameterErrors, ParameterSet};
-use nalgebra::{SVector, Vector3};
+use calib_core::{ParameterErrors, ParameterMask, ParameterSet};
+use nalgebra::SVector;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::io::IsTerminal;
@@ -41,6 +41,28 @@ impl Method {
             Self::Ipso => "ipso",
             Self::Lm => "lm",
             Self::IpsoLm => "ipso+lm",
+        }
+    }
+}
+
+/// Loss of the least-squares stage, as chosen on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum LossChoice {
+    /// Plain least squares.
+    L2,
+    /// Huber: quadratic up to the scale, linear beyond.
+    Huber,
+    /// Cauchy: weight 1 / (1 + (r / scale)^2).
+    Cauchy,
+}
+
+impl LossChoice {
+    /// The core's loss with the given scale (mm).
+    pub fn with_scale(self, scale: f64) -> Loss<f64> {
+        match self {
+            Self::L2 => Loss::L2,
+            Self::Huber => Loss::Huber(scale),
+            Self::Cauchy => Loss::Cauchy(scale),
         }
     }
 }
@@ -78,6 +100,16 @@ pub struct CalibrateOptions {
     /// Iteration cap of the least-squares stage.
     #[arg(long, default_value_t = 100)]
     pub lm_iterations: u32,
+    /// Loss of the least-squares stage: l2, or huber / cauchy to down-weight outlier poses.
+    #[arg(long, value_enum, default_value_t = LossChoice::L2)]
+    pub loss: LossChoice,
+    /// Scale of the robust loss, mm of pose residual sqrt(|dp|^2 + k |dr|^2); poses beyond it are
+    /// reported as outliers.
+    #[arg(long, default_value_t = 1.0)]
+    pub loss_scale_mm: f64,
+    /// Drop the parameters the data cannot determine (instead of refusing), and say which.
+    #[arg(long)]
+    pub auto_mask: bool,
     /// Swarm size (10, 20, 30, 40, 50 or 100).
     #[arg(long, default_value_t = 20)]
     pub swarm: usize,
@@ -156,6 +188,12 @@ pub struct Report {
     /// The least-squares stage, when it ran.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub least_squares: Option<LeastSquaresReport>,
+    /// Identifiability of the parameters of the robot file on these data, at the nominal model.
+    pub identifiability: IdentifiabilityReport,
+    /// Parameters dropped by --auto-mask.
+    pub dropped: Vec<String>,
+    /// Poses whose residual exceeds the robust loss scale (empty for l2).
+    pub outliers: Vec<Outlier>,
     /// Table 3 statistics with the nominal model.
     pub before: Table3,
     /// Table 3 statistics with the identified model.
@@ -182,6 +220,19 @@ pub struct ObjectiveValues {
     pub after_swarm: f64,
     /// `k`, mm^2/rad^2.
     pub k: f64,
+}
+
+/// A pose flagged by the robust loss.
+#[derive(Debug, Serialize)]
+pub struct Outlier {
+    /// The pose's id.
+    pub id: String,
+    /// Its line in the data file.
+    pub line: u64,
+    /// Its residual norm `sqrt(|dp|^2 + k |dr|^2)` at the result, mm.
+    pub residual_mm: f64,
+    /// Its final robust weight.
+    pub weight: f64,
 }
 
 /// The least-squares stage of a calibration.
@@ -238,24 +289,6 @@ impl<const D: usize> CostFunction<f64, D> for Parallel<'_, '_, D> {
 
 /// Runs the calibration.
 pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
-    let file = RobotFile::read(&options.robot)?;
-    let model: RobotModel<6> = file.to_model(&options.robot)?;
-    let data = TrackerData::read(&options.data)?;
-    if data.joints != 6 {
-        bail!(
-            "{}: has {} joint columns, the robot {} has 6 joints",
-            options.data.display(),
-            data.joints,
-            model.name
-        );
-    }
-    if !data.base_frame {
-        bail!(
-            "{}: the data are in the tracker's frame (no '# frame: base' line); this version identifies \
-             only the robot's geometry, so the measurements must be in the robot's base frame",
-            options.data.display()
-        );
-    }
     if !SWARM_SIZES.contains(&options.swarm) {
         bail!(
             "--swarm {} is not available; choose one of {:?}",
@@ -273,46 +306,53 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
             bail!("{name} must be a finite number >= 0, got {v}");
         }
     }
-    let mut measurements = Vec::with_capacity(data.records.len());
-    for r in &data.records {
-        let q: [f64; 6] = std::array::from_fn(|i| r.q[i]);
-        let m = Measurement::new(&q, Vector3::from(r.position), r.rotation, r.weight)
-            .with_context(|| format!("{}:{}", options.data.display(), r.line))?;
-        measurements.push(m);
+    if !(options.loss_scale_mm.is_finite() && options.loss_scale_mm > 0.0) {
+        bail!(
+            "--loss-scale-mm must be a finite number > 0, got {}",
+            options.loss_scale_mm
+        );
     }
-    let count = model.mask.count();
-    macro_rules! dispatch {
-        ($($d:literal)*) => {
-            match count {
-                $($d => run::<$d>(options, &file, &model, &data, &measurements),)*
-                _ => bail!("{count} identified parameters; calib supports 1 to 42"),
-            }
-        };
+    if options.loss != LossChoice::L2 && options.method == Method::Ipso {
+        bail!(
+            "--loss {:?} applies to the least-squares stage: use --method lm or ipso+lm",
+            options.loss
+        );
     }
-    dispatch!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24 25 26 27 28 29 30 31 32 33 34 35 36 37 38 39 40 41 42)
+    let inputs = Inputs::load(&options.robot, &options.data)?;
+    let mut mask = inputs.model.mask;
+    let identifiability =
+        crate::with_parameter_count!(mask.count(), analyse(&inputs, &mask, options.k))?;
+    let mut dropped = Vec::new();
+    if identifiability.rank < identifiability.parameters {
+        if !options.auto_mask {
+            bail!(
+                "the data cannot determine every identified parameter (rank {} of {}): {}. \
+                 Drop them with --auto-mask, or set identify = [...] in the robot file; `calib check` shows the analysis",
+                identifiability.rank,
+                identifiability.parameters,
+                identifiability.problem()
+            );
+        }
+        for parameter in identifiability.to_drop() {
+            mask.set(parameter, false);
+            dropped.push(parameter.to_string());
+        }
+    }
+    crate::with_parameter_count!(
+        mask.count(),
+        run(options, &inputs, &mask, identifiability, dropped)
+    )
 }
 
 fn run<const D: usize>(
     options: &CalibrateOptions,
-    file: &RobotFile,
-    model: &RobotModel<6>,
-    data: &TrackerData,
-    measurements: &[Measurement<f64, 6>],
+    inputs: &Inputs,
+    mask: &ParameterMask<6>,
+    identifiability: IdentifiabilityReport,
+    dropped: Vec<String>,
 ) -> anyhow::Result<Calibration> {
-    let set = ParameterSet::<6, D>::from_mask(&model.mask)?;
-    if measurements.len()
-        * if data.orientation == crate::tracker_data::OrientationColumns::None {
-            3
-        } else {
-            6
-        }
-        < D
-    {
-        bail!(
-            "{} poses give fewer equations than the {D} identified parameters",
-            measurements.len()
-        );
-    }
+    let (file, model, measurements) = (&inputs.file, &inputs.model, inputs.measurements.as_slice());
+    let set = ParameterSet::<6, D>::from_mask(mask)?;
     let objective = Objective::new(
         &model.robot,
         &ParameterErrors::zero(),
@@ -321,6 +361,7 @@ fn run<const D: usize>(
         options.k,
     )?;
     let zero = SVector::<f64, D>::zeros();
+    let mut outliers: Vec<Outlier> = Vec::new();
     let started = Instant::now();
     let swarm = match options.method {
         Method::Ipso | Method::IpsoLm => Some(run_swarm(options, &objective, &set)?),
@@ -341,11 +382,27 @@ fn run<const D: usize>(
                 max_iterations: options.lm_iterations,
                 ..LmSettings::default()
             };
-            Some(
-                problem
-                    .solve(&swarm_end, &settings)
-                    .map_err(|e| lm_error(e, &set))?,
-            )
+            let mut weights = vec![1.0; measurements.len()];
+            let loss = options.loss.with_scale(options.loss_scale_mm);
+            let robust = problem
+                .solve_robust(&swarm_end, &settings, loss, &mut weights)
+                .map_err(|e| lm_error(e, &set))?;
+            if options.loss != LossChoice::L2 {
+                let mut norms = vec![0.0; measurements.len()];
+                problem.pose_residual_norms(&robust.result.x, &mut norms);
+                let poses = inputs.data.records.iter().zip(&norms).zip(&weights);
+                for ((record, norm), weight) in poses {
+                    if *norm > options.loss_scale_mm {
+                        outliers.push(Outlier {
+                            id: record.id.clone(),
+                            line: record.line,
+                            residual_mm: *norm,
+                            weight: *weight,
+                        });
+                    }
+                }
+            }
+            Some(robust.result)
         }
         Method::Ipso => None,
     };
@@ -425,6 +482,27 @@ fn run<const D: usize>(
             l.sigma()
         ));
     }
+    if !dropped.is_empty() {
+        text.push_str(&format!(
+            "  --auto-mask dropped {} (the data cannot determine them: {})\n",
+            dropped.join(", "),
+            identifiability.problem()
+        ));
+    }
+    if options.loss != LossChoice::L2 {
+        let ids: Vec<String> = outliers
+            .iter()
+            .map(|o| format!("{} (line {}, {:.3} mm)", o.id, o.line, o.residual_mm))
+            .collect();
+        text.push_str(&format!(
+            "  {:?} loss, scale {} mm: {} outlier pose(s){}{}\n",
+            options.loss,
+            options.loss_scale_mm,
+            outliers.len(),
+            if ids.is_empty() { "" } else { ": " },
+            ids.join(", ")
+        ));
+    }
     text.push_str(&format!(
         "objective (eq. 7, k = {:e} mm^2/rad^2): {initial:.6e} at the nominal model -> {final_objective:.6e}\n\n",
         options.k
@@ -485,6 +563,9 @@ fn run<const D: usize>(
             rows: l.rows,
             sigma_mm: l.sigma(),
         }),
+        identifiability,
+        dropped,
+        outliers,
         before,
         after,
         settings: serde_json::json!({
@@ -494,6 +575,8 @@ fn run<const D: usize>(
             "target": options.target, "halton_start": options.halton_start,
             "scrambling": format!("{:?}", options.scrambling).to_lowercase(),
             "lm_iterations": options.lm_iterations,
+            "loss": format!("{:?}", options.loss).to_lowercase(), "loss_scale_mm": options.loss_scale_mm,
+            "auto_mask": options.auto_mask,
         }),
         truth,
         seconds,

@@ -4,6 +4,8 @@
 #![deny(missing_docs)]
 
 pub mod calibrate;
+pub mod check;
+pub mod dispatch;
 pub mod files;
 pub mod fk;
 pub mod plots;

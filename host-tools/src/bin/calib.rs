@@ -3,6 +3,7 @@
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use host_tools::calibrate::{self, CalibrateOptions};
+use host_tools::check::{self, CheckOptions};
 use host_tools::fk;
 use host_tools::robot_file::RobotModel;
 use host_tools::simulate::{self, Simulation};
@@ -41,6 +42,8 @@ enum Command {
     Simulate(Simulation),
     /// Identify the robot's parameter errors from tracker data.
     Calibrate(CalibrateOptions),
+    /// Print which identified parameters the data determine (identifiability), without calibrating.
+    Check(CheckOptions),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -70,6 +73,14 @@ fn main() -> anyhow::Result<()> {
                 settings.out.display(),
                 settings.truth_out.display()
             );
+        }
+        Command::Check(options) => {
+            let report = check::check(&options)?;
+            if options.json {
+                println!("{}", serde_json::to_string_pretty(&report)?);
+            } else {
+                print!("{}", report.text());
+            }
         }
         Command::Calibrate(options) => {
             let calibration = calibrate::calibrate(&options)?;

@@ -1,0 +1,263 @@
+//! Loading a robot and its measurements for the core, and `calib check`: the identifiability of
+//! the identified parameters from a data set, without calibrating.
+
+use crate::robot_file::{RobotFile, RobotModel};
+use crate::tracker_data::TrackerData;
+use anyhow::{Context, bail};
+use calib_core::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability, Status};
+use calib_core::lm::LeastSquares;
+use calib_core::objective::Measurement;
+use calib_core::{Parameter, ParameterErrors, ParameterMask, ParameterSet};
+use nalgebra::{SVector, Vector3};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// A robot file, a data file and the measurements prepared for the core.
+pub struct Inputs {
+    /// The robot file as read.
+    pub file: RobotFile,
+    /// The robot in core units, with its identification mask.
+    pub model: RobotModel<6>,
+    /// The data file as read.
+    pub data: TrackerData,
+    /// One core measurement per data row.
+    pub measurements: Vec<Measurement<f64, 6>>,
+}
+
+impl Inputs {
+    /// Reads and checks both files.
+    pub fn load(robot: &Path, data: &Path) -> anyhow::Result<Self> {
+        let file = RobotFile::read(robot)?;
+        let model: RobotModel<6> = file.to_model(robot)?;
+        let data_file = TrackerData::read(data)?;
+        if data_file.joints != 6 {
+            bail!(
+                "{}: has {} joint columns, the robot {} has 6 joints",
+                data.display(),
+                data_file.joints,
+                model.name
+            );
+        }
+        if !data_file.base_frame {
+            bail!(
+                "{}: the data are in the tracker's frame (no '# frame: base' line); this version \
+                 identifies only the robot's geometry, so the measurements must be in the robot's base frame",
+                data.display()
+            );
+        }
+        let mut measurements = Vec::with_capacity(data_file.records.len());
+        for r in &data_file.records {
+            let q: [f64; 6] = std::array::from_fn(|i| r.q[i]);
+            let m = Measurement::new(&q, Vector3::from(r.position), r.rotation, r.weight)
+                .with_context(|| format!("{}:{}", data.display(), r.line))?;
+            measurements.push(m);
+        }
+        Ok(Self {
+            file,
+            model,
+            data: data_file,
+            measurements,
+        })
+    }
+
+    /// Number of residual rows: 6 per full pose, 3 per position-only pose.
+    pub fn rows(&self) -> usize {
+        self.measurements
+            .iter()
+            .map(|m| if m.rotation.is_some() { 6 } else { 3 })
+            .sum()
+    }
+}
+
+/// A parameter the data do not determine.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Undetermined {
+    /// Parameter name.
+    pub name: String,
+    /// `not identifiable` (changes no residual) or `redundant`.
+    pub status: &'static str,
+    /// For a redundant one: the determined parameters it is confounded with, and the coefficient
+    /// in scaled units (its column equals the sum of coefficient times their columns).
+    pub with: Vec<(String, f64)>,
+}
+
+/// The identifiability analysis in report form.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct IdentifiabilityReport {
+    /// Number of identified parameters analysed.
+    pub parameters: usize,
+    /// Numerical rank of the scaled Jacobian.
+    pub rank: usize,
+    /// Condition number of the scaled Jacobian (null when rank-deficient).
+    pub condition_number: Option<f64>,
+    /// Observability index O1 (Borm and Menq) of the pose set, scaled Jacobian.
+    pub observability_index: f64,
+    /// Singular values of the scaled Jacobian, largest first.
+    pub singular_values: Vec<f64>,
+    /// Parameters the data cannot determine, in pivot order.
+    pub undetermined: Vec<Undetermined>,
+    /// The analysed parameter names, in order.
+    #[serde(skip)]
+    pub names: Vec<Parameter>,
+}
+
+impl IdentifiabilityReport {
+    /// The parameters to drop so that the rest are determined.
+    pub fn to_drop(&self) -> Vec<Parameter> {
+        self.undetermined
+            .iter()
+            .filter_map(|u| self.names.iter().find(|p| p.to_string() == u.name).copied())
+            .collect()
+    }
+
+    /// A sentence naming what the data cannot determine.
+    pub fn problem(&self) -> String {
+        self.undetermined
+            .iter()
+            .map(|u| {
+                if u.with.is_empty() {
+                    format!("{} ({})", u.name, u.status)
+                } else {
+                    let with: Vec<&str> = u.with.iter().map(|(n, _)| n.as_str()).collect();
+                    format!("{} (redundant with {})", u.name, with.join(", "))
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("; ")
+    }
+
+    /// Fixed-width text for people.
+    pub fn text(&self) -> String {
+        let mut out = format!(
+            "identifiability of {} parameters: rank {}{}\n",
+            self.parameters,
+            self.rank,
+            match self.condition_number {
+                Some(c) => format!(", scaled condition number {c:.3}"),
+                None => ", rank-deficient".to_string(),
+            }
+        );
+        out.push_str(&format!(
+            "observability index O1: {:.4e}\n",
+            self.observability_index
+        ));
+        let values: Vec<String> = self
+            .singular_values
+            .iter()
+            .map(|s| format!("{s:.3e}"))
+            .collect();
+        out.push_str(&format!("scaled singular values: {}\n", values.join(" ")));
+        if self.undetermined.is_empty() {
+            out.push_str("every parameter is determined by the data\n");
+        }
+        for u in &self.undetermined {
+            if u.with.is_empty() {
+                out.push_str(&format!(
+                    "  {:<10} {}: it changes no residual\n",
+                    u.name, u.status
+                ));
+            } else {
+                let with: Vec<String> =
+                    u.with.iter().map(|(n, c)| format!("{c:+.4} {n}")).collect();
+                out.push_str(&format!(
+                    "  {:<10} {}: acts like {} (scaled units); only their combination is determined\n",
+                    u.name,
+                    u.status,
+                    with.join(" ")
+                ));
+            }
+        }
+        out
+    }
+}
+
+/// The identifiability of the parameters selected by `mask` at the nominal model.
+pub fn analyse<const D: usize>(
+    inputs: &Inputs,
+    mask: &ParameterMask<6>,
+    k: f64,
+) -> anyhow::Result<IdentifiabilityReport> {
+    let set = ParameterSet::<6, D>::from_mask(mask)?;
+    if inputs.rows() < D {
+        bail!(
+            "{} poses give {} equations, fewer than the {D} identified parameters",
+            inputs.measurements.len(),
+            inputs.rows()
+        );
+    }
+    let problem = LeastSquares::new(
+        &inputs.model.robot,
+        &ParameterErrors::zero(),
+        set,
+        &inputs.measurements,
+        k,
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let r = problem.jacobian_factor(&SVector::zeros());
+    let id = Identifiability::from_factor(&r, inputs.measurements.len(), DEFAULT_RANK_TOLERANCE);
+    let names = set.parameters().to_vec();
+    let mut undetermined = Vec::new();
+    for index in id.pivots.iter().skip(id.rank) {
+        let (Some(parameter), Some(status)) = (names.get(*index), id.status.get(*index)) else {
+            continue;
+        };
+        let with = id
+            .combination(*index, 1e-6)
+            .map(|c| {
+                c.iter()
+                    .zip(&names)
+                    .filter(|(v, _)| **v != 0.0)
+                    .map(|(v, p)| (p.to_string(), *v))
+                    .collect()
+            })
+            .unwrap_or_default();
+        undetermined.push(Undetermined {
+            name: parameter.to_string(),
+            status: match status {
+                Status::NotIdentifiable => "not identifiable",
+                _ => "redundant",
+            },
+            with: if *status == Status::NotIdentifiable {
+                Vec::new()
+            } else {
+                with
+            },
+        });
+    }
+    Ok(IdentifiabilityReport {
+        parameters: D,
+        rank: id.rank,
+        condition_number: id
+            .condition_number
+            .is_finite()
+            .then_some(id.condition_number),
+        observability_index: id.observability,
+        singular_values: id.singular_values.iter().copied().collect(),
+        undetermined,
+        names,
+    })
+}
+
+/// Options of `calib check`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct CheckOptions {
+    /// Robot model file (its identify lists or the default rule select the parameters).
+    #[arg(long, value_name = "FILE")]
+    pub robot: PathBuf,
+    /// Tracker data file (CSV).
+    #[arg(long, value_name = "FILE")]
+    pub data: PathBuf,
+    /// Orientation weight k, mm^2/rad^2 (as for calibrate).
+    #[arg(long, default_value_t = calib_core::objective::DEFAULT_K)]
+    pub k: f64,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `calib check`: the identifiability analysis of a robot file's parameters on a data file.
+pub fn check(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
+    let inputs = Inputs::load(&options.robot, &options.data)?;
+    let mask = inputs.model.mask;
+    crate::with_parameter_count!(mask.count(), analyse(&inputs, &mask, options.k))
+}
