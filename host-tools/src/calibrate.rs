@@ -104,7 +104,9 @@ pub struct CalibrateOptions {
     #[arg(long, value_enum, default_value_t = LossChoice::L2)]
     pub loss: LossChoice,
     /// Scale of the robust loss, mm of pose residual sqrt(|dp|^2 + k |dr|^2); poses beyond it are
-    /// reported as outliers.
+    /// reported as outliers. About 3 times the typical pose residual works well: with tracker
+    /// noise of 0.02 mm and 1e-4 rad (k = 1e6) a pose residual is about 0.17 mm, and 0.5 mm keeps
+    /// every clean pose in.
     #[arg(long, default_value_t = 1.0)]
     pub loss_scale_mm: f64,
     /// Drop the parameters the data cannot determine (instead of refusing), and say which.

@@ -10,6 +10,7 @@ pub mod files;
 pub mod fk;
 pub mod plots;
 pub mod reference;
+pub mod reference_lm;
 pub mod report;
 pub mod robot_file;
 pub mod simulate;

@@ -1,0 +1,196 @@
+//! An independent float64 reference optimiser, used only to check the core's least squares: the
+//! `levenberg-marquardt` crate (MINPACK's algorithm, on its own nalgebra version) minimising the
+//! same residual `[dp; sqrt(k) dr]` (times `sqrt(weight)`) with the reference kinematics of
+//! [`crate::reference`] and a central-difference Jacobian. No calib-core code is involved.
+
+use crate::reference::{Mat4, RefModel, pose_error};
+use crate::robot_file::RobotFile;
+use crate::tracker_data::TrackerData;
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use nalgebra034::{DMatrix, DVector, Dyn, Owned};
+
+/// Where a named parameter lives in the reference model's error arrays.
+#[derive(Clone, Copy, Debug)]
+enum Slot {
+    /// (joint index, index in `[da, dalpha, dtheta, dd, dbeta]`).
+    Joint(usize, usize),
+    /// Index in the base errors `[tx, ty, tz, rx, ry, rz]`.
+    Base(usize),
+    /// Index in the tool errors.
+    Tool(usize),
+}
+
+fn slot(name: &str) -> Option<Slot> {
+    const FRAME: [&str; 6] = ["tx", "ty", "tz", "rx", "ry", "rz"];
+    if let Some(rest) = name.strip_prefix("base_") {
+        return FRAME.iter().position(|f| *f == rest).map(Slot::Base);
+    }
+    if let Some(rest) = name.strip_prefix("tool_") {
+        return FRAME.iter().position(|f| *f == rest).map(Slot::Tool);
+    }
+    let rest = name.strip_prefix('d')?;
+    let split = rest.find(|c: char| c.is_ascii_digit())?;
+    let (kind, number) = rest.split_at(split);
+    let joint: usize = number.parse().ok()?;
+    let index = ["a", "alpha", "theta", "d", "beta"]
+        .iter()
+        .position(|k| *k == kind)?;
+    (joint >= 1).then_some(Slot::Joint(joint - 1, index))
+}
+
+/// The fitting problem.
+struct Problem<'a> {
+    file: &'a RobotFile,
+    slots: Vec<Slot>,
+    /// (q rad, measured transform, has orientation, sqrt weight).
+    poses: Vec<(Vec<f64>, Mat4, bool, f64)>,
+    sqrt_k: f64,
+    x: DVector<f64>,
+}
+
+impl Problem<'_> {
+    fn model(&self, x: &DVector<f64>) -> RefModel {
+        let joints = self.file.joint.len();
+        let mut joint_errors = vec![[0.0; 5]; joints];
+        let mut base = [0.0; 6];
+        let mut tool = [0.0; 6];
+        for (slot, value) in self.slots.iter().zip(x.iter()) {
+            match *slot {
+                Slot::Joint(j, i) => {
+                    if let Some(e) = joint_errors.get_mut(j) {
+                        e[i] = *value;
+                    }
+                }
+                Slot::Base(i) => base[i] = *value,
+                Slot::Tool(i) => tool[i] = *value,
+            }
+        }
+        RefModel::from_file(self.file, &joint_errors, &base, &tool)
+    }
+
+    fn residuals_at(&self, x: &DVector<f64>) -> DVector<f64> {
+        let model = self.model(x);
+        let mut r = Vec::with_capacity(self.poses.len() * 6);
+        for (q, measured, oriented, w) in &self.poses {
+            let e = pose_error(measured, &model.forward(q));
+            r.extend(e[..3].iter().map(|v| v * w));
+            if *oriented {
+                r.extend(e[3..].iter().map(|v| v * w * self.sqrt_k));
+            }
+        }
+        DVector::from_vec(r)
+    }
+}
+
+impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+    type ParameterStorage = Owned<f64, Dyn>;
+
+    fn set_params(&mut self, x: &DVector<f64>) {
+        self.x.copy_from(x);
+    }
+
+    fn params(&self) -> DVector<f64> {
+        self.x.clone()
+    }
+
+    fn residuals(&self) -> Option<DVector<f64>> {
+        Some(self.residuals_at(&self.x))
+    }
+
+    fn jacobian(&self) -> Option<DMatrix<f64>> {
+        let base = self.residuals_at(&self.x);
+        let mut jacobian = DMatrix::zeros(base.len(), self.x.len());
+        let h = 1e-6;
+        for j in 0..self.x.len() {
+            let mut plus = self.x.clone();
+            plus[j] += h;
+            let mut minus = self.x.clone();
+            minus[j] -= h;
+            let column = (self.residuals_at(&plus) - self.residuals_at(&minus)) / (2.0 * h);
+            jacobian.set_column(j, &column);
+        }
+        Some(jacobian)
+    }
+}
+
+/// The reference fit of the named parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReferenceFit {
+    /// (name, error in mm or rad), in the order asked for.
+    pub errors: Vec<(String, f64)>,
+    /// `0.5 |r|^2` at the result.
+    pub cost: f64,
+    /// Residual evaluations reported by the crate.
+    pub evaluations: usize,
+}
+
+/// Fits the errors of `names` (DESIGN.md names such as `da1`, `dbeta2`) to `data` from `start`.
+pub fn fit(
+    file: &RobotFile,
+    names: &[String],
+    data: &TrackerData,
+    k: f64,
+    start: &[f64],
+) -> anyhow::Result<ReferenceFit> {
+    let slots = names
+        .iter()
+        .map(|n| slot(n).ok_or_else(|| anyhow::anyhow!("unknown parameter {n}")))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let poses = data
+        .records
+        .iter()
+        .map(|r| {
+            let mut t = crate::reference::IDENTITY;
+            let rotation = r.rotation.unwrap_or_else(nalgebra::Matrix3::identity);
+            for (i, row) in t.iter_mut().take(3).enumerate() {
+                for (j, v) in row.iter_mut().take(3).enumerate() {
+                    *v = rotation[(i, j)];
+                }
+                row[3] = r.position[i];
+            }
+            (r.q.clone(), t, r.rotation.is_some(), r.weight.sqrt())
+        })
+        .collect();
+    let problem = Problem {
+        file,
+        slots,
+        poses,
+        sqrt_k: k.sqrt(),
+        x: DVector::from_column_slice(start),
+    };
+    let (solved, report) = LevenbergMarquardt::new()
+        .with_ftol(1e-15)
+        .with_xtol(1e-15)
+        .with_gtol(1e-15)
+        .with_patience(200)
+        .minimize(problem);
+    let residuals = solved.residuals_at(&solved.x);
+    Ok(ReferenceFit {
+        errors: names
+            .iter()
+            .cloned()
+            .zip(solved.x.iter().copied())
+            .collect(),
+        cost: 0.5 * residuals.norm_squared(),
+        evaluations: report.number_of_evaluations,
+    })
+}
+
+/// Root mean square of the absolute position error `|dp|` (mm) of the reference model of a robot
+/// file (its values taken as they are, no errors added) on a data file.
+pub fn rms_position_error(file: &RobotFile, data: &TrackerData) -> f64 {
+    let model = RefModel::from_file(file, &[], &[0.0; 6], &[0.0; 6]);
+    let sum: f64 = data
+        .records
+        .iter()
+        .map(|r| {
+            let t = model.forward(&r.q);
+            (0..3)
+                .map(|i| (r.position[i] - t[i][3]).powi(2))
+                .sum::<f64>()
+        })
+        .sum();
+    (sum / data.records.len().max(1) as f64).sqrt()
+}

@@ -1,0 +1,374 @@
+//! Least squares, identifiability, robust losses and uncertainty, end to end through the library
+//! functions behind `calib simulate`, `calib calibrate` and `calib check`, checked against the
+//! independent float64 reference optimiser and the known truth.
+
+use clap::Parser;
+use host_tools::calibrate::{self, CalibrateOptions, Calibration};
+use host_tools::check::{self, CheckOptions};
+use host_tools::reference_lm;
+use host_tools::robot_file::RobotFile;
+use host_tools::simulate::{self, Simulation};
+use host_tools::tracker_data::TrackerData;
+use std::path::{Path, PathBuf};
+
+const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
+
+#[derive(Parser)]
+struct Wrap<T: clap::Args> {
+    #[command(flatten)]
+    inner: T,
+}
+
+fn parse<T: clap::Args>(args: &[&str]) -> T {
+    Wrap::<T>::parse_from(std::iter::once("calib").chain(args.iter().copied())).inner
+}
+
+fn simulate(dir: &Path, name: &str, args: &[&str]) -> (PathBuf, PathBuf) {
+    let data = dir.join(format!("{name}.csv"));
+    let truth = dir.join(format!("{name}-truth.toml"));
+    let mut all = vec![
+        "--robot",
+        ROBOT,
+        "--out",
+        data.to_str().unwrap(),
+        "--truth-out",
+        truth.to_str().unwrap(),
+    ];
+    all.extend_from_slice(args);
+    simulate::simulate(&parse::<Simulation>(&all)).unwrap();
+    (data, truth)
+}
+
+fn calibrate(data: &Path, truth: &Path, args: &[&str]) -> Calibration {
+    let mut all = vec![
+        "--robot",
+        ROBOT,
+        "--data",
+        data.to_str().unwrap(),
+        "--truth",
+        truth.to_str().unwrap(),
+    ];
+    all.extend_from_slice(args);
+    calibrate::calibrate(&parse::<CalibrateOptions>(&all)).unwrap()
+}
+
+/// Writes the identified robot file and returns it parsed.
+fn identified(c: &Calibration, dir: &Path, name: &str) -> RobotFile {
+    let path = dir.join(name);
+    std::fs::write(&path, &c.robot_toml).unwrap();
+    RobotFile::read(&path).unwrap()
+}
+
+#[test]
+fn tracker_noise_scenario_matches_the_reference_and_the_statistics() {
+    let dir = tempfile::tempdir().unwrap();
+    let noise = [
+        "--position-sigma-mm",
+        "0.02",
+        "--orientation-sigma-rad",
+        "1e-4",
+    ];
+    let (mut covered, mut total) = (0, 0);
+    for seed in 1..=5u64 {
+        let s = seed.to_string();
+        let h = (100 + seed).to_string();
+        let (data, truth) = simulate(
+            dir.path(),
+            &format!("cal{seed}"),
+            &[&["--poses", "50", "--seed", &s][..], &noise].concat(),
+        );
+        let (holdout, _) = simulate(
+            dir.path(),
+            &format!("hold{seed}"),
+            &[&["--poses", "200", "--seed", &h][..], &noise].concat(),
+        );
+        let c = calibrate(&data, &truth, &[]);
+        let names: Vec<String> = c.report.parameters.keys().cloned().collect();
+        let nominal = RobotFile::read(Path::new(ROBOT)).unwrap();
+        let cal = TrackerData::read(&data).unwrap();
+        let fit = reference_lm::fit(&nominal, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
+        let reference_file = nominal.with_errors(
+            &{
+                let mut e = calib_core::ParameterErrors::<f64, 6>::zero();
+                for (n, v) in &fit.errors {
+                    e.set(calib_core::Parameter::from_name(n, 6).unwrap(), *v);
+                }
+                e
+            },
+            std::iter::empty(),
+            &[],
+            "reference",
+            ROBOT,
+        );
+        let held = TrackerData::read(&holdout).unwrap();
+        let rms_core =
+            reference_lm::rms_position_error(&identified(&c, dir.path(), "core.toml"), &held);
+        let rms_reference = reference_lm::rms_position_error(&reference_file, &held);
+        let rms_truth = reference_lm::rms_position_error(&RobotFile::read(&truth).unwrap(), &held);
+        let lm = c.report.least_squares.as_ref().unwrap();
+        println!(
+            "seed {seed}: held-out RMS core {rms_core:.5} mm, reference {rms_reference:.5} mm, truth {rms_truth:.5} mm \
+             (ratio {:.3}); cost core {:.10e} reference {:.10e}; sigma {:.4}",
+            rms_core / rms_truth,
+            lm.cost_final,
+            fit.cost,
+            lm.sigma_mm
+        );
+        assert!(
+            (rms_core - rms_reference).abs() <= 0.01 * rms_reference,
+            "seed {seed}"
+        );
+        assert!(
+            rms_core <= 1.3 * rms_truth,
+            "seed {seed}: {rms_core} vs truth {rms_truth}"
+        );
+        assert!(
+            (lm.cost_final - fit.cost).abs() <= 1e-8 * fit.cost,
+            "seed {seed}: {} vs {}",
+            lm.cost_final,
+            fit.cost
+        );
+        for row in c.report.truth.as_ref().unwrap() {
+            let se = c.report.parameters[&row.name]["std_error"]
+                .as_f64()
+                .unwrap();
+            total += 1;
+            if row.difference.abs() <= 3.0 * se {
+                covered += 1;
+            }
+        }
+    }
+    println!("true value within 3 standard errors: {covered} of {total}");
+    assert!(
+        covered as f64 >= 0.95 * total as f64,
+        "{covered} of {total}"
+    );
+}
+
+#[test]
+fn lm_from_nominal_reaches_the_reference_cost() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, truth) = simulate(
+        dir.path(),
+        "d",
+        &[
+            "--poses",
+            "32",
+            "--position-sigma-mm",
+            "0.05",
+            "--orientation-sigma-rad",
+            "2e-4",
+            "--seed",
+            "11",
+        ],
+    );
+    let c = calibrate(&data, &truth, &["--method", "lm"]);
+    assert_eq!(c.report.generations, 0);
+    let names: Vec<String> = c.report.parameters.keys().cloned().collect();
+    let fit = reference_lm::fit(
+        &RobotFile::read(Path::new(ROBOT)).unwrap(),
+        &names,
+        &TrackerData::read(&data).unwrap(),
+        1e6,
+        &vec![0.0; 24],
+    )
+    .unwrap();
+    let core = c.report.least_squares.as_ref().unwrap().cost_final;
+    println!("lm cost {core:.12e}, reference {:.12e}", fit.cost);
+    assert!((core - fit.cost).abs() <= 1e-8 * fit.cost);
+    for (name, value) in &fit.errors {
+        let ours = c.report.parameters[name]["value"].as_f64().unwrap();
+        let se = c.report.parameters[name]["std_error"].as_f64().unwrap();
+        assert!(
+            (ours - value).abs() <= 1e-3 * se,
+            "{name}: {ours} vs {value} (se {se})"
+        );
+    }
+}
+
+#[test]
+fn huber_loss_survives_two_outliers_and_flags_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, truth) = simulate(
+        dir.path(),
+        "d",
+        &[
+            "--poses",
+            "40",
+            "--position-sigma-mm",
+            "0.02",
+            "--orientation-sigma-rad",
+            "1e-4",
+            "--seed",
+            "21",
+        ],
+    );
+    let rms = |c: &Calibration, angles: bool| -> f64 {
+        let rows: Vec<f64> = c
+            .report
+            .truth
+            .as_ref()
+            .unwrap()
+            .iter()
+            .filter(|r| (r.unit == "rad") == angles)
+            .map(|r| r.difference)
+            .collect();
+        (rows.iter().map(|d| d * d).sum::<f64>() / rows.len() as f64).sqrt()
+    };
+    let clean = calibrate(&data, &truth, &[]);
+    // Shift two poses by 5 mm along x.
+    let text = std::fs::read_to_string(&data).unwrap();
+    let shifted: Vec<String> = text
+        .lines()
+        .map(|line| {
+            if line.starts_with("P005,") || line.starts_with("P017,") {
+                let mut f: Vec<String> = line.split(',').map(String::from).collect();
+                f[7] = (f[7].parse::<f64>().unwrap() + 5.0).to_string();
+                f.join(",")
+            } else {
+                line.to_string()
+            }
+        })
+        .collect();
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, shifted.join("\n")).unwrap();
+    let l2 = calibrate(&bad, &truth, &[]);
+    // Scale: about 3 times the typical clean pose residual (0.17 mm here).
+    let huber = calibrate(&bad, &truth, &["--loss", "huber", "--loss-scale-mm", "0.5"]);
+    println!(
+        "length RMS error clean {:.2e} l2 {:.2e} huber {:.2e}; angle clean {:.2e} l2 {:.2e} huber {:.2e}",
+        rms(&clean, false),
+        rms(&l2, false),
+        rms(&huber, false),
+        rms(&clean, true),
+        rms(&l2, true),
+        rms(&huber, true)
+    );
+    assert!(rms(&huber, false) <= 2.0 * rms(&clean, false));
+    assert!(rms(&huber, true) <= 2.0 * rms(&clean, true));
+    assert!(
+        rms(&l2, false) > 2.0 * rms(&clean, false),
+        "the outliers should hurt plain least squares"
+    );
+    let flagged: Vec<&str> = huber
+        .report
+        .outliers
+        .iter()
+        .map(|o| o.id.as_str())
+        .collect();
+    assert_eq!(flagged, ["P005", "P017"]);
+    assert!(l2.report.outliers.is_empty());
+}
+
+#[test]
+fn position_only_data_are_analysed_and_auto_masked() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, truth) = simulate(
+        dir.path(),
+        "d",
+        &[
+            "--poses",
+            "32",
+            "--position-only",
+            "--position-sigma-mm",
+            "0.02",
+            "--seed",
+            "1",
+        ],
+    );
+    let report = check::check(&parse::<CheckOptions>(&[
+        "--robot",
+        ROBOT,
+        "--data",
+        data.to_str().unwrap(),
+    ]))
+    .unwrap();
+    assert_eq!((report.parameters, report.rank), (24, 20));
+    let undetermined: Vec<(&str, &str)> = report
+        .undetermined
+        .iter()
+        .map(|u| (u.name.as_str(), u.status))
+        .collect();
+    assert_eq!(
+        undetermined,
+        [
+            ("dd5", "redundant"),
+            ("dtheta5", "redundant"),
+            ("dalpha6", "not identifiable"),
+            ("dtheta6", "not identifiable")
+        ]
+    );
+    assert_eq!(
+        report.undetermined[0]
+            .with
+            .iter()
+            .map(|w| w.0.as_str())
+            .collect::<Vec<_>>(),
+        ["dalpha5"]
+    );
+    assert_eq!(
+        report.undetermined[1]
+            .with
+            .iter()
+            .map(|w| w.0.as_str())
+            .collect::<Vec<_>>(),
+        ["da5"]
+    );
+
+    let mut all = vec!["--robot", ROBOT, "--data", data.to_str().unwrap()];
+    let refused = calibrate::calibrate(&parse::<CalibrateOptions>(&all))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(refused.contains("dd5 (redundant with dalpha5); dtheta5 (redundant with da5); dalpha6 (not identifiable); dtheta6 (not identifiable)"), "{refused}");
+
+    all.extend(["--auto-mask", "--truth", truth.to_str().unwrap()]);
+    let c = calibrate::calibrate(&parse::<CalibrateOptions>(&all)).unwrap();
+    assert_eq!(c.report.dropped, ["dd5", "dtheta5", "dalpha6", "dtheta6"]);
+    assert_eq!(c.report.parameters.len(), 20);
+    let sigma = c.report.least_squares.as_ref().unwrap().sigma_mm;
+    // At the noise floor: the residual standard deviation is the tracker's 0.02 mm.
+    assert!((0.015..0.025).contains(&sigma), "sigma {sigma}");
+    let after = c.report.after.position_mm.mean;
+    assert!(after < 0.05, "mean position error after {after} mm");
+}
+
+#[test]
+fn full_poses_determine_all_24_parameters() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, _) = simulate(dir.path(), "d", &["--poses", "32"]);
+    let report = check::check(&parse::<CheckOptions>(&[
+        "--robot",
+        ROBOT,
+        "--data",
+        data.to_str().unwrap(),
+    ]))
+    .unwrap();
+    assert_eq!(report.rank, 24);
+    let condition = report.condition_number.unwrap();
+    println!(
+        "scaled condition number {condition:.3}, O1 {:.4}",
+        report.observability_index
+    );
+    assert!((2.0..10.0).contains(&condition), "{condition}");
+    assert!(report.undetermined.is_empty());
+}
+
+#[test]
+fn too_few_poses_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, _) = simulate(dir.path(), "d", &["--poses", "3"]);
+    let e = calibrate::calibrate(&parse::<CalibrateOptions>(&[
+        "--robot",
+        ROBOT,
+        "--data",
+        data.to_str().unwrap(),
+    ]))
+    .err()
+    .unwrap()
+    .to_string();
+    assert_eq!(
+        e,
+        "3 poses give 18 equations, fewer than the 24 identified parameters"
+    );
+}
