@@ -170,7 +170,7 @@ fn lm_from_nominal_reaches_the_reference_cost() {
         &names,
         &TrackerData::read(&data).unwrap(),
         1e6,
-        &vec![0.0; 24],
+        &[0.0; 24],
     )
     .unwrap();
     let core = c.report.least_squares.as_ref().unwrap().cost_final;
