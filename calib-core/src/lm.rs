@@ -202,8 +202,18 @@ impl<T: Real, const D: usize> LmResult<T, D> {
         (T::of(2.0) * self.cost / T::of(f64::from(dof))).sqrt()
     }
 
-    /// Standard error of every parameter, `sigma sqrt(diag((J^T J)^-1))` from `R^-1` (mm, rad).
-    /// `None` if `R` is singular.
+    /// Covariance of the parameters, `sigma^2 (J^T J)^-1 = sigma^2 R^-1 R^-T` (mm^2, mm rad,
+    /// rad^2), computed from `R` without forming `J^T J`. `None` if `R` is singular.
+    pub fn covariance(&self) -> Option<SMatrix<T, D, D>> {
+        let r_inv = self
+            .r
+            .solve_upper_triangular(&SMatrix::<T, D, D>::identity())?;
+        let sigma = self.sigma();
+        Some(r_inv * r_inv.transpose() * (sigma * sigma))
+    }
+
+    /// Standard error of every parameter, `sigma sqrt(diag((J^T J)^-1))`: `sigma` times the row
+    /// norms of `R^-1` (mm, rad). `None` if `R` is singular.
     pub fn standard_errors(&self) -> Option<SVector<T, D>> {
         let r_inv = self
             .r
@@ -680,6 +690,61 @@ mod tests {
             r.cost
         );
         assert!(mm < 2e-3 && rad < 2e-6, "{mm} mm, {rad} rad");
+    }
+
+    #[test]
+    fn ipso_then_lm_recovers_table2_in_f32() {
+        use crate::ipso::{self, IpsoSettings, SearchSpace, Silent};
+        use crate::objective::Objective;
+        let robot = er10l_c10::<f32>();
+        let set = ParameterSet::<6, 24>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
+        let data = paper_measurements::<f32>(1);
+        let objective =
+            Objective::new(&robot, &ParameterErrors::zero(), set, data.as_slice(), 1e6).unwrap();
+        let mut cost = |x: &SVector<f32, 24>| objective.value(x);
+        let swarm = ipso::optimize::<f32, 20, 24>(
+            &mut cost,
+            &SearchSpace::paper(&set),
+            &IpsoSettings::paper(),
+            &mut Silent,
+        )
+        .unwrap();
+        let problem =
+            LeastSquares::new(&robot, &ParameterErrors::zero(), set, data.as_slice(), 1e6).unwrap();
+        let result = problem.solve(&swarm.best, &LmSettings::default()).unwrap();
+        let truth = set.pack(&table2::<f32>());
+        let (mut mm, mut rad) = (0.0f32, 0.0f32);
+        for (p, (x, t)) in set
+            .parameters()
+            .iter()
+            .zip(result.x.iter().zip(truth.iter()))
+        {
+            let e = (x - t).abs();
+            if p.is_angle() {
+                rad = rad.max(e)
+            } else {
+                mm = mm.max(e)
+            }
+        }
+        extern crate std;
+        std::println!(
+            "ipso+lm f32: {mm:.2e} mm {rad:.2e} rad ({} iterations)",
+            result.iterations
+        );
+        assert!(mm < 2e-3 && rad < 2e-6, "{mm} mm, {rad} rad");
+    }
+
+    #[test]
+    fn covariance_diagonal_is_the_square_of_the_standard_errors() {
+        let (_, _, r) = recover::<f64>();
+        let mut noisy = r;
+        noisy.cost = 0.5 * 0.01 * f64::from(noisy.rows - 24);
+        let se = noisy.standard_errors().unwrap();
+        let cov = noisy.covariance().unwrap();
+        for i in 0..24 {
+            assert!((cov[(i, i)] - se[i] * se[i]).abs() <= 1e-12 * cov[(i, i)]);
+        }
+        assert!((noisy.sigma() - 0.1).abs() < 1e-15);
     }
 
     #[test]

@@ -1,12 +1,14 @@
-//! Swarm benchmarks: one eq. (7) evaluation over 32 poses, and the paper's whole run
-//! (20 particles, 24 parameters, 2000 generations, 32 poses) in f64 and f32.
+//! Calibration benchmarks on the paper's 32-pose scenario (Table 2 errors, noise-free), f64 and
+//! f32: one eq. (7) evaluation, the paper's whole swarm run (20 particles, 24 parameters, 2000
+//! generations), and Levenberg-Marquardt from the nominal parameters.
 //!
-//! Run: `cargo bench -p calib-core --bench ipso`.
+//! Run: `cargo bench -p calib-core --bench calibration`.
 
 // Set-up of fixed, valid inputs: a failure here is a bug in the benchmark itself.
 #![allow(clippy::unwrap_used)]
 
 use calib_core::ipso::{self, IpsoSettings, SearchSpace, Silent};
+use calib_core::lm::{LeastSquares, LmSettings};
 use calib_core::objective::{DEFAULT_K, Measurement, MeasurementSet, Objective};
 use calib_core::paper::{er10l_c10, table2};
 use calib_core::{Kinematics, ParameterErrors, ParameterMask, ParameterSet, Real};
@@ -48,6 +50,21 @@ fn paper_run<T: Real>(c: &mut Criterion, name: &str) {
         b.iter(|| {
             let mut cost = |x: &SVector<T, 24>| objective.value(x);
             ipso::optimize::<T, 20, 24>(&mut cost, &space, &IpsoSettings::paper(), &mut Silent)
+                .unwrap()
+        })
+    });
+    let problem = LeastSquares::new(
+        &robot,
+        &ParameterErrors::zero(),
+        set,
+        data.as_slice(),
+        T::of(DEFAULT_K),
+    )
+    .unwrap();
+    group.bench_function(format!("lm_from_nominal_24_32_poses_{name}"), |b| {
+        b.iter(|| {
+            problem
+                .solve(black_box(&SVector::zeros()), &LmSettings::default())
                 .unwrap()
         })
     });
