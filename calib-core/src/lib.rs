@@ -16,7 +16,15 @@
 //! - [`kinematics`]: forward kinematics of the actual model (nominal + errors);
 //! - [`so3`]: the exact rotation log map and its Jacobian;
 //! - [`pose_error`]: the pose error of a measurement and its parameter Jacobian;
+//! - [`problem`]: a calibration problem (robot, identified set, measurements, `k`);
 //! - [`jacobian`]: the geometric (joint) Jacobian and the parameter Jacobian of the end pose;
+//! - [`trig`]: sine and cosine (libm, and a tested small-angle polynomial);
+//! - [`halton`]: the Halton sequence of eq. (8)-(9);
+//! - [`objective`]: measurements and the objective of eq. (7);
+//! - [`ipso`]: the improved particle swarm (Halton start, constriction factor, eq. 10);
+//! - [`lm`]: Levenberg-Marquardt least squares with streamed Givens QR, robust losses, uncertainty;
+//! - [`identifiability`]: rank, condition, observability and the undetermined parameters;
+//! - [`statistics`]: the paper's Table 3 statistics;
 //! - [`paper`]: the ER10L-C10 of the source paper (Table 1 nominal, Table 2 errors).
 #![no_std]
 #![deny(missing_docs)]
@@ -34,6 +42,7 @@ pub mod objective;
 pub mod paper;
 pub mod parameters;
 pub mod pose_error;
+pub mod problem;
 pub mod scalar;
 pub mod so3;
 pub mod statistics;

@@ -13,11 +13,11 @@
 //! below `ftol`), or the iteration cap. The result carries `R` at the solution, from which the
 //! covariance `sigma^2 (J^T J)^-1 = sigma^2 R^-1 R^-T` and the standard errors follow.
 
-use crate::kinematics::PreparedRobot;
 use crate::model::Robot;
 use crate::objective::{Measurement, ObjectiveError};
 use crate::parameters::{ParameterErrors, ParameterSet};
 use crate::pose_error::{PoseError, pose_error_jacobian};
+use crate::problem::Problem;
 use crate::scalar::Real;
 use core::fmt;
 use nalgebra::{SMatrix, SVector};
@@ -228,10 +228,7 @@ impl<T: Real, const D: usize> LmResult<T, D> {
 /// The least-squares problem: the parameters of `set` over a set of measurements.
 #[derive(Clone, Debug)]
 pub struct LeastSquares<'a, T: Real, const N: usize, const D: usize> {
-    robot: PreparedRobot<T, N>,
-    fixed: ParameterErrors<T, N>,
-    set: ParameterSet<N, D>,
-    measurements: &'a [Measurement<T, N>],
+    problem: Problem<'a, T, N, D>,
     sqrt_k: T,
 }
 
@@ -291,32 +288,25 @@ impl<'a, T: Real, const N: usize, const D: usize> LeastSquares<'a, T, N, D> {
         measurements: &'a [Measurement<T, N>],
         k: T,
     ) -> Result<Self, LmError> {
-        robot.validate().map_err(ObjectiveError::from)?;
-        fixed.validate().map_err(ObjectiveError::from)?;
-        if !k.finite() || k < T::zero() {
-            return Err(ObjectiveError::InvalidK.into());
-        }
+        let problem = Problem::new(robot, fixed, set, measurements, k)?;
         Ok(Self {
-            robot: PreparedRobot::new(robot),
-            fixed: *fixed,
-            set,
-            measurements,
-            sqrt_k: k.sqrt(),
+            sqrt_k: problem.k().sqrt(),
+            problem,
         })
+    }
+
+    /// The problem: identified parameters, measurements, `k`.
+    pub fn problem(&self) -> &Problem<'a, T, N, D> {
+        &self.problem
     }
 
     /// Number of residual rows: 6 per full pose, 3 per position-only pose.
     pub fn rows(&self) -> u32 {
-        self.measurements
+        self.problem
+            .measurements()
             .iter()
             .map(|m| if m.rotation.is_some() { 6 } else { 3 })
             .sum()
-    }
-
-    fn errors(&self, x: &SVector<T, D>) -> ParameterErrors<T, N> {
-        let mut errors = self.fixed;
-        self.set.unpack_into(x, &mut errors);
-        errors
     }
 
     /// Calls `row(jacobian_row, residual)` for every residual row at `x` (the Jacobian row is
@@ -329,9 +319,9 @@ impl<'a, T: Real, const N: usize, const D: usize> LeastSquares<'a, T, N, D> {
         with_jacobian: bool,
         mut row: impl FnMut(&SVector<T, D>, T),
     ) {
-        let kinematics = self.robot.actual(&self.errors(x));
+        let kinematics = self.problem.kinematics(x);
         let zero = SVector::<T, D>::zeros();
-        for (index, m) in self.measurements.iter().enumerate() {
+        for (index, m) in self.problem.measurements().iter().enumerate() {
             let robust_weight = robust.get(index).copied().unwrap_or_else(T::one);
             let w = (m.weight * robust_weight).sqrt();
             let measured = crate::Pose::from_parts(
@@ -341,7 +331,8 @@ impl<'a, T: Real, const N: usize, const D: usize> LeastSquares<'a, T, N, D> {
                 ),
             );
             let (error, jacobian) = if with_jacobian {
-                let (e, j) = pose_error_jacobian(&kinematics, &self.set, &m.angles, &measured);
+                let (e, j) =
+                    pose_error_jacobian(&kinematics, self.problem.set(), &m.angles, &measured);
                 (e, Some(j))
             } else {
                 let predicted = kinematics.forward_angles(&m.angles);
@@ -375,8 +366,8 @@ impl<'a, T: Real, const N: usize, const D: usize> LeastSquares<'a, T, N, D> {
 
     /// Calls `visit(index, norm)` with the residual norm of every pose at `x`.
     fn for_each_pose_norm(&self, x: &SVector<T, D>, mut visit: impl FnMut(usize, T)) {
-        let kinematics = self.robot.actual(&self.errors(x));
-        for (index, m) in self.measurements.iter().enumerate() {
+        let kinematics = self.problem.kinematics(x);
+        for (index, m) in self.problem.measurements().iter().enumerate() {
             let predicted = kinematics.forward_angles(&m.angles);
             let dp2 = (m.position - predicted.translation.vector).norm_squared();
             let norm = match &m.rotation {
@@ -436,7 +427,7 @@ impl<'a, T: Real, const N: usize, const D: usize> LeastSquares<'a, T, N, D> {
         loss: Loss<T>,
         weights: &mut [T],
     ) -> Result<RobustResult<T, D>, LmError> {
-        if weights.len() != self.measurements.len() {
+        if weights.len() != self.problem.measurements().len() {
             return Err(LmError::WeightBuffer);
         }
         if let Loss::Huber(c) | Loss::Cauchy(c) = loss

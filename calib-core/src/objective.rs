@@ -14,11 +14,12 @@
 //! ER10L-C10's links. With `k = 1` the orientation term is a thousand times weaker and the
 //! swarm stalls near 0.3 mm (measured by an independent implementation of the method).
 
-use crate::kinematics::{JointAngles, Kinematics, PreparedRobot};
+use crate::kinematics::{JointAngles, Kinematics};
 use crate::mdh::{LANES, Lanes};
 use crate::model::Robot;
 use crate::parameters::{ParameterErrors, ParameterSet};
 use crate::pose_error::PoseError;
+use crate::problem::Problem;
 use crate::scalar::Real;
 use crate::so3;
 use crate::{KinematicsError, Pose};
@@ -170,11 +171,7 @@ impl<T: Real, const N: usize, const M: usize> MeasurementSet<T, N, M> {
 /// Eq. (7) for the parameters of a [`ParameterSet`] over a set of measurements.
 #[derive(Clone, Debug)]
 pub struct Objective<'a, T: Real, const N: usize, const D: usize> {
-    robot: PreparedRobot<T, N>,
-    fixed: ParameterErrors<T, N>,
-    set: ParameterSet<N, D>,
-    measurements: &'a [Measurement<T, N>],
-    k: T,
+    problem: Problem<'a, T, N, D>,
 }
 
 impl<'a, T: Real, const N: usize, const D: usize> Objective<'a, T, N, D> {
@@ -187,40 +184,14 @@ impl<'a, T: Real, const N: usize, const D: usize> Objective<'a, T, N, D> {
         measurements: &'a [Measurement<T, N>],
         k: T,
     ) -> Result<Self, ObjectiveError> {
-        robot.validate()?;
-        fixed.validate()?;
-        if !k.finite() || k < T::zero() {
-            return Err(ObjectiveError::InvalidK);
-        }
         Ok(Self {
-            robot: PreparedRobot::new(robot),
-            fixed: *fixed,
-            set,
-            measurements,
-            k,
+            problem: Problem::new(robot, fixed, set, measurements, k)?,
         })
     }
 
-    /// The identified parameters.
-    pub fn set(&self) -> &ParameterSet<N, D> {
-        &self.set
-    }
-
-    /// The orientation weight `k`, mm^2/rad^2.
-    pub fn k(&self) -> T {
-        self.k
-    }
-
-    /// The measurements.
-    pub fn measurements(&self) -> &'a [Measurement<T, N>] {
-        self.measurements
-    }
-
-    /// All errors for the packed vector `x`: the fixed values with the identified ones replaced.
-    pub fn errors(&self, x: &SVector<T, D>) -> ParameterErrors<T, N> {
-        let mut errors = self.fixed;
-        self.set.unpack_into(x, &mut errors);
-        errors
+    /// The problem: identified parameters, measurements, `k`.
+    pub fn problem(&self) -> &Problem<'a, T, N, D> {
+        &self.problem
     }
 
     /// Eq. (7) at the packed errors `x` (mm, rad). Non-finite `x` gives +infinity.
@@ -231,8 +202,9 @@ impl<'a, T: Real, const N: usize, const D: usize> Objective<'a, T, N, D> {
         if !x.iter().all(|v| v.finite()) {
             return T::of(f64::INFINITY);
         }
-        let kinematics = self.robot.actual(&self.errors(x));
-        self.measurements
+        let kinematics = self.problem.kinematics(x);
+        self.problem
+            .measurements()
             .chunks(LANES)
             .map(|chunk| self.chunk_value(&kinematics, chunk))
             .fold(T::zero(), |sum, v| sum + v)
@@ -303,7 +275,7 @@ impl<'a, T: Real, const N: usize, const D: usize> Objective<'a, T, N, D> {
             .zip(orientation.iter())
         {
             let angle2 = so3::angle_squared_from_chord(*chord2) * *has_rotation;
-            sum += *w * (self.k * angle2 + *dp2).sqrt();
+            sum += *w * (self.problem.k() * angle2 + *dp2).sqrt();
         }
         sum
     }
@@ -315,8 +287,8 @@ impl<'a, T: Real, const N: usize, const D: usize> Objective<'a, T, N, D> {
         x: &SVector<T, D>,
         mut visit: impl FnMut(&Measurement<T, N>, PoseError<T>),
     ) {
-        let kinematics = self.robot.actual(&self.errors(x));
-        for m in self.measurements {
+        let kinematics = self.problem.kinematics(x);
+        for m in self.problem.measurements() {
             let predicted = kinematics.forward_angles(&m.angles);
             let error = match &m.rotation {
                 Some(r) => PoseError::between(

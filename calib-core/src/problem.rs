@@ -1,0 +1,72 @@
+//! A calibration problem as both the swarm's objective and least squares see it: the nominal
+//! robot (prepared once), the errors of the parameters that are not identified, the identified
+//! parameter set, the measurements, and the orientation weight `k`.
+
+use crate::kinematics::{Kinematics, PreparedRobot};
+use crate::model::Robot;
+use crate::objective::{Measurement, ObjectiveError};
+use crate::parameters::{ParameterErrors, ParameterSet};
+use crate::scalar::Real;
+use nalgebra::SVector;
+
+/// The data and model of one calibration, checked once.
+#[derive(Clone, Debug)]
+pub struct Problem<'a, T: Real, const N: usize, const D: usize> {
+    robot: PreparedRobot<T, N>,
+    fixed: ParameterErrors<T, N>,
+    set: ParameterSet<N, D>,
+    measurements: &'a [Measurement<T, N>],
+    k: T,
+}
+
+impl<'a, T: Real, const N: usize, const D: usize> Problem<'a, T, N, D> {
+    /// The problem of identifying the parameters of `set`; the others keep the values of `fixed`
+    /// (usually zero). `k` weights orientation, mm^2/rad^2 (eq. 7).
+    pub fn new(
+        robot: &Robot<T, N>,
+        fixed: &ParameterErrors<T, N>,
+        set: ParameterSet<N, D>,
+        measurements: &'a [Measurement<T, N>],
+        k: T,
+    ) -> Result<Self, ObjectiveError> {
+        robot.validate()?;
+        fixed.validate()?;
+        if !k.finite() || k < T::zero() {
+            return Err(ObjectiveError::InvalidK);
+        }
+        Ok(Self {
+            robot: PreparedRobot::new(robot),
+            fixed: *fixed,
+            set,
+            measurements,
+            k,
+        })
+    }
+
+    /// The identified parameters.
+    pub fn set(&self) -> &ParameterSet<N, D> {
+        &self.set
+    }
+
+    /// The orientation weight `k`, mm^2/rad^2.
+    pub fn k(&self) -> T {
+        self.k
+    }
+
+    /// The measurements.
+    pub fn measurements(&self) -> &'a [Measurement<T, N>] {
+        self.measurements
+    }
+
+    /// All errors for the packed vector `x`: the fixed values with the identified ones replaced.
+    pub fn errors(&self, x: &SVector<T, D>) -> ParameterErrors<T, N> {
+        let mut errors = self.fixed;
+        self.set.unpack_into(x, &mut errors);
+        errors
+    }
+
+    /// The actual model at the packed errors `x`.
+    pub fn kinematics(&self, x: &SVector<T, D>) -> Kinematics<T, N> {
+        self.robot.actual(&self.errors(x))
+    }
+}
