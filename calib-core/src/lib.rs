@@ -46,6 +46,7 @@ pub mod problem;
 pub mod scalar;
 pub mod so3;
 pub mod statistics;
+pub mod storage;
 pub mod trig;
 
 pub use error::KinematicsError;

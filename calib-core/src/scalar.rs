@@ -18,6 +18,12 @@ pub trait Real: RealField + Copy {
     fn finite(self) -> bool;
     /// A uniform value in `[0, 1)` from 64 random bits (the top 53 bits for `f64`, 24 for `f32`).
     fn unit_from_bits(bits: u64) -> Self;
+    /// Size of the scalar in bytes (4 or 8).
+    const BYTES: usize;
+    /// Writes the little-endian IEEE 754 bytes into `out[..BYTES]`; `false` if `out` is too short.
+    fn write_le(self, out: &mut [u8]) -> bool;
+    /// Reads a value from little-endian IEEE 754 bytes; `None` if `bytes` is too short.
+    fn read_le(bytes: &[u8]) -> Option<Self>;
 }
 
 impl Real for f64 {
@@ -41,6 +47,20 @@ impl Real for f64 {
     fn unit_from_bits(bits: u64) -> Self {
         (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
+    const BYTES: usize = 8;
+    fn write_le(self, out: &mut [u8]) -> bool {
+        match out.get_mut(..8) {
+            Some(slot) => {
+                slot.copy_from_slice(&self.to_le_bytes());
+                true
+            }
+            None => false,
+        }
+    }
+    fn read_le(bytes: &[u8]) -> Option<Self> {
+        let array: [u8; 8] = bytes.get(..8)?.try_into().ok()?;
+        Some(Self::from_le_bytes(array))
+    }
 }
 
 impl Real for f32 {
@@ -63,5 +83,19 @@ impl Real for f32 {
     #[inline]
     fn unit_from_bits(bits: u64) -> Self {
         (bits >> 40) as f32 * (1.0 / (1u32 << 24) as f32)
+    }
+    const BYTES: usize = 4;
+    fn write_le(self, out: &mut [u8]) -> bool {
+        match out.get_mut(..4) {
+            Some(slot) => {
+                slot.copy_from_slice(&self.to_le_bytes());
+                true
+            }
+            None => false,
+        }
+    }
+    fn read_le(bytes: &[u8]) -> Option<Self> {
+        let array: [u8; 4] = bytes.get(..4)?.try_into().ok()?;
+        Some(Self::from_le_bytes(array))
     }
 }
