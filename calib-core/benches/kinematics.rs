@@ -60,5 +60,52 @@ fn benches(c: &mut Criterion) {
     });
 }
 
-criterion_group!(kinematics, benches);
+/// One joint-space compensation and one pre-distortion of the ER10L-C10 with Table 2 errors, for
+/// a target the nominal controller planned at fixed joints (away from singularities).
+fn compensation<T: Real>(c: &mut Criterion, name: &str) {
+    use calib_core::compensate::{CompensationSettings, compensate_joints, predistort};
+    let nominal = Kinematics::nominal(&er10l::<T>()).unwrap();
+    let actual = Kinematics::new(&er10l::<T>(), &calib_core::paper::table2::<T>()).unwrap();
+    let limits = [calib_core::JointLimits::unlimited(); 6];
+    let q = [0.3, -0.4, 0.5, 0.6, -0.7, 0.8].map(T::of);
+    let target = nominal.forward(&q).unwrap();
+    let settings = CompensationSettings {
+        max_correction_mm: T::of(50.0),
+        max_correction_rad: T::of(0.1),
+        ..CompensationSettings::default()
+    };
+    c.bench_function(&format!("compensate_joints_{name}"), |b| {
+        b.iter(|| {
+            compensate_joints(
+                &nominal,
+                &actual,
+                &limits,
+                black_box(&target),
+                &q,
+                &settings,
+            )
+            .unwrap()
+        })
+    });
+    c.bench_function(&format!("predistort_{name}"), |b| {
+        b.iter(|| {
+            predistort(
+                &nominal,
+                &actual,
+                &limits,
+                black_box(&target),
+                &q,
+                &settings,
+            )
+            .unwrap()
+        })
+    });
+}
+
+fn compensation_benches(c: &mut Criterion) {
+    compensation::<f64>(c, "f64");
+    compensation::<f32>(c, "f32");
+}
+
+criterion_group!(kinematics, benches, compensation_benches);
 criterion_main!(kinematics);

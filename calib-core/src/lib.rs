@@ -29,6 +29,7 @@
 #![no_std]
 #![deny(missing_docs)]
 
+pub mod compensate;
 pub mod error;
 pub mod halton;
 pub mod identifiability;
