@@ -5,6 +5,7 @@
 
 pub mod calibrate;
 pub mod check;
+pub mod compensate;
 pub mod dispatch;
 pub mod files;
 pub mod fk;

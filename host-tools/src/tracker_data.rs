@@ -141,6 +141,20 @@ impl TrackerData {
 
     /// Parses tracker-data text; `path` only names the source in errors.
     pub fn parse(text: &str, path: &Path) -> Result<Self, DataError> {
+        Self::parse_with(text, path, true)
+    }
+
+    /// Reads a file of target poses: like [`TrackerData::read`], but the joint columns are
+    /// optional (when present they are start values).
+    pub fn read_targets(path: &Path) -> Result<Self, DataError> {
+        let text = std::fs::read_to_string(path).map_err(|source| DataError::Read {
+            path: path.to_owned(),
+            source,
+        })?;
+        Self::parse_with(&text, path, false)
+    }
+
+    fn parse_with(text: &str, path: &Path, joints_required: bool) -> Result<Self, DataError> {
         let at = |line: u64, column: Option<String>, message: String| DataError::At {
             path: path.to_owned(),
             line,
@@ -195,7 +209,7 @@ impl TrackerData {
             .iter()
             .filter(|c| matches!(c, Column::Joint(..)))
             .count();
-        if joints == 0 {
+        if joints == 0 && joints_required {
             return Err(at(
                 header_line,
                 None,
@@ -342,6 +356,13 @@ impl TrackerData {
             orientation,
             records,
         })
+    }
+}
+
+impl TrackerData {
+    /// `true` when the file has no orientation columns.
+    pub fn rows_without_orientation(&self) -> bool {
+        self.orientation == OrientationColumns::None
     }
 }
 

@@ -4,6 +4,7 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use host_tools::calibrate::{self, CalibrateOptions};
 use host_tools::check::{self, CheckOptions};
+use host_tools::compensate::{CompensateOptions, ExportOptions};
 use host_tools::fk;
 use host_tools::robot_file::RobotModel;
 use host_tools::simulate::{self, Simulation};
@@ -44,6 +45,10 @@ enum Command {
     Calibrate(CalibrateOptions),
     /// Print which identified parameters the data determine (identifiability), without calibrating.
     Check(CheckOptions),
+    /// Joints that put the identified robot on target poses (on-line compensation, off line).
+    Compensate(CompensateOptions),
+    /// Write identified parameters as the controller's parameter block, TOML or JSON.
+    Export(ExportOptions),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -73,6 +78,20 @@ fn main() -> anyhow::Result<()> {
                 settings.out.display(),
                 settings.truth_out.display()
             );
+        }
+        Command::Compensate(options) => {
+            let summary = host_tools::compensate::compensate(&options)?;
+            println!(
+                "compensated {} of {} targets ({} refused, see the status column); wrote {}",
+                summary.ok,
+                summary.ok + summary.failed,
+                summary.failed,
+                options.out.display()
+            );
+        }
+        Command::Export(options) => {
+            let bytes = host_tools::compensate::export(&options)?;
+            println!("wrote {} bytes to {}", bytes, options.out.display());
         }
         Command::Check(options) => {
             let report = check::check(&options)?;

@@ -1,0 +1,221 @@
+//! `calib compensate`: joints that put the identified (actual) robot on target poses, and
+//! `calib export`: the identified parameters as the controller's parameter block, TOML or JSON.
+
+use crate::files::write_atomic;
+use crate::robot_file::{RobotFile, RobotModel};
+use crate::tracker_data::TrackerData;
+use anyhow::{Context, bail};
+use calib_core::compensate::{CompensationSettings, compensate_joints};
+use calib_core::storage;
+use calib_core::{Kinematics, Pose};
+use nalgebra::{Rotation3, Translation3};
+use std::path::PathBuf;
+
+/// Options of `calib compensate`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct CompensateOptions {
+    /// Nominal robot file: the model the controller plans with.
+    #[arg(long, value_name = "FILE")]
+    pub robot: PathBuf,
+    /// Identified robot file (from calib calibrate --out): the actual robot.
+    #[arg(long, value_name = "FILE")]
+    pub params: PathBuf,
+    /// Target poses in the base frame (CSV: x_mm, y_mm, z_mm and an orientation; q1_deg.. as the
+    /// start, i.e. the controller's nominal joints for the target).
+    #[arg(long, value_name = "FILE")]
+    pub targets: PathBuf,
+    /// Output CSV: one row per target, in input order.
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Largest allowed change of the commanded pose, mm.
+    #[arg(long, default_value_t = 5.0)]
+    pub max_correction_mm: f64,
+    /// Largest allowed change of the commanded orientation, deg.
+    #[arg(long, default_value_t = 0.5)]
+    pub max_correction_deg: f64,
+    /// Largest allowed change of any joint, deg.
+    #[arg(long, default_value_t = 0.5f64.to_degrees())]
+    pub max_joint_correction_deg: f64,
+}
+
+/// Counts of a compensation run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Summary {
+    /// Targets compensated.
+    pub ok: usize,
+    /// Targets refused with an error.
+    pub failed: usize,
+}
+
+/// Runs `calib compensate`.
+pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
+    let nominal: RobotModel<6> = RobotModel::load(&options.robot)?;
+    let actual: RobotModel<6> = RobotModel::load(&options.params)?;
+    let targets = TrackerData::read_targets(&options.targets)?;
+    if targets.rows_without_orientation() {
+        bail!(
+            "{}: targets need an orientation (qw..qz or rx_deg..rz_deg)",
+            options.targets.display()
+        );
+    }
+    if targets.joints != 6 {
+        bail!(
+            "{}: targets need the controller's joints q1_deg..q6_deg as start values (found {} joint columns)",
+            options.targets.display(),
+            targets.joints
+        );
+    }
+    for (name, v) in [
+        ("--max-correction-mm", options.max_correction_mm),
+        ("--max-correction-deg", options.max_correction_deg),
+        (
+            "--max-joint-correction-deg",
+            options.max_joint_correction_deg,
+        ),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            bail!("{name} must be a finite number > 0, got {v}");
+        }
+    }
+    let settings = CompensationSettings {
+        max_correction_mm: options.max_correction_mm,
+        max_correction_rad: options.max_correction_deg.to_radians(),
+        max_joint_correction_rad: options.max_joint_correction_deg.to_radians(),
+        ..CompensationSettings::default()
+    };
+    let planned = Kinematics::nominal(&nominal.robot).context("nominal robot")?;
+    let real = Kinematics::nominal(&actual.robot).context("identified robot")?;
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    let mut header = vec!["id".to_string()];
+    header.extend((1..=6).map(|i| format!("q{i}_deg")));
+    header.extend(["residual_mm", "residual_deg", "status"].map(String::from));
+    writer.write_record(&header)?;
+    let mut summary = Summary { ok: 0, failed: 0 };
+    for record in &targets.records {
+        let rotation = record.rotation.unwrap_or_else(nalgebra::Matrix3::identity);
+        let target = Pose::from_parts(
+            Translation3::from(nalgebra::Vector3::from(record.position)),
+            Rotation3::from_matrix_unchecked(rotation),
+        );
+        let start: [f64; 6] = std::array::from_fn(|i| record.q.get(i).copied().unwrap_or(0.0));
+        let mut row = vec![record.id.clone()];
+        match compensate_joints(
+            &planned,
+            &real,
+            &nominal.robot.limits,
+            &target,
+            &start,
+            &settings,
+        ) {
+            Ok(c) => {
+                row.extend(c.q.iter().map(|q| q.to_degrees().to_string()));
+                row.push(format!("{:.6e}", c.residual_mm));
+                row.push(format!("{:.6e}", c.residual_rad.to_degrees()));
+                row.push("ok".into());
+                summary.ok += 1;
+            }
+            Err(e) => {
+                row.extend(std::iter::repeat_n(String::new(), 8));
+                row.push(e.to_string());
+                summary.failed += 1;
+            }
+        }
+        writer.write_record(&row)?;
+    }
+    write_atomic(&options.out, &writer.into_inner()?)?;
+    Ok(summary)
+}
+
+/// Formats of `calib export`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ExportFormat {
+    /// The controller's binary parameter block (calib_core::storage), byte-identical to what the
+    /// core writes.
+    Block,
+    /// A robot file (TOML).
+    Toml,
+    /// The robot file as JSON.
+    Json,
+}
+
+/// Scalar of the exported block.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BlockScalar {
+    /// Single precision, for a Cortex-M4F.
+    F32,
+    /// Double precision.
+    F64,
+}
+
+/// Options of `calib export`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct ExportOptions {
+    /// Identified robot file.
+    #[arg(long, value_name = "FILE")]
+    pub params: PathBuf,
+    /// Output format.
+    #[arg(long, value_enum)]
+    pub format: ExportFormat,
+    /// Output file.
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Scalar type of the block.
+    #[arg(long, value_enum, default_value_t = BlockScalar::F32)]
+    pub scalar: BlockScalar,
+    /// Sequence number written into the block.
+    #[arg(long, default_value_t = 1)]
+    pub sequence: u32,
+}
+
+/// Runs `calib export`; returns the number of bytes written.
+pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
+    let file = RobotFile::read(&options.params)?;
+    let model: RobotModel<6> = file.to_model(&options.params)?;
+    let bytes = match options.format {
+        ExportFormat::Block => match options.scalar {
+            BlockScalar::F64 => {
+                let mut buffer = vec![0u8; storage::block_len::<f64, 6>()];
+                storage::encode(&model.robot, options.sequence, &mut buffer)
+                    .map_err(|e| anyhow::anyhow!("{e}"))?;
+                buffer
+            }
+            BlockScalar::F32 => {
+                let robot = to_f32(&model.robot);
+                let mut buffer = vec![0u8; storage::block_len::<f32, 6>()];
+                storage::encode(&robot, options.sequence, &mut buffer)
+                    .map_err(|e| anyhow::anyhow!("{e}"))?;
+                buffer
+            }
+        },
+        ExportFormat::Toml => file.to_toml("exported by calib export").into_bytes(),
+        ExportFormat::Json => serde_json::to_vec_pretty(&file)?,
+    };
+    write_atomic(&options.out, &bytes)?;
+    Ok(bytes.len())
+}
+
+/// The model rounded to single precision (limits stay infinite where they are).
+pub fn to_f32(robot: &calib_core::Robot<f64, 6>) -> calib_core::Robot<f32, 6> {
+    let f = |v: f64| v as f32;
+    calib_core::Robot {
+        joints: robot.joints.map(|j| calib_core::MdhJoint {
+            a: f(j.a),
+            alpha: f(j.alpha),
+            theta_offset: f(j.theta_offset),
+            d: f(j.d),
+            beta: f(j.beta),
+        }),
+        limits: robot.limits.map(|l| calib_core::JointLimits {
+            lower: f(l.lower),
+            upper: f(l.upper),
+        }),
+        base: calib_core::FramePose {
+            xyz: robot.base.xyz.map(f),
+            rpy: robot.base.rpy.map(f),
+        },
+        tool: calib_core::FramePose {
+            xyz: robot.tool.xyz.map(f),
+            rpy: robot.tool.rpy.map(f),
+        },
+    }
+}

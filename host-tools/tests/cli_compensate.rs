@@ -1,0 +1,247 @@
+//! `calib compensate` and `calib export` end to end, checked with the independent reference.
+
+use host_tools::reference::{self, RefModel};
+use host_tools::robot_file::{RobotFile, RobotModel};
+use host_tools::tracker_data::{PoseRow, write_tracker_csv};
+use std::path::Path;
+use std::process::Command;
+
+const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
+const ACTUAL: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/data/er10l-c10-sim32-truth.toml"
+);
+
+fn calib(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_calib"))
+        .args(args)
+        .output()
+        .expect("run calib")
+}
+
+#[test]
+fn compensated_joints_put_the_actual_robot_on_the_targets() {
+    let dir = tempfile::tempdir().unwrap();
+    let nominal = RefModel::from_file(
+        &RobotFile::read(Path::new(ROBOT)).unwrap(),
+        &[],
+        &[0.0; 6],
+        &[0.0; 6],
+    );
+    let actual = RefModel::from_file(
+        &RobotFile::read(Path::new(ACTUAL)).unwrap(),
+        &[],
+        &[0.0; 6],
+        &[0.0; 6],
+    );
+    // The controller's plans: nominal poses at joints away from the wrist singularity.
+    let mut rows = Vec::new();
+    for i in 0..40 {
+        let t = i as f64;
+        let q = vec![
+            (t * 0.7).sin() * 2.5,
+            (t * 1.3).sin() * 1.2,
+            (t * 0.4).cos() * 1.5,
+            (t * 2.1).sin() * 2.8,
+            0.6 + (t * 0.9).sin().abs() * 1.8,
+            (t * 1.7).cos() * 3.0,
+        ];
+        let pose = nominal.forward(&q);
+        let rotation = nalgebra::Matrix3::from_fn(|r, c| pose[r][c]);
+        let mut position = [pose[0][3], pose[1][3], pose[2][3]];
+        if i == 7 {
+            position[0] += 3000.0; // out of reach
+        }
+        rows.push(PoseRow {
+            id: format!("T{i:02}"),
+            q,
+            position,
+            rotation: Some(rotation),
+        });
+    }
+    let targets = dir.path().join("targets.csv");
+    write_tracker_csv(&targets, &["frame: base".into()], &rows).unwrap();
+    let out = dir.path().join("joints.csv");
+    let result = calib(&[
+        "compensate",
+        "--robot",
+        ROBOT,
+        "--params",
+        ACTUAL,
+        "--targets",
+        targets.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--max-correction-mm",
+        "50",
+        "--max-correction-deg",
+        "5",
+    ]);
+    assert!(
+        result.status.success(),
+        "{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&result.stdout);
+    assert!(
+        stdout.contains("compensated 39 of 40 targets (1 refused"),
+        "{stdout}"
+    );
+
+    let mut reader = csv::Reader::from_path(&out).unwrap();
+    let header: Vec<String> = reader.headers().unwrap().iter().map(String::from).collect();
+    assert_eq!(
+        header,
+        [
+            "id",
+            "q1_deg",
+            "q2_deg",
+            "q3_deg",
+            "q4_deg",
+            "q5_deg",
+            "q6_deg",
+            "residual_mm",
+            "residual_deg",
+            "status"
+        ]
+    );
+    let mut worst = (0.0f64, 0.0f64);
+    for (i, record) in reader.records().enumerate() {
+        let record = record.unwrap();
+        assert_eq!(&record[0], format!("T{i:02}"), "input order");
+        if i == 7 {
+            assert_ne!(&record[9], "ok");
+            assert!(
+                record.iter().skip(1).take(8).all(|f| f.is_empty()),
+                "failed rows leave the joints empty"
+            );
+            continue;
+        }
+        assert_eq!(&record[9], "ok", "row {i}: {}", &record[9]);
+        let q: Vec<f64> = (1..=6)
+            .map(|j| record[j].parse::<f64>().unwrap().to_radians())
+            .collect();
+        // Independent check: the actual robot (reference kinematics) at those joints.
+        let reached = actual.forward(&q);
+        let target = nominal.forward(&rows[i].q);
+        let e = reference::pose_error(&target, &reached);
+        worst.0 = worst
+            .0
+            .max((e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt());
+        worst.1 = worst
+            .1
+            .max((e[3] * e[3] + e[4] * e[4] + e[5] * e[5]).sqrt());
+    }
+    println!(
+        "worst after compensation: {:.2e} mm, {:.2e} rad",
+        worst.0, worst.1
+    );
+    assert!(worst.0 < 1e-3 && worst.1 < 1e-6);
+}
+
+#[test]
+fn default_bounds_refuse_large_corrections() {
+    let dir = tempfile::tempdir().unwrap();
+    let nominal = RefModel::from_file(
+        &RobotFile::read(Path::new(ROBOT)).unwrap(),
+        &[],
+        &[0.0; 6],
+        &[0.0; 6],
+    );
+    let q = vec![0.3, -0.4, 0.5, 0.6, -0.7, 0.8];
+    let pose = nominal.forward(&q);
+    let rows = vec![PoseRow {
+        id: "A".into(),
+        q,
+        position: [pose[0][3], pose[1][3], pose[2][3]],
+        rotation: Some(nalgebra::Matrix3::from_fn(|r, c| pose[r][c])),
+    }];
+    let targets = dir.path().join("t.csv");
+    write_tracker_csv(&targets, &[], &rows).unwrap();
+    let out = dir.path().join("o.csv");
+    let result = calib(&[
+        "compensate",
+        "--robot",
+        ROBOT,
+        "--params",
+        ACTUAL,
+        "--targets",
+        targets.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(result.status.success());
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        text.contains("correction larger than the configured bound"),
+        "{text}"
+    );
+}
+
+#[test]
+fn exported_block_is_byte_identical_to_the_core_and_round_trips() {
+    let dir = tempfile::tempdir().unwrap();
+    for (scalar, len) in [
+        ("f64", calib_core::storage::block_len::<f64, 6>()),
+        ("f32", calib_core::storage::block_len::<f32, 6>()),
+    ] {
+        let out = dir.path().join(format!("params-{scalar}.bin"));
+        let result = calib(&[
+            "export",
+            "--params",
+            ACTUAL,
+            "--format",
+            "block",
+            "--scalar",
+            scalar,
+            "--sequence",
+            "9",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(
+            result.status.success(),
+            "{}",
+            String::from_utf8_lossy(&result.stderr)
+        );
+        let bytes = std::fs::read(&out).unwrap();
+        assert_eq!(bytes.len(), len);
+        let model: RobotModel<6> = RobotModel::load(Path::new(ACTUAL)).unwrap();
+        if scalar == "f64" {
+            let mut expected = vec![0u8; len];
+            calib_core::storage::encode(&model.robot, 9, &mut expected).unwrap();
+            assert_eq!(bytes, expected);
+            assert_eq!(
+                calib_core::storage::decode::<f64, 6>(&bytes).unwrap(),
+                (model.robot, 9)
+            );
+        } else {
+            let (robot, sequence) = calib_core::storage::decode::<f32, 6>(&bytes).unwrap();
+            assert_eq!(sequence, 9);
+            assert_eq!(robot, host_tools::compensate::to_f32(&model.robot));
+        }
+    }
+    for format in ["toml", "json"] {
+        let out = dir.path().join(format!("params.{format}"));
+        assert!(
+            calib(&[
+                "export",
+                "--params",
+                ACTUAL,
+                "--format",
+                format,
+                "--out",
+                out.to_str().unwrap()
+            ])
+            .status
+            .success()
+        );
+        let text = std::fs::read_to_string(&out).unwrap();
+        let file: RobotFile = if format == "toml" {
+            RobotFile::parse(&text, &out).unwrap()
+        } else {
+            serde_json::from_str(&text).unwrap()
+        };
+        assert_eq!(file, RobotFile::read(Path::new(ACTUAL)).unwrap());
+    }
+}
