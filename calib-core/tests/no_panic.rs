@@ -1,0 +1,133 @@
+//! Property tests: random models, targets, measurements and garbage bytes never make the core
+//! panic; bad input comes back as an error (or, for pure math on garbage, a non-finite value).
+
+use calib_core::compensate::{CompensationSettings, compensate_joints, predistort};
+use calib_core::halton::{Scrambling, halton_point};
+use calib_core::lm::{LeastSquares, LmSettings, Loss};
+use calib_core::objective::{Measurement, Objective};
+use calib_core::paper::{er10l_c10, table2};
+use calib_core::{
+    Kinematics, MdhJoint, ParameterErrors, ParameterMask, ParameterSet, Pose, Robot, so3, storage,
+};
+use nalgebra::{Matrix3, Rotation3, SVector, Translation3, Vector3};
+use proptest::prelude::*;
+
+/// Any f64, NaN and infinities included, with ordinary values most of the time.
+fn value() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        8 => -2000.0..2000.0f64,
+        1 => any::<f64>(),
+        1 => prop::sample::select(vec![f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 0.0, -0.0, 1e308, -1e-308]),
+    ]
+}
+
+fn robot() -> impl Strategy<Value = Robot<f64, 6>> {
+    prop::array::uniform6((value(), value(), value(), value(), value())).prop_map(|joints| {
+        Robot::from_joints(joints.map(|(a, alpha, theta_offset, d, beta)| MdhJoint {
+            a,
+            alpha,
+            theta_offset,
+            d,
+            beta,
+        }))
+    })
+}
+
+fn pose() -> impl Strategy<Value = Pose<f64>> {
+    (
+        prop::array::uniform3(value()),
+        prop::array::uniform3(value()),
+    )
+        .prop_map(|(t, r)| {
+            Pose::from_parts(
+                Translation3::new(t[0], t[1], t[2]),
+                Rotation3::from_matrix_unchecked(Matrix3::new(
+                    r[0], r[1], r[2], r[1], r[2], r[0], r[2], r[0], r[1],
+                )),
+            )
+        })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 300, .. ProptestConfig::default() })]
+
+    #[test]
+    fn kinematics_never_panics(robot in robot(), q in prop::array::uniform6(value())) {
+        match Kinematics::new(&robot, &ParameterErrors::zero()) {
+            Ok(k) => {
+                let _ = k.forward(&q);
+                let _ = k.geometric_jacobian(&q);
+            }
+            Err(e) => prop_assert!(!e.to_string().is_empty()),
+        }
+    }
+
+    #[test]
+    fn compensation_never_panics(target in pose(), q in prop::array::uniform6(value())) {
+        let nominal = Kinematics::nominal(&er10l_c10::<f64>()).unwrap();
+        let actual = Kinematics::new(&er10l_c10::<f64>(), &table2::<f64>()).unwrap();
+        let limits = er10l_c10::<f64>().limits;
+        let settings = CompensationSettings::default();
+        if let Ok(c) = compensate_joints(&nominal, &actual, &limits, &target, &q, &settings) {
+            prop_assert!(c.residual_mm <= settings.position_tolerance);
+        }
+        let _ = predistort(&nominal, &actual, &limits, &target, &q, &settings);
+    }
+
+    #[test]
+    fn f32_compensation_never_panics(target in pose(), q in prop::array::uniform6(value())) {
+        let nominal = Kinematics::nominal(&er10l_c10::<f32>()).unwrap();
+        let target32 = Pose::<f32>::from_parts(
+            Translation3::from(target.translation.vector.map(|v| v as f32)),
+            Rotation3::from_matrix_unchecked(target.rotation.matrix().map(|v| v as f32)),
+        );
+        let _ = compensate_joints(&nominal, &nominal, &er10l_c10::<f32>().limits, &target32, &q.map(|v| v as f32), &CompensationSettings::default());
+    }
+
+    #[test]
+    fn storage_decode_never_panics(bytes in prop::collection::vec(any::<u8>(), 0..600)) {
+        let _ = storage::decode::<f64, 6>(&bytes);
+        let _ = storage::decode::<f32, 6>(&bytes);
+    }
+
+    #[test]
+    fn measurements_and_solvers_never_panic(
+        q in prop::array::uniform6(value()),
+        p in prop::array::uniform3(value()),
+        r in prop::array::uniform3(value()),
+        w in value(),
+        x in prop::array::uniform6(value()),
+    ) {
+        let rotation = Rotation3::new(Vector3::from(r)).into_inner();
+        let robot = er10l_c10::<f64>();
+        let set = ParameterSet::<6, 24>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
+        let measured = Measurement::new(&q, Vector3::from(p), Some(rotation), w);
+        if let Ok(m) = measured {
+            let data = [m; 30];
+            let mut start = SVector::<f64, 24>::zeros();
+            for (s, v) in start.iter_mut().zip(x.iter().cycle()) {
+                *s = *v;
+            }
+            if let Ok(objective) = Objective::new(&robot, &ParameterErrors::zero(), set, &data, 1e6) {
+                let _ = objective.value(&start);
+            }
+            if let Ok(problem) = LeastSquares::new(&robot, &ParameterErrors::zero(), set, &data, 1e6) {
+                let settings = LmSettings { max_iterations: 5, ..LmSettings::default() };
+                let _ = problem.solve(&start, &settings);
+                let mut weights = [0.0; 30];
+                let _ = problem.solve_robust(&start, &settings, Loss::Huber(0.5), &mut weights);
+            }
+        }
+    }
+
+    #[test]
+    fn rotation_math_and_halton_never_panic(m in prop::array::uniform9(value()), index in any::<u64>()) {
+        let matrix = Matrix3::from_row_slice(&m);
+        let _ = so3::log(&matrix);
+        let _ = so3::right_jacobian_inverse(&Vector3::new(m[0], m[1], m[2]));
+        let _ = so3::angle_squared_between(&matrix, &Matrix3::identity());
+        let mut point = [0.0; 64];
+        halton_point(index, Scrambling::Reverse, &mut point);
+        prop_assert!(point.iter().all(|v| (0.0..1.0).contains(v)));
+    }
+}
