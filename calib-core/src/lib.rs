@@ -24,6 +24,9 @@
 //! - [`ipso`]: the improved particle swarm (Halton start, constriction factor, eq. 10);
 //! - [`lm`]: Levenberg-Marquardt least squares with streamed Givens QR, robust losses, uncertainty;
 //! - [`identifiability`]: rank, condition, observability and the undetermined parameters;
+//! - [`ik`]: closed-form nominal inverse kinematics of spherical-wrist 6R robots (8 branches);
+//! - [`compensate`]: on-line compensation (joint space, Cartesian pre-distortion);
+//! - [`storage`]: the persistent parameter block with A/B slots;
 //! - [`statistics`]: the paper's Table 3 statistics;
 //! - [`paper`]: the ER10L-C10 of the source paper (Table 1 nominal, Table 2 errors).
 #![no_std]
@@ -33,6 +36,7 @@ pub mod compensate;
 pub mod error;
 pub mod halton;
 pub mod identifiability;
+pub mod ik;
 pub mod ipso;
 pub mod jacobian;
 pub mod kinematics;

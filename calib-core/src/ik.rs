@@ -1,0 +1,239 @@
+//! Closed-form nominal inverse kinematics of a 6R robot with a spherical wrist, the ER10L-C10
+//! family: standard DH (all beta = 0) with alpha = (-90, 0, -90, 90, -90, 0) deg, d2 = d3 = 0,
+//! a4 = a5 = a6 = 0, d5 = 0. Such a robot reaches a pose in up to 8 ways: shoulder (front/back),
+//! elbow (up/down), wrist (flip/no flip). Controllers plan with it; compensation starts from it.
+//!
+//! Derivation: the wrist centre `p_w = p - d6 z6` depends on joints 1-3 only. With
+//! `x1 = a2 c2 + L cos(theta2 + theta3 + phi)`, `y1 = a2 s2 + L sin(theta2 + theta3 + phi)`,
+//! `L = hypot(a3, d4)`, `phi = atan2(d4, a3)`, the wrist centre is
+//! `((a1 + x1) c1, (a1 + x1) s1, d1 - y1)`: joint 1 from its azimuth (two branches), joints 2 and 3
+//! from the planar two-link problem (two branches). The wrist is
+//! `R_36 = R_03^T R_06 = Rz(theta4) Ry(-theta5) Rz(theta6)`, ZYZ Euler angles (two branches).
+
+use crate::kinematics::{Kinematics, Pose};
+use crate::model::Robot;
+use crate::parameters::ParameterErrors;
+use crate::scalar::Real;
+use core::fmt;
+
+/// Why no inverse kinematics could be computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum IkError {
+    /// The robot is not of the supported spherical-wrist family (see the module docs).
+    UnsupportedGeometry,
+    /// The model or target is not finite.
+    NonFinite,
+}
+
+impl fmt::Display for IkError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::UnsupportedGeometry => f.write_str(
+                "closed-form inverse kinematics needs alpha = (-90, 0, -90, 90, -90, 0) deg, d2 = d3 = d5 = 0, a4 = a5 = a6 = 0, beta = 0",
+            ),
+            Self::NonFinite => f.write_str("model or target is not finite"),
+        }
+    }
+}
+
+impl core::error::Error for IkError {}
+
+/// Branch index bits: 4 = shoulder back, 2 = elbow down, 1 = wrist flipped.
+pub const BRANCHES: usize = 8;
+
+fn wrap<T: Real>(angle: T) -> T {
+    let pi = T::pi();
+    let two_pi = T::two_pi();
+    let mut a = angle % two_pi;
+    if a > pi {
+        a -= two_pi;
+    } else if a <= -pi {
+        a += two_pi;
+    }
+    a
+}
+
+/// All inverse kinematics solutions of `target` (base frame, tool included) for the nominal
+/// `robot`; `None` where a branch does not reach. Joint readings in rad, wrapped into (-pi, pi].
+pub fn inverse_kinematics<T: Real>(
+    robot: &Robot<T, 6>,
+    target: &Pose<T>,
+) -> Result<[Option<[T; 6]>; BRANCHES], IkError> {
+    robot.validate().map_err(|_| IkError::NonFinite)?;
+    if !target
+        .translation
+        .vector
+        .iter()
+        .chain(target.rotation.matrix().iter())
+        .all(|v| v.finite())
+    {
+        return Err(IkError::NonFinite);
+    }
+    let tol = T::of(1e-9);
+    let deg90 = T::frac_pi_2();
+    let j = &robot.joints;
+    let [j1, j2, j3, j4, j5, j6] = j;
+    let alphas_ok = (j1.alpha + deg90).abs() < tol
+        && j2.alpha.abs() < tol
+        && (j3.alpha + deg90).abs() < tol
+        && (j4.alpha - deg90).abs() < tol
+        && (j5.alpha + deg90).abs() < tol
+        && j6.alpha.abs() < tol;
+    let offsets_ok = j2.d.abs() < tol
+        && j3.d.abs() < tol
+        && j5.d.abs() < tol
+        && j4.a.abs() < tol
+        && j5.a.abs() < tol
+        && j6.a.abs() < tol;
+    let beta_ok = j.iter().all(|x| x.beta.abs() < tol);
+    if !(alphas_ok && offsets_ok && beta_ok) {
+        return Err(IkError::UnsupportedGeometry);
+    }
+    let kinematics =
+        Kinematics::new(robot, &ParameterErrors::zero()).map_err(|_| IkError::NonFinite)?;
+    // Flange pose T_06 = base^-1 * target * tool^-1.
+    let flange = kinematics.base().inverse() * target * kinematics.tool().inverse();
+    let r06 = flange.rotation.matrix();
+    let z6 = r06.column(2).into_owned();
+    let pw = flange.translation.vector - z6 * j6.d;
+    let (a1, d1, a2, a3, d4) = (j1.a, j1.d, j2.a, j3.a, j4.d);
+    let l = a3.hypot(d4);
+    let phi = d4.atan2(a3);
+    let rho = pw.x.hypot(pw.y);
+    let azimuth = pw.y.atan2(pw.x);
+    let mut out = [None; BRANCHES];
+    for shoulder in 0..2usize {
+        let (theta1, reach) = if shoulder == 0 {
+            (azimuth, rho)
+        } else {
+            (azimuth + T::pi(), -rho)
+        };
+        let x1 = reach - a1;
+        let y1 = d1 - pw.z;
+        let cos_psi = (x1 * x1 + y1 * y1 - a2 * a2 - l * l) / (T::of(2.0) * a2 * l);
+        if !(cos_psi.abs() <= T::one()) {
+            continue;
+        }
+        for elbow in 0..2usize {
+            let sin_psi = (T::one() - cos_psi * cos_psi).max(T::zero()).sqrt();
+            let sin_psi = if elbow == 0 { sin_psi } else { -sin_psi };
+            let psi = sin_psi.atan2(cos_psi);
+            let theta3 = psi - phi;
+            let theta2 = y1.atan2(x1) - (l * sin_psi).atan2(a2 + l * cos_psi);
+            // R_03 from the first three joints (theta = q + offset, so q = theta - offset).
+            let q123 = [
+                theta1 - j1.theta_offset,
+                theta2 - j2.theta_offset,
+                theta3 - j3.theta_offset,
+            ];
+            let mut rotation = nalgebra::Matrix3::identity();
+            let mut origin = nalgebra::Vector3::zeros();
+            for (joint, q) in kinematics.joints().iter().zip(q123) {
+                let (s, c) = q.sin_cos_libm();
+                let (ct, st) = joint.theta(c, s);
+                joint.append(&mut rotation, &mut origin, ct, st);
+            }
+            let r36 = rotation.transpose() * r06;
+            for wrist in 0..2usize {
+                let sin_b_abs = (T::one() - r36.m33 * r36.m33).max(T::zero()).sqrt();
+                let sin_b = if wrist == 0 { sin_b_abs } else { -sin_b_abs };
+                let b = sin_b.atan2(r36.m33);
+                let (theta4, theta6) = if sin_b_abs > T::of(1e-12) {
+                    let sign = if wrist == 0 { T::one() } else { -T::one() };
+                    (
+                        (r36.m23 * sign).atan2(r36.m13 * sign),
+                        (r36.m32 * sign).atan2(-r36.m31 * sign),
+                    )
+                } else {
+                    // Wrist singular: only theta4 + theta6 (or the difference) is determined.
+                    (T::zero(), r36.m21.atan2(r36.m11))
+                };
+                let theta = [theta1, theta2, theta3, theta4, -b, theta6];
+                let mut q = [T::zero(); 6];
+                for ((qi, t), joint) in q.iter_mut().zip(theta).zip(j.iter()) {
+                    *qi = wrap(t - joint.theta_offset);
+                }
+                if let Some(slot) = out.get_mut(shoulder * 4 + elbow * 2 + wrist) {
+                    *slot = Some(q);
+                }
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The solution closest to `reference` (largest joint difference, wrapped), if any branch reaches.
+pub fn closest<T: Real>(
+    solutions: &[Option<[T; 6]>; BRANCHES],
+    reference: &[T; 6],
+) -> Option<[T; 6]> {
+    solutions
+        .iter()
+        .flatten()
+        .map(|q| {
+            let distance = q
+                .iter()
+                .zip(reference)
+                .map(|(a, b)| wrap(*a - *b).abs())
+                .fold(T::zero(), |m, d| m.max(d));
+            (distance, *q)
+        })
+        .fold(None, |best: Option<(T, [T; 6])>, (d, q)| match best {
+            Some((bd, _)) if bd <= d => best,
+            _ => Some((d, q)),
+        })
+        .map(|(_, q)| q)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::paper::er10l_c10;
+    use crate::pose_error::PoseError;
+    use rand_core::{Rng, SeedableRng};
+
+    #[test]
+    fn every_branch_reproduces_the_pose_and_one_is_the_original() {
+        let robot = er10l_c10::<f64>();
+        let kinematics = Kinematics::nominal(&robot).unwrap();
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(3);
+        let (mut found, mut branches) = (0, 0);
+        for _ in 0..2000 {
+            let q: [f64; 6] = core::array::from_fn(|_| {
+                core::f64::consts::PI * (2.0 * f64::unit_from_bits(rng.next_u64()) - 1.0)
+            });
+            let pose = kinematics.forward(&q).unwrap();
+            let solutions = inverse_kinematics(&robot, &pose).unwrap();
+            for s in solutions.iter().flatten() {
+                branches += 1;
+                let e = PoseError::between(&pose, &kinematics.forward(s).unwrap());
+                assert!(
+                    e.position.norm() < 1e-8 && e.rotation.norm() < 1e-10,
+                    "{q:?} -> {s:?}: {e:?}"
+                );
+            }
+            let best = closest(&solutions, &q).unwrap();
+            if best.iter().zip(&q).all(|(a, b)| wrap(a - b).abs() < 1e-8) {
+                found += 1;
+            }
+        }
+        extern crate std;
+        std::println!("original joints among the branches: {found} of 2000; {branches} solutions");
+        assert_eq!(found, 2000);
+    }
+
+    #[test]
+    fn other_geometries_are_refused() {
+        let mut robot = er10l_c10::<f64>();
+        robot.joints[2].d = 10.0;
+        let pose = Kinematics::nominal(&er10l_c10::<f64>())
+            .unwrap()
+            .forward(&[0.0; 6])
+            .unwrap();
+        assert_eq!(
+            inverse_kinematics(&robot, &pose),
+            Err(IkError::UnsupportedGeometry)
+        );
+    }
+}
