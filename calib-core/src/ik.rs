@@ -112,7 +112,7 @@ pub fn inverse_kinematics<T: Real>(
         let x1 = reach - a1;
         let y1 = d1 - pw.z;
         let cos_psi = (x1 * x1 + y1 * y1 - a2 * a2 - l * l) / (T::of(2.0) * a2 * l);
-        if !(cos_psi.abs() <= T::one()) {
+        if !cos_psi.finite() || cos_psi.abs() > T::one() {
             continue;
         }
         for elbow in 0..2usize {
