@@ -6,6 +6,7 @@ use crate::robot_file::{RobotFile, RobotModel};
 use crate::tracker_data::TrackerData;
 use anyhow::{Context, bail};
 use calib_core::compensate::{CompensationSettings, compensate_joints};
+use calib_core::ik::inverse_kinematics;
 use calib_core::storage;
 use calib_core::{Kinematics, Pose};
 use nalgebra::{Rotation3, Translation3};
@@ -20,8 +21,9 @@ pub struct CompensateOptions {
     /// Identified robot file (from calib calibrate --out): the actual robot.
     #[arg(long, value_name = "FILE")]
     pub params: PathBuf,
-    /// Target poses in the base frame (CSV: x_mm, y_mm, z_mm and an orientation; q1_deg.. as the
-    /// start, i.e. the controller's nominal joints for the target).
+    /// Target poses in the base frame (CSV: x_mm, y_mm, z_mm and an orientation; optional
+    /// q1_deg..q6_deg as the start, i.e. the controller's nominal joints for the target; without
+    /// them the closed-form nominal inverse kinematics on --branch is the start).
     #[arg(long, value_name = "FILE")]
     pub targets: PathBuf,
     /// Output CSV: one row per target, in input order.
@@ -36,6 +38,10 @@ pub struct CompensateOptions {
     /// Largest allowed change of any joint, deg.
     #[arg(long, default_value_t = 0.5f64.to_degrees())]
     pub max_joint_correction_deg: f64,
+    /// Inverse kinematics branch for targets without joints (closed form, spherical wrist):
+    /// 0-7, bit 4 = shoulder back, bit 2 = elbow down, bit 1 = wrist flipped.
+    #[arg(long, default_value_t = 0)]
+    pub branch: usize,
 }
 
 /// Counts of a compensation run.
@@ -58,12 +64,15 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
             options.targets.display()
         );
     }
-    if targets.joints != 6 {
+    if targets.joints != 0 && targets.joints != 6 {
         bail!(
-            "{}: targets need the controller's joints q1_deg..q6_deg as start values (found {} joint columns)",
+            "{}: has {} joint columns; give all of q1_deg..q6_deg as start values, or none",
             options.targets.display(),
             targets.joints
         );
+    }
+    if options.branch > 7 {
+        bail!("--branch must be 0 to 7, got {}", options.branch);
     }
     for (name, v) in [
         ("--max-correction-mm", options.max_correction_mm),
@@ -97,16 +106,35 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
             Translation3::from(nalgebra::Vector3::from(record.position)),
             Rotation3::from_matrix_unchecked(rotation),
         );
-        let start: [f64; 6] = std::array::from_fn(|i| record.q.get(i).copied().unwrap_or(0.0));
         let mut row = vec![record.id.clone()];
-        match compensate_joints(
-            &planned,
-            &real,
-            &nominal.robot.limits,
-            &target,
-            &start,
-            &settings,
-        ) {
+        let start = if targets.joints == 6 {
+            Ok(std::array::from_fn(|i| {
+                record.q.get(i).copied().unwrap_or(0.0)
+            }))
+        } else {
+            // The controller's plan: closed-form nominal inverse kinematics on the chosen branch.
+            inverse_kinematics(&nominal.robot, &target)
+                .map_err(|e| e.to_string())
+                .and_then(|solutions| {
+                    solutions
+                        .get(options.branch)
+                        .copied()
+                        .flatten()
+                        .ok_or_else(|| format!("target out of reach on branch {}", options.branch))
+                })
+        };
+        let result = start.and_then(|start| {
+            compensate_joints(
+                &planned,
+                &real,
+                &nominal.robot.limits,
+                &target,
+                &start,
+                &settings,
+            )
+            .map_err(|e| e.to_string())
+        });
+        match result {
             Ok(c) => {
                 row.extend(c.q.iter().map(|q| q.to_degrees().to_string()));
                 row.push(format!("{:.6e}", c.residual_mm));
@@ -116,7 +144,7 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
             }
             Err(e) => {
                 row.extend(std::iter::repeat_n(String::new(), 8));
-                row.push(e.to_string());
+                row.push(e);
                 summary.failed += 1;
             }
         }

@@ -245,3 +245,81 @@ fn exported_block_is_byte_identical_to_the_core_and_round_trips() {
         assert_eq!(file, RobotFile::read(Path::new(ACTUAL)).unwrap());
     }
 }
+
+#[test]
+fn targets_without_joints_start_from_the_closed_form_inverse_kinematics() {
+    let dir = tempfile::tempdir().unwrap();
+    let nominal = RefModel::from_file(
+        &RobotFile::read(Path::new(ROBOT)).unwrap(),
+        &[],
+        &[0.0; 6],
+        &[0.0; 6],
+    );
+    let actual = RefModel::from_file(
+        &RobotFile::read(Path::new(ACTUAL)).unwrap(),
+        &[],
+        &[0.0; 6],
+        &[0.0; 6],
+    );
+    let q = vec![0.4, -0.3, 0.2, 0.9, 1.1, -0.6];
+    let pose = nominal.forward(&q);
+    let targets = dir.path().join("t.csv");
+    std::fs::write(
+        &targets,
+        format!(
+            "x_mm,y_mm,z_mm,qw,qx,qy,qz\n{},{},{},{}\n",
+            pose[0][3],
+            pose[1][3],
+            pose[2][3],
+            reference::quaternion(&pose)
+                .map(|v| v.to_string())
+                .join(",")
+        ),
+    )
+    .unwrap();
+    let mut found = false;
+    for branch in 0..8 {
+        let out = dir.path().join(format!("o{branch}.csv"));
+        let b = branch.to_string();
+        let result = calib(&[
+            "compensate",
+            "--robot",
+            ROBOT,
+            "--params",
+            ACTUAL,
+            "--targets",
+            targets.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--max-correction-mm",
+            "50",
+            "--max-correction-deg",
+            "5",
+            "--branch",
+            &b,
+        ]);
+        assert!(
+            result.status.success(),
+            "{}",
+            String::from_utf8_lossy(&result.stderr)
+        );
+        let mut reader = csv::Reader::from_path(&out).unwrap();
+        let record = reader.records().next().unwrap().unwrap();
+        if &record[9] != "ok" {
+            continue;
+        }
+        let joints: Vec<f64> = (1..=6)
+            .map(|j| record[j].parse::<f64>().unwrap().to_radians())
+            .collect();
+        let e = reference::pose_error(&pose, &actual.forward(&joints));
+        assert!(
+            (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt() < 1e-3,
+            "branch {branch}: {e:?}"
+        );
+        // The branch of the planned joints comes back close to them.
+        if joints.iter().zip(&q).all(|(a, b)| (a - b).abs() < 0.1) {
+            found = true;
+        }
+    }
+    assert!(found, "no branch returned the planned configuration");
+}
