@@ -11,7 +11,7 @@ use calib_core::ipso::{self, Control, CostFunction, IpsoSettings, SearchSpace, S
 use calib_core::lm::{LeastSquares, LmError, LmResult, LmSettings, LmStop, Loss};
 use calib_core::objective::Objective;
 use calib_core::statistics::PoseStatistics;
-use calib_core::{ParameterErrors, ParameterMask, ParameterSet};
+use calib_core::{Kinematics, ParameterErrors, ParameterMask, ParameterSet};
 use nalgebra::SVector;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -112,6 +112,16 @@ pub struct CalibrateOptions {
     /// Drop the parameters the data cannot determine (instead of refusing), and say which.
     #[arg(long)]
     pub auto_mask: bool,
+    /// Hold out this fraction of the poses (chosen at random with --validate-seed) and report the
+    /// statistics on them separately.
+    #[arg(long, value_name = "FRACTION", conflicts_with = "holdout")]
+    pub validate: Option<f64>,
+    /// Seed of the random hold-out of --validate.
+    #[arg(long, default_value_t = 0)]
+    pub validate_seed: u64,
+    /// A separate data file of validation poses.
+    #[arg(long, value_name = "FILE")]
+    pub holdout: Option<PathBuf>,
     /// Swarm size (10, 20, 30, 40, 50 or 100).
     #[arg(long, default_value_t = 20)]
     pub swarm: usize,
@@ -196,6 +206,11 @@ pub struct Report {
     pub dropped: Vec<String>,
     /// Poses whose residual exceeds the robust loss scale (empty for l2).
     pub outliers: Vec<Outlier>,
+    /// Statistics on the calibration poses (the same as `before` and `after`).
+    pub calibration: Stage,
+    /// Statistics on the held-out validation poses, when asked for.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub validation: Option<Stage>,
     /// Table 3 statistics with the nominal model.
     pub before: Table3,
     /// Table 3 statistics with the identified model.
@@ -222,6 +237,17 @@ pub struct ObjectiveValues {
     pub after_swarm: f64,
     /// `k`, mm^2/rad^2.
     pub k: f64,
+}
+
+/// Table 3 statistics of a set of poses before and after calibration.
+#[derive(Debug, Serialize)]
+pub struct Stage {
+    /// Number of poses.
+    pub poses: usize,
+    /// With the nominal model.
+    pub before: Table3,
+    /// With the identified model.
+    pub after: Table3,
 }
 
 /// A pose flagged by the robust loss.
@@ -320,7 +346,17 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
             options.loss
         );
     }
-    let inputs = Inputs::load(&options.robot, &options.data)?;
+    let all = Inputs::load(&options.robot, &options.data)?;
+    let (inputs, validation) = match (&options.holdout, options.validate) {
+        (Some(_), Some(_)) => bail!("use either --validate or --holdout, not both"),
+        (Some(path), None) => (all, Some(Inputs::load(&options.robot, path)?)),
+        (None, Some(fraction)) => {
+            let (calibration, held) =
+                crate::evaluate::split(&all, fraction, options.validate_seed)?;
+            (calibration, Some(held))
+        }
+        (None, None) => (all, None),
+    };
     let mut mask = inputs.model.mask;
     let identifiability =
         crate::with_parameter_count!(mask.count(), analyse(&inputs, &mask, options.k))?;
@@ -342,13 +378,21 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
     }
     crate::with_parameter_count!(
         mask.count(),
-        run(options, &inputs, &mask, identifiability, dropped)
+        run(
+            options,
+            &inputs,
+            validation.as_ref(),
+            &mask,
+            identifiability,
+            dropped
+        )
     )
 }
 
 fn run<const D: usize>(
     options: &CalibrateOptions,
     inputs: &Inputs,
+    validation: Option<&Inputs>,
     mask: &ParameterMask<6>,
     identifiability: IdentifiabilityReport,
     dropped: Vec<String>,
@@ -425,6 +469,19 @@ fn run<const D: usize>(
     let (after, after_poses) = statistics(&best);
 
     let identified = set.unpack(&best);
+    let validation_stage = match validation {
+        None => None,
+        Some(v) => {
+            let nominal = Kinematics::nominal(&model.robot).map_err(|e| anyhow::anyhow!("{e}"))?;
+            let actual =
+                Kinematics::new(&model.robot, &identified).map_err(|e| anyhow::anyhow!("{e}"))?;
+            Some(Stage {
+                poses: v.measurements.len(),
+                before: crate::evaluate::table3(&nominal, v).0,
+                after: crate::evaluate::table3(&actual, v).0,
+            })
+        }
+    };
     let mut parameters = serde_json::Map::new();
     let mut std_error_list = Vec::new();
     for (i, (p, v)) in set.parameters().iter().zip(best.iter()).enumerate() {
@@ -514,6 +571,14 @@ fn run<const D: usize>(
         &before,
         &after,
     ));
+    if let Some(stage) = &validation_stage {
+        text.push('\n');
+        text.push_str(&table3_text(
+            "Table 3 statistics on the validation poses (held out, not used to calibrate)",
+            &stage.before,
+            &stage.after,
+        ));
+    }
     if let Some(rows) = &truth {
         text.push_str("\nidentified errors against the truth\n");
         text.push_str(&truth_text(rows));
@@ -568,6 +633,12 @@ fn run<const D: usize>(
         identifiability,
         dropped,
         outliers,
+        calibration: Stage {
+            poses: measurements.len(),
+            before,
+            after,
+        },
+        validation: validation_stage,
         before,
         after,
         settings: serde_json::json!({
@@ -579,6 +650,8 @@ fn run<const D: usize>(
             "lm_iterations": options.lm_iterations,
             "loss": format!("{:?}", options.loss).to_lowercase(), "loss_scale_mm": options.loss_scale_mm,
             "auto_mask": options.auto_mask,
+            "validate": options.validate, "validate_seed": options.validate_seed,
+            "holdout": options.holdout.as_ref().map(|p| p.display().to_string()),
         }),
         truth,
         seconds,

@@ -13,6 +13,7 @@ use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 /// A robot file, a data file and the measurements prepared for the core.
+#[derive(Clone)]
 pub struct Inputs {
     /// The robot file as read.
     pub file: RobotFile,
@@ -58,6 +59,26 @@ impl Inputs {
             data: data_file,
             measurements,
         })
+    }
+
+    /// `(the others, the poses at indices)`: the data split in two, file order kept.
+    pub fn partition(&self, indices: &[usize]) -> (Self, Self) {
+        let mut kept = self.clone();
+        let mut taken = self.clone();
+        kept.data.records.clear();
+        kept.measurements.clear();
+        taken.data.records.clear();
+        taken.measurements.clear();
+        for (i, (record, m)) in self.data.records.iter().zip(&self.measurements).enumerate() {
+            let side = if indices.contains(&i) {
+                &mut taken
+            } else {
+                &mut kept
+            };
+            side.data.records.push(record.clone());
+            side.measurements.push(*m);
+        }
+        (kept, taken)
     }
 
     /// Number of residual rows: 6 per full pose, 3 per position-only pose.

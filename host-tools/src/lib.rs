@@ -7,6 +7,7 @@ pub mod calibrate;
 pub mod check;
 pub mod compensate;
 pub mod dispatch;
+pub mod evaluate;
 pub mod files;
 pub mod fk;
 pub mod plots;

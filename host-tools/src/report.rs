@@ -113,6 +113,32 @@ fn number(v: f64) -> String {
     }
 }
 
+/// Table 3 of one model as fixed-width text.
+pub fn table3_single_text(title: &str, table: &Table3) -> String {
+    let mut out = format!(
+        "{title} ({} poses)\n{:<30} {:>10} {:>10} {:>10}\n",
+        table.poses, "", "mean", "std", "max"
+    );
+    let row = |name: &str, s: &Stat| {
+        format!(
+            "{name:<30} {:>10} {:>10} {:>10}\n",
+            number(s.mean),
+            number(s.std),
+            number(s.max)
+        )
+    };
+    out.push_str(&row("absolute position error (mm)", &table.position_mm));
+    match &table.orientation_deg {
+        Some(o) => {
+            out.push_str(&row("orientation error x (deg)", &o.x));
+            out.push_str(&row("orientation error y (deg)", &o.y));
+            out.push_str(&row("orientation error z (deg)", &o.z));
+        }
+        None => out.push_str("orientation error              (position-only data)\n"),
+    }
+    out
+}
+
 /// One row of the comparison against a known truth (mm or rad).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct TruthRow {

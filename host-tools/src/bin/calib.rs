@@ -45,6 +45,8 @@ enum Command {
     Calibrate(CalibrateOptions),
     /// Print which identified parameters the data determine (identifiability), without calibrating.
     Check(CheckOptions),
+    /// Print the Table 3 statistics of any robot model on any data.
+    Evaluate(host_tools::evaluate::EvaluateOptions),
     /// Joints that put the identified robot on target poses (on-line compensation, off line).
     Compensate(CompensateOptions),
     /// Write identified parameters as the controller's parameter block, TOML or JSON.
@@ -92,6 +94,20 @@ fn main() -> anyhow::Result<()> {
         Command::Export(options) => {
             let bytes = host_tools::compensate::export(&options)?;
             println!("wrote {} bytes to {}", bytes, options.out.display());
+        }
+        Command::Evaluate(options) => {
+            let table = host_tools::evaluate::evaluate(&options)?;
+            if options.json {
+                println!("{}", serde_json::to_string_pretty(&table)?);
+            } else {
+                print!(
+                    "{}",
+                    host_tools::report::table3_single_text(
+                        &format!("{} on {}", options.robot.display(), options.data.display()),
+                        &table
+                    )
+                );
+            }
         }
         Command::Check(options) => {
             let report = check::check(&options)?;

@@ -1,0 +1,79 @@
+//! `calib evaluate`: the paper's Table 3 statistics of any robot model on any data, and the
+//! held-out split used for validation.
+
+use crate::check::Inputs;
+use crate::report::Table3;
+use calib_core::statistics::PoseStatistics;
+use calib_core::{Kinematics, PoseError};
+use rand_core::{Rng, SeedableRng};
+use std::path::PathBuf;
+
+/// Table 3 statistics of `kinematics` on `inputs`, and `|dp|` per pose (mm).
+pub fn table3(kinematics: &Kinematics<f64, 6>, inputs: &Inputs) -> (Table3, Vec<f64>) {
+    let mut stats = PoseStatistics::default();
+    let mut per_pose = Vec::with_capacity(inputs.measurements.len());
+    for m in &inputs.measurements {
+        let predicted = kinematics.forward_angles(&m.angles);
+        let error = match &m.rotation {
+            Some(r) => PoseError::between(
+                &calib_core::Pose::from_parts(
+                    m.position.into(),
+                    nalgebra::Rotation3::from_matrix_unchecked(*r),
+                ),
+                &predicted,
+            ),
+            None => PoseError {
+                position: m.position - predicted.translation.vector,
+                rotation: nalgebra::Vector3::zeros(),
+            },
+        };
+        stats.add(&error, m.rotation.is_some());
+        per_pose.push(error.position.norm());
+    }
+    (Table3::from_statistics(&stats), per_pose)
+}
+
+/// Options of `calib evaluate`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct EvaluateOptions {
+    /// Robot model file (a nominal model or an identified one).
+    #[arg(long, value_name = "FILE")]
+    pub robot: PathBuf,
+    /// Tracker data file (CSV).
+    #[arg(long, value_name = "FILE")]
+    pub data: PathBuf,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `calib evaluate`.
+pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Table3> {
+    let inputs = Inputs::load(&options.robot, &options.data)?;
+    let kinematics =
+        Kinematics::nominal(&inputs.model.robot).map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok(table3(&kinematics, &inputs).0)
+}
+
+/// Splits `inputs` into calibration and validation poses: `fraction` of the poses, chosen at
+/// random with `seed` (deterministic), are held out.
+pub fn split(inputs: &Inputs, fraction: f64, seed: u64) -> anyhow::Result<(Inputs, Inputs)> {
+    if !(fraction > 0.0 && fraction < 1.0) {
+        anyhow::bail!("--validate must be a fraction between 0 and 1, got {fraction}");
+    }
+    let n = inputs.measurements.len();
+    let held = ((n as f64) * fraction).round() as usize;
+    if held == 0 || held >= n {
+        anyhow::bail!("--validate {fraction} of {n} poses leaves no pose on one side");
+    }
+    // Fisher-Yates with a seeded generator.
+    let mut order: Vec<usize> = (0..n).collect();
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
+    for i in (1..n).rev() {
+        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+        order.swap(i, j);
+    }
+    let mut validation: Vec<usize> = order[..held].to_vec();
+    validation.sort_unstable();
+    Ok(inputs.partition(&validation))
+}
