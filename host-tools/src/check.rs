@@ -49,6 +49,20 @@ impl Inputs {
         let mut measurements = Vec::with_capacity(data_file.records.len());
         for r in &data_file.records {
             let q: [f64; 6] = std::array::from_fn(|i| r.q[i]);
+            for (i, (qi, limits)) in q.iter().zip(&model.robot.limits).enumerate() {
+                if !limits.contains(*qi) {
+                    bail!(
+                        "{}:{}: column q{}: {:.4} deg is outside the joint limits [{}, {}] deg of {}",
+                        data.display(),
+                        r.line,
+                        i + 1,
+                        qi.to_degrees(),
+                        limits.lower.to_degrees(),
+                        limits.upper.to_degrees(),
+                        robot.display()
+                    );
+                }
+            }
             let m = Measurement::new(&q, Vector3::from(r.position), r.rotation, r.weight)
                 .with_context(|| format!("{}:{}", data.display(), r.line))?;
             measurements.push(m);

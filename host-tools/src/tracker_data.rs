@@ -295,7 +295,20 @@ impl TrackerData {
                     ));
                 }
                 match *column {
-                    Column::Joint(j, scale) => q[j] = value * scale,
+                    Column::Joint(j, scale) => {
+                        // A reading beyond one turn in a radian column is almost surely degrees.
+                        if scale == 1.0 && value.abs() > 2.0 * std::f64::consts::PI {
+                            return Err(at(
+                                line,
+                                where_(),
+                                format!(
+                                    "{value} is beyond one turn for a radian column; are these degrees (q{}_deg)?",
+                                    j + 1
+                                ),
+                            ));
+                        }
+                        q[j] = value * scale
+                    }
                     Column::Position(k, scale) => position[k] = value * scale,
                     Column::Quaternion(k) => quaternion[k] = value,
                     Column::Angle(k) => angle[k] = value.to_radians(),

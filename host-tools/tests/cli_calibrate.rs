@@ -266,3 +266,27 @@ fn the_papers_joint_noise_is_an_option_that_ruins_calibration() {
         "{help}"
     );
 }
+
+#[test]
+fn joints_outside_the_robot_limits_are_refused_with_their_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let limited = std::fs::read_to_string(ROBOT).unwrap().replacen(
+        "beta_deg = 0.0",
+        "beta_deg = 0.0\nlimits_deg = [-10.0, 10.0]",
+        1,
+    );
+    let robot = dir.path().join("limited.toml");
+    std::fs::write(&robot, limited).unwrap();
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/data/er10l-c10-sim32.csv");
+    let out = calib(&[
+        "calibrate",
+        "--robot",
+        robot.to_str().unwrap(),
+        "--data",
+        data,
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    // The first data row (line 5, after three comments and the header) has q1 = 112.18 deg.
+    assert!(err.contains("er10l-c10-sim32.csv:5: column q1: 112.1804 deg is outside the joint limits [-10, 10] deg"), "{err}");
+}

@@ -98,4 +98,7 @@ fn errors_name_file_line_and_column() {
 
     let e = parse("q1_deg,q1_rad,x_mm,y_mm,z_mm\n").unwrap_err();
     assert!(e.contains("q1 appears twice"), "{e}");
+
+    let e = parse("q1_rad,q2_rad,x_mm,y_mm,z_mm\n0.5,90,1,2,3\n").unwrap_err();
+    assert!(e.contains(":2: column 2 (\"q2_rad\"): 90 is beyond one turn for a radian column; are these degrees (q2_deg)?"), "{e}");
 }
