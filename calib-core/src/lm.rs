@@ -16,7 +16,7 @@
 use crate::model::Robot;
 use crate::objective::{Measurement, ObjectiveError};
 use crate::parameters::{ParameterErrors, ParameterSet};
-use crate::pose_error::{PoseError, pose_error_jacobian};
+use crate::pose_error::pose_error_jacobian;
 use crate::problem::Problem;
 use crate::scalar::Real;
 use core::fmt;
@@ -324,19 +324,12 @@ impl<'a, T: Real, const N: usize, const D: usize> LeastSquares<'a, T, N, D> {
         for (index, m) in self.problem.measurements().iter().enumerate() {
             let robust_weight = robust.get(index).copied().unwrap_or_else(T::one);
             let w = (m.weight * robust_weight).sqrt();
-            let measured = crate::Pose::from_parts(
-                m.position.into(),
-                nalgebra::Rotation3::from_matrix_unchecked(
-                    m.rotation.unwrap_or_else(nalgebra::Matrix3::identity),
-                ),
-            );
             let (error, jacobian) = if with_jacobian {
                 let (e, j) =
-                    pose_error_jacobian(&kinematics, self.problem.set(), &m.angles, &measured);
+                    pose_error_jacobian(&kinematics, self.problem.set(), &m.angles, &m.pose());
                 (e, Some(j))
             } else {
-                let predicted = kinematics.forward_angles(&m.angles);
-                (PoseError::between(&measured, &predicted), None)
+                (m.error_of(&kinematics.forward_angles(&m.angles)), None)
             };
             let rows = if m.rotation.is_some() { 6 } else { 3 };
             for i in 0..rows {

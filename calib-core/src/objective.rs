@@ -116,6 +116,29 @@ impl<T: Real, const N: usize> Measurement<T, N> {
         })
     }
 
+    /// The measured pose; a position-only measurement gets the identity rotation (its rotation
+    /// rows are never used).
+    pub fn pose(&self) -> Pose<T> {
+        Pose::from_parts(
+            self.position.into(),
+            nalgebra::Rotation3::from_matrix_unchecked(
+                self.rotation.unwrap_or_else(Matrix3::identity),
+            ),
+        )
+    }
+
+    /// The pose error of the prediction `predicted` against this measurement (DESIGN.md); the
+    /// rotation error is zero for a position-only measurement.
+    pub fn error_of(&self, predicted: &Pose<T>) -> PoseError<T> {
+        match self.rotation {
+            Some(_) => PoseError::between(&self.pose(), predicted),
+            None => PoseError {
+                position: self.position - predicted.translation.vector,
+                rotation: Vector3::zeros(),
+            },
+        }
+    }
+
     /// A measurement taken from a pose (position and rotation), weight 1.
     pub fn from_pose(q: &[T; N], pose: &Pose<T>) -> Result<Self, ObjectiveError> {
         Self::new(
@@ -289,21 +312,7 @@ impl<'a, T: Real, const N: usize, const D: usize> Objective<'a, T, N, D> {
     ) {
         let kinematics = self.problem.kinematics(x);
         for m in self.problem.measurements() {
-            let predicted = kinematics.forward_angles(&m.angles);
-            let error = match &m.rotation {
-                Some(r) => PoseError::between(
-                    &Pose::from_parts(
-                        m.position.into(),
-                        nalgebra::Rotation3::from_matrix_unchecked(*r),
-                    ),
-                    &predicted,
-                ),
-                None => PoseError {
-                    position: m.position - predicted.translation.vector,
-                    rotation: Vector3::zeros(),
-                },
-            };
-            visit(m, error);
+            visit(m, m.error_of(&kinematics.forward_angles(&m.angles)));
         }
     }
 }

@@ -10,7 +10,6 @@ use calib_core::halton::Scrambling;
 use calib_core::ipso::{self, Control, CostFunction, IpsoSettings, SearchSpace, StopReason};
 use calib_core::lm::{LeastSquares, LmError, LmResult, LmSettings, LmStop, Loss};
 use calib_core::objective::Objective;
-use calib_core::statistics::PoseStatistics;
 use calib_core::{Kinematics, ParameterErrors, ParameterMask, ParameterSet};
 use nalgebra::SVector;
 use rayon::prelude::*;
@@ -456,19 +455,11 @@ fn run<const D: usize>(
     let best = least_squares.as_ref().map_or(swarm_end, |l| l.x);
     let standard_errors = least_squares.as_ref().and_then(LmResult::standard_errors);
 
-    let statistics = |x: &SVector<f64, D>| {
-        let mut stats = PoseStatistics::default();
-        let mut per_pose = Vec::with_capacity(measurements.len());
-        objective.pose_errors(x, |m, e| {
-            stats.add(&e, m.rotation.is_some());
-            per_pose.push(e.position.norm());
-        });
-        (Table3::from_statistics(&stats), per_pose)
-    };
-    let (before, before_poses) = statistics(&zero);
-    let (after, after_poses) = statistics(&best);
-
     let identified = set.unpack(&best);
+    let nominal = Kinematics::nominal(&model.robot).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let actual = Kinematics::new(&model.robot, &identified).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (before, before_poses) = crate::evaluate::table3(&nominal, inputs);
+    let (after, after_poses) = crate::evaluate::table3(&actual, inputs);
     let validation_stage = match validation {
         None => None,
         Some(v) => {

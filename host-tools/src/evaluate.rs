@@ -3,8 +3,8 @@
 
 use crate::check::Inputs;
 use crate::report::Table3;
+use calib_core::Kinematics;
 use calib_core::statistics::PoseStatistics;
-use calib_core::{Kinematics, PoseError};
 use rand_core::{Rng, SeedableRng};
 use std::path::PathBuf;
 
@@ -13,20 +13,7 @@ pub fn table3(kinematics: &Kinematics<f64, 6>, inputs: &Inputs) -> (Table3, Vec<
     let mut stats = PoseStatistics::default();
     let mut per_pose = Vec::with_capacity(inputs.measurements.len());
     for m in &inputs.measurements {
-        let predicted = kinematics.forward_angles(&m.angles);
-        let error = match &m.rotation {
-            Some(r) => PoseError::between(
-                &calib_core::Pose::from_parts(
-                    m.position.into(),
-                    nalgebra::Rotation3::from_matrix_unchecked(*r),
-                ),
-                &predicted,
-            ),
-            None => PoseError {
-                position: m.position - predicted.translation.vector,
-                rotation: nalgebra::Vector3::zeros(),
-            },
-        };
+        let error = m.error_of(&kinematics.forward_angles(&m.angles));
         stats.add(&error, m.rotation.is_some());
         per_pose.push(error.position.norm());
     }
