@@ -3,6 +3,8 @@
 
 use crate::check::{IdentifiabilityReport, Inputs, analyse};
 use crate::files::write_atomic;
+use crate::frames::{Frames, FramesReport};
+use crate::profile::DataProfile;
 use crate::report::{Table3, TruthRow, table3_text, truth_text, unit_of};
 use crate::robot_file::RobotFile;
 use anyhow::bail;
@@ -93,6 +95,16 @@ pub struct CalibrateOptions {
     /// Tracker data file (CSV).
     #[arg(long, value_name = "FILE")]
     pub data: PathBuf,
+    /// Data profile (TOML) for exports not in our CSV format: delimiter, decimal comma, column
+    /// mapping with units, Euler convention (see host-tools/profiles/).
+    #[arg(long, value_name = "FILE")]
+    pub profile: Option<PathBuf>,
+    /// Frames identified with the geometry: none (data in the base frame, tool known), base
+    /// (tracker-to-base), or base+tool (and the tool on the flange: 3 translations for a
+    /// reflector, 6 for a 6-DoF probe). Default: base+tool, or none when the data say
+    /// `# frame: base`.
+    #[arg(long, value_enum)]
+    pub frames: Option<Frames>,
     /// Identification method: the paper's swarm, least squares, or the swarm then least squares.
     #[arg(long, value_enum, default_value_t = Method::IpsoLm)]
     pub method: Method,
@@ -203,8 +215,12 @@ pub struct Report {
     pub identifiability: IdentifiabilityReport,
     /// Parameters dropped by --auto-mask.
     pub dropped: Vec<String>,
+    /// The frames identified with the geometry and their start values.
+    pub frames: FramesReport,
     /// Poses whose residual exceeds the robust loss scale (empty for l2).
     pub outliers: Vec<Outlier>,
+    /// Every calibration pose: its position error before and after, and its robust weight.
+    pub poses: Vec<PoseReport>,
     /// Statistics on the calibration poses (the same as `before` and `after`).
     pub calibration: Stage,
     /// Statistics on the held-out validation poses, when asked for.
@@ -247,6 +263,21 @@ pub struct Stage {
     pub before: Table3,
     /// With the identified model.
     pub after: Table3,
+}
+
+/// One calibration pose in the report.
+#[derive(Debug, Serialize)]
+pub struct PoseReport {
+    /// The pose's id.
+    pub id: String,
+    /// Its line in the data file.
+    pub line: u64,
+    /// `|dp|` with the nominal model (frames fitted, when identified), mm.
+    pub before_mm: f64,
+    /// `|dp|` with the identified model, mm.
+    pub after_mm: f64,
+    /// Final weight of the robust loss (1 for l2).
+    pub robust_weight: f64,
 }
 
 /// A pose flagged by the robust loss.
@@ -345,10 +376,14 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
             options.loss
         );
     }
-    let all = Inputs::load(&options.robot, &options.data)?;
-    let (inputs, validation) = match (&options.holdout, options.validate) {
+    let profile = DataProfile::load(options.profile.as_deref())?;
+    let all = Inputs::load_with(&options.robot, &options.data, &profile)?;
+    let (mut inputs, mut validation) = match (&options.holdout, options.validate) {
         (Some(_), Some(_)) => bail!("use either --validate or --holdout, not both"),
-        (Some(path), None) => (all, Some(Inputs::load(&options.robot, path)?)),
+        (Some(path), None) => (
+            all,
+            Some(Inputs::load_with(&options.robot, path, &profile)?),
+        ),
         (None, Some(fraction)) => {
             let (calibration, held) =
                 crate::evaluate::split(&all, fraction, options.validate_seed)?;
@@ -356,7 +391,15 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
         }
         (None, None) => (all, None),
     };
-    let mut mask = inputs.model.mask;
+    let frames = options.frames.unwrap_or(if inputs.data.base_frame {
+        Frames::None
+    } else {
+        Frames::BaseTool
+    });
+    let (frames_report, mut mask) = {
+        let mut others: Vec<&mut Inputs> = validation.iter_mut().collect();
+        crate::frames::prepare(frames, &mut inputs, &mut others, options.k)?
+    };
     let identifiability =
         crate::with_parameter_count!(mask.count(), analyse(&inputs, &mask, options.k))?;
     let mut dropped = Vec::new();
@@ -383,7 +426,8 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
             validation.as_ref(),
             &mask,
             identifiability,
-            dropped
+            dropped,
+            frames_report
         )
     )
 }
@@ -395,6 +439,7 @@ fn run<const D: usize>(
     mask: &ParameterMask<6>,
     identifiability: IdentifiabilityReport,
     dropped: Vec<String>,
+    mut frames: FramesReport,
 ) -> anyhow::Result<Calibration> {
     let (file, model, measurements) = (&inputs.file, &inputs.model, inputs.measurements.as_slice());
     let set = ParameterSet::<6, D>::from_mask(mask)?;
@@ -407,6 +452,7 @@ fn run<const D: usize>(
     )?;
     let zero = SVector::<f64, D>::zeros();
     let mut outliers: Vec<Outlier> = Vec::new();
+    let mut robust_weights = vec![1.0; measurements.len()];
     let started = Instant::now();
     let swarm = match options.method {
         Method::Ipso | Method::IpsoLm => Some(run_swarm(options, &objective, &set)?),
@@ -432,6 +478,7 @@ fn run<const D: usize>(
             let robust = problem
                 .solve_robust(&swarm_end, &settings, loss, &mut weights)
                 .map_err(|e| lm_error(e, &set))?;
+            robust_weights.clone_from(&weights);
             if options.loss != LossChoice::L2 {
                 let mut norms = vec![0.0; measurements.len()];
                 problem.pose_residual_norms(&robust.result.x, &mut norms);
@@ -539,6 +586,21 @@ fn run<const D: usize>(
             identifiability.problem()
         ));
     }
+    if frames.identified != "none" {
+        text.push_str(&format!(
+            "  frames: {} identified; registration of the nominal robot {:.3} mm RMS ({:.3} mm max), \
+             nominal geometry with fitted frames {:.3} mm RMS; not identified (the frames absorb them): {}\n",
+            frames.identified,
+            frames.registration_rms_mm,
+            frames.registration_max_mm,
+            frames.frames_fit_rms_mm,
+            if frames.redundant_with_frames.is_empty() {
+                "none".to_string()
+            } else {
+                frames.redundant_with_frames.join(", ")
+            }
+        ));
+    }
     if options.loss != LossChoice::L2 {
         let ids: Vec<String> = outliers
             .iter()
@@ -574,15 +636,20 @@ fn run<const D: usize>(
         text.push_str("\nidentified errors against the truth\n");
         text.push_str(&truth_text(rows));
     }
-    let robot_toml = file
-        .with_errors(
-            &identified,
-            set.parameters().iter().copied(),
-            &std_error_list,
-            options.method.name(),
-            &options.robot.display().to_string(),
-        )
-        .to_toml(&format!(
+    let identified_file = file.with_errors(
+        &identified,
+        set.parameters().iter().copied(),
+        &std_error_list,
+        options.method.name(),
+        &options.robot.display().to_string(),
+    );
+    if frames.identified != "none" {
+        frames.base = identified_file.base.clone();
+        if frames.identified == "base+tool" {
+            frames.tool = identified_file.tool.clone();
+        }
+    }
+    let robot_toml = identified_file.to_toml(&format!(
             "{} identified by calib calibrate ({}) from {}.\nValues are nominal + identified errors; [calibration.errors] lists the errors and [calibration.std_errors] their standard errors, in mm and rad.",
             model.name,
             options.method.name(),
@@ -623,7 +690,22 @@ fn run<const D: usize>(
         }),
         identifiability,
         dropped,
+        frames,
         outliers,
+        poses: inputs
+            .data
+            .records
+            .iter()
+            .zip(before_poses.iter().zip(&after_poses))
+            .zip(&robust_weights)
+            .map(|((r, (b, a)), w)| PoseReport {
+                id: r.id.clone(),
+                line: r.line,
+                before_mm: *b,
+                after_mm: *a,
+                robust_weight: *w,
+            })
+            .collect(),
         calibration: Stage {
             poses: measurements.len(),
             before,

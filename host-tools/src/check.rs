@@ -1,6 +1,7 @@
 //! Loading a robot and its measurements for the core, and `calib check`: the identifiability of
 //! the identified parameters from a data set, without calibrating.
 
+use crate::profile::DataProfile;
 use crate::robot_file::{RobotFile, RobotModel};
 use crate::tracker_data::TrackerData;
 use anyhow::{Context, bail};
@@ -26,24 +27,22 @@ pub struct Inputs {
 }
 
 impl Inputs {
-    /// Reads and checks both files.
+    /// Reads and checks both files (the data in our format).
     pub fn load(robot: &Path, data: &Path) -> anyhow::Result<Self> {
+        Self::load_with(robot, data, &DataProfile::default())
+    }
+
+    /// Reads and checks both files, the data through a data profile.
+    pub fn load_with(robot: &Path, data: &Path, profile: &DataProfile) -> anyhow::Result<Self> {
         let file = RobotFile::read(robot)?;
         let model: RobotModel<6> = file.to_model(robot)?;
-        let data_file = TrackerData::read(data)?;
+        let data_file = TrackerData::read_with(data, profile)?;
         if data_file.joints != 6 {
             bail!(
                 "{}: has {} joint columns, the robot {} has 6 joints",
                 data.display(),
                 data_file.joints,
                 model.name
-            );
-        }
-        if !data_file.base_frame {
-            bail!(
-                "{}: the data are in the tracker's frame (no '# frame: base' line); this version \
-                 identifies only the robot's geometry, so the measurements must be in the robot's base frame",
-                data.display()
             );
         }
         let mut measurements = Vec::with_capacity(data_file.records.len());

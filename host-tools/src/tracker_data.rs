@@ -8,7 +8,15 @@
 //! (the header, and any comment above it, count).
 
 use crate::files::write_atomic;
+use crate::profile::{DataFrame, DataProfile};
 use nalgebra::{Matrix3, Quaternion, Rotation3, UnitQuaternion};
+
+fn read_text(path: &Path) -> Result<String, DataError> {
+    std::fs::read_to_string(path).map_err(|source| DataError::Read {
+        path: path.to_owned(),
+        source,
+    })
+}
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -88,9 +96,16 @@ enum Column {
     Joint(usize, f64),
     Position(usize, f64),
     Quaternion(usize),
-    Angle(usize),
+    Angle(usize, f64),
     Id,
     Weight,
+    /// A source column the data profile does not map.
+    Ignored,
+}
+
+/// `true` when `name` is one of our column names (DESIGN.md), such as `q3_deg` or `x_m`.
+pub fn is_known_column(name: &str) -> bool {
+    parse_column(name).is_some()
 }
 
 fn parse_column(name: &str) -> Option<Column> {
@@ -120,9 +135,12 @@ fn parse_column(name: &str) -> Option<Column> {
         "x_m" => Column::Position(0, 1000.0),
         "y_m" => Column::Position(1, 1000.0),
         "z_m" => Column::Position(2, 1000.0),
-        "rx_deg" => Column::Angle(0),
-        "ry_deg" => Column::Angle(1),
-        "rz_deg" => Column::Angle(2),
+        "rx_deg" => Column::Angle(0, deg),
+        "ry_deg" => Column::Angle(1, deg),
+        "rz_deg" => Column::Angle(2, deg),
+        "rx_rad" => Column::Angle(0, 1.0),
+        "ry_rad" => Column::Angle(1, 1.0),
+        "rz_rad" => Column::Angle(2, 1.0),
         "id" => Column::Id,
         "weight" => Column::Weight,
         _ => return None,
@@ -130,43 +148,73 @@ fn parse_column(name: &str) -> Option<Column> {
 }
 
 impl TrackerData {
-    /// Reads and checks a tracker data file.
+    /// Reads and checks a tracker data file in our format (DESIGN.md).
     pub fn read(path: &Path) -> Result<Self, DataError> {
-        let text = std::fs::read_to_string(path).map_err(|source| DataError::Read {
-            path: path.to_owned(),
-            source,
-        })?;
-        Self::parse(&text, path)
+        Self::read_with(path, &DataProfile::default())
     }
 
-    /// Parses tracker-data text; `path` only names the source in errors.
+    /// Reads and checks a tracker data file through a data profile.
+    pub fn read_with(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
+        let text = read_text(path)?;
+        Self::parse_with(&text, path, true, profile)
+    }
+
+    /// Parses tracker-data text in our format; `path` only names the source in errors.
     pub fn parse(text: &str, path: &Path) -> Result<Self, DataError> {
-        Self::parse_with(text, path, true)
+        Self::parse_with(text, path, true, &DataProfile::default())
+    }
+
+    /// Parses tracker-data text through a data profile; `path` only names the source in errors.
+    pub fn parse_profiled(
+        text: &str,
+        path: &Path,
+        profile: &DataProfile,
+    ) -> Result<Self, DataError> {
+        Self::parse_with(text, path, true, profile)
     }
 
     /// Reads a file of target poses: like [`TrackerData::read`], but the joint columns are
     /// optional (when present they are start values).
     pub fn read_targets(path: &Path) -> Result<Self, DataError> {
-        let text = std::fs::read_to_string(path).map_err(|source| DataError::Read {
-            path: path.to_owned(),
-            source,
-        })?;
-        Self::parse_with(&text, path, false)
+        let text = read_text(path)?;
+        Self::parse_with(&text, path, false, &DataProfile::default())
     }
 
-    fn parse_with(text: &str, path: &Path, joints_required: bool) -> Result<Self, DataError> {
+    fn parse_with(
+        text: &str,
+        path: &Path,
+        joints_required: bool,
+        profile: &DataProfile,
+    ) -> Result<Self, DataError> {
         let at = |line: u64, column: Option<String>, message: String| DataError::At {
             path: path.to_owned(),
             line,
             column,
             message,
         };
-        let base_frame = text.lines().any(|l| {
-            l.strip_prefix('#')
-                .is_some_and(|c| c.trim().replace(' ', "") == "frame:base")
-        });
+        // Physical line of a byte offset (the csv crate's own line count is one short after a
+        // CRLF header, so lines are counted here).
+        let line_starts: Vec<usize> = std::iter::once(0)
+            .chain(text.match_indices('\n').map(|(i, _)| i + 1))
+            .collect();
+        let line_of = |byte: u64| -> u64 {
+            // After a CRLF the record may start at the '\n' of the previous line's end.
+            let mut byte = usize::try_from(byte).unwrap_or(usize::MAX);
+            while matches!(text.as_bytes().get(byte), Some(b'\r' | b'\n')) {
+                byte += 1;
+            }
+            line_starts.partition_point(|start| *start <= byte) as u64
+        };
+        let base_frame = match profile.frame {
+            Some(frame) => frame == DataFrame::Base,
+            None => text.lines().any(|l| {
+                l.strip_prefix('#')
+                    .is_some_and(|c| c.trim().replace(' ', "") == "frame:base")
+            }),
+        };
         let mut reader = csv::ReaderBuilder::new()
             .comment(Some(b'#'))
+            .delimiter(profile.delimiter)
             .trim(csv::Trim::All)
             .flexible(true)
             .from_reader(text.as_bytes());
@@ -174,13 +222,43 @@ impl TrackerData {
             .headers()
             .map_err(|e| at(1, None, format!("cannot read the header: {e}")))?
             .clone();
-        let header_line = header.position().map_or(1, |p| p.line());
+        let header_line = header.position().map_or(1, |p| line_of(p.byte()));
         if header.is_empty() || (header.len() == 1 && header.get(0) == Some("")) {
             return Err(at(header_line, None, "the file has no header row".into()));
         }
+        // With a column mapping, rename the mapped source columns to ours and ignore the rest.
+        let mut names: Vec<String> = header.iter().map(str::to_string).collect();
+        if let Some(mapping) = &profile.columns {
+            let profile_name = profile
+                .path
+                .as_ref()
+                .map_or_else(String::new, |p| format!(" (data profile {})", p.display()));
+            for (ours, source) in mapping {
+                if !header.iter().any(|h| h == source) {
+                    return Err(at(
+                        header_line,
+                        None,
+                        format!(
+                            "missing column \"{source}\", which the data profile maps to {ours}{profile_name}"
+                        ),
+                    ));
+                }
+            }
+            for name in &mut names {
+                *name = mapping
+                    .iter()
+                    .find(|(_, source)| source == name)
+                    .map_or_else(String::new, |(ours, _)| ours.clone());
+            }
+        }
         let mut columns = Vec::with_capacity(header.len());
-        for (i, name) in header.iter().enumerate() {
-            let column = parse_column(name).ok_or_else(|| {
+        for (i, (name, source)) in names.iter().zip(header.iter()).enumerate() {
+            if profile.columns.is_some() && name.is_empty() {
+                columns.push(Column::Ignored);
+                continue;
+            }
+            let name = source;
+            let column = parse_column(&names[i]).ok_or_else(|| {
                 at(
                     header_line,
                     Some(format!("{} (\"{name}\")", i + 1)),
@@ -193,8 +271,10 @@ impl TrackerData {
         let mut seen = std::collections::HashSet::new();
         for (name, column) in header.iter().zip(&columns) {
             let key = match column {
+                Column::Ignored => continue,
                 Column::Joint(j, _) => format!("q{}", j + 1),
                 Column::Position(k, _) => ["x", "y", "z"][*k].to_string(),
+                Column::Angle(k, _) => ["rx", "ry", "rz"][*k].to_string(),
                 _ => name.to_string(),
             };
             if !seen.insert(key.clone()) {
@@ -240,7 +320,7 @@ impl TrackerData {
             .count();
         let angles = columns
             .iter()
-            .filter(|c| matches!(c, Column::Angle(_)))
+            .filter(|c| matches!(c, Column::Angle(..)))
             .count();
         let orientation = match (quaternions, angles) {
             (0, 0) => OrientationColumns::None,
@@ -259,10 +339,10 @@ impl TrackerData {
         let mut ids = std::collections::HashMap::new();
         for result in reader.records() {
             let row = result.map_err(|e| {
-                let line = e.position().map_or(0, |p| p.line());
+                let line = e.position().map_or(0, |p| line_of(p.byte()));
                 at(line, None, format!("cannot read the row: {e}"))
             })?;
-            let line = row.position().map_or(0, |p| p.line());
+            let line = row.position().map_or(0, |p| line_of(p.byte()));
             if row.len() != columns.len() {
                 return Err(at(
                     line,
@@ -280,11 +360,22 @@ impl TrackerData {
                 row.iter().zip(&columns).zip(header.iter()).enumerate()
             {
                 let where_ = || Some(format!("{} (\"{name}\")", i + 1));
-                if let Column::Id = column {
-                    id = field.to_string();
-                    continue;
+                match column {
+                    Column::Ignored => continue,
+                    Column::Id => {
+                        id = field.to_string();
+                        continue;
+                    }
+                    _ => {}
                 }
-                let value: f64 = field
+                let decimal_comma;
+                let number = if profile.decimal == b',' {
+                    decimal_comma = field.replace(',', ".");
+                    decimal_comma.as_str()
+                } else {
+                    field
+                };
+                let value: f64 = number
                     .parse()
                     .map_err(|_| at(line, where_(), format!("\"{field}\" is not a number")))?;
                 if !value.is_finite() {
@@ -311,14 +402,14 @@ impl TrackerData {
                     }
                     Column::Position(k, scale) => position[k] = value * scale,
                     Column::Quaternion(k) => quaternion[k] = value,
-                    Column::Angle(k) => angle[k] = value.to_radians(),
+                    Column::Angle(k, scale) => angle[k] = value * scale,
                     Column::Weight => {
                         if value < 0.0 {
                             return Err(at(line, where_(), "weight must be >= 0".into()));
                         }
                         weight = value;
                     }
-                    Column::Id => {}
+                    Column::Id | Column::Ignored => {}
                 }
             }
             if let Some(previous) = ids.insert(id.clone(), line) {
@@ -345,10 +436,7 @@ impl TrackerData {
                     let unit = UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z));
                     Some(*unit.to_rotation_matrix().matrix())
                 }
-                OrientationColumns::FixedAngles => {
-                    let [rx, ry, rz] = angle;
-                    Some(*Rotation3::from_euler_angles(rx, ry, rz).matrix())
-                }
+                OrientationColumns::FixedAngles => Some(*profile.euler.rotation(angle).matrix()),
             };
             records.push(Record {
                 line,

@@ -102,3 +102,16 @@ fn errors_name_file_line_and_column() {
     let e = parse("q1_rad,q2_rad,x_mm,y_mm,z_mm\n0.5,90,1,2,3\n").unwrap_err();
     assert!(e.contains(":2: column 2 (\"q2_rad\"): 90 is beyond one turn for a radian column; are these degrees (q2_deg)?"), "{e}");
 }
+
+#[test]
+fn line_numbers_are_physical_lines_with_crlf_endings() {
+    // The csv crate counts one line short after a CRLF header; errors and ids must not.
+    let text = format!("{HEADER}\r\n0,0,0,0,0,0,1,2,3\r\n0,0,0,0,0,0,1,2,x\r\n");
+    let err = parse(&text).unwrap_err();
+    assert!(
+        err.starts_with("cell/data.csv:3: column 9 (\"z_mm\")"),
+        "{err}"
+    );
+    let ok = parse(&format!("# c\r\n{HEADER}\r\n0,0,0,0,0,0,1,2,3\r\n")).unwrap();
+    assert_eq!((ok.records[0].line, ok.records[0].id.as_str()), (3, "3"));
+}

@@ -1,0 +1,467 @@
+//! The tracker and tool frames of real measurements: which frames are identified
+//! (`--frames none|base|base+tool`), their start values by closed-form rigid registration, and
+//! the parameters that become redundant once they are identified.
+//!
+//! A tracker measures `m_j = T_base * F(q_j) * t`: the tracker-to-robot-base transform `T_base`,
+//! the nominal flange pose `F(q_j)`, and the tool point `t` (a reflector) or tool frame (a 6-DoF
+//! probe) on the flange. Registration alternates two closed forms until they agree: with `t`
+//! fixed, `T_base` is the rigid registration (Kabsch/Horn, by SVD) of the points `F(q_j) t` onto
+//! the measured points; with `T_base` fixed, `t` is the linear least-squares solution of
+//! `R_j t = R_base^T (m_j - p_base) - p_j`. For 6-DoF data the tool rotation is then the
+//! rotation nearest to the mean of `(R_base R_j)^T R_measured,j`.
+
+use crate::robot_file::{FrameEntry, RobotFile};
+use calib_core::objective::Measurement;
+use calib_core::{FrameParameter, JointParameter, Kinematics, Parameter, ParameterMask, Robot};
+use nalgebra::{Matrix3, Rotation3, Vector3};
+use serde::Serialize;
+
+/// Which frames a calibration identifies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+pub enum Frames {
+    /// None: the data are in the robot's base frame and the tool is known.
+    #[value(name = "none")]
+    None,
+    /// The tracker-to-base frame (6 parameters); the tool is known.
+    #[value(name = "base")]
+    Base,
+    /// The base frame and the tool: 3 translations for a reflector (position-only data), 6 for a
+    /// 6-DoF probe.
+    #[value(name = "base+tool")]
+    BaseTool,
+}
+
+impl Frames {
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Base => "base",
+            Self::BaseTool => "base+tool",
+        }
+    }
+
+    /// `true` when the base frame is identified.
+    pub fn base(self) -> bool {
+        self != Self::None
+    }
+
+    /// `true` when the tool is identified.
+    pub fn tool(self) -> bool {
+        self == Self::BaseTool
+    }
+}
+
+/// Start values of the frames from the nominal model, and how well they explain the data.
+#[derive(Clone, Debug)]
+pub struct Registration {
+    /// Tracker-to-base rotation.
+    pub base_rotation: Rotation3<f64>,
+    /// Tracker-to-base translation, mm.
+    pub base_translation: Vector3<f64>,
+    /// Tool point on the flange, mm (flange frame).
+    pub tool_translation: Vector3<f64>,
+    /// Tool rotation relative to the flange (identity for position-only data).
+    pub tool_rotation: Rotation3<f64>,
+    /// RMS of the position residuals after registration, mm.
+    pub rms_mm: f64,
+    /// Largest position residual after registration, mm.
+    pub max_mm: f64,
+    /// Alternations run.
+    pub iterations: u32,
+}
+
+/// Errors of the registration.
+#[derive(Debug, thiserror::Error)]
+pub enum RegistrationError {
+    /// Fewer than 3 poses or all measured points on a line.
+    #[error(
+        "the measured points do not span a plane ({0} poses); registration needs at least 3 poses that are not on one line"
+    )]
+    Degenerate(usize),
+    /// The flange orientations do not determine the tool point.
+    #[error(
+        "the flange orientations of the poses are too similar to locate the tool on the flange; use poses with varied wrist orientations"
+    )]
+    ToolUndetermined,
+}
+
+/// Rigid registration (Kabsch/Horn): the rotation and translation with `b ~ R a + t` in the
+/// least-squares sense, by SVD of the cross-covariance.
+pub fn kabsch(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> Option<(Rotation3<f64>, Vector3<f64>)> {
+    let n = a.len().min(b.len());
+    if n < 3 {
+        return None;
+    }
+    let mean = |v: &[Vector3<f64>]| v.iter().take(n).sum::<Vector3<f64>>() / n as f64;
+    let (ca, cb) = (mean(a), mean(b));
+    let mut h = Matrix3::zeros();
+    for (pa, pb) in a.iter().zip(b).take(n) {
+        h += (pa - ca) * (pb - cb).transpose();
+    }
+    let svd = h.svd(true, true);
+    let (u, v_t) = (svd.u?, svd.v_t?);
+    // The second-largest singular value is 0 when the points are on a line.
+    let mut s = svd.singular_values;
+    s.as_mut_slice().sort_by(|x, y| y.total_cmp(x));
+    if s[1].is_nan() || s[1] <= 1e-9 * s[0].max(1e-300) {
+        return None;
+    }
+    let mut d = Matrix3::identity();
+    if (v_t.transpose() * u.transpose()).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    let r = v_t.transpose() * d * u.transpose();
+    let rotation = Rotation3::from_matrix_unchecked(r);
+    Some((rotation, cb - rotation * ca))
+}
+
+/// The rotation nearest (Frobenius) to `m`.
+pub fn nearest_rotation(m: &Matrix3<f64>) -> Option<Rotation3<f64>> {
+    let svd = m.svd(true, true);
+    let (u, v_t) = (svd.u?, svd.v_t?);
+    let mut d = Matrix3::identity();
+    if (u * v_t).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    Some(Rotation3::from_matrix_unchecked(u * d * v_t))
+}
+
+/// Registers the nominal robot (frames ignored: base and tool are identity) onto measurements
+/// in the tracker's frame. With `identify_tool == false` the robot's own tool is kept.
+pub fn register(
+    robot: &Robot<f64, 6>,
+    measurements: &[Measurement<f64, 6>],
+    identify_tool: bool,
+) -> Result<Registration, RegistrationError> {
+    let mut bare = *robot;
+    bare.base = calib_core::FramePose::identity();
+    if identify_tool {
+        bare.tool = calib_core::FramePose::identity();
+    }
+    let kinematics = Kinematics::nominal(&bare).map_err(|_| RegistrationError::Degenerate(0))?;
+    let flanges: Vec<_> = measurements
+        .iter()
+        .map(|m| kinematics.forward_angles(&m.angles))
+        .collect();
+    let measured: Vec<Vector3<f64>> = measurements.iter().map(|m| m.position).collect();
+    let n = measured.len();
+    // Normal matrix of the tool fit: sum R_j^T R_j = n I; the tool is determined when the
+    // rotations differ: sum (I - R_j)^T (I - R_j) must be well conditioned. Check it once.
+    let mut tool = Vector3::zeros();
+    let mut base = (Rotation3::identity(), Vector3::zeros());
+    let mut iterations = 0;
+    let mut previous = f64::INFINITY;
+    for iteration in 1..=500 {
+        iterations = iteration;
+        let points: Vec<Vector3<f64>> = flanges
+            .iter()
+            .map(|f| f.rotation * tool + f.translation.vector)
+            .collect();
+        base = kabsch(&points, &measured).ok_or(RegistrationError::Degenerate(n))?;
+        if !identify_tool {
+            break;
+        }
+        // t = mean of R_j^T (R_base^T (m_j - p_base) - p_j)  (R_j^T R_j = I).
+        let (r, p) = base;
+        let mut sum = Vector3::zeros();
+        for (f, m) in flanges.iter().zip(&measured) {
+            sum += f.rotation.inverse() * (r.inverse() * (m - p) - f.translation.vector);
+        }
+        let next = sum / n as f64;
+        let change = (next - tool).norm();
+        tool = next;
+        let rms = rms(&flanges, &measured, &base, &tool);
+        if change < 1e-9 || (previous - rms).abs() < 1e-12 * previous.max(1.0) {
+            break;
+        }
+        previous = rms;
+    }
+    if identify_tool {
+        let mut spread = Matrix3::zeros();
+        for f in &flanges {
+            let d = Matrix3::identity() - f.rotation.matrix();
+            spread += d.transpose() * d;
+        }
+        let eigen = spread.symmetric_eigenvalues();
+        if eigen.min() < 1e-6 * n as f64 {
+            return Err(RegistrationError::ToolUndetermined);
+        }
+    }
+    let tool_rotation = if identify_tool {
+        let mut sum = Matrix3::zeros();
+        let mut count = 0;
+        for (f, m) in flanges.iter().zip(measurements) {
+            if let Some(rm) = &m.rotation {
+                sum += (base.0 * f.rotation).inverse().matrix() * rm;
+                count += 1;
+            }
+        }
+        if count > 0 {
+            nearest_rotation(&sum).unwrap_or_else(Rotation3::identity)
+        } else {
+            Rotation3::identity()
+        }
+    } else {
+        Rotation3::identity()
+    };
+    let residuals: Vec<f64> = flanges
+        .iter()
+        .zip(&measured)
+        .map(|(f, m)| (m - (base.0 * (f.rotation * tool + f.translation.vector) + base.1)).norm())
+        .collect();
+    let rms_mm = (residuals.iter().map(|r| r * r).sum::<f64>() / n as f64).sqrt();
+    let max_mm = residuals.iter().copied().fold(0.0, f64::max);
+    Ok(Registration {
+        base_rotation: base.0,
+        base_translation: base.1,
+        tool_translation: tool,
+        tool_rotation,
+        rms_mm,
+        max_mm,
+        iterations,
+    })
+}
+
+fn rms(
+    flanges: &[calib_core::kinematics::Pose<f64>],
+    measured: &[Vector3<f64>],
+    base: &(Rotation3<f64>, Vector3<f64>),
+    tool: &Vector3<f64>,
+) -> f64 {
+    let sum: f64 = flanges
+        .iter()
+        .zip(measured)
+        .map(|(f, m)| {
+            (m - (base.0 * (f.rotation * tool + f.translation.vector) + base.1)).norm_squared()
+        })
+        .sum();
+    (sum / measured.len().max(1) as f64).sqrt()
+}
+
+/// A frame as a robot-file entry (mm, `rpy_deg` with `R = Rz Ry Rx`).
+pub fn frame_entry(rotation: &Rotation3<f64>, translation: &Vector3<f64>) -> FrameEntry {
+    let (roll, pitch, yaw) = rotation.euler_angles();
+    FrameEntry {
+        xyz_mm: [translation.x, translation.y, translation.z],
+        rpy_deg: [roll, pitch, yaw].map(f64::to_degrees),
+    }
+}
+
+/// The robot file with its base (and, with `tool`, its tool) replaced by the registration.
+pub fn with_registration(file: &RobotFile, registration: &Registration, tool: bool) -> RobotFile {
+    let mut out = file.clone();
+    out.base = Some(frame_entry(
+        &registration.base_rotation,
+        &registration.base_translation,
+    ));
+    if tool {
+        out.tool = Some(frame_entry(
+            &registration.tool_rotation,
+            &registration.tool_translation,
+        ));
+    }
+    out
+}
+
+/// The identified parameters with frames: the robot's own mask plus the frame parameters, minus
+/// the joint parameters the frames make redundant. With the base: `dd1` and `dtheta1` (they move
+/// the first joint along and about its own axis, as the base does). With the tool: everything of
+/// joint N after its rotation (`da6, dd6, dalpha6, dbeta6, dtheta6` are a constant transform on
+/// the flange, like the tool). `full_pose`: the tool's rotations are identified too (6-DoF data).
+/// Returns the mask and the joint parameters removed.
+pub fn mask_with_frames(
+    mask: &ParameterMask<6>,
+    frames: Frames,
+    full_pose: bool,
+) -> (ParameterMask<6>, Vec<Parameter>) {
+    let mut out = *mask;
+    let mut removed = Vec::new();
+    let mut remove = |out: &mut ParameterMask<6>, p: Parameter| {
+        if out.contains(p) {
+            out.set(p, false);
+            removed.push(p);
+        }
+    };
+    if frames.base() {
+        for kind in FrameParameter::ALL {
+            out.set(Parameter::Base(kind), true);
+        }
+        for kind in [JointParameter::D, JointParameter::Theta] {
+            remove(&mut out, Parameter::Joint { joint: 1, kind });
+        }
+    }
+    if frames.tool() {
+        for kind in FrameParameter::ALL {
+            out.set(Parameter::Tool(kind), full_pose || !kind.is_rotation());
+        }
+        for kind in JointParameter::ALL {
+            remove(&mut out, Parameter::Joint { joint: 6, kind });
+        }
+    }
+    (out, removed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kabsch_recovers_a_known_motion() {
+        let r = Rotation3::from_euler_angles(0.3, -1.2, 2.5);
+        let t = Vector3::new(3000.0, -200.0, 50.0);
+        let a: Vec<Vector3<f64>> = (0..10)
+            .map(|i| {
+                let x = f64::from(i);
+                Vector3::new(x * 100.0, (x * 1.7).sin() * 500.0, (x * 0.3).cos() * 800.0)
+            })
+            .collect();
+        let b: Vec<_> = a.iter().map(|p| r * p + t).collect();
+        let (rr, tt) = kabsch(&a, &b).unwrap();
+        assert!((rr.matrix() - r.matrix()).norm() < 1e-12);
+        assert!((tt - t).norm() < 1e-9);
+        let line: Vec<_> = (0..5)
+            .map(|i| Vector3::new(f64::from(i), 0.0, 0.0))
+            .collect();
+        assert!(kabsch(&line, &line).is_none());
+    }
+}
+
+/// Largest registration RMS (mm) accepted: a robot's geometric errors move the tool by a few
+/// millimetres, so a nominal model registered onto correct data fits within this; more means the
+/// data, the profile (units, Euler convention, joint order) or the robot file are wrong.
+pub const MAX_REGISTRATION_RMS_MM: f64 = 20.0;
+
+/// What the frame identification did, for reports.
+#[derive(Clone, Debug, Serialize)]
+pub struct FramesReport {
+    /// `none`, `base` or `base+tool`.
+    pub identified: &'static str,
+    /// RMS position residual of the closed-form registration, mm.
+    pub registration_rms_mm: f64,
+    /// Largest position residual of the registration, mm.
+    pub registration_max_mm: f64,
+    /// Alternations of the registration.
+    pub registration_iterations: u32,
+    /// RMS position residual with the nominal geometry and the frames fitted by least squares, mm.
+    pub frames_fit_rms_mm: f64,
+    /// Joint parameters not identified because the frames absorb them.
+    pub redundant_with_frames: Vec<String>,
+    /// The identified base frame (tracker to robot base), when identified.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub base: Option<FrameEntry>,
+    /// The identified tool frame (on the flange), when identified.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tool: Option<FrameEntry>,
+}
+
+/// Registers the frames of `inputs` and fits them (nominal geometry) by least squares; replaces
+/// the robot of `inputs` (and of `others`, e.g. validation poses in the same tracker frame) by the
+/// nominal geometry with the fitted frames. Returns the report and the mask of identified
+/// parameters with the frames.
+pub fn prepare(
+    frames: Frames,
+    inputs: &mut crate::check::Inputs,
+    others: &mut [&mut crate::check::Inputs],
+    k: f64,
+) -> anyhow::Result<(FramesReport, ParameterMask<6>)> {
+    let full_pose = inputs.measurements.iter().all(|m| m.rotation.is_some());
+    let (mask, removed) = mask_with_frames(&inputs.model.mask, frames, full_pose);
+    if frames == Frames::None {
+        return Ok((
+            FramesReport {
+                identified: frames.name(),
+                registration_rms_mm: 0.0,
+                registration_max_mm: 0.0,
+                registration_iterations: 0,
+                frames_fit_rms_mm: 0.0,
+                redundant_with_frames: Vec::new(),
+                base: None,
+                tool: None,
+            },
+            mask,
+        ));
+    }
+    let registration = register(&inputs.model.robot, &inputs.measurements, frames.tool())?;
+    if registration.rms_mm > MAX_REGISTRATION_RMS_MM {
+        anyhow::bail!(
+            "{}: the nominal robot registered onto the measurements leaves {:.1} mm RMS ({:.1} mm max), \
+             far above the few millimetres of a robot's geometric errors (limit {MAX_REGISTRATION_RMS_MM} mm). \
+             Check the units and Euler convention of the data (a data profile, --profile), the joint order \
+             and signs against the robot file, and whether the data are already in the base frame (--frames none)",
+            inputs.data.path.display(),
+            registration.rms_mm,
+            registration.max_mm
+        );
+    }
+    let registered = with_registration(&inputs.file, &registration, frames.tool());
+    let mut frame_mask = ParameterMask::<6>::empty();
+    for p in mask.iter() {
+        if matches!(p, Parameter::Base(_) | Parameter::Tool(_)) {
+            frame_mask.set(p, true);
+        }
+    }
+    let mut fitted_inputs = inputs.clone();
+    fitted_inputs.model = registered.to_model(&inputs.model.path)?;
+    fitted_inputs.model.mask = inputs.model.mask;
+    let errors = crate::with_parameter_count!(
+        frame_mask.count(),
+        fit_frames(&fitted_inputs, &frame_mask, k)
+    )?;
+    let mut fitted = registered.with_errors(&errors, [], &[], "", "");
+    fitted.calibration = None;
+    let mut model = fitted.to_model(&inputs.model.path)?;
+    model.mask = inputs.model.mask;
+    let kinematics = Kinematics::nominal(&model.robot).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let sum: f64 = inputs
+        .measurements
+        .iter()
+        .map(|m| {
+            (m.position - kinematics.forward_angles(&m.angles).translation.vector).norm_squared()
+        })
+        .sum();
+    let frames_fit_rms_mm = (sum / inputs.measurements.len().max(1) as f64).sqrt();
+    for other in others.iter_mut() {
+        other.file = fitted.clone();
+        other.model = model.clone();
+    }
+    inputs.file = fitted;
+    inputs.model = model;
+    Ok((
+        FramesReport {
+            identified: frames.name(),
+            registration_rms_mm: registration.rms_mm,
+            registration_max_mm: registration.max_mm,
+            registration_iterations: registration.iterations,
+            frames_fit_rms_mm,
+            redundant_with_frames: removed.iter().map(ToString::to_string).collect(),
+            base: None,
+            tool: None,
+        },
+        mask,
+    ))
+}
+
+/// Least-squares fit of the frame parameters in `mask` alone (nominal geometry).
+fn fit_frames<const D: usize>(
+    inputs: &crate::check::Inputs,
+    mask: &ParameterMask<6>,
+    k: f64,
+) -> anyhow::Result<calib_core::ParameterErrors<f64, 6>> {
+    let set = calib_core::ParameterSet::<6, D>::from_mask(mask)?;
+    let problem = calib_core::lm::LeastSquares::new(
+        &inputs.model.robot,
+        &calib_core::ParameterErrors::zero(),
+        set,
+        &inputs.measurements,
+        k,
+    )
+    .map_err(|e| anyhow::anyhow!("fitting the frames: {e}"))?;
+    let result = problem
+        .solve(
+            &nalgebra::SVector::zeros(),
+            &calib_core::lm::LmSettings::default(),
+        )
+        .map_err(|e| anyhow::anyhow!("fitting the frames: {e}"))?;
+    Ok(set.unpack(&result.x))
+}
