@@ -579,6 +579,18 @@ fn run<const D: usize>(
             l.sigma()
         ));
     }
+    text.push_str(&format!(
+        "  identifiability: {} parameters, rank {}, scaled condition number {}\n",
+        identifiability.parameters,
+        identifiability.rank,
+        identifiability
+            .condition_number
+            .map_or_else(|| "infinite".to_string(), |c| format!("{c:.3e}"))
+    ));
+    if identifiability.ill_conditioned && dropped.is_empty() {
+        text.push_str("  ");
+        text.push_str(&identifiability.ill_conditioned_text());
+    }
     if !dropped.is_empty() {
         text.push_str(&format!(
             "  --auto-mask dropped {} (the data cannot determine them: {})\n",

@@ -103,6 +103,11 @@ impl Inputs {
     }
 }
 
+/// Scaled condition number above which a pose set is reported as ill-conditioned: the weakest
+/// parameter combination is then determined more than 1000 times worse than the best one, so
+/// noise and unmodelled errors leak into it amplified.
+pub const ILL_CONDITIONED: f64 = 1000.0;
+
 /// A parameter the data do not determine.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Undetermined {
@@ -130,6 +135,12 @@ pub struct IdentifiabilityReport {
     pub singular_values: Vec<f64>,
     /// Parameters the data cannot determine, in pivot order.
     pub undetermined: Vec<Undetermined>,
+    /// The least determined direction: the right singular vector of the smallest singular value
+    /// of the scaled Jacobian, as (parameter, component) for components of magnitude >= 0.2,
+    /// largest first. These are the parameters an ill-conditioned pose set leaves uncertain.
+    pub weakest_direction: Vec<(String, f64)>,
+    /// `true` when the condition number exceeds [`ILL_CONDITIONED`] (or the rank is deficient).
+    pub ill_conditioned: bool,
     /// The analysed parameter names, in order.
     #[serde(skip)]
     pub names: Vec<Parameter>,
@@ -160,6 +171,25 @@ impl IdentifiabilityReport {
             .join("; ")
     }
 
+    /// The warning for an ill-conditioned pose set: the condition number and the parameters of
+    /// the weakest direction.
+    pub fn ill_conditioned_text(&self) -> String {
+        let weakest: Vec<String> = self
+            .weakest_direction
+            .iter()
+            .map(|(n, v)| format!("{v:+.2} {n}"))
+            .collect();
+        format!(
+            "WARNING: the pose set is ill-conditioned (scaled condition number {}, above {ILL_CONDITIONED}): \
+             the data barely determine the combination {}; its identified values follow the noise and unmodelled \
+             errors. Add poses with other joint configurations (e.g. both wrist flips, both elbows), or drop those \
+             parameters (identify = [...] in the robot file)\n",
+            self.condition_number
+                .map_or_else(|| "infinite".to_string(), |c| format!("{c:.3e}")),
+            weakest.join(" ")
+        )
+    }
+
     /// Fixed-width text for people.
     pub fn text(&self) -> String {
         let mut out = format!(
@@ -175,6 +205,9 @@ impl IdentifiabilityReport {
             "observability index O1: {:.4e}\n",
             self.observability_index
         ));
+        if self.ill_conditioned && self.rank == self.parameters {
+            out.push_str(&self.ill_conditioned_text());
+        }
         let values: Vec<String> = self
             .singular_values
             .iter()
@@ -258,7 +291,12 @@ pub fn analyse<const D: usize>(
             },
         });
     }
+    let weakest_direction = weakest_direction(&r, &names);
+    let ill_conditioned =
+        !(id.condition_number.is_finite() && id.condition_number <= ILL_CONDITIONED);
     Ok(IdentifiabilityReport {
+        weakest_direction,
+        ill_conditioned,
         parameters: D,
         rank: id.rank,
         condition_number: id
@@ -270,6 +308,34 @@ pub fn analyse<const D: usize>(
         undetermined,
         names,
     })
+}
+
+/// The right singular vector of the smallest singular value of the column-scaled factor `r`.
+fn weakest_direction<const D: usize>(
+    r: &nalgebra::SMatrix<f64, D, D>,
+    names: &[Parameter],
+) -> Vec<(String, f64)> {
+    let mut scaled = nalgebra::DMatrix::from_fn(D, D, |i, j| r[(i, j)]);
+    for mut column in scaled.column_iter_mut() {
+        let norm = column.norm();
+        if norm > 0.0 {
+            column /= norm;
+        }
+    }
+    let svd = scaled.svd(false, true);
+    let Some(v_t) = svd.v_t else {
+        return Vec::new();
+    };
+    let smallest = svd.singular_values.argmin().0;
+    let mut out: Vec<(String, f64)> = v_t
+        .row(smallest)
+        .iter()
+        .zip(names)
+        .filter(|(v, _)| v.abs() >= 0.2)
+        .map(|(v, p)| (p.to_string(), *v))
+        .collect();
+    out.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+    out
 }
 
 /// Options of `calib check`.

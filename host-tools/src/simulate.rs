@@ -66,6 +66,33 @@ pub struct Simulation {
     /// Write position-only data (a spherical reflector) instead of full 6-DoF poses.
     #[arg(long)]
     pub position_only: bool,
+    /// Where the tracker sees the robot's base: the base frame's position in the tracker frame,
+    /// mm (x,y,z). Without it (and --tracker-rpy-deg) the data are in the base frame.
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    pub tracker_xyz_mm: Option<Vec<f64>>,
+    /// The base frame's orientation in the tracker frame, roll,pitch,yaw in degrees
+    /// (R = Rz(yaw) Ry(pitch) Rx(roll)).
+    #[arg(
+        long,
+        value_name = "R,P,Y",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    pub tracker_rpy_deg: Option<Vec<f64>>,
+    /// The measured point (reflector) or probe frame on the flange: offset in mm (x,y,z in the
+    /// flange frame). Default: the robot file's tool.
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    pub tool_xyz_mm: Option<Vec<f64>>,
     /// Seed of all random draws.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -89,7 +116,32 @@ pub struct Simulated {
 /// `settings.truth_out`.
 pub fn simulate(settings: &Simulation) -> anyhow::Result<Simulated> {
     let (data_out, truth_out) = (&settings.out, &settings.truth_out);
-    let file = RobotFile::read(&settings.robot)?;
+    let mut file = RobotFile::read(&settings.robot)?;
+    let triple = |v: &Option<Vec<f64>>, name: &str| -> anyhow::Result<Option<[f64; 3]>> {
+        match v {
+            None => Ok(None),
+            Some(v) => match v.as_slice() {
+                [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Some([*x, *y, *z])),
+                _ => bail!("{name} needs three finite numbers, got {v:?}"),
+            },
+        }
+    };
+    let tracker_xyz = triple(&settings.tracker_xyz_mm, "--tracker-xyz-mm")?;
+    let tracker_rpy = triple(&settings.tracker_rpy_deg, "--tracker-rpy-deg")?;
+    let in_tracker_frame = tracker_xyz.is_some() || tracker_rpy.is_some();
+    if in_tracker_frame {
+        file.base = Some(crate::robot_file::FrameEntry {
+            xyz_mm: tracker_xyz.unwrap_or([0.0; 3]),
+            rpy_deg: tracker_rpy.unwrap_or([0.0; 3]),
+        });
+    }
+    if let Some(xyz) = triple(&settings.tool_xyz_mm, "--tool-xyz-mm")? {
+        let rpy_deg = file.tool.as_ref().map_or([0.0; 3], |t| t.rpy_deg);
+        file.tool = Some(crate::robot_file::FrameEntry {
+            xyz_mm: xyz,
+            rpy_deg,
+        });
+    }
     let model: RobotModel<6> = file.to_model(&settings.robot)?;
     if settings.poses == 0 {
         bail!("--poses must be at least 1");
@@ -162,7 +214,12 @@ pub fn simulate(settings: &Simulation) -> anyhow::Result<Simulated> {
         ),
     };
     let comments = vec![
-        "frame: base".to_string(),
+        if in_tracker_frame {
+            "measurements in the tracker's frame (the truth file's [base] is the robot base in it)"
+                .to_string()
+        } else {
+            "frame: base".to_string()
+        },
         format!(
             "simulated by calib simulate: robot {}, errors {errors_text}, {} poses, joints {}",
             settings.robot.display(),
