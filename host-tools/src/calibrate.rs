@@ -120,7 +120,9 @@ pub struct CalibrateOptions {
     /// every clean pose in.
     #[arg(long, default_value_t = 1.0)]
     pub loss_scale_mm: f64,
-    /// Drop the parameters the data cannot determine (instead of refusing), and say which.
+    /// Drop the parameters the data cannot determine (instead of refusing), then, while the pose
+    /// set is ill-conditioned (scaled condition number above 1000), the parameter with the
+    /// largest share of the least determined direction; say which.
     #[arg(long)]
     pub auto_mask: bool,
     /// Hold out this fraction of the poses (chosen at random with --validate-seed) and report the
@@ -400,8 +402,9 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
         let mut others: Vec<&mut Inputs> = validation.iter_mut().collect();
         crate::frames::prepare(frames, &mut inputs, &mut others, options.k)?
     };
-    let identifiability =
+    let mut identifiability =
         crate::with_parameter_count!(mask.count(), analyse(&inputs, &mask, options.k))?;
+    let initial = identifiability.clone();
     let mut dropped = Vec::new();
     if identifiability.rank < identifiability.parameters {
         if !options.auto_mask {
@@ -417,6 +420,31 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
             mask.set(parameter, false);
             dropped.push(parameter.to_string());
         }
+        identifiability =
+            crate::with_parameter_count!(mask.count(), analyse(&inputs, &mask, options.k))?;
+    }
+    let first = initial;
+    if options.auto_mask {
+        while identifiability.ill_conditioned && mask.count() > 1 {
+            let Some(parameter) = identifiability
+                .weakest_direction
+                .first()
+                .and_then(|(name, _)| calib_core::Parameter::from_name(name, 6))
+            else {
+                break;
+            };
+            mask.set(parameter, false);
+            dropped.push(parameter.to_string());
+            identifiability =
+                crate::with_parameter_count!(mask.count(), analyse(&inputs, &mask, options.k))?;
+        }
+    }
+    // Report the analysis of the full set (it says why parameters were dropped), with the
+    // condition number reached.
+    if !dropped.is_empty() {
+        let reached = identifiability.condition_number;
+        identifiability = first;
+        identifiability.condition_number_after_drop = reached;
     }
     crate::with_parameter_count!(
         mask.count(),
@@ -593,9 +621,19 @@ fn run<const D: usize>(
     }
     if !dropped.is_empty() {
         text.push_str(&format!(
-            "  --auto-mask dropped {} (the data cannot determine them: {})\n",
+            "  --auto-mask dropped {} ({}scaled condition number {} -> {})\n",
             dropped.join(", "),
-            identifiability.problem()
+            if identifiability.undetermined.is_empty() {
+                String::new()
+            } else {
+                format!("the data cannot determine {}; ", identifiability.problem())
+            },
+            identifiability
+                .condition_number
+                .map_or_else(|| "infinite".to_string(), |c| format!("{c:.3e}")),
+            identifiability
+                .condition_number_after_drop
+                .map_or_else(|| "infinite".to_string(), |c| format!("{c:.3e}")),
         ));
     }
     if frames.identified != "none" {

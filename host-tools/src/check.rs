@@ -141,6 +141,9 @@ pub struct IdentifiabilityReport {
     pub weakest_direction: Vec<(String, f64)>,
     /// `true` when the condition number exceeds [`ILL_CONDITIONED`] (or the rank is deficient).
     pub ill_conditioned: bool,
+    /// With `--auto-mask`: the condition number after dropping parameters.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub condition_number_after_drop: Option<f64>,
     /// The analysed parameter names, in order.
     #[serde(skip)]
     pub names: Vec<Parameter>,
@@ -297,6 +300,7 @@ pub fn analyse<const D: usize>(
     Ok(IdentifiabilityReport {
         weakest_direction,
         ill_conditioned,
+        condition_number_after_drop: None,
         parameters: D,
         rank: id.rank,
         condition_number: id

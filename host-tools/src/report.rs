@@ -14,6 +14,8 @@ pub struct Stat {
     pub std: f64,
     /// Maximum.
     pub max: f64,
+    /// Root mean square.
+    pub rms: f64,
 }
 
 impl Stat {
@@ -22,6 +24,11 @@ impl Stat {
             mean: s.mean * scale,
             std: s.std() * scale,
             max: s.max * scale,
+            rms: {
+                // sum x^2 / n = mean^2 + (n - 1) / n * std^2
+                let n = f64::from(s.count.max(1));
+                (s.mean * s.mean + s.std() * s.std() * (n - 1.0) / n).sqrt() * scale
+            },
         }
     }
 }

@@ -1,0 +1,231 @@
+//! Real laser-tracker data: the IPA UR10 Series B (bundled with its licence in
+//! data/ipa-ur10-lasertracker/), read through the shipped data profiles, calibrated with the
+//! tracker and tool frames identified, and validated on the poses not used.
+
+use clap::Parser;
+use host_tools::calibrate::{self, CalibrateOptions, Calibration};
+use std::path::Path;
+
+const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml");
+const DATA: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/data/ipa-ur10-lasertracker/series-b-joint-configurations.csv"
+);
+const FULL_POSE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/profiles/ipa-ur10-lasertracker.toml"
+);
+const POSITION: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/profiles/ipa-ur10-lasertracker-position.toml"
+);
+
+#[derive(Parser)]
+struct Wrap {
+    #[command(flatten)]
+    inner: CalibrateOptions,
+}
+
+fn calibrate(data: &str, profile: &str, args: &[&str]) -> Calibration {
+    let all = [
+        &[
+            "calib",
+            "--robot",
+            ROBOT,
+            "--data",
+            data,
+            "--profile",
+            profile,
+        ][..],
+        args,
+    ]
+    .concat();
+    calibrate::calibrate(&Wrap::parse_from(all).inner).unwrap()
+}
+
+/// 50 random poses of the 1495 calibrate (`--validate 0.9666` holds out 1445), 5 seeds.
+/// The independent float64 calibration of the issue reaches 0.43 mm held-out mean (1.06 mm
+/// with the frames fitted only).
+#[test]
+fn series_b_fifty_poses_validate_on_the_rest() {
+    for (name, profile) in [("full pose", FULL_POSE), ("position only", POSITION)] {
+        let mut means = Vec::new();
+        for seed in 0..5 {
+            let s = seed.to_string();
+            // Position-only: the T-Mac point is near the axis of joint 6, so joint 5's distal
+            // parameters are nearly confounded with the tool point; --auto-mask drops the
+            // worst of them (see an_ill_conditioned_subset_is_flagged).
+            let mut args = vec!["--validate", "0.9666", "--validate-seed", &s];
+            if profile == POSITION {
+                args.push("--auto-mask");
+            }
+            let c = calibrate(DATA, profile, &args);
+            assert_eq!(c.report.calibration.poses, 50);
+            let v = c.report.validation.as_ref().unwrap();
+            assert_eq!(v.poses, 1445);
+            let (before, after) = (v.before.position_mm.mean, v.after.position_mm.mean);
+            println!(
+                "{name}, seed {seed}: held-out mean |dp| {before:.4} mm (frames fitted) -> {after:.4} mm, RMS {:.4} mm; registration {:.3} mm RMS",
+                v.after.position_mm.rms, c.report.frames.registration_rms_mm
+            );
+            assert_eq!(c.report.frames.identified, "base+tool");
+            // Nominal geometry with fitted frames: about 1.06 mm, as the independent calibration.
+            assert!((0.95..1.2).contains(&before), "{before}");
+            assert!(after < 0.46, "{name}, seed {seed}: {after}");
+            if name == "full pose" {
+                assert!(after <= 0.45, "{name}, seed {seed}: {after}");
+            }
+            means.push(after);
+        }
+        let average = means.iter().sum::<f64>() / means.len() as f64;
+        println!("{name}: held-out mean over 5 seeds {average:.4} mm");
+        assert!(average <= 0.45, "{name}: {average}");
+    }
+}
+
+/// The three stale measurements of Series B (a pose measured again with the other elbow
+/// configuration but recorded with the previous pose's position, about 2 mm off: lines 534, 856
+/// and 857) are the ones the robust loss flags and down-weights most.
+#[test]
+fn the_robust_loss_flags_the_stale_measurements() {
+    for profile in [POSITION, FULL_POSE] {
+        let c = calibrate(
+            DATA,
+            profile,
+            &["--method", "lm", "--loss", "huber", "--loss-scale-mm", "1"],
+        );
+        let mut poses: Vec<_> = c.report.poses.iter().collect();
+        poses.sort_by(|a, b| b.after_mm.total_cmp(&a.after_mm));
+        let mut worst: Vec<u64> = poses.iter().take(3).map(|p| p.line).collect();
+        worst.sort_unstable();
+        assert_eq!(worst, [534, 856, 857], "{profile}");
+        for p in poses.iter().take(3) {
+            assert!(p.after_mm > 1.7 && p.robust_weight < 0.6, "{p:?}");
+            assert!(c.report.outliers.iter().any(|o| o.line == p.line));
+        }
+        // The next pose is clearly apart.
+        assert!(poses[3].after_mm < 1.4, "{:?}", poses[3]);
+    }
+}
+
+/// Position-only poses of one elbow and one wrist configuration: joint 5's distal parameters are
+/// nearly confounded with the tool point (the measured point is close to joint 6's axis). The
+/// calibration says so (condition number, parameters) instead of silently reporting a ~70 mm
+/// change of a5, and --auto-mask drops the confounded parameters.
+#[test]
+fn an_ill_conditioned_subset_is_flagged() {
+    let text = std::fs::read_to_string(DATA).unwrap();
+    let mut lines = text.split("\r\n");
+    let header = lines.next().unwrap();
+    let columns: Vec<&str> = header.split(';').collect();
+    let column = |name: &str| columns.iter().position(|c| *c == name).unwrap();
+    let (elbow, wrist) = (column("elbow_joint"), column("wrist_2_joint"));
+    let value = |line: &str, i: usize| -> f64 {
+        line.split(';')
+            .nth(i)
+            .unwrap()
+            .replace(',', ".")
+            .parse()
+            .unwrap()
+    };
+    let subset: Vec<&str> = lines
+        .filter(|l| !l.is_empty() && value(l, elbow) < 0.0 && value(l, wrist) < 0.0)
+        .take(50)
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("one-configuration.csv");
+    std::fs::write(
+        &path,
+        [header]
+            .iter()
+            .chain(&subset)
+            .map(|l| format!("{l}\r\n"))
+            .collect::<String>(),
+    )
+    .unwrap();
+    let c = calibrate(path.to_str().unwrap(), POSITION, &["--method", "lm"]);
+    let id = &c.report.identifiability;
+    let condition = id.condition_number.unwrap();
+    println!(
+        "condition {condition:.3e}, weakest {:?}",
+        id.weakest_direction
+    );
+    assert!(id.ill_conditioned && condition > 1e4, "{condition}");
+    let weakest: Vec<&str> = id
+        .weakest_direction
+        .iter()
+        .map(|(n, _)| n.as_str())
+        .collect();
+    assert!(
+        weakest.contains(&"da5") && weakest.contains(&"dtheta5"),
+        "{weakest:?}"
+    );
+    assert!(
+        c.text.contains("WARNING: the pose set is ill-conditioned"),
+        "{}",
+        c.text
+    );
+    assert!(c.text.contains("da5"));
+    let da5 = c.report.parameters["da5"]["value"].as_f64().unwrap();
+    assert!(
+        da5.abs() > 20.0,
+        "the unflagged result would be absurd: {da5}"
+    );
+    let masked = calibrate(
+        path.to_str().unwrap(),
+        POSITION,
+        &["--method", "lm", "--auto-mask"],
+    );
+    let after = masked
+        .report
+        .identifiability
+        .condition_number_after_drop
+        .unwrap();
+    assert!(after < 1000.0, "{after}");
+    for (name, value) in &masked.report.parameters {
+        let v = value["value"].as_f64().unwrap();
+        let limit = if name.contains("alpha")
+            || name.contains("theta")
+            || name.contains("beta")
+            || name.ends_with("_rx")
+            || name.ends_with("_ry")
+            || name.ends_with("_rz")
+        {
+            0.02
+        } else {
+            5.0
+        };
+        assert!(
+            v.abs() < limit,
+            "{name} = {v} after --auto-mask dropped {:?}",
+            masked.report.dropped
+        );
+    }
+    // The same subset with full poses is well conditioned.
+    let full = calibrate(path.to_str().unwrap(), FULL_POSE, &["--method", "lm"]);
+    assert!(!full.report.identifiability.ill_conditioned);
+    assert!(full.report.identifiability.condition_number.unwrap() < 1000.0);
+}
+
+/// The wrong robot for the data: the registration residual is far above a robot's errors and
+/// the message says what to check.
+#[test]
+fn a_poor_registration_is_reported() {
+    let er10l = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
+    let all = [
+        "calib",
+        "--robot",
+        er10l,
+        "--data",
+        DATA,
+        "--profile",
+        FULL_POSE,
+    ];
+    let err = calibrate::calibrate(&Wrap::parse_from(all).inner)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(err.contains("far above the few millimetres"), "{err}");
+    assert!(err.contains("mm RMS"), "{err}");
+    assert!(Path::new(DATA).exists());
+}
