@@ -1,0 +1,143 @@
+//! Tracker and tool frames end to end: data simulated with Table 2 errors, the tracker 3 m away
+//! at an arbitrary orientation and a reflector (or 6-DoF probe) 150 mm off the flange;
+//! `calib calibrate` registers and identifies the frames with the geometry, and its held-out
+//! error is compared with the independent float64 reference optimiser started at the true frames
+//! and parameters.
+
+use clap::Parser;
+use host_tools::calibrate::{self, CalibrateOptions};
+use host_tools::reference_lm;
+use host_tools::robot_file::RobotFile;
+use host_tools::simulate::{self, Simulation};
+use host_tools::tracker_data::TrackerData;
+use std::path::{Path, PathBuf};
+
+const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
+
+#[derive(Parser)]
+struct Wrap<T: clap::Args> {
+    #[command(flatten)]
+    inner: T,
+}
+
+fn parse<T: clap::Args>(args: &[&str]) -> T {
+    Wrap::<T>::parse_from(std::iter::once("calib").chain(args.iter().copied())).inner
+}
+
+/// Simulates `poses` poses in the tracker frame; returns (data, truth file).
+fn simulate(
+    dir: &Path,
+    name: &str,
+    poses: usize,
+    seed: u64,
+    position_only: bool,
+) -> (PathBuf, PathBuf) {
+    let data = dir.join(format!("{name}.csv"));
+    let truth = dir.join(format!("{name}-truth.toml"));
+    let (p, s) = (poses.to_string(), seed.to_string());
+    let mut args = vec![
+        "--robot",
+        ROBOT,
+        "--poses",
+        &p,
+        "--seed",
+        &s,
+        "--position-sigma-mm",
+        "0.02",
+        "--orientation-sigma-rad",
+        "1e-4",
+        // The robot base seen from a tracker about 3 m away, turned arbitrarily.
+        "--tracker-xyz-mm",
+        "2500,-1500,600",
+        "--tracker-rpy-deg",
+        "5,-3,140",
+        // A reflector 150 mm off the flange.
+        "--tool-xyz-mm",
+        "0,60,137.4773",
+        "--out",
+        data.to_str().unwrap(),
+        "--truth-out",
+        truth.to_str().unwrap(),
+    ];
+    if position_only {
+        args.push("--position-only");
+    }
+    simulate::simulate(&parse::<Simulation>(&args)).unwrap();
+    (data, truth)
+}
+
+#[test]
+fn frames_and_geometry_reach_the_reference_optimum() {
+    let dir = tempfile::tempdir().unwrap();
+    for (position_only, seed) in [(true, 21), (false, 22)] {
+        // 60 poses, 30 % held out.
+        let (data, truth) = simulate(dir.path(), &format!("cal{seed}"), 42, seed, position_only);
+        let (holdout, _) = simulate(
+            dir.path(),
+            &format!("hold{seed}"),
+            18,
+            seed + 100,
+            position_only,
+        );
+        let text = std::fs::read_to_string(&data).unwrap();
+        assert!(!text.contains("# frame: base"));
+        let options = parse::<CalibrateOptions>(&[
+            "--robot",
+            ROBOT,
+            "--data",
+            data.to_str().unwrap(),
+            "--holdout",
+            holdout.to_str().unwrap(),
+        ]);
+        let c = calibrate::calibrate(&options).unwrap();
+        let frames = &c.report.frames;
+        assert_eq!(frames.identified, "base+tool");
+        // The nominal robot registered onto the data: a few mm (Table 2), not metres.
+        assert!(frames.registration_rms_mm < 20.0 && frames.registration_rms_mm > 1.0);
+        let identified_path = dir.path().join(format!("identified{seed}.toml"));
+        std::fs::write(&identified_path, &c.robot_toml).unwrap();
+        let identified = RobotFile::read(&identified_path).unwrap();
+        // The identified base is the tracker pose of the simulation.
+        let base = identified.base.as_ref().unwrap();
+        for (got, want) in base.xyz_mm.iter().zip([2500.0, -1500.0, 600.0]) {
+            assert!((got - want).abs() < 2.0, "{:?}", base.xyz_mm);
+        }
+
+        // The reference optimiser, started at the truth (true joints and frames as its baseline,
+        // zero errors), fitting the same parameters.
+        let truth_file = RobotFile::read(&truth).unwrap();
+        let names: Vec<String> = c.report.parameters.keys().cloned().collect();
+        let cal = TrackerData::read(&data).unwrap();
+        let fit =
+            reference_lm::fit(&truth_file, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
+        let mut errors = calib_core::ParameterErrors::<f64, 6>::zero();
+        for (n, v) in &fit.errors {
+            errors.set(calib_core::Parameter::from_name(n, 6).unwrap(), *v);
+        }
+        let reference =
+            truth_file.with_errors(&errors, std::iter::empty(), &[], "reference", ROBOT);
+        let held = TrackerData::read(&holdout).unwrap();
+        let rms_core = reference_lm::rms_position_error(&identified, &held);
+        let rms_reference = reference_lm::rms_position_error(&reference, &held);
+        let rms_truth = reference_lm::rms_position_error(&truth_file, &held);
+        let v = c.report.validation.as_ref().unwrap();
+        println!(
+            "{}: held-out RMS core {rms_core:.5} mm, reference from the truth {rms_reference:.5} mm, truth {rms_truth:.5} mm; \
+             table mean {:.4} mm; registration {:.3} mm RMS; {} parameters",
+            if position_only {
+                "position only"
+            } else {
+                "6-DoF"
+            },
+            v.after.position_mm.mean,
+            frames.registration_rms_mm,
+            names.len()
+        );
+        assert!((v.after.position_mm.rms - rms_core).abs() < 1e-9);
+        assert!(
+            (rms_core - rms_reference).abs() <= 0.02 * rms_reference,
+            "{rms_core} vs {rms_reference}"
+        );
+        assert!(rms_core < 0.06, "{rms_core}");
+    }
+}
