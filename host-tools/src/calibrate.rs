@@ -329,6 +329,15 @@ pub struct Calibration {
     pub before: Vec<f64>,
     /// `|dp|` per pose with the identified model, mm.
     pub after: Vec<f64>,
+    /// Orientation error per axis per pose with the nominal model, deg (empty without
+    /// orientation data).
+    pub orientation_before: Vec<[f64; 3]>,
+    /// With the identified model.
+    pub orientation_after: Vec<[f64; 3]>,
+    /// `|dp|` per validation pose with the nominal model, mm (empty without validation).
+    pub validation_before: Vec<f64>,
+    /// With the identified model.
+    pub validation_after: Vec<f64>,
 }
 
 /// Evaluates the swarm's particles in parallel on the host's cores (rayon); the core's default
@@ -535,16 +544,20 @@ fn run<const D: usize>(
     let actual = Kinematics::new(&model.robot, &identified).map_err(|e| anyhow::anyhow!("{e}"))?;
     let (before, before_poses) = crate::evaluate::table3(&nominal, inputs);
     let (after, after_poses) = crate::evaluate::table3(&actual, inputs);
+    let orientation_before = crate::evaluate::orientation_per_pose(&nominal, inputs);
+    let orientation_after = crate::evaluate::orientation_per_pose(&actual, inputs);
+    let (mut validation_before, mut validation_after) = (Vec::new(), Vec::new());
     let validation_stage = match validation {
         None => None,
         Some(v) => {
-            let nominal = Kinematics::nominal(&model.robot).map_err(|e| anyhow::anyhow!("{e}"))?;
-            let actual =
-                Kinematics::new(&model.robot, &identified).map_err(|e| anyhow::anyhow!("{e}"))?;
+            let (before, per_pose_before) = crate::evaluate::table3(&nominal, v);
+            let (after, per_pose_after) = crate::evaluate::table3(&actual, v);
+            validation_before = per_pose_before;
+            validation_after = per_pose_after;
             Some(Stage {
                 poses: v.measurements.len(),
-                before: crate::evaluate::table3(&nominal, v).0,
-                after: crate::evaluate::table3(&actual, v).0,
+                before,
+                after,
             })
         }
     };
@@ -669,15 +682,20 @@ fn run<const D: usize>(
         "objective (eq. 7, k = {:e} mm^2/rad^2): {initial:.6e} at the nominal model -> {final_objective:.6e}\n\n",
         options.k
     ));
+    let before_note = if frames.identified == "none" {
+        ""
+    } else {
+        "; before = nominal geometry with the frames fitted"
+    };
     text.push_str(&table3_text(
-        "Table 3 statistics on the calibration poses",
+        &format!("Table 3 statistics on the calibration poses{before_note}"),
         &before,
         &after,
     ));
     if let Some(stage) = &validation_stage {
         text.push('\n');
         text.push_str(&table3_text(
-            "Table 3 statistics on the validation poses (held out, not used to calibrate)",
+            &format!("Table 3 statistics on the validation poses (held out, not used to calibrate{before_note})"),
             &stage.before,
             &stage.after,
         ));
@@ -786,6 +804,10 @@ fn run<const D: usize>(
         history: swarm.map(|s| s.history).unwrap_or_default(),
         before: before_poses,
         after: after_poses,
+        orientation_before,
+        orientation_after,
+        validation_before,
+        validation_after,
     })
 }
 
@@ -905,10 +927,16 @@ pub fn write_outputs(
     if let Some(dir) = &options.plot {
         written.extend(crate::plots::write_plots(
             dir,
-            &calibration.history,
-            "absolute position error per calibration pose",
-            &calibration.before,
-            &calibration.after,
+            &crate::plots::PlotData {
+                history: &calibration.history,
+                title: "absolute position error per calibration pose",
+                before: &calibration.before,
+                after: &calibration.after,
+                orientation_before: &calibration.orientation_before,
+                orientation_after: &calibration.orientation_after,
+                validation_before: &calibration.validation_before,
+                validation_after: &calibration.validation_after,
+            },
         )?);
     }
     Ok(written)

@@ -39,8 +39,9 @@ impl Inputs {
         let data_file = TrackerData::read_with(data, profile)?;
         if data_file.joints != 6 {
             bail!(
-                "{}: has {} joint columns, the robot {} has 6 joints",
+                "{}:{}: has {} joint columns, the robot {} has 6 joints",
                 data.display(),
+                data_file.header_line,
                 data_file.joints,
                 model.name
             );
@@ -351,6 +352,13 @@ pub struct CheckOptions {
     /// Tracker data file (CSV).
     #[arg(long, value_name = "FILE")]
     pub data: PathBuf,
+    /// Data profile (TOML) for exports not in our CSV format.
+    #[arg(long, value_name = "FILE")]
+    pub profile: Option<PathBuf>,
+    /// Frames identified with the geometry (as for calibrate; default base+tool unless the data
+    /// say `# frame: base`).
+    #[arg(long, value_enum)]
+    pub frames: Option<crate::frames::Frames>,
     /// Orientation weight k, mm^2/rad^2 (as for calibrate).
     #[arg(long, default_value_t = calib_core::objective::DEFAULT_K)]
     pub k: f64,
@@ -361,7 +369,13 @@ pub struct CheckOptions {
 
 /// `calib check`: the identifiability analysis of a robot file's parameters on a data file.
 pub fn check(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
-    let inputs = Inputs::load(&options.robot, &options.data)?;
-    let mask = inputs.model.mask;
+    let profile = DataProfile::load(options.profile.as_deref())?;
+    let mut inputs = Inputs::load_with(&options.robot, &options.data, &profile)?;
+    let frames = options.frames.unwrap_or(if inputs.data.base_frame {
+        crate::frames::Frames::None
+    } else {
+        crate::frames::Frames::BaseTool
+    });
+    let (_, mask) = crate::frames::prepare(frames, &mut inputs, &mut [], options.k)?;
     crate::with_parameter_count!(mask.count(), analyse(&inputs, &mask, options.k))
 }

@@ -20,6 +20,20 @@ pub fn table3(kinematics: &Kinematics<f64, 6>, inputs: &Inputs) -> (Table3, Vec<
     (Table3::from_statistics(&stats), per_pose)
 }
 
+/// `|dr_x|, |dr_y|, |dr_z|` (deg) of `kinematics` for every pose of `inputs` that has an
+/// orientation, in file order.
+pub fn orientation_per_pose(kinematics: &Kinematics<f64, 6>, inputs: &Inputs) -> Vec<[f64; 3]> {
+    inputs
+        .measurements
+        .iter()
+        .filter(|m| m.rotation.is_some())
+        .map(|m| {
+            let e = m.error_of(&kinematics.forward_angles(&m.angles));
+            [0, 1, 2].map(|i| e.rotation[i].abs().to_degrees())
+        })
+        .collect()
+}
+
 /// Options of `calib evaluate`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct EvaluateOptions {
@@ -29,6 +43,9 @@ pub struct EvaluateOptions {
     /// Tracker data file (CSV).
     #[arg(long, value_name = "FILE")]
     pub data: PathBuf,
+    /// Data profile (TOML) for exports not in our CSV format.
+    #[arg(long, value_name = "FILE")]
+    pub profile: Option<PathBuf>,
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
@@ -36,7 +53,8 @@ pub struct EvaluateOptions {
 
 /// Runs `calib evaluate`.
 pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Table3> {
-    let inputs = Inputs::load(&options.robot, &options.data)?;
+    let profile = crate::profile::DataProfile::load(options.profile.as_deref())?;
+    let inputs = Inputs::load_with(&options.robot, &options.data, &profile)?;
     let kinematics =
         Kinematics::nominal(&inputs.model.robot).map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok(table3(&kinematics, &inputs).0)

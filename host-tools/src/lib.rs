@@ -6,6 +6,7 @@
 pub mod calibrate;
 pub mod check;
 pub mod compensate;
+pub mod demo;
 pub mod dispatch;
 pub mod evaluate;
 pub mod files;
@@ -19,3 +20,4 @@ pub mod report;
 pub mod robot_file;
 pub mod simulate;
 pub mod tracker_data;
+pub mod verify;

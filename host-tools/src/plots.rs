@@ -1,5 +1,6 @@
-//! Plots of a calibration (SVG and PNG): the convergence curve of the swarm (paper Fig. 2) and the
-//! absolute position error of every pose before and after calibration (paper Fig. 3 / Fig. 7).
+//! Plots of a calibration (SVG and PNG): the convergence curve of the swarm (paper Fig. 2), the
+//! absolute position error of every pose before and after calibration (paper Fig. 3 / Fig. 7),
+//! the orientation error per axis, and a histogram of the validation errors.
 //! Text is drawn with the bundled DejaVu Sans font, so PNGs need no system fonts.
 
 use anyhow::{Context, anyhow};
@@ -68,17 +69,17 @@ where
     Ok(())
 }
 
-/// Draws the absolute position error per pose before and after.
-fn position_errors<DB: DrawingBackend>(
+/// Draws values per pose, before (red) and after (blue).
+fn per_pose<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     title: &str,
+    y_desc: &str,
     before: &[f64],
     after: &[f64],
 ) -> anyhow::Result<()>
 where
     DB::ErrorType: 'static,
 {
-    area.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
     let n = before.len().max(after.len()).max(1);
     let hi = before
         .iter()
@@ -88,16 +89,16 @@ where
         .max(1e-9)
         * 1.1;
     let mut chart = ChartBuilder::on(area)
-        .caption(title, (FONT, 24))
-        .margin(15)
-        .x_label_area_size(45)
+        .caption(title, (FONT, 20))
+        .margin(10)
+        .x_label_area_size(40)
         .y_label_area_size(70)
         .build_cartesian_2d(0.5f64..n as f64 + 0.5, 0.0..hi)
         .map_err(|e| anyhow!("{e}"))?;
     chart
         .configure_mesh()
         .x_desc("pose")
-        .y_desc("absolute position error |dp| (mm)")
+        .y_desc(y_desc)
         .x_label_formatter(&|v| format!("{v:.0}"))
         .label_style((FONT, 14))
         .draw()
@@ -130,53 +131,180 @@ where
         .border_style(BLACK)
         .draw()
         .map_err(|e| anyhow!("{e}"))?;
+    Ok(())
+}
+
+/// Draws the absolute position error per pose before and after.
+fn position_errors<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    plots: &PlotData<'_>,
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    area.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    per_pose(
+        area,
+        plots.title,
+        "absolute position error |dp| (mm)",
+        plots.before,
+        plots.after,
+    )?;
     area.present().map_err(|e| anyhow!("{e}"))?;
     Ok(())
 }
 
-/// Writes `convergence.svg/.png` and `position-error.svg/.png` into `dir`; returns the paths.
-/// Each file is drawn into a temporary name and renamed, so no half-drawn plot is left behind.
-pub fn write_plots(
-    dir: &Path,
-    history: &[(u32, f64)],
-    title: &str,
+/// Draws the orientation error per axis (three panels) before and after.
+fn orientation_errors<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    before: &[[f64; 3]],
+    after: &[[f64; 3]],
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    area.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    for (axis, panel) in area.split_evenly((3, 1)).iter().enumerate() {
+        let pick = |v: &[[f64; 3]]| -> Vec<f64> { v.iter().map(|e| e[axis]).collect() };
+        let name = ["x", "y", "z"][axis];
+        per_pose(
+            panel,
+            &format!("orientation error about {name} per calibration pose"),
+            &format!("|dr_{name}| (deg)"),
+            &pick(before),
+            &pick(after),
+        )?;
+    }
+    area.present().map_err(|e| anyhow!("{e}"))?;
+    Ok(())
+}
+
+/// Draws a histogram of the validation position errors before and after.
+fn histogram<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
     before: &[f64],
     after: &[f64],
-) -> anyhow::Result<Vec<PathBuf>> {
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    area.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    const BINS: usize = 25;
+    let panels = area.split_evenly((2, 1));
+    for (panel, (values, color, label)) in panels.iter().zip([
+        (after, BLUE, "after calibration"),
+        (before, RED, "before calibration (nominal geometry)"),
+    ]) {
+        let hi = values.iter().copied().fold(0.0, f64::max).max(1e-9) * 1.0001;
+        let width = hi / BINS as f64;
+        let mut counts = [0u32; BINS];
+        for v in values {
+            let bin = ((v / width) as usize).min(BINS - 1);
+            if let Some(c) = counts.get_mut(bin) {
+                *c += 1;
+            }
+        }
+        let top = counts.iter().copied().max().unwrap_or(1).max(1);
+        let mut chart = ChartBuilder::on(panel)
+            .caption(
+                format!(
+                    "validation poses, {label}: |dp| histogram ({} poses)",
+                    values.len()
+                ),
+                (FONT, 18),
+            )
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..hi, 0u32..top + top / 10 + 1)
+            .map_err(|e| anyhow!("{e}"))?;
+        chart
+            .configure_mesh()
+            .x_desc("absolute position error |dp| (mm)")
+            .y_desc("poses")
+            .label_style((FONT, 14))
+            .draw()
+            .map_err(|e| anyhow!("{e}"))?;
+        chart
+            .draw_series(counts.iter().enumerate().map(|(i, c)| {
+                let x0 = i as f64 * width;
+                Rectangle::new([(x0, 0), (x0 + width, *c)], color.mix(0.7).filled())
+            }))
+            .map_err(|e| anyhow!("{e}"))?;
+    }
+    area.present().map_err(|e| anyhow!("{e}"))?;
+    Ok(())
+}
+
+/// What to plot for one calibration.
+pub struct PlotData<'a> {
+    /// Swarm convergence `(generation, best objective)`; empty without the swarm.
+    pub history: &'a [(u32, f64)],
+    /// Title of the position error plot.
+    pub title: &'a str,
+    /// `|dp|` per calibration pose before and after, mm.
+    pub before: &'a [f64],
+    /// After calibration.
+    pub after: &'a [f64],
+    /// `|dr_x|, |dr_y|, |dr_z|` per calibration pose before and after, deg (empty for
+    /// position-only data).
+    pub orientation_before: &'a [[f64; 3]],
+    /// After calibration.
+    pub orientation_after: &'a [[f64; 3]],
+    /// `|dp|` per validation pose before and after, mm (empty without validation).
+    pub validation_before: &'a [f64],
+    /// After calibration.
+    pub validation_after: &'a [f64],
+}
+
+/// Writes into `dir`, each as SVG and PNG: `convergence` (with the swarm), `position-error`,
+/// `orientation-error` (with orientation data) and `validation-histogram` (with validation
+/// poses); returns the paths. Each file is drawn into a temporary name and renamed, so no
+/// half-drawn plot is left behind.
+pub fn write_plots(dir: &Path, plots: &PlotData<'_>) -> anyhow::Result<Vec<PathBuf>> {
     register_font();
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut written = Vec::new();
-    let mut finish = |name: &str, temporary: PathBuf| -> anyhow::Result<()> {
-        let path = dir.join(name);
-        std::fs::rename(&temporary, &path)
-            .with_context(|| format!("writing {}", path.display()))?;
-        written.push(path);
-        Ok(())
-    };
-    // The bitmap backend picks its format from the extension, so it stays last.
+    // The bitmap backend picks its format from the extension.
     let tmp = |name: &str| dir.join(format!(".tmp-{}-{name}", std::process::id()));
-
-    let t = tmp("convergence.svg");
-    convergence(&SVGBackend::new(&t, SIZE).into_drawing_area(), history)?;
-    finish("convergence.svg", t)?;
-    let t = tmp("convergence.png");
-    convergence(&BitMapBackend::new(&t, SIZE).into_drawing_area(), history)?;
-    finish("convergence.png", t)?;
-    let t = tmp("position-error.svg");
-    position_errors(
-        &SVGBackend::new(&t, SIZE).into_drawing_area(),
-        title,
-        before,
-        after,
-    )?;
-    finish("position-error.svg", t)?;
-    let t = tmp("position-error.png");
-    position_errors(
-        &BitMapBackend::new(&t, SIZE).into_drawing_area(),
-        title,
-        before,
-        after,
-    )?;
-    finish("position-error.png", t)?;
+    macro_rules! both {
+        ($name:literal, $size:expr, |$area:ident| $draw:expr) => {{
+            let t = tmp(concat!($name, ".svg"));
+            {
+                let $area = SVGBackend::new(&t, $size).into_drawing_area();
+                $draw?;
+            }
+            let path = dir.join(concat!($name, ".svg"));
+            std::fs::rename(&t, &path).with_context(|| format!("writing {}", path.display()))?;
+            written.push(path);
+            let t = tmp(concat!($name, ".png"));
+            {
+                let $area = BitMapBackend::new(&t, $size).into_drawing_area();
+                $draw?;
+            }
+            let path = dir.join(concat!($name, ".png"));
+            std::fs::rename(&t, &path).with_context(|| format!("writing {}", path.display()))?;
+            written.push(path);
+        }};
+    }
+    if !plots.history.is_empty() {
+        both!("convergence", SIZE, |area| convergence(
+            &area,
+            plots.history
+        ));
+    }
+    both!("position-error", SIZE, |area| position_errors(&area, plots));
+    if !plots.orientation_after.is_empty() {
+        both!("orientation-error", (SIZE.0, SIZE.1 * 2), |area| {
+            orientation_errors(&area, plots.orientation_before, plots.orientation_after)
+        });
+    }
+    if !plots.validation_after.is_empty() {
+        both!("validation-histogram", SIZE, |area| histogram(
+            &area,
+            plots.validation_before,
+            plots.validation_after
+        ));
+    }
     Ok(written)
 }

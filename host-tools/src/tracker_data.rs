@@ -81,8 +81,11 @@ pub struct Record {
 pub struct TrackerData {
     /// The file.
     pub path: PathBuf,
-    /// `true` when a `# frame: base` line says the data are in the robot's base frame.
+    /// `true` when a `# frame: base` line (or the data profile) says the data are in the robot's
+    /// base frame.
     pub base_frame: bool,
+    /// Physical line of the header row.
+    pub header_line: u64,
     /// Number of joint columns.
     pub joints: usize,
     /// The orientation columns.
@@ -222,7 +225,11 @@ impl TrackerData {
             .headers()
             .map_err(|e| at(1, None, format!("cannot read the header: {e}")))?
             .clone();
-        let header_line = header.position().map_or(1, |p| line_of(p.byte()));
+        // The header is the first line that is neither empty nor a comment.
+        let header_line = text
+            .lines()
+            .position(|l| !l.trim().is_empty() && !l.starts_with('#'))
+            .map_or(1, |i| i as u64 + 1);
         if header.is_empty() || (header.len() == 1 && header.get(0) == Some("")) {
             return Err(at(header_line, None, "the file has no header row".into()));
         }
@@ -453,6 +460,7 @@ impl TrackerData {
         Ok(Self {
             path: path.to_owned(),
             base_frame,
+            header_line,
             joints,
             orientation,
             records,

@@ -1,5 +1,6 @@
 //! Tracker CSV: units, orientation forms, comments, and errors with file, line and column.
 
+use host_tools::profile::DataProfile;
 use host_tools::tracker_data::{OrientationColumns, TrackerData};
 use std::path::Path;
 
@@ -114,4 +115,77 @@ fn line_numbers_are_physical_lines_with_crlf_endings() {
     );
     let ok = parse(&format!("# c\r\n{HEADER}\r\n0,0,0,0,0,0,1,2,3\r\n")).unwrap();
     assert_eq!((ok.records[0].line, ok.records[0].id.as_str()), (3, "3"));
+}
+
+const PROFILE: &str = r#"
+delimiter = ";"
+decimal = ","
+frame = "tracker"
+[columns]
+q1_rad = "j1"
+q2_rad = "j2"
+q3_rad = "j3"
+q4_rad = "j4"
+q5_rad = "j5"
+q6_rad = "j6"
+x_mm = "mx"
+y_mm = "my"
+z_m = "mz"
+rx_deg = "a"
+ry_deg = "b"
+rz_deg = "c"
+[orientation]
+euler = "intrinsic"
+order = "xyz"
+"#;
+
+fn profiled(text: &str) -> Result<TrackerData, String> {
+    let profile = DataProfile::parse(PROFILE, Path::new("cell/p.toml")).unwrap();
+    TrackerData::parse_profiled(text, Path::new("cell/export.csv"), &profile)
+        .map_err(|e| e.to_string())
+}
+
+#[test]
+fn a_profile_reads_semicolons_decimal_commas_mapped_columns_and_intrinsic_angles() {
+    let header = "time;j1;j2;j3;j4;j5;j6;temp;mx;my;mz;a;b;c";
+    let d = profiled(&format!(
+        "{header}\r\n2,02E+13;0,5;-1;0;0;0;0;21,5;1,25;-2;0,5;30;-20;45\r\n"
+    ))
+    .unwrap();
+    assert!(!d.base_frame);
+    let r = &d.records[0];
+    assert_eq!((r.line, r.q[0], r.q[1]), (2, 0.5, -1.0));
+    assert_eq!(r.position, [1.25, -2.0, 500.0]);
+    // Intrinsic xyz: R = Rx(a) Ry(b) Rz(c), checked against the closed form of its last row:
+    // R[2] = [-cos(a) sin(b) cos(c) + sin(a) sin(c), cos(a) sin(b) sin(c) + sin(a) cos(c), cos(a) cos(b)].
+    let (a, b, c) = (
+        30f64.to_radians(),
+        (-20f64).to_radians(),
+        45f64.to_radians(),
+    );
+    let m = r.rotation.unwrap();
+    let expected = [
+        -a.cos() * b.sin() * c.cos() + a.sin() * c.sin(),
+        a.cos() * b.sin() * c.sin() + a.sin() * c.cos(),
+        a.cos() * b.cos(),
+    ];
+    for (j, e) in expected.iter().enumerate() {
+        assert!((m[(2, j)] - e).abs() < 1e-15, "{j}: {} vs {e}", m[(2, j)]);
+    }
+    // R[0][2] = sin(b) for intrinsic xyz.
+    assert!((m[(0, 2)] - b.sin()).abs() < 1e-15);
+
+    // Errors name the file, the line and the source column.
+    let e = profiled(&format!("{header}\n0;0;0;0;0;0;0;0;1,2.3;0;0;0;0;0\n")).unwrap_err();
+    assert!(
+        e.starts_with("cell/export.csv:2: column 9 (\"mx\"): \"1,2.3\" is not a number"),
+        "{e}"
+    );
+    let e = profiled("time;j1;j2;j3;j4;j5;j6;mx;my;a;b;c\n").unwrap_err();
+    assert!(e.contains("cell/export.csv:1: missing column \"mz\", which the data profile maps to z_m (data profile cell/p.toml)"), "{e}");
+    let e = profiled(&format!("{header}\n0;0;0;0;0;0;7;0;0;0;0;0;0;0\n")).unwrap_err();
+    assert!(
+        e.contains(":2: column 7 (\"j6\"): 7 is beyond one turn"),
+        "{e}"
+    );
 }

@@ -51,6 +51,12 @@ enum Command {
     Compensate(CompensateOptions),
     /// Write identified parameters as the controller's parameter block, TOML or JSON.
     Export(ExportOptions),
+    /// Calibrate with the f32 core, the f64 core and the independent reference optimiser and
+    /// compare; exits with status 1 when a difference is past its documented tolerance.
+    Verify(host_tools::verify::VerifyOptions),
+    /// Run the paper's experiment and a realistic cell on simulated data, no input files needed;
+    /// prints the tables and writes data, reports and plots into a directory.
+    Demo(host_tools::demo::DemoOptions),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -117,6 +123,18 @@ fn main() -> anyhow::Result<()> {
                 print!("{}", report.text());
             }
         }
+        Command::Verify(options) => {
+            let verification = host_tools::verify::verify(&options)?;
+            if options.json {
+                println!("{}", serde_json::to_string_pretty(&verification)?);
+            } else {
+                print!("{}", verification.text());
+            }
+            if !verification.passed {
+                std::process::exit(1);
+            }
+        }
+        Command::Demo(options) => host_tools::demo::demo(&options)?,
         Command::Calibrate(options) => {
             let calibration = calibrate::calibrate(&options)?;
             print!("{}", calibration.text);

@@ -1,0 +1,285 @@
+//! `calib verify`: the same calibration three ways, the f32 core (as on the controller), the f64
+//! core and the independent float64 reference optimiser (the `levenberg-marquardt` crate with
+//! the reference kinematics), and their largest differences in parameters and validation error.
+//!
+//! All three fit the same parameters from the same start (zero errors on the robot with its
+//! frames registered and fitted, as `calib calibrate` prepares it) by least squares.
+
+use crate::check::Inputs;
+use crate::frames::Frames;
+use crate::profile::DataProfile;
+use calib_core::lm::{LeastSquares, LmSettings};
+use calib_core::objective::Measurement;
+use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, ParameterSet};
+use nalgebra::SVector;
+use serde::Serialize;
+use std::path::PathBuf;
+
+/// Tolerances of `calib verify`; past any of them it exits non-zero.
+pub mod tolerance {
+    /// f64 core against the reference optimiser: lengths, mm.
+    pub const F64_LENGTH_MM: f64 = 1e-6;
+    /// f64 core against the reference optimiser: angles, rad.
+    pub const F64_ANGLE_RAD: f64 = 1e-9;
+    /// f64 core against the reference optimiser: validation RMS position error, mm.
+    pub const F64_VALIDATION_MM: f64 = 1e-6;
+    /// f32 core against the f64 core: lengths, mm (f32 resolves about 1e-4 mm at 1 m, and the
+    /// least-squares solution amplifies that by the condition number).
+    pub const F32_LENGTH_MM: f64 = 0.05;
+    /// f32 core against the f64 core: angles, rad.
+    pub const F32_ANGLE_RAD: f64 = 5e-5;
+    /// f32 core against the f64 core: validation RMS position error, mm.
+    pub const F32_VALIDATION_MM: f64 = 1e-3;
+}
+
+/// Options of `calib verify`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct VerifyOptions {
+    /// Nominal robot model file.
+    #[arg(long, value_name = "FILE")]
+    pub robot: PathBuf,
+    /// Tracker data file.
+    #[arg(long, value_name = "FILE")]
+    pub data: PathBuf,
+    /// Data profile (TOML) for exports not in our CSV format.
+    #[arg(long, value_name = "FILE")]
+    pub profile: Option<PathBuf>,
+    /// Frames identified with the geometry (default base+tool unless the data say
+    /// `# frame: base`).
+    #[arg(long, value_enum)]
+    pub frames: Option<Frames>,
+    /// Fraction of the poses held out for the validation error.
+    #[arg(long, default_value_t = 0.3)]
+    pub validate: f64,
+    /// Seed of the hold-out.
+    #[arg(long, default_value_t = 0)]
+    pub validate_seed: u64,
+    /// Orientation weight k, mm^2/rad^2.
+    #[arg(long, default_value_t = calib_core::objective::DEFAULT_K)]
+    pub k: f64,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// The largest differences found.
+#[derive(Debug, Serialize)]
+pub struct Verification {
+    /// Parameters fitted.
+    pub parameters: usize,
+    /// Calibration and validation poses.
+    pub poses: (usize, usize),
+    /// Validation RMS position error of the f32 core, the f64 core and the reference, mm.
+    pub validation_rms_mm: [f64; 3],
+    /// f64 core vs reference: largest length difference (mm) and its parameter.
+    pub f64_length: (f64, String),
+    /// f64 core vs reference: largest angle difference (rad) and its parameter.
+    pub f64_angle: (f64, String),
+    /// f32 core vs f64 core: largest length difference (mm) and its parameter.
+    pub f32_length: (f64, String),
+    /// f32 core vs f64 core: largest angle difference (rad) and its parameter.
+    pub f32_angle: (f64, String),
+    /// Scaled condition number of the calibration poses (`None`: rank-deficient).
+    pub condition_number: Option<f64>,
+    /// Every check passed.
+    pub passed: bool,
+}
+
+impl Verification {
+    /// Text for people.
+    pub fn text(&self) -> String {
+        use tolerance::*;
+        let mark = |ok: bool| if ok { "ok" } else { "FAILED" };
+        let [r32, r64, rref] = self.validation_rms_mm;
+        format!(
+            "verified {} parameters on {} calibration poses, validation on {} held-out poses; scaled condition number {}{}\n\
+             validation RMS |dp|: f32 core {r32:.6} mm, f64 core {r64:.6} mm, reference {rref:.6} mm\n\
+             {:<32} {:>12} {:>12} {:>8}  {}\n\
+             {:<32} {:>12.3e} {:>12.0e} {:>8}  {}\n\
+             {:<32} {:>12.3e} {:>12.0e} {:>8}  {}\n\
+             {:<32} {:>12.3e} {:>12.0e} {:>8}  \n\
+             {:<32} {:>12.3e} {:>12.0e} {:>8}  {}\n\
+             {:<32} {:>12.3e} {:>12.0e} {:>8}  {}\n\
+             {:<32} {:>12.3e} {:>12.0e} {:>8}  \n\
+             {}\n",
+            self.parameters,
+            self.poses.0,
+            self.poses.1,
+            self.condition_number
+                .map_or_else(|| "infinite".to_string(), |c| format!("{c:.3e}")),
+            if self
+                .condition_number
+                .is_some_and(|c| c <= crate::check::ILL_CONDITIONED)
+            {
+                ""
+            } else {
+                " (ill-conditioned: the solutions may legitimately differ; see calib check)"
+            },
+            "largest difference",
+            "value",
+            "tolerance",
+            "",
+            "parameter",
+            "f64 core - reference, mm",
+            self.f64_length.0,
+            F64_LENGTH_MM,
+            mark(self.f64_length.0 <= F64_LENGTH_MM),
+            self.f64_length.1,
+            "f64 core - reference, rad",
+            self.f64_angle.0,
+            F64_ANGLE_RAD,
+            mark(self.f64_angle.0 <= F64_ANGLE_RAD),
+            self.f64_angle.1,
+            "f64 core - reference, valid. mm",
+            (r64 - rref).abs(),
+            F64_VALIDATION_MM,
+            mark((r64 - rref).abs() <= F64_VALIDATION_MM),
+            "f32 core - f64 core, mm",
+            self.f32_length.0,
+            F32_LENGTH_MM,
+            mark(self.f32_length.0 <= F32_LENGTH_MM),
+            self.f32_length.1,
+            "f32 core - f64 core, rad",
+            self.f32_angle.0,
+            F32_ANGLE_RAD,
+            mark(self.f32_angle.0 <= F32_ANGLE_RAD),
+            self.f32_angle.1,
+            "f32 core - f64 core, valid. mm",
+            (r32 - r64).abs(),
+            F32_VALIDATION_MM,
+            mark((r32 - r64).abs() <= F32_VALIDATION_MM),
+            if self.passed {
+                "all within tolerance"
+            } else {
+                "VERIFICATION FAILED: a difference is past its tolerance"
+            }
+        )
+    }
+}
+
+/// Runs `calib verify`.
+pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
+    let profile = DataProfile::load(options.profile.as_deref())?;
+    let all = Inputs::load_with(&options.robot, &options.data, &profile)?;
+    let (mut calibration, mut validation) =
+        crate::evaluate::split(&all, options.validate, options.validate_seed)?;
+    let frames = options.frames.unwrap_or(if all.data.base_frame {
+        Frames::None
+    } else {
+        Frames::BaseTool
+    });
+    let (_, mask) =
+        crate::frames::prepare(frames, &mut calibration, &mut [&mut validation], options.k)?;
+    crate::with_parameter_count!(
+        mask.count(),
+        run(&calibration, &validation, &mask, options.k)
+    )
+}
+
+fn run<const D: usize>(
+    calibration: &Inputs,
+    validation: &Inputs,
+    mask: &ParameterMask<6>,
+    k: f64,
+) -> anyhow::Result<Verification> {
+    let set = ParameterSet::<6, D>::from_mask(mask)?;
+    let condition_number = crate::check::analyse::<D>(calibration, mask, k)?.condition_number;
+    let settings = LmSettings::default();
+    // f64 core.
+    let problem = LeastSquares::new(
+        &calibration.model.robot,
+        &ParameterErrors::zero(),
+        set,
+        &calibration.measurements,
+        k,
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let x64 = problem
+        .solve(&SVector::zeros(), &settings)
+        .map_err(|e| anyhow::anyhow!("f64 core: {e}"))?
+        .x;
+    // f32 core.
+    let robot32 = crate::compensate::to_f32(&calibration.model.robot);
+    let measurements32 = calibration
+        .measurements
+        .iter()
+        .zip(&calibration.data.records)
+        .map(|(m, r)| {
+            let q: [f32; 6] = std::array::from_fn(|i| r.q.get(i).copied().unwrap_or(0.0) as f32);
+            Measurement::new(
+                &q,
+                m.position.map(|v| v as f32),
+                m.rotation.map(|r| r.map(|v| v as f32)),
+                m.weight as f32,
+            )
+            .map_err(|e| anyhow::anyhow!("{e}"))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let problem32 = LeastSquares::new(
+        &robot32,
+        &ParameterErrors::zero(),
+        set,
+        &measurements32,
+        k as f32,
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let settings32 = LmSettings::<f32>::default();
+    let x32 = problem32
+        .solve(&SVector::zeros(), &settings32)
+        .map_err(|e| anyhow::anyhow!("f32 core: {e}"))?
+        .x;
+    // Reference optimiser.
+    let names: Vec<String> = set.parameters().iter().map(ToString::to_string).collect();
+    let fit = crate::reference_lm::fit(
+        &calibration.file,
+        &names,
+        &calibration.data,
+        k,
+        &vec![0.0; D],
+    )?;
+    let xref: Vec<f64> = fit.errors.iter().map(|(_, v)| *v).collect();
+
+    let rms = |x: &SVector<f64, D>| -> anyhow::Result<f64> {
+        let kinematics = Kinematics::new(&validation.model.robot, &set.unpack(x))
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        let (table, _) = crate::evaluate::table3(&kinematics, validation);
+        Ok(table.position_mm.rms)
+    };
+    let x32_64 = x32.map(f64::from);
+    let xref_v = SVector::<f64, D>::from_iterator(xref.iter().copied());
+    let validation_rms_mm = [rms(&x32_64)?, rms(&x64)?, rms(&xref_v)?];
+    let largest = |a: &SVector<f64, D>, b: &SVector<f64, D>, angles: bool| -> (f64, String) {
+        set.parameters()
+            .iter()
+            .zip(a.iter().zip(b.iter()))
+            .filter(|(p, _)| Parameter::is_angle(**p) == angles)
+            .map(|(p, (x, y))| ((x - y).abs(), p.to_string()))
+            .fold((0.0, String::new()), |m, c| if c.0 > m.0 { c } else { m })
+    };
+    let f64_length = largest(&x64, &xref_v, false);
+    let f64_angle = largest(&x64, &xref_v, true);
+    let f32_length = largest(&x32_64, &x64, false);
+    let f32_angle = largest(&x32_64, &x64, true);
+    use tolerance::*;
+    let [r32, r64, rref] = validation_rms_mm;
+    let passed = f64_length.0 <= F64_LENGTH_MM
+        && f64_angle.0 <= F64_ANGLE_RAD
+        && (r64 - rref).abs() <= F64_VALIDATION_MM
+        && f32_length.0 <= F32_LENGTH_MM
+        && f32_angle.0 <= F32_ANGLE_RAD
+        && (r32 - r64).abs() <= F32_VALIDATION_MM;
+    Ok(Verification {
+        parameters: D,
+        poses: (
+            calibration.measurements.len(),
+            validation.measurements.len(),
+        ),
+        validation_rms_mm,
+        f64_length,
+        f64_angle,
+        f32_length,
+        f32_angle,
+        condition_number,
+        passed,
+    })
+}
