@@ -130,7 +130,7 @@ pub fn inverse_kinematics<T: Real>(
             let mut rotation = nalgebra::Matrix3::identity();
             let mut origin = nalgebra::Vector3::zeros();
             for (joint, q) in kinematics.joints().iter().zip(q123) {
-                let (s, c) = q.sin_cos_libm();
+                let (s, c) = q.sin_cos_fast();
                 let (ct, st) = joint.theta(c, s);
                 joint.append(&mut rotation, &mut origin, ct, st);
             }

@@ -39,7 +39,7 @@ impl<T: Real, const N: usize> JointAngles<T, N> {
                     joint: joint_number(j),
                 });
             }
-            (*s, *c) = qi.sin_cos_libm();
+            (*s, *c) = qi.sin_cos_fast();
         }
         Ok(angles)
     }
@@ -106,7 +106,7 @@ impl<T: Real, const N: usize> PreparedRobot<T, N> {
     /// Prepares a nominal robot (not validated: see [`Robot::validate`]).
     pub fn new(robot: &Robot<T, N>) -> Self {
         let cos_sin = |x: T| {
-            let (s, c) = x.sin_cos_libm();
+            let (s, c) = x.sin_cos_fast();
             (c, s)
         };
         let mut joints = [NominalJoint {

@@ -66,7 +66,7 @@ impl<T: Real> PreparedJoint<T> {
     /// Prepares a joint from its actual MDH values (mm, rad).
     pub fn new(a: T, alpha: T, theta_offset: T, d: T, beta: T) -> Self {
         let cos_sin = |x: T| {
-            let (s, c) = x.sin_cos_libm();
+            let (s, c) = x.sin_cos_fast();
             (c, s)
         };
         Self::from_trig(a, d, cos_sin(alpha), cos_sin(beta), cos_sin(theta_offset))

@@ -10,6 +10,10 @@ use nalgebra::RealField;
 pub trait Real: RealField + Copy {
     /// Sine and cosine of `self` (radians) in one call, from `libm`.
     fn sin_cos_libm(self) -> (Self, Self);
+    /// Sine and cosine of `self` (radians) as the core computes them: `libm` for `f64`, the
+    /// single-precision routine [`crate::trig::sin_cos_f32`] for `f32` (no f64 arithmetic, which
+    /// the Cortex-M4F emulates in software). Identical bits on every target.
+    fn sin_cos_fast(self) -> (Self, Self);
     /// Converts an `f64` constant or input to this scalar (rounding to nearest for `f32`).
     fn of(value: f64) -> Self;
     /// Widens this scalar to `f64` (exact for both `f32` and `f64`).
@@ -29,6 +33,10 @@ pub trait Real: RealField + Copy {
 impl Real for f64 {
     #[inline]
     fn sin_cos_libm(self) -> (Self, Self) {
+        libm::sincos(self)
+    }
+    #[inline]
+    fn sin_cos_fast(self) -> (Self, Self) {
         libm::sincos(self)
     }
     #[inline]
@@ -67,6 +75,10 @@ impl Real for f32 {
     #[inline]
     fn sin_cos_libm(self) -> (Self, Self) {
         libm::sincosf(self)
+    }
+    #[inline]
+    fn sin_cos_fast(self) -> (Self, Self) {
+        crate::trig::sin_cos_f32(self)
     }
     #[inline]
     fn of(value: f64) -> Self {

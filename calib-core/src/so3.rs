@@ -115,7 +115,7 @@ pub fn right_jacobian_inverse<T: Real>(phi: &Vector3<T>) -> Matrix3<T> {
         let t2 = theta * theta;
         T::of(1.0 / 12.0) + t2 / T::of(720.0) + t2 * t2 / T::of(30240.0)
     } else {
-        let (s, c) = theta.sin_cos_libm();
+        let (s, c) = theta.sin_cos_fast();
         T::one() / (theta * theta) - (T::one() + c) / (T::of(2.0) * theta * s)
     };
     Matrix3::identity() + k * T::of(0.5) + k * k * coefficient

@@ -1,6 +1,10 @@
 //! The paper's whole swarm run (20 particles, 24 parameters, 2000 generations, 32 poses, f64) as
 //! `calib calibrate` runs it: the core's IPSO with the particles evaluated on all cores.
 //!
+//! Also a whole `calib calibrate` run on 100 poses measured in the tracker's frame (default
+//! method ipso+lm, frames registered and identified, files read and checked), and on the real
+//! UR10 Series B file (1495 poses, data profile).
+//!
 //! Run: `cargo bench -p host-tools --bench paper_run`.
 
 // Set-up of fixed, valid inputs: a failure here is a bug in the benchmark itself.
@@ -56,5 +60,73 @@ fn paper_run(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, paper_run);
+#[derive(clap::Parser)]
+#[command(no_binary_name = true)]
+struct Wrap<T: clap::Args> {
+    #[command(flatten)]
+    inner: T,
+}
+
+fn calibrate_runs(c: &mut Criterion) {
+    use clap::Parser;
+    use host_tools::calibrate::{self, CalibrateOptions};
+    use host_tools::simulate::{self, Simulation};
+    let dir = tempfile::tempdir().unwrap();
+    let robot = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
+    let data = dir.path().join("cell100.csv");
+    let truth = dir.path().join("cell100-truth.toml");
+    let data = data.to_str().unwrap();
+    let args = [
+        "--robot",
+        robot,
+        "--poses",
+        "100",
+        "--seed",
+        "5",
+        "--position-sigma-mm",
+        "0.02",
+        "--orientation-sigma-rad",
+        "1e-4",
+        "--tracker-xyz-mm",
+        "2500,-1500,600",
+        "--tracker-rpy-deg",
+        "5,-3,140",
+        "--tool-xyz-mm",
+        "0,60,137.4773",
+        "--out",
+        data,
+        "--truth-out",
+        truth.to_str().unwrap(),
+    ];
+    simulate::simulate(&Wrap::<Simulation>::parse_from(args).inner).unwrap();
+    let options =
+        Wrap::<CalibrateOptions>::parse_from(["--robot", robot, "--data", data, "--quiet"]).inner;
+    let ur10 = Wrap::<CalibrateOptions>::parse_from([
+        "--robot",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml"),
+        "--data",
+        concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/data/ipa-ur10-lasertracker/series-b-joint-configurations.csv"
+        ),
+        "--profile",
+        concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/profiles/ipa-ur10-lasertracker.toml"
+        ),
+        "--quiet",
+    ])
+    .inner;
+    let mut group = c.benchmark_group("calibrate");
+    group.sample_size(10);
+    group.bench_function("calibrate_100_poses_tracker_frame_ipso_lm", |b| {
+        b.iter(|| calibrate::calibrate(&options).unwrap())
+    });
+    group.bench_function("calibrate_ur10_series_b_1495_poses_ipso_lm", |b| {
+        b.iter(|| calibrate::calibrate(&ur10).unwrap())
+    });
+    group.finish();
+}
+
+criterion_group!(benches, paper_run, calibrate_runs);
 criterion_main!(benches);

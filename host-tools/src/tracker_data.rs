@@ -121,7 +121,7 @@ fn parse_column(name: &str) -> Option<Column> {
                 "rad" => 1.0,
                 _ => return None,
             };
-            return (i >= 1).then_some(Column::Joint(i - 1, scale));
+            return (i >= 1).then(|| Column::Joint(i - 1, scale));
         }
         return match rest {
             "w" => Some(Column::Quaternion(0)),

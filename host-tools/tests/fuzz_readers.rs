@@ -1,0 +1,190 @@
+//! Fuzzing of the input readers (a proptest suite: cargo-fuzz needs a tool not installed here).
+//! The tracker CSV reader (our format and through data profiles), the data-profile reader and the
+//! robot-file reader get arbitrary text and structured near-valid inputs; none may panic, and
+//! whatever they accept must be usable (finite numbers, unit quaternions, valid robots).
+//!
+//! CI runs the default number of cases; the 10-minute run recorded in the README is
+//! `PROPTEST_CASES=1300000 cargo test -p host-tools --test fuzz_readers -- --test-threads=1` (the test
+//! profile keeps overflow checks, which found `q0_deg` underflowing a joint index).
+
+use host_tools::profile::DataProfile;
+use host_tools::robot_file::RobotFile;
+use host_tools::tracker_data::TrackerData;
+use proptest::prelude::*;
+use std::path::Path;
+
+fn accepted_data_are_usable(d: &TrackerData) {
+    assert!(!d.records.is_empty());
+    for r in &d.records {
+        assert!(r.q.iter().chain(&r.position).all(|v| v.is_finite()));
+        assert!(r.weight.is_finite() && r.weight >= 0.0);
+        if let Some(m) = &r.rotation {
+            assert!((m.transpose() * m - nalgebra::Matrix3::identity()).norm() < 1e-2);
+        }
+        assert!(r.line >= 2);
+    }
+}
+
+/// A field: a number in some spelling, or something that is not one.
+fn field() -> impl Strategy<Value = String> {
+    prop_oneof![
+        any::<f64>().prop_map(|v| v.to_string()),
+        (-1e4f64..1e4).prop_map(|v| format!("{v:.6}")),
+        (-7f64..7.0).prop_map(|v| format!("{v:.4}").replace('.', ",")),
+        Just(String::new()),
+        Just("nan".to_string()),
+        Just("-inf".to_string()),
+        Just("1e999".to_string()),
+        Just("\"1,5\"".to_string()),
+        "[ -~]{0,6}",
+        "\\PC{0,4}",
+    ]
+}
+
+const NAMES: [&str; 24] = [
+    "id",
+    "weight",
+    "q1_deg",
+    "q2_deg",
+    "q3_deg",
+    "q4_deg",
+    "q5_deg",
+    "q6_deg",
+    "q1_rad",
+    "q7_deg",
+    "x_mm",
+    "y_mm",
+    "z_mm",
+    "x_m",
+    "qw",
+    "qx",
+    "qy",
+    "qz",
+    "rx_deg",
+    "ry_deg",
+    "rz_rad",
+    "temperature",
+    "",
+    "q0_deg",
+];
+
+fn header() -> impl Strategy<Value = Vec<String>> {
+    prop_oneof![
+        // Mostly valid headers, shuffled.
+        Just(
+            "id,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,x_mm,y_mm,z_mm,qw,qx,qy,qz"
+                .split(',')
+                .map(String::from)
+                .collect::<Vec<_>>()
+        )
+        .prop_shuffle(),
+        proptest::collection::vec(proptest::sample::select(&NAMES[..]), 0..16)
+            .prop_map(|v| v.into_iter().map(String::from).collect()),
+    ]
+}
+
+fn csv_text(delimiter: char) -> impl Strategy<Value = String> {
+    (
+        header(),
+        proptest::collection::vec(proptest::collection::vec(field(), 0..16), 0..6),
+        any::<bool>(),
+        any::<bool>(),
+    )
+        .prop_map(move |(header, rows, comment, crlf)| {
+            let end = if crlf { "\r\n" } else { "\n" };
+            let mut text = String::new();
+            if comment {
+                text.push_str("# frame: base");
+                text.push_str(end);
+            }
+            text.push_str(&header.join(&delimiter.to_string()));
+            for row in rows {
+                text.push_str(end);
+                text.push_str(&row.join(&delimiter.to_string()));
+            }
+            text
+        })
+}
+
+const PROFILE: &str = r#"
+delimiter = ";"
+decimal = ","
+[columns]
+q1_rad = "a"
+q2_rad = "b"
+q3_rad = "c"
+q4_rad = "d"
+q5_rad = "e"
+q6_rad = "f"
+x_mm = "x"
+y_mm = "y"
+z_mm = "z"
+rx_deg = "u"
+ry_deg = "v"
+rz_deg = "w"
+[orientation]
+euler = "intrinsic"
+order = "zyx"
+"#;
+
+proptest! {
+    #[test]
+    fn tracker_csv_never_panics_on_arbitrary_text(text in "\\PC{0,400}") {
+        if let Ok(d) = TrackerData::parse(&text, Path::new("f.csv")) {
+            accepted_data_are_usable(&d);
+        }
+    }
+
+    #[test]
+    fn tracker_csv_never_panics_on_near_valid_files(text in csv_text(',')) {
+        if let Ok(d) = TrackerData::parse(&text, Path::new("f.csv")) {
+            accepted_data_are_usable(&d);
+        }
+    }
+
+    #[test]
+    fn profiled_exports_never_panic(
+        rows in proptest::collection::vec(proptest::collection::vec(field(), 12..14), 0..5),
+        shuffle in Just("a;b;c;d;e;f;x;y;z;u;v;w;t".split(';').map(String::from).collect::<Vec<_>>()).prop_shuffle(),
+    ) {
+        let profile = DataProfile::parse(PROFILE, Path::new("p.toml")).unwrap();
+        let mut text = shuffle.join(";");
+        for row in rows {
+            text.push('\n');
+            text.push_str(&row.join(";"));
+        }
+        if let Ok(d) = TrackerData::parse_profiled(&text, Path::new("f.csv"), &profile) {
+            accepted_data_are_usable(&d);
+        }
+    }
+
+    #[test]
+    fn profiles_never_panic(text in "\\PC{0,300}", key in proptest::sample::select(&["delimiter", "decimal", "frame", "[columns]\nq1_rad", "[orientation]\neuler", "[orientation]\norder"][..]), value in "[ -~]{0,6}") {
+        let _ = DataProfile::parse(&text, Path::new("p.toml"));
+        let _ = DataProfile::parse(&format!("{key} = \"{}\"", value.replace(['"', '\\'], "")), Path::new("p.toml"));
+    }
+
+    #[test]
+    fn robot_files_never_panic(
+        text in "\\PC{0,300}",
+        values in proptest::collection::vec(prop_oneof![any::<f64>(), -1e3f64..1e3], 36),
+        joints in 0usize..8,
+    ) {
+        let _ = RobotFile::parse(&text, Path::new("r.toml")).map(|f| f.to_model::<6>(Path::new("r.toml")));
+        let mut toml = String::from("name = \"fuzz\"\n");
+        for j in 0..joints {
+            let v = |i: usize| values[(j * 5 + i) % values.len()];
+            // TOML has no NaN/inf spelled like Rust's Display, so use TOML's own.
+            let t = |x: f64| if x.is_nan() { "nan".to_string() } else if x.is_infinite() { if x > 0.0 { "inf".into() } else { "-inf".into() } } else { format!("{x:?}") };
+            toml.push_str(&format!(
+                "[[joint]]\na_mm = {}\nalpha_deg = {}\ntheta_offset_deg = {}\nd_mm = {}\nbeta_deg = {}\nlimits_deg = [{}, {}]\n",
+                t(v(0)), t(v(1)), t(v(2)), t(v(3)), t(v(4)), t(v(5)), t(v(6))
+            ));
+        }
+        if let Ok(file) = RobotFile::parse(&toml, Path::new("r.toml"))
+            && let Ok(model) = file.to_model::<6>(Path::new("r.toml"))
+        {
+            prop_assert!(model.robot.validate().is_ok());
+        }
+    }
+}
