@@ -118,8 +118,12 @@ mod tests {
             let (s, c) = sin_cos_f32(x);
             let (ls, lc) = libm::sincosf(x);
             let (es, ec) = libm::sincos(f64::from(x));
-            ours = ours.max((f64::from(s) - es).abs()).max((f64::from(c) - ec).abs());
-            libm32 = libm32.max((f64::from(ls) - es).abs()).max((f64::from(lc) - ec).abs());
+            ours = ours
+                .max((f64::from(s) - es).abs())
+                .max((f64::from(c) - ec).abs());
+            libm32 = libm32
+                .max((f64::from(ls) - es).abs())
+                .max((f64::from(lc) - ec).abs());
         }
         (ours, libm32)
     }
@@ -129,15 +133,35 @@ mod tests {
         let near = worst_f32((-1_000_000..=1_000_000).map(|i| i as f32 * 8e-6));
         let far = worst_f32((-100_000..=100_000).map(|i| i as f32 * 0.081_92));
         // Exactly representable special points.
-        for x in [0.0f32, -0.0, core::f32::consts::FRAC_PI_4, core::f32::consts::PI, 1e-30] {
+        for x in [
+            0.0f32,
+            -0.0,
+            core::f32::consts::FRAC_PI_4,
+            core::f32::consts::PI,
+            1e-30,
+        ] {
             let (s, c) = sin_cos_f32(x);
             let (es, ec) = libm::sincos(f64::from(x));
-            assert!((f64::from(s) - es).abs() <= 1.2e-7 && (f64::from(c) - ec).abs() <= 1.2e-7, "{x}");
+            assert!(
+                (f64::from(s) - es).abs() <= 1.2e-7 && (f64::from(c) - ec).abs() <= 1.2e-7,
+                "{x}"
+            );
         }
         assert_eq!(sin_cos_f32(-0.0).0.to_bits(), (-0.0f32).to_bits());
-        std::println!("worst |error| in [-8, 8]: ours {:e}, libm sincosf {:e}; in [-8192, 8192]: ours {:e}, libm {:e}", near.0, near.1, far.0, far.1);
+        std::println!(
+            "worst |error| in [-8, 8]: ours {:e}, libm sincosf {:e}; in [-8192, 8192]: ours {:e}, libm {:e}",
+            near.0,
+            near.1,
+            far.0,
+            far.1
+        );
         assert!(near.0 <= 1e-7, "[-8, 8]: {:e} (libm {:e})", near.0, near.1);
-        assert!(far.0 <= 1e-7, "[-8192, 8192]: {:e} (libm {:e})", far.0, far.1);
+        assert!(
+            far.0 <= 1e-7,
+            "[-8192, 8192]: {:e} (libm {:e})",
+            far.0,
+            far.1
+        );
         // Beyond the reduction limit and for non-finite input: libm.
         assert_eq!(sin_cos_f32(1e5), libm::sincosf(1e5));
         assert!(sin_cos_f32(f32::NAN).0.is_nan() && sin_cos_f32(f32::INFINITY).1.is_nan());
