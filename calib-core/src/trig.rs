@@ -56,7 +56,7 @@ pub fn sin_cos_f32(x: f32) -> (f32, f32) {
     const DP2: f32 = 2.418_756_5e-4;
     const DP3: f32 = 3.774_895e-8;
     let ax = x.abs();
-    if !(ax <= F32_REDUCTION_LIMIT) {
+    if ax.is_nan() || ax > F32_REDUCTION_LIMIT {
         return libm::sincosf(x);
     }
     // Octant; move odd octants up by one so that the remainder lies in [-pi/4, pi/4].
