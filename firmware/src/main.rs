@@ -1,0 +1,266 @@
+//! The calibration core on the reference controller board (QEMU mps2-an386, Cortex-M4F, f32).
+//!
+//! Runs the controller's calibration job (`calib-onboard`: the paper's 32-pose scenario with
+//! tracker noise, the paper's swarm, least squares, Table 3, compensation of four targets), logs
+//! progress and the statistics with defmt over semihosting, measures instructions between marks
+//! with SysTick (exact under `qemu-system-arm -icount shift=0`, see `count.sh`), measures the
+//! peak stack by painting, and exits through semihosting with status 0 only when its outcome
+//! equals, bit for bit, the one the host test computed (`onboard/expected.bin`).
+#![no_std]
+#![no_main]
+
+use calib_core::objective::{DEFAULT_K, Objective};
+use calib_core::{Kinematics, ParameterErrors, ParameterMask, ParameterSet};
+use calib_onboard::{D, Marks, Stage};
+use core::hint::black_box;
+use core::sync::atomic::{AtomicU32, Ordering};
+use cortex_m::peripheral::SYST;
+use cortex_m::peripheral::syst::SystClkSource;
+use cortex_m_rt::{entry, exception};
+use cortex_m_semihosting::debug;
+use defmt_semihosting as _;
+#[cfg(feature = "panic-never")]
+use panic_never as _;
+
+/// SysTick wraps (24-bit counter).
+static WRAPS: AtomicU32 = AtomicU32::new(0);
+
+#[exception]
+fn SysTick() {
+    WRAPS.fetch_add(1, Ordering::Relaxed);
+}
+
+/// SysTick ticks since start (25 MHz on mps2-an386). Under `-icount shift=0` QEMU runs one
+/// instruction per nanosecond of virtual time, so one tick is 40 instructions.
+fn ticks() -> u64 {
+    loop {
+        let wraps = WRAPS.load(Ordering::SeqCst);
+        let current = SYST::get_current();
+        if WRAPS.load(Ordering::SeqCst) == wraps {
+            return u64::from(wraps) * (1 << 24) + u64::from(0x00FF_FFFF - current);
+        }
+    }
+}
+
+/// Instructions per SysTick tick under `-icount shift=0`.
+const INSTRUCTIONS_PER_TICK: u64 = 40;
+
+fn instructions(ticks: u64) -> u64 {
+    ticks * INSTRUCTIONS_PER_TICK
+}
+
+/// Pattern of the painted stack.
+const PAINT: u32 = 0xCAFE_F00D;
+/// Bytes of stack painted below the entry stack pointer.
+const PAINTED: usize = 256 * 1024;
+
+/// Paints the stack below the current stack pointer (minus a margin for this function).
+fn paint_stack() -> usize {
+    let sp = cortex_m::register::msp::read() as usize;
+    let bottom = sp - PAINTED;
+    let mut address = bottom;
+    while address < sp - 256 {
+        // SAFETY: the painted words are free stack below the live frames (mps2 has 4 MiB RAM).
+        unsafe { core::ptr::write_volatile(address as *mut u32, PAINT) };
+        address += 4;
+    }
+    bottom
+}
+
+/// Lowest painted word that was overwritten: the deepest the stack reached.
+fn deepest(bottom: usize, top: usize) -> usize {
+    let mut address = bottom;
+    // SAFETY: reads words of the painted region.
+    while address < top && unsafe { core::ptr::read_volatile(address as *const u32) } == PAINT {
+        address += 4;
+    }
+    address
+}
+
+/// Instruction counts between the job's marks.
+struct Counter {
+    started: u64,
+    swarm: u64,
+    least_squares: u64,
+    compensation: u64,
+    compensations: u32,
+    first_generation: u64,
+    last_generation: u64,
+    generations: u32,
+}
+
+impl Marks for Counter {
+    fn begin(&mut self, _: Stage) {
+        self.started = ticks();
+    }
+    fn end(&mut self, stage: Stage) {
+        let spent = ticks() - self.started;
+        match stage {
+            Stage::Swarm => {
+                self.swarm = spent;
+                defmt::info!("swarm done");
+            }
+            Stage::LeastSquares => self.least_squares = spent,
+            Stage::Compensation => {
+                self.compensation += spent;
+                self.compensations += 1;
+            }
+        }
+    }
+    fn generation(&mut self, generation: u32, best_cost: f32) {
+        let now = ticks();
+        if generation == 1 {
+            self.first_generation = now;
+        }
+        self.last_generation = now;
+        self.generations = generation;
+        if generation % 500 == 0 {
+            defmt::info!("IPSO generation {=u32}: best objective {=f32}", generation, best_cost);
+        }
+    }
+}
+
+fn log_table(name: &str, t: &calib_onboard::Table) {
+    let deg = 180.0 / core::f32::consts::PI;
+    defmt::info!(
+        "{=str}: position mean {=f32} std {=f32} max {=f32} mm; orientation x mean {=f32} max {=f32}, y mean {=f32} max {=f32}, z mean {=f32} max {=f32} deg",
+        name,
+        t[0],
+        t[1],
+        t[2],
+        t[3] * deg,
+        t[5] * deg,
+        t[6] * deg,
+        t[8] * deg,
+        t[9] * deg,
+        t[11] * deg
+    );
+}
+
+/// Instructions of the single operations, averaged over repetitions.
+fn micro_benchmarks() {
+    let robot = calib_onboard::robot();
+    let Ok(measurements) = calib_onboard::measurements() else {
+        return;
+    };
+    let Ok(set) = ParameterSet::<6, D>::from_mask(&ParameterMask::default_for(&robot)) else {
+        return;
+    };
+    let Ok(kinematics) = Kinematics::new(&robot, &calib_core::paper::table2::<f32>()) else {
+        return;
+    };
+    // Calibrate the counter: a loop of 3 instructions per iteration.
+    let t = ticks();
+    for _ in 0..100_000u32 {
+        cortex_m::asm::nop();
+    }
+    defmt::info!(
+        "counter check: 100000 x (nop, subs, bne) counted as {=u64} instructions",
+        instructions(ticks() - t)
+    );
+    let q = [0.3f32, -0.4, 0.5, 0.2, 0.9, -0.3];
+    const FK: u64 = 1000;
+    let t = ticks();
+    for _ in 0..FK {
+        let _ = black_box(kinematics.forward(black_box(&q)));
+    }
+    defmt::info!(
+        "forward kinematics (6 joints, f32, with sin/cos of q): {=u64} instructions",
+        instructions(ticks() - t) / FK
+    );
+    let Ok(objective) = Objective::new(
+        &robot,
+        &ParameterErrors::zero(),
+        set,
+        &measurements,
+        DEFAULT_K as f32,
+    ) else {
+        return;
+    };
+    let x = set.pack(&calib_core::paper::table2::<f32>());
+    const OBJECTIVE: u64 = 100;
+    let t = ticks();
+    for _ in 0..OBJECTIVE {
+        let _ = black_box(objective.value(black_box(&x)));
+    }
+    defmt::info!(
+        "objective eq. (7), 32 poses: {=u64} instructions",
+        instructions(ticks() - t) / OBJECTIVE
+    );
+}
+
+#[entry]
+fn main() -> ! {
+    let bottom = paint_stack();
+    let top = cortex_m::register::msp::read() as usize;
+    if let Some(mut peripherals) = cortex_m::Peripherals::take() {
+        peripherals.SYST.set_clock_source(SystClkSource::Core);
+        peripherals.SYST.set_reload(0x00FF_FFFF);
+        peripherals.SYST.clear_current();
+        peripherals.SYST.enable_interrupt();
+        peripherals.SYST.enable_counter();
+    }
+    defmt::info!("calib firmware: f32 calibration of the paper's 32-pose scenario with tracker noise");
+    micro_benchmarks();
+    let mut counter = Counter {
+        started: 0,
+        swarm: 0,
+        least_squares: 0,
+        compensation: 0,
+        compensations: 0,
+        first_generation: 0,
+        last_generation: 0,
+        generations: 0,
+    };
+    let outcome = match calib_onboard::run(&mut counter) {
+        Ok(o) => o,
+        Err(e) => {
+            defmt::error!("the job failed: {}", defmt::Debug2Format(&e));
+            debug::exit(debug::EXIT_FAILURE);
+            loop {}
+        }
+    };
+    defmt::info!(
+        "IPSO: {=u32} generations, objective {=f32}; least squares: {=u32} iterations, 0.5 |r|^2 {=f32}",
+        outcome.generations,
+        outcome.swarm_cost,
+        outcome.lm_iterations,
+        outcome.lm_cost
+    );
+    log_table("before calibration", &outcome.before);
+    log_table("after calibration", &outcome.after);
+    for (q, r) in outcome.compensated.iter().zip(&outcome.residual_mm) {
+        defmt::info!("compensated joints {=[?]} rad, residual {=f32} mm", q[..], r);
+    }
+    let per_generation = counter
+        .last_generation
+        .saturating_sub(counter.first_generation)
+        / u64::from(counter.generations.saturating_sub(1).max(1));
+    defmt::info!(
+        "instructions: swarm generation {=u64}, whole swarm {=u64}, least squares {=u64} ({=u64} per iteration), whole calibration {=u64}, compensation {=u64}",
+        instructions(per_generation),
+        instructions(counter.swarm),
+        instructions(counter.least_squares),
+        instructions(counter.least_squares) / u64::from(outcome.lm_iterations.max(1)),
+        instructions(counter.swarm + counter.least_squares),
+        instructions(counter.compensation) / u64::from(counter.compensations.max(1))
+    );
+    let peak = top - deepest(bottom, top);
+    defmt::info!("peak stack {=usize} bytes", peak);
+    if outcome.matches_expected() {
+        defmt::info!("outcome equals the host's bit for bit: PASS");
+        debug::exit(debug::EXIT_SUCCESS);
+    } else {
+        defmt::error!("outcome differs from the host's expected.bin: FAIL");
+        debug::exit(debug::EXIT_FAILURE);
+    }
+    loop {}
+}
+
+#[cfg(not(feature = "panic-never"))]
+#[panic_handler]
+fn panic(_: &core::panic::PanicInfo) -> ! {
+    defmt::error!("panic");
+    debug::exit(debug::EXIT_FAILURE);
+    loop {}
+}
