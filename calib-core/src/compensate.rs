@@ -207,7 +207,17 @@ pub fn solve_joints<T: Real, const N: usize>(
             row /= length;
         }
         let jjt = scaled * scaled.transpose();
-        if jjt.determinant().max(T::zero()).sqrt() < settings.min_manipulability {
+        // Manipulability sqrt(det(J J^T)) = product of the Cholesky factor's diagonal (no LU,
+        // whose pivoting code has panicking bounds checks).
+        let Some(factor) = jjt.cholesky() else {
+            return Err(CompensationError::NearSingular);
+        };
+        let manipulability = factor
+            .l_dirty()
+            .diagonal()
+            .iter()
+            .fold(T::one(), |p, d| p * *d);
+        if !manipulability.finite() || manipulability < settings.min_manipulability {
             return Err(CompensationError::NearSingular);
         }
         let damped = jjt + SMatrix::<T, 6, 6>::identity() * (lambda * lambda);

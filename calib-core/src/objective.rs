@@ -298,7 +298,7 @@ impl<'a, T: Real, const N: usize, const D: usize> Objective<'a, T, N, D> {
             .zip(orientation.iter())
         {
             let angle2 = so3::angle_squared_from_chord(*chord2) * *has_rotation;
-            sum += *w * (self.problem.k() * angle2 + *dp2).sqrt();
+            sum += *w * (self.problem.k() * angle2 + *dp2).sqrt_ieee();
         }
         sum
     }

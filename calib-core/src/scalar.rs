@@ -14,6 +14,10 @@ pub trait Real: RealField + Copy {
     /// single-precision routine [`crate::trig::sin_cos_f32`] for `f32` (no f64 arithmetic, which
     /// the Cortex-M4F emulates in software). Identical bits on every target.
     fn sin_cos_fast(self) -> (Self, Self);
+    /// The correctly rounded square root (IEEE 754): libm on a PC, the FPU's `VSQRT.F32` on a
+    /// Cortex-M with a single-precision FPU (libm's software `sqrtf` costs far more there). Both
+    /// are exact to the last bit, so they agree bit for bit.
+    fn sqrt_ieee(self) -> Self;
     /// Converts an `f64` constant or input to this scalar (rounding to nearest for `f32`).
     fn of(value: f64) -> Self;
     /// Widens this scalar to `f64` (exact for both `f32` and `f64`).
@@ -38,6 +42,10 @@ impl Real for f64 {
     #[inline]
     fn sin_cos_fast(self) -> (Self, Self) {
         libm::sincos(self)
+    }
+    #[inline]
+    fn sqrt_ieee(self) -> Self {
+        libm::sqrt(self)
     }
     #[inline]
     fn of(value: f64) -> Self {
@@ -79,6 +87,33 @@ impl Real for f32 {
     #[inline]
     fn sin_cos_fast(self) -> (Self, Self) {
         crate::trig::sin_cos_f32(self)
+    }
+    #[inline]
+    fn sqrt_ieee(self) -> Self {
+        #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+        {
+            let mut bits = self.to_bits();
+            // SAFETY: saves s0, moves r0 to s0, VSQRT.F32 s0, s0, moves s0 back to r0 and
+            // restores s0; touches only r0, s0 and 4 bytes of its own stack. The instructions are
+            // given as encodings because rustc does not enable the `vfp2` feature for the
+            // assembler on thumbv7em-none-eabihf, although the target has the FPU on.
+            unsafe {
+                core::arch::asm!(
+                    ".inst.w 0xED2D0A01", // vpush {s0}
+                    ".inst.w 0xEE000A10", // vmov s0, r0
+                    ".inst.w 0xEEB10AC0", // vsqrt.f32 s0, s0
+                    ".inst.w 0xEE100A10", // vmov r0, s0
+                    ".inst.w 0xECBD0A01", // vpop {s0}
+                    inout("r0") bits,
+                    options(preserves_flags)
+                );
+            }
+            f32::from_bits(bits)
+        }
+        #[cfg(not(all(target_arch = "arm", target_abi = "eabihf")))]
+        {
+            libm::sqrtf(self)
+        }
     }
     #[inline]
     fn of(value: f64) -> Self {

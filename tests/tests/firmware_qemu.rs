@@ -1,0 +1,67 @@
+//! The firmware on an emulated Cortex-M4F: builds `firmware/` for thumbv7em-none-eabihf, runs it
+//! under `qemu-system-arm` (mps2-an386) through `firmware/run.sh`, and checks its exit status
+//! (0 only when its f32 outcome equals the host's `onboard/expected.bin` bit for bit) and its
+//! decoded defmt log. Skips, saying so, when QEMU, the target or defmt-print is missing, unless
+//! `CALIB_REQUIRE_QEMU=1` (as `.ci/run` sets), where a missing tool is a failure.
+
+use std::process::Command;
+
+fn have(program: &str, args: &[&str]) -> bool {
+    Command::new(program)
+        .args(args)
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
+
+#[test]
+fn firmware_calibrates_in_qemu_bit_identically() {
+    let target_installed = Command::new("rustup")
+        .args(["target", "list", "--installed"])
+        .output()
+        .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).contains("thumbv7em-none-eabihf"));
+    let missing: Vec<&str> = [
+        ("qemu-system-arm", have("qemu-system-arm", &["--version"])),
+        ("defmt-print", have("defmt-print", &["--version"])),
+        ("arm-none-eabi-size", have("arm-none-eabi-size", &["--version"])),
+        ("the thumbv7em-none-eabihf target", target_installed),
+    ]
+    .into_iter()
+    .filter(|(_, ok)| !ok)
+    .map(|(name, _)| name)
+    .collect();
+    if !missing.is_empty() {
+        let message = format!(
+            "SKIPPED firmware_calibrates_in_qemu_bit_identically: missing {} \
+             (apt-get install qemu-system-arm binutils-arm-none-eabi; cargo install defmt-print --locked; \
+             rustup target add thumbv7em-none-eabihf)",
+            missing.join(", ")
+        );
+        assert!(std::env::var("CALIB_REQUIRE_QEMU").as_deref() != Ok("1"), "{message}");
+        eprintln!("{message}");
+        return;
+    }
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/../firmware/run.sh");
+    let mut command = Command::new("bash");
+    command.arg(script).arg("--size");
+    // The outer cargo's settings must not leak into the firmware's own build.
+    for (key, _) in std::env::vars() {
+        if key.starts_with("CARGO") || key == "RUSTFLAGS" || key == "RUSTC_WRAPPER" {
+            command.env_remove(key);
+        }
+    }
+    let output = command.output().unwrap();
+    let log = String::from_utf8_lossy(&output.stdout);
+    println!("{log}\n{}", String::from_utf8_lossy(&output.stderr));
+    assert!(output.status.success(), "firmware failed");
+    assert!(log.contains("outcome equals the host's bit for bit: PASS"), "{log}");
+    assert!(log.contains("IPSO: 2000 generations"), "{log}");
+    assert!(log.contains("after calibration: position mean 0.0327939"), "{log}");
+    // The instruction counter is calibrated against a loop of known length.
+    let counted: u64 = log
+        .split("100000 x (nop, subs, bne) counted as ")
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .unwrap();
+    assert!(counted.abs_diff(300_000) <= 40, "{counted}");
+}
