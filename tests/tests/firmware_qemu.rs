@@ -22,7 +22,10 @@ fn firmware_calibrates_in_qemu_bit_identically() {
     let missing: Vec<&str> = [
         ("qemu-system-arm", have("qemu-system-arm", &["--version"])),
         ("defmt-print", have("defmt-print", &["--version"])),
-        ("arm-none-eabi-size", have("arm-none-eabi-size", &["--version"])),
+        (
+            "arm-none-eabi-size",
+            have("arm-none-eabi-size", &["--version"]),
+        ),
         ("the thumbv7em-none-eabihf target", target_installed),
     ]
     .into_iter()
@@ -36,7 +39,10 @@ fn firmware_calibrates_in_qemu_bit_identically() {
              rustup target add thumbv7em-none-eabihf)",
             missing.join(", ")
         );
-        assert!(std::env::var("CALIB_REQUIRE_QEMU").as_deref() != Ok("1"), "{message}");
+        assert!(
+            std::env::var("CALIB_REQUIRE_QEMU").as_deref() != Ok("1"),
+            "{message}"
+        );
         eprintln!("{message}");
         return;
     }
@@ -53,9 +59,15 @@ fn firmware_calibrates_in_qemu_bit_identically() {
     let log = String::from_utf8_lossy(&output.stdout);
     println!("{log}\n{}", String::from_utf8_lossy(&output.stderr));
     assert!(output.status.success(), "firmware failed");
-    assert!(log.contains("outcome equals the host's bit for bit: PASS"), "{log}");
+    assert!(
+        log.contains("outcome equals the host's bit for bit: PASS"),
+        "{log}"
+    );
     assert!(log.contains("IPSO: 2000 generations"), "{log}");
-    assert!(log.contains("after calibration: position mean 0.0327939"), "{log}");
+    assert!(
+        log.contains("after calibration: position mean 0.0327939"),
+        "{log}"
+    );
     // The instruction counter is calibrated against a loop of known length.
     let counted: u64 = log
         .split("100000 x (nop, subs, bne) counted as ")
