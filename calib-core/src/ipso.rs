@@ -338,8 +338,7 @@ where
                     .zip(pbest.iter())
                     .zip(global.iter())
                 {
-                    let r1 = T::unit_from_bits(rng.next_u64());
-                    let r2 = T::unit_from_bits(rng.next_u64());
+                    let (r1, r2) = T::unit_pair(&mut || rng.next_u64());
                     // Eq. (10): constriction-factor velocity update, then x <- x + v.
                     *vj = k * (*vj + c1 * r1 * (*pj - *xj) + c2 * r2 * (*gj - *xj));
                     *xj += *vj;

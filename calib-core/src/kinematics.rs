@@ -5,6 +5,7 @@ use crate::mdh::{LaneFrame, Lanes, PreparedJoint};
 use crate::model::{Robot, joint_number};
 use crate::parameters::{FrameErrors, ParameterErrors};
 use crate::scalar::Real;
+use crate::so3;
 use crate::trig;
 use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, Translation3, Vector3};
 
@@ -69,8 +70,8 @@ fn frame_with_errors<T: Real>(nominal: &Pose<T>, errors: &FrameErrors<T>) -> (Po
     let [tx, ty, tz] = errors.translation;
     let [rx, ry, rz] = errors.rotation;
     let r_nominal = nominal.rotation.matrix();
-    let rotation = nominal.rotation * Rotation3::from_euler_angles(rx, ry, rz);
-    let yaw_then = r_nominal * Rotation3::from_euler_angles(T::zero(), T::zero(), rz).matrix();
+    let rotation = nominal.rotation * so3::rotation_rpy(rx, ry, rz);
+    let yaw_then = r_nominal * so3::rotation_rpy(T::zero(), T::zero(), rz).matrix();
     let axes = Matrix3::from_columns(&[
         rotation.matrix().column(0).into_owned(),
         yaw_then.column(1).into_owned(),

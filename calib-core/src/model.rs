@@ -4,7 +4,7 @@ use crate::error::KinematicsError;
 use crate::parameters::{FrameParameter, JointParameter, Parameter};
 use crate::scalar::Real;
 use core::cmp::Ordering;
-use nalgebra::{IsometryMatrix3, Rotation3, Translation3};
+use nalgebra::{IsometryMatrix3, Translation3};
 
 /// Nominal MDH parameters of one joint (paper eq. 1). Lengths in mm, angles in rad.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -75,7 +75,7 @@ impl<T: Real> FramePose<T> {
         // nalgebra applies roll, then pitch, then yaw: R = Rz(yaw) Ry(pitch) Rx(roll).
         IsometryMatrix3::from_parts(
             Translation3::new(x, y, z),
-            Rotation3::from_euler_angles(roll, pitch, yaw),
+            crate::so3::rotation_rpy(roll, pitch, yaw),
         )
     }
 }

@@ -221,6 +221,7 @@ impl<'a, T: Real, const N: usize, const D: usize> Objective<'a, T, N, D> {
     ///
     /// The poses are evaluated [`LANES`] at a time in structure-of-arrays form (vectorised on a
     /// PC; on a controller the same scalar operations in a different order of memory accesses).
+    #[inline(never)]
     pub fn value(&self, x: &SVector<T, D>) -> T {
         if !x.iter().all(|v| v.finite()) {
             return T::of(f64::INFINITY);

@@ -26,6 +26,9 @@ pub trait Real: RealField + Copy {
     fn finite(self) -> bool;
     /// A uniform value in `[0, 1)` from 64 random bits (the top 53 bits for `f64`, 24 for `f32`).
     fn unit_from_bits(bits: u64) -> Self;
+    /// Two independent uniform values in `[0, 1)` from a generator of 64-bit words: two words
+    /// for `f64` (53 bits each), one word split into two 24-bit halves for `f32`.
+    fn unit_pair(next: &mut impl FnMut() -> u64) -> (Self, Self);
     /// Size of the scalar in bytes (4 or 8).
     const BYTES: usize;
     /// Writes the little-endian IEEE 754 bytes into `out[..BYTES]`; `false` if `out` is too short.
@@ -62,6 +65,11 @@ impl Real for f64 {
     #[inline]
     fn unit_from_bits(bits: u64) -> Self {
         (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+    #[inline]
+    fn unit_pair(next: &mut impl FnMut() -> u64) -> (Self, Self) {
+        let first = Self::unit_from_bits(next());
+        (first, Self::unit_from_bits(next()))
     }
     const BYTES: usize = 8;
     fn write_le(self, out: &mut [u8]) -> bool {
@@ -129,7 +137,14 @@ impl Real for f32 {
     }
     #[inline]
     fn unit_from_bits(bits: u64) -> Self {
-        (bits >> 40) as f32 * (1.0 / (1u32 << 24) as f32)
+        // Through u32: the 24-bit value converts exactly either way, and a u64 -> f32 conversion
+        // is a software routine on a 32-bit controller.
+        ((bits >> 40) as u32) as f32 * (1.0 / (1u32 << 24) as f32)
+    }
+    #[inline]
+    fn unit_pair(next: &mut impl FnMut() -> u64) -> (Self, Self) {
+        let bits = next();
+        (Self::unit_from_bits(bits), Self::unit_from_bits(bits << 24))
     }
     const BYTES: usize = 4;
     fn write_le(self, out: &mut [u8]) -> bool {

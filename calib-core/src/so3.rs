@@ -2,7 +2,27 @@
 //! Jacobian. Both are exact for every angle in `[0, pi]` (series near 0, the symmetric part near pi).
 
 use crate::scalar::Real;
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, Rotation3, Vector3};
+
+/// `R = Rz(yaw) Ry(pitch) Rx(roll)` (rad): nalgebra's `Rotation3::from_euler_angles`, term for
+/// term, but with the core's sine and cosine ([`Real::sin_cos_fast`]), so that f32 needs no f64
+/// arithmetic and f64 gives the same bits as nalgebra with libm.
+pub fn rotation_rpy<T: Real>(roll: T, pitch: T, yaw: T) -> Rotation3<T> {
+    let (sr, cr) = roll.sin_cos_fast();
+    let (sp, cp) = pitch.sin_cos_fast();
+    let (sy, cy) = yaw.sin_cos_fast();
+    Rotation3::from_matrix_unchecked(Matrix3::new(
+        cy * cp,
+        cy * sp * sr - sy * cr,
+        cy * sp * cr + sy * sr,
+        sy * cp,
+        sy * sp * sr + cy * cr,
+        sy * sp * cr - cy * sr,
+        -sp,
+        cp * sr,
+        cp * cr,
+    ))
+}
 
 /// Below this angle (rad) the small-angle series are used.
 const SMALL_ANGLE: f64 = 1e-4;
@@ -124,7 +144,15 @@ pub fn right_jacobian_inverse<T: Real>(phi: &Vector3<T>) -> Matrix3<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::Rotation3;
+
+    #[test]
+    fn rotation_rpy_is_nalgebras_euler_angles_bit_for_bit_in_f64() {
+        for i in 0..200 {
+            let v = |k: f64| (f64::from(i) * 0.731 + k).sin() * 3.0;
+            let (r, p, y) = (v(0.0), v(1.0), v(2.0));
+            assert_eq!(rotation_rpy(r, p, y), Rotation3::from_euler_angles(r, p, y));
+        }
+    }
 
     fn exp(phi: &Vector3<f64>) -> Matrix3<f64> {
         *Rotation3::new(*phi).matrix()
