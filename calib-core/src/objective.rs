@@ -15,7 +15,7 @@
 //! swarm stalls near 0.3 mm (measured by an independent implementation of the method).
 
 use crate::kinematics::{JointAngles, Kinematics};
-use crate::mdh::{LANES, Lanes};
+use crate::mdh::{GROUP, LANES, Lanes};
 use crate::model::Robot;
 use crate::parameters::{ParameterErrors, ParameterSet};
 use crate::pose_error::PoseError;
@@ -227,10 +227,15 @@ impl<'a, T: Real, const N: usize, const D: usize> Objective<'a, T, N, D> {
             return T::of(f64::INFINITY);
         }
         let kinematics = self.problem.kinematics(x);
+        // Sum within groups of GROUP poses, then the groups: the same order for every LANES.
         self.problem
             .measurements()
-            .chunks(LANES)
-            .map(|chunk| self.chunk_value(&kinematics, chunk))
+            .chunks(GROUP)
+            .map(|group| {
+                group
+                    .chunks(LANES)
+                    .fold(T::zero(), |sum, chunk| sum + self.chunk_value(&kinematics, chunk))
+            })
             .fold(T::zero(), |sum, v| sum + v)
     }
 

@@ -185,6 +185,37 @@ fn micro_benchmarks() {
         return;
     };
     let x = set.pack(&calib_core::paper::table2::<f32>());
+    let prepared = calib_core::PreparedRobot::new(&robot);
+    let errors = calib_core::paper::table2::<f32>();
+    let t = ticks();
+    for _ in 0..100 {
+        let _ = black_box(prepared.actual(black_box(&errors)));
+    }
+    defmt::info!(
+        "candidate model (PreparedRobot::actual): {=u64} instructions",
+        instructions(ticks() - t) / 100
+    );
+    let t = ticks();
+    for _ in 0..100 {
+        let mut e = ParameterErrors::zero();
+        set.unpack_into(black_box(&x), &mut e);
+        let _ = black_box(e);
+    }
+    defmt::info!(
+        "unpack 24 errors: {=u64} instructions",
+        instructions(ticks() - t) / 100
+    );
+    let m0 = measurements.first().map(|m| m.angles);
+    if let Some(angles) = m0 {
+        let t = ticks();
+        for _ in 0..100 {
+            let _ = black_box(kinematics.forward_angles(black_box(&angles)));
+        }
+        defmt::info!(
+            "forward kinematics with precomputed sin/cos: {=u64} instructions",
+            instructions(ticks() - t) / 100
+        );
+    }
     const OBJECTIVE: u64 = 100;
     let t = ticks();
     for _ in 0..OBJECTIVE {
