@@ -232,9 +232,9 @@ impl<'a, T: Real, const N: usize, const D: usize> Objective<'a, T, N, D> {
             .measurements()
             .chunks(GROUP)
             .map(|group| {
-                group
-                    .chunks(LANES)
-                    .fold(T::zero(), |sum, chunk| sum + self.chunk_value(&kinematics, chunk))
+                group.chunks(LANES).fold(T::zero(), |sum, chunk| {
+                    sum + self.chunk_value(&kinematics, chunk)
+                })
             })
             .fold(T::zero(), |sum, v| sum + v)
     }
