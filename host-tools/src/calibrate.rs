@@ -402,11 +402,7 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
         }
         (None, None) => (all, None),
     };
-    let frames = options.frames.unwrap_or(if inputs.data.base_frame {
-        Frames::None
-    } else {
-        Frames::BaseTool
-    });
+    let frames = Frames::chosen(options.frames, &inputs.data);
     let (frames_report, mut mask) = {
         let mut others: Vec<&mut Inputs> = validation.iter_mut().collect();
         crate::frames::prepare(frames, &mut inputs, &mut others, options.k)?

@@ -371,11 +371,7 @@ pub struct CheckOptions {
 pub fn check(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
     let profile = DataProfile::load(options.profile.as_deref())?;
     let mut inputs = Inputs::load_with(&options.robot, &options.data, &profile)?;
-    let frames = options.frames.unwrap_or(if inputs.data.base_frame {
-        crate::frames::Frames::None
-    } else {
-        crate::frames::Frames::BaseTool
-    });
+    let frames = crate::frames::Frames::chosen(options.frames, &inputs.data);
     let (_, mask) = crate::frames::prepare(frames, &mut inputs, &mut [], options.k)?;
     crate::with_parameter_count!(mask.count(), analyse(&inputs, &mask, options.k))
 }

@@ -41,6 +41,16 @@ impl Frames {
         }
     }
 
+    /// The frames asked for, or the default for the data: `none` when the data say they are in
+    /// the base frame (`# frame: base` or the data profile), `base+tool` otherwise.
+    pub fn chosen(asked: Option<Self>, data: &crate::tracker_data::TrackerData) -> Self {
+        asked.unwrap_or(if data.base_frame {
+            Self::None
+        } else {
+            Self::BaseTool
+        })
+    }
+
     /// `true` when the base frame is identified.
     pub fn base(self) -> bool {
         self != Self::None

@@ -163,11 +163,7 @@ pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
     let all = Inputs::load_with(&options.robot, &options.data, &profile)?;
     let (mut calibration, mut validation) =
         crate::evaluate::split(&all, options.validate, options.validate_seed)?;
-    let frames = options.frames.unwrap_or(if all.data.base_frame {
-        Frames::None
-    } else {
-        Frames::BaseTool
-    });
+    let frames = Frames::chosen(options.frames, &all.data);
     let (_, mask) =
         crate::frames::prepare(frames, &mut calibration, &mut [&mut validation], options.k)?;
     crate::with_parameter_count!(
