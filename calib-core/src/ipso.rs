@@ -391,6 +391,7 @@ where
 }
 
 /// Absorbing walls: a coordinate outside its bounds goes onto the bound and stops.
+#[inline(never)] // one copy for both call sites (controller flash)
 fn clamp<T: Real, const D: usize>(
     x: &mut SVector<T, D>,
     v: &mut SVector<T, D>,
@@ -413,6 +414,7 @@ fn clamp<T: Real, const D: usize>(
 }
 
 /// The position with the lowest cost (the first one on ties; all costs are sanitised, never NaN).
+#[inline(never)] // one copy for both call sites (controller flash)
 fn best_of<T: Real, const P: usize, const D: usize>(
     positions: &[SVector<T, D>; P],
     costs: &[T; P],
