@@ -428,7 +428,6 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
         identifiability =
             crate::with_parameter_count!(mask.count(), analyse(&inputs, &mask, options.k))?;
     }
-    let first = initial;
     if options.auto_mask {
         while identifiability.ill_conditioned && mask.count() > 1 {
             let Some(parameter) = identifiability
@@ -448,7 +447,7 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
     // condition number reached.
     if !dropped.is_empty() {
         let reached = identifiability.condition_number;
-        identifiability = first;
+        identifiability = initial;
         identifiability.condition_number_after_drop = reached;
     }
     crate::with_parameter_count!(

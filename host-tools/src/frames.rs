@@ -156,8 +156,6 @@ pub fn register(
         .collect();
     let measured: Vec<Vector3<f64>> = measurements.iter().map(|m| m.position).collect();
     let n = measured.len();
-    // Normal matrix of the tool fit: sum R_j^T R_j = n I; the tool is determined when the
-    // rotations differ: sum (I - R_j)^T (I - R_j) must be well conditioned. Check it once.
     let mut tool = Vector3::zeros();
     let mut base = (Rotation3::identity(), Vector3::zeros());
     let mut iterations = 0;
@@ -181,13 +179,15 @@ pub fn register(
         let next = sum / n as f64;
         let change = (next - tool).norm();
         tool = next;
-        let rms = rms(&flanges, &measured, &base, &tool);
+        let rms = rms_of(&residuals(&flanges, &measured, &base, &tool));
         if change < 1e-9 || (previous - rms).abs() < 1e-12 * previous.max(1.0) {
             break;
         }
         previous = rms;
     }
     if identify_tool {
+        // The tool point is determined when the flange rotations differ:
+        // sum (I - R_j)^T (I - R_j) must be well conditioned.
         let mut spread = Matrix3::zeros();
         for f in &flanges {
             let d = Matrix3::identity() - f.rotation.matrix();
@@ -215,12 +215,8 @@ pub fn register(
     } else {
         Rotation3::identity()
     };
-    let residuals: Vec<f64> = flanges
-        .iter()
-        .zip(&measured)
-        .map(|(f, m)| (m - (base.0 * (f.rotation * tool + f.translation.vector) + base.1)).norm())
-        .collect();
-    let rms_mm = (residuals.iter().map(|r| r * r).sum::<f64>() / n as f64).sqrt();
+    let residuals = residuals(&flanges, &measured, &base, &tool);
+    let rms_mm = rms_of(&residuals);
     let max_mm = residuals.iter().copied().fold(0.0, f64::max);
     Ok(Registration {
         base_rotation: base.0,
@@ -233,20 +229,23 @@ pub fn register(
     })
 }
 
-fn rms(
+/// `|m_j - (R_base (R_j t + p_j) + p_base)|` per pose, mm.
+fn residuals(
     flanges: &[calib_core::kinematics::Pose<f64>],
     measured: &[Vector3<f64>],
     base: &(Rotation3<f64>, Vector3<f64>),
     tool: &Vector3<f64>,
-) -> f64 {
-    let sum: f64 = flanges
+) -> Vec<f64> {
+    flanges
         .iter()
         .zip(measured)
-        .map(|(f, m)| {
-            (m - (base.0 * (f.rotation * tool + f.translation.vector) + base.1)).norm_squared()
-        })
-        .sum();
-    (sum / measured.len().max(1) as f64).sqrt()
+        .map(|(f, m)| (m - (base.0 * (f.rotation * tool + f.translation.vector) + base.1)).norm())
+        .collect()
+}
+
+/// Root mean square of `values`.
+fn rms_of(values: &[f64]) -> f64 {
+    (values.iter().map(|r| r * r).sum::<f64>() / values.len().max(1) as f64).sqrt()
 }
 
 /// A frame as a robot-file entry (mm, `rpy_deg` with `R = Rz Ry Rx`).
@@ -423,14 +422,10 @@ pub fn prepare(
     let mut model = fitted.to_model(&inputs.model.path)?;
     model.mask = inputs.model.mask;
     let kinematics = Kinematics::nominal(&model.robot).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let sum: f64 = inputs
-        .measurements
-        .iter()
-        .map(|m| {
-            (m.position - kinematics.forward_angles(&m.angles).translation.vector).norm_squared()
-        })
-        .sum();
-    let frames_fit_rms_mm = (sum / inputs.measurements.len().max(1) as f64).sqrt();
+    let frames_fit_rms_mm = crate::evaluate::table3(&kinematics, inputs)
+        .0
+        .position_mm
+        .rms;
     for other in others.iter_mut() {
         other.file = fitted.clone();
         other.model = model.clone();
