@@ -84,6 +84,7 @@ struct Counter {
     swarm: u64,
     least_squares: u64,
     compensation: u64,
+    slowest_compensation: u64,
     compensations: u32,
     first_generation: u64,
     last_generation: u64,
@@ -104,6 +105,7 @@ impl Marks for Counter {
             Stage::LeastSquares => self.least_squares = spent,
             Stage::Compensation => {
                 self.compensation += spent;
+                self.slowest_compensation = self.slowest_compensation.max(spent);
                 self.compensations += 1;
             }
         }
@@ -247,6 +249,7 @@ fn main() -> ! {
         swarm: 0,
         least_squares: 0,
         compensation: 0,
+        slowest_compensation: 0,
         compensations: 0,
         first_generation: 0,
         last_generation: 0,
@@ -283,13 +286,15 @@ fn main() -> ! {
         .saturating_sub(counter.first_generation)
         / u64::from(counter.generations.saturating_sub(1).max(1));
     defmt::info!(
-        "instructions: swarm generation {=u64}, whole swarm {=u64}, least squares {=u64} ({=u64} per iteration), whole calibration {=u64}, compensation {=u64}",
+        "instructions: swarm generation {=u64}, whole swarm {=u64}, least squares {=u64} ({=u64} per iteration), whole calibration {=u64}, compensation {=u64} (mean of {=u32}; slowest {=u64})",
         instructions(per_generation),
         instructions(counter.swarm),
         instructions(counter.least_squares),
         instructions(counter.least_squares) / u64::from(outcome.lm_iterations.max(1)),
         instructions(counter.swarm + counter.least_squares),
-        instructions(counter.compensation) / u64::from(counter.compensations.max(1))
+        instructions(counter.compensation) / u64::from(counter.compensations.max(1)),
+        counter.compensations,
+        instructions(counter.slowest_compensation)
     );
     let peak = top - deepest(bottom, top);
     defmt::info!("peak stack {=usize} bytes", peak);

@@ -74,11 +74,37 @@ fn firmware_calibrates_in_qemu_bit_identically() {
         assert!(log.contains(&line), "{line}\n{log}");
     }
     // The instruction counter is calibrated against a loop of known length.
-    let counted: u64 = log
-        .split("100000 x (nop, subs, bne) counted as ")
-        .nth(1)
-        .and_then(|rest| rest.split_whitespace().next())
-        .and_then(|n| n.parse().ok())
-        .unwrap();
+    let counted = number_after(&log, "100000 x (nop, subs, bne) counted as ");
     assert!(counted.abs_diff(300_000) <= 40, "{counted}");
+    // The controller budgets (issue 7). Instruction counts under `-icount` are deterministic, so
+    // these are exact measurements, not timings.
+    let budgets = [
+        (
+            "flash (vector table + text + rodata): ",
+            64 * 1024,
+            "flash, bytes",
+        ),
+        (
+            "forward kinematics (6 joints, f32, with sin/cos of q): ",
+            3_000,
+            "forward kinematics, instructions",
+        ),
+        ("whole swarm ", 1_500_000_000, "whole swarm, instructions"),
+        ("slowest ", 30_000, "one compensation, instructions"),
+    ];
+    for (prefix, budget, what) in budgets {
+        let measured = number_after(&log, prefix);
+        assert!(measured <= budget, "{what}: {measured} > {budget}");
+    }
+    let ram = number_after(&log, "static RAM (data + bss): ") + number_after(&log, "peak stack ");
+    assert!(ram <= 24 * 1024, "RAM {ram} bytes > 24 KiB");
+}
+
+/// The integer that follows `prefix` in the firmware's log.
+fn number_after(log: &str, prefix: &str) -> u64 {
+    log.split(prefix)
+        .nth(1)
+        .and_then(|rest| rest.split(|c: char| !c.is_ascii_digit()).next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no number after {prefix:?} in the log:\n{log}"))
 }
