@@ -181,7 +181,7 @@ pub fn solve_joints<T: Real, const N: usize>(
         )
     };
     let mut q = *start;
-    let (mut pose, mut jacobian) = model
+    let (pose, mut jacobian) = model
         .geometric_jacobian(&q)
         .map_err(|_| CompensationError::NonFinite)?;
     let mut error = PoseError::between(target, &pose);
@@ -229,16 +229,16 @@ pub fn solve_joints<T: Real, const N: usize>(
         for (qi, d) in candidate.iter_mut().zip(dq.iter()) {
             *qi += *d;
         }
-        let candidate_pose = model
-            .forward(&candidate)
+        // The candidate's Jacobian comes with its pose, so an accepted step (the usual case)
+        // needs no second forward kinematics.
+        let (candidate_pose, candidate_jacobian) = model
+            .geometric_jacobian(&candidate)
             .map_err(|_| CompensationError::NoConvergence)?;
         let candidate_error = PoseError::between(target, &candidate_pose);
         if scaled_error(&candidate_error).norm_squared() < scaled_error(&error).norm_squared() {
             q = candidate;
-            (pose, jacobian) = model
-                .geometric_jacobian(&q)
-                .map_err(|_| CompensationError::NonFinite)?;
-            error = PoseError::between(target, &pose);
+            jacobian = candidate_jacobian;
+            error = candidate_error;
             lambda = (lambda / T::of(10.0)).max(settings.damping);
         } else {
             lambda *= T::of(10.0);
