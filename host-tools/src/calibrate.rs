@@ -4,7 +4,6 @@
 use crate::check::{IdentifiabilityReport, Inputs, analyse};
 use crate::files::write_atomic;
 use crate::frames::{Frames, FramesReport};
-use crate::profile::DataProfile;
 use crate::report::{Table3, TruthRow, table3_text, truth_text, unit_of};
 use crate::robot_file::RobotFile;
 use anyhow::bail;
@@ -89,16 +88,9 @@ impl From<ScramblingChoice> for Scrambling {
 /// Everything `calib calibrate` needs: its command-line options.
 #[derive(Clone, Debug, clap::Args)]
 pub struct CalibrateOptions {
-    /// Nominal robot model file.
-    #[arg(long, value_name = "FILE")]
-    pub robot: PathBuf,
-    /// Tracker data file (CSV).
-    #[arg(long, value_name = "FILE")]
-    pub data: PathBuf,
-    /// Data profile (TOML) for exports not in our CSV format: delimiter, decimal comma, column
-    /// mapping with units, Euler convention (see host-tools/profiles/).
-    #[arg(long, value_name = "FILE")]
-    pub profile: Option<PathBuf>,
+    /// Robot, data and data profile files.
+    #[command(flatten)]
+    pub input: crate::check::InputFiles,
     /// Frames identified with the geometry: none (data in the base frame, tool known), base
     /// (tracker-to-base), or base+tool (and the tool on the flange: 3 translations for a
     /// reflector, 6 for a 6-DoF probe). Default: base+tool, or none when the data say
@@ -387,13 +379,12 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
             options.loss
         );
     }
-    let profile = DataProfile::load(options.profile.as_deref())?;
-    let all = Inputs::load_with(&options.robot, &options.data, &profile)?;
+    let (profile, all) = options.input.load()?;
     let (mut inputs, mut validation) = match (&options.holdout, options.validate) {
         (Some(_), Some(_)) => bail!("use either --validate or --holdout, not both"),
         (Some(path), None) => (
             all,
-            Some(Inputs::load_with(&options.robot, path, &profile)?),
+            Some(Inputs::load_with(&options.input.robot, path, &profile)?),
         ),
         (None, Some(fraction)) => {
             let (calibration, held) =
@@ -591,7 +582,7 @@ fn run<const D: usize>(
         "calibrated {} with {} poses of {} by {} in {seconds:.3} s\n",
         model.name,
         measurements.len(),
-        options.data.display(),
+        options.input.data.display(),
         options.method.name(),
     );
     if let Some(s) = &swarm {
@@ -704,7 +695,7 @@ fn run<const D: usize>(
         set.parameters().iter().copied(),
         &std_error_list,
         options.method.name(),
-        &options.robot.display().to_string(),
+        &options.input.robot.display().to_string(),
     );
     if frames.identified != "none" {
         frames.base = identified_file.base.clone();
@@ -716,7 +707,7 @@ fn run<const D: usize>(
             "{} identified by calib calibrate ({}) from {}.\nValues are nominal + identified errors; [calibration.errors] lists the errors and [calibration.std_errors] their standard errors, in mm and rad.",
             model.name,
             options.method.name(),
-            options.data.display()
+            options.input.data.display()
         ));
     let swarm_evaluations = swarm.as_ref().map_or(0, |s| s.result.evaluations);
     let lm_evaluations = least_squares
@@ -729,8 +720,8 @@ fn run<const D: usize>(
     };
     let report = Report {
         method: options.method.name().into(),
-        robot: options.robot.display().to_string(),
-        data: options.data.display().to_string(),
+        robot: options.input.robot.display().to_string(),
+        data: options.input.data.display().to_string(),
         parameters,
         objective: ObjectiveValues {
             initial,

@@ -26,6 +26,32 @@ pub struct Inputs {
     pub measurements: Vec<Measurement<f64, 6>>,
 }
 
+/// The files a data command reads (`--robot`, `--data`, `--profile`), shared by `calibrate`,
+/// `check`, `evaluate` and `verify`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct InputFiles {
+    /// Robot model file (TOML): the nominal model; its identify lists (or the default rule)
+    /// select the parameters.
+    #[arg(long, value_name = "FILE")]
+    pub robot: PathBuf,
+    /// Tracker data file: our CSV, or another export read through --profile.
+    #[arg(long, value_name = "FILE")]
+    pub data: PathBuf,
+    /// Data profile (TOML) for exports not in our CSV format: delimiter, decimal comma, column
+    /// mapping with units, Euler convention (see host-tools/profiles/).
+    #[arg(long, value_name = "FILE")]
+    pub profile: Option<PathBuf>,
+}
+
+impl InputFiles {
+    /// The data profile, then both files read and checked through it.
+    pub fn load(&self) -> anyhow::Result<(DataProfile, Inputs)> {
+        let profile = DataProfile::load(self.profile.as_deref())?;
+        let inputs = Inputs::load_with(&self.robot, &self.data, &profile)?;
+        Ok((profile, inputs))
+    }
+}
+
 impl Inputs {
     /// Reads and checks both files (the data in our format).
     pub fn load(robot: &Path, data: &Path) -> anyhow::Result<Self> {
@@ -346,15 +372,9 @@ fn weakest_direction<const D: usize>(
 /// Options of `calib check`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct CheckOptions {
-    /// Robot model file (its identify lists or the default rule select the parameters).
-    #[arg(long, value_name = "FILE")]
-    pub robot: PathBuf,
-    /// Tracker data file (CSV).
-    #[arg(long, value_name = "FILE")]
-    pub data: PathBuf,
-    /// Data profile (TOML) for exports not in our CSV format.
-    #[arg(long, value_name = "FILE")]
-    pub profile: Option<PathBuf>,
+    /// Robot, data and data profile files.
+    #[command(flatten)]
+    pub input: InputFiles,
     /// Frames identified with the geometry (as for calibrate; default base+tool unless the data
     /// say `# frame: base`).
     #[arg(long, value_enum)]
@@ -369,8 +389,7 @@ pub struct CheckOptions {
 
 /// `calib check`: the identifiability analysis of a robot file's parameters on a data file.
 pub fn check(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
-    let profile = DataProfile::load(options.profile.as_deref())?;
-    let mut inputs = Inputs::load_with(&options.robot, &options.data, &profile)?;
+    let (_, mut inputs) = options.input.load()?;
     let frames = crate::frames::Frames::chosen(options.frames, &inputs.data);
     let (_, mask) = crate::frames::prepare(frames, &mut inputs, &mut [], options.k)?;
     crate::with_parameter_count!(mask.count(), analyse(&inputs, &mask, options.k))

@@ -6,7 +6,6 @@ use crate::report::Table3;
 use calib_core::Kinematics;
 use calib_core::statistics::PoseStatistics;
 use rand_core::{Rng, SeedableRng};
-use std::path::PathBuf;
 
 /// Table 3 statistics of `kinematics` on `inputs`, and `|dp|` per pose (mm).
 pub fn table3(kinematics: &Kinematics<f64, 6>, inputs: &Inputs) -> (Table3, Vec<f64>) {
@@ -36,16 +35,11 @@ pub fn orientation_per_pose(kinematics: &Kinematics<f64, 6>, inputs: &Inputs) ->
 
 /// Options of `calib evaluate`.
 #[derive(Clone, Debug, clap::Args)]
+#[command(mut_arg("robot", |a| a.help("Robot model file (TOML): a nominal or an identified model")))]
 pub struct EvaluateOptions {
-    /// Robot model file (a nominal model or an identified one).
-    #[arg(long, value_name = "FILE")]
-    pub robot: PathBuf,
-    /// Tracker data file (CSV).
-    #[arg(long, value_name = "FILE")]
-    pub data: PathBuf,
-    /// Data profile (TOML) for exports not in our CSV format.
-    #[arg(long, value_name = "FILE")]
-    pub profile: Option<PathBuf>,
+    /// Robot, data and data profile files.
+    #[command(flatten)]
+    pub input: crate::check::InputFiles,
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
@@ -53,8 +47,7 @@ pub struct EvaluateOptions {
 
 /// Runs `calib evaluate`.
 pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Table3> {
-    let profile = crate::profile::DataProfile::load(options.profile.as_deref())?;
-    let inputs = Inputs::load_with(&options.robot, &options.data, &profile)?;
+    let (_, inputs) = options.input.load()?;
     let kinematics =
         Kinematics::nominal(&inputs.model.robot).map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok(table3(&kinematics, &inputs).0)

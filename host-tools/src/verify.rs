@@ -7,13 +7,11 @@
 
 use crate::check::Inputs;
 use crate::frames::Frames;
-use crate::profile::DataProfile;
 use calib_core::lm::{LeastSquares, LmSettings};
 use calib_core::objective::Measurement;
 use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, ParameterSet};
 use nalgebra::SVector;
 use serde::Serialize;
-use std::path::PathBuf;
 
 /// Tolerances of `calib verify`; past any of them it exits non-zero.
 pub mod tolerance {
@@ -35,15 +33,9 @@ pub mod tolerance {
 /// Options of `calib verify`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct VerifyOptions {
-    /// Nominal robot model file.
-    #[arg(long, value_name = "FILE")]
-    pub robot: PathBuf,
-    /// Tracker data file.
-    #[arg(long, value_name = "FILE")]
-    pub data: PathBuf,
-    /// Data profile (TOML) for exports not in our CSV format.
-    #[arg(long, value_name = "FILE")]
-    pub profile: Option<PathBuf>,
+    /// Robot, data and data profile files.
+    #[command(flatten)]
+    pub input: crate::check::InputFiles,
     /// Frames identified with the geometry (default base+tool unless the data say
     /// `# frame: base`).
     #[arg(long, value_enum)]
@@ -159,8 +151,7 @@ impl Verification {
 
 /// Runs `calib verify`.
 pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
-    let profile = DataProfile::load(options.profile.as_deref())?;
-    let all = Inputs::load_with(&options.robot, &options.data, &profile)?;
+    let (_, all) = options.input.load()?;
     let (mut calibration, mut validation) =
         crate::evaluate::split(&all, options.validate, options.validate_seed)?;
     let frames = Frames::chosen(options.frames, &all.data);

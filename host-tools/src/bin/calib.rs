@@ -109,7 +109,11 @@ fn main() -> anyhow::Result<()> {
                 print!(
                     "{}",
                     host_tools::report::table3_single_text(
-                        &format!("{} on {}", options.robot.display(), options.data.display()),
+                        &format!(
+                            "{} on {}",
+                            options.input.robot.display(),
+                            options.input.data.display()
+                        ),
                         &table
                     )
                 );
