@@ -250,8 +250,9 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
         )
     }
 
-    /// End frames of [`LANES`] poses at once from their joint cosines and sines as lanes (the
-    /// structure-of-arrays form of [`Kinematics::forward_angles`], which the compiler vectorises).
+    /// End frames of [`LANES`](crate::mdh::LANES) poses at once from their joint cosines and
+    /// sines as lanes (the structure-of-arrays form of [`Kinematics::forward_angles`], which the
+    /// compiler vectorises).
     pub fn forward_lanes(&self, cos: &[Lanes<T>; N], sin: &[Lanes<T>; N]) -> LaneFrame<T> {
         let r = self.base.rotation.matrix();
         let t = &self.base.translation.vector;

@@ -99,7 +99,7 @@ pub struct Simulation {
     /// Tracker data output (CSV).
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
-    /// True robot output (robot file with a [calibration] section of the true errors).
+    /// True robot output (robot file with a `[calibration]` section of the true errors).
     #[arg(long, value_name = "FILE")]
     pub truth_out: PathBuf,
 }
