@@ -76,7 +76,7 @@ fn calibrate_runs(c: &mut Criterion) {
     let data = dir.path().join("cell100.csv");
     let truth = dir.path().join("cell100-truth.toml");
     let data = data.to_str().unwrap();
-    let args = [
+    let head = [
         "--robot",
         robot,
         "--poses",
@@ -87,17 +87,9 @@ fn calibrate_runs(c: &mut Criterion) {
         "0.02",
         "--orientation-sigma-rad",
         "1e-4",
-        "--tracker-xyz-mm",
-        "2500,-1500,600",
-        "--tracker-rpy-deg",
-        "5,-3,140",
-        "--tool-xyz-mm",
-        "0,60,137.4773",
-        "--out",
-        data,
-        "--truth-out",
-        truth.to_str().unwrap(),
     ];
+    let tail = ["--out", data, "--truth-out", truth.to_str().unwrap()];
+    let args = [&head[..], &simulate::REALISTIC_CELL, &tail].concat();
     simulate::simulate(&Wrap::<Simulation>::parse_from(args).inner).unwrap();
     let options =
         Wrap::<CalibrateOptions>::parse_from(["--robot", robot, "--data", data, "--quiet"]).inner;

@@ -92,7 +92,7 @@ pub fn demo(options: &DemoOptions) -> anyhow::Result<()> {
     let cell = dir.join("cell");
     std::fs::create_dir_all(&cell)?;
     let cell_args = |poses: &str, seed: &str, out: &str, truth: &str| {
-        strings(&[
+        let head = [
             "--robot",
             &robot,
             "--poses",
@@ -102,17 +102,9 @@ pub fn demo(options: &DemoOptions) -> anyhow::Result<()> {
             "--position-sigma-mm",
             "0.02",
             "--position-only",
-            "--tracker-xyz-mm",
-            "2500,-1500,600",
-            "--tracker-rpy-deg",
-            "5,-3,140",
-            "--tool-xyz-mm",
-            "0,60,137.4773",
-            "--out",
-            out,
-            "--truth-out",
-            truth,
-        ])
+        ];
+        let tail = ["--out", out, "--truth-out", truth];
+        strings(&[&head[..], &simulate::REALISTIC_CELL, &tail].concat())
     };
     let data = path(&cell.join("data.csv"))?;
     let holdout = path(&cell.join("holdout.csv"))?;

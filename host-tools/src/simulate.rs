@@ -27,6 +27,18 @@ pub enum TrueErrors {
     Random,
 }
 
+/// `calib simulate` arguments of the realistic cell used by the demo, the frames tests and the
+/// calibration benchmark: the robot base seen from a tracker about 3 m away, turned arbitrarily,
+/// and a reflector 150 mm off the flange.
+pub const REALISTIC_CELL: [&str; 6] = [
+    "--tracker-xyz-mm",
+    "2500,-1500,600",
+    "--tracker-rpy-deg",
+    "5,-3,140",
+    "--tool-xyz-mm",
+    "0,60,137.4773",
+];
+
 /// Settings of a simulation: the options of `calib simulate`.
 #[derive(Clone, Debug, PartialEq, clap::Args)]
 pub struct Simulation {

@@ -46,19 +46,13 @@ fn simulate(
         "0.02",
         "--orientation-sigma-rad",
         "1e-4",
-        // The robot base seen from a tracker about 3 m away, turned arbitrarily.
-        "--tracker-xyz-mm",
-        "2500,-1500,600",
-        "--tracker-rpy-deg",
-        "5,-3,140",
-        // A reflector 150 mm off the flange.
-        "--tool-xyz-mm",
-        "0,60,137.4773",
         "--out",
         data.to_str().unwrap(),
         "--truth-out",
         truth.to_str().unwrap(),
     ];
+    // Tracker about 3 m away, turned arbitrarily; reflector 150 mm off the flange.
+    args.extend(simulate::REALISTIC_CELL);
     if position_only {
         args.push("--position-only");
     }
