@@ -7,11 +7,12 @@
 // Set-up of fixed, valid inputs: a failure here is a bug in the benchmark itself.
 #![allow(clippy::unwrap_used)]
 
-use calib_core::ipso::{self, IpsoSettings, SearchSpace, Silent};
-use calib_core::lm::{LeastSquares, LmSettings};
-use calib_core::objective::{DEFAULT_K, Measurement, MeasurementSet, Objective};
-use calib_core::paper::{er10l_c10, table2};
-use calib_core::{Kinematics, ParameterErrors, ParameterMask, ParameterSet, Real};
+use calib_core::Problem;
+use calib_core::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
+use calib_core::identify::lm::{LeastSquares, LmSettings};
+use calib_core::identify::objective::{DEFAULT_K, Measurement, MeasurementSet, Objective};
+use calib_core::model::paper::{er10l_c10, table2};
+use calib_core::{Kinematics, ParameterErrors, ParameterSet, Real};
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::SVector;
 use std::hint::black_box;
@@ -29,9 +30,9 @@ fn measurements<T: Real>() -> MeasurementSet<T, 6, 32> {
 
 fn paper_run<T: Real>(c: &mut Criterion, name: &str) {
     let robot = er10l_c10::<T>();
-    let set = ParameterSet::<6, 24>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
+    let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
     let data = measurements::<T>();
-    let objective = Objective::new(
+    let problem = Problem::new(
         &robot,
         &ParameterErrors::zero(),
         set,
@@ -39,6 +40,7 @@ fn paper_run<T: Real>(c: &mut Criterion, name: &str) {
         T::of(DEFAULT_K),
     )
     .unwrap();
+    let objective = Objective::new(&problem);
     let space = SearchSpace::paper(&set);
     let x = SVector::<T, 24>::repeat(T::of(1e-3));
     c.bench_function(&format!("objective_32_poses_{name}"), |b| {
@@ -53,7 +55,7 @@ fn paper_run<T: Real>(c: &mut Criterion, name: &str) {
                 .unwrap()
         })
     });
-    let problem = LeastSquares::new(
+    let problem = Problem::new(
         &robot,
         &ParameterErrors::zero(),
         set,
@@ -61,9 +63,10 @@ fn paper_run<T: Real>(c: &mut Criterion, name: &str) {
         T::of(DEFAULT_K),
     )
     .unwrap();
+    let least_squares = LeastSquares::new(&problem);
     group.bench_function(format!("lm_from_nominal_24_32_poses_{name}"), |b| {
         b.iter(|| {
-            problem
+            least_squares
                 .solve(black_box(&SVector::zeros()), &LmSettings::default())
                 .unwrap()
         })

@@ -7,9 +7,9 @@
 #![allow(clippy::unwrap_used)]
 
 use calib_core::kinematics::JointAngles;
-use calib_core::paper::er10l_c10 as er10l;
-use calib_core::pose_error::pose_error_jacobian;
-use calib_core::{Kinematics, ParameterErrors, ParameterMask, ParameterSet, Real};
+use calib_core::kinematics::pose_error::pose_error_jacobian;
+use calib_core::model::paper::er10l_c10 as er10l;
+use calib_core::{Kinematics, ParameterErrors, ParameterSet, Real};
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 
@@ -48,7 +48,7 @@ fn benches(c: &mut Criterion) {
 
     let robot = er10l::<f64>();
     let kinematics = Kinematics::nominal(&robot).unwrap();
-    let set = ParameterSet::<6, 24>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
+    let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
     let q = [0.3, -0.7, 1.1, 2.0, -1.4, 0.6];
     let measured = Kinematics::new(&robot, &errors())
         .unwrap()
@@ -63,9 +63,9 @@ fn benches(c: &mut Criterion) {
 /// One joint-space compensation and one pre-distortion of the ER10L-C10 with Table 2 errors, for
 /// a target the nominal controller planned at fixed joints (away from singularities).
 fn compensation<T: Real>(c: &mut Criterion, name: &str) {
-    use calib_core::compensate::{CompensationSettings, compensate_joints, predistort};
+    use calib_core::controller::compensate::{CompensationSettings, compensate_joints, predistort};
     let nominal = Kinematics::nominal(&er10l::<T>()).unwrap();
-    let actual = Kinematics::new(&er10l::<T>(), &calib_core::paper::table2::<T>()).unwrap();
+    let actual = Kinematics::new(&er10l::<T>(), &calib_core::model::paper::table2::<T>()).unwrap();
     let limits = [calib_core::JointLimits::unlimited(); 6];
     let q = [0.3, -0.4, 0.5, 0.6, -0.7, 0.8].map(T::of);
     let target = nominal.forward(&q).unwrap();

@@ -1,14 +1,14 @@
 //! Property tests: random models, targets, measurements and garbage bytes never make the core
 //! panic; bad input comes back as an error (or, for pure math on garbage, a non-finite value).
 
-use calib_core::compensate::{CompensationSettings, compensate_joints, predistort};
-use calib_core::halton::{Scrambling, halton_point};
-use calib_core::lm::{LeastSquares, LmSettings, Loss};
-use calib_core::objective::{Measurement, Objective};
-use calib_core::paper::{er10l_c10, table2};
-use calib_core::{
-    Kinematics, MdhJoint, ParameterErrors, ParameterMask, ParameterSet, Pose, Robot, so3, storage,
-};
+use calib_core::controller::compensate::{CompensationSettings, compensate_joints, predistort};
+use calib_core::controller::storage;
+use calib_core::identify::halton::{Scrambling, halton_point};
+use calib_core::identify::lm::{LeastSquares, LmSettings, Loss};
+use calib_core::identify::objective::{Measurement, Objective};
+use calib_core::kinematics::so3;
+use calib_core::model::paper::{er10l_c10, table2};
+use calib_core::{Kinematics, MdhJoint, ParameterErrors, ParameterSet, Pose, Problem, Robot};
 use nalgebra::{Matrix3, Rotation3, SVector, Translation3, Vector3};
 use proptest::prelude::*;
 
@@ -100,7 +100,7 @@ proptest! {
     ) {
         let rotation = Rotation3::new(Vector3::from(r)).into_inner();
         let robot = er10l_c10::<f64>();
-        let set = ParameterSet::<6, 24>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
+        let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
         let measured = Measurement::new(&q, Vector3::from(p), Some(rotation), w);
         if let Ok(m) = measured {
             let data = [m; 30];
@@ -108,14 +108,13 @@ proptest! {
             for (s, v) in start.iter_mut().zip(x.iter().cycle()) {
                 *s = *v;
             }
-            if let Ok(objective) = Objective::new(&robot, &ParameterErrors::zero(), set, &data, 1e6) {
-                let _ = objective.value(&start);
-            }
-            if let Ok(problem) = LeastSquares::new(&robot, &ParameterErrors::zero(), set, &data, 1e6) {
+            if let Ok(problem) = Problem::new(&robot, &ParameterErrors::zero(), set, &data, 1e6) {
+                let _ = Objective::new(&problem).value(&start);
+                let least_squares = LeastSquares::new(&problem);
                 let settings = LmSettings { max_iterations: 5, ..LmSettings::default() };
-                let _ = problem.solve(&start, &settings);
+                let _ = least_squares.solve(&start, &settings);
                 let mut weights = [0.0; 30];
-                let _ = problem.solve_robust(&start, &settings, Loss::Huber(0.5), &mut weights);
+                let _ = least_squares.solve_robust(&start, &settings, Loss::Huber(0.5), &mut weights);
             }
         }
     }

@@ -9,8 +9,8 @@
 #![no_std]
 #![no_main]
 
-use calib_core::objective::{DEFAULT_K, Objective};
-use calib_core::{Kinematics, ParameterErrors, ParameterMask, ParameterSet};
+use calib_core::identify::objective::{DEFAULT_K, Objective};
+use calib_core::{Kinematics, ParameterErrors, ParameterSet, Problem};
 use calib_onboard::{D, Marks, Stage};
 use core::hint::black_box;
 use core::sync::atomic::{AtomicU32, Ordering};
@@ -152,10 +152,10 @@ fn micro_benchmarks() {
     let Ok(measurements) = calib_onboard::measurements() else {
         return;
     };
-    let Ok(set) = ParameterSet::<6, D>::from_mask(&ParameterMask::default_for(&robot)) else {
+    let Ok(set) = ParameterSet::<6, D>::default_for(&robot) else {
         return;
     };
-    let Ok(kinematics) = Kinematics::new(&robot, &calib_core::paper::table2::<f32>()) else {
+    let Ok(kinematics) = Kinematics::new(&robot, &calib_core::model::paper::table2::<f32>()) else {
         return;
     };
     // Calibrate the counter: a loop of 3 instructions per iteration.
@@ -177,7 +177,7 @@ fn micro_benchmarks() {
         "forward kinematics (6 joints, f32, with sin/cos of q): {=u64} instructions",
         instructions(ticks() - t) / FK
     );
-    let Ok(objective) = Objective::new(
+    let Ok(problem) = Problem::new(
         &robot,
         &ParameterErrors::zero(),
         set,
@@ -186,9 +186,10 @@ fn micro_benchmarks() {
     ) else {
         return;
     };
-    let x = set.pack(&calib_core::paper::table2::<f32>());
+    let objective = Objective::new(&problem);
+    let x = set.pack(&calib_core::model::paper::table2::<f32>());
     let prepared = calib_core::PreparedRobot::new(&robot);
-    let errors = calib_core::paper::table2::<f32>();
+    let errors = calib_core::model::paper::table2::<f32>();
     let t = ticks();
     for _ in 0..100 {
         let _ = black_box(prepared.actual(black_box(&errors)));

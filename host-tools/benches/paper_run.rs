@@ -10,9 +10,10 @@
 // Set-up of fixed, valid inputs: a failure here is a bug in the benchmark itself.
 #![allow(clippy::unwrap_used)]
 
-use calib_core::ipso::{self, IpsoSettings, SearchSpace, Silent};
-use calib_core::objective::{DEFAULT_K, Measurement, Objective};
-use calib_core::{ParameterErrors, ParameterMask, ParameterSet};
+use calib_core::Problem;
+use calib_core::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
+use calib_core::identify::objective::{DEFAULT_K, Measurement, Objective};
+use calib_core::{ParameterErrors, ParameterSet};
 use criterion::{Criterion, criterion_group, criterion_main};
 use host_tools::calibrate::Parallel;
 use host_tools::tracker_data::TrackerData;
@@ -33,9 +34,9 @@ fn paper_run(c: &mut Criterion) {
             Measurement::new(&q, Vector3::from(r.position), r.rotation, 1.0).unwrap()
         })
         .collect();
-    let robot = calib_core::paper::er10l_c10::<f64>();
-    let set = ParameterSet::<6, 24>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
-    let objective = Objective::new(
+    let robot = calib_core::model::paper::er10l_c10::<f64>();
+    let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
+    let problem = Problem::new(
         &robot,
         &ParameterErrors::zero(),
         set,
@@ -43,6 +44,7 @@ fn paper_run(c: &mut Criterion) {
         DEFAULT_K,
     )
     .unwrap();
+    let objective = Objective::new(&problem);
     let space = SearchSpace::paper(&set);
     let mut group = c.benchmark_group("paper_run");
     group.sample_size(10);

@@ -7,10 +7,13 @@ use crate::frames::{Frames, FramesReport};
 use crate::report::{Table3, TruthRow, table3_text, truth_text, unit_of};
 use crate::robot_file::RobotFile;
 use anyhow::bail;
-use calib_core::halton::Scrambling;
-use calib_core::ipso::{self, Control, CostFunction, IpsoSettings, SearchSpace, StopReason};
-use calib_core::lm::{LeastSquares, LmError, LmResult, LmSettings, LmStop, Loss};
-use calib_core::objective::Objective;
+use calib_core::Problem;
+use calib_core::identify::halton::Scrambling;
+use calib_core::identify::ipso::{
+    self, Control, CostFunction, IpsoSettings, SearchSpace, StopReason,
+};
+use calib_core::identify::lm::{LeastSquares, LmError, LmResult, LmSettings, LmStop, Loss};
+use calib_core::identify::objective::Objective;
 use calib_core::{Kinematics, ParameterErrors, ParameterMask, ParameterSet};
 use nalgebra::SVector;
 use rayon::prelude::*;
@@ -140,7 +143,7 @@ pub struct CalibrateOptions {
     #[arg(long, default_value_t = 2.05)]
     pub c2: f64,
     /// Orientation weight k of eq. (7), mm^2/rad^2: 1e6 makes 1 mrad weigh like 1 mm.
-    #[arg(long, default_value_t = calib_core::objective::DEFAULT_K)]
+    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K)]
     pub k: f64,
     /// Seed of the swarm's random numbers r1, r2.
     #[arg(long, default_value_t = 0)]
@@ -466,13 +469,14 @@ fn run<const D: usize>(
 ) -> anyhow::Result<Calibration> {
     let (file, model, measurements) = (&inputs.file, &inputs.model, inputs.measurements.as_slice());
     let set = ParameterSet::<6, D>::from_mask(mask)?;
-    let objective = Objective::new(
+    let problem = Problem::new(
         &model.robot,
         &ParameterErrors::zero(),
         set,
         measurements,
         options.k,
     )?;
+    let objective = Objective::new(&problem);
     let zero = SVector::<f64, D>::zeros();
     let mut outliers: Vec<Outlier> = Vec::new();
     let mut robust_weights = vec![1.0; measurements.len()];
@@ -484,27 +488,20 @@ fn run<const D: usize>(
     let swarm_end = swarm.as_ref().map_or(zero, |s| s.result.best);
     let least_squares = match options.method {
         Method::Lm | Method::IpsoLm => {
-            let problem = LeastSquares::new(
-                &model.robot,
-                &ParameterErrors::zero(),
-                set,
-                measurements,
-                options.k,
-            )
-            .map_err(|e| lm_error(e, &set))?;
+            let least_squares = LeastSquares::new(&problem);
             let settings = LmSettings {
                 max_iterations: options.lm_iterations,
                 ..LmSettings::default()
             };
             let mut weights = vec![1.0; measurements.len()];
             let loss = options.loss.with_scale(options.loss_scale_mm);
-            let robust = problem
+            let robust = least_squares
                 .solve_robust(&swarm_end, &settings, loss, &mut weights)
                 .map_err(|e| lm_error(e, &set))?;
             robust_weights.clone_from(&weights);
             if options.loss != LossChoice::L2 {
                 let mut norms = vec![0.0; measurements.len()];
-                problem.pose_residual_norms(&robust.result.x, &mut norms);
+                least_squares.pose_residual_norms(&robust.result.x, &mut norms);
                 let poses = inputs.data.records.iter().zip(&norms).zip(&weights);
                 for ((record, norm), weight) in poses {
                     if *norm > options.loss_scale_mm {

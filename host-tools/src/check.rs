@@ -5,9 +5,10 @@ use crate::profile::DataProfile;
 use crate::robot_file::{RobotFile, RobotModel};
 use crate::tracker_data::TrackerData;
 use anyhow::{Context, bail};
-use calib_core::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability, Status};
-use calib_core::lm::LeastSquares;
-use calib_core::objective::Measurement;
+use calib_core::Problem;
+use calib_core::identify::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability, Status};
+use calib_core::identify::lm::LeastSquares;
+use calib_core::identify::objective::Measurement;
 use calib_core::{Parameter, ParameterErrors, ParameterMask, ParameterSet};
 use nalgebra::{SVector, Vector3};
 use serde::Serialize;
@@ -282,7 +283,7 @@ pub fn analyse<const D: usize>(
             inputs.rows()
         );
     }
-    let problem = LeastSquares::new(
+    let problem = Problem::new(
         &inputs.model.robot,
         &ParameterErrors::zero(),
         set,
@@ -290,7 +291,8 @@ pub fn analyse<const D: usize>(
         k,
     )
     .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let r = problem.jacobian_factor(&SVector::zeros());
+    let least_squares = LeastSquares::new(&problem);
+    let r = least_squares.jacobian_factor(&SVector::zeros());
     let id = Identifiability::from_factor(&r, inputs.measurements.len(), DEFAULT_RANK_TOLERANCE);
     let names = set.parameters().to_vec();
     let mut undetermined = Vec::new();
@@ -380,7 +382,7 @@ pub struct CheckOptions {
     #[arg(long, value_enum)]
     pub frames: Option<crate::frames::Frames>,
     /// Orientation weight k, mm^2/rad^2 (as for calibrate).
-    #[arg(long, default_value_t = calib_core::objective::DEFAULT_K)]
+    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K)]
     pub k: f64,
     /// Print JSON instead of text.
     #[arg(long)]

@@ -5,9 +5,9 @@ use crate::files::write_atomic;
 use crate::robot_file::{RobotFile, RobotModel};
 use crate::tracker_data::TrackerData;
 use anyhow::{Context, bail};
-use calib_core::compensate::{CompensationSettings, compensate_joints};
-use calib_core::ik::inverse_kinematics;
-use calib_core::storage;
+use calib_core::controller::compensate::{CompensationSettings, compensate_joints};
+use calib_core::controller::storage;
+use calib_core::kinematics::ik::inverse_kinematics;
 use calib_core::{Kinematics, Pose};
 use nalgebra::{Rotation3, Translation3};
 use std::path::PathBuf;
@@ -157,7 +157,7 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
 /// Formats of `calib export`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum ExportFormat {
-    /// The controller's binary parameter block (calib_core::storage), byte-identical to what the
+    /// The controller's binary parameter block (calib_core::controller::storage), byte-identical to what the
     /// core writes.
     Block,
     /// A robot file (TOML).

@@ -4,7 +4,7 @@
 use crate::check::Inputs;
 use crate::report::Table3;
 use calib_core::Kinematics;
-use calib_core::statistics::PoseStatistics;
+use calib_core::identify::statistics::PoseStatistics;
 use rand_core::{Rng, SeedableRng};
 
 /// Table 3 statistics of `kinematics` on `inputs`, and `|dp|` per pose (mm).

@@ -11,7 +11,7 @@
 //! rotation nearest to the mean of `(R_base R_j)^T R_measured,j`.
 
 use crate::robot_file::{FrameEntry, RobotFile};
-use calib_core::objective::Measurement;
+use calib_core::identify::objective::Measurement;
 use calib_core::{FrameParameter, JointParameter, Kinematics, Parameter, ParameterMask, Robot};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use serde::Serialize;
@@ -454,7 +454,7 @@ fn fit_frames<const D: usize>(
     k: f64,
 ) -> anyhow::Result<calib_core::ParameterErrors<f64, 6>> {
     let set = calib_core::ParameterSet::<6, D>::from_mask(mask)?;
-    let problem = calib_core::lm::LeastSquares::new(
+    let problem = calib_core::Problem::new(
         &inputs.model.robot,
         &calib_core::ParameterErrors::zero(),
         set,
@@ -462,10 +462,11 @@ fn fit_frames<const D: usize>(
         k,
     )
     .map_err(|e| anyhow::anyhow!("fitting the frames: {e}"))?;
-    let result = problem
+    let least_squares = calib_core::identify::lm::LeastSquares::new(&problem);
+    let result = least_squares
         .solve(
             &nalgebra::SVector::zeros(),
-            &calib_core::lm::LmSettings::default(),
+            &calib_core::identify::lm::LmSettings::default(),
         )
         .map_err(|e| anyhow::anyhow!("fitting the frames: {e}"))?;
     Ok(set.unpack(&result.x))

@@ -2,7 +2,7 @@
 //! parameter comparison against a known truth.
 
 use calib_core::Parameter;
-use calib_core::statistics::{PoseStatistics, Summary};
+use calib_core::identify::statistics::{PoseStatistics, Summary};
 use serde::Serialize;
 
 /// Mean, sample standard deviation and maximum of one quantity.

@@ -9,8 +9,9 @@
 use crate::robot_file::{RobotFile, RobotModel};
 use crate::tracker_data::{PoseRow, write_tracker_csv};
 use anyhow::{Context, bail};
-use calib_core::parameters::all_parameters;
-use calib_core::{Kinematics, ParameterErrors, paper};
+use calib_core::model::paper;
+use calib_core::model::parameters::all_parameters;
+use calib_core::{Kinematics, ParameterErrors};
 use rand::RngExt;
 use rand_core::SeedableRng;
 use rand_distr::{Distribution, Normal, Uniform};

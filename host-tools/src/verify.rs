@@ -7,8 +7,9 @@
 
 use crate::check::Inputs;
 use crate::frames::Frames;
-use calib_core::lm::{LeastSquares, LmSettings};
-use calib_core::objective::Measurement;
+use calib_core::Problem;
+use calib_core::identify::lm::{LeastSquares, LmSettings};
+use calib_core::identify::objective::Measurement;
 use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, ParameterSet};
 use nalgebra::SVector;
 use serde::Serialize;
@@ -47,7 +48,7 @@ pub struct VerifyOptions {
     #[arg(long, default_value_t = 0)]
     pub validate_seed: u64,
     /// Orientation weight k, mm^2/rad^2.
-    #[arg(long, default_value_t = calib_core::objective::DEFAULT_K)]
+    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K)]
     pub k: f64,
     /// Print JSON instead of text.
     #[arg(long)]
@@ -173,7 +174,7 @@ fn run<const D: usize>(
     let condition_number = crate::check::analyse::<D>(calibration, mask, k)?.condition_number;
     let settings = LmSettings::default();
     // f64 core.
-    let problem = LeastSquares::new(
+    let problem = Problem::new(
         &calibration.model.robot,
         &ParameterErrors::zero(),
         set,
@@ -181,7 +182,8 @@ fn run<const D: usize>(
         k,
     )
     .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let x64 = problem
+    let least_squares = LeastSquares::new(&problem);
+    let x64 = least_squares
         .solve(&SVector::zeros(), &settings)
         .map_err(|e| anyhow::anyhow!("f64 core: {e}"))?
         .x;
@@ -202,7 +204,7 @@ fn run<const D: usize>(
             .map_err(|e| anyhow::anyhow!("{e}"))
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let problem32 = LeastSquares::new(
+    let problem32 = Problem::new(
         &robot32,
         &ParameterErrors::zero(),
         set,
@@ -211,7 +213,7 @@ fn run<const D: usize>(
     )
     .map_err(|e| anyhow::anyhow!("{e}"))?;
     let settings32 = LmSettings::<f32>::default();
-    let x32 = problem32
+    let x32 = LeastSquares::new(&problem32)
         .solve(&SVector::zeros(), &settings32)
         .map_err(|e| anyhow::anyhow!("f32 core: {e}"))?
         .x;

@@ -182,8 +182,14 @@ fn default_bounds_refuse_large_corrections() {
 fn exported_block_is_byte_identical_to_the_core_and_round_trips() {
     let dir = tempfile::tempdir().unwrap();
     for (scalar, len) in [
-        ("f64", calib_core::storage::block_len::<f64, 6>()),
-        ("f32", calib_core::storage::block_len::<f32, 6>()),
+        (
+            "f64",
+            calib_core::controller::storage::block_len::<f64, 6>(),
+        ),
+        (
+            "f32",
+            calib_core::controller::storage::block_len::<f32, 6>(),
+        ),
     ] {
         let out = dir.path().join(format!("params-{scalar}.bin"));
         let result = calib(&[
@@ -209,14 +215,15 @@ fn exported_block_is_byte_identical_to_the_core_and_round_trips() {
         let model: RobotModel<6> = RobotModel::load(Path::new(ACTUAL)).unwrap();
         if scalar == "f64" {
             let mut expected = vec![0u8; len];
-            calib_core::storage::encode(&model.robot, 9, &mut expected).unwrap();
+            calib_core::controller::storage::encode(&model.robot, 9, &mut expected).unwrap();
             assert_eq!(bytes, expected);
             assert_eq!(
-                calib_core::storage::decode::<f64, 6>(&bytes).unwrap(),
+                calib_core::controller::storage::decode::<f64, 6>(&bytes).unwrap(),
                 (model.robot, 9)
             );
         } else {
-            let (robot, sequence) = calib_core::storage::decode::<f32, 6>(&bytes).unwrap();
+            let (robot, sequence) =
+                calib_core::controller::storage::decode::<f32, 6>(&bytes).unwrap();
             assert_eq!(sequence, 9);
             assert_eq!(robot, host_tools::compensate::to_f32(&model.robot));
         }

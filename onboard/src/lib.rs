@@ -8,12 +8,14 @@
 #![no_std]
 #![deny(missing_docs)]
 
-use calib_core::compensate::{CompensationSettings, compensate_joints};
-use calib_core::ipso::{self, Control, IpsoSettings, SearchSpace};
-use calib_core::lm::{LeastSquares, LmSettings};
-use calib_core::objective::{DEFAULT_K, Measurement, Objective};
-use calib_core::statistics::PoseStatistics;
-use calib_core::{Kinematics, ParameterErrors, ParameterMask, ParameterSet, Robot, paper};
+use calib_core::Problem;
+use calib_core::controller::compensate::{CompensationSettings, compensate_joints};
+use calib_core::identify::ipso::{self, Control, IpsoSettings, SearchSpace};
+use calib_core::identify::lm::{LeastSquares, LmSettings};
+use calib_core::identify::objective::{DEFAULT_K, Measurement, Objective};
+use calib_core::identify::statistics::PoseStatistics;
+use calib_core::model::paper;
+use calib_core::{Kinematics, ParameterErrors, ParameterSet, Robot};
 use nalgebra::{Matrix3, SVector, Vector3};
 
 mod scenario {
@@ -206,12 +208,11 @@ pub fn table(kinematics: &Kinematics<f32, 6>, measurements: &[Measurement<f32, 6
 pub fn run(marks: &mut impl Marks) -> Result<Outcome, Error> {
     let robot = robot();
     let measurements = measurements()?;
-    let set = ParameterSet::<6, D>::from_mask(&ParameterMask::default_for(&robot))
-        .map_err(|_| Error::Problem)?;
+    let set = ParameterSet::<6, D>::default_for(&robot).map_err(|_| Error::Problem)?;
     let zero = ParameterErrors::zero();
     let k = DEFAULT_K as f32;
-    let objective =
-        Objective::new(&robot, &zero, set, &measurements, k).map_err(|_| Error::Problem)?;
+    let problem = Problem::new(&robot, &zero, set, &measurements, k).map_err(|_| Error::Problem)?;
+    let objective = Objective::new(&problem);
 
     marks.begin(Stage::Swarm);
     let mut observer = |generation: u32, best: f32| {
@@ -228,9 +229,8 @@ pub fn run(marks: &mut impl Marks) -> Result<Outcome, Error> {
     marks.end(Stage::Swarm);
 
     marks.begin(Stage::LeastSquares);
-    let problem =
-        LeastSquares::new(&robot, &zero, set, &measurements, k).map_err(|_| Error::Problem)?;
-    let lm = problem
+    let least_squares = LeastSquares::new(&problem);
+    let lm = least_squares
         .solve(&swarm.best, &LmSettings::default())
         .map_err(|_| Error::LeastSquares)?;
     marks.end(Stage::LeastSquares);

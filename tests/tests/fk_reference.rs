@@ -113,6 +113,9 @@ fn nominal_model_file_loads_with_table1_values() {
 fn core_paper_tables_equal_the_robot_file_and_table2_csv() {
     let model =
         RobotModel::<6>::load(&calib_tests::repo("host-tools/robots/er10l-c10.toml")).unwrap();
-    assert_eq!(calib_core::paper::er10l_c10::<f64>(), model.robot);
-    assert_eq!(calib_core::paper::table2::<f64>(), table2_errors::<f64>());
+    assert_eq!(calib_core::model::paper::er10l_c10::<f64>(), model.robot);
+    assert_eq!(
+        calib_core::model::paper::table2::<f64>(),
+        table2_errors::<f64>()
+    );
 }

@@ -1,7 +1,7 @@
 //! The core against the golden vectors of an independent numpy implementation
 //! (tests/data/vectors, copied from ../shared/vectors with their README).
 
-use calib_core::pose_error::pose_error;
+use calib_core::kinematics::pose_error::pose_error;
 use calib_core::{Kinematics, ParameterErrors, Pose};
 use calib_tests::{er10l_file, read_csv, table2_errors};
 use host_tools::robot_file::RobotModel;

@@ -3,9 +3,11 @@
 //! `CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test onboard`), and it is checked here
 //! against the true errors of the simulation and against the f64 core on the same data.
 
-use calib_core::lm::{LeastSquares, LmSettings};
-use calib_core::objective::{DEFAULT_K, Measurement};
-use calib_core::{ParameterErrors, ParameterMask, ParameterSet, paper};
+use calib_core::Problem;
+use calib_core::identify::lm::{LeastSquares, LmSettings};
+use calib_core::identify::objective::{DEFAULT_K, Measurement};
+use calib_core::model::paper;
+use calib_core::{ParameterErrors, ParameterSet};
 use calib_onboard::{D, EXPECTED, NoMarks, run};
 use nalgebra::SVector;
 
@@ -25,7 +27,7 @@ fn the_job_is_accurate_and_its_encoding_is_the_firmwares_expectation() {
     println!("{outcome:?}");
     // Against the truth (Table 2): 0.02 mm and 1e-4 rad tracker noise on 32 poses.
     let robot = paper::er10l_c10::<f64>();
-    let set = ParameterSet::<6, D>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
+    let set = ParameterSet::<6, D>::default_for(&robot).unwrap();
     let truth = set.pack(&paper::table2::<f64>());
     for (i, (got, want)) in outcome.errors.iter().zip(truth.iter()).enumerate() {
         let tolerance = if set.parameters()[i].is_angle() {
@@ -66,7 +68,7 @@ fn the_job_is_accurate_and_its_encoding_is_the_firmwares_expectation() {
             .unwrap()
         })
         .collect();
-    let problem = LeastSquares::new(
+    let problem = Problem::new(
         &robot,
         &ParameterErrors::zero(),
         set,
@@ -74,7 +76,8 @@ fn the_job_is_accurate_and_its_encoding_is_the_firmwares_expectation() {
         DEFAULT_K,
     )
     .unwrap();
-    let x64 = problem
+    let least_squares = LeastSquares::new(&problem);
+    let x64 = least_squares
         .solve(&SVector::zeros(), &LmSettings::default())
         .unwrap()
         .x;

@@ -1,9 +1,10 @@
 //! The Halton generator and the eq. (7) objective against the golden vectors of the independent
 //! numpy implementation.
 
-use calib_core::halton::{self, Scrambling};
-use calib_core::objective::{Measurement, Objective};
-use calib_core::{Kinematics, ParameterMask, ParameterSet};
+use calib_core::Problem;
+use calib_core::identify::halton::{self, Scrambling};
+use calib_core::identify::objective::{Measurement, Objective};
+use calib_core::{Kinematics, ParameterSet};
 use calib_tests::{read_csv, table2_errors};
 use nalgebra::SVector;
 
@@ -41,7 +42,7 @@ fn halton_in_f32_is_the_rounded_f64_point() {
 
 #[test]
 fn objective_matches_golden_values() {
-    let robot = calib_core::paper::er10l_c10::<f64>();
+    let robot = calib_core::model::paper::er10l_c10::<f64>();
     let truth = Kinematics::new(&robot, &table2_errors()).unwrap();
     let (_, rows) = read_csv("vectors/pose-error-er10l-c10.csv");
     let measurements: Vec<Measurement<f64, 6>> = rows
@@ -51,7 +52,7 @@ fn objective_matches_golden_values() {
             Measurement::from_pose(&q, &truth.forward(&q).unwrap()).unwrap()
         })
         .collect();
-    let set = ParameterSet::<6, 24>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
+    let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
     let at_table2 = set.pack(&table2_errors::<f64>());
     let text =
         std::fs::read_to_string(calib_tests::data("vectors/objective-er10l-c10.txt")).unwrap();
@@ -65,7 +66,7 @@ fn objective_matches_golden_values() {
         } else {
             SVector::zeros()
         };
-        let objective = Objective::new(
+        let problem = Problem::new(
             &robot,
             &calib_core::ParameterErrors::zero(),
             set,
@@ -73,6 +74,7 @@ fn objective_matches_golden_values() {
             k,
         )
         .unwrap();
+        let objective = Objective::new(&problem);
         let value = objective.value(&x);
         assert!(
             (value - golden).abs() <= 1e-10 * golden.max(1.0),

@@ -18,7 +18,7 @@
 //! Bounds: a coordinate that leaves `[lower, upper]` is set onto the bound and its velocity
 //! component to zero (an absorbing wall), so the swarm never evaluates outside the search box.
 
-use crate::halton::{self, MAX_DIMENSION, Scrambling};
+use crate::identify::halton::{self, MAX_DIMENSION, Scrambling};
 use crate::scalar::Real;
 use core::fmt;
 use nalgebra::SVector;
@@ -101,7 +101,7 @@ impl<T: Real, const D: usize> SearchSpace<T, D> {
     /// The space of the parameters of `set` around zero errors: initial half range `angle` (rad)
     /// for angles and `length` (mm) for lengths, bounds `bound_factor` times that.
     pub fn for_parameters<const N: usize>(
-        set: &crate::parameters::ParameterSet<N, D>,
+        set: &crate::model::parameters::ParameterSet<N, D>,
         angle: T,
         length: T,
         bound_factor: T,
@@ -116,7 +116,7 @@ impl<T: Real, const D: usize> SearchSpace<T, D> {
 
     /// [`SearchSpace::for_parameters`] with the paper's ranges (0.01 rad, 0.5 mm) and
     /// [`DEFAULT_BOUND_FACTOR`].
-    pub fn paper<const N: usize>(set: &crate::parameters::ParameterSet<N, D>) -> Self {
+    pub fn paper<const N: usize>(set: &crate::model::parameters::ParameterSet<N, D>) -> Self {
         Self::for_parameters(
             set,
             T::of(PAPER_ANGLE_RANGE),
@@ -193,6 +193,7 @@ pub enum StopReason {
 /// Why a swarm run was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
 pub enum IpsoError {
     /// `c1`, `c2` are not finite and positive with `c1 + c2 > 4` (eq. 10 needs phi > 4).
     InvalidCoefficients,

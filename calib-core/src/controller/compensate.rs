@@ -12,9 +12,9 @@
 //! pose the nominal model gives for the start joints), or a near-singular configuration
 //! (manipulability of the scaled Jacobian below a threshold).
 
+use crate::kinematics::pose_error::PoseError;
 use crate::kinematics::{Kinematics, Pose};
 use crate::model::JointLimits;
-use crate::pose_error::PoseError;
 use crate::scalar::Real;
 use core::fmt;
 use nalgebra::{SMatrix, SVector};
@@ -69,6 +69,7 @@ impl<T: Real> Default for CompensationSettings<T> {
 /// Why a compensation failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
 pub enum CompensationError {
     /// The target or start joints are not finite.
     NonFinite,
@@ -308,7 +309,7 @@ pub fn predistort<T: Real, const N: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::paper::{er10l_c10, table2};
+    use crate::model::paper::{er10l_c10, table2};
     use rand_core::{Rng, SeedableRng};
     extern crate std;
 

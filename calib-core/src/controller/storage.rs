@@ -17,6 +17,7 @@
 //! next sequence number, so an interrupted write can only damage the older copy. [`load`] takes the
 //! newest valid slot, falls back to the other, then to the nominal model, and says which it used.
 
+use crate::KinematicsError;
 use crate::model::{MdhJoint, Robot};
 use crate::scalar::Real;
 use core::fmt;
@@ -35,6 +36,7 @@ pub const fn block_len<T: Real, const N: usize>() -> usize {
 /// Why a block could not be written or read.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
 pub enum StorageError {
     /// The buffer is shorter than [`block_len`].
     BufferTooSmall,
@@ -48,8 +50,8 @@ pub enum StorageError {
     WrongJointCount(u8),
     /// The checksum does not match: the block is damaged or was not completely written.
     BadChecksum,
-    /// The model in the block is invalid (non-finite value or reversed limits).
-    InvalidModel,
+    /// The model is invalid (non-finite value or reversed limits; the cause names it).
+    InvalidModel(KinematicsError),
     /// The flash driver reported a failure.
     Flash,
 }
@@ -63,16 +65,23 @@ impl fmt::Display for StorageError {
             Self::WrongScalar(s) => write!(f, "block holds {s}-byte scalars"),
             Self::WrongJointCount(n) => write!(f, "block is for a {n}-joint robot"),
             Self::BadChecksum => f.write_str("block checksum mismatch (damaged or incomplete)"),
-            Self::InvalidModel => f.write_str("block holds an invalid model"),
+            Self::InvalidModel(e) => write!(f, "block holds an invalid model: {e}"),
             Self::Flash => f.write_str("flash write failed"),
         }
     }
 }
 
-impl core::error::Error for StorageError {}
+impl core::error::Error for StorageError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            Self::InvalidModel(e) => Some(e),
+            _ => None,
+        }
+    }
+}
 
 /// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320, init and final xor 0xFFFFFFFF), bitwise.
-pub fn crc32(bytes: &[u8]) -> u32 {
+pub(crate) fn crc32(bytes: &[u8]) -> u32 {
     let mut crc = 0xFFFF_FFFFu32;
     for byte in bytes {
         crc ^= u32::from(*byte);
@@ -166,9 +175,10 @@ pub fn decode<T: Real, const N: usize>(bytes: &[u8]) -> Result<(Robot<T, N>, u32
         Some(v) => *slot = v,
         None => ok = false,
     });
-    if !ok || robot.validate().is_err() {
-        return Err(StorageError::InvalidModel);
+    if !ok {
+        return Err(StorageError::BufferTooSmall);
     }
+    robot.validate().map_err(StorageError::InvalidModel)?;
     Ok((robot, sequence))
 }
 
@@ -313,7 +323,7 @@ pub fn store<T: Real, const N: usize>(
     robot: &Robot<T, N>,
     buffer: &mut [u8],
 ) -> Result<(Slot, u32), StorageError> {
-    robot.validate().map_err(|_| StorageError::InvalidModel)?;
+    robot.validate().map_err(StorageError::InvalidModel)?;
     let (slot, sequence) = match load::<T, N>(flash, robot).1 {
         Source::Newest(Slot::A, s) | Source::Fallback(Slot::A, s) => (Slot::B, s.wrapping_add(1)),
         Source::Newest(Slot::B, s) | Source::Fallback(Slot::B, s) => (Slot::A, s.wrapping_add(1)),
@@ -328,7 +338,7 @@ pub fn store<T: Real, const N: usize>(
 mod tests {
     use super::*;
     use crate::Kinematics;
-    use crate::paper::{er10l_c10, table2};
+    use crate::model::paper::{er10l_c10, table2};
     extern crate std;
     use std::vec;
     use std::vec::Vec;

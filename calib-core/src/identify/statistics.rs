@@ -2,7 +2,7 @@
 //! error `|dp|` (mm) and the per-axis orientation errors `|dr_x|, |dr_y|, |dr_z|` (rad), each as
 //! mean, sample standard deviation (n - 1) and maximum.
 
-use crate::pose_error::PoseError;
+use crate::kinematics::pose_error::PoseError;
 use crate::scalar::Real;
 
 /// Running mean, standard deviation and maximum of a quantity (Welford's algorithm).

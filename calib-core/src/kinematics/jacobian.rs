@@ -4,9 +4,9 @@
 //! unit) and the angular velocity `omega` (rad per unit), both in the base (world) frame, stacked as
 //! the 6 rows `[v; omega]`. The end point is the origin of the tool frame.
 
-use crate::error::KinematicsError;
+use crate::kinematics::KinematicsError;
 use crate::kinematics::{JointAngles, Kinematics, Pose};
-use crate::parameters::{FrameParameter, JointParameter, Parameter, ParameterSet};
+use crate::model::parameters::{FrameParameter, JointParameter, Parameter, ParameterSet};
 use crate::scalar::Real;
 use nalgebra::{Matrix3, SMatrix, Vector3, Vector6};
 
@@ -100,10 +100,10 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::kinematics::pose_error::{PoseError, pose_error_jacobian};
     use crate::model::Robot;
-    use crate::paper::{er10l_with_frames, table2};
-    use crate::parameters::{ParameterErrors, ParameterMask, all_parameters};
-    use crate::pose_error::{PoseError, pose_error_jacobian};
+    use crate::model::paper::{er10l_with_frames, table2};
+    use crate::model::parameters::{ParameterErrors, ParameterMask, all_parameters};
 
     const Q: [[f64; 6]; 3] = [
         [0.3, -0.7, 1.1, 2.0, -1.4, 0.6],
@@ -204,8 +204,9 @@ mod tests {
                 let tp = kinematics.forward(&plus).unwrap();
                 let tm = kinematics.forward(&minus).unwrap();
                 let v = (tp.translation.vector - tm.translation.vector) / (2.0 * h);
-                let w = crate::so3::log(&(tp.rotation.matrix() * tm.rotation.matrix().transpose()))
-                    / (2.0 * h);
+                let w = crate::kinematics::so3::log(
+                    &(tp.rotation.matrix() * tm.rotation.matrix().transpose()),
+                ) / (2.0 * h);
                 for r in 0..3 {
                     assert!((v[r] - jacobian[(r, j)]).abs() < 1e-5 * (1.0 + v[r].abs()));
                     assert!((w[r] - jacobian[(r + 3, j)]).abs() < 1e-8);

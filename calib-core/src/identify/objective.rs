@@ -14,14 +14,12 @@
 //! ER10L-C10's links. With `k = 1` the orientation term is a thousand times weaker and the
 //! swarm stalls near 0.3 mm (measured by an independent implementation of the method).
 
+use crate::identify::Problem;
+use crate::kinematics::mdh::{GROUP, LANES, Lanes};
+use crate::kinematics::pose_error::PoseError;
+use crate::kinematics::so3;
 use crate::kinematics::{JointAngles, Kinematics};
-use crate::mdh::{GROUP, LANES, Lanes};
-use crate::model::Robot;
-use crate::parameters::{ParameterErrors, ParameterSet};
-use crate::pose_error::PoseError;
-use crate::problem::Problem;
 use crate::scalar::Real;
-use crate::so3;
 use crate::{KinematicsError, Pose};
 use core::fmt;
 use nalgebra::{Matrix3, SVector, Vector3};
@@ -29,11 +27,14 @@ use nalgebra::{Matrix3, SVector, Vector3};
 /// Default orientation weight `k` of eq. (7), mm^2/rad^2 (see the module docs).
 pub const DEFAULT_K: f64 = 1e6;
 
-/// Why a measurement or objective was refused.
+/// Why a measurement was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum ObjectiveError {
-    /// A joint reading, position, rotation or weight of a measurement is NaN or infinite.
+#[non_exhaustive]
+pub enum MeasurementError {
+    /// A joint reading is NaN or infinite (the joint is named).
+    Joint(KinematicsError),
+    /// A position, rotation or weight of a measurement is NaN or infinite.
     NonFinite,
     /// A weight is negative.
     NegativeWeight,
@@ -41,30 +42,26 @@ pub enum ObjectiveError {
     NotARotation,
     /// The measurement set is full (its capacity is the const generic `M`).
     Full,
-    /// The nominal model or fixed errors are invalid.
-    Model(KinematicsError),
-    /// The orientation weight `k` is negative or not finite.
-    InvalidK,
 }
 
-impl fmt::Display for ObjectiveError {
+impl fmt::Display for MeasurementError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
+            Self::Joint(e) => write!(f, "{e}"),
             Self::NonFinite => f.write_str("a measurement value is NaN or infinite"),
             Self::NegativeWeight => f.write_str("a measurement weight is negative"),
             Self::NotARotation => f.write_str("a measured rotation is not orthonormal"),
             Self::Full => f.write_str("the measurement set is full"),
-            Self::Model(e) => write!(f, "model: {e}"),
-            Self::InvalidK => f.write_str("the orientation weight k must be finite and >= 0"),
         }
     }
 }
 
-impl core::error::Error for ObjectiveError {}
-
-impl From<KinematicsError> for ObjectiveError {
-    fn from(e: KinematicsError) -> Self {
-        Self::Model(e)
+impl core::error::Error for MeasurementError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            Self::Joint(e) => Some(e),
+            _ => None,
+        }
     }
 }
 
@@ -89,23 +86,23 @@ impl<T: Real, const N: usize> Measurement<T, N> {
         position: Vector3<T>,
         rotation: Option<Matrix3<T>>,
         weight: T,
-    ) -> Result<Self, ObjectiveError> {
-        let angles = JointAngles::new(q).map_err(|_| ObjectiveError::NonFinite)?;
+    ) -> Result<Self, MeasurementError> {
+        let angles = JointAngles::new(q).map_err(MeasurementError::Joint)?;
         let finite = |v: &[T]| v.iter().all(|x| x.finite());
         if !finite(position.as_slice()) || !weight.finite() {
-            return Err(ObjectiveError::NonFinite);
+            return Err(MeasurementError::NonFinite);
         }
         if weight < T::zero() {
-            return Err(ObjectiveError::NegativeWeight);
+            return Err(MeasurementError::NegativeWeight);
         }
         if let Some(r) = &rotation {
             if !finite(r.as_slice()) {
-                return Err(ObjectiveError::NonFinite);
+                return Err(MeasurementError::NonFinite);
             }
             let off = (r.transpose() * r - Matrix3::identity()).abs().max();
             // Entries were checked finite above, so `off` is not NaN.
             if off > T::of(1e-3) || r.determinant() < T::zero() {
-                return Err(ObjectiveError::NotARotation);
+                return Err(MeasurementError::NotARotation);
             }
         }
         Ok(Self {
@@ -140,7 +137,7 @@ impl<T: Real, const N: usize> Measurement<T, N> {
     }
 
     /// A measurement taken from a pose (position and rotation), weight 1.
-    pub fn from_pose(q: &[T; N], pose: &Pose<T>) -> Result<Self, ObjectiveError> {
+    pub fn from_pose(q: &[T; N], pose: &Pose<T>) -> Result<Self, MeasurementError> {
         Self::new(
             q,
             pose.translation.vector,
@@ -191,30 +188,23 @@ impl<T: Real, const N: usize, const M: usize> MeasurementSet<T, N, M> {
     }
 }
 
-/// Eq. (7) for the parameters of a [`ParameterSet`] over a set of measurements.
-#[derive(Clone, Debug)]
-pub struct Objective<'a, T: Real, const N: usize, const D: usize> {
-    problem: Problem<'a, T, N, D>,
+/// Eq. (7) for the parameters of a [`ParameterSet`](crate::ParameterSet) over a set of measurements: the swarm's
+/// view of a [`Problem`].
+#[derive(Clone, Copy, Debug)]
+pub struct Objective<'p, T: Real, const N: usize, const D: usize> {
+    problem: &'p Problem<'p, T, N, D>,
 }
 
-impl<'a, T: Real, const N: usize, const D: usize> Objective<'a, T, N, D> {
-    /// The objective of the identified parameters `set`; parameters outside the set keep the
-    /// values of `fixed` (usually zero). `k` in mm^2/rad^2 ([`DEFAULT_K`]).
-    pub fn new(
-        robot: &Robot<T, N>,
-        fixed: &ParameterErrors<T, N>,
-        set: ParameterSet<N, D>,
-        measurements: &'a [Measurement<T, N>],
-        k: T,
-    ) -> Result<Self, ObjectiveError> {
-        Ok(Self {
-            problem: Problem::new(robot, fixed, set, measurements, k)?,
-        })
+impl<'p, T: Real, const N: usize, const D: usize> Objective<'p, T, N, D> {
+    /// The objective of `problem`: its identified parameters over its measurements, with its `k`
+    /// ([`DEFAULT_K`] by default).
+    pub fn new(problem: &'p Problem<'p, T, N, D>) -> Self {
+        Self { problem }
     }
 
     /// The problem: identified parameters, measurements, `k`.
-    pub fn problem(&self) -> &Problem<'a, T, N, D> {
-        &self.problem
+    pub fn problem(&self) -> &'p Problem<'p, T, N, D> {
+        self.problem
     }
 
     /// Eq. (7) at the packed errors `x` (mm, rad). Non-finite `x` gives +infinity.
@@ -326,18 +316,18 @@ impl<'a, T: Real, const N: usize, const D: usize> Objective<'a, T, N, D> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ipso::{self, IpsoSettings, SearchSpace, Silent};
-    use crate::paper::{er10l_c10, paper_measurements, table2};
-    use crate::parameters::ParameterMask;
+    use crate::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
+    use crate::model::paper::{er10l_c10, paper_measurements, table2};
+    use crate::{ParameterErrors, ParameterSet, Problem};
 
     /// Runs the paper's swarm (20 particles, 2000 generations, plain Halton, seed 0, bounds 10
     /// times the initial range) on the noise-free 32-pose scenario; returns the worst length error
     /// (mm), the worst angle error (rad) against Table 2, and the initial and final objective.
     fn paper_run<T: Real>() -> (f64, f64, f64, f64) {
         let robot = er10l_c10::<T>();
-        let set = ParameterSet::<6, 24>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
+        let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
         let data = paper_measurements::<T>(1);
-        let objective = Objective::new(
+        let problem = Problem::new(
             &robot,
             &ParameterErrors::zero(),
             set,
@@ -345,6 +335,7 @@ mod tests {
             T::of(DEFAULT_K),
         )
         .unwrap();
+        let objective = Objective::new(&problem);
         let space = SearchSpace::paper(&set);
         let mut cost = |x: &SVector<T, 24>| objective.value(x);
         let r = ipso::optimize::<T, 20, 24>(&mut cost, &space, &IpsoSettings::paper(), &mut Silent)

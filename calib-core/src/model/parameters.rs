@@ -16,7 +16,7 @@
 //! A [`ParameterSet`] keeps the parameters selected by a [`ParameterMask`] in this order; that is
 //! the order of the packed vector, of the Jacobian columns and of every report.
 
-use crate::error::KinematicsError;
+use crate::kinematics::KinematicsError;
 use crate::model::Robot;
 use crate::scalar::Real;
 use core::fmt;
@@ -425,6 +425,12 @@ pub struct ParameterSet<const N: usize, const D: usize> {
 }
 
 impl<const N: usize, const D: usize> ParameterSet<N, D> {
+    /// The default identification set of `robot` ([`ParameterMask::default_for`]: the paper's
+    /// 24 parameters for the ER10L-C10); an error unless it selects exactly `D` parameters.
+    pub fn default_for<T: Real>(robot: &Robot<T, N>) -> Result<Self, KinematicsError> {
+        Self::from_mask(&ParameterMask::default_for(robot))
+    }
+
     /// The set selected by `mask`; an error unless it selects exactly `D` parameters.
     pub fn from_mask(mask: &ParameterMask<N>) -> Result<Self, KinematicsError> {
         let found = mask.count();
@@ -499,7 +505,7 @@ impl<const N: usize, const D: usize> ParameterSet<N, D> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::paper::{er10l_c10 as er10l, table2};
+    use crate::model::paper::{er10l_c10 as er10l, table2};
     extern crate std;
     use std::string::ToString;
     use std::vec::Vec;

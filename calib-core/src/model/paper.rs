@@ -2,8 +2,8 @@
 //! geometric errors of its simulation (Table 2). Used by the paper's simulation, the benchmarks
 //! and the firmware; the tests check these values against the copies of the paper's tables.
 
+use crate::model::parameters::{JointErrors, ParameterErrors};
 use crate::model::{MdhJoint, Robot};
-use crate::parameters::{JointErrors, ParameterErrors};
 use crate::scalar::Real;
 
 const DEG: f64 = core::f64::consts::PI / 180.0;
@@ -70,8 +70,10 @@ pub(crate) fn er10l_with_frames() -> Robot<f64, 6> {
 /// The noise-free simulation of the paper's section 3.1 for tests: 32 joint vectors uniform in
 /// [-pi, pi] (seeded), measured as full poses of the robot with Table 2 errors.
 #[cfg(test)]
-pub(crate) fn paper_measurements<T: Real>(seed: u64) -> crate::objective::MeasurementSet<T, 6, 32> {
-    use crate::objective::{Measurement, MeasurementSet};
+pub(crate) fn paper_measurements<T: Real>(
+    seed: u64,
+) -> crate::identify::objective::MeasurementSet<T, 6, 32> {
+    use crate::identify::objective::{Measurement, MeasurementSet};
     use rand_core::{Rng, SeedableRng};
     let truth = crate::Kinematics::new(&er10l_c10::<T>(), &table2::<T>()).unwrap();
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);

@@ -276,16 +276,16 @@ fn pivoted_qr<T: Real, const D: usize>(a: &SMatrix<T, D, D>) -> ([usize; D], SMa
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::lm::LeastSquares;
-    use crate::paper::{er10l_c10, paper_measurements};
-    use crate::parameters::{ParameterErrors, ParameterMask, ParameterSet};
+    use crate::model::paper::{er10l_c10, paper_measurements};
+    use crate::model::parameters::{ParameterErrors, ParameterMask, ParameterSet};
+    use crate::{LeastSquares, Problem};
     extern crate std;
     use std::string::{String, ToString};
     use std::vec::Vec;
 
     fn analyse(position_only: bool) -> (Identifiability<f64, 24>, ParameterSet<6, 24>) {
         let robot = er10l_c10::<f64>();
-        let set = ParameterSet::<6, 24>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
+        let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
         let mut data = paper_measurements::<f64>(1);
         let mut list: Vec<_> = data.as_slice().to_vec();
         if position_only {
@@ -293,13 +293,14 @@ mod tests {
                 m.rotation = None;
             }
         }
-        data = crate::objective::MeasurementSet::new();
+        data = crate::identify::objective::MeasurementSet::new();
         for m in list {
             data.push(m).unwrap();
         }
         let problem =
-            LeastSquares::new(&robot, &ParameterErrors::zero(), set, data.as_slice(), 1e6).unwrap();
-        let r = problem.jacobian_factor(&nalgebra::SVector::zeros());
+            Problem::new(&robot, &ParameterErrors::zero(), set, data.as_slice(), 1e6).unwrap();
+        let least_squares = LeastSquares::new(&problem);
+        let r = least_squares.jacobian_factor(&nalgebra::SVector::zeros());
         (
             Identifiability::from_factor(&r, 32, DEFAULT_RANK_TOLERANCE),
             set,
@@ -378,7 +379,7 @@ mod tests {
 
     #[test]
     fn with_the_base_frame_identified_dtheta1_and_dd1_are_redundant() {
-        use crate::parameters::{FrameParameter, Parameter};
+        use crate::model::parameters::{FrameParameter, Parameter};
         let robot = er10l_c10::<f64>();
         let mut mask = ParameterMask::default_for(&robot);
         for kind in FrameParameter::ALL {
@@ -387,9 +388,10 @@ mod tests {
         let set = ParameterSet::<6, 30>::from_mask(&mask).unwrap();
         let data = paper_measurements::<f64>(1);
         let problem =
-            LeastSquares::new(&robot, &ParameterErrors::zero(), set, data.as_slice(), 1e6).unwrap();
+            Problem::new(&robot, &ParameterErrors::zero(), set, data.as_slice(), 1e6).unwrap();
+        let least_squares = LeastSquares::new(&problem);
         let id = Identifiability::from_factor(
-            &problem.jacobian_factor(&nalgebra::SVector::zeros()),
+            &least_squares.jacobian_factor(&nalgebra::SVector::zeros()),
             32,
             DEFAULT_RANK_TOLERANCE,
         );

@@ -1,13 +1,53 @@
-//! A calibration problem as both the swarm's objective and least squares see it: the nominal
-//! robot (prepared once), the errors of the parameters that are not identified, the identified
-//! parameter set, the measurements, and the orientation weight `k`.
+//! A calibration problem, checked once and borrowed by both solvers (the swarm's [`Objective`]
+//! and [`LeastSquares`]): the nominal robot (prepared once), the errors of the parameters that are
+//! not identified, the identified parameter set, the measurements, and the orientation weight `k`.
+//!
+//! [`Objective`]: crate::identify::objective::Objective
+//! [`LeastSquares`]: crate::identify::lm::LeastSquares
 
+use crate::identify::objective::Measurement;
+use crate::kinematics::KinematicsError;
 use crate::kinematics::{Kinematics, PreparedRobot};
 use crate::model::Robot;
-use crate::objective::{Measurement, ObjectiveError};
-use crate::parameters::{ParameterErrors, ParameterSet};
+use crate::model::parameters::{ParameterErrors, ParameterSet};
 use crate::scalar::Real;
+use core::fmt;
 use nalgebra::SVector;
+
+/// Why a calibration problem was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum ProblemError {
+    /// The nominal model or the fixed errors are invalid.
+    Model(KinematicsError),
+    /// The orientation weight `k` is negative or not finite.
+    InvalidK,
+}
+
+impl fmt::Display for ProblemError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Model(e) => write!(f, "model: {e}"),
+            Self::InvalidK => f.write_str("the orientation weight k must be finite and >= 0"),
+        }
+    }
+}
+
+impl core::error::Error for ProblemError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            Self::Model(e) => Some(e),
+            Self::InvalidK => None,
+        }
+    }
+}
+
+impl From<KinematicsError> for ProblemError {
+    fn from(e: KinematicsError) -> Self {
+        Self::Model(e)
+    }
+}
 
 /// The data and model of one calibration, checked once.
 #[derive(Clone, Debug)]
@@ -28,11 +68,11 @@ impl<'a, T: Real, const N: usize, const D: usize> Problem<'a, T, N, D> {
         set: ParameterSet<N, D>,
         measurements: &'a [Measurement<T, N>],
         k: T,
-    ) -> Result<Self, ObjectiveError> {
+    ) -> Result<Self, ProblemError> {
         robot.validate()?;
         fixed.validate()?;
         if !k.finite() || k < T::zero() {
-            return Err(ObjectiveError::InvalidK);
+            return Err(ProblemError::InvalidK);
         }
         Ok(Self {
             robot: PreparedRobot::new(robot),

@@ -1,12 +1,12 @@
 //! Forward kinematics of the actual model: `T = T_base A_1 ... A_N T_tool` (paper eq. 2-3).
 
-use crate::error::KinematicsError;
-use crate::mdh::{LaneFrame, Lanes, PreparedJoint};
+use crate::kinematics::KinematicsError;
+use crate::kinematics::mdh::{LaneFrame, Lanes, PreparedJoint};
+use crate::kinematics::so3;
+use crate::kinematics::trig;
+use crate::model::parameters::{FrameErrors, ParameterErrors};
 use crate::model::{Robot, joint_number};
-use crate::parameters::{FrameErrors, ParameterErrors};
 use crate::scalar::Real;
-use crate::so3;
-use crate::trig;
 use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, Translation3, Vector3};
 
 /// A rigid pose: rotation matrix and translation (mm).
@@ -223,7 +223,7 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
     }
 
     /// The prepared joints, joint 1 first.
-    pub fn joints(&self) -> &[PreparedJoint<T>; N] {
+    pub(crate) fn joints(&self) -> &[PreparedJoint<T>; N] {
         &self.joints
     }
 
@@ -250,10 +250,10 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
         )
     }
 
-    /// End frames of [`LANES`](crate::mdh::LANES) poses at once from their joint cosines and
+    /// End frames of [`LANES`](crate::kinematics::mdh::LANES) poses at once from their joint cosines and
     /// sines as lanes (the structure-of-arrays form of [`Kinematics::forward_angles`], which the
     /// compiler vectorises).
-    pub fn forward_lanes(&self, cos: &[Lanes<T>; N], sin: &[Lanes<T>; N]) -> LaneFrame<T> {
+    pub(crate) fn forward_lanes(&self, cos: &[Lanes<T>; N], sin: &[Lanes<T>; N]) -> LaneFrame<T> {
         let r = self.base.rotation.matrix();
         let t = &self.base.translation.vector;
         let column = |j: usize| [0, 1, 2].map(|i| Lanes::repeat(r[(i, j)]));

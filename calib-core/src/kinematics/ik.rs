@@ -10,19 +10,23 @@
 //! from the planar two-link problem (two branches). The wrist is
 //! `R_36 = R_03^T R_06 = Rz(theta4) Ry(-theta5) Rz(theta6)`, ZYZ Euler angles (two branches).
 
+use crate::KinematicsError;
 use crate::kinematics::{Kinematics, Pose};
 use crate::model::Robot;
-use crate::parameters::ParameterErrors;
+use crate::model::parameters::ParameterErrors;
 use crate::scalar::Real;
 use core::fmt;
 
 /// Why no inverse kinematics could be computed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
 pub enum IkError {
     /// The robot is not of the supported spherical-wrist family (see the module docs).
     UnsupportedGeometry,
-    /// The model or target is not finite.
+    /// The model is invalid (the cause names the parameter).
+    Model(KinematicsError),
+    /// The target is not finite.
     NonFinite,
 }
 
@@ -32,12 +36,20 @@ impl fmt::Display for IkError {
             Self::UnsupportedGeometry => f.write_str(
                 "closed-form inverse kinematics needs alpha = (-90, 0, -90, 90, -90, 0) deg, d2 = d3 = d5 = 0, a4 = a5 = a6 = 0, beta = 0",
             ),
-            Self::NonFinite => f.write_str("model or target is not finite"),
+            Self::Model(e) => write!(f, "model: {e}"),
+            Self::NonFinite => f.write_str("target is not finite"),
         }
     }
 }
 
-impl core::error::Error for IkError {}
+impl core::error::Error for IkError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            Self::Model(e) => Some(e),
+            _ => None,
+        }
+    }
+}
 
 /// Branch index bits: 4 = shoulder back, 2 = elbow down, 1 = wrist flipped.
 pub const BRANCHES: usize = 8;
@@ -60,7 +72,7 @@ pub fn inverse_kinematics<T: Real>(
     robot: &Robot<T, 6>,
     target: &Pose<T>,
 ) -> Result<[Option<[T; 6]>; BRANCHES], IkError> {
-    robot.validate().map_err(|_| IkError::NonFinite)?;
+    robot.validate().map_err(IkError::Model)?;
     if !target
         .translation
         .vector
@@ -90,8 +102,7 @@ pub fn inverse_kinematics<T: Real>(
     if !(alphas_ok && offsets_ok && beta_ok) {
         return Err(IkError::UnsupportedGeometry);
     }
-    let kinematics =
-        Kinematics::new(robot, &ParameterErrors::zero()).map_err(|_| IkError::NonFinite)?;
+    let kinematics = Kinematics::new(robot, &ParameterErrors::zero()).map_err(IkError::Model)?;
     // Flange pose T_06 = base^-1 * target * tool^-1.
     let flange = kinematics.base().inverse() * target * kinematics.tool().inverse();
     let r06 = flange.rotation.matrix();
@@ -189,8 +200,8 @@ pub fn closest<T: Real>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::paper::er10l_c10;
-    use crate::pose_error::PoseError;
+    use crate::kinematics::pose_error::PoseError;
+    use crate::model::paper::er10l_c10;
     use rand_core::{Rng, SeedableRng};
 
     #[test]

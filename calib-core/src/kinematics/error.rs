@@ -1,11 +1,12 @@
 //! The error of the kinematics layer: what is wrong with a model, a parameter set or a joint input.
 
-use crate::parameters::Parameter;
+use crate::model::parameters::Parameter;
 use core::fmt;
 
 /// Why a kinematic model or input was refused. Every variant names the offending item.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
 pub enum KinematicsError {
     /// A nominal model value (the named parameter's nominal counterpart) is NaN or infinite.
     NonFiniteNominal(Parameter),

@@ -13,11 +13,8 @@
 //! below `ftol`), or the iteration cap. The result carries `R` at the solution, from which the
 //! covariance `sigma^2 (J^T J)^-1 = sigma^2 R^-1 R^-T` and the standard errors follow.
 
-use crate::model::Robot;
-use crate::objective::{Measurement, ObjectiveError};
-use crate::parameters::{ParameterErrors, ParameterSet};
-use crate::pose_error::pose_error_jacobian;
-use crate::problem::Problem;
+use crate::identify::Problem;
+use crate::kinematics::pose_error::pose_error_jacobian;
 use crate::scalar::Real;
 use core::fmt;
 use nalgebra::{SMatrix, SVector};
@@ -77,6 +74,7 @@ pub enum LmStop {
 /// Why least squares could not run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
 pub enum LmError {
     /// Fewer residual rows than parameters.
     TooFewResiduals {
@@ -87,8 +85,6 @@ pub enum LmError {
     },
     /// A parameter does not change any residual (its Jacobian column is zero): index in the set.
     UnobservableParameter(u16),
-    /// The model, measurements or `k` are invalid.
-    Objective(ObjectiveError),
     /// The start point or a residual is not finite.
     NonFinite,
     /// The robust weight buffer does not have one entry per measurement.
@@ -107,7 +103,6 @@ impl fmt::Display for LmError {
             Self::UnobservableParameter(i) => {
                 write!(f, "parameter {i} of the set does not affect any residual")
             }
-            Self::Objective(e) => write!(f, "{e}"),
             Self::NonFinite => f.write_str("a parameter or residual is not finite"),
             Self::WeightBuffer => f.write_str("the weight buffer needs one entry per measurement"),
             Self::InvalidLossScale => f.write_str("the loss scale must be a finite number > 0"),
@@ -116,12 +111,6 @@ impl fmt::Display for LmError {
 }
 
 impl core::error::Error for LmError {}
-
-impl From<ObjectiveError> for LmError {
-    fn from(e: ObjectiveError) -> Self {
-        Self::Objective(e)
-    }
-}
 
 /// At most this many reweightings of the robust loss.
 pub const MAX_REWEIGHTINGS: u32 = 30;
@@ -225,10 +214,10 @@ impl<T: Real, const D: usize> LmResult<T, D> {
     }
 }
 
-/// The least-squares problem: the parameters of `set` over a set of measurements.
-#[derive(Clone, Debug)]
-pub struct LeastSquares<'a, T: Real, const N: usize, const D: usize> {
-    problem: Problem<'a, T, N, D>,
+/// Least squares over a [`Problem`]: its identified parameters over its measurements.
+#[derive(Clone, Copy, Debug)]
+pub struct LeastSquares<'p, T: Real, const N: usize, const D: usize> {
+    problem: &'p Problem<'p, T, N, D>,
     sqrt_k: T,
 }
 
@@ -278,26 +267,18 @@ impl<T: Real, const D: usize> Factor<T, D> {
     }
 }
 
-impl<'a, T: Real, const N: usize, const D: usize> LeastSquares<'a, T, N, D> {
-    /// The problem for the parameters of `set`; others keep the values of `fixed`. `k` weights
-    /// orientation (mm^2/rad^2), as in eq. (7).
-    pub fn new(
-        robot: &Robot<T, N>,
-        fixed: &ParameterErrors<T, N>,
-        set: ParameterSet<N, D>,
-        measurements: &'a [Measurement<T, N>],
-        k: T,
-    ) -> Result<Self, LmError> {
-        let problem = Problem::new(robot, fixed, set, measurements, k)?;
-        Ok(Self {
+impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
+    /// Least squares over `problem`; `k` (mm^2/rad^2) weights the orientation rows as in eq. (7).
+    pub fn new(problem: &'p Problem<'p, T, N, D>) -> Self {
+        Self {
             sqrt_k: problem.k().sqrt(),
             problem,
-        })
+        }
     }
 
     /// The problem: identified parameters, measurements, `k`.
-    pub fn problem(&self) -> &Problem<'a, T, N, D> {
-        &self.problem
+    pub fn problem(&self) -> &'p Problem<'p, T, N, D> {
+        self.problem
     }
 
     /// Number of residual rows: 6 per full pose, 3 per position-only pose.
@@ -365,7 +346,10 @@ impl<'a, T: Real, const N: usize, const D: usize> LeastSquares<'a, T, N, D> {
             let dp2 = (m.position - predicted.translation.vector).norm_squared();
             let norm = match &m.rotation {
                 Some(r) => {
-                    let angle2 = crate::so3::angle_squared_between(r, predicted.rotation.matrix());
+                    let angle2 = crate::kinematics::so3::angle_squared_between(
+                        r,
+                        predicted.rotation.matrix(),
+                    );
                     (dp2 + self.sqrt_k * self.sqrt_k * angle2).sqrt()
                 }
                 None => dp2.sqrt(),
@@ -611,16 +595,16 @@ fn damped_step<T: Real, const D: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::paper::{er10l_c10, paper_measurements, table2};
-    use crate::parameters::ParameterMask;
+    use crate::model::paper::{er10l_c10, paper_measurements, table2};
+    use crate::{ParameterErrors, ParameterSet};
 
     /// LM from the nominal model (zero errors) on the noise-free paper scenario; returns the worst
     /// length (mm) and angle (rad) errors against Table 2 and the result.
     fn recover<T: Real>() -> (f64, f64, LmResult<T, 24>) {
         let robot = er10l_c10::<T>();
-        let set = ParameterSet::<6, 24>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
+        let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
         let data = paper_measurements::<T>(1);
-        let problem = LeastSquares::new(
+        let problem = Problem::new(
             &robot,
             &ParameterErrors::zero(),
             set,
@@ -628,7 +612,8 @@ mod tests {
             T::of(1e6),
         )
         .unwrap();
-        let result = problem
+        let least_squares = LeastSquares::new(&problem);
+        let result = least_squares
             .solve(&SVector::zeros(), &LmSettings::default())
             .unwrap();
         let truth = set.pack(&table2::<T>());
@@ -679,13 +664,14 @@ mod tests {
 
     #[test]
     fn ipso_then_lm_recovers_table2_in_f32() {
-        use crate::ipso::{self, IpsoSettings, SearchSpace, Silent};
-        use crate::objective::Objective;
+        use crate::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
+        use crate::identify::objective::Objective;
         let robot = er10l_c10::<f32>();
-        let set = ParameterSet::<6, 24>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
+        let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
         let data = paper_measurements::<f32>(1);
-        let objective =
-            Objective::new(&robot, &ParameterErrors::zero(), set, data.as_slice(), 1e6).unwrap();
+        let problem =
+            Problem::new(&robot, &ParameterErrors::zero(), set, data.as_slice(), 1e6).unwrap();
+        let objective = Objective::new(&problem);
         let mut cost = |x: &SVector<f32, 24>| objective.value(x);
         let swarm = ipso::optimize::<f32, 20, 24>(
             &mut cost,
@@ -694,9 +680,10 @@ mod tests {
             &mut Silent,
         )
         .unwrap();
-        let problem =
-            LeastSquares::new(&robot, &ParameterErrors::zero(), set, data.as_slice(), 1e6).unwrap();
-        let result = problem.solve(&swarm.best, &LmSettings::default()).unwrap();
+        let least_squares = LeastSquares::new(&problem);
+        let result = least_squares
+            .solve(&swarm.best, &LmSettings::default())
+            .unwrap();
         let truth = set.pack(&table2::<f32>());
         let (mut mm, mut rad) = (0.0f32, 0.0f32);
         for (p, (x, t)) in set
@@ -758,12 +745,13 @@ mod tests {
     #[test]
     fn too_few_poses_and_unobservable_parameters_are_errors() {
         let robot = er10l_c10::<f64>();
-        let set = ParameterSet::<6, 24>::from_mask(&ParameterMask::default_for(&robot)).unwrap();
+        let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
         let data = paper_measurements::<f64>(1);
         let three = &data.as_slice()[..3];
-        let problem = LeastSquares::new(&robot, &ParameterErrors::zero(), set, three, 1e6).unwrap();
+        let problem = Problem::new(&robot, &ParameterErrors::zero(), set, three, 1e6).unwrap();
+        let least_squares = LeastSquares::new(&problem);
         assert_eq!(
-            problem.solve(&SVector::zeros(), &LmSettings::default()),
+            least_squares.solve(&SVector::zeros(), &LmSettings::default()),
             Err(LmError::TooFewResiduals {
                 rows: 18,
                 parameters: 24

@@ -2,7 +2,9 @@
 //! `A = Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta)`.
 
 use crate::scalar::Real;
-use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, SVector, Translation3, Vector3};
+#[cfg(test)]
+use nalgebra::{IsometryMatrix3, Rotation3, Translation3};
+use nalgebra::{Matrix3, SVector, Vector3};
 
 /// Number of poses evaluated side by side by [`PreparedJoint::append_lanes`]: 4 on a PC, where
 /// the compiler turns the lanes into SIMD, 1 on a 32-bit ARM controller, which has no SIMD for
@@ -73,6 +75,7 @@ pub struct PreparedJoint<T: Real> {
 
 impl<T: Real> PreparedJoint<T> {
     /// Prepares a joint from its actual MDH values (mm, rad).
+    #[cfg(test)]
     pub fn new(a: T, alpha: T, theta_offset: T, d: T, beta: T) -> Self {
         let cos_sin = |x: T| {
             let (s, c) = x.sin_cos_fast();
@@ -107,7 +110,9 @@ impl<T: Real> PreparedJoint<T> {
         (cos_q * co - sin_q * so, sin_q * co + cos_q * so)
     }
 
-    /// The joint transform `A` (eq. 1) in closed form for `(cos theta, sin theta)`.
+    /// The joint transform `A` (eq. 1) in closed form for `(cos theta, sin theta)` (tests check
+    /// the chained form against it).
+    #[cfg(test)]
     pub fn transform(&self, cos_theta: T, sin_theta: T) -> IsometryMatrix3<T> {
         let (c, s) = (cos_theta, sin_theta);
         #[rustfmt::skip]

@@ -2,11 +2,11 @@
 //! `dr = log(R_measured R_predicted^T)` (rad, rotation vector in the base frame, exact log map);
 //! and its Jacobian with respect to the identified parameters.
 
-use crate::error::KinematicsError;
+use crate::kinematics::KinematicsError;
+use crate::kinematics::so3;
 use crate::kinematics::{JointAngles, Kinematics, Pose};
-use crate::parameters::ParameterSet;
+use crate::model::parameters::ParameterSet;
 use crate::scalar::Real;
-use crate::so3;
 use nalgebra::{SMatrix, Vector3};
 
 /// Position and orientation error of one measured pose.

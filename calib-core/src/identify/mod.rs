@@ -1,0 +1,21 @@
+//! Identification of the parameter errors from measurements: the calibration [`Problem`]
+//! (robot, identified set, measurements, `k`), the paper's objective (eq. 7) and its swarm
+//! (Halton start, eq. 8-10), Levenberg-Marquardt least squares, identifiability, and the
+//! paper's Table 3 statistics.
+//!
+//! - [`objective`]: measurements and the objective of eq. (7);
+//! - [`halton`]: the Halton sequence of eq. (8)-(9);
+//! - [`ipso`]: the improved particle swarm (Halton start, constriction factor, eq. 10);
+//! - [`lm`]: least squares with streamed Givens QR, robust losses, standard errors;
+//! - [`identifiability`]: rank, condition, observability and the undetermined parameters;
+//! - [`statistics`]: the paper's Table 3 statistics, accumulated without storage.
+
+pub mod halton;
+pub mod identifiability;
+pub mod ipso;
+pub mod lm;
+pub mod objective;
+mod problem;
+pub mod statistics;
+
+pub use problem::Problem;

@@ -1,0 +1,10 @@
+//! The robot model: the nominal robot ([`Robot`]: Hayati MDH joints, joint limits, base and tool
+//! frames), its parameter errors and the identification mask ([`parameters`]), and the robot of
+//! the source paper ([`paper`]).
+
+pub mod paper;
+pub mod parameters;
+mod robot;
+
+pub(crate) use robot::joint_number;
+pub use robot::{FramePose, JointLimits, MdhJoint, Robot};
