@@ -11,7 +11,7 @@ pub trait Real: RealField + Copy {
     /// Sine and cosine of `self` (radians) in one call, from `libm`.
     fn sin_cos_libm(self) -> (Self, Self);
     /// Sine and cosine of `self` (radians) as the core computes them: `libm` for `f64`, the
-    /// single-precision routine [`crate::kinematics::trig::sin_cos_f32`] for `f32` (no f64 arithmetic, which
+    /// single-precision routine `kinematics::trig::sin_cos_f32` for `f32` (no f64 arithmetic, which
     /// the Cortex-M4F emulates in software). Identical bits on every target.
     fn sin_cos_fast(self) -> (Self, Self);
     /// The correctly rounded square root (IEEE 754): libm on a PC, the FPU's `VSQRT.F32` on a

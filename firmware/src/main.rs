@@ -3,7 +3,7 @@
 //! Runs the controller's calibration job (`calib-onboard`: the paper's 32-pose scenario with
 //! tracker noise, the paper's swarm, least squares, Table 3, compensation of four targets), logs
 //! progress and the statistics with defmt over semihosting, measures instructions between marks
-//! with SysTick (exact under `qemu-system-arm -icount shift=0`, see `count.sh`), measures the
+//! with SysTick (exact under `qemu-system-arm -icount shift=0`, see `run.sh`), measures the
 //! peak stack by painting, and exits through semihosting with status 0 only when its outcome
 //! equals, bit for bit, the one the host test computed (`onboard/expected.bin`).
 #![no_std]

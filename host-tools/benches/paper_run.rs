@@ -15,7 +15,7 @@ use calib_core::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
 use calib_core::identify::objective::{DEFAULT_K, Measurement, Objective};
 use calib_core::{ParameterErrors, ParameterSet};
 use criterion::{Criterion, criterion_group, criterion_main};
-use host_tools::calibrate::Parallel;
+use host_tools::calibration::Parallel;
 use host_tools::tracker_data::TrackerData;
 use nalgebra::Vector3;
 use std::path::Path;

@@ -21,13 +21,16 @@ use serde::Serialize;
 pub enum Frames {
     /// None: the data are in the robot's base frame and the tool is known.
     #[value(name = "none")]
+    #[serde(rename = "none")]
     None,
     /// The tracker-to-base frame (6 parameters); the tool is known.
     #[value(name = "base")]
+    #[serde(rename = "base")]
     Base,
     /// The base frame and the tool: 3 translations for a reflector (position-only data), 6 for a
     /// 6-DoF probe.
     #[value(name = "base+tool")]
+    #[serde(rename = "base+tool")]
     BaseTool,
 }
 
@@ -344,8 +347,8 @@ pub const MAX_REGISTRATION_RMS_MM: f64 = 20.0;
 /// What the frame identification did, for reports.
 #[derive(Clone, Debug, Serialize)]
 pub struct FramesReport {
-    /// `none`, `base` or `base+tool`.
-    pub identified: &'static str,
+    /// The frames identified (`none`, `base` or `base+tool` in JSON).
+    pub identified: Frames,
     /// RMS position residual of the closed-form registration, mm.
     pub registration_rms_mm: f64,
     /// Largest position residual of the registration, mm.
@@ -370,8 +373,8 @@ pub struct FramesReport {
 /// parameters with the frames.
 pub fn prepare(
     frames: Frames,
-    inputs: &mut crate::check::Inputs,
-    others: &mut [&mut crate::check::Inputs],
+    inputs: &mut crate::dataset::Dataset,
+    others: &mut [&mut crate::dataset::Dataset],
     k: f64,
 ) -> anyhow::Result<(FramesReport, ParameterMask<6>)> {
     let full_pose = inputs.measurements.iter().all(|m| m.rotation.is_some());
@@ -379,7 +382,7 @@ pub fn prepare(
     if frames == Frames::None {
         return Ok((
             FramesReport {
-                identified: frames.name(),
+                identified: frames,
                 registration_rms_mm: 0.0,
                 registration_max_mm: 0.0,
                 registration_iterations: 0,
@@ -422,7 +425,7 @@ pub fn prepare(
     let mut model = fitted.to_model(&inputs.model.path)?;
     model.mask = inputs.model.mask;
     let kinematics = Kinematics::nominal(&model.robot).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let frames_fit_rms_mm = crate::evaluate::table3(&kinematics, inputs)
+    let frames_fit_rms_mm = crate::statistics::table3(&kinematics, inputs)
         .0
         .position_mm
         .rms;
@@ -434,7 +437,7 @@ pub fn prepare(
     inputs.model = model;
     Ok((
         FramesReport {
-            identified: frames.name(),
+            identified: frames,
             registration_rms_mm: registration.rms_mm,
             registration_max_mm: registration.max_mm,
             registration_iterations: registration.iterations,
@@ -449,7 +452,7 @@ pub fn prepare(
 
 /// Least-squares fit of the frame parameters in `mask` alone (nominal geometry).
 fn fit_frames<const D: usize>(
-    inputs: &crate::check::Inputs,
+    inputs: &crate::dataset::Dataset,
     mask: &ParameterMask<6>,
     k: f64,
 ) -> anyhow::Result<calib_core::ParameterErrors<f64, 6>> {

@@ -4,14 +4,19 @@
 #![deny(missing_docs)]
 
 pub mod calibrate;
+pub mod calibration;
 pub mod check;
+pub mod cli;
 pub mod compensate;
+pub mod dataset;
 pub mod demo;
 pub mod dispatch;
 pub mod evaluate;
+pub mod export;
 pub mod files;
 pub mod fk;
 pub mod frames;
+pub mod identifiability;
 pub mod plots;
 pub mod profile;
 pub mod reference;
@@ -19,5 +24,6 @@ pub mod reference_lm;
 pub mod report;
 pub mod robot_file;
 pub mod simulate;
+pub mod statistics;
 pub mod tracker_data;
 pub mod verify;

@@ -61,7 +61,7 @@ pub struct EulerConvention {
 }
 
 impl EulerConvention {
-    /// DESIGN.md's `rx_deg, ry_deg, rz_deg`: fixed axes x, then y, then z (`R = Rz Ry Rx`).
+    /// the ARCHITECTURE conventions' `rx_deg, ry_deg, rz_deg`: fixed axes x, then y, then z (`R = Rz Ry Rx`).
     pub const FIXED_XYZ: Self = Self {
         kind: EulerKind::Fixed,
         order: [0, 1, 2],
@@ -144,7 +144,7 @@ fn point() -> String {
 /// How to read a tracker data file.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DataProfile {
-    /// Where the profile came from (`None`: the built-in format of DESIGN.md).
+    /// Where the profile came from (`None`: our built-in format, docs/ARCHITECTURE.md).
     pub path: Option<PathBuf>,
     /// What the profile is for.
     pub description: Option<String>,

@@ -214,7 +214,7 @@ pub fn rotation_vector(m: &Mat4) -> [f64; 3] {
     [x * angle / norm, y * angle / norm, z * angle / norm]
 }
 
-/// Pose error of DESIGN.md: `[dp (mm); dr (rad)]` with `dp = p_m - p_p`, `dr = log(R_m R_p^T)`.
+/// Pose error of docs/ARCHITECTURE.md: `[dp (mm); dr (rad)]` with `dp = p_m - p_p`, `dr = log(R_m R_p^T)`.
 pub fn pose_error(measured: &Mat4, predicted: &Mat4) -> [f64; 6] {
     // R_m R_p^T as a 4x4 with zero translation.
     let mut relative = IDENTITY;

@@ -126,7 +126,7 @@ pub struct ReferenceFit {
     pub evaluations: usize,
 }
 
-/// Fits the errors of `names` (DESIGN.md names such as `da1`, `dbeta2`) to `data` from `start`.
+/// Fits the errors of `names` (names such as `da1`, `dbeta2`) to `data` from `start`.
 pub fn fit(
     file: &RobotFile,
     names: &[String],

@@ -1,4 +1,4 @@
-//! The robot model file (TOML, DESIGN.md): nominal MDH joints in mm and degrees, optional joint
+//! The robot model file (TOML, docs/ARCHITECTURE.md): nominal MDH joints in mm and degrees, optional joint
 //! limits and identification lists, optional base and tool frames.
 //!
 //! ```toml
@@ -10,7 +10,7 @@
 //! d_mm = 0.0
 //! beta_deg = 0.0                      # optional, default 0
 //! limits_deg = [-170.0, 170.0]        # optional, default unlimited
-//! identify = ["a", "alpha", "theta", "d"]   # optional, default: the rule of DESIGN.md
+//! identify = ["a", "alpha", "theta", "d"]   # optional, default: the rule of docs/ARCHITECTURE.md
 //! [base]                              # optional, default identity
 //! xyz_mm = [0.0, 0.0, 0.0]
 //! rpy_deg = [0.0, 0.0, 0.0]           # R = Rz(yaw) Ry(pitch) Rx(roll)
@@ -70,7 +70,7 @@ pub struct JointEntry {
     /// `[lower, upper]` joint limits, degrees (default: unlimited).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub limits_deg: Option<[f64; 2]>,
-    /// Parameters to identify, from `a`, `d`, `alpha`, `beta`, `theta` (default: DESIGN.md rule).
+    /// Parameters to identify, from `a`, `d`, `alpha`, `beta`, `theta` (default: the rule of docs/ARCHITECTURE.md).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub identify: Option<Vec<String>>,
 }

@@ -1,4 +1,4 @@
-//! Tracker data files (CSV, DESIGN.md): a header row whose column names carry their unit, `#`
+//! Tracker data files (CSV, docs/ARCHITECTURE.md): a header row whose column names carry their unit, `#`
 //! comment lines, and one measured pose per row.
 //!
 //! Columns: joints `q1_deg..qN_deg` (or `_rad`), position `x_mm, y_mm, z_mm` (or `_m`), optional
@@ -106,7 +106,7 @@ enum Column {
     Ignored,
 }
 
-/// `true` when `name` is one of our column names (DESIGN.md), such as `q3_deg` or `x_m`.
+/// `true` when `name` is one of our column names (docs/ARCHITECTURE.md), such as `q3_deg` or `x_m`.
 pub fn is_known_column(name: &str) -> bool {
     parse_column(name).is_some()
 }
@@ -151,7 +151,7 @@ fn parse_column(name: &str) -> Option<Column> {
 }
 
 impl TrackerData {
-    /// Reads and checks a tracker data file in our format (DESIGN.md).
+    /// Reads and checks a tracker data file in our format (docs/ARCHITECTURE.md).
     pub fn read(path: &Path) -> Result<Self, DataError> {
         Self::read_with(path, &DataProfile::default())
     }

@@ -5,7 +5,7 @@
 //! All three fit the same parameters from the same start (zero errors on the robot with its
 //! frames registered and fitted, as `calib calibrate` prepares it) by least squares.
 
-use crate::check::Inputs;
+use crate::dataset::Dataset;
 use crate::frames::Frames;
 use calib_core::Problem;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
@@ -36,7 +36,7 @@ pub mod tolerance {
 pub struct VerifyOptions {
     /// Robot, data and data profile files.
     #[command(flatten)]
-    pub input: crate::check::InputFiles,
+    pub input: crate::cli::InputFiles,
     /// Frames identified with the geometry (default base+tool unless the data say
     /// `# frame: base`).
     #[arg(long, value_enum)]
@@ -102,7 +102,7 @@ impl Verification {
                 .map_or_else(|| "infinite".to_string(), |c| format!("{c:.3e}")),
             if self
                 .condition_number
-                .is_some_and(|c| c <= crate::check::ILL_CONDITIONED)
+                .is_some_and(|c| c <= crate::identifiability::ILL_CONDITIONED)
             {
                 ""
             } else {
@@ -154,7 +154,7 @@ impl Verification {
 pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
     let (_, all) = options.input.load()?;
     let (mut calibration, mut validation) =
-        crate::evaluate::split(&all, options.validate, options.validate_seed)?;
+        crate::dataset::split(&all, options.validate, options.validate_seed)?;
     let frames = Frames::chosen(options.frames, &all.data);
     let (_, mask) =
         crate::frames::prepare(frames, &mut calibration, &mut [&mut validation], options.k)?;
@@ -165,13 +165,14 @@ pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
 }
 
 fn run<const D: usize>(
-    calibration: &Inputs,
-    validation: &Inputs,
+    calibration: &Dataset,
+    validation: &Dataset,
     mask: &ParameterMask<6>,
     k: f64,
 ) -> anyhow::Result<Verification> {
     let set = ParameterSet::<6, D>::from_mask(mask)?;
-    let condition_number = crate::check::analyse::<D>(calibration, mask, k)?.condition_number;
+    let condition_number =
+        crate::identifiability::analyse::<D>(calibration, mask, k)?.condition_number;
     let settings = LmSettings::default();
     // f64 core.
     let problem = Problem::new(
@@ -188,7 +189,7 @@ fn run<const D: usize>(
         .map_err(|e| anyhow::anyhow!("f64 core: {e}"))?
         .x;
     // f32 core.
-    let robot32 = crate::compensate::to_f32(&calibration.model.robot);
+    let robot32 = crate::export::to_f32(&calibration.model.robot);
     let measurements32 = calibration
         .measurements
         .iter()
@@ -231,7 +232,7 @@ fn run<const D: usize>(
     let rms = |x: &SVector<f64, D>| -> anyhow::Result<f64> {
         let kinematics = Kinematics::new(&validation.model.robot, &set.unpack(x))
             .map_err(|e| anyhow::anyhow!("{e}"))?;
-        let (table, _) = crate::evaluate::table3(&kinematics, validation);
+        let (table, _) = crate::statistics::table3(&kinematics, validation);
         Ok(table.position_mm.rms)
     };
     let x32_64 = x32.map(f64::from);

@@ -225,7 +225,7 @@ fn exported_block_is_byte_identical_to_the_core_and_round_trips() {
             let (robot, sequence) =
                 calib_core::controller::storage::decode::<f32, 6>(&bytes).unwrap();
             assert_eq!(sequence, 9);
-            assert_eq!(robot, host_tools::compensate::to_f32(&model.robot));
+            assert_eq!(robot, host_tools::export::to_f32(&model.robot));
         }
     }
     for format in ["toml", "json"] {

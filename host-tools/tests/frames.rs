@@ -84,8 +84,8 @@ fn frames_and_geometry_reach_the_reference_optimum() {
             holdout.to_str().unwrap(),
         ]);
         let c = calibrate::calibrate(&options).unwrap();
-        let frames = &c.report.frames;
-        assert_eq!(frames.identified, "base+tool");
+        let frames = &c.result.frames;
+        assert_eq!(frames.identified, host_tools::frames::Frames::BaseTool);
         // The nominal robot registered onto the data: a few mm (Table 2), not metres.
         assert!(frames.registration_rms_mm < 20.0 && frames.registration_rms_mm > 1.0);
         let identified_path = dir.path().join(format!("identified{seed}.toml"));
@@ -100,7 +100,12 @@ fn frames_and_geometry_reach_the_reference_optimum() {
         // The reference optimiser, started at the truth (true joints and frames as its baseline,
         // zero errors), fitting the same parameters.
         let truth_file = RobotFile::read(&truth).unwrap();
-        let names: Vec<String> = c.report.parameters.keys().cloned().collect();
+        let names: Vec<String> = c
+            .result
+            .parameters
+            .iter()
+            .map(|p| p.parameter.to_string())
+            .collect();
         let cal = TrackerData::read(&data).unwrap();
         let fit =
             reference_lm::fit(&truth_file, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
@@ -114,7 +119,7 @@ fn frames_and_geometry_reach_the_reference_optimum() {
         let rms_core = reference_lm::rms_position_error(&identified, &held);
         let rms_reference = reference_lm::rms_position_error(&reference, &held);
         let rms_truth = reference_lm::rms_position_error(&truth_file, &held);
-        let v = c.report.validation.as_ref().unwrap();
+        let v = c.result.validation.as_ref().unwrap();
         println!(
             "{}: held-out RMS core {rms_core:.5} mm, reference from the truth {rms_reference:.5} mm, truth {rms_truth:.5} mm; \
              table mean {:.4} mm; registration {:.3} mm RMS; {} parameters",

@@ -83,7 +83,12 @@ fn tracker_noise_scenario_matches_the_reference_and_the_statistics() {
             &[&["--poses", "200", "--seed", &h][..], &noise].concat(),
         );
         let c = calibrate(&data, &truth, &[]);
-        let names: Vec<String> = c.report.parameters.keys().cloned().collect();
+        let names: Vec<String> = c
+            .result
+            .parameters
+            .iter()
+            .map(|p| p.parameter.to_string())
+            .collect();
         let nominal = RobotFile::read(Path::new(ROBOT)).unwrap();
         let cal = TrackerData::read(&data).unwrap();
         let fit = reference_lm::fit(&nominal, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
@@ -105,7 +110,7 @@ fn tracker_noise_scenario_matches_the_reference_and_the_statistics() {
             reference_lm::rms_position_error(&identified(&c, dir.path(), "core.toml"), &held);
         let rms_reference = reference_lm::rms_position_error(&reference_file, &held);
         let rms_truth = reference_lm::rms_position_error(&RobotFile::read(&truth).unwrap(), &held);
-        let lm = c.report.least_squares.as_ref().unwrap();
+        let lm = c.result.least_squares.as_ref().unwrap();
         println!(
             "seed {seed}: held-out RMS core {rms_core:.5} mm, reference {rms_reference:.5} mm, truth {rms_truth:.5} mm \
              (ratio {:.3}); cost core {:.10e} reference {:.10e}; sigma {:.4}",
@@ -128,10 +133,8 @@ fn tracker_noise_scenario_matches_the_reference_and_the_statistics() {
             lm.cost_final,
             fit.cost
         );
-        for row in c.report.truth.as_ref().unwrap() {
-            let se = c.report.parameters[&row.name]["std_error"]
-                .as_f64()
-                .unwrap();
+        for row in c.truth.as_ref().unwrap() {
+            let se = c.result.parameter(&row.name).unwrap().std_error.unwrap();
             total += 1;
             if row.difference.abs() <= 3.0 * se {
                 covered += 1;
@@ -163,8 +166,13 @@ fn lm_from_nominal_reaches_the_reference_cost() {
         ],
     );
     let c = calibrate(&data, &truth, &["--method", "lm"]);
-    assert_eq!(c.report.generations, 0);
-    let names: Vec<String> = c.report.parameters.keys().cloned().collect();
+    assert_eq!(c.report().generations, 0);
+    let names: Vec<String> = c
+        .result
+        .parameters
+        .iter()
+        .map(|p| p.parameter.to_string())
+        .collect();
     let fit = reference_lm::fit(
         &RobotFile::read(Path::new(ROBOT)).unwrap(),
         &names,
@@ -173,12 +181,12 @@ fn lm_from_nominal_reaches_the_reference_cost() {
         &[0.0; 24],
     )
     .unwrap();
-    let core = c.report.least_squares.as_ref().unwrap().cost_final;
+    let core = c.result.least_squares.as_ref().unwrap().cost_final;
     println!("lm cost {core:.12e}, reference {:.12e}", fit.cost);
     assert!((core - fit.cost).abs() <= 1e-8 * fit.cost);
     for (name, value) in &fit.errors {
-        let ours = c.report.parameters[name]["value"].as_f64().unwrap();
-        let se = c.report.parameters[name]["std_error"].as_f64().unwrap();
+        let ours = c.result.parameter(name).unwrap().value;
+        let se = c.result.parameter(name).unwrap().std_error.unwrap();
         assert!(
             (ours - value).abs() <= 1e-3 * se,
             "{name}: {ours} vs {value} (se {se})"
@@ -205,7 +213,6 @@ fn huber_loss_survives_two_outliers_and_flags_them() {
     );
     let rms = |c: &Calibration, angles: bool| -> f64 {
         let rows: Vec<f64> = c
-            .report
             .truth
             .as_ref()
             .unwrap()
@@ -251,13 +258,13 @@ fn huber_loss_survives_two_outliers_and_flags_them() {
         "the outliers should hurt plain least squares"
     );
     let flagged: Vec<&str> = huber
-        .report
+        .result
         .outliers
         .iter()
         .map(|o| o.id.as_str())
         .collect();
     assert_eq!(flagged, ["P005", "P017"]);
-    assert!(l2.report.outliers.is_empty());
+    assert!(l2.result.outliers.is_empty());
 }
 
 #[test]
@@ -284,25 +291,25 @@ fn position_only_data_are_analysed_and_auto_masked() {
     ]))
     .unwrap();
     assert_eq!((report.parameters, report.rank), (24, 20));
-    let undetermined: Vec<(&str, &str)> = report
+    let undetermined: Vec<String> = report
         .undetermined
         .iter()
-        .map(|u| (u.name.as_str(), u.status))
+        .map(|u| format!("{} {}", u.parameter, u.status))
         .collect();
     assert_eq!(
         undetermined,
         [
-            ("dd5", "redundant"),
-            ("dtheta5", "redundant"),
-            ("dalpha6", "not identifiable"),
-            ("dtheta6", "not identifiable")
+            "dd5 redundant",
+            "dtheta5 redundant",
+            "dalpha6 not identifiable",
+            "dtheta6 not identifiable"
         ]
     );
     assert_eq!(
         report.undetermined[0]
             .with
             .iter()
-            .map(|w| w.0.as_str())
+            .map(|w| w.0.to_string())
             .collect::<Vec<_>>(),
         ["dalpha5"]
     );
@@ -310,7 +317,7 @@ fn position_only_data_are_analysed_and_auto_masked() {
         report.undetermined[1]
             .with
             .iter()
-            .map(|w| w.0.as_str())
+            .map(|w| w.0.to_string())
             .collect::<Vec<_>>(),
         ["da5"]
     );
@@ -324,12 +331,12 @@ fn position_only_data_are_analysed_and_auto_masked() {
 
     all.extend(["--auto-mask", "--truth", truth.to_str().unwrap()]);
     let c = calibrate::calibrate(&parse::<CalibrateOptions>(&all)).unwrap();
-    assert_eq!(c.report.dropped, ["dd5", "dtheta5", "dalpha6", "dtheta6"]);
-    assert_eq!(c.report.parameters.len(), 20);
-    let sigma = c.report.least_squares.as_ref().unwrap().sigma_mm;
+    assert_eq!(c.report().dropped, ["dd5", "dtheta5", "dalpha6", "dtheta6"]);
+    assert_eq!(c.result.parameters.len(), 20);
+    let sigma = c.result.least_squares.as_ref().unwrap().sigma_mm;
     // At the noise floor: the residual standard deviation is the tracker's 0.02 mm.
     assert!((0.015..0.025).contains(&sigma), "sigma {sigma}");
-    let after = c.report.after.position_mm.mean;
+    let after = c.result.calibration.after.position_mm.mean;
     assert!(after < 0.05, "mean position error after {after} mm");
 }
 

@@ -1,4 +1,4 @@
-//! Levenberg-Marquardt least squares on the stacked residual of DESIGN.md: per pose
+//! Levenberg-Marquardt least squares on the stacked residual of docs/ARCHITECTURE.md: per pose
 //! `[dp; sqrt(k) dr]` (mm; 3 rows for position-only poses), each row scaled by `sqrt(weight)`,
 //! with the analytic parameter Jacobian.
 //!

@@ -124,7 +124,7 @@ impl<T: Real, const N: usize> Measurement<T, N> {
         )
     }
 
-    /// The pose error of the prediction `predicted` against this measurement (DESIGN.md); the
+    /// The pose error of the prediction `predicted` against this measurement (docs/ARCHITECTURE.md); the
     /// rotation error is zero for a position-only measurement.
     pub fn error_of(&self, predicted: &Pose<T>) -> PoseError<T> {
         match self.rotation {
@@ -209,7 +209,7 @@ impl<'p, T: Real, const N: usize, const D: usize> Objective<'p, T, N, D> {
 
     /// Eq. (7) at the packed errors `x` (mm, rad). Non-finite `x` gives +infinity.
     ///
-    /// The poses are evaluated [`LANES`] at a time in structure-of-arrays form (vectorised on a
+    /// The poses are evaluated `LANES` (4 on a PC, 1 on ARM) at a time in structure-of-arrays form (vectorised on a
     /// PC; on a controller the same scalar operations in a different order of memory accesses).
     #[inline(never)]
     pub fn value(&self, x: &SVector<T, D>) -> T {

@@ -134,7 +134,7 @@ impl<T: Real, const N: usize> PreparedRobot<T, N> {
     }
 
     /// The actual model for `errors` (mm, rad). The trigonometry of the joint errors uses angle
-    /// addition and the small-angle polynomial of [`trig::sin_cos_small`], so for errors within
+    /// addition and the small-angle polynomial of `trig::sin_cos_small`, so for errors within
     /// 0.1 rad no libm call is made. Non-finite errors give a model that evaluates to NaN (no panic);
     /// [`Kinematics::new`] checks them first.
     pub fn actual(&self, errors: &ParameterErrors<T, N>) -> Kinematics<T, N> {

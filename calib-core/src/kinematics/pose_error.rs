@@ -1,4 +1,4 @@
-//! The pose error of a measurement (DESIGN.md): `dp = p_measured - p_predicted` (mm) and
+//! The pose error of a measurement (docs/ARCHITECTURE.md): `dp = p_measured - p_predicted` (mm) and
 //! `dr = log(R_measured R_predicted^T)` (rad, rotation vector in the base frame, exact log map);
 //! and its Jacobian with respect to the identified parameters.
 

@@ -348,7 +348,7 @@ impl<const N: usize> ParameterMask<N> {
         }
     }
 
-    /// The default rule of DESIGN.md: for joint i identify `a, alpha, theta`, and `d` unless the
+    /// The default rule (docs/ARCHITECTURE.md): for joint i identify `a, alpha, theta`, and `d` unless the
     /// axes of joints i and i+1 are nominally parallel (`|alpha_i| < 1e-6` and `i < N`), in which
     /// case `beta` replaces `d` (Hayati's fix for parallel axes). Base and tool are not identified.
     /// For the ER10L-C10 this gives the paper's 24 parameters.

@@ -4,7 +4,8 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use host_tools::calibrate::{self, CalibrateOptions};
 use host_tools::check::{self, CheckOptions};
-use host_tools::compensate::{CompensateOptions, ExportOptions};
+use host_tools::compensate::CompensateOptions;
+use host_tools::export::ExportOptions;
 use host_tools::fk;
 use host_tools::robot_file::RobotModel;
 use host_tools::simulate::{self, Simulation};
@@ -98,7 +99,7 @@ fn main() -> anyhow::Result<()> {
             );
         }
         Command::Export(options) => {
-            let bytes = host_tools::compensate::export(&options)?;
+            let bytes = host_tools::export::export(&options)?;
             println!("wrote {} bytes to {}", bytes, options.out.display());
         }
         Command::Evaluate(options) => {

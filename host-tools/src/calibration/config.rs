@@ -1,0 +1,216 @@
+//! The settings of a calibration, with the paper's values as defaults.
+
+use crate::frames::Frames;
+use anyhow::bail;
+use calib_core::identify::halton::Scrambling;
+use calib_core::identify::ipso;
+use calib_core::identify::lm::Loss;
+use serde::Serialize;
+
+/// Swarm sizes the calibration is built for (the core takes the swarm size as a const generic).
+pub const SWARM_SIZES: [usize; 6] = [10, 20, 30, 40, 50, 100];
+
+/// Identification method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+pub enum Method {
+    /// The paper's improved particle swarm (Halton start, constriction factor).
+    #[serde(rename = "ipso")]
+    Ipso,
+    /// Levenberg-Marquardt least squares from the nominal model.
+    #[serde(rename = "lm")]
+    Lm,
+    /// The swarm for a global start, then least squares to the noise floor.
+    #[value(name = "ipso+lm")]
+    #[serde(rename = "ipso+lm")]
+    IpsoLm,
+}
+
+impl Method {
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ipso => "ipso",
+            Self::Lm => "lm",
+            Self::IpsoLm => "ipso+lm",
+        }
+    }
+
+    /// `true` when the swarm runs.
+    pub fn swarm(self) -> bool {
+        self != Self::Lm
+    }
+
+    /// `true` when least squares runs.
+    pub fn least_squares(self) -> bool {
+        self != Self::Ipso
+    }
+}
+
+/// Loss of the least-squares stage.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LossChoice {
+    /// Plain least squares.
+    L2,
+    /// Huber: quadratic up to the scale, linear beyond.
+    Huber,
+    /// Cauchy: weight 1 / (1 + (r / scale)^2).
+    Cauchy,
+}
+
+impl LossChoice {
+    /// The core's loss with the given scale (mm).
+    pub fn with_scale(self, scale: f64) -> Loss<f64> {
+        match self {
+            Self::L2 => Loss::L2,
+            Self::Huber => Loss::Huber(scale),
+            Self::Cauchy => Loss::Cauchy(scale),
+        }
+    }
+}
+
+/// Halton digit scrambling.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ScramblingChoice {
+    /// Plain Halton, as in the paper.
+    None,
+    /// Reverse Halton (Vandewoestyne and Cools 2006).
+    Reverse,
+}
+
+impl From<ScramblingChoice> for Scrambling {
+    fn from(choice: ScramblingChoice) -> Self {
+        match choice {
+            ScramblingChoice::None => Scrambling::None,
+            ScramblingChoice::Reverse => Scrambling::Reverse,
+        }
+    }
+}
+
+/// The swarm's settings (the paper's section 2.2).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SwarmConfig {
+    /// Particles: one of [`SWARM_SIZES`] (paper: 20).
+    pub particles: usize,
+    /// Maximum number of generations (paper: 2000).
+    pub generations: u32,
+    /// Cognitive acceleration coefficient c1 (paper: 2.05; c1 + c2 > 4).
+    pub c1: f64,
+    /// Social acceleration coefficient c2 (paper: 2.05).
+    pub c2: f64,
+    /// Seed of the random numbers r1, r2.
+    pub seed: u64,
+    /// Initial half range of angle errors, rad (paper: 0.01).
+    pub init_angle_rad: f64,
+    /// Initial half range of length errors, mm (paper: 0.5).
+    pub init_length_mm: f64,
+    /// Search bounds as a multiple of the initial half range (absorbing walls).
+    pub bound_factor: f64,
+    /// Stop after this many generations without improvement (0: never).
+    pub stall_generations: u32,
+    /// Stop as soon as the objective reaches this value.
+    pub target: f64,
+    /// Halton index of the first particle (the paper's k; 0 is the all-zero point).
+    pub halton_start: u64,
+    /// Halton digit scrambling.
+    pub scrambling: ScramblingChoice,
+}
+
+impl Default for SwarmConfig {
+    fn default() -> Self {
+        Self {
+            particles: 20,
+            generations: 2000,
+            c1: 2.05,
+            c2: 2.05,
+            seed: 0,
+            init_angle_rad: ipso::PAPER_ANGLE_RANGE,
+            init_length_mm: ipso::PAPER_LENGTH_RANGE,
+            bound_factor: ipso::DEFAULT_BOUND_FACTOR,
+            stall_generations: 0,
+            target: f64::NEG_INFINITY,
+            halton_start: 1,
+            scrambling: ScramblingChoice::None,
+        }
+    }
+}
+
+/// Everything a calibration needs besides the data. `Default` is the paper's method followed by
+/// least squares (`ipso+lm`), `k = 1e6` mm^2/rad^2, the frames chosen from the data.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CalibrationConfig {
+    /// Identification method.
+    pub method: Method,
+    /// Frames identified with the geometry; `None`: base+tool, or none when the data are in the
+    /// base frame.
+    pub frames: Option<Frames>,
+    /// Orientation weight k of eq. (7), mm^2/rad^2.
+    pub k: f64,
+    /// The swarm's settings.
+    pub swarm: SwarmConfig,
+    /// Iteration cap of the least-squares stage.
+    pub lm_iterations: u32,
+    /// Loss of the least-squares stage.
+    pub loss: LossChoice,
+    /// Scale of the robust loss, mm of pose residual; poses beyond it are outliers.
+    pub loss_scale_mm: f64,
+    /// Drop what the data cannot determine, then along the weakest direction while the pose set is
+    /// ill-conditioned, instead of refusing.
+    pub auto_mask: bool,
+    /// Show a progress bar on a terminal.
+    #[serde(skip)]
+    pub progress: bool,
+}
+
+impl Default for CalibrationConfig {
+    fn default() -> Self {
+        Self {
+            method: Method::IpsoLm,
+            frames: None,
+            k: calib_core::identify::objective::DEFAULT_K,
+            swarm: SwarmConfig::default(),
+            lm_iterations: 100,
+            loss: LossChoice::L2,
+            loss_scale_mm: 1.0,
+            auto_mask: false,
+            progress: false,
+        }
+    }
+}
+
+impl CalibrationConfig {
+    /// An error naming the first setting out of its range (by its command-line flag).
+    pub fn check(&self) -> anyhow::Result<()> {
+        if !SWARM_SIZES.contains(&self.swarm.particles) {
+            bail!(
+                "--swarm {} is not available; choose one of {:?}",
+                self.swarm.particles,
+                SWARM_SIZES
+            );
+        }
+        for (name, v) in [
+            ("--k", self.k),
+            ("--init-angle-rad", self.swarm.init_angle_rad),
+            ("--init-length-mm", self.swarm.init_length_mm),
+            ("--bound-factor", self.swarm.bound_factor),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                bail!("{name} must be a finite number >= 0, got {v}");
+            }
+        }
+        if !(self.loss_scale_mm.is_finite() && self.loss_scale_mm > 0.0) {
+            bail!(
+                "--loss-scale-mm must be a finite number > 0, got {}",
+                self.loss_scale_mm
+            );
+        }
+        if self.loss != LossChoice::L2 && !self.method.least_squares() {
+            bail!(
+                "--loss {:?} applies to the least-squares stage: use --method lm or ipso+lm",
+                self.loss
+            );
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,484 @@
+//! Calibration as a library: a [`Dataset`] (robot and measurements, from files or memory) and a
+//! [`CalibrationConfig`] in, a typed [`CalibrationResult`] out. No file is read or written here;
+//! the `calib calibrate` command is a thin layer over [`calibrate`].
+//!
+//! The stages: the frames are registered and fitted ([`crate::frames::prepare`]); the
+//! identifiability of the parameters is checked and, with `auto_mask`, what the data cannot
+//! determine is dropped ([`select_parameters`]); the swarm and/or least squares identify the
+//! errors; Table 3 is evaluated on the calibration and the held-out poses.
+//!
+//! ```
+//! use host_tools::calibration::{CalibrationConfig, Method, calibrate};
+//! use host_tools::dataset::Dataset;
+//! use host_tools::robot_file::RobotFile;
+//! use host_tools::tracker_data::Record;
+//! use calib_core::Kinematics;
+//! use calib_core::model::paper;
+//! use std::path::Path;
+//!
+//! // The nominal ER10L-C10, and the same robot with the paper's Table 2 errors as "the real one".
+//! let robot = RobotFile::parse(host_tools::demo::ER10L_C10_TOML, Path::new("er10l-c10.toml"))?;
+//! let nominal = robot.to_model::<6>(Path::new("er10l-c10.toml"))?.robot;
+//! let real = Kinematics::new(&nominal, &paper::table2::<f64>())?;
+//! // 32 measured poses (joints in rad, positions in mm), in the robot's base frame.
+//! let records: Vec<Record> = (0..32)
+//!     .map(|i| {
+//!         let q: [f64; 6] = std::array::from_fn(|j| ((i * 7 + j * 3) % 11) as f64 * 0.5 - 2.5);
+//!         let pose = real.forward(&q).unwrap();
+//!         Record {
+//!             line: i as u64 + 1,
+//!             id: format!("p{i}"),
+//!             q: q.to_vec(),
+//!             position: pose.translation.vector.into(),
+//!             rotation: Some(*pose.rotation.matrix()),
+//!             weight: 1.0,
+//!         }
+//!     })
+//!     .collect();
+//! let dataset = Dataset::from_records(robot, records, true)?;
+//! let config = CalibrationConfig { method: Method::Lm, ..CalibrationConfig::default() };
+//! let result = calibrate(dataset, None, &config)?;
+//! // Least squares recovers Table 2 from exact data: da2 = 0.2565 mm.
+//! let da2 = result.parameter("da2").unwrap();
+//! assert!((da2.value - 0.2565).abs() < 1e-9);
+//! assert!(result.calibration.after.position_mm.max < 1e-9);
+//! # Ok::<(), anyhow::Error>(())
+//! ```
+
+mod config;
+mod result;
+mod text;
+
+pub use config::{
+    CalibrationConfig, LossChoice, Method, SWARM_SIZES, ScramblingChoice, SwarmConfig,
+};
+pub use result::{
+    CalibrationResult, HoldOut, IdentifiedParameter, LeastSquaresReport, ObjectiveValues, Outlier,
+    Parameters, PerPose, PoseReport, Report, Settings, Stage, SwarmSummary, lm_stop, swarm_stop,
+};
+
+use crate::dataset::Dataset;
+use crate::frames::{Frames, FramesReport};
+use crate::identifiability::{IdentifiabilityReport, analyse};
+use anyhow::bail;
+use calib_core::identify::ipso::{self, Control, CostFunction, IpsoSettings, SearchSpace};
+use calib_core::identify::lm::{LeastSquares, LmError, LmResult, LmSettings};
+use calib_core::identify::objective::Objective;
+use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, ParameterSet, Problem};
+use nalgebra::SVector;
+use rayon::prelude::*;
+use std::io::IsTerminal;
+use std::time::Instant;
+
+/// Calibrates `dataset` (its robot's identification mask plus the frames of `config`), validating
+/// on `validation` when given (poses in the same tracker frame, not used to identify).
+pub fn calibrate(
+    mut dataset: Dataset,
+    mut validation: Option<Dataset>,
+    config: &CalibrationConfig,
+) -> anyhow::Result<CalibrationResult> {
+    config.check()?;
+    let frames = Frames::chosen(config.frames, &dataset.data);
+    let (frames_report, mask) = {
+        let mut others: Vec<&mut Dataset> = validation.iter_mut().collect();
+        crate::frames::prepare(frames, &mut dataset, &mut others, config.k)?
+    };
+    let selection = select_parameters(&dataset, mask, config)?;
+    crate::with_parameter_count!(
+        selection.mask.count(),
+        solve(
+            &dataset,
+            validation.as_ref(),
+            config,
+            selection,
+            frames_report
+        )
+    )
+}
+
+/// The parameters to identify and why.
+#[derive(Clone, Debug)]
+pub struct Selection {
+    /// The identified parameters.
+    pub mask: ParameterMask<6>,
+    /// The analysis of the parameters asked for (with the condition number reached after
+    /// dropping, when parameters were dropped).
+    pub identifiability: IdentifiabilityReport,
+    /// Parameters dropped by `auto_mask`, in the order dropped.
+    pub dropped: Vec<Parameter>,
+}
+
+/// Checks that the data determine the parameters of `mask`: refuses what they cannot determine,
+/// or with `auto_mask` drops it, and then, while the pose set is ill-conditioned, the parameter
+/// with the largest share of the least determined direction.
+pub fn select_parameters(
+    dataset: &Dataset,
+    mut mask: ParameterMask<6>,
+    config: &CalibrationConfig,
+) -> anyhow::Result<Selection> {
+    let analysed = |mask: &ParameterMask<6>| {
+        crate::with_parameter_count!(mask.count(), analyse(dataset, mask, config.k))
+    };
+    let initial = analysed(&mask)?;
+    let mut identifiability = initial.clone();
+    let mut dropped = Vec::new();
+    if identifiability.rank < identifiability.parameters {
+        if !config.auto_mask {
+            bail!(
+                "the data cannot determine every identified parameter (rank {} of {}): {}. \
+                 Drop them with --auto-mask, or set identify = [...] in the robot file; `calib check` shows the analysis",
+                identifiability.rank,
+                identifiability.parameters,
+                identifiability.problem()
+            );
+        }
+        for parameter in identifiability.to_drop() {
+            mask.set(parameter, false);
+            dropped.push(parameter);
+        }
+        identifiability = analysed(&mask)?;
+    }
+    if config.auto_mask {
+        while identifiability.ill_conditioned && mask.count() > 1 {
+            let Some(parameter) = identifiability.weakest_direction.first().map(|(p, _)| *p) else {
+                break;
+            };
+            mask.set(parameter, false);
+            dropped.push(parameter);
+            identifiability = analysed(&mask)?;
+        }
+    }
+    // Report the analysis of the full set (it says why parameters were dropped), with the
+    // condition number reached.
+    if !dropped.is_empty() {
+        let reached = identifiability.condition_number;
+        identifiability = initial;
+        identifiability.condition_number_after_drop = reached;
+    }
+    Ok(Selection {
+        mask,
+        identifiability,
+        dropped,
+    })
+}
+
+/// Evaluates the swarm's particles in parallel on the host's cores (rayon); the core's default
+/// evaluates them one by one. Results are identical: each particle's cost is computed alone.
+pub struct Parallel<'o, 'p, const D: usize>(pub &'o Objective<'p, f64, 6, D>);
+
+impl<const D: usize> CostFunction<f64, D> for Parallel<'_, '_, D> {
+    fn cost(&mut self, x: &SVector<f64, D>) -> f64 {
+        self.0.value(x)
+    }
+    fn cost_batch(&mut self, xs: &[SVector<f64, D>], out: &mut [f64]) {
+        let objective = self.0;
+        out.par_iter_mut()
+            .zip(xs.par_iter())
+            .for_each(|(c, x)| *c = objective.value(x));
+    }
+}
+
+/// Identifies the `D` parameters of `selection` and evaluates the result.
+fn solve<const D: usize>(
+    dataset: &Dataset,
+    validation: Option<&Dataset>,
+    config: &CalibrationConfig,
+    selection: Selection,
+    mut frames: FramesReport,
+) -> anyhow::Result<CalibrationResult> {
+    let set = ParameterSet::<6, D>::from_mask(&selection.mask)?;
+    let problem = Problem::new(
+        &dataset.model.robot,
+        &ParameterErrors::zero(),
+        set,
+        &dataset.measurements,
+        config.k,
+    )?;
+    let objective = Objective::new(&problem);
+    let zero = SVector::<f64, D>::zeros();
+    let started = Instant::now();
+    let swarm = if config.method.swarm() {
+        Some(run_swarm(config, &objective, &set)?)
+    } else {
+        None
+    };
+    let start = swarm.as_ref().map_or(zero, |s| s.1);
+    let fit = if config.method.least_squares() {
+        Some(least_squares(
+            config,
+            &LeastSquares::new(&problem),
+            &start,
+            dataset,
+        )?)
+    } else {
+        None
+    };
+    let seconds = started.elapsed().as_secs_f64();
+    let best = fit.as_ref().map_or(start, |f| f.result.x);
+    let standard_errors = fit.as_ref().and_then(|f| f.result.standard_errors());
+    let parameters: Vec<IdentifiedParameter> = set
+        .parameters()
+        .iter()
+        .zip(best.iter())
+        .enumerate()
+        .map(|(i, (p, v))| IdentifiedParameter {
+            parameter: *p,
+            value: *v,
+            std_error: standard_errors.as_ref().and_then(|s| s.get(i).copied()),
+        })
+        .collect();
+    let errors = set.unpack(&best);
+    let (calibration, validation, per_pose, poses) =
+        evaluate(dataset, validation, &errors, fit.as_ref())?;
+    let identified_robot = identified_robot(dataset, config, &parameters, &errors, &mut frames);
+    let initial = objective.value(&zero);
+    Ok(CalibrationResult {
+        robot: dataset.model.name.clone(),
+        robot_path: dataset.model.path.clone(),
+        data_path: dataset.data.path.clone(),
+        config: config.clone(),
+        objective: ObjectiveValues {
+            initial,
+            r#final: objective.value(&best),
+            initial_swarm_best: swarm.as_ref().map_or(initial, |s| s.2),
+            after_swarm: swarm.as_ref().map_or(initial, |s| s.3),
+            k: config.k,
+        },
+        parameters,
+        errors,
+        swarm: swarm.map(|s| s.0),
+        least_squares: fit.as_ref().map(|f| f.report.clone()),
+        identifiability: selection.identifiability,
+        dropped: selection.dropped,
+        frames,
+        outliers: fit.map(|f| f.outliers).unwrap_or_default(),
+        poses,
+        calibration,
+        validation,
+        per_pose,
+        identified_robot,
+        seconds,
+    })
+}
+
+/// The identified robot file (nominal + errors) and the identified frames in the report.
+fn identified_robot(
+    dataset: &Dataset,
+    config: &CalibrationConfig,
+    parameters: &[IdentifiedParameter],
+    errors: &ParameterErrors<f64, 6>,
+    frames: &mut FramesReport,
+) -> crate::robot_file::RobotFile {
+    let std_errors: Vec<(Parameter, f64)> = parameters
+        .iter()
+        .filter_map(|p| p.std_error.map(|s| (p.parameter, s)))
+        .collect();
+    let file = dataset.file.with_errors(
+        errors,
+        parameters.iter().map(|p| p.parameter),
+        &std_errors,
+        config.method.name(),
+        &dataset.model.path.display().to_string(),
+    );
+    if frames.identified.base() {
+        frames.base = file.base.clone();
+    }
+    if frames.identified.tool() {
+        frames.tool = file.tool.clone();
+    }
+    file
+}
+
+/// The swarm's outcome: summary, best point, initial best and final best objective.
+type SwarmRun<const D: usize> = (SwarmSummary, SVector<f64, D>, f64, f64);
+
+fn run_swarm<const D: usize>(
+    config: &CalibrationConfig,
+    objective: &Objective<'_, f64, 6, D>,
+    set: &ParameterSet<6, D>,
+) -> anyhow::Result<SwarmRun<D>> {
+    let swarm = &config.swarm;
+    let space = SearchSpace::for_parameters(
+        set,
+        swarm.init_angle_rad,
+        swarm.init_length_mm,
+        swarm.bound_factor,
+    );
+    let settings = IpsoSettings {
+        c1: swarm.c1,
+        c2: swarm.c2,
+        max_generations: swarm.generations,
+        target_cost: swarm.target,
+        stall_generations: swarm.stall_generations,
+        halton_start: swarm.halton_start,
+        scrambling: swarm.scrambling.into(),
+        seed: swarm.seed,
+    };
+    let bar = if config.progress && std::io::stderr().is_terminal() {
+        indicatif::ProgressBar::new(u64::from(swarm.generations))
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "IPSO {bar:40} {pos}/{len} generations, best f = {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let mut history = Vec::with_capacity(swarm.generations as usize + 1);
+    let mut observer = |generation: u32, best: f64| {
+        history.push((generation, best));
+        if generation.is_multiple_of(20) {
+            bar.set_position(u64::from(generation));
+            bar.set_message(format!("{best:.6e}"));
+        }
+        Control::Continue
+    };
+    let mut cost = Parallel(objective);
+    macro_rules! swarm {
+        ($($p:literal)*) => {
+            match swarm.particles {
+                $($p => ipso::optimize::<f64, $p, D>(&mut cost, &space, &settings, &mut observer)?,)*
+                other => bail!("--swarm {other} is not available"),
+            }
+        };
+    }
+    let result = swarm!(10 20 30 40 50 100);
+    bar.finish_and_clear();
+    let summary = SwarmSummary {
+        generations: result.generations,
+        evaluations: result.evaluations,
+        stop: result.stop,
+        history,
+    };
+    Ok((summary, result.best, result.initial_cost, result.best_cost))
+}
+
+/// The least-squares stage: its result, report, robust weights and outliers.
+struct Fit<const D: usize> {
+    result: LmResult<f64, D>,
+    report: LeastSquaresReport,
+    weights: Vec<f64>,
+    outliers: Vec<Outlier>,
+}
+
+fn least_squares<const D: usize>(
+    config: &CalibrationConfig,
+    least_squares: &LeastSquares<'_, f64, 6, D>,
+    start: &SVector<f64, D>,
+    dataset: &Dataset,
+) -> anyhow::Result<Fit<D>> {
+    let set = least_squares.problem().set();
+    let settings = LmSettings {
+        max_iterations: config.lm_iterations,
+        ..LmSettings::default()
+    };
+    let mut weights = vec![1.0; dataset.measurements.len()];
+    let loss = config.loss.with_scale(config.loss_scale_mm);
+    let robust = least_squares
+        .solve_robust(start, &settings, loss, &mut weights)
+        .map_err(|e| lm_error(e, set))?;
+    let mut outliers = Vec::new();
+    if config.loss != LossChoice::L2 {
+        let mut norms = vec![0.0; dataset.measurements.len()];
+        least_squares.pose_residual_norms(&robust.result.x, &mut norms);
+        let poses = dataset.data.records.iter().zip(&norms).zip(&weights);
+        for ((record, norm), weight) in poses {
+            if *norm > config.loss_scale_mm {
+                outliers.push(Outlier {
+                    id: record.id.clone(),
+                    line: record.line,
+                    residual_mm: *norm,
+                    weight: *weight,
+                });
+            }
+        }
+    }
+    let l = &robust.result;
+    let report = LeastSquaresReport {
+        iterations: l.iterations,
+        evaluations: l.evaluations,
+        stop: lm_stop(l.stop),
+        cost_initial: l.initial_cost,
+        cost_final: l.cost,
+        rows: l.rows,
+        sigma_mm: l.sigma(),
+    };
+    Ok(Fit {
+        result: robust.result,
+        report,
+        weights,
+        outliers,
+    })
+}
+
+/// A least-squares error in the user's terms (parameter names, not indices).
+fn lm_error<const D: usize>(error: LmError, set: &ParameterSet<6, D>) -> anyhow::Error {
+    match error {
+        LmError::UnobservableParameter(i) => {
+            let name = set
+                .parameters()
+                .get(usize::from(i))
+                .map(ToString::to_string)
+                .unwrap_or_default();
+            anyhow::anyhow!(
+                "the data cannot determine {name}: it changes no residual; remove it from the identified parameters"
+            )
+        }
+        other => anyhow::Error::new(other).context("least squares"),
+    }
+}
+
+/// Table 3 before and after on the calibration and validation poses, per-pose errors, and the
+/// calibration poses' report rows.
+fn evaluate<const D: usize>(
+    dataset: &Dataset,
+    validation: Option<&Dataset>,
+    errors: &ParameterErrors<f64, 6>,
+    fit: Option<&Fit<D>>,
+) -> anyhow::Result<(Stage, Option<Stage>, PerPose, Vec<PoseReport>)> {
+    use crate::statistics::{orientation_per_pose, table3};
+    let nominal = Kinematics::nominal(&dataset.model.robot)?;
+    let actual = Kinematics::new(&dataset.model.robot, errors)?;
+    let (before, before_poses) = table3(&nominal, dataset);
+    let (after, after_poses) = table3(&actual, dataset);
+    let mut per_pose = PerPose {
+        orientation_before: orientation_per_pose(&nominal, dataset),
+        orientation_after: orientation_per_pose(&actual, dataset),
+        ..PerPose::default()
+    };
+    let validation_stage = validation.map(|v| {
+        let (before, per_pose_before) = table3(&nominal, v);
+        let (after, per_pose_after) = table3(&actual, v);
+        per_pose.validation_before = per_pose_before;
+        per_pose.validation_after = per_pose_after;
+        Stage {
+            poses: v.measurements.len(),
+            before,
+            after,
+        }
+    });
+    let weights = fit.map(|f| f.weights.as_slice());
+    let poses = dataset
+        .data
+        .records
+        .iter()
+        .zip(before_poses.iter().zip(&after_poses))
+        .enumerate()
+        .map(|(i, (r, (b, a)))| PoseReport {
+            id: r.id.clone(),
+            line: r.line,
+            before_mm: *b,
+            after_mm: *a,
+            robust_weight: weights.and_then(|w| w.get(i).copied()).unwrap_or(1.0),
+        })
+        .collect();
+    per_pose.before = before_poses;
+    per_pose.after = after_poses;
+    let calibration = Stage {
+        poses: dataset.measurements.len(),
+        before,
+        after,
+    };
+    Ok((calibration, validation_stage, per_pose, poses))
+}

@@ -1,0 +1,349 @@
+//! The typed result of a calibration, and its JSON report (a serde rendering of the result).
+
+use super::config::CalibrationConfig;
+use crate::frames::FramesReport;
+use crate::identifiability::IdentifiabilityReport;
+use crate::report::{TruthRow, unit_of};
+use crate::robot_file::RobotFile;
+use crate::statistics::Table3;
+use calib_core::identify::ipso::StopReason;
+use calib_core::identify::lm::LmStop;
+use calib_core::{Parameter, ParameterErrors};
+use serde::Serialize;
+use serde::ser::SerializeMap;
+use std::path::PathBuf;
+
+/// One identified parameter error.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IdentifiedParameter {
+    /// The parameter.
+    pub parameter: Parameter,
+    /// Its identified error, mm or rad ([`unit_of`]).
+    pub value: f64,
+    /// Its standard error (after least squares), same unit.
+    pub std_error: Option<f64>,
+}
+
+/// Initial and final objective (eq. 7).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ObjectiveValues {
+    /// At zero errors (the nominal model, frames fitted).
+    pub initial: f64,
+    /// At the identified errors.
+    pub r#final: f64,
+    /// Best of the initial swarm (without the swarm: the initial value).
+    pub initial_swarm_best: f64,
+    /// After the swarm (without the swarm: the initial value).
+    pub after_swarm: f64,
+    /// `k`, mm^2/rad^2.
+    pub k: f64,
+}
+
+/// What the swarm did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SwarmSummary {
+    /// Generations run.
+    pub generations: u32,
+    /// Objective evaluations.
+    pub evaluations: u64,
+    /// Why it stopped.
+    pub stop: StopReason,
+    /// `(generation, best objective)`, the convergence history.
+    pub history: Vec<(u32, f64)>,
+}
+
+/// The least-squares stage of a calibration.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LeastSquaresReport {
+    /// Iterations.
+    pub iterations: u32,
+    /// Residual evaluations.
+    pub evaluations: u32,
+    /// Why it stopped.
+    pub stop: &'static str,
+    /// `0.5 |r|^2` at its start (residual `[dp; sqrt(k) dr]`, mm).
+    pub cost_initial: f64,
+    /// `0.5 |r|^2` at the end.
+    pub cost_final: f64,
+    /// Residual rows.
+    pub rows: u32,
+    /// Residual standard deviation, mm.
+    pub sigma_mm: f64,
+}
+
+/// Table 3 statistics of a set of poses before and after calibration.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Stage {
+    /// Number of poses.
+    pub poses: usize,
+    /// With the nominal model (frames fitted, when identified).
+    pub before: Table3,
+    /// With the identified model.
+    pub after: Table3,
+}
+
+/// One calibration pose in the report.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PoseReport {
+    /// The pose's id.
+    pub id: String,
+    /// Its line in the data file.
+    pub line: u64,
+    /// `|dp|` with the nominal model (frames fitted, when identified), mm.
+    pub before_mm: f64,
+    /// `|dp|` with the identified model, mm.
+    pub after_mm: f64,
+    /// Final weight of the robust loss (1 for l2).
+    pub robust_weight: f64,
+}
+
+/// A pose flagged by the robust loss.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Outlier {
+    /// The pose's id.
+    pub id: String,
+    /// Its line in the data file.
+    pub line: u64,
+    /// Its residual norm `sqrt(|dp|^2 + k |dr|^2)` at the result, mm.
+    pub residual_mm: f64,
+    /// Its final robust weight.
+    pub weight: f64,
+}
+
+/// Per-pose errors for plots: `|dp|` (mm) and orientation per axis (deg), before and after.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PerPose {
+    /// `|dp|` per calibration pose with the nominal model, mm.
+    pub before: Vec<f64>,
+    /// With the identified model.
+    pub after: Vec<f64>,
+    /// `|dr_x|, |dr_y|, |dr_z|` per calibration pose with orientation, nominal model, deg.
+    pub orientation_before: Vec<[f64; 3]>,
+    /// With the identified model.
+    pub orientation_after: Vec<[f64; 3]>,
+    /// `|dp|` per validation pose with the nominal model, mm (empty without validation).
+    pub validation_before: Vec<f64>,
+    /// With the identified model.
+    pub validation_after: Vec<f64>,
+}
+
+/// Everything a calibration found.
+#[derive(Clone, Debug)]
+pub struct CalibrationResult {
+    /// The robot's name.
+    pub robot: String,
+    /// Where the robot came from (a file, or `<memory>`).
+    pub robot_path: PathBuf,
+    /// Where the data came from.
+    pub data_path: PathBuf,
+    /// The settings used.
+    pub config: CalibrationConfig,
+    /// The identified parameters, in canonical order.
+    pub parameters: Vec<IdentifiedParameter>,
+    /// All errors (identified ones set, others zero), mm and rad.
+    pub errors: ParameterErrors<f64, 6>,
+    /// The objective before and after.
+    pub objective: ObjectiveValues,
+    /// The swarm stage, when it ran.
+    pub swarm: Option<SwarmSummary>,
+    /// The least-squares stage, when it ran.
+    pub least_squares: Option<LeastSquaresReport>,
+    /// Identifiability of the parameters asked for (before any were dropped).
+    pub identifiability: IdentifiabilityReport,
+    /// Parameters dropped by `auto_mask`.
+    pub dropped: Vec<Parameter>,
+    /// The frames identified with the geometry.
+    pub frames: FramesReport,
+    /// Poses beyond the robust loss scale (empty for l2).
+    pub outliers: Vec<Outlier>,
+    /// Every calibration pose: its error before and after and its robust weight.
+    pub poses: Vec<PoseReport>,
+    /// Table 3 on the calibration poses.
+    pub calibration: Stage,
+    /// Table 3 on the held-out poses, when given.
+    pub validation: Option<Stage>,
+    /// Per-pose errors for plots.
+    pub per_pose: PerPose,
+    /// The identified robot: nominal + errors, with a `[calibration]` section.
+    pub identified_robot: RobotFile,
+    /// Wall-clock time of the optimisation, s.
+    pub seconds: f64,
+}
+
+impl CalibrationResult {
+    /// The identified parameter called `name` (such as `da2` or `base_tx`).
+    pub fn parameter(&self, name: &str) -> Option<&IdentifiedParameter> {
+        self.parameters
+            .iter()
+            .find(|p| p.parameter.to_string() == name)
+    }
+
+    /// Objective evaluations of the swarm plus residual evaluations of least squares.
+    pub fn evaluations(&self) -> u64 {
+        self.swarm.as_ref().map_or(0, |s| s.evaluations)
+            + self
+                .least_squares
+                .as_ref()
+                .map_or(0, |l| u64::from(l.evaluations))
+    }
+
+    /// Why the last stage stopped.
+    pub fn stop(&self) -> &'static str {
+        match (&self.least_squares, &self.swarm) {
+            (Some(l), _) => l.stop,
+            (None, Some(s)) => swarm_stop(s.stop),
+            (None, None) => "",
+        }
+    }
+
+    /// The JSON report; `settings` describes the run (the configuration and the hold-out),
+    /// `truth` the comparison with known errors.
+    pub fn report(&self, hold_out: HoldOut, truth: Option<Vec<TruthRow>>) -> Report<'_> {
+        Report {
+            method: self.config.method.name(),
+            robot: self.robot_path.display().to_string(),
+            data: self.data_path.display().to_string(),
+            parameters: Parameters(&self.parameters),
+            objective: self.objective,
+            generations: self.swarm.as_ref().map_or(0, |s| s.generations),
+            evaluations: self.evaluations(),
+            stop: self.stop(),
+            least_squares: self.least_squares.as_ref(),
+            identifiability: &self.identifiability,
+            dropped: self.dropped.iter().map(ToString::to_string).collect(),
+            frames: &self.frames,
+            outliers: &self.outliers,
+            poses: &self.poses,
+            calibration: self.calibration,
+            validation: self.validation,
+            before: self.calibration.before,
+            after: self.calibration.after,
+            settings: Settings {
+                config: &self.config,
+                hold_out,
+            },
+            truth,
+            seconds: self.seconds,
+        }
+    }
+}
+
+/// How the validation poses were chosen, for the report.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct HoldOut {
+    /// Fraction held out at random.
+    pub validate: Option<f64>,
+    /// Seed of that random hold-out.
+    pub validate_seed: u64,
+    /// A separate file of validation poses.
+    pub holdout: Option<String>,
+}
+
+/// The settings block of the report.
+#[derive(Debug, Serialize)]
+pub struct Settings<'a> {
+    /// The calibration's configuration.
+    #[serde(flatten)]
+    pub config: &'a CalibrationConfig,
+    /// The hold-out.
+    #[serde(flatten)]
+    pub hold_out: HoldOut,
+}
+
+/// The identified parameters as a JSON object: name -> { value, unit, std_error }.
+#[derive(Debug)]
+pub struct Parameters<'a>(pub &'a [IdentifiedParameter]);
+
+impl Serialize for Parameters<'_> {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        #[derive(Serialize)]
+        struct Entry {
+            value: f64,
+            unit: &'static str,
+            #[serde(skip_serializing_if = "Option::is_none")]
+            std_error: Option<f64>,
+        }
+        let mut map = serializer.serialize_map(Some(self.0.len()))?;
+        for p in self.0 {
+            let entry = Entry {
+                value: p.value,
+                unit: unit_of(p.parameter),
+                std_error: p.std_error,
+            };
+            map.serialize_entry(&p.parameter.to_string(), &entry)?;
+        }
+        map.end()
+    }
+}
+
+/// The JSON report of a calibration (a rendering of [`CalibrationResult`]).
+#[derive(Debug, Serialize)]
+pub struct Report<'a> {
+    /// `ipso`, `lm` or `ipso+lm`.
+    pub method: &'static str,
+    /// Robot file.
+    pub robot: String,
+    /// Data file.
+    pub data: String,
+    /// Identified errors: name -> { value, unit, std_error (after least squares) }.
+    pub parameters: Parameters<'a>,
+    /// Objective (eq. 7) at the nominal model and at the result.
+    pub objective: ObjectiveValues,
+    /// Swarm generations run (0 without the swarm).
+    pub generations: u32,
+    /// Objective evaluations of the swarm plus residual evaluations of least squares.
+    pub evaluations: u64,
+    /// Why the last stage stopped.
+    pub stop: &'static str,
+    /// The least-squares stage, when it ran.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub least_squares: Option<&'a LeastSquaresReport>,
+    /// Identifiability of the parameters of the robot file on these data, at the nominal model.
+    pub identifiability: &'a IdentifiabilityReport,
+    /// Parameters dropped by --auto-mask.
+    pub dropped: Vec<String>,
+    /// The frames identified with the geometry and their values.
+    pub frames: &'a FramesReport,
+    /// Poses whose residual exceeds the robust loss scale (empty for l2).
+    pub outliers: &'a [Outlier],
+    /// Every calibration pose: its position error before and after, and its robust weight.
+    pub poses: &'a [PoseReport],
+    /// Statistics on the calibration poses (the same as `before` and `after`).
+    pub calibration: Stage,
+    /// Statistics on the held-out validation poses, when asked for.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub validation: Option<Stage>,
+    /// Table 3 statistics with the nominal model.
+    pub before: Table3,
+    /// Table 3 statistics with the identified model.
+    pub after: Table3,
+    /// Settings used.
+    pub settings: Settings<'a>,
+    /// Comparison with the truth, when given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub truth: Option<Vec<TruthRow>>,
+    /// Wall-clock time of the optimisation, s.
+    pub seconds: f64,
+}
+
+/// Why the swarm stopped, in words.
+pub fn swarm_stop(stop: StopReason) -> &'static str {
+    match stop {
+        StopReason::MaxGenerations => "maximum generations",
+        StopReason::TargetReached => "target objective reached",
+        StopReason::Stalled => "no improvement",
+        StopReason::Cancelled => "cancelled",
+    }
+}
+
+/// Why least squares stopped, in words.
+pub fn lm_stop(stop: LmStop) -> &'static str {
+    match stop {
+        LmStop::ZeroResidual => "zero residual",
+        LmStop::Gradient => "gradient below tolerance",
+        LmStop::Step => "step below tolerance",
+        LmStop::CostChange => "cost change below tolerance",
+        LmStop::MaxIterations => "iteration cap",
+        LmStop::NoProgress => "no further progress (rounding floor)",
+    }
+}

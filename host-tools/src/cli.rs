@@ -1,0 +1,31 @@
+//! Command-line pieces shared by several commands (clap at the edge of the library).
+
+use crate::dataset::Dataset;
+use crate::profile::DataProfile;
+use std::path::PathBuf;
+
+/// The files a data command reads (`--robot`, `--data`, `--profile`), shared by `calibrate`,
+/// `check`, `evaluate` and `verify`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct InputFiles {
+    /// Robot model file (TOML): the nominal model; its identify lists (or the default rule)
+    /// select the parameters.
+    #[arg(long, value_name = "FILE")]
+    pub robot: PathBuf,
+    /// Tracker data file: our CSV, or another export read through --profile.
+    #[arg(long, value_name = "FILE")]
+    pub data: PathBuf,
+    /// Data profile (TOML) for exports not in our CSV format: delimiter, decimal comma, column
+    /// mapping with units, Euler convention (see host-tools/profiles/).
+    #[arg(long, value_name = "FILE")]
+    pub profile: Option<PathBuf>,
+}
+
+impl InputFiles {
+    /// The data profile, then both files read and checked through it.
+    pub fn load(&self) -> anyhow::Result<(DataProfile, Dataset)> {
+        let profile = DataProfile::load(self.profile.as_deref())?;
+        let inputs = Dataset::load_with(&self.robot, &self.data, &profile)?;
+        Ok((profile, inputs))
+    }
+}

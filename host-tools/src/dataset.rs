@@ -1,0 +1,164 @@
+//! A dataset: a robot file and its measured poses, checked against each other and converted into
+//! the core's units and types (mm, rad, [`Measurement`]), read from files or built in memory;
+//! and the held-out split used for validation.
+
+use crate::profile::DataProfile;
+use crate::robot_file::{RobotFile, RobotModel};
+use crate::tracker_data::{OrientationColumns, Record, TrackerData};
+use anyhow::{Context, bail};
+use calib_core::identify::objective::Measurement;
+use nalgebra::Vector3;
+use rand_core::{Rng, SeedableRng};
+use std::path::{Path, PathBuf};
+
+/// A robot file, a data file and the measurements prepared for the core.
+#[derive(Clone)]
+pub struct Dataset {
+    /// The robot file as read.
+    pub file: RobotFile,
+    /// The robot in core units, with its identification mask.
+    pub model: RobotModel<6>,
+    /// The data file as read.
+    pub data: TrackerData,
+    /// One core measurement per data row.
+    pub measurements: Vec<Measurement<f64, 6>>,
+}
+
+impl Dataset {
+    /// A dataset from poses held in memory (joints in rad, positions in mm, rotations as
+    /// matrices); `base_frame` says the positions are already in the robot's base frame. The same
+    /// checks as for files apply; lines in messages are the 1-based index of the pose.
+    pub fn from_records(
+        file: RobotFile,
+        records: Vec<Record>,
+        base_frame: bool,
+    ) -> anyhow::Result<Self> {
+        let joints = records.first().map_or(0, |r| r.q.len());
+        let orientation = if records.iter().any(|r| r.rotation.is_some()) {
+            OrientationColumns::Quaternion
+        } else {
+            OrientationColumns::None
+        };
+        if records
+            .iter()
+            .any(|r| r.rotation.is_some() != (orientation != OrientationColumns::None))
+        {
+            bail!("either every pose has an orientation or none has");
+        }
+        let data = TrackerData {
+            path: PathBuf::from("<memory>"),
+            base_frame,
+            header_line: 0,
+            joints,
+            orientation,
+            records,
+        };
+        Self::from_parts(file, Path::new("<memory>"), data)
+    }
+
+    /// Reads and checks both files (the data in our format).
+    pub fn load(robot: &Path, data: &Path) -> anyhow::Result<Self> {
+        Self::load_with(robot, data, &DataProfile::default())
+    }
+
+    /// Reads and checks both files, the data through a data profile.
+    pub fn load_with(robot: &Path, data: &Path, profile: &DataProfile) -> anyhow::Result<Self> {
+        let file = RobotFile::read(robot)?;
+        let data_file = TrackerData::read_with(data, profile)?;
+        Self::from_parts(file, robot, data_file)
+    }
+
+    /// Checks the data against the robot and converts them for the core.
+    fn from_parts(file: RobotFile, robot: &Path, data_file: TrackerData) -> anyhow::Result<Self> {
+        let model: RobotModel<6> = file.to_model(robot)?;
+        let data = data_file.path.clone();
+        let data = data.as_path();
+        if data_file.joints != 6 {
+            bail!(
+                "{}:{}: has {} joint columns, the robot {} has 6 joints",
+                data.display(),
+                data_file.header_line,
+                data_file.joints,
+                model.name
+            );
+        }
+        let mut measurements = Vec::with_capacity(data_file.records.len());
+        for r in &data_file.records {
+            let q: [f64; 6] = std::array::from_fn(|i| r.q[i]);
+            for (i, (qi, limits)) in q.iter().zip(&model.robot.limits).enumerate() {
+                if !limits.contains(*qi) {
+                    bail!(
+                        "{}:{}: column q{}: {:.4} deg is outside the joint limits [{}, {}] deg of {}",
+                        data.display(),
+                        r.line,
+                        i + 1,
+                        qi.to_degrees(),
+                        limits.lower.to_degrees(),
+                        limits.upper.to_degrees(),
+                        robot.display()
+                    );
+                }
+            }
+            let m = Measurement::new(&q, Vector3::from(r.position), r.rotation, r.weight)
+                .with_context(|| format!("{}:{}", data.display(), r.line))?;
+            measurements.push(m);
+        }
+        Ok(Self {
+            file,
+            model,
+            data: data_file,
+            measurements,
+        })
+    }
+
+    /// `(the others, the poses at indices)`: the data split in two, file order kept.
+    pub fn partition(&self, indices: &[usize]) -> (Self, Self) {
+        let mut kept = self.clone();
+        let mut taken = self.clone();
+        kept.data.records.clear();
+        kept.measurements.clear();
+        taken.data.records.clear();
+        taken.measurements.clear();
+        for (i, (record, m)) in self.data.records.iter().zip(&self.measurements).enumerate() {
+            let side = if indices.contains(&i) {
+                &mut taken
+            } else {
+                &mut kept
+            };
+            side.data.records.push(record.clone());
+            side.measurements.push(*m);
+        }
+        (kept, taken)
+    }
+
+    /// Number of residual rows: 6 per full pose, 3 per position-only pose.
+    pub fn rows(&self) -> usize {
+        self.measurements
+            .iter()
+            .map(|m| if m.rotation.is_some() { 6 } else { 3 })
+            .sum()
+    }
+}
+
+/// Splits `inputs` into calibration and validation poses: `fraction` of the poses, chosen at
+/// random with `seed` (deterministic), are held out.
+pub fn split(dataset: &Dataset, fraction: f64, seed: u64) -> anyhow::Result<(Dataset, Dataset)> {
+    if !(fraction > 0.0 && fraction < 1.0) {
+        anyhow::bail!("--validate must be a fraction between 0 and 1, got {fraction}");
+    }
+    let n = dataset.measurements.len();
+    let held = ((n as f64) * fraction).round() as usize;
+    if held == 0 || held >= n {
+        anyhow::bail!("--validate {fraction} of {n} poses leaves no pose on one side");
+    }
+    // Fisher-Yates with a seeded generator.
+    let mut order: Vec<usize> = (0..n).collect();
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
+    for i in (1..n).rev() {
+        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+        order.swap(i, j);
+    }
+    let mut validation: Vec<usize> = order[..held].to_vec();
+    validation.sort_unstable();
+    Ok(dataset.partition(&validation))
+}

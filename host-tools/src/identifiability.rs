@@ -1,0 +1,263 @@
+//! The identifiability of the identified parameters on a dataset, in report form: rank,
+//! scaled condition number, observability, the parameters the data cannot determine and what they
+//! are confounded with (the core's [`Identifiability`]), and the least determined direction of an
+//! ill-conditioned pose set.
+
+use crate::dataset::Dataset;
+use anyhow::bail;
+use calib_core::identify::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability, Status};
+use calib_core::identify::lm::LeastSquares;
+use calib_core::{Parameter, ParameterErrors, ParameterMask, ParameterSet, Problem};
+use nalgebra::SVector;
+use serde::Serialize;
+
+/// Scaled condition number above which a pose set is reported as ill-conditioned: the weakest
+/// parameter combination is then determined more than 1000 times worse than the best one, so
+/// noise and unmodelled errors leak into it amplified.
+pub const ILL_CONDITIONED: f64 = 1000.0;
+
+/// Serialises `(parameter, value)` pairs as `[name, value]`.
+fn named_pairs<S: serde::Serializer>(pairs: &[(Parameter, f64)], s: S) -> Result<S::Ok, S::Error> {
+    s.collect_seq(pairs.iter().map(|(p, v)| (p.to_string(), *v)))
+}
+
+/// Serialises a parameter as its name.
+fn named<S: serde::Serializer>(parameter: &Parameter, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_str(parameter)
+}
+
+/// A parameter the data do not determine.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Undetermined {
+    /// The parameter (its name in JSON).
+    #[serde(rename = "name", serialize_with = "named")]
+    pub parameter: Parameter,
+    /// `not identifiable` (changes no residual) or `redundant`.
+    pub status: &'static str,
+    /// For a redundant one: the determined parameters it is confounded with, and the coefficient
+    /// in scaled units (its column equals the sum of coefficient times their columns).
+    #[serde(serialize_with = "named_pairs")]
+    pub with: Vec<(Parameter, f64)>,
+}
+
+/// The identifiability analysis in report form.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct IdentifiabilityReport {
+    /// Number of identified parameters analysed.
+    pub parameters: usize,
+    /// Numerical rank of the scaled Jacobian.
+    pub rank: usize,
+    /// Condition number of the scaled Jacobian (null when rank-deficient).
+    pub condition_number: Option<f64>,
+    /// Observability index O1 (Borm and Menq) of the pose set, scaled Jacobian.
+    pub observability_index: f64,
+    /// Singular values of the scaled Jacobian, largest first.
+    pub singular_values: Vec<f64>,
+    /// Parameters the data cannot determine, in pivot order.
+    pub undetermined: Vec<Undetermined>,
+    /// The least determined direction: the right singular vector of the smallest singular value
+    /// of the scaled Jacobian, as (parameter, component) for components of magnitude >= 0.2,
+    /// largest first. These are the parameters an ill-conditioned pose set leaves uncertain.
+    #[serde(serialize_with = "named_pairs")]
+    pub weakest_direction: Vec<(Parameter, f64)>,
+    /// `true` when the condition number exceeds [`ILL_CONDITIONED`] (or the rank is deficient).
+    pub ill_conditioned: bool,
+    /// With `--auto-mask`: the condition number after dropping parameters.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub condition_number_after_drop: Option<f64>,
+    /// The analysed parameter names, in order.
+    #[serde(skip)]
+    pub names: Vec<Parameter>,
+}
+
+impl IdentifiabilityReport {
+    /// The parameters to drop so that the rest are determined.
+    pub fn to_drop(&self) -> Vec<Parameter> {
+        self.undetermined.iter().map(|u| u.parameter).collect()
+    }
+
+    /// A sentence naming what the data cannot determine.
+    pub fn problem(&self) -> String {
+        self.undetermined
+            .iter()
+            .map(|u| {
+                if u.with.is_empty() {
+                    format!("{} ({})", u.parameter, u.status)
+                } else {
+                    let with: Vec<String> = u.with.iter().map(|(p, _)| p.to_string()).collect();
+                    format!("{} (redundant with {})", u.parameter, with.join(", "))
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("; ")
+    }
+
+    /// The warning for an ill-conditioned pose set: the condition number and the parameters of
+    /// the weakest direction.
+    pub fn ill_conditioned_text(&self) -> String {
+        let weakest: Vec<String> = self
+            .weakest_direction
+            .iter()
+            .map(|(n, v)| format!("{v:+.2} {n}"))
+            .collect();
+        format!(
+            "WARNING: the pose set is ill-conditioned (scaled condition number {}, above {ILL_CONDITIONED}): \
+             the data barely determine the combination {}; its identified values follow the noise and unmodelled \
+             errors. Add poses with other joint configurations (e.g. both wrist flips, both elbows), or drop those \
+             parameters (identify = [...] in the robot file)\n",
+            self.condition_number
+                .map_or_else(|| "infinite".to_string(), |c| format!("{c:.3e}")),
+            weakest.join(" ")
+        )
+    }
+
+    /// Fixed-width text for people.
+    pub fn text(&self) -> String {
+        let mut out = format!(
+            "identifiability of {} parameters: rank {}{}\n",
+            self.parameters,
+            self.rank,
+            match self.condition_number {
+                Some(c) => format!(", scaled condition number {c:.3}"),
+                None => ", rank-deficient".to_string(),
+            }
+        );
+        out.push_str(&format!(
+            "observability index O1: {:.4e}\n",
+            self.observability_index
+        ));
+        if self.ill_conditioned && self.rank == self.parameters {
+            out.push_str(&self.ill_conditioned_text());
+        }
+        let values: Vec<String> = self
+            .singular_values
+            .iter()
+            .map(|s| format!("{s:.3e}"))
+            .collect();
+        out.push_str(&format!("scaled singular values: {}\n", values.join(" ")));
+        if self.undetermined.is_empty() {
+            out.push_str("every parameter is determined by the data\n");
+        }
+        for u in &self.undetermined {
+            if u.with.is_empty() {
+                out.push_str(&format!(
+                    "  {:<10} {}: it changes no residual\n",
+                    u.parameter.to_string(),
+                    u.status
+                ));
+            } else {
+                let with: Vec<String> =
+                    u.with.iter().map(|(n, c)| format!("{c:+.4} {n}")).collect();
+                out.push_str(&format!(
+                    "  {:<10} {}: acts like {} (scaled units); only their combination is determined\n",
+                    u.parameter.to_string(),
+                    u.status,
+                    with.join(" ")
+                ));
+            }
+        }
+        out
+    }
+}
+
+/// The identifiability of the parameters selected by `mask` at the nominal model.
+pub fn analyse<const D: usize>(
+    dataset: &Dataset,
+    mask: &ParameterMask<6>,
+    k: f64,
+) -> anyhow::Result<IdentifiabilityReport> {
+    let set = ParameterSet::<6, D>::from_mask(mask)?;
+    if dataset.rows() < D {
+        bail!(
+            "{} poses give {} equations, fewer than the {D} identified parameters",
+            dataset.measurements.len(),
+            dataset.rows()
+        );
+    }
+    let problem = Problem::new(
+        &dataset.model.robot,
+        &ParameterErrors::zero(),
+        set,
+        &dataset.measurements,
+        k,
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let least_squares = LeastSquares::new(&problem);
+    let r = least_squares.jacobian_factor(&SVector::zeros());
+    let id = Identifiability::from_factor(&r, dataset.measurements.len(), DEFAULT_RANK_TOLERANCE);
+    let names = set.parameters().to_vec();
+    let mut undetermined = Vec::new();
+    for index in id.pivots.iter().skip(id.rank) {
+        let (Some(parameter), Some(status)) = (names.get(*index), id.status.get(*index)) else {
+            continue;
+        };
+        let with = id
+            .combination(*index, 1e-6)
+            .map(|c| {
+                c.iter()
+                    .zip(&names)
+                    .filter(|(v, _)| **v != 0.0)
+                    .map(|(v, p)| (*p, *v))
+                    .collect()
+            })
+            .unwrap_or_default();
+        undetermined.push(Undetermined {
+            parameter: *parameter,
+            status: match status {
+                Status::NotIdentifiable => "not identifiable",
+                _ => "redundant",
+            },
+            with: if *status == Status::NotIdentifiable {
+                Vec::new()
+            } else {
+                with
+            },
+        });
+    }
+    let weakest_direction = weakest_direction(&r, &names);
+    let ill_conditioned =
+        !(id.condition_number.is_finite() && id.condition_number <= ILL_CONDITIONED);
+    Ok(IdentifiabilityReport {
+        weakest_direction,
+        ill_conditioned,
+        condition_number_after_drop: None,
+        parameters: D,
+        rank: id.rank,
+        condition_number: id
+            .condition_number
+            .is_finite()
+            .then_some(id.condition_number),
+        observability_index: id.observability,
+        singular_values: id.singular_values.iter().copied().collect(),
+        undetermined,
+        names,
+    })
+}
+
+/// The right singular vector of the smallest singular value of the column-scaled factor `r`.
+fn weakest_direction<const D: usize>(
+    r: &nalgebra::SMatrix<f64, D, D>,
+    names: &[Parameter],
+) -> Vec<(Parameter, f64)> {
+    let mut scaled = nalgebra::DMatrix::from_fn(D, D, |i, j| r[(i, j)]);
+    for mut column in scaled.column_iter_mut() {
+        let norm = column.norm();
+        if norm > 0.0 {
+            column /= norm;
+        }
+    }
+    let svd = scaled.svd(false, true);
+    let Some(v_t) = svd.v_t else {
+        return Vec::new();
+    };
+    let smallest = svd.singular_values.argmin().0;
+    let mut out: Vec<(Parameter, f64)> = v_t
+        .row(smallest)
+        .iter()
+        .zip(names)
+        .filter(|(v, _)| v.abs() >= 0.2)
+        .map(|(v, p)| (*p, *v))
+        .collect();
+    out.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+    out
+}
