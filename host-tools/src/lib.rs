@@ -20,7 +20,6 @@ pub mod identifiability;
 pub mod plots;
 pub mod profile;
 pub mod reference;
-pub mod reference_lm;
 pub mod report;
 pub mod robot_file;
 pub mod simulate;

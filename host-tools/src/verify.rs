@@ -220,7 +220,7 @@ fn run<const D: usize>(
         .x;
     // Reference optimiser.
     let names: Vec<String> = set.parameters().iter().map(ToString::to_string).collect();
-    let fit = crate::reference_lm::fit(
+    let fit = crate::reference::lm::fit(
         &calibration.file,
         &names,
         &calibration.data,

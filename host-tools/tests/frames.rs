@@ -6,7 +6,7 @@
 
 use clap::Parser;
 use host_tools::calibrate::{self, CalibrateOptions};
-use host_tools::reference_lm;
+use host_tools::reference::lm;
 use host_tools::robot_file::RobotFile;
 use host_tools::simulate::{self, Simulation};
 use host_tools::tracker_data::TrackerData;
@@ -107,8 +107,7 @@ fn frames_and_geometry_reach_the_reference_optimum() {
             .map(|p| p.parameter.to_string())
             .collect();
         let cal = TrackerData::read(&data).unwrap();
-        let fit =
-            reference_lm::fit(&truth_file, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
+        let fit = lm::fit(&truth_file, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
         let mut errors = calib_core::ParameterErrors::<f64, 6>::zero();
         for (n, v) in &fit.errors {
             errors.set(calib_core::Parameter::from_name(n, 6).unwrap(), *v);
@@ -116,9 +115,9 @@ fn frames_and_geometry_reach_the_reference_optimum() {
         let reference =
             truth_file.with_errors(&errors, std::iter::empty(), &[], "reference", ROBOT);
         let held = TrackerData::read(&holdout).unwrap();
-        let rms_core = reference_lm::rms_position_error(&identified, &held);
-        let rms_reference = reference_lm::rms_position_error(&reference, &held);
-        let rms_truth = reference_lm::rms_position_error(&truth_file, &held);
+        let rms_core = lm::rms_position_error(&identified, &held);
+        let rms_reference = lm::rms_position_error(&reference, &held);
+        let rms_truth = lm::rms_position_error(&truth_file, &held);
         let v = c.result.validation.as_ref().unwrap();
         println!(
             "{}: held-out RMS core {rms_core:.5} mm, reference from the truth {rms_reference:.5} mm, truth {rms_truth:.5} mm; \

@@ -5,7 +5,7 @@
 use clap::Parser;
 use host_tools::calibrate::{self, CalibrateOptions, Calibration};
 use host_tools::check::{self, CheckOptions};
-use host_tools::reference_lm;
+use host_tools::reference::lm;
 use host_tools::robot_file::RobotFile;
 use host_tools::simulate::{self, Simulation};
 use host_tools::tracker_data::TrackerData;
@@ -91,7 +91,7 @@ fn tracker_noise_scenario_matches_the_reference_and_the_statistics() {
             .collect();
         let nominal = RobotFile::read(Path::new(ROBOT)).unwrap();
         let cal = TrackerData::read(&data).unwrap();
-        let fit = reference_lm::fit(&nominal, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
+        let fit = lm::fit(&nominal, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
         let reference_file = nominal.with_errors(
             &{
                 let mut e = calib_core::ParameterErrors::<f64, 6>::zero();
@@ -106,10 +106,9 @@ fn tracker_noise_scenario_matches_the_reference_and_the_statistics() {
             ROBOT,
         );
         let held = TrackerData::read(&holdout).unwrap();
-        let rms_core =
-            reference_lm::rms_position_error(&identified(&c, dir.path(), "core.toml"), &held);
-        let rms_reference = reference_lm::rms_position_error(&reference_file, &held);
-        let rms_truth = reference_lm::rms_position_error(&RobotFile::read(&truth).unwrap(), &held);
+        let rms_core = lm::rms_position_error(&identified(&c, dir.path(), "core.toml"), &held);
+        let rms_reference = lm::rms_position_error(&reference_file, &held);
+        let rms_truth = lm::rms_position_error(&RobotFile::read(&truth).unwrap(), &held);
         let lm = c.result.least_squares.as_ref().unwrap();
         println!(
             "seed {seed}: held-out RMS core {rms_core:.5} mm, reference {rms_reference:.5} mm, truth {rms_truth:.5} mm \
@@ -173,7 +172,7 @@ fn lm_from_nominal_reaches_the_reference_cost() {
         .iter()
         .map(|p| p.parameter.to_string())
         .collect();
-    let fit = reference_lm::fit(
+    let fit = lm::fit(
         &RobotFile::read(Path::new(ROBOT)).unwrap(),
         &names,
         &TrackerData::read(&data).unwrap(),

@@ -1,9 +1,9 @@
 //! An independent float64 reference optimiser, used only to check the core's least squares: the
 //! `levenberg-marquardt` crate (MINPACK's algorithm, on its own nalgebra version) minimising the
 //! same residual `[dp; sqrt(k) dr]` (times `sqrt(weight)`) with the reference kinematics of
-//! [`crate::reference`] and a central-difference Jacobian. No calib-core code is involved.
+//! [`super::kinematics`] and a central-difference Jacobian. No calib-core code is involved.
 
-use crate::reference::{Mat4, RefModel, pose_error};
+use super::kinematics::{Mat4, RefModel, pose_error};
 use crate::robot_file::RobotFile;
 use crate::tracker_data::TrackerData;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
@@ -142,7 +142,7 @@ pub fn fit(
         .records
         .iter()
         .map(|r| {
-            let mut t = crate::reference::IDENTITY;
+            let mut t = super::kinematics::IDENTITY;
             let rotation = r.rotation.unwrap_or_else(nalgebra::Matrix3::identity);
             for (i, row) in t.iter_mut().take(3).enumerate() {
                 for (j, v) in row.iter_mut().take(3).enumerate() {
