@@ -62,62 +62,53 @@ fn paper_run(c: &mut Criterion) {
     group.finish();
 }
 
-#[derive(clap::Parser)]
-#[command(no_binary_name = true)]
-struct Wrap<T: clap::Args> {
-    #[command(flatten)]
-    inner: T,
-}
-
 fn calibrate_runs(c: &mut Criterion) {
-    use clap::Parser;
-    use host_tools::calibrate::{self, CalibrateOptions};
-    use host_tools::simulate::{self, Simulation};
+    use host_tools::calibration::{CalibrationConfig, calibrate};
+    use host_tools::dataset::Dataset;
+    use host_tools::profile::DataProfile;
+    use host_tools::robot_file::RobotFile;
+    use host_tools::simulate::{self, SimulationConfig};
+    use std::path::Path;
     let dir = tempfile::tempdir().unwrap();
-    let robot = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
+    let robot = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/robots/er10l-c10.toml"
+    ));
     let data = dir.path().join("cell100.csv");
-    let truth = dir.path().join("cell100-truth.toml");
-    let data = data.to_str().unwrap();
-    let head = [
-        "--robot",
-        robot,
-        "--poses",
-        "100",
-        "--seed",
-        "5",
-        "--position-sigma-mm",
-        "0.02",
-        "--orientation-sigma-rad",
-        "1e-4",
-    ];
-    let tail = ["--out", data, "--truth-out", truth.to_str().unwrap()];
-    let args = [&head[..], &simulate::REALISTIC_CELL, &tail].concat();
-    simulate::simulate(&Wrap::<Simulation>::parse_from(args).inner).unwrap();
-    let options =
-        Wrap::<CalibrateOptions>::parse_from(["--robot", robot, "--data", data, "--quiet"]).inner;
-    let ur10 = Wrap::<CalibrateOptions>::parse_from([
-        "--robot",
-        concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml"),
-        "--data",
-        concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/data/ipa-ur10-lasertracker/series-b-joint-configurations.csv"
-        ),
-        "--profile",
-        concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/profiles/ipa-ur10-lasertracker.toml"
-        ),
-        "--quiet",
-    ])
-    .inner;
+    let config = SimulationConfig {
+        poses: 100,
+        seed: 5,
+        position_sigma_mm: 0.02,
+        orientation_sigma_rad: 1e-4,
+        ..SimulationConfig::default()
+    }
+    .in_realistic_cell();
+    simulate::simulate(&RobotFile::read(robot).unwrap(), robot, &config)
+        .unwrap()
+        .write(&data, &dir.path().join("cell100-truth.toml"))
+        .unwrap();
+    let ur10 = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml"));
+    let series_b = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/data/ipa-ur10-lasertracker/series-b-joint-configurations.csv"
+    ));
+    let profile = DataProfile::load(Some(Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/profiles/ipa-ur10-lasertracker.toml"
+    ))))
+    .unwrap();
+    // As `calib calibrate` runs: the files read, then the calibration with the default settings.
+    let run = |robot: &Path, data: &Path, profile: &DataProfile| {
+        let dataset = Dataset::load_with(robot, data, profile).unwrap();
+        calibrate(dataset, None, &CalibrationConfig::default()).unwrap()
+    };
     let mut group = c.benchmark_group("calibrate");
     group.sample_size(10);
     group.bench_function("calibrate_100_poses_tracker_frame_ipso_lm", |b| {
-        b.iter(|| calibrate::calibrate(&options).unwrap())
+        b.iter(|| run(robot, &data, &DataProfile::default()))
     });
     group.bench_function("calibrate_ur10_series_b_1495_poses_ipso_lm", |b| {
-        b.iter(|| calibrate::calibrate(&ur10).unwrap())
+        b.iter(|| run(ur10, series_b, &profile))
     });
     group.finish();
 }

@@ -40,7 +40,7 @@ fn measure(real: &Kinematics<f64, 6>, count: usize, seed: u64) -> anyhow::Result
 
 fn main() -> anyhow::Result<ExitCode> {
     let path = Path::new("er10l-c10.toml");
-    let robot = RobotFile::parse(host_tools::demo::ER10L_C10_TOML, path)?;
+    let robot = RobotFile::parse(host_tools::robot_file::ER10L_C10_TOML, path)?;
     // The real robot: Table 2's errors, seen from the tracker, with the reflector on the flange.
     let mut as_built = robot.to_model::<6>(path)?.robot;
     as_built.base = FramePose {

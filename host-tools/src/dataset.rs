@@ -2,6 +2,7 @@
 //! the core's units and types (mm, rad, [`Measurement`]), read from files or built in memory;
 //! and the held-out split used for validation.
 
+use crate::JOINTS;
 use crate::profile::DataProfile;
 use crate::robot_file::{RobotFile, RobotModel};
 use crate::tracker_data::{OrientationColumns, Record, TrackerData};
@@ -17,11 +18,11 @@ pub struct Dataset {
     /// The robot file as read.
     pub file: RobotFile,
     /// The robot in core units, with its identification mask.
-    pub model: RobotModel<6>,
+    pub model: RobotModel<JOINTS>,
     /// The data file as read.
     pub data: TrackerData,
     /// One core measurement per data row.
-    pub measurements: Vec<Measurement<f64, 6>>,
+    pub measurements: Vec<Measurement<f64, JOINTS>>,
 }
 
 impl Dataset {
@@ -70,12 +71,12 @@ impl Dataset {
 
     /// Checks the data against the robot and converts them for the core.
     fn from_parts(file: RobotFile, robot: &Path, data_file: TrackerData) -> anyhow::Result<Self> {
-        let model: RobotModel<6> = file.to_model(robot)?;
+        let model: RobotModel<JOINTS> = file.to_model(robot)?;
         let data = data_file.path.clone();
         let data = data.as_path();
-        if data_file.joints != 6 {
+        if data_file.joints != JOINTS {
             bail!(
-                "{}:{}: has {} joint columns, the robot {} has 6 joints",
+                "{}:{}: has {} joint columns, the robot {} has {JOINTS} joints",
                 data.display(),
                 data_file.header_line,
                 data_file.joints,
@@ -84,7 +85,7 @@ impl Dataset {
         }
         let mut measurements = Vec::with_capacity(data_file.records.len());
         for r in &data_file.records {
-            let q: [f64; 6] = std::array::from_fn(|i| r.q[i]);
+            let q: [f64; JOINTS] = std::array::from_fn(|i| r.q[i]);
             for (i, (qi, limits)) in q.iter().zip(&model.robot.limits).enumerate() {
                 if !limits.contains(*qi) {
                     bail!(

@@ -1,11 +1,10 @@
-//! `calib export`: identified parameters as the controller's parameter block (f32 or f64,
+//! Exports of an identified robot: the controller's parameter block (f32 or f64,
 //! byte-identical to [`calib_core::controller::storage::encode`]), a robot file (TOML) or JSON; and
 //! the f64 -> f32 model cast the controller's single-precision core needs.
 
-use crate::files::write_atomic;
+use crate::JOINTS;
 use crate::robot_file::{RobotFile, RobotModel};
 use calib_core::controller::storage;
-use std::path::PathBuf;
 
 /// Formats of `calib export`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -28,55 +27,44 @@ pub enum BlockScalar {
     F64,
 }
 
-/// Options of `calib export`.
-#[derive(Clone, Debug, clap::Args)]
-pub struct ExportOptions {
-    /// Identified robot file.
-    #[arg(long, value_name = "FILE")]
-    pub params: PathBuf,
-    /// Output format.
-    #[arg(long, value_enum)]
-    pub format: ExportFormat,
-    /// Output file.
-    #[arg(long, value_name = "FILE")]
-    pub out: PathBuf,
-    /// Scalar type of the block.
-    #[arg(long, value_enum, default_value_t = BlockScalar::F32)]
-    pub scalar: BlockScalar,
-    /// Sequence number written into the block.
-    #[arg(long, default_value_t = 1)]
-    pub sequence: u32,
+/// The controller's parameter block of `robot` (the identified model) with `sequence`, in the
+/// scalar type of the controller's core.
+pub fn parameter_block(
+    robot: &calib_core::Robot<f64, JOINTS>,
+    scalar: BlockScalar,
+    sequence: u32,
+) -> anyhow::Result<Vec<u8>> {
+    Ok(match scalar {
+        BlockScalar::F64 => {
+            let mut buffer = vec![0u8; storage::block_len::<f64, JOINTS>()];
+            storage::encode(robot, sequence, &mut buffer)?;
+            buffer
+        }
+        BlockScalar::F32 => {
+            let mut buffer = vec![0u8; storage::block_len::<f32, JOINTS>()];
+            storage::encode(&to_f32(robot), sequence, &mut buffer)?;
+            buffer
+        }
+    })
 }
 
-/// Runs `calib export`; returns the number of bytes written.
-pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
-    let file = RobotFile::read(&options.params)?;
-    let model: RobotModel<6> = file.to_model(&options.params)?;
-    let bytes = match options.format {
-        ExportFormat::Block => match options.scalar {
-            BlockScalar::F64 => {
-                let mut buffer = vec![0u8; storage::block_len::<f64, 6>()];
-                storage::encode(&model.robot, options.sequence, &mut buffer)
-                    .map_err(|e| anyhow::anyhow!("{e}"))?;
-                buffer
-            }
-            BlockScalar::F32 => {
-                let robot = to_f32(&model.robot);
-                let mut buffer = vec![0u8; storage::block_len::<f32, 6>()];
-                storage::encode(&robot, options.sequence, &mut buffer)
-                    .map_err(|e| anyhow::anyhow!("{e}"))?;
-                buffer
-            }
-        },
+/// `file` (an identified robot file) in `format`.
+pub fn export(
+    file: &RobotFile,
+    model: &RobotModel<JOINTS>,
+    format: ExportFormat,
+    scalar: BlockScalar,
+    sequence: u32,
+) -> anyhow::Result<Vec<u8>> {
+    Ok(match format {
+        ExportFormat::Block => parameter_block(&model.robot, scalar, sequence)?,
         ExportFormat::Toml => file.to_toml("exported by calib export").into_bytes(),
-        ExportFormat::Json => serde_json::to_vec_pretty(&file)?,
-    };
-    write_atomic(&options.out, &bytes)?;
-    Ok(bytes.len())
+        ExportFormat::Json => serde_json::to_vec_pretty(file)?,
+    })
 }
 
 /// The model rounded to single precision (limits stay infinite where they are).
-pub fn to_f32(robot: &calib_core::Robot<f64, 6>) -> calib_core::Robot<f32, 6> {
+pub fn to_f32(robot: &calib_core::Robot<f64, JOINTS>) -> calib_core::Robot<f32, JOINTS> {
     let f = |v: f64| v as f32;
     calib_core::Robot {
         joints: robot.joints.map(|j| calib_core::MdhJoint {

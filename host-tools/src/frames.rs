@@ -10,7 +10,9 @@
 //! `R_j t = R_base^T (m_j - p_base) - p_j`. For 6-DoF data the tool rotation is then the
 //! rotation nearest to the mean of `(R_base R_j)^T R_measured,j`.
 
+use crate::JOINTS;
 use crate::robot_file::{FrameEntry, RobotFile};
+use anyhow::Context;
 use calib_core::identify::objective::Measurement;
 use calib_core::{FrameParameter, JointParameter, Kinematics, Parameter, ParameterMask, Robot};
 use nalgebra::{Matrix3, Rotation3, Vector3};
@@ -92,6 +94,9 @@ pub enum RegistrationError {
         "the measured points do not span a plane ({0} poses); registration needs at least 3 poses that are not on one line"
     )]
     Degenerate(usize),
+    /// The nominal robot cannot be evaluated.
+    #[error("the nominal robot: {0}")]
+    Model(#[from] calib_core::KinematicsError),
     /// The flange orientations do not determine the tool point.
     #[error(
         "the flange orientations of the poses are too similar to locate the tool on the flange; use poses with varied wrist orientations"
@@ -143,8 +148,8 @@ pub fn nearest_rotation(m: &Matrix3<f64>) -> Option<Rotation3<f64>> {
 /// Registers the nominal robot (frames ignored: base and tool are identity) onto measurements
 /// in the tracker's frame. With `identify_tool == false` the robot's own tool is kept.
 pub fn register(
-    robot: &Robot<f64, 6>,
-    measurements: &[Measurement<f64, 6>],
+    robot: &Robot<f64, JOINTS>,
+    measurements: &[Measurement<f64, JOINTS>],
     identify_tool: bool,
 ) -> Result<Registration, RegistrationError> {
     let mut bare = *robot;
@@ -152,7 +157,7 @@ pub fn register(
     if identify_tool {
         bare.tool = calib_core::FramePose::identity();
     }
-    let kinematics = Kinematics::nominal(&bare).map_err(|_| RegistrationError::Degenerate(0))?;
+    let kinematics = Kinematics::nominal(&bare)?;
     let flanges: Vec<_> = measurements
         .iter()
         .map(|m| kinematics.forward_angles(&m.angles))
@@ -188,33 +193,11 @@ pub fn register(
         }
         previous = rms;
     }
-    if identify_tool {
-        // The tool point is determined when the flange rotations differ:
-        // sum (I - R_j)^T (I - R_j) must be well conditioned.
-        let mut spread = Matrix3::zeros();
-        for f in &flanges {
-            let d = Matrix3::identity() - f.rotation.matrix();
-            spread += d.transpose() * d;
-        }
-        let eigen = spread.symmetric_eigenvalues();
-        if eigen.min() < 1e-6 * n as f64 {
+    let tool_rotation = if identify_tool {
+        if !tool_point_determined(&flanges) {
             return Err(RegistrationError::ToolUndetermined);
         }
-    }
-    let tool_rotation = if identify_tool {
-        let mut sum = Matrix3::zeros();
-        let mut count = 0;
-        for (f, m) in flanges.iter().zip(measurements) {
-            if let Some(rm) = &m.rotation {
-                sum += (base.0 * f.rotation).inverse().matrix() * rm;
-                count += 1;
-            }
-        }
-        if count > 0 {
-            nearest_rotation(&sum).unwrap_or_else(Rotation3::identity)
-        } else {
-            Rotation3::identity()
-        }
+        tool_rotation(&flanges, measurements, &base.0)
     } else {
         Rotation3::identity()
     };
@@ -230,6 +213,39 @@ pub fn register(
         max_mm,
         iterations,
     })
+}
+
+/// The tool point is determined when the flange rotations differ:
+/// `sum (I - R_j)^T (I - R_j)` must be well conditioned.
+fn tool_point_determined(flanges: &[calib_core::Pose<f64>]) -> bool {
+    let mut spread = Matrix3::zeros();
+    for f in flanges {
+        let d = Matrix3::identity() - f.rotation.matrix();
+        spread += d.transpose() * d;
+    }
+    spread.symmetric_eigenvalues().min() >= 1e-6 * flanges.len() as f64
+}
+
+/// The tool rotation on the flange for 6-DoF data: the rotation nearest to the mean of
+/// `(R_base R_j)^T R_measured,j` (identity for position-only data).
+fn tool_rotation(
+    flanges: &[calib_core::Pose<f64>],
+    measurements: &[Measurement<f64, JOINTS>],
+    base_rotation: &Rotation3<f64>,
+) -> Rotation3<f64> {
+    let mut sum = Matrix3::zeros();
+    let mut count = 0;
+    for (f, m) in flanges.iter().zip(measurements) {
+        if let Some(rm) = &m.rotation {
+            sum += (base_rotation * f.rotation).inverse().matrix() * rm;
+            count += 1;
+        }
+    }
+    if count > 0 {
+        nearest_rotation(&sum).unwrap_or_else(Rotation3::identity)
+    } else {
+        Rotation3::identity()
+    }
 }
 
 /// `|m_j - (R_base (R_j t + p_j) + p_base)|` per pose, mm.
@@ -283,13 +299,13 @@ pub fn with_registration(file: &RobotFile, registration: &Registration, tool: bo
 /// the flange, like the tool). `full_pose`: the tool's rotations are identified too (6-DoF data).
 /// Returns the mask and the joint parameters removed.
 pub fn mask_with_frames(
-    mask: &ParameterMask<6>,
+    mask: &ParameterMask<JOINTS>,
     frames: Frames,
     full_pose: bool,
-) -> (ParameterMask<6>, Vec<Parameter>) {
+) -> (ParameterMask<JOINTS>, Vec<Parameter>) {
     let mut out = *mask;
     let mut removed = Vec::new();
-    let mut remove = |out: &mut ParameterMask<6>, p: Parameter| {
+    let mut remove = |out: &mut ParameterMask<JOINTS>, p: Parameter| {
         if out.contains(p) {
             out.set(p, false);
             removed.push(p);
@@ -308,7 +324,13 @@ pub fn mask_with_frames(
             out.set(Parameter::Tool(kind), full_pose || !kind.is_rotation());
         }
         for kind in JointParameter::ALL {
-            remove(&mut out, Parameter::Joint { joint: 6, kind });
+            remove(
+                &mut out,
+                Parameter::Joint {
+                    joint: JOINTS as u8,
+                    kind,
+                },
+            );
         }
     }
     (out, removed)
@@ -376,7 +398,7 @@ pub fn prepare(
     inputs: &mut crate::dataset::Dataset,
     others: &mut [&mut crate::dataset::Dataset],
     k: f64,
-) -> anyhow::Result<(FramesReport, ParameterMask<6>)> {
+) -> anyhow::Result<(FramesReport, ParameterMask<JOINTS>)> {
     let full_pose = inputs.measurements.iter().all(|m| m.rotation.is_some());
     let (mask, removed) = mask_with_frames(&inputs.model.mask, frames, full_pose);
     if frames == Frames::None {
@@ -407,7 +429,7 @@ pub fn prepare(
         );
     }
     let registered = with_registration(&inputs.file, &registration, frames.tool());
-    let mut frame_mask = ParameterMask::<6>::empty();
+    let mut frame_mask = ParameterMask::<JOINTS>::empty();
     for p in mask.iter() {
         if matches!(p, Parameter::Base(_) | Parameter::Tool(_)) {
             frame_mask.set(p, true);
@@ -424,7 +446,7 @@ pub fn prepare(
     fitted.calibration = None;
     let mut model = fitted.to_model(&inputs.model.path)?;
     model.mask = inputs.model.mask;
-    let kinematics = Kinematics::nominal(&model.robot).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let kinematics = Kinematics::nominal(&model.robot)?;
     let frames_fit_rms_mm = crate::statistics::table3(&kinematics, inputs)
         .0
         .position_mm
@@ -453,10 +475,10 @@ pub fn prepare(
 /// Least-squares fit of the frame parameters in `mask` alone (nominal geometry).
 fn fit_frames<const D: usize>(
     inputs: &crate::dataset::Dataset,
-    mask: &ParameterMask<6>,
+    mask: &ParameterMask<JOINTS>,
     k: f64,
-) -> anyhow::Result<calib_core::ParameterErrors<f64, 6>> {
-    let set = calib_core::ParameterSet::<6, D>::from_mask(mask)?;
+) -> anyhow::Result<calib_core::ParameterErrors<f64, JOINTS>> {
+    let set = calib_core::ParameterSet::<JOINTS, D>::from_mask(mask)?;
     let problem = calib_core::Problem::new(
         &inputs.model.robot,
         &calib_core::ParameterErrors::zero(),
@@ -464,13 +486,13 @@ fn fit_frames<const D: usize>(
         &inputs.measurements,
         k,
     )
-    .map_err(|e| anyhow::anyhow!("fitting the frames: {e}"))?;
+    .context("fitting the frames")?;
     let least_squares = calib_core::identify::lm::LeastSquares::new(&problem);
     let result = least_squares
         .solve(
             &nalgebra::SVector::zeros(),
             &calib_core::identify::lm::LmSettings::default(),
         )
-        .map_err(|e| anyhow::anyhow!("fitting the frames: {e}"))?;
+        .context("fitting the frames")?;
     Ok(set.unpack(&result.x))
 }

@@ -3,6 +3,7 @@
 //! are confounded with (the core's [`Identifiability`]), and the least determined direction of an
 //! ill-conditioned pose set.
 
+use crate::JOINTS;
 use crate::dataset::Dataset;
 use anyhow::bail;
 use calib_core::identify::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability, Status};
@@ -160,13 +161,25 @@ impl IdentifiabilityReport {
     }
 }
 
+/// The identifiability of the robot's identified parameters on `dataset`, with the frames
+/// identified as a calibration would (`frames`: `None` chooses from the data), at the nominal model.
+pub fn check(
+    mut dataset: Dataset,
+    frames: Option<crate::frames::Frames>,
+    k: f64,
+) -> anyhow::Result<IdentifiabilityReport> {
+    let frames = crate::frames::Frames::chosen(frames, &dataset.data);
+    let (_, mask) = crate::frames::prepare(frames, &mut dataset, &mut [], k)?;
+    crate::with_parameter_count!(mask.count(), analyse(&dataset, &mask, k))
+}
+
 /// The identifiability of the parameters selected by `mask` at the nominal model.
 pub fn analyse<const D: usize>(
     dataset: &Dataset,
-    mask: &ParameterMask<6>,
+    mask: &ParameterMask<JOINTS>,
     k: f64,
 ) -> anyhow::Result<IdentifiabilityReport> {
-    let set = ParameterSet::<6, D>::from_mask(mask)?;
+    let set = ParameterSet::<JOINTS, D>::from_mask(mask)?;
     if dataset.rows() < D {
         bail!(
             "{} poses give {} equations, fewer than the {D} identified parameters",
@@ -180,8 +193,7 @@ pub fn analyse<const D: usize>(
         set,
         &dataset.measurements,
         k,
-    )
-    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    )?;
     let least_squares = LeastSquares::new(&problem);
     let r = least_squares.jacobian_factor(&SVector::zeros());
     let id = Identifiability::from_factor(&r, dataset.measurements.len(), DEFAULT_RANK_TOLERANCE);

@@ -3,15 +3,15 @@
 //! command line.
 #![deny(missing_docs)]
 
-pub mod calibrate;
+/// The joint count the tool is built for. The core is generic over it; the tool instantiates it
+/// here, in one place.
+pub const JOINTS: usize = 6;
+
 pub mod calibration;
-pub mod check;
 pub mod cli;
 pub mod compensate;
 pub mod dataset;
-pub mod demo;
 pub mod dispatch;
-pub mod evaluate;
 pub mod export;
 pub mod files;
 pub mod fk;

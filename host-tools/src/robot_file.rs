@@ -23,6 +23,9 @@ use calib_core::{
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+/// The nominal Efort ER10L-C10 of the paper (Table 1), as the robot file `robots/er10l-c10.toml`.
+pub const ER10L_C10_TOML: &str = include_str!("../robots/er10l-c10.toml");
+
 /// Why a robot file could not be used. Every message names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum RobotFileError {
@@ -164,7 +167,6 @@ impl RobotFile {
                 self.joint.len()
             )));
         }
-        let deg = f64::to_radians;
         let mut joints = [MdhJoint {
             a: 0.0,
             alpha: 0.0,
@@ -179,71 +181,32 @@ impl RobotFile {
             .zip(joints.iter_mut().zip(limits.iter_mut()))
             .enumerate()
         {
-            let number = i + 1;
-            let fields = [
-                ("a_mm", entry.a_mm),
-                ("alpha_deg", entry.alpha_deg),
-                ("theta_offset_deg", entry.theta_offset_deg),
-                ("d_mm", entry.d_mm),
-                ("beta_deg", entry.beta_deg),
-            ];
-            if let Some((field, value)) = fields.iter().find(|(_, v)| !v.is_finite()) {
-                return Err(invalid(format!(
-                    "joint {number}: {field} = {value} is not a finite number"
-                )));
-            }
-            *joint = MdhJoint {
-                a: entry.a_mm,
-                alpha: deg(entry.alpha_deg),
-                theta_offset: deg(entry.theta_offset_deg),
-                d: entry.d_mm,
-                beta: deg(entry.beta_deg),
-            };
-            if let Some([lower, upper]) = entry.limits_deg {
-                if lower.is_nan() || upper.is_nan() || lower > upper {
-                    return Err(invalid(format!(
-                        "joint {number}: limits_deg = [{lower}, {upper}] must be [lower, upper] with lower <= upper"
-                    )));
-                }
-                *limit = JointLimits {
-                    lower: deg(lower),
-                    upper: deg(upper),
-                };
-            }
+            (*joint, *limit) = entry.to_joint(i + 1).map_err(invalid)?;
         }
-        let frame =
-            |entry: &Option<FrameEntry>, which: &str| -> Result<FramePose<f64>, RobotFileError> {
-                let Some(entry) = entry else {
-                    return Ok(FramePose::identity());
-                };
-                if entry
-                    .xyz_mm
-                    .iter()
-                    .chain(&entry.rpy_deg)
-                    .any(|v| !v.is_finite())
-                {
-                    return Err(invalid(format!(
-                        "[{which}]: xyz_mm and rpy_deg must be finite numbers"
-                    )));
-                }
-                Ok(FramePose {
-                    xyz: entry.xyz_mm,
-                    rpy: entry.rpy_deg.map(deg),
-                })
-            };
         let robot = Robot {
             joints,
             limits,
-            base: frame(&self.base, "base")?,
-            tool: frame(&self.tool, "tool")?,
+            base: frame_pose(self.base.as_ref(), "base").map_err(invalid)?,
+            tool: frame_pose(self.tool.as_ref(), "tool").map_err(invalid)?,
         };
         robot.validate().map_err(|e| invalid(e.to_string()))?;
-        let mut mask = ParameterMask::default_for(&robot);
+        let mask = self.mask(&robot).map_err(invalid)?;
+        Ok(RobotModel {
+            name: self.name.clone(),
+            path: path.to_owned(),
+            robot,
+            mask,
+        })
+    }
+
+    /// The identification mask: the default rule, replaced per joint by its `identify` list.
+    fn mask<const N: usize>(&self, robot: &Robot<f64, N>) -> Result<ParameterMask<N>, String> {
+        let mut mask = ParameterMask::default_for(robot);
         for (i, entry) in self.joint.iter().enumerate() {
             let Some(names) = &entry.identify else {
                 continue;
             };
-            let joint = u8::try_from(i + 1).map_err(|_| invalid("too many joints".into()))?;
+            let joint = u8::try_from(i + 1).map_err(|_| "too many joints".to_string())?;
             for kind in JointParameter::ALL {
                 mask.set(Parameter::Joint { joint, kind }, false);
             }
@@ -252,21 +215,78 @@ impl RobotFile {
                     .into_iter()
                     .find(|k| k.name() == name)
                     .ok_or_else(|| {
-                        invalid(format!(
+                        format!(
                             "joint {}: identify: unknown parameter \"{name}\", expected one of a, d, alpha, beta, theta",
                             i + 1
-                        ))
+                        )
                     })?;
                 mask.set(Parameter::Joint { joint, kind }, true);
             }
         }
-        Ok(RobotModel {
-            name: self.name.clone(),
-            path: path.to_owned(),
-            robot,
-            mask,
-        })
+        Ok(mask)
     }
+}
+
+impl JointEntry {
+    /// The joint (mm, rad) and its limits; `number` (1-based) names it in errors.
+    fn to_joint(&self, number: usize) -> Result<(MdhJoint<f64>, JointLimits<f64>), String> {
+        let deg = f64::to_radians;
+        let fields = [
+            ("a_mm", self.a_mm),
+            ("alpha_deg", self.alpha_deg),
+            ("theta_offset_deg", self.theta_offset_deg),
+            ("d_mm", self.d_mm),
+            ("beta_deg", self.beta_deg),
+        ];
+        if let Some((field, value)) = fields.iter().find(|(_, v)| !v.is_finite()) {
+            return Err(format!(
+                "joint {number}: {field} = {value} is not a finite number"
+            ));
+        }
+        let joint = MdhJoint {
+            a: self.a_mm,
+            alpha: deg(self.alpha_deg),
+            theta_offset: deg(self.theta_offset_deg),
+            d: self.d_mm,
+            beta: deg(self.beta_deg),
+        };
+        let limits = match self.limits_deg {
+            None => JointLimits::unlimited(),
+            Some([lower, upper]) => {
+                if lower.is_nan() || upper.is_nan() || lower > upper {
+                    return Err(format!(
+                        "joint {number}: limits_deg = [{lower}, {upper}] must be [lower, upper] with lower <= upper"
+                    ));
+                }
+                JointLimits {
+                    lower: deg(lower),
+                    upper: deg(upper),
+                }
+            }
+        };
+        Ok((joint, limits))
+    }
+}
+
+/// A `[base]` or `[tool]` table as a frame (mm, rad); absent: identity.
+fn frame_pose(entry: Option<&FrameEntry>, which: &str) -> Result<FramePose<f64>, String> {
+    let Some(entry) = entry else {
+        return Ok(FramePose::identity());
+    };
+    if entry
+        .xyz_mm
+        .iter()
+        .chain(&entry.rpy_deg)
+        .any(|v| !v.is_finite())
+    {
+        return Err(format!(
+            "[{which}]: xyz_mm and rpy_deg must be finite numbers"
+        ));
+    }
+    Ok(FramePose {
+        xyz: entry.xyz_mm,
+        rpy: entry.rpy_deg.map(f64::to_radians),
+    })
 }
 
 impl<const N: usize> RobotModel<N> {

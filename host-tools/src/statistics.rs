@@ -2,6 +2,7 @@
 //! deviation, maximum and RMS of the absolute position error in mm and of the orientation error
 //! per axis in deg), and the per-pose errors behind them.
 
+use crate::JOINTS;
 use crate::dataset::Dataset;
 use calib_core::Kinematics;
 use calib_core::identify::statistics::{PoseStatistics, Summary};
@@ -71,7 +72,7 @@ impl Table3 {
 }
 
 /// Table 3 statistics of `kinematics` on `dataset`, and `|dp|` per pose (mm).
-pub fn table3(kinematics: &Kinematics<f64, 6>, dataset: &Dataset) -> (Table3, Vec<f64>) {
+pub fn table3(kinematics: &Kinematics<f64, JOINTS>, dataset: &Dataset) -> (Table3, Vec<f64>) {
     let mut stats = PoseStatistics::default();
     let mut per_pose = Vec::with_capacity(dataset.measurements.len());
     for m in &dataset.measurements {
@@ -84,7 +85,10 @@ pub fn table3(kinematics: &Kinematics<f64, 6>, dataset: &Dataset) -> (Table3, Ve
 
 /// `|dr_x|, |dr_y|, |dr_z|` (deg) of `kinematics` for every pose of `dataset` that has an
 /// orientation, in file order.
-pub fn orientation_per_pose(kinematics: &Kinematics<f64, 6>, dataset: &Dataset) -> Vec<[f64; 3]> {
+pub fn orientation_per_pose(
+    kinematics: &Kinematics<f64, JOINTS>,
+    dataset: &Dataset,
+) -> Vec<[f64; 3]> {
     dataset
         .measurements
         .iter()
@@ -94,4 +98,10 @@ pub fn orientation_per_pose(kinematics: &Kinematics<f64, 6>, dataset: &Dataset) 
             [0, 1, 2].map(|i| e.rotation[i].abs().to_degrees())
         })
         .collect()
+}
+
+/// Table 3 statistics of the dataset's own robot (nominal or identified) on its measurements.
+pub fn evaluate(dataset: &Dataset) -> anyhow::Result<Table3> {
+    let kinematics = Kinematics::nominal(&dataset.model.robot)?;
+    Ok(table3(&kinematics, dataset).0)
 }

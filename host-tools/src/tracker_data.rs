@@ -189,25 +189,7 @@ impl TrackerData {
         joints_required: bool,
         profile: &DataProfile,
     ) -> Result<Self, DataError> {
-        let at = |line: u64, column: Option<String>, message: String| DataError::At {
-            path: path.to_owned(),
-            line,
-            column,
-            message,
-        };
-        // Physical line of a byte offset (the csv crate's own line count is one short after a
-        // CRLF header, so lines are counted here).
-        let line_starts: Vec<usize> = std::iter::once(0)
-            .chain(text.match_indices('\n').map(|(i, _)| i + 1))
-            .collect();
-        let line_of = |byte: u64| -> u64 {
-            // After a CRLF the record may start at the '\n' of the previous line's end.
-            let mut byte = usize::try_from(byte).unwrap_or(usize::MAX);
-            while matches!(text.as_bytes().get(byte), Some(b'\r' | b'\n')) {
-                byte += 1;
-            }
-            line_starts.partition_point(|start| *start <= byte) as u64
-        };
+        let source = Source::new(text, path);
         let base_frame = match profile.frame {
             Some(frame) => frame == DataFrame::Base,
             None => text.lines().any(|l| {
@@ -221,251 +203,345 @@ impl TrackerData {
             .trim(csv::Trim::All)
             .flexible(true)
             .from_reader(text.as_bytes());
+        let layout = Layout::read(&mut reader, &source, joints_required, profile)?;
+        let mut records = Vec::new();
+        let mut ids = std::collections::HashMap::new();
+        for result in reader.records() {
+            let row = result.map_err(|e| {
+                let line = e.position().map_or(0, |p| source.line_of(p.byte()));
+                source.at(line, None, format!("cannot read the row: {e}"))
+            })?;
+            let record = layout.record(&row, &source, profile)?;
+            if let Some(previous) = ids.insert(record.id.clone(), record.line) {
+                return Err(source.at(
+                    record.line,
+                    Some("id".into()),
+                    format!("id \"{}\" already used on line {previous}", record.id),
+                ));
+            }
+            records.push(record);
+        }
+        if records.is_empty() {
+            return Err(source.at(layout.header_line, None, "the file has no data rows".into()));
+        }
+        Ok(Self {
+            path: path.to_owned(),
+            base_frame,
+            header_line: layout.header_line,
+            joints: layout.joints,
+            orientation: layout.orientation,
+            records,
+        })
+    }
+}
+
+/// The text being parsed and its file, for errors with physical line numbers.
+struct Source<'t> {
+    text: &'t str,
+    path: &'t Path,
+    /// Byte offset of the start of each line.
+    line_starts: Vec<usize>,
+}
+
+impl<'t> Source<'t> {
+    fn new(text: &'t str, path: &'t Path) -> Self {
+        let line_starts = std::iter::once(0)
+            .chain(text.match_indices('\n').map(|(i, _)| i + 1))
+            .collect();
+        Self {
+            text,
+            path,
+            line_starts,
+        }
+    }
+
+    /// An error at a physical line (and column, when the problem is in one).
+    fn at(&self, line: u64, column: Option<String>, message: String) -> DataError {
+        DataError::At {
+            path: self.path.to_owned(),
+            line,
+            column,
+            message,
+        }
+    }
+
+    /// Physical line of a byte offset (the csv crate's own line count is one short after a CRLF
+    /// header, so lines are counted here).
+    fn line_of(&self, byte: u64) -> u64 {
+        // After a CRLF the record may start at the '\n' of the previous line's end.
+        let mut byte = usize::try_from(byte).unwrap_or(usize::MAX);
+        while matches!(self.text.as_bytes().get(byte), Some(b'\r' | b'\n')) {
+            byte += 1;
+        }
+        self.line_starts.partition_point(|start| *start <= byte) as u64
+    }
+}
+
+/// The header row understood: our meaning of every source column.
+struct Layout {
+    /// The source column names.
+    header: csv::StringRecord,
+    /// Our column for each source column.
+    columns: Vec<Column>,
+    /// Physical line of the header.
+    header_line: u64,
+    /// Number of joint columns.
+    joints: usize,
+    /// How the orientation is given.
+    orientation: OrientationColumns,
+}
+
+impl Layout {
+    /// Reads the header and checks it: known (or mapped) names, no duplicates, every joint up
+    /// to the highest, the three positions, a complete orientation or none.
+    fn read(
+        reader: &mut csv::Reader<&[u8]>,
+        source: &Source<'_>,
+        joints_required: bool,
+        profile: &DataProfile,
+    ) -> Result<Self, DataError> {
         let header = reader
             .headers()
-            .map_err(|e| at(1, None, format!("cannot read the header: {e}")))?
+            .map_err(|e| source.at(1, None, format!("cannot read the header: {e}")))?
             .clone();
         // The header is the first line that is neither empty nor a comment.
-        let header_line = text
+        let header_line = source
+            .text
             .lines()
             .position(|l| !l.trim().is_empty() && !l.starts_with('#'))
             .map_or(1, |i| i as u64 + 1);
+        let at = |column: Option<String>, message: String| source.at(header_line, column, message);
         if header.is_empty() || (header.len() == 1 && header.get(0) == Some("")) {
-            return Err(at(header_line, None, "the file has no header row".into()));
+            return Err(at(None, "the file has no header row".into()));
         }
-        // With a column mapping, rename the mapped source columns to ours and ignore the rest.
-        let mut names: Vec<String> = header.iter().map(str::to_string).collect();
-        if let Some(mapping) = &profile.columns {
-            let profile_name = profile
-                .path
-                .as_ref()
-                .map_or_else(String::new, |p| format!(" (data profile {})", p.display()));
-            for (ours, source) in mapping {
-                if !header.iter().any(|h| h == source) {
-                    return Err(at(
-                        header_line,
-                        None,
-                        format!(
-                            "missing column \"{source}\", which the data profile maps to {ours}{profile_name}"
-                        ),
-                    ));
-                }
-            }
-            for name in &mut names {
-                *name = mapping
-                    .iter()
-                    .find(|(_, source)| source == name)
-                    .map_or_else(String::new, |(ours, _)| ours.clone());
-            }
-        }
-        let mut columns = Vec::with_capacity(header.len());
-        for (i, (name, source)) in names.iter().zip(header.iter()).enumerate() {
-            if profile.columns.is_some() && name.is_empty() {
-                columns.push(Column::Ignored);
-                continue;
-            }
-            let name = source;
-            let column = parse_column(&names[i]).ok_or_else(|| {
-                at(
-                    header_line,
-                    Some(format!("{} (\"{name}\")", i + 1)),
-                    "unknown column; expected q<i>_deg or q<i>_rad, x_mm/y_mm/z_mm (or _m), qw/qx/qy/qz, rx_deg/ry_deg/rz_deg, id, weight".into(),
-                )
-            })?;
-            columns.push(column);
-        }
-        // Which columns are present, and no duplicates.
-        let mut seen = std::collections::HashSet::new();
-        for (name, column) in header.iter().zip(&columns) {
-            let key = match column {
-                Column::Ignored => continue,
-                Column::Joint(j, _) => format!("q{}", j + 1),
-                Column::Position(k, _) => ["x", "y", "z"][*k].to_string(),
-                Column::Angle(k, _) => ["rx", "ry", "rz"][*k].to_string(),
-                _ => name.to_string(),
-            };
-            if !seen.insert(key.clone()) {
-                return Err(at(
-                    header_line,
-                    Some(name.into()),
-                    format!("{key} appears twice"),
-                ));
-            }
-        }
-        let joints = columns
-            .iter()
-            .filter(|c| matches!(c, Column::Joint(..)))
-            .count();
-        if joints == 0 && joints_required {
-            return Err(at(
-                header_line,
-                None,
-                "no joint columns (q1_deg, q2_deg, ...)".into(),
-            ));
-        }
-        for j in 0..joints {
-            if !seen.contains(&format!("q{}", j + 1)) {
-                return Err(at(
-                    header_line,
-                    None,
-                    format!("missing joint column q{}_deg (or q{}_rad)", j + 1, j + 1),
-                ));
-            }
-        }
-        for axis in ["x", "y", "z"] {
-            if !seen.contains(axis) {
-                return Err(at(
-                    header_line,
-                    None,
-                    format!("missing position column {axis}_mm (or {axis}_m)"),
-                ));
-            }
-        }
-        let quaternions = columns
-            .iter()
-            .filter(|c| matches!(c, Column::Quaternion(_)))
-            .count();
-        let angles = columns
-            .iter()
-            .filter(|c| matches!(c, Column::Angle(..)))
-            .count();
+        let columns = columns_of(&header, profile, &at)?;
+        let joints = check_columns(&header, &columns, joints_required, &at)?;
+        let count = |f: fn(&Column) -> bool| columns.iter().filter(|c| f(c)).count();
+        let quaternions = count(|c| matches!(c, Column::Quaternion(_)));
+        let angles = count(|c| matches!(c, Column::Angle(..)));
         let orientation = match (quaternions, angles) {
             (0, 0) => OrientationColumns::None,
             (4, 0) => OrientationColumns::Quaternion,
             (0, 3) => OrientationColumns::FixedAngles,
             _ => {
                 return Err(at(
-                    header_line,
                     None,
                     "orientation needs all of qw, qx, qy, qz or all of rx_deg, ry_deg, rz_deg, not a mix".into(),
                 ));
             }
         };
-
-        let mut records = Vec::new();
-        let mut ids = std::collections::HashMap::new();
-        for result in reader.records() {
-            let row = result.map_err(|e| {
-                let line = e.position().map_or(0, |p| line_of(p.byte()));
-                at(line, None, format!("cannot read the row: {e}"))
-            })?;
-            let line = row.position().map_or(0, |p| line_of(p.byte()));
-            if row.len() != columns.len() {
-                return Err(at(
-                    line,
-                    None,
-                    format!("has {} fields, the header has {}", row.len(), columns.len()),
-                ));
-            }
-            let mut q = vec![0.0; joints];
-            let mut position = [0.0; 3];
-            let mut quaternion = [0.0; 4];
-            let mut angle = [0.0; 3];
-            let mut weight = 1.0;
-            let mut id = line.to_string();
-            for (i, ((field, column), name)) in
-                row.iter().zip(&columns).zip(header.iter()).enumerate()
-            {
-                let where_ = || Some(format!("{} (\"{name}\")", i + 1));
-                match column {
-                    Column::Ignored => continue,
-                    Column::Id => {
-                        id = field.to_string();
-                        continue;
-                    }
-                    _ => {}
-                }
-                let decimal_comma;
-                let number = if profile.decimal == b',' {
-                    decimal_comma = field.replace(',', ".");
-                    decimal_comma.as_str()
-                } else {
-                    field
-                };
-                let value: f64 = number
-                    .parse()
-                    .map_err(|_| at(line, where_(), format!("\"{field}\" is not a number")))?;
-                if !value.is_finite() {
-                    return Err(at(
-                        line,
-                        where_(),
-                        format!("{field} is not a finite number"),
-                    ));
-                }
-                match *column {
-                    Column::Joint(j, scale) => {
-                        // A reading beyond one turn in a radian column is almost surely degrees.
-                        if scale == 1.0 && value.abs() > 2.0 * std::f64::consts::PI {
-                            return Err(at(
-                                line,
-                                where_(),
-                                format!(
-                                    "{value} is beyond one turn for a radian column; are these degrees (q{}_deg)?",
-                                    j + 1
-                                ),
-                            ));
-                        }
-                        q[j] = value * scale
-                    }
-                    Column::Position(k, scale) => position[k] = value * scale,
-                    Column::Quaternion(k) => quaternion[k] = value,
-                    Column::Angle(k, scale) => angle[k] = value * scale,
-                    Column::Weight => {
-                        if value < 0.0 {
-                            return Err(at(line, where_(), "weight must be >= 0".into()));
-                        }
-                        weight = value;
-                    }
-                    Column::Id | Column::Ignored => {}
-                }
-            }
-            if let Some(previous) = ids.insert(id.clone(), line) {
-                return Err(at(
-                    line,
-                    Some("id".into()),
-                    format!("id \"{id}\" already used on line {previous}"),
-                ));
-            }
-            let rotation = match orientation {
-                OrientationColumns::None => None,
-                OrientationColumns::Quaternion => {
-                    let [w, x, y, z] = quaternion;
-                    let norm = (w * w + x * x + y * y + z * z).sqrt();
-                    if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
-                        return Err(at(
-                            line,
-                            Some("qw..qz".into()),
-                            format!(
-                                "quaternion norm {norm:.6} is not 1 (tolerance {QUATERNION_NORM_TOLERANCE})"
-                            ),
-                        ));
-                    }
-                    let unit = UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z));
-                    Some(*unit.to_rotation_matrix().matrix())
-                }
-                OrientationColumns::FixedAngles => Some(*profile.euler.rotation(angle).matrix()),
-            };
-            records.push(Record {
-                line,
-                id,
-                q,
-                position,
-                rotation,
-                weight,
-            });
-        }
-        if records.is_empty() {
-            return Err(at(header_line, None, "the file has no data rows".into()));
-        }
         Ok(Self {
-            path: path.to_owned(),
-            base_frame,
+            header,
+            columns,
             header_line,
             joints,
             orientation,
-            records,
         })
     }
+
+    /// One data row as a record, every value checked.
+    fn record(
+        &self,
+        row: &csv::StringRecord,
+        source: &Source<'_>,
+        profile: &DataProfile,
+    ) -> Result<Record, DataError> {
+        let line = row.position().map_or(0, |p| source.line_of(p.byte()));
+        if row.len() != self.columns.len() {
+            return Err(source.at(
+                line,
+                None,
+                format!(
+                    "has {} fields, the header has {}",
+                    row.len(),
+                    self.columns.len()
+                ),
+            ));
+        }
+        let mut record = Record {
+            line,
+            id: line.to_string(),
+            q: vec![0.0; self.joints],
+            position: [0.0; 3],
+            rotation: None,
+            weight: 1.0,
+        };
+        let mut quaternion = [0.0; 4];
+        let mut angle = [0.0; 3];
+        for (i, ((field, column), name)) in row
+            .iter()
+            .zip(&self.columns)
+            .zip(self.header.iter())
+            .enumerate()
+        {
+            let at =
+                |message: String| source.at(line, Some(format!("{} (\"{name}\")", i + 1)), message);
+            match column {
+                Column::Ignored => continue,
+                Column::Id => {
+                    record.id = field.to_string();
+                    continue;
+                }
+                _ => {}
+            }
+            let value = number(field, profile.decimal).map_err(at)?;
+            match *column {
+                Column::Joint(j, scale) => {
+                    // A reading beyond one turn in a radian column is almost surely degrees.
+                    if scale == 1.0 && value.abs() > 2.0 * std::f64::consts::PI {
+                        return Err(at(format!(
+                            "{value} is beyond one turn for a radian column; are these degrees (q{}_deg)?",
+                            j + 1
+                        )));
+                    }
+                    record.q[j] = value * scale
+                }
+                Column::Position(k, scale) => record.position[k] = value * scale,
+                Column::Quaternion(k) => quaternion[k] = value,
+                Column::Angle(k, scale) => angle[k] = value * scale,
+                Column::Weight => {
+                    if value < 0.0 {
+                        return Err(at("weight must be >= 0".into()));
+                    }
+                    record.weight = value;
+                }
+                Column::Id | Column::Ignored => {}
+            }
+        }
+        record.rotation = match self.orientation {
+            OrientationColumns::None => None,
+            OrientationColumns::Quaternion => Some(
+                rotation_of_quaternion(quaternion)
+                    .map_err(|m| source.at(line, Some("qw..qz".into()), m))?,
+            ),
+            OrientationColumns::FixedAngles => Some(*profile.euler.rotation(angle).matrix()),
+        };
+        Ok(record)
+    }
+}
+
+/// A finite number from a field, with a decimal point or, for `decimal == b','`, a comma.
+fn number(field: &str, decimal: u8) -> Result<f64, String> {
+    let decimal_comma;
+    let text = if decimal == b',' {
+        decimal_comma = field.replace(',', ".");
+        decimal_comma.as_str()
+    } else {
+        field
+    };
+    let value: f64 = text
+        .parse()
+        .map_err(|_| format!("\"{field}\" is not a number"))?;
+    if !value.is_finite() {
+        return Err(format!("{field} is not a finite number"));
+    }
+    Ok(value)
+}
+
+/// The rotation of a unit quaternion `[w, x, y, z]` (norm within [`QUATERNION_NORM_TOLERANCE`]).
+fn rotation_of_quaternion([w, x, y, z]: [f64; 4]) -> Result<Matrix3<f64>, String> {
+    let norm = (w * w + x * x + y * y + z * z).sqrt();
+    if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
+        return Err(format!(
+            "quaternion norm {norm:.6} is not 1 (tolerance {QUATERNION_NORM_TOLERANCE})"
+        ));
+    }
+    let unit = UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z));
+    Ok(*unit.to_rotation_matrix().matrix())
+}
+
+/// Our column for each source column: with a column mapping, the mapped source columns are
+/// renamed to ours (every mapped column must exist) and the rest ignored.
+fn columns_of(
+    header: &csv::StringRecord,
+    profile: &DataProfile,
+    at: &impl Fn(Option<String>, String) -> DataError,
+) -> Result<Vec<Column>, DataError> {
+    let mut names: Vec<String> = header.iter().map(str::to_string).collect();
+    if let Some(mapping) = &profile.columns {
+        let profile_name = profile
+            .path
+            .as_ref()
+            .map_or_else(String::new, |p| format!(" (data profile {})", p.display()));
+        for (ours, source) in mapping {
+            if !header.iter().any(|h| h == source) {
+                return Err(at(
+                    None,
+                    format!(
+                        "missing column \"{source}\", which the data profile maps to {ours}{profile_name}"
+                    ),
+                ));
+            }
+        }
+        for name in &mut names {
+            *name = mapping
+                .iter()
+                .find(|(_, source)| source == name)
+                .map_or_else(String::new, |(ours, _)| ours.clone());
+        }
+    }
+    let mut columns = Vec::with_capacity(header.len());
+    for (i, (name, source)) in names.iter().zip(header.iter()).enumerate() {
+        if profile.columns.is_some() && name.is_empty() {
+            columns.push(Column::Ignored);
+            continue;
+        }
+        let column = parse_column(name).ok_or_else(|| {
+            at(
+                Some(format!("{} (\"{source}\")", i + 1)),
+                "unknown column; expected q<i>_deg or q<i>_rad, x_mm/y_mm/z_mm (or _m), qw/qx/qy/qz, rx_deg/ry_deg/rz_deg, id, weight".into(),
+            )
+        })?;
+        columns.push(column);
+    }
+    Ok(columns)
+}
+
+/// Checks that no column appears twice, that the joints run from q1 to the highest without a
+/// gap (and exist when `joints_required`), and that x, y and z are there; returns the joint count.
+fn check_columns(
+    header: &csv::StringRecord,
+    columns: &[Column],
+    joints_required: bool,
+    at: &impl Fn(Option<String>, String) -> DataError,
+) -> Result<usize, DataError> {
+    let mut seen = std::collections::HashSet::new();
+    for (name, column) in header.iter().zip(columns) {
+        let key = match column {
+            Column::Ignored => continue,
+            Column::Joint(j, _) => format!("q{}", j + 1),
+            Column::Position(k, _) => ["x", "y", "z"][*k].to_string(),
+            Column::Angle(k, _) => ["rx", "ry", "rz"][*k].to_string(),
+            _ => name.to_string(),
+        };
+        if !seen.insert(key.clone()) {
+            return Err(at(Some(name.into()), format!("{key} appears twice")));
+        }
+    }
+    let joints = columns
+        .iter()
+        .filter(|c| matches!(c, Column::Joint(..)))
+        .count();
+    if joints == 0 && joints_required {
+        return Err(at(None, "no joint columns (q1_deg, q2_deg, ...)".into()));
+    }
+    for j in 0..joints {
+        if !seen.contains(&format!("q{}", j + 1)) {
+            return Err(at(
+                None,
+                format!("missing joint column q{}_deg (or q{}_rad)", j + 1, j + 1),
+            ));
+        }
+    }
+    for axis in ["x", "y", "z"] {
+        if !seen.contains(axis) {
+            return Err(at(
+                None,
+                format!("missing position column {axis}_mm (or {axis}_m)"),
+            ));
+        }
+    }
+    Ok(joints)
 }
 
 impl TrackerData {

@@ -5,8 +5,10 @@
 //! All three fit the same parameters from the same start (zero errors on the robot with its
 //! frames registered and fitted, as `calib calibrate` prepares it) by least squares.
 
+use crate::JOINTS;
 use crate::dataset::Dataset;
 use crate::frames::Frames;
+use anyhow::Context;
 use calib_core::Problem;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
 use calib_core::identify::objective::Measurement;
@@ -29,30 +31,6 @@ pub mod tolerance {
     pub const F32_ANGLE_RAD: f64 = 5e-5;
     /// f32 core against the f64 core: validation RMS position error, mm.
     pub const F32_VALIDATION_MM: f64 = 1e-3;
-}
-
-/// Options of `calib verify`.
-#[derive(Clone, Debug, clap::Args)]
-pub struct VerifyOptions {
-    /// Robot, data and data profile files.
-    #[command(flatten)]
-    pub input: crate::cli::InputFiles,
-    /// Frames identified with the geometry (default base+tool unless the data say
-    /// `# frame: base`).
-    #[arg(long, value_enum)]
-    pub frames: Option<Frames>,
-    /// Fraction of the poses held out for the validation error.
-    #[arg(long, default_value_t = 0.3)]
-    pub validate: f64,
-    /// Seed of the hold-out.
-    #[arg(long, default_value_t = 0)]
-    pub validate_seed: u64,
-    /// Orientation weight k, mm^2/rad^2.
-    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K)]
-    pub k: f64,
-    /// Print JSON instead of text.
-    #[arg(long)]
-    pub json: bool,
 }
 
 /// The largest differences found.
@@ -150,27 +128,27 @@ impl Verification {
     }
 }
 
-/// Runs `calib verify`.
-pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
-    let (_, all) = options.input.load()?;
-    let (mut calibration, mut validation) =
-        crate::dataset::split(&all, options.validate, options.validate_seed)?;
-    let frames = Frames::chosen(options.frames, &all.data);
-    let (_, mask) =
-        crate::frames::prepare(frames, &mut calibration, &mut [&mut validation], options.k)?;
-    crate::with_parameter_count!(
-        mask.count(),
-        run(&calibration, &validation, &mask, options.k)
-    )
+/// Calibrates the poses of `calibration` by least squares with the f32 core, the f64 core and
+/// the reference optimiser (frames prepared as a calibration does; `frames`: `None` chooses from
+/// the data) and compares the three, also on the held-out `validation` poses.
+pub fn verify(
+    mut calibration: Dataset,
+    mut validation: Dataset,
+    frames: Option<Frames>,
+    k: f64,
+) -> anyhow::Result<Verification> {
+    let frames = Frames::chosen(frames, &calibration.data);
+    let (_, mask) = crate::frames::prepare(frames, &mut calibration, &mut [&mut validation], k)?;
+    crate::with_parameter_count!(mask.count(), run(&calibration, &validation, &mask, k))
 }
 
 fn run<const D: usize>(
     calibration: &Dataset,
     validation: &Dataset,
-    mask: &ParameterMask<6>,
+    mask: &ParameterMask<JOINTS>,
     k: f64,
 ) -> anyhow::Result<Verification> {
-    let set = ParameterSet::<6, D>::from_mask(mask)?;
+    let set = ParameterSet::<JOINTS, D>::from_mask(mask)?;
     let condition_number =
         crate::identifiability::analyse::<D>(calibration, mask, k)?.condition_number;
     let settings = LmSettings::default();
@@ -181,43 +159,13 @@ fn run<const D: usize>(
         set,
         &calibration.measurements,
         k,
-    )
-    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    )?;
     let least_squares = LeastSquares::new(&problem);
     let x64 = least_squares
         .solve(&SVector::zeros(), &settings)
-        .map_err(|e| anyhow::anyhow!("f64 core: {e}"))?
+        .context("f64 core")?
         .x;
-    // f32 core.
-    let robot32 = crate::export::to_f32(&calibration.model.robot);
-    let measurements32 = calibration
-        .measurements
-        .iter()
-        .zip(&calibration.data.records)
-        .map(|(m, r)| {
-            let q: [f32; 6] = std::array::from_fn(|i| r.q.get(i).copied().unwrap_or(0.0) as f32);
-            Measurement::new(
-                &q,
-                m.position.map(|v| v as f32),
-                m.rotation.map(|r| r.map(|v| v as f32)),
-                m.weight as f32,
-            )
-            .map_err(|e| anyhow::anyhow!("{e}"))
-        })
-        .collect::<anyhow::Result<Vec<_>>>()?;
-    let problem32 = Problem::new(
-        &robot32,
-        &ParameterErrors::zero(),
-        set,
-        &measurements32,
-        k as f32,
-    )
-    .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let settings32 = LmSettings::<f32>::default();
-    let x32 = LeastSquares::new(&problem32)
-        .solve(&SVector::zeros(), &settings32)
-        .map_err(|e| anyhow::anyhow!("f32 core: {e}"))?
-        .x;
+    let x32 = solve_f32(calibration, set, k)?;
     // Reference optimiser.
     let names: Vec<String> = set.parameters().iter().map(ToString::to_string).collect();
     let fit = crate::reference::lm::fit(
@@ -230,8 +178,7 @@ fn run<const D: usize>(
     let xref: Vec<f64> = fit.errors.iter().map(|(_, v)| *v).collect();
 
     let rms = |x: &SVector<f64, D>| -> anyhow::Result<f64> {
-        let kinematics = Kinematics::new(&validation.model.robot, &set.unpack(x))
-            .map_err(|e| anyhow::anyhow!("{e}"))?;
+        let kinematics = Kinematics::new(&validation.model.robot, &set.unpack(x))?;
         let (table, _) = crate::statistics::table3(&kinematics, validation);
         Ok(table.position_mm.rms)
     };
@@ -272,4 +219,42 @@ fn run<const D: usize>(
         condition_number,
         passed,
     })
+}
+
+/// The least-squares solution of the f32 core (the controller's), from zero errors.
+fn solve_f32<const D: usize>(
+    calibration: &Dataset,
+    set: ParameterSet<JOINTS, D>,
+    k: f64,
+) -> anyhow::Result<SVector<f32, D>> {
+    let robot32 = crate::export::to_f32(&calibration.model.robot);
+    let measurements32 = calibration
+        .measurements
+        .iter()
+        .zip(&calibration.data.records)
+        .map(|(m, r)| {
+            let q: [f32; JOINTS] =
+                std::array::from_fn(|i| r.q.get(i).copied().unwrap_or(0.0) as f32);
+            Measurement::new(
+                &q,
+                m.position.map(|v| v as f32),
+                m.rotation.map(|r| r.map(|v| v as f32)),
+                m.weight as f32,
+            )
+            .map_err(anyhow::Error::from)
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let problem32 = Problem::new(
+        &robot32,
+        &ParameterErrors::zero(),
+        set,
+        &measurements32,
+        k as f32,
+    )?;
+    let settings32 = LmSettings::<f32>::default();
+    let x32 = LeastSquares::new(&problem32)
+        .solve(&SVector::zeros(), &settings32)
+        .context("f32 core")?
+        .x;
+    Ok(x32)
 }

@@ -1,28 +1,12 @@
 //! `calib simulate` and `calib calibrate --method ipso` end to end: the paper's noise-free
 //! scenario is recovered, the outputs are complete, bad input writes nothing.
 
+mod common;
+use common::{ROBOT, calib, ok};
+
 use host_tools::robot_file::RobotFile;
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Command, Output};
-
-const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
-
-fn calib(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_calib"))
-        .args(args)
-        .output()
-        .expect("run calib")
-}
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "calib failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 fn simulate(dir: &Path, extra: &[&str]) -> (String, String) {
     let data = dir.join("data.csv").display().to_string();

@@ -1,23 +1,17 @@
 //! `calib compensate` and `calib export` end to end, checked with the independent reference.
 
+mod common;
+use common::{ROBOT, calib};
+
 use host_tools::reference::{self, RefModel};
 use host_tools::robot_file::{RobotFile, RobotModel};
 use host_tools::tracker_data::{PoseRow, write_tracker_csv};
 use std::path::Path;
-use std::process::Command;
 
-const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
 const ACTUAL: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/data/er10l-c10-sim32-truth.toml"
 );
-
-fn calib(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_calib"))
-        .args(args)
-        .output()
-        .expect("run calib")
-}
 
 #[test]
 fn compensated_joints_put_the_actual_robot_on_the_targets() {

@@ -1,14 +1,7 @@
 //! `calib demo` and `calib verify` through the binary.
 
-use std::process::Output;
-
-fn calib(dir: &std::path::Path, args: &[&str]) -> Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_calib"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
+mod common;
+use common::calib_in;
 
 const UR10: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml");
 const SERIES_B: &str = concat!(
@@ -27,7 +20,7 @@ const POSITION: &str = concat!(
 #[test]
 fn demo_needs_no_input_and_recovers_both_scenarios() {
     let dir = tempfile::tempdir().unwrap();
-    let out = calib(dir.path(), &["demo", "--quiet"]);
+    let out = calib_in(dir.path(), &["demo", "--quiet"]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -72,7 +65,7 @@ fn demo_needs_no_input_and_recovers_both_scenarios() {
 #[test]
 fn verify_agrees_on_real_data_and_fails_on_an_ill_conditioned_set() {
     let dir = tempfile::tempdir().unwrap();
-    let out = calib(
+    let out = calib_in(
         dir.path(),
         &[
             "verify",
@@ -117,7 +110,7 @@ fn verify_agrees_on_real_data_and_fails_on_an_ill_conditioned_set() {
         .collect();
     let path = dir.path().join("one-configuration.csv");
     std::fs::write(&path, subset).unwrap();
-    let out = calib(
+    let out = calib_in(
         dir.path(),
         &[
             "verify",
@@ -146,7 +139,7 @@ fn data_with_the_wrong_joint_count_names_the_header_line() {
         "# five joints\nq1_deg,q2_deg,q3_deg,q4_deg,q5_deg,x_mm,y_mm,z_mm\n0,0,0,0,0,1,2,3\n",
     )
     .unwrap();
-    let out = calib(
+    let out = calib_in(
         dir.path(),
         &[
             "evaluate",

@@ -1,18 +1,11 @@
 //! `calib fk` end to end: the printed pose matches the independent f64 reference.
 
+mod common;
+use common::{ROBOT, calib};
+
 use host_tools::reference::{self, RefModel};
 use host_tools::robot_file::RobotFile;
 use std::path::Path;
-use std::process::Command;
-
-const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
-
-fn calib(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_calib"))
-        .args(args)
-        .output()
-        .expect("run calib")
-}
 
 #[test]
 fn fk_json_matches_the_reference() {

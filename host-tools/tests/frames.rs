@@ -4,25 +4,15 @@
 //! error is compared with the independent float64 reference optimiser started at the true frames
 //! and parameters.
 
-use clap::Parser;
-use host_tools::calibrate::{self, CalibrateOptions};
+mod common;
+use common::{ROBOT, parse};
+
+use host_tools::cli::calibrate::{self, CalibrateOptions};
 use host_tools::reference::lm;
 use host_tools::robot_file::RobotFile;
-use host_tools::simulate::{self, Simulation};
+use host_tools::simulate::{self, SimulationConfig};
 use host_tools::tracker_data::TrackerData;
 use std::path::{Path, PathBuf};
-
-const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
-
-#[derive(Parser)]
-struct Wrap<T: clap::Args> {
-    #[command(flatten)]
-    inner: T,
-}
-
-fn parse<T: clap::Args>(args: &[&str]) -> T {
-    Wrap::<T>::parse_from(std::iter::once("calib").chain(args.iter().copied())).inner
-}
 
 /// Simulates `poses` poses in the tracker frame; returns (data, truth file).
 fn simulate(
@@ -34,29 +24,21 @@ fn simulate(
 ) -> (PathBuf, PathBuf) {
     let data = dir.join(format!("{name}.csv"));
     let truth = dir.join(format!("{name}-truth.toml"));
-    let (p, s) = (poses.to_string(), seed.to_string());
-    let mut args = vec![
-        "--robot",
-        ROBOT,
-        "--poses",
-        &p,
-        "--seed",
-        &s,
-        "--position-sigma-mm",
-        "0.02",
-        "--orientation-sigma-rad",
-        "1e-4",
-        "--out",
-        data.to_str().unwrap(),
-        "--truth-out",
-        truth.to_str().unwrap(),
-    ];
     // Tracker about 3 m away, turned arbitrarily; reflector 150 mm off the flange.
-    args.extend(simulate::REALISTIC_CELL);
-    if position_only {
-        args.push("--position-only");
+    let config = SimulationConfig {
+        poses,
+        seed,
+        position_sigma_mm: 0.02,
+        orientation_sigma_rad: 1e-4,
+        position_only,
+        ..SimulationConfig::default()
     }
-    simulate::simulate(&parse::<Simulation>(&args)).unwrap();
+    .in_realistic_cell();
+    let robot = RobotFile::read(Path::new(ROBOT)).unwrap();
+    simulate::simulate(&robot, Path::new(ROBOT), &config)
+        .unwrap()
+        .write(&data, &truth)
+        .unwrap();
     (data, truth)
 }
 

@@ -2,26 +2,16 @@
 //! functions behind `calib simulate`, `calib calibrate` and `calib check`, checked against the
 //! independent float64 reference optimiser and the known truth.
 
-use clap::Parser;
-use host_tools::calibrate::{self, CalibrateOptions, Calibration};
-use host_tools::check::{self, CheckOptions};
+mod common;
+use common::{ROBOT, parse};
+
+use host_tools::cli::calibrate::{self, CalibrateOptions, Calibration};
+use host_tools::cli::check::{self, CheckOptions};
+use host_tools::cli::simulate::{self, Simulation};
 use host_tools::reference::lm;
 use host_tools::robot_file::RobotFile;
-use host_tools::simulate::{self, Simulation};
 use host_tools::tracker_data::TrackerData;
 use std::path::{Path, PathBuf};
-
-const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
-
-#[derive(Parser)]
-struct Wrap<T: clap::Args> {
-    #[command(flatten)]
-    inner: T,
-}
-
-fn parse<T: clap::Args>(args: &[&str]) -> T {
-    Wrap::<T>::parse_from(std::iter::once("calib").chain(args.iter().copied())).inner
-}
 
 fn simulate(dir: &Path, name: &str, args: &[&str]) -> (PathBuf, PathBuf) {
     let data = dir.join(format!("{name}.csv"));

@@ -2,8 +2,10 @@
 //! data/ipa-ur10-lasertracker/), read through the shipped data profiles, calibrated with the
 //! tracker and tool frames identified, and validated on the poses not used.
 
-use clap::Parser;
-use host_tools::calibrate::{self, CalibrateOptions, Calibration};
+mod common;
+use common::parse;
+
+use host_tools::cli::calibrate::{self, CalibrateOptions, Calibration};
 use host_tools::frames::Frames;
 use std::path::Path;
 
@@ -21,27 +23,13 @@ const POSITION: &str = concat!(
     "/profiles/ipa-ur10-lasertracker-position.toml"
 );
 
-#[derive(Parser)]
-struct Wrap {
-    #[command(flatten)]
-    inner: CalibrateOptions,
-}
-
 fn calibrate(data: &str, profile: &str, args: &[&str]) -> Calibration {
     let all = [
-        &[
-            "calib",
-            "--robot",
-            ROBOT,
-            "--data",
-            data,
-            "--profile",
-            profile,
-        ][..],
+        &["--robot", ROBOT, "--data", data, "--profile", profile][..],
         args,
     ]
     .concat();
-    calibrate::calibrate(&Wrap::parse_from(all).inner).unwrap()
+    calibrate::calibrate(&parse::<CalibrateOptions>(&all)).unwrap()
 }
 
 /// 50 random poses of the 1495 calibrate (`--validate 0.9666` holds out 1445), 5 seeds.
@@ -203,16 +191,8 @@ fn an_ill_conditioned_subset_is_flagged() {
 #[test]
 fn a_poor_registration_is_reported() {
     let er10l = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
-    let all = [
-        "calib",
-        "--robot",
-        er10l,
-        "--data",
-        DATA,
-        "--profile",
-        FULL_POSE,
-    ];
-    let err = calibrate::calibrate(&Wrap::parse_from(all).inner)
+    let all = ["--robot", er10l, "--data", DATA, "--profile", FULL_POSE];
+    let err = calibrate::calibrate(&parse::<CalibrateOptions>(&all))
         .err()
         .unwrap()
         .to_string();

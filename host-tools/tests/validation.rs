@@ -1,31 +1,15 @@
 //! Held-out validation (`--validate`, `--holdout`) and `calib evaluate`.
 
+mod common;
+use common::{ROBOT, calib, ok};
+
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Command, Output};
-
-const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
-
-fn calib(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_calib"))
-        .args(args)
-        .output()
-        .expect("run calib")
-}
-
-fn ok(out: Output) -> String {
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 fn simulate(dir: &Path, name: &str, poses: &str, seed: &str) -> String {
     let data = dir.join(name).display().to_string();
     let truth = dir.join(format!("{name}.truth.toml")).display().to_string();
-    ok(calib(&[
+    ok(&calib(&[
         "simulate",
         "--robot",
         ROBOT,
@@ -50,7 +34,7 @@ fn random_hold_out_is_reported_separately() {
     let dir = tempfile::tempdir().unwrap();
     let data = simulate(dir.path(), "d.csv", "60", "4");
     let report = dir.path().join("r.json");
-    let text = ok(calib(&[
+    let text = ok(&calib(&[
         "calibrate",
         "--robot",
         ROBOT,
@@ -87,7 +71,7 @@ fn holdout_file_statistics_equal_calib_evaluate_of_the_identified_model() {
     let holdout = simulate(dir.path(), "hold.csv", "30", "6");
     let report = dir.path().join("r.json");
     let identified = dir.path().join("identified.toml");
-    ok(calib(&[
+    ok(&calib(&[
         "calibrate",
         "--robot",
         ROBOT,
@@ -101,7 +85,7 @@ fn holdout_file_statistics_equal_calib_evaluate_of_the_identified_model() {
         identified.to_str().unwrap(),
     ]));
     let json: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
-    let evaluated: Value = serde_json::from_str(&ok(calib(&[
+    let evaluated: Value = serde_json::from_str(&ok(&calib(&[
         "evaluate",
         "--robot",
         identified.to_str().unwrap(),
@@ -116,7 +100,7 @@ fn holdout_file_statistics_equal_calib_evaluate_of_the_identified_model() {
     let b = evaluated["position_mm"]["mean"].as_f64().unwrap();
     // The identified file stores degrees in decimal text: agreement to rounding.
     assert!((a - b).abs() < 1e-9, "{a} vs {b}");
-    let nominal: Value = serde_json::from_str(&ok(calib(&[
+    let nominal: Value = serde_json::from_str(&ok(&calib(&[
         "evaluate", "--robot", ROBOT, "--data", &holdout, "--json",
     ])))
     .unwrap();
@@ -124,7 +108,7 @@ fn holdout_file_statistics_equal_calib_evaluate_of_the_identified_model() {
         nominal["position_mm"],
         json["validation"]["before"]["position_mm"]
     );
-    let text = ok(calib(&["evaluate", "--robot", ROBOT, "--data", &holdout]));
+    let text = ok(&calib(&["evaluate", "--robot", ROBOT, "--data", &holdout]));
     assert!(
         text.contains("absolute position error (mm)") && text.contains("(30 poses)"),
         "{text}"

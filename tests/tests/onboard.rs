@@ -81,15 +81,9 @@ fn the_job_is_accurate_and_its_encoding_is_the_firmwares_expectation() {
         .solve(&SVector::zeros(), &LmSettings::default())
         .unwrap()
         .x;
-    let (mut length, mut angle) = (0.0f64, 0.0f64);
-    for (i, (a, b)) in outcome.errors.iter().zip(x64.iter()).enumerate() {
-        let d = (f64::from(*a) - b).abs();
-        if set.parameters()[i].is_angle() {
-            angle = angle.max(d)
-        } else {
-            length = length.max(d)
-        }
-    }
+    let job =
+        nalgebra::SVector::<f64, D>::from_iterator(outcome.errors.iter().map(|e| f64::from(*e)));
+    let (length, angle) = set.largest_differences(&job, &x64);
     println!("f32 job vs f64 core: {length:.3e} mm, {angle:.3e} rad");
     assert!(length < 5e-3 && angle < 1e-5, "{length} {angle}");
 }

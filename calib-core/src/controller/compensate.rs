@@ -12,6 +12,7 @@
 //! pose the nominal model gives for the start joints), or a near-singular configuration
 //! (manipulability of the scaled Jacobian below a threshold).
 
+use crate::KinematicsError;
 use crate::kinematics::pose_error::PoseError;
 use crate::kinematics::{Kinematics, Pose};
 use crate::model::JointLimits;
@@ -73,6 +74,8 @@ impl<T: Real> Default for CompensationSettings<T> {
 pub enum CompensationError {
     /// The target or start joints are not finite.
     NonFinite,
+    /// A model could not be evaluated at the joints (the cause names the joint or parameter).
+    Kinematics(KinematicsError),
     /// The tolerance was not reached within the iteration cap.
     NoConvergence,
     /// The solution puts this joint (1-based) outside its limits.
@@ -87,6 +90,7 @@ impl fmt::Display for CompensationError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Self::NonFinite => f.write_str("target or start joints are not finite"),
+            Self::Kinematics(e) => write!(f, "kinematics: {e}"),
             Self::NoConvergence => f.write_str("no convergence within the iteration cap"),
             Self::JointLimit(j) => write!(f, "joint {j} would leave its limits"),
             Self::CorrectionTooLarge => f.write_str("correction larger than the configured bound"),
@@ -95,7 +99,14 @@ impl fmt::Display for CompensationError {
     }
 }
 
-impl core::error::Error for CompensationError {}
+impl core::error::Error for CompensationError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            Self::Kinematics(e) => Some(e),
+            _ => None,
+        }
+    }
+}
 
 /// A successful compensation.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -142,10 +153,10 @@ pub fn compensate_joints<T: Real, const N: usize>(
     }
     let before = nominal
         .forward(start)
-        .map_err(|_| CompensationError::NonFinite)?;
+        .map_err(CompensationError::Kinematics)?;
     let after = nominal
         .forward(&solution.q)
-        .map_err(|_| CompensationError::NonFinite)?;
+        .map_err(CompensationError::Kinematics)?;
     let correction = PoseError::between(&after, &before);
     if correction.position.norm() > settings.max_correction_mm
         || correction.rotation.norm() > settings.max_correction_rad
@@ -184,7 +195,7 @@ pub fn solve_joints<T: Real, const N: usize>(
     let mut q = *start;
     let (pose, mut jacobian) = model
         .geometric_jacobian(&q)
-        .map_err(|_| CompensationError::NonFinite)?;
+        .map_err(CompensationError::Kinematics)?;
     let mut error = PoseError::between(target, &pose);
     let mut lambda = settings.damping;
     let mut iterations = 0;
@@ -263,7 +274,7 @@ pub fn predistort<T: Real, const N: usize>(
     let solution = compensate_joints(nominal, actual, limits, target, start, settings)?;
     let mut command = nominal
         .forward(&solution.q)
-        .map_err(|_| CompensationError::NonFinite)?;
+        .map_err(CompensationError::Kinematics)?;
     let mut q = *start;
     let mut iterations = 0;
     loop {
@@ -279,9 +290,7 @@ pub fn predistort<T: Real, const N: usize>(
             },
         )?;
         q = planned.q;
-        let reached = actual
-            .forward(&q)
-            .map_err(|_| CompensationError::NonFinite)?;
+        let reached = actual.forward(&q).map_err(CompensationError::Kinematics)?;
         let error = PoseError::between(target, &reached);
         let (dp, dr) = (error.position.norm(), error.rotation.norm());
         if dp <= settings.position_tolerance && dr <= settings.rotation_tolerance {
@@ -391,7 +400,7 @@ mod tests {
                 }
                 Err(e) => {
                     let i = match e {
-                        CompensationError::NonFinite => 0,
+                        CompensationError::NonFinite | CompensationError::Kinematics(_) => 0,
                         CompensationError::NoConvergence => 1,
                         CompensationError::JointLimit(_) => 2,
                         CompensationError::CorrectionTooLarge => 3,

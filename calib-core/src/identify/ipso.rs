@@ -136,6 +136,21 @@ impl<T: Real, const D: usize> SearchSpace<T, D> {
             upper: center + reach,
         }
     }
+
+    /// Finite everywhere, non-negative half widths and `lower <= upper` in every dimension.
+    pub fn is_valid(&self) -> bool {
+        let finite = |v: &SVector<T, D>| v.iter().all(|x| x.finite());
+        finite(&self.center)
+            && finite(&self.half_width)
+            && finite(&self.lower)
+            && finite(&self.upper)
+            && !self.half_width.iter().any(|w| *w < T::zero())
+            && !self
+                .lower
+                .iter()
+                .zip(self.upper.iter())
+                .any(|(lo, hi)| lo > hi)
+    }
 }
 
 /// Settings of a swarm run; [`IpsoSettings::paper`] gives the paper's values.
@@ -266,47 +281,10 @@ where
         return Err(IpsoError::InvalidSize);
     }
     let k = constriction(settings.c1, settings.c2)?;
-    let valid = |v: &SVector<T, D>| v.iter().all(|x| x.finite());
-    if !(valid(&space.center)
-        && valid(&space.half_width)
-        && valid(&space.lower)
-        && valid(&space.upper))
-        || space.half_width.iter().any(|w| *w < T::zero())
-        || space
-            .lower
-            .iter()
-            .zip(space.upper.iter())
-            .any(|(lo, hi)| lo > hi)
-    {
+    if !space.is_valid() {
         return Err(IpsoError::InvalidSearchSpace);
     }
-
-    let mut positions = [SVector::<T, D>::zeros(); P];
-    let mut velocities = [SVector::<T, D>::zeros(); P];
-    let mut unit = [0.0f64; D];
-    let two = T::of(2.0);
-    let start = settings.halton_start;
-    for (i, (x, v)) in positions.iter_mut().zip(velocities.iter_mut()).enumerate() {
-        let i = i as u64;
-        halton::halton_point(start.wrapping_add(i), settings.scrambling, &mut unit);
-        for (((xj, h), c), w) in x
-            .iter_mut()
-            .zip(&unit)
-            .zip(space.center.iter())
-            .zip(space.half_width.iter())
-        {
-            *xj = *c + (two * T::of(*h) - T::one()) * *w;
-        }
-        halton::halton_point(
-            start.wrapping_add(P as u64 + i),
-            settings.scrambling,
-            &mut unit,
-        );
-        for ((vj, h), w) in v.iter_mut().zip(&unit).zip(space.half_width.iter()) {
-            *vj = (two * T::of(*h) - T::one()) * *w;
-        }
-        clamp(x, v, space);
-    }
+    let (mut positions, mut velocities) = halton_start::<T, P, D>(space, settings);
 
     let mut costs = [T::zero(); P];
     cost.cost_batch(&positions, &mut costs);
@@ -348,17 +326,7 @@ where
             }
             cost.cost_batch(&positions, &mut costs);
             evaluations += P as u64;
-            for ((c, best_c), (x, best_x)) in costs
-                .iter()
-                .zip(best_costs.iter_mut())
-                .zip(positions.iter().zip(best_positions.iter_mut()))
-            {
-                let c = sanitize(*c);
-                if c < *best_c {
-                    *best_c = c;
-                    *best_x = *x;
-                }
-            }
+            personal_bests(&costs, &positions, &mut best_costs, &mut best_positions);
             let (candidate, candidate_cost) = best_of(&best_positions, &best_costs);
             if candidate_cost < global_cost {
                 global = candidate;
@@ -389,6 +357,61 @@ where
         evaluations,
         stop,
     })
+}
+
+/// The swarm's start (section 2.2): particle `i` at Halton point `start + i` mapped onto the
+/// initial box, its velocity from point `start + P + i` scaled by the half widths; both clamped.
+fn halton_start<T: Real, const P: usize, const D: usize>(
+    space: &SearchSpace<T, D>,
+    settings: &IpsoSettings<T>,
+) -> ([SVector<T, D>; P], [SVector<T, D>; P]) {
+    let mut positions = [SVector::<T, D>::zeros(); P];
+    let mut velocities = [SVector::<T, D>::zeros(); P];
+    let mut unit = [0.0f64; D];
+    let two = T::of(2.0);
+    let start = settings.halton_start;
+    for (i, (x, v)) in positions.iter_mut().zip(velocities.iter_mut()).enumerate() {
+        let i = i as u64;
+        halton::halton_point(start.wrapping_add(i), settings.scrambling, &mut unit);
+        for (((xj, h), c), w) in x
+            .iter_mut()
+            .zip(&unit)
+            .zip(space.center.iter())
+            .zip(space.half_width.iter())
+        {
+            *xj = *c + (two * T::of(*h) - T::one()) * *w;
+        }
+        halton::halton_point(
+            start.wrapping_add(P as u64 + i),
+            settings.scrambling,
+            &mut unit,
+        );
+        for ((vj, h), w) in v.iter_mut().zip(&unit).zip(space.half_width.iter()) {
+            *vj = (two * T::of(*h) - T::one()) * *w;
+        }
+        clamp(x, v, space);
+    }
+    (positions, velocities)
+}
+
+/// Each particle's best: replaced where its new cost (non-finite counts as +infinity) is lower.
+fn personal_bests<T: Real, const P: usize, const D: usize>(
+    costs: &[T; P],
+    positions: &[SVector<T, D>; P],
+    best_costs: &mut [T; P],
+    best_positions: &mut [SVector<T, D>; P],
+) {
+    for ((c, best_c), (x, best_x)) in costs
+        .iter()
+        .zip(best_costs.iter_mut())
+        .zip(positions.iter().zip(best_positions.iter_mut()))
+    {
+        let c = sanitize(*c);
+        if c < *best_c {
+            *best_c = c;
+            *best_x = *x;
+        }
+    }
 }
 
 /// Absorbing walls: a coordinate outside its bounds goes onto the bound and stops.

@@ -447,12 +447,9 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
         })
     }
 
-    fn solve_weighted(
-        &self,
-        x0: &SVector<T, D>,
-        settings: &LmSettings<T>,
-        robust: &[T],
-    ) -> Result<LmResult<T, D>, LmError> {
+    /// The residual rows, after checking that they can determine the parameters and that the
+    /// start is finite.
+    fn check_start(&self, x0: &SVector<T, D>) -> Result<u32, LmError> {
         let rows = self.rows();
         if (rows as usize) < D {
             return Err(LmError::TooFewResiduals {
@@ -463,6 +460,16 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
         if !x0.iter().all(|v| v.finite()) {
             return Err(LmError::NonFinite);
         }
+        Ok(rows)
+    }
+
+    fn solve_weighted(
+        &self,
+        x0: &SVector<T, D>,
+        settings: &LmSettings<T>,
+        robust: &[T],
+    ) -> Result<LmResult<T, D>, LmError> {
+        let rows = self.check_start(x0)?;
         let half = T::of(0.5);
         let mut x = *x0;
         let mut factor = self.factor(&x, robust);
@@ -485,21 +492,7 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
             if cost == T::zero() {
                 break LmStop::ZeroResidual;
             }
-            // Scaled gradient J^T r = R^T Q^T r.
-            let gradient = factor.r.transpose() * factor.qtr;
-            let r_norm = (T::of(2.0) * cost).sqrt();
-            let cosine = gradient
-                .iter()
-                .zip(column_norms(&factor.r).iter())
-                .map(|(g, n)| {
-                    if *n > T::zero() {
-                        g.abs() / (*n * r_norm)
-                    } else {
-                        T::zero()
-                    }
-                })
-                .fold(T::zero(), |a, b| a.max(b));
-            if cosine <= settings.gtol {
+            if gradient_cosine(&factor, cost) <= settings.gtol {
                 break LmStop::Gradient;
             }
             if iterations >= settings.max_iterations {
@@ -562,6 +555,24 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
     }
 }
 
+/// MINPACK's scaled gradient test value `max_i |J_i^T r| / (|J_i| |r|)` at a factor with
+/// `0.5 |r|^2 = cost`; `J^T r = R^T Q^T r`.
+fn gradient_cosine<T: Real, const D: usize>(factor: &Factor<T, D>, cost: T) -> T {
+    let gradient = factor.r.transpose() * factor.qtr;
+    let r_norm = (T::of(2.0) * cost).sqrt();
+    gradient
+        .iter()
+        .zip(column_norms(&factor.r).iter())
+        .map(|(g, n)| {
+            if *n > T::zero() {
+                g.abs() / (*n * r_norm)
+            } else {
+                T::zero()
+            }
+        })
+        .fold(T::zero(), |a, b| a.max(b))
+}
+
 /// Column norms of `R` (equal to those of `J`, since `Q` is orthogonal).
 #[inline(never)] // three call sites: one copy (controller flash)
 fn column_norms<T: Real, const D: usize>(r: &SMatrix<T, D, D>) -> SVector<T, D> {
@@ -595,8 +606,10 @@ fn damped_step<T: Real, const D: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::identify::objective::Measurement;
     use crate::model::paper::{er10l_c10, paper_measurements, table2};
-    use crate::{ParameterErrors, ParameterSet};
+    use crate::{JointParameter, Parameter, ParameterErrors, ParameterSet};
+    extern crate std;
 
     /// LM from the nominal model (zero errors) on the noise-free paper scenario; returns the worst
     /// length (mm) and angle (rad) errors against Table 2 and the result.
@@ -617,20 +630,8 @@ mod tests {
             .solve(&SVector::zeros(), &LmSettings::default())
             .unwrap();
         let truth = set.pack(&table2::<T>());
-        let (mut mm, mut rad) = (0.0f64, 0.0f64);
-        for (p, (x, t)) in set
-            .parameters()
-            .iter()
-            .zip(result.x.iter().zip(truth.iter()))
-        {
-            let e = (x.to_f64() - t.to_f64()).abs();
-            if p.is_angle() {
-                rad = rad.max(e)
-            } else {
-                mm = mm.max(e)
-            }
-        }
-        (mm, rad, result)
+        let (mm, rad) = set.largest_differences(&result.x, &truth);
+        (mm.to_f64(), rad.to_f64(), result)
     }
 
     #[test]
@@ -685,19 +686,7 @@ mod tests {
             .solve(&swarm.best, &LmSettings::default())
             .unwrap();
         let truth = set.pack(&table2::<f32>());
-        let (mut mm, mut rad) = (0.0f32, 0.0f32);
-        for (p, (x, t)) in set
-            .parameters()
-            .iter()
-            .zip(result.x.iter().zip(truth.iter()))
-        {
-            let e = (x - t).abs();
-            if p.is_angle() {
-                rad = rad.max(e)
-            } else {
-                mm = mm.max(e)
-            }
-        }
+        let (mm, rad) = set.largest_differences(&result.x, &truth);
         extern crate std;
         std::println!(
             "ipso+lm f32: {mm:.2e} mm {rad:.2e} rad ({} iterations)",
@@ -739,7 +728,15 @@ mod tests {
         }
         assert!((factor.r.transpose() * factor.r - jtj).abs().max() < 1e-13);
         assert!((factor.r.transpose() * factor.qtr - jtr).abs().max() < 1e-13);
-        assert!(factor.r.lower_triangle().abs().max() - factor.r.diagonal().abs().max() <= 0.0);
+        // Upper triangular: every entry below the diagonal is exactly zero, the diagonal is not.
+        for i in 0..3 {
+            for j in 0..i {
+                assert_eq!(factor.r[(i, j)], 0.0, "R[({i}, {j})]");
+            }
+            assert!(factor.r[(i, i)].abs() > 0.1, "R[({i}, {i})]");
+        }
+        // |r|^2 is accumulated exactly as the sum of the squared residuals (1 + 4 + 0.25 + 9).
+        assert_eq!(factor.sum_squares, 14.25);
     }
 
     #[test]
@@ -756,6 +753,27 @@ mod tests {
                 rows: 18,
                 parameters: 24
             })
+        );
+        // With position-only data, dalpha6 (a rotation about x6 after joint 6's last
+        // translation) moves no measured point: its Jacobian column is exactly zero, and it is
+        // the first such parameter in canonical order (dtheta6 is the other one).
+        let positions: std::vec::Vec<_> = data
+            .as_slice()
+            .iter()
+            .map(|m| Measurement {
+                rotation: None,
+                ..*m
+            })
+            .collect();
+        let problem = Problem::new(&robot, &ParameterErrors::zero(), set, &positions, 1e6).unwrap();
+        let dalpha6 = Parameter::Joint {
+            joint: 6,
+            kind: JointParameter::Alpha,
+        };
+        assert_eq!(set.index_of(dalpha6), Some(16));
+        assert_eq!(
+            LeastSquares::new(&problem).solve(&SVector::zeros(), &LmSettings::default()),
+            Err(LmError::UnobservableParameter(16))
         );
     }
 }

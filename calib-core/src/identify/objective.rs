@@ -341,18 +341,10 @@ mod tests {
         let r = ipso::optimize::<T, 20, 24>(&mut cost, &space, &IpsoSettings::paper(), &mut Silent)
             .unwrap();
         let truth = set.pack(&table2::<T>());
-        let (mut worst_mm, mut worst_rad) = (0.0f64, 0.0f64);
-        for (p, (x, t)) in set.parameters().iter().zip(r.best.iter().zip(truth.iter())) {
-            let e = (x.to_f64() - t.to_f64()).abs();
-            if p.is_angle() {
-                worst_rad = worst_rad.max(e);
-            } else {
-                worst_mm = worst_mm.max(e);
-            }
-        }
+        let (worst_mm, worst_rad) = set.largest_differences(&r.best, &truth);
         (
-            worst_mm,
-            worst_rad,
+            worst_mm.to_f64(),
+            worst_rad.to_f64(),
             r.initial_cost.to_f64(),
             r.best_cost.to_f64(),
         )

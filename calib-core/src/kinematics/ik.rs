@@ -82,26 +82,11 @@ pub fn inverse_kinematics<T: Real>(
     {
         return Err(IkError::NonFinite);
     }
-    let tol = T::of(1e-9);
-    let deg90 = T::frac_pi_2();
-    let j = &robot.joints;
-    let [j1, j2, j3, j4, j5, j6] = j;
-    let alphas_ok = (j1.alpha + deg90).abs() < tol
-        && j2.alpha.abs() < tol
-        && (j3.alpha + deg90).abs() < tol
-        && (j4.alpha - deg90).abs() < tol
-        && (j5.alpha + deg90).abs() < tol
-        && j6.alpha.abs() < tol;
-    let offsets_ok = j2.d.abs() < tol
-        && j3.d.abs() < tol
-        && j5.d.abs() < tol
-        && j4.a.abs() < tol
-        && j5.a.abs() < tol
-        && j6.a.abs() < tol;
-    let beta_ok = j.iter().all(|x| x.beta.abs() < tol);
-    if !(alphas_ok && offsets_ok && beta_ok) {
+    if !spherical_wrist_family(robot) {
         return Err(IkError::UnsupportedGeometry);
     }
+    let j = &robot.joints;
+    let [j1, j2, j3, j4, _, j6] = j;
     let kinematics = Kinematics::new(robot, &ParameterErrors::zero()).map_err(IkError::Model)?;
     // Flange pose T_06 = base^-1 * target * tool^-1.
     let flange = kinematics.base().inverse() * target * kinematics.tool().inverse();
@@ -147,19 +132,7 @@ pub fn inverse_kinematics<T: Real>(
             }
             let r36 = rotation.transpose() * r06;
             for wrist in 0..2usize {
-                let sin_b_abs = (T::one() - r36.m33 * r36.m33).max(T::zero()).sqrt();
-                let sin_b = if wrist == 0 { sin_b_abs } else { -sin_b_abs };
-                let b = sin_b.atan2(r36.m33);
-                let (theta4, theta6) = if sin_b_abs > T::of(1e-12) {
-                    let sign = if wrist == 0 { T::one() } else { -T::one() };
-                    (
-                        (r36.m23 * sign).atan2(r36.m13 * sign),
-                        (r36.m32 * sign).atan2(-r36.m31 * sign),
-                    )
-                } else {
-                    // Wrist singular: only theta4 + theta6 (or the difference) is determined.
-                    (T::zero(), r36.m21.atan2(r36.m11))
-                };
+                let (theta4, b, theta6) = wrist_angles(&r36, wrist == 0);
                 let theta = [theta1, theta2, theta3, theta4, -b, theta6];
                 let mut q = [T::zero(); 6];
                 for ((qi, t), joint) in q.iter_mut().zip(theta).zip(j.iter()) {
@@ -172,6 +145,48 @@ pub fn inverse_kinematics<T: Real>(
         }
     }
     Ok(out)
+}
+
+/// `true` for the supported family (see the module docs): alpha = (-90, 0, -90, 90, -90, 0) deg,
+/// d2 = d3 = d5 = 0, a4 = a5 = a6 = 0, every beta = 0 (within 1e-9).
+fn spherical_wrist_family<T: Real>(robot: &Robot<T, 6>) -> bool {
+    let tol = T::of(1e-9);
+    let deg90 = T::frac_pi_2();
+    let j = &robot.joints;
+    let [j1, j2, j3, j4, j5, j6] = j;
+    let alphas_ok = (j1.alpha + deg90).abs() < tol
+        && j2.alpha.abs() < tol
+        && (j3.alpha + deg90).abs() < tol
+        && (j4.alpha - deg90).abs() < tol
+        && (j5.alpha + deg90).abs() < tol
+        && j6.alpha.abs() < tol;
+    let offsets_ok = j2.d.abs() < tol
+        && j3.d.abs() < tol
+        && j5.d.abs() < tol
+        && j4.a.abs() < tol
+        && j5.a.abs() < tol
+        && j6.a.abs() < tol;
+    let beta_ok = j.iter().all(|x| x.beta.abs() < tol);
+    alphas_ok && offsets_ok && beta_ok
+}
+
+/// The wrist angles `(theta4, b, theta6)` of `R_36 = Rz(theta4) Ry(-b) Rz(theta6)` (ZYZ), on
+/// the branch with `sin b >= 0` (`unflipped`) or `<= 0`. At the wrist singularity only theta4 +
+/// theta6 (or the difference) is determined: theta4 = 0 then.
+fn wrist_angles<T: Real>(r36: &nalgebra::Matrix3<T>, unflipped: bool) -> (T, T, T) {
+    let sin_b_abs = (T::one() - r36.m33 * r36.m33).max(T::zero()).sqrt();
+    let sin_b = if unflipped { sin_b_abs } else { -sin_b_abs };
+    let b = sin_b.atan2(r36.m33);
+    let (theta4, theta6) = if sin_b_abs > T::of(1e-12) {
+        let sign = if unflipped { T::one() } else { -T::one() };
+        (
+            (r36.m23 * sign).atan2(r36.m13 * sign),
+            (r36.m32 * sign).atan2(-r36.m31 * sign),
+        )
+    } else {
+        (T::zero(), r36.m21.atan2(r36.m11))
+    };
+    (theta4, b, theta6)
 }
 
 /// The solution closest to `reference` (largest joint difference, wrapped), if any branch reaches.

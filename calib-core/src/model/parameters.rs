@@ -489,6 +489,25 @@ impl<const N: usize, const D: usize> ParameterSet<N, D> {
         errors
     }
 
+    /// The largest length difference (mm) and the largest angle difference (rad) between two
+    /// packed vectors of this set, such as identified errors against the truth. A non-finite
+    /// difference is returned as such, never hidden by a finite one.
+    pub fn largest_differences<T: Real>(&self, a: &SVector<T, D>, b: &SVector<T, D>) -> (T, T) {
+        let (mut length, mut angle) = (T::zero(), T::zero());
+        for (p, (x, y)) in self.parameters.iter().zip(a.iter().zip(b.iter())) {
+            let d = (*x - *y).abs();
+            let largest = if p.is_angle() {
+                &mut angle
+            } else {
+                &mut length
+            };
+            if !d.finite() || (largest.finite() && d > *largest) {
+                *largest = d;
+            }
+        }
+        (length, angle)
+    }
+
     /// Builds an `R x D` matrix whose column k is `column(parameters[k])`.
     pub(crate) fn columns<T: Real, const R: usize>(
         &self,
@@ -509,6 +528,21 @@ mod tests {
     extern crate std;
     use std::string::ToString;
     use std::vec::Vec;
+
+    #[test]
+    fn largest_differences_split_lengths_and_angles_and_keep_nan() {
+        let set =
+            ParameterSet::<6, 24>::default_for(&crate::model::paper::er10l_c10::<f64>()).unwrap();
+        let truth = set.pack(&crate::model::paper::table2::<f64>());
+        let mut found = truth;
+        found[0] += 0.25; // da1, mm
+        found[1] -= 0.5; // da2, mm
+        found[11] += 1e-3; // dalpha1, rad
+        assert_eq!(set.largest_differences(&found, &truth), (0.5, 1e-3));
+        found[23] = f64::NAN; // dtheta6
+        assert!(set.largest_differences(&found, &truth).1.is_nan());
+        assert!(set.largest_differences(&truth, &found).1.is_nan());
+    }
 
     #[test]
     fn default_mask_gives_the_papers_24_parameters_in_order() {

@@ -2,14 +2,15 @@
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
-use host_tools::calibrate::{self, CalibrateOptions};
-use host_tools::check::{self, CheckOptions};
-use host_tools::compensate::CompensateOptions;
-use host_tools::export::ExportOptions;
+use host_tools::JOINTS;
+use host_tools::cli::calibrate::{self, CalibrateOptions};
+use host_tools::cli::check::{self, CheckOptions};
+use host_tools::cli::compensate::CompensateOptions;
+use host_tools::cli::export::ExportOptions;
+use host_tools::cli::simulate::{self, Simulation};
 use host_tools::fk;
 use host_tools::robot_file::RobotModel;
-use host_tools::simulate::{self, Simulation};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Robot geometric calibration and pose compensation. Lengths in mm, angles in degrees in files
 /// and at the command line unless an option's name says `rad`.
@@ -47,17 +48,17 @@ enum Command {
     /// Print which identified parameters the data determine (identifiability), without calibrating.
     Check(CheckOptions),
     /// Print the Table 3 statistics of any robot model on any data.
-    Evaluate(host_tools::evaluate::EvaluateOptions),
+    Evaluate(host_tools::cli::evaluate::EvaluateOptions),
     /// Joints that put the identified robot on target poses (on-line compensation, off line).
     Compensate(CompensateOptions),
     /// Write identified parameters as the controller's parameter block, TOML or JSON.
     Export(ExportOptions),
     /// Calibrate with the f32 core, the f64 core and the independent reference optimiser and
     /// compare; exits with status 1 when a difference is past its documented tolerance.
-    Verify(host_tools::verify::VerifyOptions),
+    Verify(host_tools::cli::verify::VerifyOptions),
     /// Run the paper's experiment and a realistic cell on simulated data, no input files needed;
     /// prints the tables and writes data, reports and plots into a directory.
-    Demo(host_tools::demo::DemoOptions),
+    Demo(host_tools::cli::demo::DemoOptions),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -66,19 +67,7 @@ fn main() -> anyhow::Result<()> {
             robot,
             joints_deg,
             json,
-        } => {
-            let model = RobotModel::<6>::load(&robot)?;
-            let pose = fk::forward_deg(&model, &joints_deg)?;
-            if json {
-                println!(
-                    "{}",
-                    serde_json::to_string(&pose).context("serialising the pose")?
-                );
-            } else {
-                println!("robot: {} ({})", model.name, robot.display());
-                print!("{}", pose.to_text());
-            }
-        }
+        } => forward_kinematics(&robot, &joints_deg, json)?,
         Command::Simulate(settings) => {
             let simulated = simulate::simulate(&settings)?;
             println!(
@@ -89,7 +78,7 @@ fn main() -> anyhow::Result<()> {
             );
         }
         Command::Compensate(options) => {
-            let summary = host_tools::compensate::compensate(&options)?;
+            let summary = host_tools::cli::compensate::compensate(&options)?;
             println!(
                 "compensated {} of {} targets ({} refused, see the status column); wrote {}",
                 summary.ok,
@@ -99,54 +88,74 @@ fn main() -> anyhow::Result<()> {
             );
         }
         Command::Export(options) => {
-            let bytes = host_tools::export::export(&options)?;
+            let bytes = host_tools::cli::export::export(&options)?;
             println!("wrote {} bytes to {}", bytes, options.out.display());
         }
-        Command::Evaluate(options) => {
-            let table = host_tools::evaluate::evaluate(&options)?;
-            if options.json {
-                println!("{}", serde_json::to_string_pretty(&table)?);
-            } else {
-                print!(
-                    "{}",
-                    host_tools::report::table3_single_text(
-                        &format!(
-                            "{} on {}",
-                            options.input.robot.display(),
-                            options.input.data.display()
-                        ),
-                        &table
-                    )
-                );
-            }
-        }
+        Command::Evaluate(options) => evaluate(&options)?,
         Command::Check(options) => {
             let report = check::check(&options)?;
-            if options.json {
-                println!("{}", serde_json::to_string_pretty(&report)?);
-            } else {
-                print!("{}", report.text());
-            }
+            print_json_or_text(options.json, &report, || report.text())?;
         }
         Command::Verify(options) => {
-            let verification = host_tools::verify::verify(&options)?;
-            if options.json {
-                println!("{}", serde_json::to_string_pretty(&verification)?);
-            } else {
-                print!("{}", verification.text());
-            }
+            let verification = host_tools::cli::verify::verify(&options)?;
+            print_json_or_text(options.json, &verification, || verification.text())?;
             if !verification.passed {
                 std::process::exit(1);
             }
         }
-        Command::Demo(options) => host_tools::demo::demo(&options)?,
+        Command::Demo(options) => host_tools::cli::demo::demo(&options)?,
         Command::Calibrate(options) => {
             let calibration = calibrate::calibrate(&options)?;
             print!("{}", calibration.text);
-            for path in calibrate::write_outputs(&calibration, &options)? {
+            for path in calibrate::write_outputs(&calibration, &options.outputs())? {
                 println!("wrote {}", path.display());
             }
         }
     }
     Ok(())
+}
+
+/// Prints `value` as pretty JSON, or the text for people.
+fn print_json_or_text<T: serde::Serialize>(
+    json: bool,
+    value: &T,
+    text: impl FnOnce() -> String,
+) -> anyhow::Result<()> {
+    if json {
+        println!("{}", serde_json::to_string_pretty(value)?);
+    } else {
+        print!("{}", text());
+    }
+    Ok(())
+}
+
+/// `calib fk`: the end pose of a robot file for joint readings in degrees.
+fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::Result<()> {
+    let model = RobotModel::<JOINTS>::load(robot)?;
+    let pose = fk::forward_deg(&model, joints_deg)?;
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string(&pose).context("serialising the pose")?
+        );
+    } else {
+        println!("robot: {} ({})", model.name, robot.display());
+        print!("{}", pose.to_text());
+    }
+    Ok(())
+}
+
+/// `calib evaluate`: Table 3 of a robot file on a data file.
+fn evaluate(options: &host_tools::cli::evaluate::EvaluateOptions) -> anyhow::Result<()> {
+    let table = host_tools::cli::evaluate::evaluate(options)?;
+    print_json_or_text(options.json, &table, || {
+        host_tools::report::table3_single_text(
+            &format!(
+                "{} on {}",
+                options.input.robot.display(),
+                options.input.data.display()
+            ),
+            &table,
+        )
+    })
 }

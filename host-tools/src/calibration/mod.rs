@@ -17,7 +17,7 @@
 //! use std::path::Path;
 //!
 //! // The nominal ER10L-C10, and the same robot with the paper's Table 2 errors as "the real one".
-//! let robot = RobotFile::parse(host_tools::demo::ER10L_C10_TOML, Path::new("er10l-c10.toml"))?;
+//! let robot = RobotFile::parse(host_tools::robot_file::ER10L_C10_TOML, Path::new("er10l-c10.toml"))?;
 //! let nominal = robot.to_model::<6>(Path::new("er10l-c10.toml"))?.robot;
 //! let real = Kinematics::new(&nominal, &paper::table2::<f64>())?;
 //! // 32 measured poses (joints in rad, positions in mm), in the robot's base frame.
@@ -57,6 +57,7 @@ pub use result::{
     Parameters, PerPose, PoseReport, Report, Settings, Stage, SwarmSummary, lm_stop, swarm_stop,
 };
 
+use crate::JOINTS;
 use crate::dataset::Dataset;
 use crate::frames::{Frames, FramesReport};
 use crate::identifiability::{IdentifiabilityReport, analyse};
@@ -100,7 +101,7 @@ pub fn calibrate(
 #[derive(Clone, Debug)]
 pub struct Selection {
     /// The identified parameters.
-    pub mask: ParameterMask<6>,
+    pub mask: ParameterMask<JOINTS>,
     /// The analysis of the parameters asked for (with the condition number reached after
     /// dropping, when parameters were dropped).
     pub identifiability: IdentifiabilityReport,
@@ -113,10 +114,10 @@ pub struct Selection {
 /// with the largest share of the least determined direction.
 pub fn select_parameters(
     dataset: &Dataset,
-    mut mask: ParameterMask<6>,
+    mut mask: ParameterMask<JOINTS>,
     config: &CalibrationConfig,
 ) -> anyhow::Result<Selection> {
-    let analysed = |mask: &ParameterMask<6>| {
+    let analysed = |mask: &ParameterMask<JOINTS>| {
         crate::with_parameter_count!(mask.count(), analyse(dataset, mask, config.k))
     };
     let initial = analysed(&mask)?;
@@ -164,7 +165,7 @@ pub fn select_parameters(
 
 /// Evaluates the swarm's particles in parallel on the host's cores (rayon); the core's default
 /// evaluates them one by one. Results are identical: each particle's cost is computed alone.
-pub struct Parallel<'o, 'p, const D: usize>(pub &'o Objective<'p, f64, 6, D>);
+pub struct Parallel<'o, 'p, const D: usize>(pub &'o Objective<'p, f64, JOINTS, D>);
 
 impl<const D: usize> CostFunction<f64, D> for Parallel<'_, '_, D> {
     fn cost(&mut self, x: &SVector<f64, D>) -> f64 {
@@ -186,7 +187,7 @@ fn solve<const D: usize>(
     selection: Selection,
     mut frames: FramesReport,
 ) -> anyhow::Result<CalibrationResult> {
-    let set = ParameterSet::<6, D>::from_mask(&selection.mask)?;
+    let set = ParameterSet::<JOINTS, D>::from_mask(&selection.mask)?;
     let problem = Problem::new(
         &dataset.model.robot,
         &ParameterErrors::zero(),
@@ -216,17 +217,7 @@ fn solve<const D: usize>(
     let seconds = started.elapsed().as_secs_f64();
     let best = fit.as_ref().map_or(start, |f| f.result.x);
     let standard_errors = fit.as_ref().and_then(|f| f.result.standard_errors());
-    let parameters: Vec<IdentifiedParameter> = set
-        .parameters()
-        .iter()
-        .zip(best.iter())
-        .enumerate()
-        .map(|(i, (p, v))| IdentifiedParameter {
-            parameter: *p,
-            value: *v,
-            std_error: standard_errors.as_ref().and_then(|s| s.get(i).copied()),
-        })
-        .collect();
+    let parameters = identified_parameters(&set, &best, standard_errors.as_ref());
     let errors = set.unpack(&best);
     let (calibration, validation, per_pose, poses) =
         evaluate(dataset, validation, &errors, fit.as_ref())?;
@@ -261,12 +252,30 @@ fn solve<const D: usize>(
     })
 }
 
+/// The identified values of `set` with their standard errors, when least squares gave them.
+fn identified_parameters<const D: usize>(
+    set: &ParameterSet<JOINTS, D>,
+    best: &SVector<f64, D>,
+    standard_errors: Option<&SVector<f64, D>>,
+) -> Vec<IdentifiedParameter> {
+    set.parameters()
+        .iter()
+        .zip(best.iter())
+        .enumerate()
+        .map(|(i, (p, v))| IdentifiedParameter {
+            parameter: *p,
+            value: *v,
+            std_error: standard_errors.and_then(|s| s.get(i).copied()),
+        })
+        .collect()
+}
+
 /// The identified robot file (nominal + errors) and the identified frames in the report.
 fn identified_robot(
     dataset: &Dataset,
     config: &CalibrationConfig,
     parameters: &[IdentifiedParameter],
-    errors: &ParameterErrors<f64, 6>,
+    errors: &ParameterErrors<f64, JOINTS>,
     frames: &mut FramesReport,
 ) -> crate::robot_file::RobotFile {
     let std_errors: Vec<(Parameter, f64)> = parameters
@@ -294,8 +303,8 @@ type SwarmRun<const D: usize> = (SwarmSummary, SVector<f64, D>, f64, f64);
 
 fn run_swarm<const D: usize>(
     config: &CalibrationConfig,
-    objective: &Objective<'_, f64, 6, D>,
-    set: &ParameterSet<6, D>,
+    objective: &Objective<'_, f64, JOINTS, D>,
+    set: &ParameterSet<JOINTS, D>,
 ) -> anyhow::Result<SwarmRun<D>> {
     let swarm = &config.swarm;
     let space = SearchSpace::for_parameters(
@@ -364,7 +373,7 @@ struct Fit<const D: usize> {
 
 fn least_squares<const D: usize>(
     config: &CalibrationConfig,
-    least_squares: &LeastSquares<'_, f64, 6, D>,
+    least_squares: &LeastSquares<'_, f64, JOINTS, D>,
     start: &SVector<f64, D>,
     dataset: &Dataset,
 ) -> anyhow::Result<Fit<D>> {
@@ -413,7 +422,7 @@ fn least_squares<const D: usize>(
 }
 
 /// A least-squares error in the user's terms (parameter names, not indices).
-fn lm_error<const D: usize>(error: LmError, set: &ParameterSet<6, D>) -> anyhow::Error {
+fn lm_error<const D: usize>(error: LmError, set: &ParameterSet<JOINTS, D>) -> anyhow::Error {
     match error {
         LmError::UnobservableParameter(i) => {
             let name = set
@@ -434,7 +443,7 @@ fn lm_error<const D: usize>(error: LmError, set: &ParameterSet<6, D>) -> anyhow:
 fn evaluate<const D: usize>(
     dataset: &Dataset,
     validation: Option<&Dataset>,
-    errors: &ParameterErrors<f64, 6>,
+    errors: &ParameterErrors<f64, JOINTS>,
     fit: Option<&Fit<D>>,
 ) -> anyhow::Result<(Stage, Option<Stage>, PerPose, Vec<PoseReport>)> {
     use crate::statistics::{orientation_per_pose, table3};

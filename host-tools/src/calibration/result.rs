@@ -1,6 +1,7 @@
 //! The typed result of a calibration, and its JSON report (a serde rendering of the result).
 
 use super::config::CalibrationConfig;
+use crate::JOINTS;
 use crate::frames::FramesReport;
 use crate::identifiability::IdentifiabilityReport;
 use crate::report::{TruthRow, unit_of};
@@ -141,7 +142,7 @@ pub struct CalibrationResult {
     /// The identified parameters, in canonical order.
     pub parameters: Vec<IdentifiedParameter>,
     /// All errors (identified ones set, others zero), mm and rad.
-    pub errors: ParameterErrors<f64, 6>,
+    pub errors: ParameterErrors<f64, JOINTS>,
     /// The objective before and after.
     pub objective: ObjectiveValues,
     /// The swarm stage, when it ran.

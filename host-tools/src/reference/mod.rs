@@ -14,6 +14,8 @@ mod tests {
     #[test]
     fn reference_is_independent_of_the_core() {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/reference");
+        // The crate's two spellings, assembled so that this test does not name them itself.
+        let names = [["calib", "_core"].concat(), ["calib", "-core"].concat()];
         let mut checked = 0;
         for entry in std::fs::read_dir(&dir).unwrap() {
             let path = entry.unwrap().path();
@@ -21,8 +23,8 @@ mod tests {
             let uses_core = text
                 .lines()
                 .filter(|l| !l.trim_start().starts_with("//"))
-                .any(|l| l.contains("calib_core") || l.contains("calib-core"));
-            assert!(!uses_core, "{} uses calib-core", path.display());
+                .any(|l| names.iter().any(|n| l.contains(n.as_str())));
+            assert!(!uses_core, "{} uses the core crate", path.display());
             checked += 1;
         }
         assert_eq!(checked, 3, "kinematics.rs, lm.rs and mod.rs");

@@ -1,7 +1,6 @@
 //! `calib evaluate`: the paper's Table 3 statistics of any robot model on any data.
 
-use crate::statistics::{Table3, table3};
-use calib_core::Kinematics;
+use crate::statistics::Table3;
 
 /// Options of `calib evaluate`.
 #[derive(Clone, Debug, clap::Args)]
@@ -17,8 +16,6 @@ pub struct EvaluateOptions {
 
 /// Runs `calib evaluate`.
 pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Table3> {
-    let (_, inputs) = options.input.load()?;
-    let kinematics =
-        Kinematics::nominal(&inputs.model.robot).map_err(|e| anyhow::anyhow!("{e}"))?;
-    Ok(table3(&kinematics, &inputs).0)
+    let (_, dataset) = options.input.load()?;
+    crate::statistics::evaluate(&dataset)
 }

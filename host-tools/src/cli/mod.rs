@@ -1,4 +1,14 @@
-//! Command-line pieces shared by several commands (clap at the edge of the library).
+//! The `calib` command line at the edge of the library: each command's clap options and a thin
+//! run function (read the files, call the library, return what the binary prints and writes).
+
+pub mod calibrate;
+pub mod check;
+pub mod compensate;
+pub mod demo;
+pub mod evaluate;
+pub mod export;
+pub mod simulate;
+pub mod verify;
 
 use crate::dataset::Dataset;
 use crate::profile::DataProfile;

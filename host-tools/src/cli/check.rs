@@ -1,7 +1,7 @@
 //! `calib check`: the identifiability of the identified parameters from a data set, without
 //! calibrating.
 
-use crate::identifiability::{IdentifiabilityReport, analyse};
+use crate::identifiability::IdentifiabilityReport;
 
 /// Options of `calib check`.
 #[derive(Clone, Debug, clap::Args)]
@@ -23,8 +23,6 @@ pub struct CheckOptions {
 
 /// `calib check`: the identifiability analysis of a robot file's parameters on a data file.
 pub fn check(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
-    let (_, mut inputs) = options.input.load()?;
-    let frames = crate::frames::Frames::chosen(options.frames, &inputs.data);
-    let (_, mask) = crate::frames::prepare(frames, &mut inputs, &mut [], options.k)?;
-    crate::with_parameter_count!(mask.count(), analyse(&inputs, &mask, options.k))
+    let (_, dataset) = options.input.load()?;
+    crate::identifiability::check(dataset, options.frames, options.k)
 }

@@ -1,6 +1,7 @@
 //! `calib calibrate`: the command over [`crate::calibration`]: read the robot and data files,
 //! calibrate, render the text, the JSON report and the identified robot file, write them.
 
+use crate::JOINTS;
 use crate::calibration::{
     self, CalibrationConfig, CalibrationResult, HoldOut, LossChoice, Method, Report,
     ScramblingChoice, SwarmConfig,
@@ -192,29 +193,41 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
         (None, None) => (all, None),
     };
     let result = calibration::calibrate(dataset, validation, &config)?;
-    let truth = match &options.truth {
-        None => None,
-        Some(path) => Some(truth_rows(&result, path)?),
-    };
-    let robot_toml = result.identified_robot.to_toml(&format!(
-        "{} identified by calib calibrate ({}) from {}.\nValues are nominal + identified errors; [calibration.errors] lists the errors and [calibration.std_errors] their standard errors, in mm and rad.",
-        result.robot,
-        config.method.name(),
-        options.input.data.display()
-    ));
-    let text = result.text(truth.as_deref());
-    Ok(Calibration {
-        result,
-        hold_out: options.hold_out(),
-        truth,
-        robot_toml,
-        text,
-    })
+    Calibration::new(result, options.hold_out(), options.truth.as_deref())
+}
+
+impl Calibration {
+    /// Renders `result`: the text, the identified robot file and, with the robot file of the true
+    /// errors at `truth`, the comparison with them.
+    pub fn new(
+        result: CalibrationResult,
+        hold_out: HoldOut,
+        truth: Option<&std::path::Path>,
+    ) -> anyhow::Result<Self> {
+        let truth = match truth {
+            None => None,
+            Some(path) => Some(truth_rows(&result, path)?),
+        };
+        let robot_toml = result.identified_robot.to_toml(&format!(
+            "{} identified by calib calibrate ({}) from {}.\nValues are nominal + identified errors; [calibration.errors] lists the errors and [calibration.std_errors] their standard errors, in mm and rad.",
+            result.robot,
+            result.config.method.name(),
+            result.data_path.display()
+        ));
+        let text = result.text(truth.as_deref());
+        Ok(Self {
+            result,
+            hold_out,
+            truth,
+            robot_toml,
+            text,
+        })
+    }
 }
 
 /// The identified errors against the true errors of the robot file at `path`.
 fn truth_rows(result: &CalibrationResult, path: &std::path::Path) -> anyhow::Result<Vec<TruthRow>> {
-    let truth = RobotFile::read(path)?.calibration_errors::<6>(path)?;
+    let truth = RobotFile::read(path)?.calibration_errors::<JOINTS>(path)?;
     Ok(result
         .parameters
         .iter()
@@ -228,11 +241,30 @@ fn truth_rows(result: &CalibrationResult, path: &std::path::Path) -> anyhow::Res
         .collect())
 }
 
+/// The files a calibration writes, each optional.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Outputs {
+    /// The identified robot file.
+    pub out: Option<PathBuf>,
+    /// The JSON report.
+    pub report: Option<PathBuf>,
+    /// The directory of plots.
+    pub plot: Option<PathBuf>,
+}
+
+impl CalibrateOptions {
+    /// The files asked for.
+    pub fn outputs(&self) -> Outputs {
+        Outputs {
+            out: self.out.clone(),
+            report: self.report.clone(),
+            plot: self.plot.clone(),
+        }
+    }
+}
+
 /// Writes the outputs of a calibration that were asked for (each atomically).
-pub fn write_outputs(
-    calibration: &Calibration,
-    options: &CalibrateOptions,
-) -> anyhow::Result<Vec<PathBuf>> {
+pub fn write_outputs(calibration: &Calibration, options: &Outputs) -> anyhow::Result<Vec<PathBuf>> {
     let mut written = Vec::new();
     if let Some(path) = &options.out {
         write_atomic(path, calibration.robot_toml.as_bytes())?;

@@ -1,0 +1,93 @@
+//! `calib compensate`: read the nominal and identified robots and the targets, compensate
+//! ([`crate::compensate`]), write one CSV row per target.
+
+use crate::JOINTS;
+use crate::compensate::{Summary, compensate_targets, to_csv};
+use crate::files::write_atomic;
+use crate::robot_file::RobotModel;
+use crate::tracker_data::TrackerData;
+use anyhow::bail;
+use calib_core::controller::compensate::CompensationSettings;
+use std::path::PathBuf;
+
+/// Options of `calib compensate`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct CompensateOptions {
+    /// Nominal robot file: the model the controller plans with.
+    #[arg(long, value_name = "FILE")]
+    pub robot: PathBuf,
+    /// Identified robot file (from calib calibrate --out): the actual robot.
+    #[arg(long, value_name = "FILE")]
+    pub params: PathBuf,
+    /// Target poses in the base frame (CSV: x_mm, y_mm, z_mm and an orientation; optional
+    /// q1_deg..q6_deg as the start, i.e. the controller's nominal joints for the target; without
+    /// them the closed-form nominal inverse kinematics on --branch is the start).
+    #[arg(long, value_name = "FILE")]
+    pub targets: PathBuf,
+    /// Output CSV: one row per target, in input order.
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Largest allowed change of the commanded pose, mm.
+    #[arg(long, default_value_t = 5.0)]
+    pub max_correction_mm: f64,
+    /// Largest allowed change of the commanded orientation, deg.
+    #[arg(long, default_value_t = 0.5)]
+    pub max_correction_deg: f64,
+    /// Largest allowed change of any joint, deg.
+    #[arg(long, default_value_t = 0.5f64.to_degrees())]
+    pub max_joint_correction_deg: f64,
+    /// Inverse kinematics branch for targets without joints (closed form, spherical wrist):
+    /// 0-7, bit 4 = shoulder back, bit 2 = elbow down, bit 1 = wrist flipped.
+    #[arg(long, default_value_t = 0)]
+    pub branch: usize,
+}
+
+/// Runs `calib compensate`.
+pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
+    let nominal: RobotModel<JOINTS> = RobotModel::load(&options.robot)?;
+    let actual: RobotModel<JOINTS> = RobotModel::load(&options.params)?;
+    let targets = TrackerData::read_targets(&options.targets)?;
+    if targets.rows_without_orientation() {
+        bail!(
+            "{}: targets need an orientation (qw..qz or rx_deg..rz_deg)",
+            options.targets.display()
+        );
+    }
+    if targets.joints != 0 && targets.joints != JOINTS {
+        bail!(
+            "{}: has {} joint columns; give all of q1_deg..q6_deg as start values, or none",
+            options.targets.display(),
+            targets.joints
+        );
+    }
+    if options.branch > 7 {
+        bail!("--branch must be 0 to 7, got {}", options.branch);
+    }
+    for (name, v) in [
+        ("--max-correction-mm", options.max_correction_mm),
+        ("--max-correction-deg", options.max_correction_deg),
+        (
+            "--max-joint-correction-deg",
+            options.max_joint_correction_deg,
+        ),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            bail!("{name} must be a finite number > 0, got {v}");
+        }
+    }
+    let settings = CompensationSettings {
+        max_correction_mm: options.max_correction_mm,
+        max_correction_rad: options.max_correction_deg.to_radians(),
+        max_joint_correction_rad: options.max_joint_correction_deg.to_radians(),
+        ..CompensationSettings::default()
+    };
+    let outcomes = compensate_targets(
+        &nominal.robot,
+        &actual.robot,
+        &targets,
+        &settings,
+        options.branch,
+    )?;
+    write_atomic(&options.out, &to_csv(&outcomes)?)?;
+    Ok(Summary::of(&outcomes))
+}

@@ -1,0 +1,36 @@
+//! `calib verify`: the same calibration by the f32 core, the f64 core and the reference
+//! optimiser ([`crate::verify`]); exits non-zero past the documented tolerances.
+
+use crate::verify::Verification;
+
+/// Options of `calib verify`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct VerifyOptions {
+    /// Robot, data and data profile files.
+    #[command(flatten)]
+    pub input: crate::cli::InputFiles,
+    /// Frames identified with the geometry (default base+tool unless the data say
+    /// `# frame: base`).
+    #[arg(long, value_enum)]
+    pub frames: Option<crate::frames::Frames>,
+    /// Fraction of the poses held out for the validation error.
+    #[arg(long, default_value_t = 0.3)]
+    pub validate: f64,
+    /// Seed of the hold-out.
+    #[arg(long, default_value_t = 0)]
+    pub validate_seed: u64,
+    /// Orientation weight k, mm^2/rad^2.
+    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K)]
+    pub k: f64,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `calib verify`: reads the files, holds out `--validate` of the poses, verifies.
+pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
+    let (_, all) = options.input.load()?;
+    let (calibration, validation) =
+        crate::dataset::split(&all, options.validate, options.validate_seed)?;
+    crate::verify::verify(calibration, validation, options.frames, options.k)
+}

@@ -1,0 +1,45 @@
+//! Helpers shared by the integration tests: the `calib` binary runner, the success check, and
+//! the parser of command options from argument lists. Each test file uses some of them.
+#![allow(dead_code)]
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+/// The nominal ER10L-C10 robot file.
+pub const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
+
+/// Runs the `calib` binary with `args` in the current directory.
+pub fn calib(args: &[&str]) -> Output {
+    calib_in(Path::new("."), args)
+}
+
+/// Runs the `calib` binary with `args` in `dir`.
+pub fn calib_in(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_calib"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("run calib")
+}
+
+/// Standard output of a run that must have succeeded (its standard error in the failure message).
+pub fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "calib failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+#[derive(clap::Parser)]
+#[command(no_binary_name = true)]
+struct Wrap<T: clap::Args> {
+    #[command(flatten)]
+    inner: T,
+}
+
+/// A command's options parsed from `args` (without the command name), as `calib` parses them.
+pub fn parse<T: clap::Args>(args: &[&str]) -> T {
+    <Wrap<T> as clap::Parser>::parse_from(args.iter().copied()).inner
+}
