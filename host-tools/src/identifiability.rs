@@ -226,7 +226,7 @@ pub fn analyse<const D: usize>(
             },
         });
     }
-    let weakest_direction = weakest_direction(&r, &names);
+    let weakest_direction = weakest_direction(&id.weakest_direction, &names);
     let ill_conditioned =
         !(id.condition_number.is_finite() && id.condition_number <= ILL_CONDITIONED);
     Ok(IdentifiabilityReport {
@@ -246,25 +246,12 @@ pub fn analyse<const D: usize>(
     })
 }
 
-/// The right singular vector of the smallest singular value of the column-scaled factor `r`.
+/// The components of the core's least determined direction of magnitude >= 0.2, largest first.
 fn weakest_direction<const D: usize>(
-    r: &nalgebra::SMatrix<f64, D, D>,
+    direction: &SVector<f64, D>,
     names: &[Parameter],
 ) -> Vec<(Parameter, f64)> {
-    let mut scaled = nalgebra::DMatrix::from_fn(D, D, |i, j| r[(i, j)]);
-    for mut column in scaled.column_iter_mut() {
-        let norm = column.norm();
-        if norm > 0.0 {
-            column /= norm;
-        }
-    }
-    let svd = scaled.svd(false, true);
-    let Some(v_t) = svd.v_t else {
-        return Vec::new();
-    };
-    let smallest = svd.singular_values.argmin().0;
-    let mut out: Vec<(Parameter, f64)> = v_t
-        .row(smallest)
+    let mut out: Vec<(Parameter, f64)> = direction
         .iter()
         .zip(names)
         .filter(|(v, _)| v.abs() >= 0.2)

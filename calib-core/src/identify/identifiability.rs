@@ -42,6 +42,10 @@ pub struct Identifiability<T: Real, const D: usize> {
     pub condition_number: T,
     /// Observability index O1 (Borm and Menq): geometric mean of the singular values / sqrt(M).
     pub observability: T,
+    /// The least determined direction: the unit right singular vector of the smallest singular
+    /// value of the scaled Jacobian (one component per parameter, scaled units). An
+    /// ill-conditioned pose set leaves the parameters with large components uncertain.
+    pub weakest_direction: SVector<T, D>,
     /// Parameter indices in pivot order: the first `rank` are determined.
     pub pivots: [usize; D],
     /// Status of every parameter (set order).
@@ -68,7 +72,13 @@ impl<T: Real, const D: usize> Identifiability<T, D> {
                 column.fill(T::zero());
             }
         }
-        let mut sorted = singular_values(&scaled);
+        let (values, vectors) = singular_values_and_vectors(&scaled);
+        let weakest = (0..D).fold(0, |best, i| match (values.get(i), values.get(best)) {
+            (Some(v), Some(b)) if v < b => i,
+            _ => best,
+        });
+        let weakest_direction = vectors.column(weakest).into_owned();
+        let mut sorted = values;
         sorted
             .as_mut_slice()
             .sort_unstable_by(|a, b| b.partial_cmp(a).unwrap_or(core::cmp::Ordering::Equal));
@@ -107,6 +117,7 @@ impl<T: Real, const D: usize> Identifiability<T, D> {
         }
         Self {
             singular_values: sorted,
+            weakest_direction,
             rank,
             condition_number,
             observability,
@@ -155,12 +166,17 @@ impl<T: Real, const D: usize> Identifiability<T, D> {
     }
 }
 
-/// Singular values of a square matrix by one-sided Jacobi rotations (Hestenes): columns are
-/// rotated pairwise until mutually orthogonal; their norms are then the singular values, with high
-/// relative accuracy. (nalgebra's SVD needs dimension arithmetic that a const generic `D` cannot
+/// Singular values and right singular vectors of a square matrix by one-sided Jacobi rotations
+/// (Hestenes): columns are rotated pairwise until mutually orthogonal; their norms are then the
+/// singular values, with high relative accuracy, and the accumulated rotations `V` (with
+/// `A V = U S`) hold the right singular vectors in the same column order. At most 64 sweeps, so it
+/// ends on any input. (nalgebra's SVD needs dimension arithmetic that a const generic `D` cannot
 /// express in the core's bounds.)
-fn singular_values<T: Real, const D: usize>(a: &SMatrix<T, D, D>) -> SVector<T, D> {
+fn singular_values_and_vectors<T: Real, const D: usize>(
+    a: &SMatrix<T, D, D>,
+) -> (SVector<T, D>, SMatrix<T, D, D>) {
     let mut u = *a;
+    let mut v = SMatrix::<T, D, D>::identity();
     let epsilon = T::default_epsilon();
     for _sweep in 0..64 {
         let mut rotated = false;
@@ -184,25 +200,36 @@ fn singular_values<T: Real, const D: usize>(a: &SMatrix<T, D, D>) -> SVector<T, 
                 let t = sign / (zeta.abs() + T::one().hypot(zeta));
                 let c = T::one() / T::one().hypot(t);
                 let s = c * t;
-                for i in 0..D {
-                    let (Some(up), Some(uq)) = (u.get((i, p)).copied(), u.get((i, q)).copied())
-                    else {
-                        continue;
-                    };
-                    if let Some(v) = u.get_mut((i, p)) {
-                        *v = c * up - s * uq;
-                    }
-                    if let Some(v) = u.get_mut((i, q)) {
-                        *v = s * up + c * uq;
-                    }
-                }
+                rotate_columns(&mut u, p, q, c, s);
+                rotate_columns(&mut v, p, q, c, s);
             }
         }
         if !rotated {
             break;
         }
     }
-    SVector::from_iterator(u.column_iter().map(|c| c.norm()))
+    (SVector::from_iterator(u.column_iter().map(|c| c.norm())), v)
+}
+
+/// Columns `p, q` of `m` replaced by `c p - s q` and `s p + c q`.
+fn rotate_columns<T: Real, const D: usize>(
+    m: &mut SMatrix<T, D, D>,
+    p: usize,
+    q: usize,
+    c: T,
+    s: T,
+) {
+    for i in 0..D {
+        let (Some(mp), Some(mq)) = (m.get((i, p)).copied(), m.get((i, q)).copied()) else {
+            continue;
+        };
+        if let Some(x) = m.get_mut((i, p)) {
+            *x = c * mp - s * mq;
+        }
+        if let Some(x) = m.get_mut((i, q)) {
+            *x = s * mp + c * mq;
+        }
+    }
 }
 
 /// Householder QR with column pivoting of a square matrix: the pivot order and the triangular
@@ -421,13 +448,27 @@ mod tests {
         // Upper triangular with known singular values: diag(3, 2) rotated.
         let a = nalgebra::Matrix2::new(3.0f64, 0.0, 0.0, 2.0);
         let rot = nalgebra::Matrix2::new(0.6, -0.8, 0.8, 0.6);
-        let mut s = singular_values(&(rot * a * rot.transpose()))
-            .as_slice()
-            .to_vec();
+        let m = rot * a * rot.transpose();
+        let (values, vectors) = singular_values_and_vectors(&m);
+        let mut s = values.as_slice().to_vec();
         s.sort_by(|x, y| y.partial_cmp(x).unwrap());
         assert!(
             (s[0] - 3.0).abs() < 1e-14 && (s[1] - 2.0).abs() < 1e-14,
             "{s:?}"
         );
+        // Right singular vectors: orthonormal, |M v_i| = s_i, and the one of 2 is the rotation's
+        // second column up to sign.
+        assert!(
+            (vectors.transpose() * vectors - nalgebra::Matrix2::identity())
+                .abs()
+                .max()
+                < 1e-14
+        );
+        for i in 0..2 {
+            assert!(((m * vectors.column(i)).norm() - values[i]).abs() < 1e-14);
+        }
+        let i = if values[0] < values[1] { 0 } else { 1 };
+        let v = vectors.column(i);
+        assert!((v[0] * 0.6 + v[1] * 0.8).abs() < 1e-14, "{v:?}"); // orthogonal to (0.6, 0.8)
     }
 }

@@ -203,7 +203,7 @@ fn solve<const D: usize>(
     } else {
         None
     };
-    let start = swarm.as_ref().map_or(zero, |s| s.1);
+    let start = swarm.as_ref().map_or(zero, |s| s.best);
     let fit = if config.method.least_squares() {
         Some(least_squares(
             config,
@@ -231,13 +231,13 @@ fn solve<const D: usize>(
         objective: ObjectiveValues {
             initial,
             r#final: objective.value(&best),
-            initial_swarm_best: swarm.as_ref().map_or(initial, |s| s.2),
-            after_swarm: swarm.as_ref().map_or(initial, |s| s.3),
+            initial_swarm_best: swarm.as_ref().map_or(initial, |s| s.initial_cost),
+            after_swarm: swarm.as_ref().map_or(initial, |s| s.best_cost),
             k: config.k,
         },
         parameters,
         errors,
-        swarm: swarm.map(|s| s.0),
+        swarm: swarm.map(|s| s.summary),
         least_squares: fit.as_ref().map(|f| f.report.clone()),
         identifiability: selection.identifiability,
         dropped: selection.dropped,
@@ -298,8 +298,16 @@ fn identified_robot(
     file
 }
 
-/// The swarm's outcome: summary, best point, initial best and final best objective.
-type SwarmRun<const D: usize> = (SwarmSummary, SVector<f64, D>, f64, f64);
+/// The swarm's outcome.
+struct SwarmRun<const D: usize> {
+    summary: SwarmSummary,
+    /// The best point found.
+    best: SVector<f64, D>,
+    /// The best objective of the initial swarm.
+    initial_cost: f64,
+    /// The best objective found.
+    best_cost: f64,
+}
 
 fn run_swarm<const D: usize>(
     config: &CalibrationConfig,
@@ -360,7 +368,12 @@ fn run_swarm<const D: usize>(
         stop: result.stop,
         history,
     };
-    Ok((summary, result.best, result.initial_cost, result.best_cost))
+    Ok(SwarmRun {
+        summary,
+        best: result.best,
+        initial_cost: result.initial_cost,
+        best_cost: result.best_cost,
+    })
 }
 
 /// The least-squares stage: its result, report, robust weights and outliers.

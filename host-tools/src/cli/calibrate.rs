@@ -167,18 +167,10 @@ pub struct Calibration {
     pub text: String,
 }
 
-impl Calibration {
-    /// The JSON report.
-    pub fn report(&self) -> Report<'_> {
-        self.result
-            .report(self.hold_out.clone(), self.truth.clone())
-    }
-}
-
 /// Runs `calib calibrate` without writing anything: reads the files, calibrates, renders.
 pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
     let config = options.config();
-    config.check()?;
+    config.check()?; // bad settings are reported before any file is read
     let (profile, all) = options.input.load()?;
     let (dataset, validation) = match (&options.holdout, options.validate) {
         (Some(_), Some(_)) => bail!("use either --validate or --holdout, not both"),
@@ -222,6 +214,12 @@ impl Calibration {
             robot_toml,
             text,
         })
+    }
+
+    /// The JSON report.
+    pub fn report(&self) -> Report<'_> {
+        self.result
+            .report(self.hold_out.clone(), self.truth.clone())
     }
 }
 
