@@ -69,7 +69,7 @@ fn fk_at_zero_is_the_golden_pose() {
         "--json",
     ]);
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    // ../shared/vectors/fk-er10l-c10.csv, first row: (1355, 0, 920) mm.
+    // tests/data/vectors/fk-er10l-c10.csv (the golden vectors), first row: (1355, 0, 920) mm.
     let p: Vec<f64> = json["position_mm"]
         .as_array()
         .unwrap()

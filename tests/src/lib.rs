@@ -7,7 +7,8 @@ use host_tools::robot_file::RobotFile;
 use rand_core::Rng;
 use std::path::PathBuf;
 
-/// Path of a file under `tests/data/` (a copy of `../shared`, so a fresh clone passes alone).
+/// Path of a file under `tests/data/` (the test data with their sources and licences, in the
+/// repository so that a fresh clone passes alone).
 pub fn data(relative: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("data")

@@ -1,5 +1,5 @@
 //! The core against the golden vectors of an independent numpy implementation
-//! (tests/data/vectors, copied from ../shared/vectors with their README).
+//! (tests/data/vectors, with their README: how and by what they were computed).
 
 use calib_core::kinematics::pose_error::pose_error;
 use calib_core::{Kinematics, ParameterErrors, Pose};
