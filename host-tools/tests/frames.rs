@@ -82,12 +82,7 @@ fn frames_and_geometry_reach_the_reference_optimum() {
         // The reference optimiser, started at the truth (true joints and frames as its baseline,
         // zero errors), fitting the same parameters.
         let truth_file = RobotFile::read(&truth).unwrap();
-        let names: Vec<String> = c
-            .result
-            .parameters
-            .iter()
-            .map(|p| p.parameter.to_string())
-            .collect();
+        let names = c.result.names();
         let cal = TrackerData::read(&data).unwrap();
         let fit = lm::fit(&truth_file, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
         let mut errors = calib_core::ParameterErrors::<f64, 6>::zero();

@@ -73,12 +73,7 @@ fn tracker_noise_scenario_matches_the_reference_and_the_statistics() {
             &[&["--poses", "200", "--seed", &h][..], &noise].concat(),
         );
         let c = calibrate(&data, &truth, &[]);
-        let names: Vec<String> = c
-            .result
-            .parameters
-            .iter()
-            .map(|p| p.parameter.to_string())
-            .collect();
+        let names = c.result.names();
         let nominal = RobotFile::read(Path::new(ROBOT)).unwrap();
         let cal = TrackerData::read(&data).unwrap();
         let fit = lm::fit(&nominal, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
@@ -156,12 +151,7 @@ fn lm_from_nominal_reaches_the_reference_cost() {
     );
     let c = calibrate(&data, &truth, &["--method", "lm"]);
     assert_eq!(c.report().generations, 0);
-    let names: Vec<String> = c
-        .result
-        .parameters
-        .iter()
-        .map(|p| p.parameter.to_string())
-        .collect();
+    let names = c.result.names();
     let fit = lm::fit(
         &RobotFile::read(Path::new(ROBOT)).unwrap(),
         &names,

@@ -179,6 +179,14 @@ impl CalibrationResult {
             .find(|p| p.parameter.to_string() == name)
     }
 
+    /// The identified parameters' names (such as `da2`, `base_tx`), in canonical order.
+    pub fn names(&self) -> Vec<String> {
+        self.parameters
+            .iter()
+            .map(|p| p.parameter.to_string())
+            .collect()
+    }
+
     /// Objective evaluations of the swarm plus residual evaluations of least squares.
     pub fn evaluations(&self) -> u64 {
         self.swarm.as_ref().map_or(0, |s| s.evaluations)
