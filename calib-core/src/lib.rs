@@ -10,10 +10,12 @@
 //!
 //! The modules group the concepts:
 //! - [`scalar`]: the scalar trait ([`Real`]) that makes everything generic over `f32`/`f64`;
+//! - [`math`]: the exact rotation log map and rotations from roll, pitch and yaw;
 //! - [`model`]: the nominal robot ([`Robot`]), parameter errors, the identification mask and
-//!   the packed parameter vector ([`ParameterSet`]), the robot of the source paper;
+//!   the packed parameter vector ([`ParameterSet`]), the robot of the source paper, and
+//!   [`KinematicsError`];
 //! - [`kinematics`]: the joint transform of eq. (1), forward kinematics of the actual model,
-//!   pose errors, Jacobians, the rotation log map, closed-form inverse kinematics;
+//!   pose errors, Jacobians, closed-form inverse kinematics;
 //! - [`identify`]: the calibration [`Problem`], the objective of eq. (7), the Halton sequence,
 //!   the improved particle swarm, least squares, identifiability, the Table 3 statistics;
 //! - [`controller`]: on-line compensation and the persistent parameter block.
@@ -52,16 +54,17 @@
 pub mod controller;
 pub mod identify;
 pub mod kinematics;
+pub mod math;
 pub mod model;
 pub mod scalar;
 
 pub use identify::Problem;
 pub use identify::lm::LeastSquares;
 pub use identify::objective::{Measurement, Objective};
-pub use kinematics::{JointAngles, Kinematics, KinematicsError, Pose, PreparedRobot};
+pub use kinematics::{JointAngles, Kinematics, Pose, PreparedRobot};
 pub use model::parameters::{
     FrameErrors, FrameParameter, JointErrors, JointParameter, Parameter, ParameterErrors,
     ParameterMask, ParameterSet,
 };
-pub use model::{FramePose, JointLimits, MdhJoint, Robot};
+pub use model::{FramePose, JointLimits, KinematicsError, MdhJoint, Robot};
 pub use scalar::Real;

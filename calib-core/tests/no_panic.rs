@@ -6,7 +6,7 @@ use calib_core::controller::storage;
 use calib_core::identify::halton::{Scrambling, halton_point};
 use calib_core::identify::lm::{LeastSquares, LmSettings, Loss};
 use calib_core::identify::objective::{Measurement, Objective};
-use calib_core::kinematics::so3;
+use calib_core::math::so3;
 use calib_core::model::paper::{er10l_c10, table2};
 use calib_core::{Kinematics, MdhJoint, ParameterErrors, ParameterSet, Pose, Problem, Robot};
 use nalgebra::{Matrix3, Rotation3, SVector, Translation3, Vector3};

@@ -2,7 +2,7 @@
 
 use crate::robot_file::RobotModel;
 use anyhow::{Context, bail};
-use calib_core::kinematics::so3;
+use calib_core::math::so3;
 use calib_core::{Kinematics, Pose};
 use nalgebra::{Rotation3, UnitQuaternion};
 use serde::Serialize;

@@ -9,6 +9,7 @@ pub const JOINTS: usize = 6;
 
 pub mod calibration;
 pub mod cli;
+pub mod columns;
 pub mod compensate;
 pub mod dataset;
 pub mod dispatch;

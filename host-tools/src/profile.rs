@@ -227,7 +227,7 @@ impl DataProfile {
                             "[columns]: {ours} must name a source column as a string"
                         ))
                     })?;
-                    if !crate::tracker_data::is_known_column(&ours) {
+                    if !crate::columns::is_known_column(&ours) {
                         return Err(invalid(format!(
                             "[columns]: \"{ours}\" is not one of our columns; expected q<i>_deg or q<i>_rad, x_mm/y_mm/z_mm (or _m), qw/qx/qy/qz, rx_deg/ry_deg/rz_deg (or _rad), id, weight"
                         )));

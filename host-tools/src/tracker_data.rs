@@ -7,6 +7,7 @@
 //! measurements are in the robot's base frame. Line numbers in errors are the file's physical lines
 //! (the header, and any comment above it, count).
 
+use crate::columns::{Column, parse_column};
 use crate::files::write_atomic;
 use crate::profile::{DataFrame, DataProfile};
 use nalgebra::{Matrix3, Quaternion, Rotation3, UnitQuaternion};
@@ -92,62 +93,6 @@ pub struct TrackerData {
     pub orientation: OrientationColumns,
     /// The poses, in file order.
     pub records: Vec<Record>,
-}
-
-#[derive(Clone, Copy)]
-enum Column {
-    Joint(usize, f64),
-    Position(usize, f64),
-    Quaternion(usize),
-    Angle(usize, f64),
-    Id,
-    Weight,
-    /// A source column the data profile does not map.
-    Ignored,
-}
-
-/// `true` when `name` is one of our column names (docs/ARCHITECTURE.md), such as `q3_deg` or `x_m`.
-pub fn is_known_column(name: &str) -> bool {
-    parse_column(name).is_some()
-}
-
-fn parse_column(name: &str) -> Option<Column> {
-    let deg = std::f64::consts::PI / 180.0;
-    if let Some(rest) = name.strip_prefix('q') {
-        if let Some((number, unit)) = rest.split_once('_') {
-            let i: usize = number.parse().ok()?;
-            let scale = match unit {
-                "deg" => deg,
-                "rad" => 1.0,
-                _ => return None,
-            };
-            return (i >= 1).then(|| Column::Joint(i - 1, scale));
-        }
-        return match rest {
-            "w" => Some(Column::Quaternion(0)),
-            "x" => Some(Column::Quaternion(1)),
-            "y" => Some(Column::Quaternion(2)),
-            "z" => Some(Column::Quaternion(3)),
-            _ => None,
-        };
-    }
-    Some(match name {
-        "x_mm" => Column::Position(0, 1.0),
-        "y_mm" => Column::Position(1, 1.0),
-        "z_mm" => Column::Position(2, 1.0),
-        "x_m" => Column::Position(0, 1000.0),
-        "y_m" => Column::Position(1, 1000.0),
-        "z_m" => Column::Position(2, 1000.0),
-        "rx_deg" => Column::Angle(0, deg),
-        "ry_deg" => Column::Angle(1, deg),
-        "rz_deg" => Column::Angle(2, deg),
-        "rx_rad" => Column::Angle(0, 1.0),
-        "ry_rad" => Column::Angle(1, 1.0),
-        "rz_rad" => Column::Angle(2, 1.0),
-        "id" => Column::Id,
-        "weight" => Column::Weight,
-        _ => return None,
-    })
 }
 
 impl TrackerData {

@@ -346,10 +346,8 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
             let dp2 = (m.position - predicted.translation.vector).norm_squared();
             let norm = match &m.rotation {
                 Some(r) => {
-                    let angle2 = crate::kinematics::so3::angle_squared_between(
-                        r,
-                        predicted.rotation.matrix(),
-                    );
+                    let angle2 =
+                        crate::math::so3::angle_squared_between(r, predicted.rotation.matrix());
                     (dp2 + self.sqrt_k * self.sqrt_k * angle2).sqrt()
                 }
                 None => dp2.sqrt(),

@@ -17,8 +17,8 @@
 use crate::identify::Problem;
 use crate::kinematics::mdh::{GROUP, LANES, Lanes};
 use crate::kinematics::pose_error::PoseError;
-use crate::kinematics::so3;
 use crate::kinematics::{JointAngles, Kinematics};
+use crate::math::so3;
 use crate::scalar::Real;
 use crate::{KinematicsError, Pose};
 use core::fmt;

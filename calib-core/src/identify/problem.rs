@@ -6,8 +6,8 @@
 //! [`LeastSquares`]: crate::identify::lm::LeastSquares
 
 use crate::identify::objective::Measurement;
-use crate::kinematics::KinematicsError;
 use crate::kinematics::{Kinematics, PreparedRobot};
+use crate::model::KinematicsError;
 use crate::model::Robot;
 use crate::model::parameters::{ParameterErrors, ParameterSet};
 use crate::scalar::Real;

@@ -1,9 +1,9 @@
 //! Forward kinematics of the actual model: `T = T_base A_1 ... A_N T_tool` (paper eq. 2-3).
 
-use crate::kinematics::KinematicsError;
 use crate::kinematics::mdh::{LaneFrame, Lanes, PreparedJoint};
-use crate::kinematics::so3;
-use crate::kinematics::trig;
+use crate::math::so3;
+use crate::math::trig;
+use crate::model::KinematicsError;
 use crate::model::parameters::{FrameErrors, ParameterErrors};
 use crate::model::{Robot, joint_number};
 use crate::scalar::Real;

@@ -4,8 +4,8 @@
 //! unit) and the angular velocity `omega` (rad per unit), both in the base (world) frame, stacked as
 //! the 6 rows `[v; omega]`. The end point is the origin of the tool frame.
 
-use crate::kinematics::KinematicsError;
 use crate::kinematics::{JointAngles, Kinematics, Pose};
+use crate::model::KinematicsError;
 use crate::model::parameters::{FrameParameter, JointParameter, Parameter, ParameterSet};
 use crate::scalar::Real;
 use nalgebra::{Matrix3, SMatrix, Vector3, Vector6};
@@ -204,7 +204,7 @@ mod tests {
                 let tp = kinematics.forward(&plus).unwrap();
                 let tm = kinematics.forward(&minus).unwrap();
                 let v = (tp.translation.vector - tm.translation.vector) / (2.0 * h);
-                let w = crate::kinematics::so3::log(
+                let w = crate::math::so3::log(
                     &(tp.rotation.matrix() * tm.rotation.matrix().transpose()),
                 ) / (2.0 * h);
                 for r in 0..3 {

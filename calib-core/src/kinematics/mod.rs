@@ -1,24 +1,18 @@
 //! Kinematics of the actual model (nominal + errors): the joint transform of the paper's eq. (1),
-//! forward kinematics (eq. 2-3), the pose error of a measurement, the Jacobians, the exact
-//! rotation log map, and closed-form inverse kinematics.
+//! forward kinematics (eq. 2-3), the pose error of a measurement, the Jacobians and closed-form
+//! inverse kinematics.
 //!
 //! - [`forward`](Kinematics): `T = T_base A_1 ... A_N T_tool`, also over precomputed joint
 //!   trigonometry;
 //! - [`pose_error`]: `dp = p_measured - p_predicted` (mm), `dr = log(R_measured R_predicted^T)`
 //!   (rad), and its parameter Jacobian;
 //! - [`jacobian`]: the geometric (joint) Jacobian and the parameter Jacobian of the end pose;
-//! - [`so3`]: the exact log map and its Jacobian, rotations from roll, pitch and yaw;
-//! - [`ik`]: closed-form nominal inverse kinematics of spherical-wrist 6R robots (8 branches);
-//! - [`KinematicsError`]: what is wrong with a model, a parameter set or a joint input.
+//! - [`ik`]: closed-form nominal inverse kinematics of spherical-wrist 6R robots (8 branches).
 
-mod error;
 mod forward;
 pub mod ik;
 pub mod jacobian;
 pub(crate) mod mdh;
 pub mod pose_error;
-pub mod so3;
-pub(crate) mod trig;
 
-pub use error::KinematicsError;
 pub use forward::{JointAngles, Kinematics, Pose, PreparedRobot};

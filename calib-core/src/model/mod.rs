@@ -2,9 +2,11 @@
 //! frames), its parameter errors and the identification mask ([`parameters`]), and the robot of
 //! the source paper ([`paper`]).
 
+mod error;
 pub mod paper;
 pub mod parameters;
 mod robot;
 
+pub use error::KinematicsError;
 pub(crate) use robot::joint_number;
 pub use robot::{FramePose, JointLimits, MdhJoint, Robot};

@@ -16,7 +16,7 @@
 //! A [`ParameterSet`] keeps the parameters selected by a [`ParameterMask`] in this order; that is
 //! the order of the packed vector, of the Jacobian columns and of every report.
 
-use crate::kinematics::KinematicsError;
+use crate::model::KinematicsError;
 use crate::model::Robot;
 use crate::scalar::Real;
 use core::fmt;

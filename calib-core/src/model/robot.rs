@@ -1,6 +1,6 @@
 //! The nominal robot: N joints of Hayati MDH parameters, joint limits, base and tool frames.
 
-use crate::kinematics::KinematicsError;
+use crate::model::KinematicsError;
 use crate::model::parameters::{FrameParameter, JointParameter, Parameter};
 use crate::scalar::Real;
 use core::cmp::Ordering;
@@ -75,7 +75,7 @@ impl<T: Real> FramePose<T> {
         // nalgebra applies roll, then pitch, then yaw: R = Rz(yaw) Ry(pitch) Rx(roll).
         IsometryMatrix3::from_parts(
             Translation3::new(x, y, z),
-            crate::kinematics::so3::rotation_rpy(roll, pitch, yaw),
+            crate::math::so3::rotation_rpy(roll, pitch, yaw),
         )
     }
 }

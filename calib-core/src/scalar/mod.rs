@@ -4,6 +4,8 @@
 //! implementation: the sine and cosine come from `libm` (never from the host's C library) so that
 //! x86_64 and Cortex-M compute the same bits for the same input.
 
+mod sin_cos_f32;
+
 use nalgebra::RealField;
 
 /// A floating-point scalar usable by the core (`f32` or `f64`).
@@ -11,7 +13,7 @@ pub trait Real: RealField + Copy {
     /// Sine and cosine of `self` (radians) in one call, from `libm`.
     fn sin_cos_libm(self) -> (Self, Self);
     /// Sine and cosine of `self` (radians) as the core computes them: `libm` for `f64`, the
-    /// single-precision routine `kinematics::trig::sin_cos_f32` for `f32` (no f64 arithmetic, which
+    /// single-precision routine `scalar::sin_cos_f32` for `f32` (no f64 arithmetic, which
     /// the Cortex-M4F emulates in software). Identical bits on every target.
     fn sin_cos_fast(self) -> (Self, Self);
     /// The correctly rounded square root (IEEE 754): libm on a PC, the FPU's `VSQRT.F32` on a
@@ -94,7 +96,7 @@ impl Real for f32 {
     }
     #[inline]
     fn sin_cos_fast(self) -> (Self, Self) {
-        crate::kinematics::trig::sin_cos_f32(self)
+        sin_cos_f32::sin_cos_f32(self)
     }
     #[inline]
     fn sqrt_ieee(self) -> Self {

@@ -1,39 +1,5 @@
-//! Sine and cosine for the core: `libm` in general, and a short polynomial for the small parameter
-//! errors (|x| <= 0.1 rad) that every objective evaluation needs, so that preparing a candidate
-//! model costs no libm call.
-//!
-//! Error bound of [`sin_cos_small`] on `|x| <= 0.1`: the first omitted terms are
-//! `x^11 / 11! < 2.6e-19` and `x^12 / 12! < 2.1e-21`, far below one ulp; the measured worst
-//! difference to `libm` is 1 ulp in f64 and f32 (unit test `small_angle_polynomial_matches_libm`).
-
-use crate::scalar::Real;
-
-/// Largest |x| (rad) for which [`sin_cos_small`] uses its polynomial.
-pub const SMALL: f64 = 0.1;
-
-/// `(sin x, cos x)` for any finite `x` (rad): a Taylor polynomial for `|x| <= 0.1`, libm beyond.
-#[inline]
-pub fn sin_cos_small<T: Real>(x: T) -> (T, T) {
-    if x.abs() > T::of(SMALL) {
-        return x.sin_cos_fast();
-    }
-    let x2 = x * x;
-    // Horner form of x - x^3/3! + ... + x^9/9! and 1 - x^2/2! + ... + x^10/10!.
-    let sin = x
-        * (T::one()
-            - x2 / T::of(6.0)
-                * (T::one()
-                    - x2 / T::of(20.0)
-                        * (T::one() - x2 / T::of(42.0) * (T::one() - x2 / T::of(72.0)))));
-    let cos = T::one()
-        - x2 / T::of(2.0)
-            * (T::one()
-                - x2 / T::of(12.0)
-                    * (T::one()
-                        - x2 / T::of(30.0)
-                            * (T::one() - x2 / T::of(56.0) * (T::one() - x2 / T::of(90.0)))));
-    (sin, cos)
-}
+//! `(sin x, cos x)` in single precision without any f64 arithmetic: the `f32` scalar's
+//! [`Real::sin_cos_fast`](super::Real::sin_cos_fast).
 
 /// Largest |x| (rad) for which [`sin_cos_f32`]'s error bound holds; beyond it the argument is
 /// first reduced by `fmod(x, fl(2 pi))`.
@@ -87,37 +53,10 @@ pub fn sin_cos_f32(x: f32) -> (f32, f32) {
     (if x.is_sign_negative() { -s } else { s }, c)
 }
 
-/// `(cos, sin)` of `a + b` from `(cos a, sin a)` and `(cos b, sin b)` (angle addition).
-#[inline(always)]
-pub fn add<T: Real>((ca, sa): (T, T), (cb, sb): (T, T)) -> (T, T) {
-    (ca * cb - sa * sb, sa * cb + ca * sb)
-}
-
 #[cfg(test)]
 mod tests {
     extern crate std;
     use super::*;
-
-    #[test]
-    fn small_angle_polynomial_matches_libm() {
-        let mut worst64 = 0.0f64;
-        let mut worst32 = 0.0f32;
-        for i in -10_000..=10_000 {
-            let x = f64::from(i) * 1e-5;
-            let (s, c) = sin_cos_small(x);
-            let (ls, lc) = libm::sincos(x);
-            worst64 = worst64.max((s - ls).abs()).max((c - lc).abs());
-            let xf = x as f32;
-            let (s, c) = sin_cos_small(xf);
-            let (ls, lc) = libm::sincosf(xf);
-            worst32 = worst32.max((s - ls).abs()).max((c - lc).abs());
-        }
-        // One ulp of 1.0: 2.2e-16 (f64) and 1.2e-7 (f32).
-        assert!(worst64 <= f64::EPSILON, "f64 worst {worst64:e}");
-        assert!(worst32 <= f32::EPSILON, "f32 worst {worst32:e}");
-        // Beyond the polynomial range it is the scalar's own sine and cosine.
-        assert_eq!(sin_cos_small(0.7f64), libm::sincos(0.7));
-    }
 
     fn worst_f32(points: impl Iterator<Item = f32>) -> (f64, f64) {
         let (mut ours, mut libm32) = (0.0f64, 0.0f64);
