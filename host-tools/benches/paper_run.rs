@@ -85,7 +85,7 @@ fn calibrate_runs(c: &mut Criterion) {
     .in_realistic_cell();
     simulate::simulate(&RobotFile::read(robot).unwrap(), robot, &config)
         .unwrap()
-        .write(&data, &dir.path().join("cell100-truth.toml"))
+        .write(&data, &dir.path().join("cell100-truth.toml"), robot)
         .unwrap();
     let ur10 = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml"));
     let series_b = Path::new(concat!(

@@ -1,31 +1,176 @@
-//! Writing output files atomically: into a temporary file beside the target, then renamed, so a
-//! reader never sees a half-written file and a failure leaves any previous file untouched.
+//! Output files, safely: every output of a command is written into a temporary file beside its
+//! target, and all of them replace their targets together only when every one is ready
+//! ([`Outputs`]), so a failure leaves every previous file untouched and a reader never sees a
+//! half-written file. Before anything is written the targets are checked: a target must be a
+//! regular file or a new path (a symbolic link is followed to its target; a device, FIFO or
+//! directory is refused), no two outputs may name the same file, and no output may be one of the
+//! command's inputs. An existing file keeps its permissions.
 
-use anyhow::Context;
+use anyhow::{Context, bail};
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-/// Writes `bytes` to `path` atomically (temporary file in the same directory, then rename).
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("creating directory {}", dir.display()))?;
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let temporary = dir.join(format!(".{name}.{}.tmp", std::process::id()));
-    let result = (|| -> std::io::Result<()> {
-        let mut file = std::fs::File::create(&temporary)?;
-        file.write_all(bytes)?;
-        file.sync_all()?;
-        std::fs::rename(&temporary, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&temporary);
+/// One staged output: its temporary file and where it goes.
+struct Staged {
+    /// The flag or name that asked for it, for messages.
+    name: String,
+    /// The file written so far.
+    temporary: PathBuf,
+    /// The resolved target (a symbolic link followed).
+    target: PathBuf,
+    /// The permissions of the file it replaces, if any.
+    permissions: Option<std::fs::Permissions>,
+}
+
+/// The outputs of one command, committed together.
+#[derive(Default)]
+pub struct Outputs {
+    /// The command's inputs, resolved: no output may replace one.
+    inputs: Vec<(String, PathBuf)>,
+    staged: Vec<Staged>,
+}
+
+impl Outputs {
+    /// Outputs that must not replace any of `inputs` (each named by its flag in messages).
+    pub fn new(inputs: &[(&str, &Path)]) -> Self {
+        Self {
+            inputs: inputs
+                .iter()
+                .map(|(name, path)| ((*name).to_string(), resolved(path)))
+                .collect(),
+            staged: Vec::new(),
+        }
     }
-    result.with_context(|| format!("writing {}", path.display()))
+
+    /// Stages `bytes` for `path`, asked for by `name` (such as `--out`).
+    pub fn stage(&mut self, name: &str, path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+        self.stage_with(name, path, |temporary| {
+            let mut file = std::fs::File::create(temporary)?;
+            file.write_all(bytes)?;
+            file.sync_all()?;
+            Ok(())
+        })
+    }
+
+    /// Stages the file that `write` writes at the temporary path it is given.
+    pub fn stage_with(
+        &mut self,
+        name: &str,
+        path: &Path,
+        write: impl FnOnce(&Path) -> anyhow::Result<()>,
+    ) -> anyhow::Result<()> {
+        let (target, permissions) = self.checked_target(name, path)?;
+        let dir = match target.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        std::fs::create_dir_all(&dir)
+            .with_context(|| format!("creating directory {}", dir.display()))?;
+        let file_name = target
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let temporary = dir.join(format!(
+            ".{file_name}.{}.{}.tmp",
+            std::process::id(),
+            self.staged.len()
+        ));
+        if let Err(e) = write(&temporary) {
+            let _ = std::fs::remove_file(&temporary);
+            return Err(e.context(format!("writing {} ({name})", path.display())));
+        }
+        self.staged.push(Staged {
+            name: name.to_string(),
+            temporary,
+            target,
+            permissions,
+        });
+        Ok(())
+    }
+
+    /// The target of `path` after the checks, and the permissions of the file it would replace.
+    fn checked_target(
+        &self,
+        name: &str,
+        path: &Path,
+    ) -> anyhow::Result<(PathBuf, Option<std::fs::Permissions>)> {
+        let target = resolved(path);
+        let is_link = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
+        if is_link && std::fs::metadata(path).is_err() {
+            bail!(
+                "{name} {}: a symbolic link to a missing file; give the path of a file",
+                path.display()
+            );
+        }
+        let permissions = match std::fs::metadata(&target) {
+            Ok(meta) if meta.is_file() => Some(meta.permissions()),
+            Ok(_) => bail!(
+                "{name} {}: not a regular file (a directory, device or FIFO); give the path of a file",
+                path.display()
+            ),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+            Err(e) => return Err(e).with_context(|| format!("{name} {}", path.display())),
+        };
+        if let Some(other) = self.staged.iter().find(|s| s.target == target) {
+            bail!(
+                "{name} and {} name the same file {}; give each output its own path",
+                other.name,
+                path.display()
+            );
+        }
+        if let Some((input, _)) = self.inputs.iter().find(|(_, p)| *p == target) {
+            bail!(
+                "{name} {} is the input {input}; writing it would destroy the input, give another path",
+                path.display()
+            );
+        }
+        Ok((target, permissions))
+    }
+
+    /// Replaces every target by its staged file; returns the paths written.
+    pub fn commit(mut self) -> anyhow::Result<Vec<PathBuf>> {
+        let mut written = Vec::with_capacity(self.staged.len());
+        for staged in std::mem::take(&mut self.staged) {
+            if let Some(permissions) = staged.permissions {
+                std::fs::set_permissions(&staged.temporary, permissions)
+                    .with_context(|| format!("writing {}", staged.target.display()))?;
+            }
+            std::fs::rename(&staged.temporary, &staged.target)
+                .with_context(|| format!("writing {}", staged.target.display()))?;
+            written.push(staged.target);
+        }
+        Ok(written)
+    }
+}
+
+impl Drop for Outputs {
+    /// Outputs not committed leave nothing behind.
+    fn drop(&mut self) {
+        for staged in &self.staged {
+            let _ = std::fs::remove_file(&staged.temporary);
+        }
+    }
+}
+
+/// `path` made absolute, with a symbolic link followed to its target and every existing
+/// directory resolved, so that two names of one file compare equal.
+fn resolved(path: &Path) -> PathBuf {
+    if let Ok(canonical) = std::fs::canonicalize(path) {
+        return canonical;
+    }
+    // A new file: resolve its directory when that exists.
+    let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    match (absolute.parent(), absolute.file_name()) {
+        (Some(dir), Some(name)) => std::fs::canonicalize(dir)
+            .map(|d| d.join(name))
+            .unwrap_or(absolute),
+        _ => absolute,
+    }
+}
+
+/// Writes `bytes` to `path` as the only output of a command (see [`Outputs`]).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    let mut outputs = Outputs::default();
+    outputs.stage("output", path, bytes)?;
+    outputs.commit().map(|_| ())
 }

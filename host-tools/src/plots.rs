@@ -3,10 +3,10 @@
 //! the orientation error per axis, and a histogram of the validation errors.
 //! Text is drawn with the bundled DejaVu Sans font, so PNGs need no system fonts.
 
-use anyhow::{Context, anyhow};
+use anyhow::anyhow;
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Once;
 
 const FONT: &str = "sans-serif";
@@ -257,34 +257,39 @@ pub struct PlotData<'a> {
     pub validation_after: &'a [f64],
 }
 
-/// Writes into `dir`, each as SVG and PNG: `convergence` (with the swarm), `position-error`,
-/// `orientation-error` (with orientation data) and `validation-histogram` (with validation
-/// poses); returns the paths. Each file is drawn into a temporary name and renamed, so no
-/// half-drawn plot is left behind.
-pub fn write_plots(dir: &Path, plots: &PlotData<'_>) -> anyhow::Result<Vec<PathBuf>> {
+/// Stages into `dir` (see [`crate::files::Outputs`]), each as SVG and PNG: `convergence` (with
+/// the swarm), `position-error`, `orientation-error` (with orientation data) and
+/// `validation-histogram` (with validation poses). Nothing is replaced until the outputs are
+/// committed.
+pub fn stage_plots(
+    outputs: &mut crate::files::Outputs,
+    dir: &Path,
+    plots: &PlotData<'_>,
+) -> anyhow::Result<()> {
     register_font();
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let mut written = Vec::new();
-    // The bitmap backend picks its format from the extension.
-    let tmp = |name: &str| dir.join(format!(".tmp-{}-{name}", std::process::id()));
+    // The bitmap backend picks its format from the extension: draw to "<temporary>.png".
     macro_rules! both {
         ($name:literal, $size:expr, |$area:ident| $draw:expr) => {{
-            let t = tmp(concat!($name, ".svg"));
-            {
-                let $area = SVGBackend::new(&t, $size).into_drawing_area();
+            outputs.stage_with("--plot", &dir.join(concat!($name, ".svg")), |t| {
+                let $area = SVGBackend::new(t, $size).into_drawing_area();
                 $draw?;
-            }
-            let path = dir.join(concat!($name, ".svg"));
-            std::fs::rename(&t, &path).with_context(|| format!("writing {}", path.display()))?;
-            written.push(path);
-            let t = tmp(concat!($name, ".png"));
-            {
-                let $area = BitMapBackend::new(&t, $size).into_drawing_area();
-                $draw?;
-            }
-            let path = dir.join(concat!($name, ".png"));
-            std::fs::rename(&t, &path).with_context(|| format!("writing {}", path.display()))?;
-            written.push(path);
+                $area.present()?;
+                Ok(())
+            })?;
+            outputs.stage_with("--plot", &dir.join(concat!($name, ".png")), |t| {
+                let png = t.with_extension("tmp.png");
+                let drawn = (|| -> anyhow::Result<()> {
+                    let $area = BitMapBackend::new(&png, $size).into_drawing_area();
+                    $draw?;
+                    $area.present()?;
+                    Ok(())
+                })();
+                if let Err(e) = drawn.and_then(|()| Ok(std::fs::rename(&png, t)?)) {
+                    let _ = std::fs::remove_file(&png);
+                    return Err(e);
+                }
+                Ok(())
+            })?;
         }};
     }
     if !plots.history.is_empty() {
@@ -306,5 +311,5 @@ pub fn write_plots(dir: &Path, plots: &PlotData<'_>) -> anyhow::Result<Vec<PathB
             plots.validation_after
         ));
     }
-    Ok(written)
+    Ok(())
 }

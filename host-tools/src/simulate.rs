@@ -9,7 +9,7 @@
 use crate::JOINTS;
 use crate::robot_file::FrameEntry;
 use crate::robot_file::{RobotFile, RobotModel};
-use crate::tracker_data::{PoseRow, Record, write_tracker_csv};
+use crate::tracker_data::{PoseRow, Record, tracker_csv};
 use anyhow::{Context, bail};
 use calib_core::model::paper;
 use calib_core::model::parameters::all_parameters;
@@ -151,11 +151,21 @@ impl Simulated {
             .collect()
     }
 
-    /// Writes the tracker CSV to `data` and the true robot to `truth` (each atomically).
-    pub fn write(&self, data: &Path, truth: &Path) -> anyhow::Result<()> {
-        let truth_text = self.truth.to_toml(&self.truth_comment);
-        write_tracker_csv(data, &self.comments, &self.rows)?;
-        crate::files::write_atomic(truth, truth_text.as_bytes())
+    /// Writes the tracker CSV to `data` and the true robot to `truth`, both or neither (see
+    /// [`crate::files::Outputs`]); neither may be `robot`, the robot file simulated.
+    pub fn write(&self, data: &Path, truth: &Path, robot: &Path) -> anyhow::Result<()> {
+        let mut outputs = crate::files::Outputs::new(&[("--robot", robot)]);
+        outputs.stage(
+            "--out",
+            data,
+            tracker_csv(&self.comments, &self.rows)?.as_bytes(),
+        )?;
+        outputs.stage(
+            "--truth-out",
+            truth,
+            self.truth.to_toml(&self.truth_comment).as_bytes(),
+        )?;
+        outputs.commit().map(|_| ())
     }
 }
 

@@ -511,6 +511,11 @@ pub struct PoseRow {
 
 /// Writes poses as tracker CSV (atomically): `comments` become `#` lines at the top.
 pub fn write_tracker_csv(path: &Path, comments: &[String], rows: &[PoseRow]) -> anyhow::Result<()> {
+    write_atomic(path, tracker_csv(comments, rows)?.as_bytes())
+}
+
+/// Poses as tracker CSV text: `comments` become `#` lines at the top.
+pub fn tracker_csv(comments: &[String], rows: &[PoseRow]) -> anyhow::Result<String> {
     let joints = rows.first().map_or(0, |r| r.q.len());
     let orientation = rows.first().is_some_and(|r| r.rotation.is_some());
     let mut text = String::new();
@@ -537,5 +542,5 @@ pub fn write_tracker_csv(path: &Path, comments: &[String], rows: &[PoseRow]) -> 
         writer.write_record(&fields)?;
     }
     text.push_str(std::str::from_utf8(&writer.into_inner()?)?);
-    write_atomic(path, text.as_bytes())
+    Ok(text)
 }

@@ -37,7 +37,7 @@ fn simulate(
     let robot = RobotFile::read(Path::new(ROBOT)).unwrap();
     simulate::simulate(&robot, Path::new(ROBOT), &config)
         .unwrap()
-        .write(&data, &truth)
+        .write(&data, &truth, Path::new(ROBOT))
         .unwrap();
     (data, truth)
 }

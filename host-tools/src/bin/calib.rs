@@ -7,9 +7,11 @@ use host_tools::cli::calibrate::{self, CalibrateOptions};
 use host_tools::cli::check::{self, CheckOptions};
 use host_tools::cli::compensate::CompensateOptions;
 use host_tools::cli::export::ExportOptions;
+use host_tools::cli::print;
 use host_tools::cli::simulate::{self, Simulation};
 use host_tools::fk;
 use host_tools::robot_file::RobotModel;
+use host_tools::{print_line, print_text};
 use std::path::{Path, PathBuf};
 
 /// Robot geometric calibration and pose compensation. Lengths in mm, angles in degrees in files
@@ -70,7 +72,7 @@ fn main() -> anyhow::Result<()> {
         } => forward_kinematics(&robot, &joints_deg, json)?,
         Command::Simulate(settings) => {
             let simulated = simulate::simulate(&settings)?;
-            println!(
+            print_line!(
                 "wrote {} poses to {} and the true robot to {}",
                 simulated.rows.len(),
                 settings.out.display(),
@@ -79,7 +81,7 @@ fn main() -> anyhow::Result<()> {
         }
         Command::Compensate(options) => {
             let summary = host_tools::cli::compensate::compensate(&options)?;
-            println!(
+            print_line!(
                 "compensated {} of {} targets ({} refused, see the status column); wrote {}",
                 summary.ok,
                 summary.ok + summary.failed,
@@ -89,7 +91,7 @@ fn main() -> anyhow::Result<()> {
         }
         Command::Export(options) => {
             let bytes = host_tools::cli::export::export(&options)?;
-            println!("wrote {} bytes to {}", bytes, options.out.display());
+            print_line!("wrote {} bytes to {}", bytes, options.out.display());
         }
         Command::Evaluate(options) => evaluate(&options)?,
         Command::Check(options) => {
@@ -106,10 +108,13 @@ fn main() -> anyhow::Result<()> {
         Command::Demo(options) => host_tools::cli::demo::demo(&options)?,
         Command::Calibrate(options) => {
             let calibration = calibrate::calibrate(&options)?;
-            print!("{}", calibration.text);
-            for path in calibrate::write_outputs(&calibration, &options.outputs())? {
-                println!("wrote {}", path.display());
+            // The files first: a closed or full standard output must not lose them.
+            let written = calibrate::write_outputs(&calibration, &options.outputs())?;
+            let mut text = calibration.text;
+            for path in written {
+                text.push_str(&format!("wrote {}\n", path.display()));
             }
+            print(&text)?;
         }
     }
     Ok(())
@@ -122,9 +127,9 @@ fn print_json_or_text<T: serde::Serialize>(
     text: impl FnOnce() -> String,
 ) -> anyhow::Result<()> {
     if json {
-        println!("{}", serde_json::to_string_pretty(value)?);
+        print_line!("{}", serde_json::to_string_pretty(value)?);
     } else {
-        print!("{}", text());
+        print_text!("{}", text());
     }
     Ok(())
 }
@@ -134,13 +139,13 @@ fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::R
     let model = RobotModel::<JOINTS>::load(robot)?;
     let pose = fk::forward_deg(&model, joints_deg)?;
     if json {
-        println!(
+        print_line!(
             "{}",
             serde_json::to_string(&pose).context("serialising the pose")?
         );
     } else {
-        println!("robot: {} ({})", model.name, robot.display());
-        print!("{}", pose.to_text());
+        print_line!("robot: {} ({})", model.name, robot.display());
+        print_text!("{}", pose.to_text());
     }
     Ok(())
 }

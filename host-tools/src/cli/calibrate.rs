@@ -8,7 +8,7 @@ use crate::calibration::{
 };
 use crate::cli::InputFiles;
 use crate::dataset::Dataset;
-use crate::files::write_atomic;
+use crate::files::Outputs;
 use crate::frames::Frames;
 use crate::report::TruthRow;
 use crate::robot_file::RobotFile;
@@ -239,48 +239,72 @@ fn truth_rows(result: &CalibrationResult, path: &std::path::Path) -> anyhow::Res
         .collect())
 }
 
-/// The files a calibration writes, each optional.
+/// The files a calibration writes, each optional, and the inputs they must not replace.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct Outputs {
+pub struct OutputPaths {
     /// The identified robot file.
     pub out: Option<PathBuf>,
     /// The JSON report.
     pub report: Option<PathBuf>,
     /// The directory of plots.
     pub plot: Option<PathBuf>,
+    /// The command's input files, by flag.
+    pub inputs: Vec<(&'static str, PathBuf)>,
 }
 
 impl CalibrateOptions {
     /// The files asked for.
-    pub fn outputs(&self) -> Outputs {
-        Outputs {
+    pub fn outputs(&self) -> OutputPaths {
+        let mut inputs = vec![
+            ("--robot", self.input.robot.clone()),
+            ("--data", self.input.data.clone()),
+        ];
+        for (flag, path) in [
+            ("--profile", &self.input.profile),
+            ("--holdout", &self.holdout),
+            ("--truth", &self.truth),
+        ] {
+            if let Some(path) = path {
+                inputs.push((flag, path.clone()));
+            }
+        }
+        OutputPaths {
             out: self.out.clone(),
             report: self.report.clone(),
             plot: self.plot.clone(),
+            inputs,
         }
     }
 }
 
-/// Writes the outputs of a calibration that were asked for (each atomically).
-pub fn write_outputs(calibration: &Calibration, options: &Outputs) -> anyhow::Result<Vec<PathBuf>> {
-    let mut written = Vec::new();
-    if let Some(path) = &options.out {
-        write_atomic(path, calibration.robot_toml.as_bytes())?;
-        written.push(path.clone());
+/// Writes the outputs of a calibration that were asked for, all together or none (see
+/// [`Outputs`]); returns the files written.
+pub fn write_outputs(
+    calibration: &Calibration,
+    paths: &OutputPaths,
+) -> anyhow::Result<Vec<PathBuf>> {
+    let inputs: Vec<(&str, &std::path::Path)> = paths
+        .inputs
+        .iter()
+        .map(|(f, p)| (*f, p.as_path()))
+        .collect();
+    let mut outputs = Outputs::new(&inputs);
+    if let Some(path) = &paths.out {
+        outputs.stage("--out", path, calibration.robot_toml.as_bytes())?;
     }
-    if let Some(path) = &options.report {
+    if let Some(path) = &paths.report {
         let json = serde_json::to_string_pretty(&calibration.report())?;
-        write_atomic(path, json.as_bytes())?;
-        written.push(path.clone());
+        outputs.stage("--report", path, json.as_bytes())?;
     }
-    if let Some(dir) = &options.plot {
+    if let Some(dir) = &paths.plot {
         let per_pose = &calibration.result.per_pose;
         let history = calibration
             .result
             .swarm
             .as_ref()
             .map_or(&[][..], |s| s.history.as_slice());
-        written.extend(crate::plots::write_plots(
+        crate::plots::stage_plots(
+            &mut outputs,
             dir,
             &crate::plots::PlotData {
                 history,
@@ -292,7 +316,7 @@ pub fn write_outputs(calibration: &Calibration, options: &Outputs) -> anyhow::Re
                 validation_before: &per_pose.validation_before,
                 validation_after: &per_pose.validation_after,
             },
-        )?);
+        )?;
     }
-    Ok(written)
+    outputs.commit()
 }

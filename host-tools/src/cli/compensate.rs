@@ -3,7 +3,7 @@
 
 use crate::JOINTS;
 use crate::compensate::{Summary, compensate_targets, to_csv};
-use crate::files::write_atomic;
+use crate::files::Outputs;
 use crate::robot_file::RobotModel;
 use crate::tracker_data::TrackerData;
 use anyhow::bail;
@@ -88,6 +88,12 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
         &settings,
         options.branch,
     )?;
-    write_atomic(&options.out, &to_csv(&outcomes)?)?;
+    let mut outputs = Outputs::new(&[
+        ("--robot", &options.robot),
+        ("--params", &options.params),
+        ("--targets", &options.targets),
+    ]);
+    outputs.stage("--out", &options.out, &to_csv(&outcomes)?)?;
+    outputs.commit()?;
     Ok(Summary::of(&outcomes))
 }

@@ -11,7 +11,7 @@
 //! written into the output directory so that each step can be rerun with `calib`.
 
 use crate::calibration::{self, CalibrationConfig, HoldOut, Method};
-use crate::cli::calibrate::{Calibration, Outputs, write_outputs};
+use crate::cli::calibrate::{Calibration, OutputPaths, write_outputs};
 use crate::dataset::Dataset;
 use crate::robot_file::{ER10L_C10_TOML, RobotFile};
 use crate::simulate::{self, SimulationConfig};
@@ -36,7 +36,7 @@ fn simulate_into(
     data: &Path,
     truth: &Path,
 ) -> anyhow::Result<()> {
-    simulate::simulate(&robot.0, &robot.1, config)?.write(data, truth)
+    simulate::simulate(&robot.0, &robot.1, config)?.write(data, truth, &robot.1)
 }
 
 /// Calibrates `data` (validating on `holdout`), renders against `truth`, writes the identified
@@ -57,10 +57,17 @@ fn calibrate_into(
         ..HoldOut::default()
     };
     let calibration = Calibration::new(result, hold_out, truth)?;
-    let outputs = Outputs {
+    let mut inputs = vec![
+        ("--robot", robot.to_path_buf()),
+        ("--data", data.to_path_buf()),
+    ];
+    inputs.extend(holdout.map(|h| ("--holdout", h.to_path_buf())));
+    inputs.extend(truth.map(|t| ("--truth", t.to_path_buf())));
+    let outputs = OutputPaths {
         out: Some(dir.join("identified.toml")),
         report: Some(dir.join("report.json")),
         plot: Some(dir.join("plots")),
+        inputs,
     };
     let written = write_outputs(&calibration, &outputs)?;
     Ok((calibration.text, written))
@@ -90,10 +97,10 @@ pub fn demo(options: &DemoOptions) -> anyhow::Result<()> {
     };
     let (text, mut written) =
         calibrate_into(&robot_path, &data, None, Some(&truth), &config, &paper)?;
-    println!(
+    crate::print_line!(
         "== 1. The paper's experiment: ER10L-C10 with Table 2 errors, 32 exact 6-DoF poses, IPSO ==\n"
     );
-    print!("{text}");
+    crate::print_text!("{text}");
 
     // 2. A realistic cell.
     let cell = dir.join("cell");
@@ -126,13 +133,13 @@ pub fn demo(options: &DemoOptions) -> anyhow::Result<()> {
     };
     let (text, cell_written) =
         calibrate_into(&robot_path, &data, Some(&holdout), None, &config, &cell)?;
-    println!(
+    crate::print_line!(
         "\n== 2. A realistic cell: tracker 3 m away, reflector 150 mm off the flange, 0.02 mm noise, \
          42 poses + 18 held out, frames identified, IPSO then least squares ==\n"
     );
-    print!("{text}");
+    crate::print_text!("{text}");
     written.extend(cell_written);
-    println!(
+    crate::print_line!(
         "\nwrote {} files into {} (data, truth, identified robots, reports, plots)",
         written.len() + 7,
         dir.display()

@@ -2,7 +2,7 @@
 
 use crate::JOINTS;
 use crate::export::{BlockScalar, ExportFormat};
-use crate::files::write_atomic;
+use crate::files::Outputs;
 use crate::robot_file::{RobotFile, RobotModel};
 use std::path::PathBuf;
 
@@ -37,6 +37,8 @@ pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
         options.scalar,
         options.sequence,
     )?;
-    write_atomic(&options.out, &bytes)?;
+    let mut outputs = Outputs::new(&[("--params", &options.params)]);
+    outputs.stage("--out", &options.out, &bytes)?;
+    outputs.commit()?;
     Ok(bytes.len())
 }

@@ -12,6 +12,7 @@ pub mod verify;
 
 use crate::dataset::Dataset;
 use crate::profile::DataProfile;
+use std::io::Write;
 use std::path::PathBuf;
 
 /// The files a data command reads (`--robot`, `--data`, `--profile`), shared by `calibrate`,
@@ -38,4 +39,28 @@ impl InputFiles {
         let inputs = Dataset::load_with(&self.robot, &self.data, &profile)?;
         Ok((profile, inputs))
     }
+}
+
+/// Prints `text` to standard output. A closed pipe (the reader has gone, as with `| head`) ends
+/// the printing quietly; any other write error (such as a full disk) is an error. Never panics.
+pub fn print(text: &str) -> anyhow::Result<()> {
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        Err(e) => Err(anyhow::Error::new(e).context("writing to standard output")),
+    }
+}
+
+/// `println!` that never panics on a closed or full standard output (see [`print`]); returns
+/// from the calling function with the error of a full one.
+#[macro_export]
+macro_rules! print_line {
+    ($($arg:tt)*) => { $crate::cli::print(&format!("{}\n", format_args!($($arg)*)))? };
+}
+
+/// `print!` that never panics on a closed or full standard output (see [`print`]).
+#[macro_export]
+macro_rules! print_text {
+    ($($arg:tt)*) => { $crate::cli::print(&format!($($arg)*))? };
 }

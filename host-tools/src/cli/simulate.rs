@@ -123,6 +123,6 @@ pub fn simulate(options: &Simulation) -> anyhow::Result<Simulated> {
     let config = options.config()?;
     let file = RobotFile::read(&options.robot)?;
     let simulated = crate::simulate::simulate(&file, &options.robot, &config)?;
-    simulated.write(&options.out, &options.truth_out)?;
+    simulated.write(&options.out, &options.truth_out, &options.robot)?;
     Ok(simulated)
 }
