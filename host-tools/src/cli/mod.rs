@@ -52,14 +52,14 @@ pub fn print(text: &str) -> anyhow::Result<()> {
     }
 }
 
-/// `println!` that never panics on a closed or full standard output (see [`print`]); returns
+/// `println!` that never panics on a closed or full standard output (see [`cli::print`](crate::cli::print())); returns
 /// from the calling function with the error of a full one.
 #[macro_export]
 macro_rules! print_line {
     ($($arg:tt)*) => { $crate::cli::print(&format!("{}\n", format_args!($($arg)*)))? };
 }
 
-/// `print!` that never panics on a closed or full standard output (see [`print`]).
+/// `print!` that never panics on a closed or full standard output (see [`cli::print`](crate::cli::print())).
 #[macro_export]
 macro_rules! print_text {
     ($($arg:tt)*) => { $crate::cli::print(&format!($($arg)*))? };
