@@ -72,7 +72,7 @@ pub struct JointEntry {
     pub beta_deg: f64,
     /// `[lower, upper]` joint limits, degrees (default: unlimited).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub limits_deg: Option<[f64; 2]>,
+    pub limits_deg: Option<Vec<f64>>,
     /// Parameters to identify, from `a`, `d`, `alpha`, `beta`, `theta` (default: the rule of docs/ARCHITECTURE.md).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub identify: Option<Vec<String>>,
@@ -250,9 +250,9 @@ impl JointEntry {
             d: self.d_mm,
             beta: deg(self.beta_deg),
         };
-        let limits = match self.limits_deg {
+        let limits = match self.limits_deg.as_deref() {
             None => JointLimits::unlimited(),
-            Some([lower, upper]) => {
+            Some(&[lower, upper]) => {
                 if lower.is_nan() || upper.is_nan() || lower > upper {
                     return Err(format!(
                         "joint {number}: limits_deg = [{lower}, {upper}] must be [lower, upper] with lower <= upper"
@@ -262,6 +262,12 @@ impl JointEntry {
                     lower: deg(lower),
                     upper: deg(upper),
                 }
+            }
+            Some(other) => {
+                return Err(format!(
+                    "joint {number}: limits_deg has {} values, expected two: [lower, upper] in degrees",
+                    other.len()
+                ));
             }
         };
         Ok((joint, limits))

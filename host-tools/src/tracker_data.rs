@@ -134,7 +134,16 @@ impl TrackerData {
         joints_required: bool,
         profile: &DataProfile,
     ) -> Result<Self, DataError> {
+        // A UTF-8 byte order mark (from some Windows editors) is not part of the first line.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let source = Source::new(text, path);
+        if text.contains('\r') && !text.contains('\n') {
+            return Err(source.at(
+                1,
+                None,
+                "the lines end in CR only (old Mac line endings); save the file with LF or CRLF line endings".into(),
+            ));
+        }
         let base_frame = match profile.frame {
             Some(frame) => frame == DataFrame::Base,
             None => text.lines().any(|l| {
@@ -258,6 +267,12 @@ impl Layout {
         let at = |column: Option<String>, message: String| source.at(header_line, column, message);
         if header.is_empty() || (header.len() == 1 && header.get(0) == Some("")) {
             return Err(at(None, "the file has no header row".into()));
+        }
+        if header.len() == 1 && header.get(0).is_some_and(|h| h.contains(';')) {
+            return Err(at(
+                None,
+                "the header is one column holding semicolons: the file looks semicolon-separated; read it through a data profile with delimiter = \";\" (--profile, see host-tools/profiles/)".into(),
+            ));
         }
         let columns = columns_of(&header, profile, &at)?;
         let joints = check_columns(&header, &columns, joints_required, &at)?;

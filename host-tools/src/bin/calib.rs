@@ -63,8 +63,28 @@ enum Command {
     Demo(host_tools::cli::demo::DemoOptions),
 }
 
-fn main() -> anyhow::Result<()> {
-    match Cli::parse().command {
+/// Runs the command; a user error is reported as a message with its causes, never with a stack
+/// backtrace (even under `RUST_BACKTRACE=1`), and exit status 1.
+fn main() -> std::process::ExitCode {
+    match run(Cli::parse().command) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(error) => {
+            let mut message = format!("Error: {error}\n");
+            let causes: Vec<String> = error.chain().skip(1).map(ToString::to_string).collect();
+            if !causes.is_empty() {
+                message.push_str("\nCaused by:\n");
+                for cause in causes {
+                    message.push_str(&format!("    {cause}\n"));
+                }
+            }
+            let _ = std::io::Write::write_all(&mut std::io::stderr(), message.as_bytes());
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(command: Command) -> anyhow::Result<()> {
+    match command {
         Command::Fk {
             robot,
             joints_deg,
