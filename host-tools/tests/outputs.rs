@@ -30,6 +30,19 @@ fn calibrate_args<'a>(out: &'a str, report: &'a str) -> Vec<&'a str> {
     ]
 }
 
+/// `calib export` of the nominal robot as TOML to `out`.
+fn export_toml_to(out: &Path) -> std::process::Output {
+    calib(&[
+        "export",
+        "--params",
+        ROBOT,
+        "--format",
+        "toml",
+        "--out",
+        str(out),
+    ])
+}
+
 fn str(path: &Path) -> &str {
     path.to_str().unwrap()
 }
@@ -100,15 +113,7 @@ fn defect_3_a_device_is_never_replaced() {
     if !made {
         return; // not root: no device node to offer
     }
-    let out = calib(&[
-        "export",
-        "--params",
-        ROBOT,
-        "--format",
-        "toml",
-        "--out",
-        str(&device),
-    ]);
+    let out = export_toml_to(&device);
     assert!(!out.status.success());
     assert!(
         stderr(&out).contains("not a regular file"),
@@ -130,15 +135,7 @@ fn defect_3_a_fifo_is_refused_and_kept() {
     {
         return; // no mkfifo here
     }
-    let out = calib(&[
-        "export",
-        "--params",
-        ROBOT,
-        "--format",
-        "toml",
-        "--out",
-        str(&fifo),
-    ]);
+    let out = export_toml_to(&fifo);
     assert!(!out.status.success());
     assert!(
         stderr(&out).contains("not a regular file"),
@@ -159,15 +156,7 @@ fn defect_3_a_symlink_is_followed_to_its_target() {
     let (target, link) = (dir.path().join("target.toml"), dir.path().join("link.toml"));
     std::fs::write(&target, "old").unwrap();
     std::os::unix::fs::symlink(&target, &link).unwrap();
-    let out = calib(&[
-        "export",
-        "--params",
-        ROBOT,
-        "--format",
-        "toml",
-        "--out",
-        str(&link),
-    ]);
+    let out = export_toml_to(&link);
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(
         std::fs::symlink_metadata(&link)
@@ -188,15 +177,7 @@ fn defect_3_an_existing_files_permissions_are_kept() {
     let file = dir.path().join("private.toml");
     std::fs::write(&file, "old").unwrap();
     std::fs::set_permissions(&file, std::fs::Permissions::from_mode(0o600)).unwrap();
-    let out = calib(&[
-        "export",
-        "--params",
-        ROBOT,
-        "--format",
-        "toml",
-        "--out",
-        str(&file),
-    ]);
+    let out = export_toml_to(&file);
     assert!(out.status.success(), "{}", stderr(&out));
     let mode = std::fs::metadata(&file).unwrap().permissions().mode() & 0o777;
     assert_eq!(mode, 0o600);
