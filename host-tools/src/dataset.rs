@@ -83,6 +83,12 @@ impl Dataset {
                 model.name
             );
         }
+        if !data_file.records.is_empty() && data_file.records.iter().all(|r| r.weight == 0.0) {
+            bail!(
+                "{}: every pose has weight 0, so no pose counts; give the poses to use a weight above 0",
+                data.display()
+            );
+        }
         let mut measurements = Vec::with_capacity(data_file.records.len());
         for r in &data_file.records {
             let q: [f64; JOINTS] = std::array::from_fn(|i| r.q[i]);

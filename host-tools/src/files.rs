@@ -5,10 +5,103 @@
 //! regular file or a new path (a symbolic link is followed to its target; a device, FIFO or
 //! directory is refused), no two outputs may name the same file, and no output may be one of the
 //! command's inputs. An existing file keeps its permissions.
+//!
+//! Interruptions: [`clean_up_on_interrupt`] makes Ctrl-C (SIGINT) and SIGTERM remove the
+//! temporaries staged so far, and wait for a commit under way to finish, so the outputs of one
+//! run are replaced all together or not at all. A process killed outright (`kill -9`) cannot clean
+//! up: its temporaries (`.<name>.calib-<pid>-<n>.tmp`) are removed by the next run that writes the
+//! same file once that process has ended.
 
 use anyhow::{Context, bail};
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Temporaries staged and not yet committed or removed, of every [`Outputs`] of this process.
+static TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// `true` while [`Outputs::commit`] renames: an interruption then waits for the commit to end.
+static COMMITTING: AtomicBool = AtomicBool::new(false);
+
+/// `true` once an interruption arrived during a commit: the process exits when the commit ends.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// Exit status after an interruption (128 + SIGINT).
+const INTERRUPTED_STATUS: i32 = 130;
+
+/// Installs the handler of Ctrl-C (SIGINT) and SIGTERM: staged temporaries are removed and the
+/// process exits with status 130; during a commit, the commit finishes first. Call once, at the
+/// start of the program.
+pub fn clean_up_on_interrupt() -> anyhow::Result<()> {
+    ctrlc::set_handler(|| {
+        if COMMITTING.load(Ordering::SeqCst) {
+            INTERRUPTED.store(true, Ordering::SeqCst);
+            return;
+        }
+        remove_all_temporaries();
+        std::process::exit(INTERRUPTED_STATUS);
+    })
+    .context("installing the interrupt handler")
+}
+
+/// Removes every staged temporary of this process.
+fn remove_all_temporaries() {
+    let mut list = TEMPORARIES
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    for path in list.drain(..) {
+        let _ = std::fs::remove_file(&path);
+        let _ = std::fs::remove_file(path.with_extension("tmp.png"));
+    }
+}
+
+fn track(path: &Path) {
+    TEMPORARIES
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .push(path.to_path_buf());
+}
+
+fn untrack(path: &Path) {
+    TEMPORARIES
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .retain(|p| p != path);
+}
+
+/// Removes the temporaries that processes which have ended left beside `file_name` in `dir`
+/// (killed while writing it). Only names of our own pattern, of processes no longer running.
+fn remove_stale_temporaries(dir: &Path, file_name: &str) {
+    let prefix = format!(".{file_name}.calib-");
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(rest) = name.to_str().and_then(|n| n.strip_prefix(&prefix)) else {
+            continue;
+        };
+        if !(rest.ends_with(".tmp") || rest.ends_with(".tmp.png")) {
+            continue;
+        }
+        let Some(pid) = rest.split('-').next().and_then(|p| p.parse::<u32>().ok()) else {
+            continue;
+        };
+        if pid != std::process::id() && !process_running(pid) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
+/// Whether process `pid` runs; where that cannot be known, `true` (nothing is removed).
+fn process_running(pid: u32) -> bool {
+    if cfg!(target_os = "linux") && Path::new("/proc/self").exists() {
+        Path::new("/proc").join(pid.to_string()).exists()
+    } else {
+        true
+    }
+}
 
 /// One staged output: its temporary file and where it goes.
 struct Staged {
@@ -70,13 +163,16 @@ impl Outputs {
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
+        remove_stale_temporaries(&dir, &file_name);
         let temporary = dir.join(format!(
-            ".{file_name}.{}.{}.tmp",
+            ".{file_name}.calib-{}-{}.tmp",
             std::process::id(),
             self.staged.len()
         ));
+        track(&temporary);
         if let Err(e) = write(&temporary) {
             let _ = std::fs::remove_file(&temporary);
+            untrack(&temporary);
             return Err(e.context(format!("writing {} ({name})", path.display())));
         }
         self.staged.push(Staged {
@@ -128,18 +224,37 @@ impl Outputs {
     }
 
     /// Replaces every target by its staged file; returns the paths written.
+    /// An interruption during the commit takes effect when it ends.
     pub fn commit(mut self) -> anyhow::Result<Vec<PathBuf>> {
         let mut written = Vec::with_capacity(self.staged.len());
-        for staged in std::mem::take(&mut self.staged) {
-            if let Some(permissions) = staged.permissions {
-                std::fs::set_permissions(&staged.temporary, permissions)
-                    .with_context(|| format!("writing {}", staged.target.display()))?;
+        COMMITTING.store(true, Ordering::SeqCst);
+        let committed = (|| {
+            for staged in &self.staged {
+                if let Some(permissions) = &staged.permissions {
+                    std::fs::set_permissions(&staged.temporary, permissions.clone())
+                        .with_context(|| format!("writing {}", staged.target.display()))?;
+                }
             }
-            std::fs::rename(&staged.temporary, &staged.target)
-                .with_context(|| format!("writing {}", staged.target.display()))?;
-            written.push(staged.target);
+            while !self.staged.is_empty() {
+                let staged = self.staged.remove(0);
+                let renamed = std::fs::rename(&staged.temporary, &staged.target);
+                untrack(&staged.temporary);
+                if let Err(e) = renamed {
+                    let _ = std::fs::remove_file(&staged.temporary);
+                    return Err(anyhow::Error::new(e)
+                        .context(format!("writing {}", staged.target.display())));
+                }
+                written.push(staged.target);
+            }
+            Ok(())
+        })();
+        COMMITTING.store(false, Ordering::SeqCst);
+        if INTERRUPTED.load(Ordering::SeqCst) {
+            drop(self);
+            remove_all_temporaries();
+            std::process::exit(INTERRUPTED_STATUS);
         }
-        Ok(written)
+        committed.map(|()| written)
     }
 }
 
@@ -148,6 +263,7 @@ impl Drop for Outputs {
     fn drop(&mut self) {
         for staged in &self.staged {
             let _ = std::fs::remove_file(&staged.temporary);
+            untrack(&staged.temporary);
         }
     }
 }

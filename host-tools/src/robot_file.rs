@@ -26,6 +26,31 @@ use std::path::{Path, PathBuf};
 /// The nominal Efort ER10L-C10 of the paper (Table 1), as the robot file `robots/er10l-c10.toml`.
 pub const ER10L_C10_TOML: &str = include_str!("../robots/er10l-c10.toml");
 
+/// Largest length accepted in a robot file (`a_mm`, `d_mm`, frame `xyz_mm`), mm: 100 m, beyond
+/// any serial robot and any laser tracker's range. A larger value is a typing or unit error.
+pub const MAX_LENGTH_MM: f64 = 100_000.0;
+
+/// Largest angle accepted in a robot file (`alpha_deg`, `beta_deg`, `theta_offset_deg`, frame
+/// `rpy_deg`), degrees: one turn each way.
+pub const MAX_ANGLE_DEG: f64 = 360.0;
+
+/// Largest joint limit accepted in a robot file (`limits_deg`), degrees: ten turns each way.
+pub const MAX_LIMIT_DEG: f64 = 3600.0;
+
+/// `Err` naming `field` when `value` is not finite or beyond `max` in magnitude (`unit` is the
+/// field's unit, for the message).
+fn plausible(field: &str, value: f64, max: f64, unit: &str) -> Result<(), String> {
+    if !value.is_finite() {
+        return Err(format!("{field} = {value} is not a finite number"));
+    }
+    if value.abs() > max {
+        return Err(format!(
+            "{field} = {value} is beyond the plausible range of +-{max} {unit}; check the value and its unit"
+        ));
+    }
+    Ok(())
+}
+
 /// Why a robot file could not be used. Every message names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum RobotFileError {
@@ -232,16 +257,19 @@ impl JointEntry {
     fn to_joint(&self, number: usize) -> Result<(MdhJoint<f64>, JointLimits<f64>), String> {
         let deg = f64::to_radians;
         let fields = [
-            ("a_mm", self.a_mm),
-            ("alpha_deg", self.alpha_deg),
-            ("theta_offset_deg", self.theta_offset_deg),
-            ("d_mm", self.d_mm),
-            ("beta_deg", self.beta_deg),
+            ("a_mm", self.a_mm, MAX_LENGTH_MM, "mm"),
+            ("alpha_deg", self.alpha_deg, MAX_ANGLE_DEG, "deg"),
+            (
+                "theta_offset_deg",
+                self.theta_offset_deg,
+                MAX_ANGLE_DEG,
+                "deg",
+            ),
+            ("d_mm", self.d_mm, MAX_LENGTH_MM, "mm"),
+            ("beta_deg", self.beta_deg, MAX_ANGLE_DEG, "deg"),
         ];
-        if let Some((field, value)) = fields.iter().find(|(_, v)| !v.is_finite()) {
-            return Err(format!(
-                "joint {number}: {field} = {value} is not a finite number"
-            ));
+        for (field, value, max, unit) in fields {
+            plausible(field, value, max, unit).map_err(|m| format!("joint {number}: {m}"))?;
         }
         let joint = MdhJoint {
             a: self.a_mm,
@@ -253,7 +281,11 @@ impl JointEntry {
         let limits = match self.limits_deg.as_deref() {
             None => JointLimits::unlimited(),
             Some(&[lower, upper]) => {
-                if lower.is_nan() || upper.is_nan() || lower > upper {
+                for value in [lower, upper] {
+                    plausible("limits_deg", value, MAX_LIMIT_DEG, "deg")
+                        .map_err(|m| format!("joint {number}: {m}"))?;
+                }
+                if lower > upper {
                     return Err(format!(
                         "joint {number}: limits_deg = [{lower}, {upper}] must be [lower, upper] with lower <= upper"
                     ));
@@ -279,15 +311,11 @@ fn frame_pose(entry: Option<&FrameEntry>, which: &str) -> Result<FramePose<f64>,
     let Some(entry) = entry else {
         return Ok(FramePose::identity());
     };
-    if entry
-        .xyz_mm
-        .iter()
-        .chain(&entry.rpy_deg)
-        .any(|v| !v.is_finite())
-    {
-        return Err(format!(
-            "[{which}]: xyz_mm and rpy_deg must be finite numbers"
-        ));
+    for value in entry.xyz_mm {
+        plausible("xyz_mm", value, MAX_LENGTH_MM, "mm").map_err(|m| format!("[{which}]: {m}"))?;
+    }
+    for value in entry.rpy_deg {
+        plausible("rpy_deg", value, MAX_ANGLE_DEG, "deg").map_err(|m| format!("[{which}]: {m}"))?;
     }
     Ok(FramePose {
         xyz: entry.xyz_mm,
@@ -309,6 +337,15 @@ impl RobotFile {
         path: &Path,
     ) -> Result<ParameterErrors<f64, N>, RobotFileError> {
         let mut errors = ParameterErrors::zero();
+        if self.joint.len() != N {
+            return Err(RobotFileError::Invalid {
+                path: path.to_owned(),
+                message: format!(
+                    "has {} [[joint]] tables, expected {N} (the robot calibrated has {N} joints)",
+                    self.joint.len()
+                ),
+            });
+        }
         let Some(section) = &self.calibration else {
             return Ok(errors);
         };
@@ -326,6 +363,13 @@ impl RobotFile {
                 .as_float()
                 .or_else(|| value.as_integer().map(|i| i as f64))
                 .ok_or_else(|| invalid(format!("[calibration.errors]: {name} must be a number")))?;
+            let (max, unit) = if parameter.is_angle() {
+                (MAX_ANGLE_DEG.to_radians(), "rad")
+            } else {
+                (MAX_LENGTH_MM, "mm")
+            };
+            plausible(name, value, max, unit)
+                .map_err(|m| invalid(format!("[calibration.errors]: {m}")))?;
             errors.set(parameter, value);
         }
         Ok(errors)

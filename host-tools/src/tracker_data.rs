@@ -12,14 +12,38 @@ use crate::files::write_atomic;
 use crate::profile::{DataFrame, DataProfile};
 use nalgebra::{Matrix3, Quaternion, Rotation3, UnitQuaternion};
 
+/// The file's text; invalid UTF-8 is reported with its line.
 fn read_text(path: &Path) -> Result<String, DataError> {
-    std::fs::read_to_string(path).map_err(|source| DataError::Read {
+    let bytes = std::fs::read(path).map_err(|source| DataError::Read {
         path: path.to_owned(),
         source,
+    })?;
+    String::from_utf8(bytes).map_err(|e| {
+        let valid = e.utf8_error().valid_up_to();
+        let bytes = e.as_bytes();
+        let line = bytes[..valid].iter().filter(|b| **b == b'\n').count() as u64 + 1;
+        DataError::At {
+            path: path.to_owned(),
+            line,
+            column: None,
+            message: format!(
+                "byte {:#04x} is not UTF-8 text; save the file as UTF-8 (or plain ASCII)",
+                bytes[valid]
+            ),
+        }
     })
 }
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+
+/// Largest measured coordinate accepted, mm: 100 m, beyond any laser tracker's range.
+pub const MAX_POSITION_MM: f64 = 100_000.0;
+
+/// Largest joint reading accepted, degrees: ten turns.
+pub const MAX_JOINT_DEG: f64 = 3600.0;
+
+/// Largest pose weight accepted (weights are relative; 1 is the default).
+pub const MAX_WEIGHT: f64 = 1e6;
 
 /// How far a quaternion's norm may be from 1 before it is refused.
 pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
@@ -354,14 +378,29 @@ impl Layout {
                             j + 1
                         )));
                     }
+                    if (value * scale).abs() > MAX_JOINT_DEG.to_radians() {
+                        return Err(at(format!(
+                            "{field} is beyond ten turns ({MAX_JOINT_DEG} deg); check the value and the column's unit"
+                        )));
+                    }
                     record.q[j] = value * scale
                 }
-                Column::Position(k, scale) => record.position[k] = value * scale,
+                Column::Position(k, scale) => {
+                    if (value * scale).abs() > MAX_POSITION_MM {
+                        return Err(at(format!(
+                            "{field} is {:e} mm, beyond the 100 m range of a laser tracker; check the value and the column's unit",
+                            value * scale
+                        )));
+                    }
+                    record.position[k] = value * scale
+                }
                 Column::Quaternion(k) => quaternion[k] = value,
                 Column::Angle(k, scale) => angle[k] = value * scale,
                 Column::Weight => {
-                    if value < 0.0 {
-                        return Err(at("weight must be >= 0".into()));
+                    if !(0.0..=MAX_WEIGHT).contains(&value) {
+                        return Err(at(format!(
+                            "weight {field} must be between 0 and {MAX_WEIGHT:e} (weights are relative, 1 by default)"
+                        )));
                     }
                     record.weight = value;
                 }

@@ -87,3 +87,286 @@ fn defect_18_a_semicolon_separated_file_points_to_a_profile() {
         "{stderr}"
     );
 }
+
+/// `calib` with `args`, expected to fail with exit 1 and a message holding every one of `expect`.
+fn refused(args: &[&str], expect: &[&str]) {
+    let out = calib(args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    for e in expect {
+        assert!(stderr.contains(e), "{e:?} not in: {stderr}");
+    }
+}
+
+/// The bundled robot file with the first `from` replaced by `to`, written into `dir`.
+fn robot_with(dir: &Path, from: &str, to: &str) -> String {
+    assert!(ER10L_C10_TOML.contains(from));
+    let path = dir.join("robot.toml");
+    std::fs::write(&path, ER10L_C10_TOML.replacen(from, to, 1)).unwrap();
+    path.to_str().unwrap().to_owned()
+}
+
+#[test]
+fn defect_1_a_huge_robot_parameter_is_refused_at_once() {
+    let dir = tempfile::tempdir().unwrap();
+    for huge in ["1e160", "1e154", "1.7e308"] {
+        let robot = robot_with(dir.path(), "a_mm = 780.0", &format!("a_mm = {huge}"));
+        for command in ["check", "calibrate", "verify"] {
+            let mut args = vec![command, "--robot", robot.as_str()];
+            args.extend(["--data", DATA]);
+            refused(
+                &args,
+                &["robot.toml", "joint 2: a_mm", "beyond the plausible range"],
+            );
+        }
+    }
+}
+
+#[test]
+fn defect_16_robot_files_have_plausibility_limits() {
+    let dir = tempfile::tempdir().unwrap();
+    for (from, to, field) in [
+        ("a_mm = 780.0", "a_mm = 1e300", "joint 2: a_mm"),
+        (
+            "alpha_deg = -90.0",
+            "alpha_deg = 1e300",
+            "joint 1: alpha_deg",
+        ),
+        (
+            "theta_offset_deg = 0.0",
+            "theta_offset_deg = 1e20",
+            "joint 1: theta_offset_deg",
+        ),
+    ] {
+        let robot = robot_with(dir.path(), from, to);
+        refused(
+            &["fk", "--robot", &robot, "--joints-deg", "0,0,0,0,0,0"],
+            &[field, "beyond the plausible range"],
+        );
+    }
+}
+
+#[test]
+fn defect_10_a_block_beyond_f32_range_is_not_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let robot = robot_with(dir.path(), "a_mm = 780.0", "a_mm = 1e300");
+    let block = dir.path().join("params.bin");
+    refused(
+        &[
+            "export",
+            "--params",
+            &robot,
+            "--format",
+            "block",
+            "--scalar",
+            "f32",
+            "--out",
+            block.to_str().unwrap(),
+        ],
+        &["a_mm"],
+    );
+    assert!(!block.exists());
+}
+
+/// The bundled data with the value `from` on data line `line` (1-based among data rows)
+/// replaced by `to`, written into `dir`.
+fn data_with(dir: &Path, row: usize, from: &str, to: &str) -> String {
+    let text = data_text();
+    let header = text.lines().position(|l| l.starts_with("id,")).unwrap();
+    let lines: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i == header + row {
+                assert!(l.contains(from), "{l}");
+                l.replacen(from, to, 1)
+            } else {
+                l.to_owned()
+            }
+        })
+        .collect();
+    let path = dir.join("data.csv");
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+    path.to_str().unwrap().to_owned()
+}
+
+#[test]
+fn defect_8_absurd_joint_and_position_values_are_refused_with_their_line() {
+    let dir = tempfile::tempdir().unwrap();
+    // Data row 1 is physical line 5 of the bundled file.
+    for (from, to, expect) in [
+        ("112.18037719747859", "1e308", "beyond ten turns"),
+        ("-432.88307855299564", "1e100", "beyond the 100 m range"),
+    ] {
+        let data = data_with(dir.path(), 1, from, to);
+        refused(
+            &[
+                "calibrate",
+                "--robot",
+                ROBOT,
+                "--data",
+                &data,
+                "--method",
+                "lm",
+            ],
+            &["data.csv:5", expect],
+        );
+    }
+}
+
+#[test]
+fn defect_9_errors_name_the_line_and_the_value() {
+    let dir = tempfile::tempdir().unwrap();
+    // A position of 1e200 (was "least squares: a parameter or residual is not finite") and of
+    // 1e100 (was "the measured points do not span a plane").
+    for value in ["1e200", "1e100"] {
+        let data = {
+            let text = data_text();
+            let header = text.lines().position(|l| l.starts_with("id,")).unwrap();
+            let lines: Vec<String> = text
+                .lines()
+                .enumerate()
+                .map(|(i, l)| {
+                    if i == header + 3 {
+                        let mut fields: Vec<&str> = l.split(',').collect();
+                        fields[7] = value;
+                        fields.join(",")
+                    } else {
+                        l.to_owned()
+                    }
+                })
+                .collect();
+            let path = dir.path().join("data.csv");
+            std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+            path.to_str().unwrap().to_owned()
+        };
+        for frames in ["none", "base+tool"] {
+            refused(
+                &[
+                    "calibrate",
+                    "--robot",
+                    ROBOT,
+                    "--data",
+                    &data,
+                    "--method",
+                    "lm",
+                    "--frames",
+                    frames,
+                ],
+                &["data.csv:7", "x_mm", value],
+            );
+        }
+    }
+    // All weights 0 (was "rank 0 of 24"), and one weight of 1e308.
+    let text = data_text().replace(",qw,", ",weight,qw,");
+    let zero: String = text
+        .lines()
+        .map(|l| {
+            if l.starts_with('P') {
+                let mut f: Vec<&str> = l.split(',').collect();
+                f.insert(10, "0");
+                f.join(",") + "\n"
+            } else {
+                format!("{l}\n")
+            }
+        })
+        .collect();
+    let path = dir.path().join("weights.csv");
+    std::fs::write(&path, &zero).unwrap();
+    let path = path.to_str().unwrap();
+    refused(
+        &[
+            "calibrate",
+            "--robot",
+            ROBOT,
+            "--data",
+            path,
+            "--method",
+            "lm",
+        ],
+        &["weights.csv", "every pose has weight 0"],
+    );
+    let heavy = zero.replacen(",0,", ",1e308,", 1);
+    std::fs::write(path, heavy).unwrap();
+    refused(
+        &[
+            "calibrate",
+            "--robot",
+            ROBOT,
+            "--data",
+            path,
+            "--method",
+            "lm",
+        ],
+        &["weights.csv:5", "weight 1e308"],
+    );
+}
+
+#[test]
+fn defect_12_invalid_utf8_is_reported_with_its_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut bytes = data_text().into_bytes();
+    let line_7 = bytes
+        .iter()
+        .enumerate()
+        .filter(|(_, b)| **b == b'\n')
+        .nth(5)
+        .unwrap()
+        .0
+        + 1;
+    bytes[line_7 + 1] = 0xff;
+    let path = dir.path().join("data.csv");
+    std::fs::write(&path, bytes).unwrap();
+    refused(
+        &["check", "--robot", ROBOT, "--data", path.to_str().unwrap()],
+        &["data.csv:7", "not UTF-8"],
+    );
+}
+
+#[test]
+fn defect_15_a_truth_file_with_nan_or_seven_joints_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let truth = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/data/er10l-c10-sim32-truth.toml"
+    );
+    let text = std::fs::read_to_string(truth).unwrap();
+    let start = text.find("da1 = ").unwrap();
+    let end = start + text[start..].find('\n').unwrap();
+    let nan = format!("{}da1 = nan{}", &text[..start], &text[end..]);
+    let path = dir.path().join("truth.toml");
+    std::fs::write(&path, nan).unwrap();
+    let args = |truth: &str| {
+        calib(&[
+            "calibrate",
+            "--robot",
+            ROBOT,
+            "--data",
+            DATA,
+            "--method",
+            "lm",
+            "--truth",
+            truth,
+        ])
+    };
+    let out = args(path.to_str().unwrap());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("da1 = NaN") || stderr.contains("da1 = nan"),
+        "{stderr}"
+    );
+    let seven = text.replacen(
+        "[[joint]]",
+        "[[joint]]\na_mm = 0.0\nalpha_deg = 0.0\ntheta_offset_deg = 0.0\nd_mm = 0.0\n\n[[joint]]",
+        1,
+    );
+    std::fs::write(&path, seven).unwrap();
+    let out = args(path.to_str().unwrap());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("has 7 [[joint]] tables, expected 6"),
+        "{stderr}"
+    );
+}

@@ -292,3 +292,80 @@ fn defect_6_a_failing_output_replaces_nothing() {
         leftovers(dir.path())
     );
 }
+
+/// The process id of a process that has ended.
+fn ended_pid() -> u32 {
+    let mut child = Command::new("true").spawn().unwrap();
+    let pid = child.id();
+    child.wait().unwrap();
+    pid
+}
+
+#[test]
+fn defect_14_temporaries_of_a_killed_run_are_removed_by_the_next() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.toml");
+    // What a run killed with -9 while writing x.toml leaves, and what a running one holds.
+    let stale = dir
+        .path()
+        .join(format!(".x.toml.calib-{}-0.tmp", ended_pid()));
+    let stale_png = dir
+        .path()
+        .join(format!(".x.toml.calib-{}-1.tmp.png", ended_pid()));
+    let running = dir
+        .path()
+        .join(format!(".x.toml.calib-{}-0.tmp", std::process::id()));
+    let other = dir.path().join(".y.toml.calib-1-0.tmp");
+    for path in [&stale, &stale_png, &running, &other] {
+        std::fs::write(path, "partial").unwrap();
+    }
+    common::ok(&export_toml_to(&out));
+    assert!(!stale.exists() && !stale_png.exists());
+    // A running process's temporary and another file's are not touched.
+    assert!(running.exists() && other.exists());
+}
+
+#[test]
+fn defect_14_an_interrupted_run_leaves_no_temporary_and_no_mixed_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let (out, report) = (dir.path().join("x.toml"), dir.path().join("y.json"));
+    std::fs::write(&out, "old").unwrap();
+    let plots = dir.path().join("plots");
+    let mut args = calibrate_args(str(&out), str(&report));
+    args.extend(["--plot", str(&plots)]);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_calib"))
+        .args(&args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // Interrupt while the outputs are staged (the plots take the longest).
+    let started = std::time::Instant::now();
+    let staging = |d: &Path| d.exists() && !leftovers(d).is_empty();
+    while !(staging(dir.path()) || staging(&plots)) {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the run ended before its outputs were staged"
+        );
+        assert!(started.elapsed().as_secs() < 120);
+        std::thread::sleep(std::time::Duration::from_micros(200));
+    }
+    let killed = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "{status:?}");
+    assert!(
+        leftovers(dir.path()).is_empty(),
+        "{:?}",
+        leftovers(dir.path())
+    );
+    if plots.exists() {
+        assert!(leftovers(&plots).is_empty(), "{:?}", leftovers(&plots));
+    }
+    // Nothing was committed, or everything was: never the old x.toml with a new y.json.
+    let old = std::fs::read_to_string(&out).unwrap() == "old";
+    assert_eq!(old, !report.exists());
+}

@@ -94,11 +94,14 @@ pub(crate) fn crc32(bytes: &[u8]) -> u32 {
 }
 
 /// Writes `robot` with `sequence` as a block into `out`; returns the number of bytes written.
+/// A model that [`decode`] would reject (a value not finite, such as an f64 value beyond the f32
+/// range rounded to infinity) is refused with [`StorageError::InvalidModel`] and nothing is written.
 pub fn encode<T: Real, const N: usize>(
     robot: &Robot<T, N>,
     sequence: u32,
     out: &mut [u8],
 ) -> Result<usize, StorageError> {
+    robot.validate().map_err(StorageError::InvalidModel)?;
     let len = block_len::<T, N>();
     let block = out.get_mut(..len).ok_or(StorageError::BufferTooSmall)?;
     let joints = u8::try_from(N).map_err(|_| StorageError::WrongJointCount(u8::MAX))?;
@@ -508,6 +511,19 @@ mod tests {
         );
         // The stored model is usable.
         assert!(Kinematics::nominal(&load(&flash, &nominal).0).is_ok());
+    }
+
+    #[test]
+    fn a_model_the_decoder_would_reject_is_not_encoded() {
+        // Issue 13, defect 10: 1e300 mm rounded to f32 is +inf.
+        let mut robot = er10l_c10::<f32>();
+        robot.joints[1].a = 1e300f64 as f32;
+        let mut buffer = [0u8; block_len::<f32, 6>()];
+        assert!(matches!(
+            encode(&robot, 1, &mut buffer),
+            Err(StorageError::InvalidModel(_))
+        ));
+        assert!(buffer.iter().all(|b| *b == 0));
     }
 
     #[test]

@@ -66,7 +66,8 @@ enum Command {
 /// Runs the command; a user error is reported as a message with its causes, never with a stack
 /// backtrace (even under `RUST_BACKTRACE=1`), and exit status 1.
 fn main() -> std::process::ExitCode {
-    match run(Cli::parse().command) {
+    let command = Cli::parse().command;
+    match host_tools::files::clean_up_on_interrupt().and_then(|()| run(command)) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(error) => {
             let mut message = format!("Error: {error}\n");
