@@ -387,6 +387,10 @@ pub struct FramesReport {
     /// The identified tool frame (on the flange), when identified.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tool: Option<FrameEntry>,
+    /// The robot file as given: its base and tool are the controller's, kept for the identified
+    /// robot file (the measured frames above belong to the measurement setup, not the controller).
+    #[serde(skip)]
+    pub given: RobotFile,
 }
 
 /// Registers the frames of `inputs` and fits them (nominal geometry) by least squares; replaces
@@ -402,6 +406,7 @@ pub fn prepare(
     let full_pose = inputs.measurements.iter().all(|m| m.rotation.is_some());
     let (mask, removed) = mask_with_frames(&inputs.model.mask, frames, full_pose);
     if frames == Frames::None {
+        check_base_frame(inputs)?;
         return Ok((
             FramesReport {
                 identified: frames,
@@ -412,6 +417,7 @@ pub fn prepare(
                 redundant_with_frames: Vec::new(),
                 base: None,
                 tool: None,
+                given: inputs.file.clone(),
             },
             mask,
         ));
@@ -451,6 +457,7 @@ pub fn prepare(
         .0
         .position_mm
         .rms;
+    let given = inputs.file.clone();
     for other in others.iter_mut() {
         other.file = fitted.clone();
         other.model = model.clone();
@@ -467,9 +474,74 @@ pub fn prepare(
             redundant_with_frames: removed.iter().map(ToString::to_string).collect(),
             base: None,
             tool: None,
+            given,
         },
         mask,
     ))
+}
+
+/// Checks that data said to be in the robot's base frame are: the robot file's model must explain
+/// them within [`MAX_REGISTRATION_RMS_MM`]. Otherwise the error says what the data look like: in a
+/// tracker's frame (the registration fits), in other units (their spread is about 1000 times the
+/// model's), or wrong in another way.
+pub fn check_base_frame(dataset: &crate::dataset::Dataset) -> anyhow::Result<()> {
+    let kinematics = Kinematics::nominal(&dataset.model.robot)?;
+    let rms = crate::statistics::table3(&kinematics, dataset)
+        .0
+        .position_mm
+        .rms;
+    if rms <= MAX_REGISTRATION_RMS_MM {
+        return Ok(());
+    }
+    let measured: Vec<Vector3<f64>> = dataset.measurements.iter().map(|m| m.position).collect();
+    let modelled: Vec<Vector3<f64>> = dataset
+        .measurements
+        .iter()
+        .map(|m| kinematics.forward_angles(&m.angles).translation.vector)
+        .collect();
+    let ratio = spread(&measured) / spread(&modelled).max(1e-300);
+    let registered = register(&dataset.model.robot, &dataset.measurements, true)
+        .ok()
+        .filter(|r| r.rms_mm <= MAX_REGISTRATION_RMS_MM);
+    let likely = if let Some(r) = registered {
+        format!(
+            "they are in another frame: registered like tracker data, the same model fits them to {:.2} mm RMS. \
+             Use --frames base+tool (calibrate, check, verify) or --fit-frames base+tool (evaluate), and remove a '# frame: base' line from the data, or frame = \"base\" from the profile",
+            r.rms_mm
+        )
+    } else if (300.0..3000.0).contains(&ratio) {
+        format!(
+            "their positions spread {ratio:.0} times as far as the robot reaches: millimetres under metre headers (x_m)? \
+             Check the units of the position columns"
+        )
+    } else if (1.0 / 3000.0..1.0 / 300.0).contains(&ratio) {
+        format!(
+            "their positions spread 1/{:.0} as far as the robot reaches: metres under millimetre headers (x_mm)? \
+             Check the units of the position columns",
+            1.0 / ratio
+        )
+    } else {
+        "check the units of the columns, the joint order and signs against the robot file, the Euler convention \
+         of a data profile, and whether the data are in the base frame at all (--frames base+tool)"
+            .to_string()
+    };
+    anyhow::bail!(
+        "{}: the data are said to be in the robot's base frame, but the model of {} misses them by {rms:.1} mm RMS, \
+         far beyond the few millimetres of a robot's geometric errors (limit {MAX_REGISTRATION_RMS_MM} mm). Likely: {likely}",
+        dataset.data.path.display(),
+        dataset.model.path.display()
+    )
+}
+
+/// RMS distance of points from their centroid, mm.
+fn spread(points: &[Vector3<f64>]) -> f64 {
+    let centroid = points.iter().sum::<Vector3<f64>>() / points.len().max(1) as f64;
+    rms_of(
+        &points
+            .iter()
+            .map(|p| (p - centroid).norm())
+            .collect::<Vec<_>>(),
+    )
 }
 
 /// Least-squares fit of the frame parameters in `mask` alone (nominal geometry).

@@ -13,6 +13,7 @@ pub mod columns;
 pub mod compensate;
 pub mod dataset;
 pub mod dispatch;
+pub mod evaluation;
 pub mod export;
 pub mod files;
 pub mod fk;

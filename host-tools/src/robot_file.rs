@@ -131,6 +131,25 @@ pub struct RobotFile {
     /// to the nominal model to give the values above.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub calibration: Option<CalibrationSection>,
+    /// Present in a file identified from data in a tracker's frame: the measurement setup found
+    /// with the geometry. Informational: the model (export, compensate, the controller) uses
+    /// `[base]` and `[tool]`, the controller's own frames.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub measurement: Option<MeasurementSection>,
+}
+
+/// The measurement setup identified with the geometry: where the tracker saw the robot's base,
+/// and the reflector or probe on the flange. Not part of the robot's model.
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeasurementSection {
+    /// The frames identified (`base` or `base+tool`).
+    pub frames: String,
+    /// The robot's base frame in the tracker's frame (mm, degrees).
+    pub tracker_base: FrameEntry,
+    /// The reflector or probe on the flange (mm, degrees), when identified.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flange_tool: Option<FrameEntry>,
 }
 
 /// The errors behind a file of identified parameters. Units follow the parameter: mm for `da`,
@@ -323,6 +342,23 @@ fn frame_pose(entry: Option<&FrameEntry>, which: &str) -> Result<FramePose<f64>,
     })
 }
 
+impl RobotFile {
+    /// The model as the tracker saw it: `[base]` and `[tool]` replaced by the `[measurement]`
+    /// section's tracker base and flange tool (when the file has one), to compare the model with
+    /// the data it was identified from. Not a model for the controller.
+    pub fn in_measurement_setup(&self) -> Self {
+        let mut out = self.clone();
+        if let Some(m) = &self.measurement {
+            out.base = Some(m.tracker_base.clone());
+            if m.flange_tool.is_some() {
+                out.tool = m.flange_tool.clone();
+            }
+        }
+        out.measurement = None;
+        out
+    }
+}
+
 impl<const N: usize> RobotModel<N> {
     /// Reads, checks and converts the robot file at `path`.
     pub fn load(path: &Path) -> Result<Self, RobotFileError> {
@@ -387,6 +423,7 @@ impl RobotFile {
         nominal: &str,
     ) -> Self {
         let mut out = self.clone();
+        out.measurement = None;
         for (entry, e) in out.joint.iter_mut().zip(&errors.joints) {
             entry.a_mm += e.da;
             entry.alpha_deg += e.dalpha.to_degrees();

@@ -72,8 +72,11 @@ fn frames_and_geometry_reach_the_reference_optimum() {
         assert!(frames.registration_rms_mm < 20.0 && frames.registration_rms_mm > 1.0);
         let identified_path = dir.path().join(format!("identified{seed}.toml"));
         std::fs::write(&identified_path, &c.robot_toml).unwrap();
-        let identified = RobotFile::read(&identified_path).unwrap();
-        // The identified base is the tracker pose of the simulation.
+        let controller = RobotFile::read(&identified_path).unwrap();
+        // The controller's frames are the robot file's (none); the measurement setup is apart.
+        assert_eq!((&controller.base, &controller.tool), (&None, &None));
+        let identified = controller.in_measurement_setup();
+        // The identified tracker base is the tracker pose of the simulation.
         let base = identified.base.as_ref().unwrap();
         for (got, want) in base.xyz_mm.iter().zip([2500.0, -1500.0, 600.0]) {
             assert!((got - want).abs() < 2.0, "{:?}", base.xyz_mm);

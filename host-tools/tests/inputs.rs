@@ -370,3 +370,45 @@ fn defect_15_a_truth_file_with_nan_or_seven_joints_is_refused() {
         "{stderr}"
     );
 }
+
+#[test]
+fn defect_8_positions_in_the_wrong_unit_are_refused_with_the_likely_cause() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = data_text();
+    // Millimetre values under metre headers, and metres under millimetre headers.
+    let as_metres_header = text.replace("x_mm,y_mm,z_mm", "x_m,y_m,z_m");
+    let in_metres: String = text
+        .lines()
+        .map(|l| {
+            if l.starts_with('P') {
+                let mut f: Vec<String> = l.split(',').map(str::to_owned).collect();
+                for v in &mut f[7..10] {
+                    *v = (v.parse::<f64>().unwrap() / 1000.0).to_string();
+                }
+                f.join(",") + "\n"
+            } else {
+                format!("{l}\n")
+            }
+        })
+        .collect();
+    for (name, text, expect) in [
+        // 432 m: beyond a tracker's range, refused on its line.
+        ("m.csv", as_metres_header, "beyond the 100 m range"),
+        ("mm.csv", in_metres, "metres under millimetre headers"),
+    ] {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        refused(
+            &[
+                "calibrate",
+                "--robot",
+                ROBOT,
+                "--data",
+                path.to_str().unwrap(),
+                "--method",
+                "lm",
+            ],
+            &[name, expect, "unit"],
+        );
+    }
+}

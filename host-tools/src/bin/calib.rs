@@ -173,15 +173,12 @@ fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::R
 
 /// `calib evaluate`: Table 3 of a robot file on a data file.
 fn evaluate(options: &host_tools::cli::evaluate::EvaluateOptions) -> anyhow::Result<()> {
-    let table = host_tools::cli::evaluate::evaluate(options)?;
-    print_json_or_text(options.json, &table, || {
-        host_tools::report::table3_single_text(
-            &format!(
-                "{} on {}",
-                options.input.robot.display(),
-                options.input.data.display()
-            ),
-            &table,
-        )
+    let evaluation = host_tools::cli::evaluate::evaluate(options)?;
+    print_json_or_text(options.json, &evaluation, || {
+        evaluation.text(&format!(
+            "{} on {}",
+            options.input.robot.display(),
+            options.input.data.display()
+        ))
     })
 }

@@ -136,6 +136,20 @@ impl Default for SwarmConfig {
     }
 }
 
+/// What a calibration identifies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+pub enum Identify {
+    /// The geometry (the robot file's identify lists, or the default rule) and the frames.
+    #[value(name = "geometry")]
+    #[serde(rename = "geometry")]
+    Geometry,
+    /// Only the frames of the measurement setup (tracker position, reflector or probe); the
+    /// geometry of the robot file is kept: re-registration of an identified robot measured again.
+    #[value(name = "frames")]
+    #[serde(rename = "frames")]
+    Frames,
+}
+
 /// Everything a calibration needs besides the data. `Default` is the paper's method followed by
 /// least squares (`ipso+lm`), `k = 1e6` mm^2/rad^2, the frames chosen from the data.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -145,6 +159,8 @@ pub struct CalibrationConfig {
     /// Frames identified with the geometry; `None`: base+tool, or none when the data are in the
     /// base frame.
     pub frames: Option<Frames>,
+    /// What is identified: the geometry and the frames, or the frames alone.
+    pub identify: Identify,
     /// Orientation weight k of eq. (7), mm^2/rad^2.
     pub k: f64,
     /// The swarm's settings.
@@ -168,6 +184,7 @@ impl Default for CalibrationConfig {
         Self {
             method: Method::IpsoLm,
             frames: None,
+            identify: Identify::Geometry,
             k: calib_core::identify::objective::DEFAULT_K,
             swarm: SwarmConfig::default(),
             lm_iterations: 100,

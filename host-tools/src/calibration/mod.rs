@@ -50,7 +50,7 @@ mod result;
 mod text;
 
 pub use config::{
-    CalibrationConfig, LossChoice, Method, SWARM_SIZES, ScramblingChoice, SwarmConfig,
+    CalibrationConfig, Identify, LossChoice, Method, SWARM_SIZES, ScramblingChoice, SwarmConfig,
 };
 pub use result::{
     CalibrationResult, HoldOut, IdentifiedParameter, LeastSquaresReport, ObjectiveValues, Outlier,
@@ -83,6 +83,21 @@ pub fn calibrate(
     let (frames_report, mask) = {
         let mut others: Vec<&mut Dataset> = validation.iter_mut().collect();
         crate::frames::prepare(frames, &mut dataset, &mut others, config.k)?
+    };
+    let mask = match config.identify {
+        Identify::Geometry => mask,
+        Identify::Frames => {
+            if !frames.base() {
+                bail!(
+                    "--identify frames re-registers the frames of a measurement setup: the data must be in a tracker's frame (--frames base or base+tool), not in the base frame"
+                );
+            }
+            let mut only_frames = ParameterMask::<JOINTS>::empty();
+            for p in mask.iter() {
+                only_frames.set(p, matches!(p, Parameter::Base(_) | Parameter::Tool(_)));
+            }
+            only_frames
+        }
     };
     let selection = select_parameters(&dataset, mask, config)?;
     crate::with_parameter_count!(
@@ -270,7 +285,10 @@ fn identified_parameters<const D: usize>(
         .collect()
 }
 
-/// The identified robot file (nominal + errors) and the identified frames in the report.
+/// The identified robot file and the identified frames in the report. The file is the robot
+/// file given plus the identified joint errors, with the controller's base and tool (those of the
+/// robot file given); frames identified from tracker data are the measurement setup and go to
+/// its `[measurement]` section and the report, never into `[base]` and `[tool]`.
 fn identified_robot(
     dataset: &Dataset,
     config: &CalibrationConfig,
@@ -282,19 +300,51 @@ fn identified_robot(
         .iter()
         .filter_map(|p| p.std_error.map(|s| (p.parameter, s)))
         .collect();
-    let file = dataset.file.with_errors(
+    let method = config.method.name();
+    let nominal = dataset.model.path.display().to_string();
+    let mut file = dataset.file.with_errors(
         errors,
         parameters.iter().map(|p| p.parameter),
         &std_errors,
-        config.method.name(),
-        &dataset.model.path.display().to_string(),
+        method,
+        &nominal,
     );
-    if frames.identified.base() {
-        frames.base = file.base.clone();
+    if !frames.identified.base() {
+        return file;
     }
+    // The measurement frames: the fitted start plus their identified errors.
+    frames.base = file.base.clone();
     if frames.identified.tool() {
         frames.tool = file.tool.clone();
     }
+    let is_joint = |p: &Parameter| matches!(p, Parameter::Joint { .. });
+    let mut joint_errors = *errors;
+    joint_errors.base = calib_core::FrameErrors::default();
+    joint_errors.tool = calib_core::FrameErrors::default();
+    file = dataset.file.with_errors(
+        &joint_errors,
+        parameters.iter().map(|p| p.parameter).filter(is_joint),
+        &std_errors
+            .into_iter()
+            .filter(|(p, _)| is_joint(p))
+            .collect::<Vec<_>>(),
+        method,
+        &nominal,
+    );
+    (file.base, file.tool) = (frames.given.base.clone(), frames.given.tool.clone());
+    if config.identify == Identify::Frames {
+        // Re-registration: the geometry and its calibration record are the given file's.
+        file.calibration = frames.given.calibration.clone();
+    }
+    file.measurement =
+        frames
+            .base
+            .clone()
+            .map(|tracker_base| crate::robot_file::MeasurementSection {
+                frames: frames.identified.name().to_string(),
+                tracker_base,
+                flange_tool: frames.tool.clone(),
+            });
     file
 }
 

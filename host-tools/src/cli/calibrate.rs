@@ -3,7 +3,7 @@
 
 use crate::JOINTS;
 use crate::calibration::{
-    self, CalibrationConfig, CalibrationResult, HoldOut, LossChoice, Method, Report,
+    self, CalibrationConfig, CalibrationResult, HoldOut, Identify, LossChoice, Method, Report,
     ScramblingChoice, SwarmConfig,
 };
 use crate::cli::InputFiles;
@@ -28,6 +28,11 @@ pub struct CalibrateOptions {
     /// `# frame: base`.
     #[arg(long, value_enum)]
     pub frames: Option<Frames>,
+    /// What to identify: geometry (the robot file's identify lists, and the frames), or frames
+    /// alone, keeping the robot file's geometry: re-registration of an identified robot measured
+    /// again (a moved tracker, a new reflector).
+    #[arg(long, value_enum, default_value_t = Identify::Geometry)]
+    pub identify: Identify,
     /// Identification method: the paper's swarm, least squares, or the swarm then least squares.
     #[arg(long, value_enum, default_value_t = Method::IpsoLm)]
     pub method: Method,
@@ -120,6 +125,7 @@ impl CalibrateOptions {
         CalibrationConfig {
             method: self.method,
             frames: self.frames,
+            identify: self.identify,
             k: self.k,
             swarm: SwarmConfig {
                 particles: self.swarm,

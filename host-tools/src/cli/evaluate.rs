@@ -1,6 +1,8 @@
-//! `calib evaluate`: the paper's Table 3 statistics of any robot model on any data.
+//! `calib evaluate`: the paper's Table 3 statistics of any robot model on any data, the frames of
+//! tracker data fitted first ([`crate::evaluation`]).
 
-use crate::statistics::Table3;
+use crate::evaluation::Evaluation;
+use crate::frames::Frames;
 
 /// Options of `calib evaluate`.
 #[derive(Clone, Debug, clap::Args)]
@@ -9,13 +11,48 @@ pub struct EvaluateOptions {
     /// Robot, data and data profile files.
     #[command(flatten)]
     pub input: crate::cli::InputFiles,
+    /// Frames of the measurement setup fitted before the statistics, the geometry kept (default
+    /// base+tool unless the data say `# frame: base`; none: the data must be in the base frame).
+    #[arg(long, value_enum)]
+    pub fit_frames: Option<Frames>,
+    /// Fit the frames on this many poses, chosen at random (--seed) as `calibrate --validate`
+    /// chooses its calibration poses, and compute the statistics on the others only. Without it,
+    /// all poses serve both (and the statistics flatter the model).
+    #[arg(long, value_name = "POSES")]
+    pub fit_poses: Option<usize>,
+    /// Seed of the choice of --fit-poses (as --validate-seed of calibrate).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
 }
 
 /// Runs `calib evaluate`.
-pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Table3> {
+pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
     let (_, dataset) = options.input.load()?;
-    crate::statistics::evaluate(&dataset)
+    let frames = Frames::chosen(options.fit_frames, &dataset.data);
+    crate::evaluation::evaluate(&dataset, frames, options.fit_poses, options.seed)
+}
+
+impl Evaluation {
+    /// The text for people: how the frames were fitted, then Table 3.
+    pub fn text(&self, title: &str) -> String {
+        let mut text = String::new();
+        if self.frames.identified.base() {
+            text.push_str(&format!(
+                "frames fitted ({}, geometry kept) on {} poses: {:.4} mm RMS\n",
+                self.frames.identified.name(),
+                self.fitted_poses,
+                self.frames.frames_fit_rms_mm
+            ));
+            if self.fitted_poses_evaluated {
+                text.push_str(
+                    "the statistics include the poses that fitted the frames (--fit-poses N keeps them out)\n",
+                );
+            }
+        }
+        text.push_str(&crate::report::table3_single_text(title, &self.table));
+        text
+    }
 }

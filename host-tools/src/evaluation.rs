@@ -1,0 +1,80 @@
+//! A model on data from another session: Table 3 of a robot file (nominal or identified) on
+//! measured poses, after fitting only the frames of the measurement setup (the tracker's position
+//! and the reflector or probe) when the data are in a tracker's frame. The geometry is never
+//! changed. Poses used to fit the frames can be kept out of the statistics.
+
+use crate::dataset::Dataset;
+use crate::frames::{Frames, FramesReport};
+use crate::statistics::{Table3, table3};
+use calib_core::Kinematics;
+use serde::Serialize;
+
+/// Table 3 of a model on data, and how its frames were fitted.
+#[derive(Clone, Debug, Serialize)]
+pub struct Evaluation {
+    /// The statistics, on the evaluated poses (at the top level of the JSON).
+    #[serde(flatten)]
+    pub table: Table3,
+    /// The frames fitted (`none`: the data are in the base frame).
+    pub frames: FramesReport,
+    /// Poses used to fit the frames (0 with `none`).
+    pub fitted_poses: usize,
+    /// Poses the statistics are computed on.
+    pub evaluated_poses: usize,
+    /// `true` when the fitted poses are also among the evaluated poses.
+    pub fitted_poses_evaluated: bool,
+}
+
+/// Evaluates the dataset's robot on its poses. With `frames` `base` or `base+tool`, the frames
+/// are registered and fitted first with the geometry fixed: on `fit_poses` poses chosen at random
+/// with `seed` as `calib calibrate --validate` chooses its calibration poses (then kept out of the
+/// statistics), or on all poses (then the statistics include
+/// them, which flatters the model).
+pub fn evaluate(
+    dataset: &Dataset,
+    frames: Frames,
+    fit_poses: Option<usize>,
+    seed: u64,
+) -> anyhow::Result<Evaluation> {
+    let k = calib_core::identify::objective::DEFAULT_K;
+    let n = dataset.measurements.len();
+    if frames == Frames::None {
+        if fit_poses.is_some() {
+            anyhow::bail!(
+                "--fit-poses needs frames to fit: the data are evaluated in the base frame (--fit-frames none)"
+            );
+        }
+        let (report, _) = crate::frames::prepare(frames, &mut dataset.clone(), &mut [], k)?;
+        let kinematics = Kinematics::nominal(&dataset.model.robot)?;
+        return Ok(Evaluation {
+            table: table3(&kinematics, dataset).0,
+            frames: report,
+            fitted_poses: 0,
+            evaluated_poses: n,
+            fitted_poses_evaluated: false,
+        });
+    }
+    let (mut fitting, mut evaluated, separate) = match fit_poses {
+        Some(count) => {
+            if count < 3 || count >= n {
+                anyhow::bail!(
+                    "--fit-poses {count}: give at least 3 poses to fit the frames and leave at least one of the {n} poses to evaluate"
+                );
+            }
+            // The same choice as `calib calibrate --validate (n - count) / n --validate-seed seed`.
+            let (fitting, evaluated) =
+                crate::dataset::split(dataset, (n - count) as f64 / n as f64, seed)?;
+            (fitting, evaluated, true)
+        }
+        None => (dataset.clone(), dataset.clone(), false),
+    };
+    let (report, _) = crate::frames::prepare(frames, &mut fitting, &mut [&mut evaluated], k)?;
+    let kinematics = Kinematics::nominal(&evaluated.model.robot)?;
+    Ok(Evaluation {
+        table: table3(&kinematics, &evaluated).0,
+        frames: report,
+        fitted_poses: fitting.measurements.len(),
+        evaluated_poses: evaluated.measurements.len(),
+        fitted_poses_evaluated: !separate,
+    })
+}
