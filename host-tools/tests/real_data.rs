@@ -132,7 +132,45 @@ fn an_ill_conditioned_subset_is_flagged() {
             .collect::<String>(),
     )
     .unwrap();
-    let c = calibrate(path.to_str().unwrap(), POSITION, &["--method", "lm"]);
+    // Kept as asked (--keep-ill-conditioned), the result is absurd, and refused as implausible.
+    let keep = ["--method", "lm", "--keep-ill-conditioned"];
+    let all = [
+        &[
+            "--robot",
+            ROBOT,
+            "--data",
+            path.to_str().unwrap(),
+            "--profile",
+            POSITION,
+        ][..],
+        &keep[..],
+    ]
+    .concat();
+    let refused = calibrate::calibrate(&parse::<CalibrateOptions>(&all))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        refused.contains("not plausible") && refused.contains("da5 = "),
+        "{refused}"
+    );
+    // The command line writes nothing then.
+    let out = dir.path().join("identified.toml");
+    let run = common::calib(
+        &[
+            &["calibrate"][..],
+            &all[..],
+            &["--out", out.to_str().unwrap()][..],
+        ]
+        .concat(),
+    );
+    assert_eq!(run.status.code(), Some(1));
+    assert!(!out.exists());
+    let c = calibrate(
+        path.to_str().unwrap(),
+        POSITION,
+        &[&keep[..], &["--accept-implausible"][..]].concat(),
+    );
     let id = &c.result.identifiability;
     let condition = id.condition_number.unwrap();
     println!(
@@ -150,21 +188,20 @@ fn an_ill_conditioned_subset_is_flagged() {
         "{weakest:?}"
     );
     assert!(
-        c.text.contains("WARNING: the pose set is ill-conditioned"),
+        c.text.contains("WARNING: the pose set is ill-conditioned")
+            && c.text.contains("WARNING: the result is not plausible"),
         "{}",
         c.text
     );
-    assert!(c.text.contains("da5"));
     let da5 = c.result.parameter("da5").unwrap().value;
     assert!(
         da5.abs() > 20.0,
         "the unflagged result would be absurd: {da5}"
     );
-    let masked = calibrate(
-        path.to_str().unwrap(),
-        POSITION,
-        &["--method", "lm", "--auto-mask"],
-    );
+    // The default drops along the weakest direction and says so.
+    let masked = calibrate(path.to_str().unwrap(), POSITION, &["--method", "lm"]);
+    assert!(masked.text.contains("dropped "), "{}", masked.text);
+    assert!(masked.result.implausible.is_empty());
     let after = masked
         .result
         .identifiability
@@ -176,7 +213,7 @@ fn an_ill_conditioned_subset_is_flagged() {
         let limit = if p.parameter.is_angle() { 0.02 } else { 5.0 };
         assert!(
             v.abs() < limit,
-            "{name} = {v} after --auto-mask dropped {:?}",
+            "{name} = {v} after dropping {:?}",
             masked.report().dropped
         );
     }

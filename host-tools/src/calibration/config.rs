@@ -171,9 +171,14 @@ pub struct CalibrationConfig {
     pub loss: LossChoice,
     /// Scale of the robust loss, mm of pose residual; poses beyond it are outliers.
     pub loss_scale_mm: f64,
-    /// Drop what the data cannot determine, then along the weakest direction while the pose set is
-    /// ill-conditioned, instead of refusing.
+    /// Drop what the data cannot determine instead of refusing.
     pub auto_mask: bool,
+    /// Keep every parameter when the pose set is ill-conditioned (the default drops, one by one,
+    /// the parameter with the largest share of the least determined direction).
+    pub keep_ill_conditioned: bool,
+    /// Return a result that fails the plausibility check ([`super::plausibility`]) instead of
+    /// refusing it; its problems are listed in the result.
+    pub accept_implausible: bool,
     /// Show a progress bar on a terminal.
     #[serde(skip)]
     pub progress: bool,
@@ -191,6 +196,8 @@ impl Default for CalibrationConfig {
             loss: LossChoice::L2,
             loss_scale_mm: 1.0,
             auto_mask: false,
+            keep_ill_conditioned: false,
+            accept_implausible: false,
             progress: false,
         }
     }

@@ -46,6 +46,7 @@
 //! ```
 
 mod config;
+pub mod plausibility;
 mod result;
 mod text;
 
@@ -100,7 +101,7 @@ pub fn calibrate(
         }
     };
     let selection = select_parameters(&dataset, mask, config)?;
-    crate::with_parameter_count!(
+    let mut result = crate::with_parameter_count!(
         selection.mask.count(),
         solve(
             &dataset,
@@ -109,7 +110,16 @@ pub fn calibrate(
             selection,
             frames_report
         )
-    )
+    )?;
+    result.implausible = plausibility::check(&result);
+    if !result.implausible.is_empty() && !config.accept_implausible {
+        bail!(
+            "the calibration is not plausible, nothing was written:\n  - {}\n{}",
+            result.implausible.join("\n  - "),
+            plausibility::LIKELY_CAUSES
+        );
+    }
+    Ok(result)
 }
 
 /// The parameters to identify and why.
@@ -125,8 +135,8 @@ pub struct Selection {
 }
 
 /// Checks that the data determine the parameters of `mask`: refuses what they cannot determine,
-/// or with `auto_mask` drops it, and then, while the pose set is ill-conditioned, the parameter
-/// with the largest share of the least determined direction.
+/// or with `auto_mask` drops it; then, unless `keep_ill_conditioned`, drops while the pose set is
+/// ill-conditioned the parameter with the largest share of the least determined direction.
 pub fn select_parameters(
     dataset: &Dataset,
     mut mask: ParameterMask<JOINTS>,
@@ -154,7 +164,7 @@ pub fn select_parameters(
         }
         identifiability = analysed(&mask)?;
     }
-    if config.auto_mask {
+    if !config.keep_ill_conditioned {
         while identifiability.ill_conditioned && mask.count() > 1 {
             let Some(parameter) = identifiability.weakest_direction.first().map(|(p, _)| *p) else {
                 break;
@@ -264,6 +274,7 @@ fn solve<const D: usize>(
         per_pose,
         identified_robot,
         seconds,
+        implausible: Vec::new(),
     })
 }
 

@@ -169,6 +169,9 @@ pub struct CalibrationResult {
     pub identified_robot: RobotFile,
     /// Wall-clock time of the optimisation, s.
     pub seconds: f64,
+    /// Why the result is not plausible ([`super::plausibility`]); empty when it is. Non-empty only
+    /// when the configuration accepts implausible results.
+    pub implausible: Vec<String>,
 }
 
 impl CalibrationResult {
@@ -220,6 +223,7 @@ impl CalibrationResult {
             least_squares: self.least_squares.as_ref(),
             identifiability: &self.identifiability,
             dropped: self.dropped.iter().map(ToString::to_string).collect(),
+            implausible: &self.implausible,
             frames: &self.frames,
             outliers: &self.outliers,
             poses: &self.poses,
@@ -309,8 +313,11 @@ pub struct Report<'a> {
     pub least_squares: Option<&'a LeastSquaresReport>,
     /// Identifiability of the parameters of the robot file on these data, at the nominal model.
     pub identifiability: &'a IdentifiabilityReport,
-    /// Parameters dropped by --auto-mask.
+    /// Parameters dropped: undetermined ones (--auto-mask), then along the weakest direction of an
+    /// ill-conditioned pose set (unless --keep-ill-conditioned).
     pub dropped: Vec<String>,
+    /// Why the result is not plausible (written only with --accept-implausible); empty when it is.
+    pub implausible: &'a [String],
     /// The frames identified with the geometry and their values.
     pub frames: &'a FramesReport,
     /// Poses whose residual exceeds the robust loss scale (empty for l2).

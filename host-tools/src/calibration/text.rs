@@ -32,6 +32,12 @@ impl CalibrationResult {
                 &stage.after,
             ));
         }
+        if !self.implausible.is_empty() {
+            text.push_str("\nWARNING: the result is not plausible (written because of --accept-implausible):\n");
+            for problem in &self.implausible {
+                text.push_str(&format!("  - {problem}\n"));
+            }
+        }
         if let Some(rows) = truth {
             text.push_str("\nidentified errors against the truth\n");
             text.push_str(&truth_text(rows));
@@ -122,7 +128,7 @@ impl CalibrationResult {
         if !self.dropped.is_empty() {
             let dropped: Vec<String> = self.dropped.iter().map(ToString::to_string).collect();
             text.push_str(&format!(
-                "  --auto-mask dropped {} ({}scaled condition number {} -> {})\n",
+                "  dropped {} ({}scaled condition number {} -> {}; --keep-ill-conditioned keeps an ill-conditioned set)\n",
                 dropped.join(", "),
                 if id.undetermined.is_empty() {
                     String::new()

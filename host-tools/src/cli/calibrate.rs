@@ -48,11 +48,20 @@ pub struct CalibrateOptions {
     /// every clean pose in.
     #[arg(long, default_value_t = 1.0)]
     pub loss_scale_mm: f64,
-    /// Drop the parameters the data cannot determine (instead of refusing), then, while the pose
-    /// set is ill-conditioned (scaled condition number above 1000), the parameter with the
-    /// largest share of the least determined direction; say which.
+    /// Drop the parameters the data cannot determine instead of refusing; say which.
     #[arg(long)]
     pub auto_mask: bool,
+    /// Keep every parameter of an ill-conditioned pose set (scaled condition number above 1000).
+    /// By default the parameter with the largest share of the least determined direction is
+    /// dropped, one at a time, until the set is well conditioned: its value would follow the
+    /// noise.
+    #[arg(long)]
+    pub keep_ill_conditioned: bool,
+    /// Write a result that fails the plausibility check (identified errors beyond 20 mm or 3 deg,
+    /// or a fit worse than 2 mm RMS) instead of refusing it; the problems are printed and kept in
+    /// the report.
+    #[arg(long)]
+    pub accept_implausible: bool,
     /// Hold out this fraction of the poses (chosen at random with --validate-seed) and report the
     /// statistics on them separately.
     #[arg(long, value_name = "FRACTION", conflicts_with = "holdout")]
@@ -145,6 +154,8 @@ impl CalibrateOptions {
             loss: self.loss,
             loss_scale_mm: self.loss_scale_mm,
             auto_mask: self.auto_mask,
+            keep_ill_conditioned: self.keep_ill_conditioned,
+            accept_implausible: self.accept_implausible,
             progress: !self.quiet,
         }
     }
