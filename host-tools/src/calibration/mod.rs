@@ -46,6 +46,7 @@
 //! ```
 
 mod config;
+pub mod cross_validation;
 pub mod plausibility;
 mod result;
 mod text;
@@ -247,6 +248,7 @@ fn solve<const D: usize>(
     let (calibration, validation, per_pose, poses) =
         evaluate(dataset, validation, &errors, fit.as_ref())?;
     let identified_robot = identified_robot(dataset, config, &parameters, &errors, &mut frames);
+    let cross_validation = cross_validation::cross_validate(dataset, &set, config);
     let initial = objective.value(&zero);
     Ok(CalibrationResult {
         robot: dataset.model.name.clone(),
@@ -275,6 +277,7 @@ fn solve<const D: usize>(
         identified_robot,
         seconds,
         implausible: Vec::new(),
+        cross_validation,
     })
 }
 

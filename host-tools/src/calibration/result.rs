@@ -172,6 +172,8 @@ pub struct CalibrationResult {
     /// Why the result is not plausible ([`super::plausibility`]); empty when it is. Non-empty only
     /// when the configuration accepts implausible results.
     pub implausible: Vec<String>,
+    /// The cross-validation estimate of the held-out error on the calibration poses.
+    pub cross_validation: Option<super::cross_validation::CrossValidation>,
 }
 
 impl CalibrationResult {
@@ -224,6 +226,7 @@ impl CalibrationResult {
             identifiability: &self.identifiability,
             dropped: self.dropped.iter().map(ToString::to_string).collect(),
             implausible: &self.implausible,
+            cross_validation: self.cross_validation,
             frames: &self.frames,
             outliers: &self.outliers,
             poses: &self.poses,
@@ -318,6 +321,8 @@ pub struct Report<'a> {
     pub dropped: Vec<String>,
     /// Why the result is not plausible (written only with --accept-implausible); empty when it is.
     pub implausible: &'a [String],
+    /// The cross-validation estimate of the held-out error (`null` with fewer than 3 poses).
+    pub cross_validation: Option<super::cross_validation::CrossValidation>,
     /// The frames identified with the geometry and their values.
     pub frames: &'a FramesReport,
     /// Poses whose residual exceeds the robust loss scale (empty for l2).

@@ -32,6 +32,29 @@ impl CalibrationResult {
                 &stage.after,
             ));
         }
+        if let Some(cv) = &self.cross_validation {
+            text.push_str(&format!(
+                "\ncross-validation ({} folds{}, least squares): poses predicted by the model identified without them: \
+                 mean |dp| {:.4} mm (RMS {:.4} mm), nominal geometry {:.4} mm{}\n",
+                cv.folds,
+                if cv.folds == cv.poses + cv.failed_folds { ", leave-one-out" } else { "" },
+                cv.calibrated_mean_mm,
+                cv.calibrated_rms_mm,
+                cv.nominal_mean_mm,
+                if cv.failed_folds > 0 {
+                    format!(" ({} folds failed to fit)", cv.failed_folds)
+                } else {
+                    String::new()
+                }
+            ));
+            if cv.worse_than_nominal() {
+                text.push_str(
+                    "WARNING: calibrated on these poses, the model is expected to miss new poses by more than the \
+                     nominal model: the pose set is too small or too weak for the parameters identified. Measure more \
+                     poses, spread over the workspace, or identify fewer parameters\n",
+                );
+            }
+        }
         if !self.implausible.is_empty() {
             text.push_str("\nWARNING: the result is not plausible (written because of --accept-implausible):\n");
             for problem in &self.implausible {

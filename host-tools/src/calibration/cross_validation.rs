@@ -1,0 +1,113 @@
+//! The cross-validation estimate of the held-out error, reported with every calibration: the
+//! calibration poses are split into folds (leave-one-out up to 20 poses, 5 folds above); each
+//! fold is predicted by the model identified by least squares on the other poses, with the same
+//! parameters and loss. A small or weak pose set whose estimate is worse than the uncalibrated
+//! model's is flagged: its calibration is likely to make the robot less accurate.
+
+use super::CalibrationConfig;
+use crate::JOINTS;
+use crate::dataset::Dataset;
+use calib_core::identify::lm::{LeastSquares, LmSettings};
+use calib_core::{Kinematics, ParameterErrors, ParameterSet, Problem};
+use nalgebra::SVector;
+use rand_core::{Rng, SeedableRng};
+use serde::Serialize;
+
+/// Poses up to which every pose is its own fold (leave-one-out).
+pub const LEAVE_ONE_OUT_UP_TO: usize = 20;
+
+/// Folds above [`LEAVE_ONE_OUT_UP_TO`] poses.
+pub const FOLDS: usize = 5;
+
+/// The estimate.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct CrossValidation {
+    /// Number of folds (= poses for leave-one-out).
+    pub folds: usize,
+    /// Poses predicted (every calibration pose once).
+    pub poses: usize,
+    /// Mean position error of the predicted poses with the nominal geometry (frames fitted on
+    /// all poses), mm.
+    pub nominal_mean_mm: f64,
+    /// Mean position error of each pose predicted by the model identified without it, mm.
+    pub calibrated_mean_mm: f64,
+    /// RMS of the same, mm.
+    pub calibrated_rms_mm: f64,
+    /// Folds whose least squares failed (their poses are not predicted).
+    pub failed_folds: usize,
+}
+
+impl CrossValidation {
+    /// `true` when the model identified from these poses is expected to predict new poses worse
+    /// than the nominal model.
+    pub fn worse_than_nominal(&self) -> bool {
+        self.calibrated_mean_mm > self.nominal_mean_mm
+    }
+}
+
+/// Cross-validates the least-squares identification of `set` on `dataset`; `None` with fewer
+/// than 3 poses.
+pub fn cross_validate<const D: usize>(
+    dataset: &Dataset,
+    set: &ParameterSet<JOINTS, D>,
+    config: &CalibrationConfig,
+) -> Option<CrossValidation> {
+    let n = dataset.measurements.len();
+    if n < 3 {
+        return None;
+    }
+    let folds = if n <= LEAVE_ONE_OUT_UP_TO { n } else { FOLDS };
+    // Poses shuffled with a fixed seed, then dealt into the folds.
+    let mut order: Vec<usize> = (0..n).collect();
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(0);
+    for i in (1..n).rev() {
+        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+        order.swap(i, j);
+    }
+    let nominal = Kinematics::nominal(&dataset.model.robot).ok()?;
+    let settings = LmSettings {
+        max_iterations: config.lm_iterations,
+        ..LmSettings::default()
+    };
+    let loss = config.loss.with_scale(config.loss_scale_mm);
+    let (mut nominal_errors, mut errors, mut failed) = (Vec::new(), Vec::new(), 0);
+    for fold in 0..folds {
+        let mut held: Vec<usize> = order.iter().skip(fold).step_by(folds).copied().collect();
+        held.sort_unstable();
+        let (training, predicted) = dataset.partition(&held);
+        let fitted = Problem::new(
+            &training.model.robot,
+            &ParameterErrors::zero(),
+            *set,
+            &training.measurements,
+            config.k,
+        )
+        .ok()
+        .and_then(|problem| {
+            let least_squares = LeastSquares::new(&problem);
+            let mut weights = vec![1.0; training.measurements.len()];
+            let x = least_squares
+                .solve_robust(&SVector::zeros(), &settings, loss, &mut weights)
+                .ok()?
+                .result
+                .x;
+            Kinematics::new(&training.model.robot, &set.unpack(&x)).ok()
+        });
+        let Some(model) = fitted else {
+            failed += 1;
+            continue;
+        };
+        errors.extend(crate::statistics::table3(&model, &predicted).1);
+        nominal_errors.extend(crate::statistics::table3(&nominal, &predicted).1);
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len().max(1) as f64).sqrt();
+    Some(CrossValidation {
+        folds,
+        poses: errors.len(),
+        nominal_mean_mm: mean(&nominal_errors),
+        calibrated_mean_mm: mean(&errors),
+        calibrated_rms_mm: rms,
+        failed_folds: failed,
+    })
+}
