@@ -5,9 +5,15 @@
 use crate::JOINTS;
 use crate::tracker_data::TrackerData;
 use anyhow::Context;
-use calib_core::controller::compensate::{Compensated, CompensationSettings, compensate_joints};
+use calib_core::controller::compensate::{
+    Compensated, CompensationError, CompensationSettings, compensate_joints_from, solve_joints,
+};
 use calib_core::kinematics::ik::inverse_kinematics;
-use calib_core::{Kinematics, Pose, Robot};
+use calib_core::kinematics::pose_error::PoseError;
+use calib_core::{Kinematics, Robot};
+
+/// A target pose in the base frame (mm).
+type Pose = calib_core::Pose<f64>;
 use nalgebra::{Rotation3, Translation3};
 
 /// The outcome for one target.
@@ -78,8 +84,7 @@ pub fn compensate_targets(
                     })
             };
             let result = start.and_then(|start| {
-                compensate_joints(&planned, &real, &nominal.limits, &target, &start, settings)
-                    .map_err(|e| e.to_string())
+                compensate_target(&planned, &real, &nominal.limits, &target, &start, settings)
             });
             TargetOutcome {
                 id: record.id.clone(),
@@ -88,6 +93,104 @@ pub fn compensate_targets(
         })
         .collect();
     Ok(outcomes)
+}
+
+/// Retries after the first run from the controller's joints: the iteration cap is multiplied by
+/// this, and the start moved by up to [`RETRY_SPREAD_RAD`] in [`RETRIES`] fixed directions.
+pub const RETRY_ITERATION_FACTOR: u32 = 4;
+
+/// Number of retries from points near the controller's joints.
+pub const RETRIES: usize = 12;
+
+/// Largest move of a joint for a retry's start, rad.
+pub const RETRY_SPREAD_RAD: f64 = 0.02;
+
+/// Compensates one target from the controller's joints `start`: the core's
+/// [`compensate_joints_from`] from `start`, then, if that fails, with a longer iteration cap and
+/// from [`RETRIES`] points near `start` (the bounds always apply to the change from `start`).
+/// A refusal says why; for a correction beyond the bounds, how large it is and which flag raises
+/// the bound.
+pub fn compensate_target(
+    planned: &Kinematics<f64, JOINTS>,
+    real: &Kinematics<f64, JOINTS>,
+    limits: &[calib_core::JointLimits<f64>; JOINTS],
+    target: &Pose,
+    start: &[f64; JOINTS],
+    settings: &CompensationSettings<f64>,
+) -> Result<Compensated<f64, JOINTS>, String> {
+    let first = match compensate_joints_from(planned, real, limits, target, start, start, settings)
+    {
+        Ok(c) => return Ok(c),
+        Err(e) => e,
+    };
+    if matches!(
+        first,
+        CompensationError::NonFinite | CompensationError::Kinematics(_)
+    ) {
+        return Err(first.to_string());
+    }
+    let longer = CompensationSettings {
+        max_iterations: settings
+            .max_iterations
+            .saturating_mul(RETRY_ITERATION_FACTOR),
+        ..*settings
+    };
+    for retry in 0..=RETRIES {
+        // Retry 0: the start itself with the longer cap; then fixed spread directions.
+        let initial: [f64; JOINTS] = std::array::from_fn(|j| {
+            let direction = ((retry * 7 + j * 3) % 5) as f64 / 2.0 - 1.0;
+            start[j] + RETRY_SPREAD_RAD * direction * retry as f64 / RETRIES as f64
+        });
+        if let Ok(c) =
+            compensate_joints_from(planned, real, limits, target, start, &initial, &longer)
+        {
+            return Ok(c);
+        }
+    }
+    if first == CompensationError::CorrectionTooLarge {
+        return Err(needed_correction(
+            planned, real, target, start, &longer, settings,
+        ));
+    }
+    Err(first.to_string())
+}
+
+/// The refusal of a correction beyond the bounds: the correction the actual robot needs, the
+/// bounds, and the flags that raise them.
+fn needed_correction(
+    planned: &Kinematics<f64, JOINTS>,
+    real: &Kinematics<f64, JOINTS>,
+    target: &Pose,
+    start: &[f64; JOINTS],
+    longer: &CompensationSettings<f64>,
+    settings: &CompensationSettings<f64>,
+) -> String {
+    let refused = CompensationError::CorrectionTooLarge.to_string();
+    let Ok(solution) = solve_joints(real, target, start, longer) else {
+        return refused;
+    };
+    let (Ok(before), Ok(after)) = (planned.forward(start), planned.forward(&solution.q)) else {
+        return refused;
+    };
+    let correction = PoseError::between(&after, &before);
+    let (joint, change) = solution
+        .q
+        .iter()
+        .zip(start)
+        .map(|(q, s)| (q - s).abs())
+        .enumerate()
+        .fold((0, 0.0f64), |m, (j, c)| if c > m.1 { (j, c) } else { m });
+    format!(
+        "{refused}: the actual robot needs {:.3} mm and {:.3} deg of correction (bounds {} mm, --max-correction-mm, \
+         and {} deg, --max-correction-deg) and moves joint {} by {:.3} deg (bound {:.3} deg, --max-joint-correction-deg)",
+        correction.position.norm(),
+        correction.rotation.norm().to_degrees(),
+        settings.max_correction_mm,
+        settings.max_correction_rad.to_degrees(),
+        joint + 1,
+        change.to_degrees(),
+        settings.max_joint_correction_rad.to_degrees()
+    )
 }
 
 /// The outcomes as CSV: `id, q1_deg..q6_deg, residual_mm, residual_deg, status` (`ok` or the

@@ -137,7 +137,25 @@ pub fn compensate_joints<T: Real, const N: usize>(
     start: &[T; N],
     settings: &CompensationSettings<T>,
 ) -> Result<Compensated<T, N>, CompensationError> {
-    let solution = solve_joints(actual, target, start, settings)?;
+    compensate_joints_from(nominal, actual, limits, target, start, start, settings)
+}
+
+/// [`compensate_joints`] with the iteration started at `initial` instead of `start` (a retry from
+/// a neighbouring point when the first run does not converge); the bounds still apply to the
+/// change from `start`, the controller's joints.
+pub fn compensate_joints_from<T: Real, const N: usize>(
+    nominal: &Kinematics<T, N>,
+    actual: &Kinematics<T, N>,
+    limits: &[JointLimits<T>; N],
+    target: &Pose<T>,
+    start: &[T; N],
+    initial: &[T; N],
+    settings: &CompensationSettings<T>,
+) -> Result<Compensated<T, N>, CompensationError> {
+    if !finite(start) {
+        return Err(CompensationError::NonFinite);
+    }
+    let solution = solve_joints(actual, target, initial, settings)?;
     if solution
         .q
         .iter()
