@@ -21,32 +21,49 @@ use std::sync::atomic::{AtomicBool, Ordering};
 /// Temporaries staged and not yet committed or removed, of every [`Outputs`] of this process.
 static TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
-/// `true` while [`Outputs::commit`] renames: an interruption then waits for the commit to end.
-static COMMITTING: AtomicBool = AtomicBool::new(false);
+/// `true` while a file is staged or [`Outputs::commit`] renames: an interruption then waits for
+/// that step to end.
+static BUSY: AtomicBool = AtomicBool::new(false);
 
-/// `true` once an interruption arrived during a commit: the process exits when the commit ends.
+/// `true` once an interruption arrived while busy: the process cleans up and exits when the step
+/// ends.
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
 
 /// Exit status after an interruption (128 + SIGINT).
 const INTERRUPTED_STATUS: i32 = 130;
 
 /// Installs the handler of Ctrl-C (SIGINT) and SIGTERM: staged temporaries are removed and the
-/// process exits with status 130; during a commit, the commit finishes first. Call once, at the
-/// start of the program.
+/// process exits with status 130; while a file is being staged or the outputs committed, that step
+/// finishes first. Call once, at the start of the program.
 pub fn clean_up_on_interrupt() -> anyhow::Result<()> {
     ctrlc::set_handler(|| {
-        if COMMITTING.load(Ordering::SeqCst) {
-            INTERRUPTED.store(true, Ordering::SeqCst);
-            return;
+        INTERRUPTED.store(true, Ordering::SeqCst);
+        if !BUSY.load(Ordering::SeqCst) {
+            exit_if_interrupted();
         }
-        remove_all_temporaries();
-        std::process::exit(INTERRUPTED_STATUS);
     })
     .context("installing the interrupt handler")
 }
 
-/// Removes every staged temporary of this process.
-fn remove_all_temporaries() {
+/// After an interruption: removes the staged temporaries and exits with status 130.
+fn exit_if_interrupted() {
+    if INTERRUPTED.load(Ordering::SeqCst) {
+        exit_removing_temporaries();
+    }
+}
+
+/// Runs `step` with interruptions deferred to its end.
+fn uninterrupted<R>(step: impl FnOnce() -> R) -> R {
+    BUSY.store(true, Ordering::SeqCst);
+    let result = step();
+    BUSY.store(false, Ordering::SeqCst);
+    exit_if_interrupted();
+    result
+}
+
+/// Removes every staged temporary of this process and exits with status 130, holding the list
+/// of temporaries so that no new one is started meanwhile.
+fn exit_removing_temporaries() -> ! {
     let mut list = TEMPORARIES
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
@@ -54,6 +71,7 @@ fn remove_all_temporaries() {
         let _ = std::fs::remove_file(&path);
         let _ = std::fs::remove_file(path.with_extension("tmp.png"));
     }
+    std::process::exit(INTERRUPTED_STATUS)
 }
 
 fn track(path: &Path) {
@@ -152,6 +170,15 @@ impl Outputs {
         path: &Path,
         write: impl FnOnce(&Path) -> anyhow::Result<()>,
     ) -> anyhow::Result<()> {
+        uninterrupted(|| self.stage_now(name, path, write))
+    }
+
+    fn stage_now(
+        &mut self,
+        name: &str,
+        path: &Path,
+        write: impl FnOnce(&Path) -> anyhow::Result<()>,
+    ) -> anyhow::Result<()> {
         let (target, permissions) = self.checked_target(name, path)?;
         let dir = match target.parent() {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
@@ -227,7 +254,9 @@ impl Outputs {
     /// An interruption during the commit takes effect when it ends.
     pub fn commit(mut self) -> anyhow::Result<Vec<PathBuf>> {
         let mut written = Vec::with_capacity(self.staged.len());
-        COMMITTING.store(true, Ordering::SeqCst);
+        // An interruption before the commit: nothing is replaced.
+        exit_if_interrupted();
+        BUSY.store(true, Ordering::SeqCst);
         let committed = (|| {
             for staged in &self.staged {
                 if let Some(permissions) = &staged.permissions {
@@ -248,12 +277,9 @@ impl Outputs {
             }
             Ok(())
         })();
-        COMMITTING.store(false, Ordering::SeqCst);
-        if INTERRUPTED.load(Ordering::SeqCst) {
-            drop(self);
-            remove_all_temporaries();
-            std::process::exit(INTERRUPTED_STATUS);
-        }
+        BUSY.store(false, Ordering::SeqCst);
+        drop(self);
+        exit_if_interrupted();
         committed.map(|()| written)
     }
 }

@@ -327,6 +327,14 @@ fn defect_14_temporaries_of_a_killed_run_are_removed_by_the_next() {
 
 #[test]
 fn defect_14_an_interrupted_run_leaves_no_temporary_and_no_mixed_outputs() {
+    // The interruption can arrive after the run has finished on a loaded machine: try until one
+    // run is interrupted; every run must leave consistent outputs and no temporary.
+    let interrupted = (0..5).filter(|_| interrupt_one_run()).count();
+    assert!(interrupted >= 1);
+}
+
+/// Interrupts one calibration while it stages its outputs; `true` when the interruption took effect.
+fn interrupt_one_run() -> bool {
     let dir = tempfile::tempdir().unwrap();
     let (out, report) = (dir.path().join("x.toml"), dir.path().join("y.json"));
     std::fs::write(&out, "old").unwrap();
@@ -356,7 +364,7 @@ fn defect_14_an_interrupted_run_leaves_no_temporary_and_no_mixed_outputs() {
         .unwrap();
     assert!(killed.success());
     let status = child.wait().unwrap();
-    assert_eq!(status.code(), Some(130), "{status:?}");
+    assert!(matches!(status.code(), Some(130 | 0)), "{status:?}");
     assert!(
         leftovers(dir.path()).is_empty(),
         "{:?}",
@@ -368,4 +376,5 @@ fn defect_14_an_interrupted_run_leaves_no_temporary_and_no_mixed_outputs() {
     // Nothing was committed, or everything was: never the old x.toml with a new y.json.
     let old = std::fs::read_to_string(&out).unwrap() == "old";
     assert_eq!(old, !report.exists());
+    status.code() == Some(130)
 }

@@ -72,6 +72,28 @@ fn series_b_fifty_poses_validate_on_the_rest() {
     }
 }
 
+/// Issue 13: without --loss-scale-mm the outlier thresholds come from the data (position and
+/// orientation apart), and exactly the three stale measurements are flagged, with either loss and
+/// either profile (a 1 mm scale flagged 563 of the 1495 full poses).
+#[test]
+fn the_estimated_loss_scale_flags_exactly_the_stale_measurements() {
+    for profile in [POSITION, FULL_POSE] {
+        for loss in ["huber", "cauchy"] {
+            let c = calibrate(DATA, profile, &["--method", "lm", "--loss", loss]);
+            let lines: Vec<u64> = c.result.outliers.iter().map(|o| o.line).collect();
+            assert_eq!(lines, [534, 856, 857], "{profile} {loss}");
+            let l = c.result.least_squares.as_ref().unwrap();
+            assert!(l.loss_scale_estimated);
+            println!(
+                "{profile} {loss}: scale {:.4} mm, outliers beyond {:.4} mm / {:?} deg",
+                l.loss_scale_mm.unwrap(),
+                l.outlier_position_mm.unwrap(),
+                l.outlier_rotation_deg
+            );
+        }
+    }
+}
+
 /// The three stale measurements of Series B (a pose measured again with the other elbow
 /// configuration but recorded with the previous pose's position, about 2 mm off: lines 534, 856
 /// and 857) are the ones the robust loss flags and down-weights most.

@@ -169,8 +169,9 @@ pub struct CalibrationConfig {
     pub lm_iterations: u32,
     /// Loss of the least-squares stage.
     pub loss: LossChoice,
-    /// Scale of the robust loss, mm of pose residual; poses beyond it are outliers.
-    pub loss_scale_mm: f64,
+    /// Scale of the robust loss, mm of pose residual; poses beyond it are outliers. `None`:
+    /// estimated from the data ([`super::robust_scale`]).
+    pub loss_scale_mm: Option<f64>,
     /// Drop what the data cannot determine instead of refusing.
     pub auto_mask: bool,
     /// Keep every parameter when the pose set is ill-conditioned (the default drops, one by one,
@@ -194,7 +195,7 @@ impl Default for CalibrationConfig {
             swarm: SwarmConfig::default(),
             lm_iterations: 100,
             loss: LossChoice::L2,
-            loss_scale_mm: 1.0,
+            loss_scale_mm: None,
             auto_mask: false,
             keep_ill_conditioned: false,
             accept_implausible: false,
@@ -223,11 +224,10 @@ impl CalibrationConfig {
                 bail!("{name} must be a finite number >= 0, got {v}");
             }
         }
-        if !(self.loss_scale_mm.is_finite() && self.loss_scale_mm > 0.0) {
-            bail!(
-                "--loss-scale-mm must be a finite number > 0, got {}",
-                self.loss_scale_mm
-            );
+        if let Some(scale) = self.loss_scale_mm
+            && !(scale.is_finite() && scale > 0.0)
+        {
+            bail!("--loss-scale-mm must be a finite number > 0, got {scale}");
         }
         if self.loss != LossChoice::L2 && !self.method.least_squares() {
             bail!(

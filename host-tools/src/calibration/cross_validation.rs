@@ -69,7 +69,7 @@ pub fn cross_validate<const D: usize>(
         max_iterations: config.lm_iterations,
         ..LmSettings::default()
     };
-    let loss = config.loss.with_scale(config.loss_scale_mm);
+    let loss = config.loss.with_scale(config.loss_scale_mm.unwrap_or(1.0));
     let (mut nominal_errors, mut errors, mut failed) = (Vec::new(), Vec::new(), 0);
     for fold in 0..folds {
         let mut held: Vec<usize> = order.iter().skip(fold).step_by(folds).copied().collect();

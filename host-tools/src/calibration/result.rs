@@ -70,6 +70,15 @@ pub struct LeastSquaresReport {
     pub rows: u32,
     /// Residual standard deviation, mm.
     pub sigma_mm: f64,
+    /// Scale of the robust loss used, mm (`null` for l2).
+    pub loss_scale_mm: Option<f64>,
+    /// `true` when that scale was estimated from the data.
+    pub loss_scale_estimated: bool,
+    /// With an estimated scale: the position residual beyond which a pose is an outlier, mm.
+    pub outlier_position_mm: Option<f64>,
+    /// With an estimated scale: the orientation residual beyond which a pose is an outlier, deg
+    /// (`null` without orientations).
+    pub outlier_rotation_deg: Option<f64>,
 }
 
 /// Table 3 statistics of a set of poses before and after calibration.

@@ -119,10 +119,26 @@ impl CalibrationResult {
                 .iter()
                 .map(|o| format!("{} (line {}, {:.3} mm)", o.id, o.line, o.residual_mm))
                 .collect();
+            let (scale, estimated) = self.least_squares.as_ref().map_or(
+                (None, String::new()),
+                |l| {
+                    let estimated = match (l.outlier_position_mm, l.outlier_rotation_deg) {
+                        (Some(p), Some(r)) => format!(
+                            " (estimated from the data; outliers beyond {p:.4} mm or {r:.4} deg)"
+                        ),
+                        (Some(p), None) => {
+                            format!(" (estimated from the data; outliers beyond {p:.4} mm)")
+                        }
+                        _ => String::new(),
+                    };
+                    (l.loss_scale_mm, estimated)
+                },
+            );
             text.push_str(&format!(
-                "  {:?} loss, scale {} mm: {} outlier pose(s){}{}\n",
+                "  {:?} loss, scale {:.4} mm{}: {} outlier pose(s){}{}\n",
                 config.loss,
-                config.loss_scale_mm,
+                scale.unwrap_or(f64::NAN),
+                estimated,
                 self.outliers.len(),
                 if ids.is_empty() { "" } else { ": " },
                 ids.join(", ")

@@ -43,11 +43,12 @@ pub struct CalibrateOptions {
     #[arg(long, value_enum, default_value_t = LossChoice::L2)]
     pub loss: LossChoice,
     /// Scale of the robust loss, mm of pose residual sqrt(|dp|^2 + k |dr|^2); poses beyond it are
-    /// reported as outliers. About 3 times the typical pose residual works well: with tracker
-    /// noise of 0.02 mm and 1e-4 rad (k = 1e6) a pose residual is about 0.17 mm, and 0.5 mm keeps
-    /// every clean pose in.
-    #[arg(long, default_value_t = 1.0)]
-    pub loss_scale_mm: f64,
+    /// reported as outliers. Default: estimated from the data, as the median pose residual of a
+    /// plain least-squares fit plus 3 robust standard deviations (1.4826 times the median absolute
+    /// deviation), so that orientation residuals counted in millimetres do not make every pose an
+    /// outlier.
+    #[arg(long)]
+    pub loss_scale_mm: Option<f64>,
     /// Drop the parameters the data cannot determine instead of refusing; say which.
     #[arg(long)]
     pub auto_mask: bool,
