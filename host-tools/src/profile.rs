@@ -84,6 +84,53 @@ impl EulerConvention {
         }
     }
 
+    /// The angles about x, y and z (rad) that give `r` under this convention (the solution with
+    /// the middle rotation within +-90 deg).
+    pub fn angles(&self, r: &Rotation3<f64>) -> [f64; 3] {
+        // Fixed (i, j, k) is intrinsic (k, j, i): R = R_k R_j R_i.
+        let [i, j, k] = match self.kind {
+            EulerKind::Intrinsic => self.order,
+            EulerKind::Fixed => [self.order[2], self.order[1], self.order[0]],
+        };
+        // R = R_i(a) R_j(b) R_k(c); e = +1 for a cyclic order (xyz, yzx, zxy), -1 otherwise.
+        let m = r.matrix();
+        let e = if (j + 3 - i) % 3 == 1 { 1.0 } else { -1.0 };
+        let b = (e * m[(i, k)]).clamp(-1.0, 1.0).asin();
+        let a = (-e * m[(j, k)]).atan2(m[(k, k)]);
+        let c = (-e * m[(i, j)]).atan2(m[(i, i)]);
+        let mut angles = [0.0; 3];
+        angles[i] = a;
+        angles[j] = b;
+        angles[k] = c;
+        angles
+    }
+
+    /// Every convention with three distinct axes: fixed and intrinsic, six orders each.
+    pub fn all() -> Vec<Self> {
+        let orders = [
+            [0, 1, 2],
+            [0, 2, 1],
+            [1, 0, 2],
+            [1, 2, 0],
+            [2, 0, 1],
+            [2, 1, 0],
+        ];
+        [EulerKind::Fixed, EulerKind::Intrinsic]
+            .into_iter()
+            .flat_map(|kind| orders.map(|order| Self { kind, order }))
+            .collect()
+    }
+
+    /// The convention as a data profile writes it: `euler = "fixed", order = "xyz"`.
+    pub fn name(&self) -> String {
+        let order: String = self.order.iter().map(|a| ['x', 'y', 'z'][*a % 3]).collect();
+        let kind = match self.kind {
+            EulerKind::Fixed => "fixed",
+            EulerKind::Intrinsic => "intrinsic",
+        };
+        format!("euler = \"{kind}\", order = \"{order}\"")
+    }
+
     fn parse(kind: EulerKind, order: &str) -> Option<Self> {
         let mut axes = [0; 3];
         let mut chars = order.chars();
@@ -271,6 +318,24 @@ impl DataProfile {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_convention_recovers_its_angles() {
+        // Every angle within +-90 deg, so that each is the middle one of some convention.
+        let angles = [0.3, -0.7, 1.2];
+        for convention in EulerConvention::all() {
+            let r = convention.rotation(angles);
+            let back = convention.angles(&r);
+            assert!(
+                (convention.rotation(back).matrix() - r.matrix()).norm() < 1e-12,
+                "{}",
+                convention.name()
+            );
+            for (a, b) in angles.iter().zip(back) {
+                assert!((a - b).abs() < 1e-12, "{}: {back:?}", convention.name());
+            }
+        }
+    }
 
     #[test]
     fn conventions_compose_in_the_stated_order() {

@@ -345,3 +345,39 @@ fn series_b_model_re_registered_on_series_d() {
     );
     assert!(own_after < re_registered, "{own_after} vs {re_registered}");
 }
+
+/// Issue 13: 6-DoF data read under the wrong Euler convention (fixed instead of intrinsic xyz)
+/// are refused before calibrating, naming the conventions under which they agree (the
+/// calibration used to exit 0 with a held-out error of 185 mm).
+#[test]
+fn a_wrong_euler_convention_is_refused_and_the_right_one_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let wrong = dir.path().join("wrong.toml");
+    let profile = std::fs::read_to_string(FULL_POSE).unwrap();
+    assert!(profile.contains("euler = \"intrinsic\""));
+    std::fs::write(
+        &wrong,
+        profile.replace("euler = \"intrinsic\"", "euler = \"fixed\""),
+    )
+    .unwrap();
+    for data in [DATA, SERIES_D] {
+        let all = [
+            "--robot",
+            ROBOT,
+            "--data",
+            data,
+            "--profile",
+            wrong.to_str().unwrap(),
+        ];
+        let err = calibrate::calibrate(&parse::<CalibrateOptions>(&all))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            err.contains("do not move as the robot does")
+                && err.contains("read as euler = \"fixed\", order = \"xyz\"")
+                && err.contains("euler = \"intrinsic\", order = \"xyz\""),
+            "{err}"
+        );
+    }
+}

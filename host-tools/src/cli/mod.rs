@@ -33,10 +33,12 @@ pub struct InputFiles {
 }
 
 impl InputFiles {
-    /// The data profile, then both files read and checked through it.
+    /// The data profile, then both files read and checked through it, and the orientations
+    /// checked against the robot ([`crate::orientation_check`]).
     pub fn load(&self) -> anyhow::Result<(DataProfile, Dataset)> {
         let profile = DataProfile::load(self.profile.as_deref())?;
         let inputs = Dataset::load_with(&self.robot, &self.data, &profile)?;
+        crate::orientation_check::check(&inputs, &profile.euler)?;
         Ok((profile, inputs))
     }
 }
