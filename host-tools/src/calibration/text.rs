@@ -16,6 +16,8 @@ impl CalibrationResult {
         let mut text = self.run_text();
         let before_note = if self.frames.identified == Frames::None {
             ""
+        } else if self.config.identify == super::Identify::Frames {
+            "; frames only: before and after = the robot file's geometry with the frames fitted"
         } else {
             "; before = nominal geometry with the frames fitted"
         };
