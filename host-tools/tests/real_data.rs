@@ -245,16 +245,25 @@ fn an_ill_conditioned_subset_is_flagged() {
     assert!(full.result.identifiability.condition_number.unwrap() < 1000.0);
 }
 
-/// The wrong robot for the data: the registration residual is far above a robot's errors and
-/// the message says what to check.
+/// The wrong robot for the data: with 6-DoF data the orientations already disagree (checked
+/// first); with position-only data the registration residual is far above a robot's errors. Both
+/// messages say what to check.
 #[test]
 fn a_poor_registration_is_reported() {
     let er10l = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
-    let all = ["--robot", er10l, "--data", DATA, "--profile", FULL_POSE];
-    let err = calibrate::calibrate(&parse::<CalibrateOptions>(&all))
-        .err()
-        .unwrap()
-        .to_string();
+    let error = |profile: &str| {
+        let all = ["--robot", er10l, "--data", DATA, "--profile", profile];
+        calibrate::calibrate(&parse::<CalibrateOptions>(&all))
+            .err()
+            .unwrap()
+            .to_string()
+    };
+    let err = error(FULL_POSE);
+    assert!(
+        err.contains("do not move as the robot does") && err.contains("joint order"),
+        "{err}"
+    );
+    let err = error(POSITION);
     assert!(err.contains("far above the few millimetres"), "{err}");
     assert!(err.contains("mm RMS"), "{err}");
     assert!(Path::new(DATA).exists());
