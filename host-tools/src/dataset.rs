@@ -158,14 +158,19 @@ pub fn split(dataset: &Dataset, fraction: f64, seed: u64) -> anyhow::Result<(Dat
     if held == 0 || held >= n {
         anyhow::bail!("--validate {fraction} of {n} poses leaves no pose on one side");
     }
-    // Fisher-Yates with a seeded generator.
+    let order = shuffled(n, seed);
+    let mut validation: Vec<usize> = order[..held].to_vec();
+    validation.sort_unstable();
+    Ok(dataset.partition(&validation))
+}
+
+/// `0..n` in a random order drawn with `seed` (Fisher-Yates; deterministic).
+pub fn shuffled(n: usize, seed: u64) -> Vec<usize> {
     let mut order: Vec<usize> = (0..n).collect();
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
     for i in (1..n).rev() {
         let j = (rng.next_u64() % (i as u64 + 1)) as usize;
         order.swap(i, j);
     }
-    let mut validation: Vec<usize> = order[..held].to_vec();
-    validation.sort_unstable();
-    Ok(dataset.partition(&validation))
+    order
 }

@@ -10,7 +10,6 @@ use crate::dataset::Dataset;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
 use calib_core::{Kinematics, ParameterErrors, ParameterSet, Problem};
 use nalgebra::SVector;
-use rand_core::{Rng, SeedableRng};
 use serde::Serialize;
 
 /// Poses up to which every pose is its own fold (leave-one-out).
@@ -58,12 +57,7 @@ pub fn cross_validate<const D: usize>(
     }
     let folds = if n <= LEAVE_ONE_OUT_UP_TO { n } else { FOLDS };
     // Poses shuffled with a fixed seed, then dealt into the folds.
-    let mut order: Vec<usize> = (0..n).collect();
-    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(0);
-    for i in (1..n).rev() {
-        let j = (rng.next_u64() % (i as u64 + 1)) as usize;
-        order.swap(i, j);
-    }
+    let order = crate::dataset::shuffled(n, 0);
     let nominal = Kinematics::nominal(&dataset.model.robot).ok()?;
     let settings = LmSettings {
         max_iterations: config.lm_iterations,
