@@ -11,6 +11,14 @@
 //! run are replaced all together or not at all. A process killed outright (`kill -9`) cannot clean
 //! up: its temporaries (`.<name>.calib-<pid>-<n>.tmp`) are removed by the next run that writes the
 //! same file once that process has ended.
+//!
+//! A process killed outright in the middle of a commit of several files (after renaming some of
+//! them) would leave outputs of two runs side by side. Before its first rename, a commit of more
+//! than one file therefore writes a journal, `.calib-commit-<pid>.journal`, into the directory of
+//! every output, naming each temporary and its target; the journal is removed when the commit
+//! ends. The next run that writes into one of those directories finds the journal of the ended
+//! process and completes its commit (every temporary is complete before the journal is written),
+//! so the outputs of one run always stand together.
 
 use anyhow::{Context, bail};
 use std::io::Write;
@@ -121,6 +129,129 @@ fn process_running(pid: u32) -> bool {
     }
 }
 
+#[cfg(test)]
+thread_local! {
+    /// Tests: the commit stops (as if killed) after this many renames.
+    static STOP_AFTER_RENAMES: std::cell::Cell<Option<usize>> = const { std::cell::Cell::new(None) };
+}
+
+/// The record of a commit under way (see the module documentation).
+#[derive(serde::Serialize, serde::Deserialize)]
+struct Journal {
+    /// Each output: its complete temporary and its target.
+    outputs: Vec<(PathBuf, PathBuf)>,
+    /// The copies of this journal, one per directory of an output.
+    journals: Vec<PathBuf>,
+}
+
+/// The journal name of process `pid`.
+fn journal_name(pid: u32) -> String {
+    format!(".calib-commit-{pid}.journal")
+}
+
+/// Writes the journal of a commit of `staged` into every directory of an output, each copy
+/// complete before it appears under its name; none for a single output (one rename is atomic).
+/// Returns the journals written.
+fn write_journals(staged: &[Staged]) -> anyhow::Result<Vec<PathBuf>> {
+    if staged.len() < 2 {
+        return Ok(Vec::new());
+    }
+    let mut dirs: Vec<PathBuf> = staged
+        .iter()
+        .filter_map(|s| s.target.parent().map(Path::to_path_buf))
+        .collect();
+    dirs.sort();
+    dirs.dedup();
+    let name = journal_name(std::process::id());
+    let journal = Journal {
+        outputs: staged
+            .iter()
+            .map(|s| (resolved(&s.temporary), s.target.clone()))
+            .collect(),
+        journals: dirs.iter().map(|d| d.join(&name)).collect(),
+    };
+    let Ok(text) = serde_json::to_string(&journal) else {
+        // A path that is not UTF-8 cannot be journaled: commit as a single rename would.
+        return Ok(Vec::new());
+    };
+    for path in &journal.journals {
+        let partial = path.with_extension("journal.tmp");
+        track(&partial);
+        let written = (|| -> std::io::Result<()> {
+            let mut file = std::fs::File::create(&partial)?;
+            file.write_all(text.as_bytes())?;
+            file.sync_all()?;
+            std::fs::rename(&partial, path)
+        })();
+        untrack(&partial);
+        if let Err(e) = written {
+            let _ = std::fs::remove_file(&partial);
+            for done in &journal.journals {
+                let _ = std::fs::remove_file(done);
+            }
+            return Err(anyhow::Error::new(e).context(format!("writing {}", path.display())));
+        }
+    }
+    Ok(journal.journals)
+}
+
+/// Completes the commits that processes which have ended left unfinished in `dir` (killed
+/// between two renames): every temporary named in their journal still present replaces its
+/// target, then the journals are removed. Says on standard error what was completed.
+fn complete_interrupted_commits(dir: &Path) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(rest) = name.to_str().and_then(|n| n.strip_prefix(".calib-commit-")) else {
+            continue;
+        };
+        let (pid, partial) = match (
+            rest.strip_suffix(".journal"),
+            rest.strip_suffix(".journal.tmp"),
+        ) {
+            (Some(pid), _) => (pid, false),
+            (None, Some(pid)) => (pid, true),
+            (None, None) => continue,
+        };
+        let Ok(pid) = pid.parse::<u32>() else {
+            continue;
+        };
+        if pid == std::process::id() || process_running(pid) {
+            continue;
+        }
+        if partial {
+            // Killed while writing its journal, before any rename: nothing to complete.
+            let _ = std::fs::remove_file(entry.path());
+            continue;
+        }
+        let journal: Option<Journal> = std::fs::read(entry.path())
+            .ok()
+            .and_then(|bytes| serde_json::from_slice(&bytes).ok());
+        let Some(journal) = journal else {
+            // Not ours or unreadable: leave it.
+            continue;
+        };
+        let mut completed = Vec::new();
+        for (temporary, target) in &journal.outputs {
+            if temporary.exists() && std::fs::rename(temporary, target).is_ok() {
+                completed.push(target.display().to_string());
+            }
+        }
+        if !completed.is_empty() {
+            eprintln!(
+                "note: completed the outputs of an earlier run (process {pid}) that was killed while \
+                 replacing them, so that they stand together: {}",
+                completed.join(", ")
+            );
+        }
+        for copy in journal.journals.iter().chain([&entry.path()]) {
+            let _ = std::fs::remove_file(copy);
+        }
+    }
+}
+
 /// One staged output: its temporary file and where it goes.
 struct Staged {
     /// The flag or name that asked for it, for messages.
@@ -190,6 +321,7 @@ impl Outputs {
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
+        complete_interrupted_commits(&dir);
         remove_stale_temporaries(&dir, &file_name);
         let temporary = dir.join(format!(
             ".{file_name}.calib-{}-{}.tmp",
@@ -264,7 +396,14 @@ impl Outputs {
                         .with_context(|| format!("writing {}", staged.target.display()))?;
                 }
             }
+            let journals = write_journals(&self.staged)?;
             while !self.staged.is_empty() {
+                #[cfg(test)]
+                if STOP_AFTER_RENAMES.with(|stop| stop.get()) == Some(written.len()) {
+                    // As if killed here: the journal stays, the rest is not renamed.
+                    self.staged.clear();
+                    return Ok(());
+                }
                 let staged = self.staged.remove(0);
                 let renamed = std::fs::rename(&staged.temporary, &staged.target);
                 untrack(&staged.temporary);
@@ -274,6 +413,9 @@ impl Outputs {
                         .context(format!("writing {}", staged.target.display())));
                 }
                 written.push(staged.target);
+            }
+            for journal in &journals {
+                let _ = std::fs::remove_file(journal);
             }
             Ok(())
         })();
@@ -315,4 +457,86 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
     let mut outputs = Outputs::default();
     outputs.stage("output", path, bytes)?;
     outputs.commit().map(|_| ())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(path: &Path) -> String {
+        std::fs::read_to_string(path).unwrap()
+    }
+
+    /// Names in `dir` that are not outputs: temporaries and journals.
+    fn leftovers(dir: &Path) -> Vec<String> {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with('.'))
+            .collect()
+    }
+
+    #[test]
+    fn a_commit_killed_between_two_renames_is_completed_by_the_next_run() {
+        let dir = tempfile::tempdir().unwrap();
+        let (x, y) = (dir.path().join("x.toml"), dir.path().join("sub/y.json"));
+        std::fs::create_dir(dir.path().join("sub")).unwrap();
+        std::fs::write(&x, "old x").unwrap();
+        std::fs::write(&y, "old y").unwrap();
+        let mut outputs = Outputs::default();
+        outputs.stage("--out", &x, b"new x").unwrap();
+        outputs.stage("--report", &y, b"new y").unwrap();
+        // Killed after the first rename: x is new, y is old, the journals say what is missing.
+        STOP_AFTER_RENAMES.with(|stop| stop.set(Some(1)));
+        outputs.commit().unwrap();
+        STOP_AFTER_RENAMES.with(|stop| stop.set(None));
+        assert_eq!((read(&x), read(&y)), ("new x".into(), "old y".into()));
+        let journal = journal_name(std::process::id());
+        assert!(dir.path().join(&journal).exists());
+        assert!(dir.path().join("sub").join(&journal).exists());
+        // The next run sees the journal of an ended process: rename it as if written by one.
+        let ended = {
+            let mut child = std::process::Command::new("true").spawn().unwrap();
+            let pid = child.id();
+            child.wait().unwrap();
+            pid
+        };
+        for d in [dir.path().to_path_buf(), dir.path().join("sub")] {
+            let text = read(&d.join(&journal)).replace(&journal, &journal_name(ended));
+            std::fs::remove_file(d.join(&journal)).unwrap();
+            std::fs::write(d.join(journal_name(ended)), text).unwrap();
+        }
+        write_atomic(&dir.path().join("sub/z.txt"), b"z").unwrap();
+        assert_eq!((read(&x), read(&y)), ("new x".into(), "new y".into()));
+        assert!(
+            leftovers(dir.path()).is_empty(),
+            "{:?}",
+            leftovers(dir.path())
+        );
+        let sub = dir.path().join("sub");
+        assert!(leftovers(&sub).is_empty(), "{:?}", leftovers(&sub));
+    }
+
+    #[test]
+    fn a_complete_commit_leaves_no_journal_and_a_partial_journal_is_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        let partial = dir.path().join(".calib-commit-4294967295.journal.tmp");
+        std::fs::write(&partial, "{").unwrap();
+        let mut outputs = Outputs::default();
+        outputs.stage("--out", &dir.path().join("a"), b"a").unwrap();
+        outputs
+            .stage("--report", &dir.path().join("b"), b"b")
+            .unwrap();
+        outputs.commit().unwrap();
+        assert_eq!(
+            (read(&dir.path().join("a")), read(&dir.path().join("b"))),
+            ("a".into(), "b".into())
+        );
+        assert!(
+            leftovers(dir.path()).is_empty(),
+            "{:?}",
+            leftovers(dir.path())
+        );
+    }
 }

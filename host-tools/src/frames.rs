@@ -359,6 +359,33 @@ mod tests {
             .collect();
         assert!(kabsch(&line, &line).is_none());
     }
+
+    #[test]
+    fn implausible_measured_frames_are_blamed_on_the_data_not_the_robot_file() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let dataset = crate::dataset::Dataset::load(
+            &root.join("robots/er10l-c10.toml"),
+            &root.join("data/er10l-c10-sim32.csv"),
+        )
+        .unwrap();
+        let mut wild = dataset.file.clone();
+        wild.base = Some(FrameEntry {
+            xyz_mm: [-146_114.0, 0.0, 0.0],
+            rpy_deg: [0.0; 3],
+        });
+        let message = measured_model(&wild, &dataset, "registered")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            message.starts_with(&root.join("data/er10l-c10-sim32.csv").display().to_string())
+                && message.contains("frames registered from these data")
+                && message.contains("-146114")
+                && message.contains("units of the positions"),
+            "{message}"
+        );
+        // The robot file's own frames pass.
+        assert!(measured_model(&dataset.file, &dataset, "fitted").is_ok());
+    }
 }
 
 /// Largest registration RMS (mm) accepted: a robot's geometric errors move the tool by a few
@@ -391,6 +418,27 @@ pub struct FramesReport {
     /// robot file (the measured frames above belong to the measurement setup, not the controller).
     #[serde(skip)]
     pub given: RobotFile,
+}
+
+/// The model of `file`, whose frames were `how` (registered or fitted) from the data of
+/// `inputs`: frames beyond the plausible ranges of a robot file are blamed on the data, not on the
+/// robot file (which holds the nominal frames).
+fn measured_model(
+    file: &RobotFile,
+    inputs: &crate::dataset::Dataset,
+    how: &str,
+) -> anyhow::Result<crate::robot_file::RobotModel<JOINTS>> {
+    file.to_model(&inputs.model.path).map_err(|e| match e {
+        crate::robot_file::RobotFileError::Invalid { message, .. } => anyhow::anyhow!(
+            "{}: the tracker and tool frames {how} from these data are not physically plausible ({message}). \
+             The positions do not come from this robot in one rigid tracker frame: check the units of the \
+             positions (a data profile, --profile), the joint order and signs against the robot file {}, \
+             and whether the data are already in the base frame (--frames none)",
+            inputs.data.path.display(),
+            inputs.model.path.display()
+        ),
+        other => other.into(),
+    })
 }
 
 /// Registers the frames of `inputs` and fits them (nominal geometry) by least squares; replaces
@@ -442,7 +490,7 @@ pub fn prepare(
         }
     }
     let mut fitted_inputs = inputs.clone();
-    fitted_inputs.model = registered.to_model(&inputs.model.path)?;
+    fitted_inputs.model = measured_model(&registered, inputs, "registered")?;
     fitted_inputs.model.mask = inputs.model.mask;
     let errors = crate::with_parameter_count!(
         frame_mask.count(),
@@ -450,7 +498,7 @@ pub fn prepare(
     )?;
     let mut fitted = registered.with_errors(&errors, [], &[], "", "");
     fitted.calibration = None;
-    let mut model = fitted.to_model(&inputs.model.path)?;
+    let mut model = measured_model(&fitted, inputs, "fitted")?;
     model.mask = inputs.model.mask;
     let kinematics = Kinematics::nominal(&model.robot)?;
     let frames_fit_rms_mm = crate::statistics::table3(&kinematics, inputs)

@@ -227,3 +227,70 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
         "{message}"
     );
 }
+
+/// The bundled simulated data (6-DoF, quaternions `qw, qx, qy, qz`) with every quaternion
+/// rewritten by `reorder` (from `[w, x, y, z]` to what stands under the four columns), calibrated:
+/// returns standard error, the run must fail.
+fn quaternion_error(reorder: impl Fn([&str; 4]) -> [String; 4]) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let data = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/data/er10l-c10-sim32.csv"
+    ))
+    .unwrap();
+    let rewritten: Vec<String> = data
+        .lines()
+        .map(|line| {
+            let fields: Vec<&str> = line.split(',').collect();
+            if line.starts_with('#') || line.starts_with("id,") {
+                return line.to_string();
+            }
+            let n = fields.len();
+            let q = reorder([fields[n - 4], fields[n - 3], fields[n - 2], fields[n - 1]]);
+            let mut out: Vec<String> = fields[..n - 4].iter().map(|f| f.to_string()).collect();
+            out.extend(q);
+            out.join(",")
+        })
+        .collect();
+    std::fs::write(dir.path().join("d.csv"), rewritten.join("\n")).unwrap();
+    let out = calib_in(
+        dir.path(),
+        &[
+            "calibrate",
+            "--robot",
+            ROBOT,
+            "--data",
+            "d.csv",
+            "--out",
+            "x.toml",
+        ],
+    );
+    assert!(!out.status.success());
+    assert!(!dir.path().join("x.toml").exists());
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+#[test]
+fn quaternions_in_scalar_last_order_are_refused_and_the_order_named() {
+    let message = quaternion_error(|[w, x, y, z]| [x, y, z, w].map(String::from));
+    assert!(
+        message.contains("do not move as the robot does")
+            && message.contains("hold x, y, z, w (scalar last)"),
+        "{message}"
+    );
+}
+
+#[test]
+fn inverse_quaternions_are_refused_and_named() {
+    let negated = |v: &str| {
+        let v: f64 = v.parse().unwrap();
+        (-v).to_string()
+    };
+    let message =
+        quaternion_error(|[w, x, y, z]| [w.to_string(), negated(x), negated(y), negated(z)]);
+    assert!(
+        message.contains("do not move as the robot does")
+            && message.contains("the quaternions are the inverse rotations"),
+        "{message}"
+    );
+}
