@@ -89,9 +89,28 @@ impl Dataset {
                 data.display()
             );
         }
+        // Joint maps of the robot file are part of the model: the kinematics sees the readings
+        // with each joint's angle error added.
+        let maps = file.joint_maps(robot)?;
+        let mut extrapolated = [0usize; JOINTS];
+        let ranges = file
+            .joint_maps
+            .as_ref()
+            .map(crate::joint_maps::JointMapsSection::ranges)
+            .unwrap_or_default();
         let mut measurements = Vec::with_capacity(data_file.records.len());
         for r in &data_file.records {
             let q: [f64; JOINTS] = std::array::from_fn(|i| r.q[i]);
+            for (j, ((count, range), qi)) in
+                extrapolated.iter_mut().zip(&ranges).zip(&q).enumerate()
+            {
+                let zero = maps
+                    .as_ref()
+                    .is_none_or(|m| m.coefficients[j].iter().all(|c| *c == 0.0));
+                if !zero && (*qi < range[0] - 1e-9 || *qi > range[1] + 1e-9) {
+                    *count += 1;
+                }
+            }
             for (i, (qi, limits)) in q.iter().zip(&model.robot.limits).enumerate() {
                 if !limits.contains(*qi) {
                     bail!(
@@ -106,9 +125,23 @@ impl Dataset {
                     );
                 }
             }
-            let m = Measurement::new(&q, Vector3::from(r.position), r.rotation, r.weight)
+            let modelled = maps.as_ref().map_or(q, |m| m.apply(&q));
+            let m = Measurement::new(&modelled, Vector3::from(r.position), r.rotation, r.weight)
                 .with_context(|| format!("{}:{}", data.display(), r.line))?;
             measurements.push(m);
+        }
+        for (j, count) in extrapolated.iter().enumerate() {
+            if *count > 0 {
+                eprintln!(
+                    "warning: {}: {count} poses have joint {} outside the range its joint map was identified on \
+                     ({:.1} to {:.1} deg, [joint_maps] of {}): the map is extrapolated there and may be wrong",
+                    data.display(),
+                    j + 1,
+                    ranges[j][0].to_degrees(),
+                    ranges[j][1].to_degrees(),
+                    robot.display()
+                );
+            }
         }
         Ok(Self {
             file,

@@ -19,6 +19,7 @@ pub mod files;
 pub mod fk;
 pub mod frames;
 pub mod identifiability;
+pub mod joint_maps;
 pub mod orientation_check;
 pub mod plots;
 pub mod profile;

@@ -136,6 +136,10 @@ pub struct RobotFile {
     /// `[base]` and `[tool]`, the controller's own frames.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub measurement: Option<MeasurementSection>,
+    /// Present in a file identified with `calib calibrate --model joint-maps`: each joint's
+    /// angle-error map, part of the model (see [`crate::joint_maps`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_maps: Option<crate::joint_maps::JointMapsSection>,
 }
 
 /// The measurement setup identified with the geometry: where the tracker saw the robot's base,
@@ -234,6 +238,9 @@ impl RobotFile {
             tool: frame_pose(self.tool.as_ref(), "tool").map_err(invalid)?,
         };
         robot.validate().map_err(|e| invalid(e.to_string()))?;
+        if let Some(maps) = &self.joint_maps {
+            maps.to_maps().map_err(invalid)?;
+        }
         let mask = self.mask(&robot).map_err(invalid)?;
         Ok(RobotModel {
             name: self.name.clone(),
@@ -356,6 +363,38 @@ impl RobotFile {
         }
         out.measurement = None;
         out
+    }
+}
+
+impl RobotFile {
+    /// The joint maps of the file (`[joint_maps]`), checked; `None` without them.
+    pub fn joint_maps(
+        &self,
+        path: &Path,
+    ) -> Result<Option<crate::joint_maps::JointMaps>, RobotFileError> {
+        self.joint_maps
+            .as_ref()
+            .map(|m| {
+                m.to_maps().map_err(|message| RobotFileError::Invalid {
+                    path: path.to_owned(),
+                    message,
+                })
+            })
+            .transpose()
+    }
+
+    /// Refuses a file with joint maps for `what` (a command or an output that cannot apply them
+    /// yet), so that no result silently leaves the maps out.
+    pub fn refuse_joint_maps(&self, path: &Path, what: &str) -> anyhow::Result<()> {
+        if self.joint_maps.is_some() {
+            anyhow::bail!(
+                "{}: this robot file has joint maps ([joint_maps], from calibrate --model joint-maps), \
+                 which {what} cannot apply yet; leaving them out would make the result silently less accurate. \
+                 Use the geometric calibration's file (calibrate --model geometric) here",
+                path.display()
+            );
+        }
+        Ok(())
     }
 }
 

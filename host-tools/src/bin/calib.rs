@@ -157,8 +157,17 @@ fn print_json_or_text<T: serde::Serialize>(
 
 /// `calib fk`: the end pose of a robot file for joint readings in degrees.
 fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::Result<()> {
-    let model = RobotModel::<JOINTS>::load(robot)?;
-    let pose = fk::forward_deg(&model, joints_deg)?;
+    let file = host_tools::robot_file::RobotFile::read(robot)?;
+    let model: RobotModel<JOINTS> = file.to_model(robot)?;
+    // Joint maps are part of the model: the kinematics sees each reading with its angle error.
+    let joints_deg: Vec<f64> = match file.joint_maps(robot)? {
+        Some(maps) if joints_deg.len() == JOINTS => {
+            let q: [f64; JOINTS] = std::array::from_fn(|j| joints_deg[j].to_radians());
+            maps.apply(&q).iter().map(|q| q.to_degrees()).collect()
+        }
+        _ => joints_deg.to_vec(),
+    };
+    let pose = fk::forward_deg(&model, &joints_deg)?;
     if json {
         print_line!(
             "{}",

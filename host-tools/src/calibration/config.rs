@@ -150,6 +150,20 @@ pub enum Identify {
     Frames,
 }
 
+/// The error model identified.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+pub enum ErrorModel {
+    /// The geometry (and the frames of the measurement setup).
+    #[value(name = "geometric")]
+    #[serde(rename = "geometric")]
+    Geometric,
+    /// The geometry and each joint's angle-error map, identified jointly with an
+    /// evidence-tuned prior ([`crate::joint_maps`]).
+    #[value(name = "joint-maps")]
+    #[serde(rename = "joint-maps")]
+    JointMaps,
+}
+
 /// Everything a calibration needs besides the data. `Default` is the paper's method followed by
 /// least squares (`ipso+lm`), `k = 1e6` mm^2/rad^2, the frames chosen from the data.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -161,6 +175,8 @@ pub struct CalibrationConfig {
     pub frames: Option<Frames>,
     /// What is identified: the geometry and the frames, or the frames alone.
     pub identify: Identify,
+    /// The error model: geometric, or with joint maps.
+    pub model: ErrorModel,
     /// Orientation weight k of eq. (7), mm^2/rad^2.
     pub k: f64,
     /// The swarm's settings.
@@ -191,6 +207,7 @@ impl Default for CalibrationConfig {
             method: Method::IpsoLm,
             frames: None,
             identify: Identify::Geometry,
+            model: ErrorModel::Geometric,
             k: calib_core::identify::objective::DEFAULT_K,
             swarm: SwarmConfig::default(),
             lm_iterations: 100,
@@ -228,6 +245,12 @@ impl CalibrationConfig {
             && !(scale.is_finite() && scale > 0.0)
         {
             bail!("--loss-scale-mm must be a finite number > 0, got {scale}");
+        }
+        if self.model == ErrorModel::JointMaps && self.identify == Identify::Frames {
+            bail!(
+                "--model joint-maps identifies maps with the geometry; --identify frames keeps the robot file's model \
+                 (with its maps, when it has them): drop one of the two"
+            );
         }
         if self.loss != LossChoice::L2 && !self.method.least_squares() {
             bail!(

@@ -47,12 +47,14 @@
 
 mod config;
 pub mod cross_validation;
+pub mod maps;
 pub mod plausibility;
 mod result;
 mod text;
 
 pub use config::{
-    CalibrationConfig, Identify, LossChoice, Method, SWARM_SIZES, ScramblingChoice, SwarmConfig,
+    CalibrationConfig, ErrorModel, Identify, LossChoice, Method, SWARM_SIZES, ScramblingChoice,
+    SwarmConfig,
 };
 pub use result::{
     CalibrationResult, HoldOut, IdentifiedParameter, LeastSquaresReport, ObjectiveValues, Outlier,
@@ -112,6 +114,9 @@ pub fn calibrate(
             frames_report
         )
     )?;
+    if config.model == ErrorModel::JointMaps {
+        result = maps::add_joint_maps(result, &dataset, validation.as_ref(), config)?;
+    }
     result.implausible = plausibility::check(&result);
     if !result.implausible.is_empty() && !config.accept_implausible {
         bail!(
@@ -286,6 +291,7 @@ fn solve<const D: usize>(
         seconds,
         implausible: Vec::new(),
         cross_validation,
+        joint_maps: None,
     })
 }
 
@@ -311,7 +317,7 @@ fn identified_parameters<const D: usize>(
 /// file given plus the identified joint errors, with the controller's base and tool (those of the
 /// robot file given); frames identified from tracker data are the measurement setup and go to
 /// its `[measurement]` section and the report, never into `[base]` and `[tool]`.
-fn identified_robot(
+pub(crate) fn identified_robot(
     dataset: &Dataset,
     config: &CalibrationConfig,
     parameters: &[IdentifiedParameter],
@@ -606,7 +612,7 @@ pub fn robust_scale<const D: usize>(
 }
 
 /// The median of `v` (sorted in place; 0 for none).
-fn median(v: &mut [f64]) -> f64 {
+pub(crate) fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     match n {

@@ -183,6 +183,9 @@ pub struct CalibrationResult {
     pub implausible: Vec<String>,
     /// The cross-validation estimate of the held-out error on the calibration poses.
     pub cross_validation: Option<super::cross_validation::CrossValidation>,
+    /// The joint maps identified with the geometry (`--model joint-maps`); the statistics above
+    /// are then those of the model with the maps, the geometric calibration's are in it.
+    pub joint_maps: Option<super::maps::JointMapsReport>,
 }
 
 impl CalibrationResult {
@@ -236,6 +239,7 @@ impl CalibrationResult {
             dropped: self.dropped.iter().map(ToString::to_string).collect(),
             implausible: &self.implausible,
             cross_validation: self.cross_validation,
+            joint_maps: self.joint_maps.as_ref(),
             frames: &self.frames,
             outliers: &self.outliers,
             poses: &self.poses,
@@ -332,6 +336,9 @@ pub struct Report<'a> {
     pub implausible: &'a [String],
     /// The cross-validation estimate of the held-out error (`null` with fewer than 3 poses).
     pub cross_validation: Option<super::cross_validation::CrossValidation>,
+    /// The joint maps identified with the geometry (`--model joint-maps`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub joint_maps: Option<&'a super::maps::JointMapsReport>,
     /// The frames identified with the geometry and their values.
     pub frames: &'a FramesReport,
     /// Poses whose residual exceeds the robust loss scale (empty for l2).

@@ -34,9 +34,12 @@ impl CalibrationResult {
                 &stage.after,
             ));
         }
+        if let Some(maps) = &self.joint_maps {
+            text.push_str(&maps.text());
+        }
         if let Some(cv) = &self.cross_validation {
             text.push_str(&format!(
-                "\ncross-validation ({} folds{}, least squares): poses predicted by the model identified without them: \
+                "\ncross-validation (geometric model, {} folds{}, least squares): poses predicted by the model identified without them: \
                  mean |dp| {:.4} mm (RMS {:.4} mm), nominal geometry {:.4} mm{}\n",
                 cv.folds,
                 if cv.folds == cv.poses + cv.failed_folds { ", leave-one-out" } else { "" },

@@ -3,8 +3,8 @@
 
 use crate::JOINTS;
 use crate::calibration::{
-    self, CalibrationConfig, CalibrationResult, HoldOut, Identify, LossChoice, Method, Report,
-    ScramblingChoice, SwarmConfig,
+    self, CalibrationConfig, CalibrationResult, ErrorModel, HoldOut, Identify, LossChoice, Method,
+    Report, ScramblingChoice, SwarmConfig,
 };
 use crate::cli::InputFiles;
 use crate::dataset::Dataset;
@@ -33,6 +33,11 @@ pub struct CalibrateOptions {
     /// again (a moved tracker, a new reflector).
     #[arg(long, value_enum, default_value_t = Identify::Geometry)]
     pub identify: Identify,
+    /// Error model: geometric, or joint-maps (the geometry with each joint's angle-error map, a
+    /// periodic function of the joint's own reading, identified jointly with an evidence-tuned
+    /// prior; the maps go into the identified file's `[joint_maps]`).
+    #[arg(long, value_enum, default_value_t = ErrorModel::Geometric)]
+    pub model: ErrorModel,
     /// Identification method: the paper's swarm, least squares, or the swarm then least squares.
     #[arg(long, value_enum, default_value_t = Method::IpsoLm)]
     pub method: Method,
@@ -136,6 +141,7 @@ impl CalibrateOptions {
             method: self.method,
             frames: self.frames,
             identify: self.identify,
+            model: self.model,
             k: self.k,
             swarm: SwarmConfig {
                 particles: self.swarm,

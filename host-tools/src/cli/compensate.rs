@@ -44,6 +44,9 @@ pub struct CompensateOptions {
 
 /// Runs `calib compensate`.
 pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
+    for path in [&options.robot, &options.params] {
+        crate::robot_file::RobotFile::read(path)?.refuse_joint_maps(path, "calib compensate")?;
+    }
     let nominal: RobotModel<JOINTS> = RobotModel::load(&options.robot)?;
     let actual: RobotModel<JOINTS> = RobotModel::load(&options.params)?;
     let targets = TrackerData::read_targets(&options.targets)?;

@@ -29,6 +29,10 @@ pub struct ExportOptions {
 /// Runs `calib export`; returns the number of bytes written.
 pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
     let file = RobotFile::read(&options.params)?;
+    file.refuse_joint_maps(
+        &options.params,
+        "calib export (the parameter block and the controller)",
+    )?;
     let model: RobotModel<JOINTS> = file.to_model(&options.params)?;
     let bytes = crate::export::export(
         &file,

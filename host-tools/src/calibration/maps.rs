@@ -1,0 +1,249 @@
+//! The joint-maps stage of a calibration (`--model joint-maps`): after the geometric
+//! calibration, the geometry is identified again jointly with each joint's angle-error map
+//! ([`crate::joint_maps`]) on the same calibration poses, and the statistics, the identified
+//! robot file and the report are those of the model with the maps. The geometric calibration's
+//! statistics stay in the report for comparison.
+
+use super::{CalibrationConfig, CalibrationResult, Stage};
+use crate::JOINTS;
+use crate::dataset::Dataset;
+use crate::joint_maps::{self, JointMaps, JointMapsSection, NEGLIGIBLE_AMPLITUDE_RAD, Pose};
+use crate::statistics::table3;
+use calib_core::{Kinematics, Measurement};
+use nalgebra::Vector3;
+use serde::Serialize;
+
+/// Poses whose geometric position residual exceeds the median by this many robust standard
+/// deviations (1.4826 MAD) are left out of the maps: one stale measurement would otherwise
+/// raise the noise level and flatten every map.
+pub const OUTLIER_DEVIATIONS: f64 = 6.0;
+
+/// One joint's map in the report.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct JointMapReport {
+    /// Joint number, 1-based.
+    pub joint: usize,
+    /// Whether the evidence supports a map: `false` keeps it at zero.
+    pub supported: bool,
+    /// Prior standard deviation of each coefficient chosen by the evidence, mrad.
+    pub prior_sd_mrad: f64,
+    /// RMS of the identified map over the calibration readings, mrad.
+    pub rms_mrad: f64,
+    /// Largest magnitude of the identified map over the calibration readings, mrad.
+    pub max_mrad: f64,
+    /// Coefficients the data determine (MacKay's gamma; at most 2 H).
+    pub determined: f64,
+    /// `[lowest, highest]` calibration reading, deg: the map is extrapolated outside.
+    pub range_deg: [f64; 2],
+}
+
+/// What the joint-maps stage found.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct JointMapsReport {
+    /// Harmonics per joint, chosen by the evidence.
+    pub harmonics: usize,
+    /// Log evidence of every harmonic count tried: `[harmonics, log evidence]`.
+    pub evidence: Vec<(usize, f64)>,
+    /// Log evidence of the chosen model (up to a constant of the poses and parameters).
+    pub log_evidence: f64,
+    /// Measurement noise per position coordinate chosen by the evidence, mm.
+    pub noise_mm: f64,
+    /// Every joint's map.
+    pub joints: Vec<JointMapReport>,
+    /// Lines of poses left out as outliers of the geometric fit ([`OUTLIER_DEVIATIONS`]).
+    pub left_out_lines: Vec<u64>,
+    /// Statistics of the geometric calibration alone on the calibration poses.
+    pub geometric_calibration: Stage,
+    /// And on the held-out poses, when given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub geometric_validation: Option<Stage>,
+}
+
+/// `dataset` with the maps added to every joint reading: what the kinematics sees.
+pub fn with_maps(dataset: &Dataset, maps: &JointMaps) -> anyhow::Result<Dataset> {
+    let mut out = dataset.clone();
+    for (m, r) in out.measurements.iter_mut().zip(&dataset.data.records) {
+        let q: [f64; JOINTS] = std::array::from_fn(|j| r.q[j]);
+        *m = Measurement::new(
+            &maps.apply(&q),
+            Vector3::from(r.position),
+            r.rotation,
+            r.weight,
+        )?;
+    }
+    Ok(out)
+}
+
+/// Adds the joint maps to the geometric calibration `result` of `dataset` (prepared: frames
+/// fitted), validated on `validation`.
+pub fn add_joint_maps(
+    mut result: CalibrationResult,
+    dataset: &Dataset,
+    validation: Option<&Dataset>,
+    config: &CalibrationConfig,
+) -> anyhow::Result<CalibrationResult> {
+    if dataset.file.joint_maps.is_some() {
+        anyhow::bail!(
+            "{}: the robot file already has joint maps; identify new ones from the nominal robot file or the \
+             geometric calibration's file",
+            dataset.model.path.display()
+        );
+    }
+    let geometric = Kinematics::new(&dataset.model.robot, &result.errors)?;
+    let residuals: Vec<f64> = dataset
+        .measurements
+        .iter()
+        .map(|m| (m.position - geometric.forward_angles(&m.angles).translation.vector).norm())
+        .collect();
+    let median = super::median(&mut residuals.clone());
+    let mut deviations: Vec<f64> = residuals.iter().map(|r| (r - median).abs()).collect();
+    let spread = 1.4826 * super::median(&mut deviations);
+    let limit = median + OUTLIER_DEVIATIONS * spread;
+    let mut left_out_lines = Vec::new();
+    let mut poses = Vec::new();
+    for (r, residual) in dataset.data.records.iter().zip(&residuals) {
+        if *residual > limit || r.weight == 0.0 {
+            left_out_lines.push(r.line);
+            continue;
+        }
+        poses.push(Pose {
+            q: std::array::from_fn(|j| r.q[j]),
+            position: Vector3::from(r.position),
+        });
+    }
+    let parameters: Vec<_> = result.parameters.iter().map(|p| p.parameter).collect();
+    let (found, evidence) =
+        joint_maps::identify_best(&dataset.model.robot, &result.errors, &parameters, &poses)?;
+    let ranges: [[f64; 2]; JOINTS] = std::array::from_fn(|j| {
+        poses
+            .iter()
+            .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], p| {
+                [lo.min(p.q[j]), hi.max(p.q[j])]
+            })
+    });
+    // The statistics of the model with the maps.
+    let actual = Kinematics::new(&dataset.model.robot, &found.errors)?;
+    let mapped = with_maps(dataset, &found.maps)?;
+    let (after, after_poses) = table3(&actual, &mapped);
+    let geometric_calibration = result.calibration;
+    let geometric_validation = result.validation;
+    result.calibration.after = after;
+    for (pose, after) in result.poses.iter_mut().zip(&after_poses) {
+        pose.after_mm = *after;
+    }
+    result.per_pose.after = after_poses;
+    result.per_pose.orientation_after = crate::statistics::orientation_per_pose(&actual, &mapped);
+    if let (Some(v), Some(stage)) = (validation, result.validation.as_mut()) {
+        let (after, per_pose) = table3(&actual, &with_maps(v, &found.maps)?);
+        stage.after = after;
+        result.per_pose.validation_after = per_pose;
+    }
+    for (p, sd) in result.parameters.iter_mut().zip(&found.parameter_sd) {
+        p.value = found.errors.get(p.parameter).unwrap_or(0.0);
+        p.std_error = Some(*sd);
+    }
+    result.errors = found.errors;
+    let mut frames = result.frames.clone();
+    let mut file = super::identified_robot(
+        dataset,
+        config,
+        &result.parameters,
+        &result.errors,
+        &mut frames,
+    );
+    file.joint_maps = Some(JointMapsSection::new(&found.maps, &ranges));
+    result.identified_robot = file;
+    result.frames = frames;
+    let joints = (0..JOINTS)
+        .map(|j| {
+            let values: Vec<f64> = poses.iter().map(|p| found.maps.error(j, p.q[j])).collect();
+            let rms =
+                (values.iter().map(|v| v * v).sum::<f64>() / values.len().max(1) as f64).sqrt();
+            let max = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            JointMapReport {
+                joint: j + 1,
+                supported: found.amplitude_rad[j] > NEGLIGIBLE_AMPLITUDE_RAD,
+                prior_sd_mrad: found.amplitude_rad[j] * 1e3,
+                rms_mrad: rms * 1e3,
+                max_mrad: max * 1e3,
+                determined: found.determined[j],
+                range_deg: ranges[j].map(f64::to_degrees),
+            }
+        })
+        .collect();
+    result.joint_maps = Some(JointMapsReport {
+        harmonics: found.maps.harmonics,
+        evidence,
+        log_evidence: found.log_evidence,
+        noise_mm: found.noise_mm,
+        joints,
+        left_out_lines,
+        geometric_calibration,
+        geometric_validation,
+    });
+    Ok(result)
+}
+
+impl JointMapsReport {
+    /// The stage in words: the model chosen, each joint's map, and the geometric calibration's
+    /// statistics for comparison.
+    pub fn text(&self) -> String {
+        let mut text = format!(
+            "\njoint maps (the tables above include them): {} harmonics per joint chosen by the evidence \
+             (log evidence {}), noise {:.4} mm per coordinate\n",
+            self.harmonics,
+            self.evidence
+                .iter()
+                .map(|(h, e)| format!("H={h}: {e:.1}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            self.noise_mm
+        );
+        text.push_str(
+            "joint  map   prior sd (mrad)  RMS (mrad)  max (mrad)  determined  range (deg)\n",
+        );
+        for j in &self.joints {
+            text.push_str(&format!(
+                "{:>5}  {:<4}  {:>15.4}  {:>10.4}  {:>10.4}  {:>10.1}  {:.1} to {:.1}\n",
+                j.joint,
+                if j.supported { "yes" } else { "zero" },
+                j.prior_sd_mrad,
+                j.rms_mrad,
+                j.max_mrad,
+                j.determined,
+                j.range_deg[0],
+                j.range_deg[1]
+            ));
+        }
+        let unsupported: Vec<String> = self
+            .joints
+            .iter()
+            .filter(|j| !j.supported)
+            .map(|j| j.joint.to_string())
+            .collect();
+        if !unsupported.is_empty() {
+            text.push_str(&format!(
+                "the evidence does not support a map for joint {}: kept at zero (more poses, or a wider range of that joint, may)\n",
+                unsupported.join(", ")
+            ));
+        }
+        if !self.left_out_lines.is_empty() {
+            text.push_str(&format!(
+                "left out of the maps as outliers of the geometric fit: lines {:?}\n",
+                self.left_out_lines
+            ));
+        }
+        text.push_str(&format!(
+            "geometric calibration alone: calibration poses mean |dp| {:.4} mm",
+            self.geometric_calibration.after.position_mm.mean
+        ));
+        if let Some(v) = &self.geometric_validation {
+            text.push_str(&format!(
+                ", held-out poses {:.4} mm",
+                v.after.position_mm.mean
+            ));
+        }
+        text.push('\n');
+        text
+    }
+}

@@ -1,0 +1,766 @@
+//! Per-joint angle-error maps identified jointly with the geometry (issue 14).
+//!
+//! What a geometric calibration leaves on a real robot is mostly an angle error of each joint that
+//! repeats with that joint's own angle (gearbox or encoder). Each joint `j` gets a map
+//!
+//! `dq_j(q_j) = sum_{h=1..H} a_jh sin(h q_j) + b_jh cos(h q_j)`  (rad)
+//!
+//! added to the joint reading before the forward kinematics. With a few dozen poses there are
+//! many more coefficients than equations, so the coefficients carry a zero-mean Gaussian prior,
+//! one standard deviation `s_j` per joint (a Gaussian process on the circle with the periodic
+//! kernel `s_j^2 sum_h cos(h (q - q'))`, seen through the joint Jacobian). The prior's
+//! amplitudes and the noise level `sigma` maximise the marginal likelihood (evidence) of the
+//! calibration poses, by MacKay's fixed-point updates; the geometry (every parameter of the
+//! geometric calibration, frames included) has a flat prior. The geometry and the coefficients
+//! are then the posterior mean. The model is linear in the coefficients for a fixed geometry and
+//! nearly linear in the geometry near its calibrated value: the problem is relinearised a few
+//! times.
+//!
+//! When the evidence does not support a map (too few poses, a narrow joint range), its amplitude
+//! goes to zero and the map with it.
+
+use crate::JOINTS;
+use calib_core::model::parameters::all_parameters;
+use calib_core::{JointAngles, Kinematics, Parameter, ParameterErrors, ParameterMask, Robot};
+use nalgebra::{DMatrix, DVector, Vector3};
+use serde::{Deserialize, Serialize};
+
+/// The harmonic counts the evidence chooses from (see [`identify_best`]): multiples of
+/// [`HARMONICS_STEP`] up to [`MAX_HARMONICS`].
+pub const HARMONICS_STEP: usize = 10;
+
+/// The most harmonics per joint [`identify_best`] tries (the study behind issue 14 used 40-60;
+/// on UR10 Series B with 50 poses the evidence prefers 30).
+pub const MAX_HARMONICS: usize = 60;
+
+/// Relinearisations of the geometry around the current estimate.
+const LINEARISATIONS: usize = 3;
+
+/// Evidence iterations (MacKay updates) per linearisation at most.
+const EVIDENCE_ITERATIONS: usize = 500;
+
+/// Relative change of every hyperparameter (in its logarithm) below which the evidence
+/// iterations stop.
+const EVIDENCE_TOLERANCE: f64 = 1e-4;
+
+/// A prior amplitude below this (rad) is treated as zero: the evidence does not support a map.
+pub const NEGLIGIBLE_AMPLITUDE_RAD: f64 = 1e-7;
+
+/// The angle-error map of every joint.
+#[derive(Clone, Debug, PartialEq)]
+pub struct JointMaps {
+    /// Harmonics per joint, `H`.
+    pub harmonics: usize,
+    /// Per joint, `[a_1..a_H, b_1..b_H]`, rad.
+    pub coefficients: [Vec<f64>; JOINTS],
+}
+
+impl JointMaps {
+    /// Maps that are zero everywhere.
+    pub fn zero(harmonics: usize) -> Self {
+        Self {
+            harmonics,
+            coefficients: std::array::from_fn(|_| vec![0.0; 2 * harmonics]),
+        }
+    }
+
+    /// The angle error of joint `joint` (0-based) at reading `q`, rad.
+    pub fn error(&self, joint: usize, q: f64) -> f64 {
+        let Some(c) = self.coefficients.get(joint) else {
+            return 0.0;
+        };
+        let h = self.harmonics;
+        (1..=h)
+            .map(|k| {
+                let (s, co) = (k as f64 * q).sin_cos();
+                c[k - 1] * s + c[h + k - 1] * co
+            })
+            .sum()
+    }
+
+    /// The joint readings `q` (rad) with every map added: what the kinematics sees.
+    pub fn apply(&self, q: &[f64; JOINTS]) -> [f64; JOINTS] {
+        std::array::from_fn(|j| q[j] + self.error(j, q[j]))
+    }
+}
+
+/// Largest magnitude of one map coefficient accepted in a robot file, rad (10 mrad; identified
+/// maps are below 1 mrad in all).
+pub const MAX_COEFFICIENT_RAD: f64 = 0.01;
+
+/// Most harmonics accepted in a robot file.
+pub const MAX_FILE_HARMONICS: usize = 200;
+
+/// The `[joint_maps]` section of a robot file: each joint's angle-error map,
+/// `dq(q) = sum_h sin_rad[h-1] sin(h q) + cos_rad[h-1] cos(h q)` (rad, `q` the joint reading),
+/// added to the reading before the kinematics, and the range of readings it was identified on.
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointMapsSection {
+    /// Harmonics per joint, `H`.
+    pub harmonics: usize,
+    /// One map per joint, joint 1 first.
+    pub joint: Vec<JointMapEntry>,
+}
+
+/// One joint's map in a robot file.
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointMapEntry {
+    /// `[lowest, highest]` reading of the poses the map was identified on, degrees: outside it
+    /// the map is extrapolated.
+    pub range_deg: [f64; 2],
+    /// Coefficients of `sin(h q)`, `h = 1..H`, rad.
+    pub sin_rad: Vec<f64>,
+    /// Coefficients of `cos(h q)`, `h = 1..H`, rad.
+    pub cos_rad: Vec<f64>,
+}
+
+impl JointMapsSection {
+    /// The section of `maps`, identified on readings within `ranges` (rad, per joint).
+    pub fn new(maps: &JointMaps, ranges: &[[f64; 2]; JOINTS]) -> Self {
+        let h = maps.harmonics;
+        Self {
+            harmonics: h,
+            joint: maps
+                .coefficients
+                .iter()
+                .zip(ranges)
+                .map(|(c, range)| JointMapEntry {
+                    range_deg: range.map(f64::to_degrees),
+                    sin_rad: c[..h].to_vec(),
+                    cos_rad: c[h..].to_vec(),
+                })
+                .collect(),
+        }
+    }
+
+    /// The maps, checked: one per joint, `harmonics` finite coefficients within
+    /// [`MAX_COEFFICIENT_RAD`] each. The error names the joint and the field.
+    pub fn to_maps(&self) -> Result<JointMaps, String> {
+        let h = self.harmonics;
+        if h == 0 || h > MAX_FILE_HARMONICS {
+            return Err(format!(
+                "[joint_maps]: harmonics = {h}, expected 1 to {MAX_FILE_HARMONICS}"
+            ));
+        }
+        if self.joint.len() != JOINTS {
+            return Err(format!(
+                "[joint_maps]: {} [[joint_maps.joint]] tables, expected {JOINTS} (one per joint)",
+                self.joint.len()
+            ));
+        }
+        let mut maps = JointMaps::zero(h);
+        for (j, (entry, c)) in self.joint.iter().zip(&mut maps.coefficients).enumerate() {
+            let joint = j + 1;
+            for (name, values) in [("sin_rad", &entry.sin_rad), ("cos_rad", &entry.cos_rad)] {
+                if values.len() != h {
+                    return Err(format!(
+                        "[joint_maps] joint {joint}: {name} has {} values, expected harmonics = {h}",
+                        values.len()
+                    ));
+                }
+                if let Some(v) = values
+                    .iter()
+                    .find(|v| !(v.is_finite() && v.abs() <= MAX_COEFFICIENT_RAD))
+                {
+                    return Err(format!(
+                        "[joint_maps] joint {joint}: {name} holds {v}, beyond the plausible +-{MAX_COEFFICIENT_RAD} rad of a joint's angle error"
+                    ));
+                }
+            }
+            if !(entry.range_deg.iter().all(|v| v.is_finite())
+                && entry.range_deg[0] <= entry.range_deg[1])
+            {
+                return Err(format!(
+                    "[joint_maps] joint {joint}: range_deg = {:?} is not [lowest, highest]",
+                    entry.range_deg
+                ));
+            }
+            c[..h].copy_from_slice(&entry.sin_rad);
+            c[h..].copy_from_slice(&entry.cos_rad);
+        }
+        Ok(maps)
+    }
+
+    /// Per joint, `[lowest, highest]` reading the map was identified on, rad.
+    pub fn ranges(&self) -> Vec<[f64; 2]> {
+        self.joint
+            .iter()
+            .map(|e| e.range_deg.map(f64::to_radians))
+            .collect()
+    }
+}
+
+/// One calibration pose: joint readings (rad) and the measured position (mm, measurement frame).
+#[derive(Clone, Copy, Debug)]
+pub struct Pose {
+    /// Joint readings, rad.
+    pub q: [f64; JOINTS],
+    /// Measured position, mm.
+    pub position: Vector3<f64>,
+}
+
+/// What [`identify`] found.
+#[derive(Clone, Debug)]
+pub struct MapIdentification {
+    /// The geometry: errors on top of the robot given (mm, rad), for every parameter identified.
+    pub errors: ParameterErrors<f64, JOINTS>,
+    /// Posterior standard deviation of each geometric parameter, in the order given, mm or rad.
+    pub parameter_sd: Vec<f64>,
+    /// The maps (posterior mean).
+    pub maps: JointMaps,
+    /// Posterior standard deviation of each map's coefficients, per joint, in the order of
+    /// [`JointMaps::coefficients`], rad.
+    pub coefficient_sd: [Vec<f64>; JOINTS],
+    /// The prior standard deviation of each joint's coefficients chosen by the evidence, rad.
+    pub amplitude_rad: [f64; JOINTS],
+    /// The measurement noise chosen by the evidence (per position coordinate), mm.
+    pub noise_mm: f64,
+    /// Log evidence of the calibration poses (up to a constant that depends only on the poses
+    /// and the geometric parameters identified).
+    pub log_evidence: f64,
+    /// Effective number of map coefficients the data determine (MacKay's gamma), per joint.
+    pub determined: [f64; JOINTS],
+}
+
+/// Identifies the maps with the number of harmonics the evidence prefers: starting from 30,
+/// steps of [`HARMONICS_STEP`] up or down while the log evidence rises, within
+/// `HARMONICS_STEP..=MAX_HARMONICS`. Returns the best identification and the log evidence of
+/// every count tried (harmonics, log evidence).
+pub fn identify_best(
+    robot: &Robot<f64, JOINTS>,
+    start: &ParameterErrors<f64, JOINTS>,
+    parameters: &[Parameter],
+    poses: &[Pose],
+) -> anyhow::Result<(MapIdentification, Vec<(usize, f64)>)> {
+    let mut tried: Vec<(usize, f64)> = Vec::new();
+    let first = 3 * HARMONICS_STEP;
+    let mut best = identify(robot, start, parameters, poses, first)?;
+    tried.push((first, best.log_evidence));
+    for direction in [1isize, -1] {
+        let mut h = first;
+        while let Some(next) = h
+            .checked_add_signed(direction * HARMONICS_STEP as isize)
+            .filter(|n| (HARMONICS_STEP..=MAX_HARMONICS).contains(n))
+        {
+            let candidate = identify(robot, start, parameters, poses, next)?;
+            tried.push((next, candidate.log_evidence));
+            if candidate.log_evidence <= best.log_evidence {
+                break;
+            }
+            best = candidate;
+            h = next;
+        }
+        if best.maps.harmonics != first {
+            // Rose going up: no need to go down.
+            break;
+        }
+    }
+    tried.sort_by_key(|t| t.0);
+    Ok((best, tried))
+}
+
+/// Identifies the maps of `harmonics` harmonics per joint jointly with the geometric parameters
+/// `parameters` of `robot` (in the measurement frames), starting from the geometric
+/// calibration's errors `start`, from `poses`. Errors: too few poses, a non-finite value, a
+/// singular problem.
+pub fn identify(
+    robot: &Robot<f64, JOINTS>,
+    start: &ParameterErrors<f64, JOINTS>,
+    parameters: &[Parameter],
+    poses: &[Pose],
+    harmonics: usize,
+) -> anyhow::Result<MapIdentification> {
+    let rows = 3 * poses.len();
+    let geometry = parameters.len();
+    if harmonics == 0 {
+        anyhow::bail!("joint maps need at least one harmonic");
+    }
+    if rows <= geometry + 1 {
+        anyhow::bail!(
+            "{} poses give {rows} equations for {geometry} geometric parameters: too few for joint maps",
+            poses.len()
+        );
+    }
+    let all = all_mask();
+    let set = calib_core::ParameterSet::<JOINTS, 42>::from_mask(&all)?;
+    let columns: Vec<usize> = parameters
+        .iter()
+        .map(|p| {
+            set.index_of(*p)
+                .ok_or_else(|| anyhow::anyhow!("parameter {p:?} is not a parameter of the robot"))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let per_joint = 2 * harmonics;
+    let unknowns = geometry + JOINTS * per_joint;
+    let mut errors = *start;
+    let mut maps = JointMaps::zero(harmonics);
+    // Prior precisions of the joint groups (1/s_j^2) and the noise precision (1/sigma^2).
+    let mut alpha = [1.0 / (1e-4f64).powi(2); JOINTS];
+    let mut beta = 1.0 / (0.05f64).powi(2);
+    let mut result = None;
+    for _ in 0..LINEARISATIONS {
+        let kinematics = Kinematics::new(robot, &errors)?;
+        // Design matrix and the residual with the current maps taken back out (the model is
+        // solved for the total coefficients, whose prior is centred on zero).
+        let mut design = DMatrix::<f64>::zeros(rows, unknowns);
+        let mut residual = DVector::<f64>::zeros(rows);
+        let current: DVector<f64> = DVector::from_iterator(
+            JOINTS * per_joint,
+            maps.coefficients.iter().flatten().copied(),
+        );
+        for (i, pose) in poses.iter().enumerate() {
+            let q = maps.apply(&pose.q);
+            let angles = JointAngles::new(&q)?;
+            let (end, parameter_jacobian) = kinematics.parameter_jacobian(&set, &angles);
+            let (_, joint_jacobian) = kinematics.geometric_jacobian(&q)?;
+            let r = pose.position - end.translation.vector;
+            for axis in 0..3 {
+                let row = 3 * i + axis;
+                residual[row] = r[axis];
+                for (c, &p) in columns.iter().enumerate() {
+                    design[(row, c)] = parameter_jacobian[(axis, p)];
+                }
+                for j in 0..JOINTS {
+                    for k in 1..=harmonics {
+                        let (s, co) = (k as f64 * pose.q[j]).sin_cos();
+                        let base = geometry + j * per_joint;
+                        design[(row, base + k - 1)] = joint_jacobian[(axis, j)] * s;
+                        design[(row, base + harmonics + k - 1)] = joint_jacobian[(axis, j)] * co;
+                    }
+                }
+            }
+        }
+        if !design.iter().chain(residual.iter()).all(|v| v.is_finite()) {
+            anyhow::bail!("joint maps: a Jacobian or residual is not finite");
+        }
+        residual += design.columns(geometry, JOINTS * per_joint) * &current;
+        let solved = if rows < unknowns {
+            evidence_function_space(
+                &design, &residual, geometry, per_joint, &mut alpha, &mut beta,
+            )?
+        } else {
+            let gram = design.transpose() * &design;
+            let projected = design.transpose() * &residual;
+            evidence(
+                &gram,
+                &projected,
+                residual.norm_squared(),
+                rows,
+                geometry,
+                per_joint,
+                &mut alpha,
+                &mut beta,
+            )?
+        };
+        for (c, &p) in parameters.iter().enumerate() {
+            let old = errors.get(p).unwrap_or(0.0);
+            errors.set(p, old + solved.mean[c]);
+        }
+        for (j, coefficients) in maps.coefficients.iter_mut().enumerate() {
+            for (k, c) in coefficients.iter_mut().enumerate() {
+                *c = solved.mean[geometry + j * per_joint + k];
+            }
+        }
+        result = Some(solved);
+    }
+    let Some(solved) = result else {
+        anyhow::bail!("joint maps: no linearisation ran");
+    };
+    let coefficient_sd = std::array::from_fn(|j| {
+        (0..per_joint)
+            .map(|k| {
+                solved.variance[geometry + j * per_joint + k]
+                    .max(0.0)
+                    .sqrt()
+            })
+            .collect()
+    });
+    let parameter_sd = (0..geometry)
+        .map(|i| solved.variance[i].max(0.0).sqrt())
+        .collect();
+    Ok(MapIdentification {
+        errors,
+        parameter_sd,
+        maps,
+        coefficient_sd,
+        amplitude_rad: alpha.map(|a| 1.0 / a.sqrt()),
+        noise_mm: 1.0 / beta.sqrt(),
+        log_evidence: solved.log_evidence,
+        determined: solved.determined,
+    })
+}
+
+fn all_mask() -> ParameterMask<JOINTS> {
+    let mut mask = ParameterMask::<JOINTS>::empty();
+    for p in all_parameters::<JOINTS>() {
+        mask.set(p, true);
+    }
+    mask
+}
+
+/// The posterior of one linearisation.
+struct Posterior {
+    mean: DVector<f64>,
+    /// Diagonal of the posterior covariance.
+    variance: DVector<f64>,
+    log_evidence: f64,
+    determined: [f64; JOINTS],
+}
+
+/// Bayesian linear regression with a flat prior on the first `geometry` unknowns and a zero-mean
+/// Gaussian prior of precision `alpha[j]` on each joint's `per_joint` coefficients; noise
+/// precision `beta`. `alpha` and `beta` are updated to their evidence maximum (MacKay 1992:
+/// `gamma_j = sum_k (1 - alpha_j Sigma_kk)`, `alpha_j = gamma_j / |m_j|^2`,
+/// `beta = (N - gamma) / |r - Phi m|^2`).
+#[allow(clippy::too_many_arguments)]
+fn evidence(
+    gram: &DMatrix<f64>,
+    projected: &DVector<f64>,
+    residual_squared: f64,
+    rows: usize,
+    geometry: usize,
+    per_joint: usize,
+    alpha: &mut [f64; JOINTS],
+    beta: &mut f64,
+) -> anyhow::Result<Posterior> {
+    let mut last = None;
+    for iteration in 0..EVIDENCE_ITERATIONS {
+        let mut precision = gram * *beta;
+        for (j, a) in alpha.iter().enumerate() {
+            for k in 0..per_joint {
+                let i = geometry + j * per_joint + k;
+                precision[(i, i)] += a;
+            }
+        }
+        let Some(cholesky) = precision.clone().cholesky() else {
+            anyhow::bail!(
+                "joint maps: the posterior is singular (a geometric parameter is not determined)"
+            );
+        };
+        let mean = cholesky.solve(projected) * *beta;
+        let covariance = cholesky.inverse();
+        let variance = covariance.diagonal();
+        // |r - Phi m|^2 = r^T r - 2 m^T Phi^T r + m^T G m.
+        let misfit =
+            (residual_squared - 2.0 * mean.dot(projected) + (gram * &mean).dot(&mean)).max(0.0);
+        let mut determined = [0.0; JOINTS];
+        let mut gamma = geometry as f64;
+        let mut prior_energy = 0.0;
+        let mut log_alpha = 0.0;
+        let mut new_alpha = *alpha;
+        for j in 0..JOINTS {
+            let range = geometry + j * per_joint..geometry + (j + 1) * per_joint;
+            let m2: f64 = range.clone().map(|i| mean[i] * mean[i]).sum();
+            let g: f64 = range.map(|i| 1.0 - alpha[j] * variance[i]).sum();
+            determined[j] = g;
+            gamma += g;
+            prior_energy += alpha[j] * m2;
+            log_alpha += per_joint as f64 * alpha[j].ln();
+            new_alpha[j] = (g.max(1e-12) / m2.max(1e-300)).min(1e30);
+            if new_alpha[j] > 1.0 / (NEGLIGIBLE_AMPLITUDE_RAD * NEGLIGIBLE_AMPLITUDE_RAD) {
+                new_alpha[j] = 1e30;
+            }
+        }
+        let log_det: f64 = cholesky.l().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
+        let log_evidence = 0.5 * log_alpha + 0.5 * rows as f64 * beta.ln()
+            - 0.5 * (*beta * misfit + prior_energy)
+            - 0.5 * log_det
+            - 0.5 * (rows - geometry) as f64 * (2.0 * std::f64::consts::PI).ln();
+        let new_beta = ((rows as f64 - gamma).max(1.0)) / misfit.max(1e-300);
+        let converged = new_alpha.iter().zip(alpha.iter()).all(|(a, b)| {
+            (a.ln() - b.ln()).abs() < EVIDENCE_TOLERANCE || (*a >= 1e29 && *b >= 1e29)
+        }) && (new_beta.ln() - beta.ln()).abs() < EVIDENCE_TOLERANCE;
+        *alpha = new_alpha;
+        *beta = new_beta;
+        last = Some(Posterior {
+            mean,
+            variance,
+            log_evidence,
+            determined,
+        });
+        if converged || iteration + 1 == EVIDENCE_ITERATIONS {
+            break;
+        }
+    }
+    last.ok_or_else(|| anyhow::anyhow!("joint maps: no evidence iteration ran"))
+}
+
+/// The same posterior and evidence as [`evidence`], computed in the space of the `N` equations
+/// (cheaper when there are fewer equations than unknowns): the coefficients are integrated out,
+/// `r ~ N(A dtheta, K)` with `K = sigma^2 I + sum_j s_j^2 Phi_j Phi_j^T`, and the geometry's flat
+/// prior gives the restricted likelihood
+/// `-r^T P r / 2 - log|K| / 2 - log|A^T K^-1 A| / 2 - (N - D) log(2 pi) / 2`,
+/// `P = K^-1 - K^-1 A (A^T K^-1 A)^-1 A^T K^-1`. Then `m_j = s_j^2 Phi_j^T P r`,
+/// `gamma_j = s_j^2 tr(P Phi_j Phi_j^T)`, and `r - A dtheta - Phi m = sigma^2 P r`.
+fn evidence_function_space(
+    design: &DMatrix<f64>,
+    residual: &DVector<f64>,
+    geometry: usize,
+    per_joint: usize,
+    alpha: &mut [f64; JOINTS],
+    beta: &mut f64,
+) -> anyhow::Result<Posterior> {
+    let rows = design.nrows();
+    let a = design.columns(0, geometry).into_owned();
+    let phi: Vec<DMatrix<f64>> = (0..JOINTS)
+        .map(|j| {
+            design
+                .columns(geometry + j * per_joint, per_joint)
+                .into_owned()
+        })
+        .collect();
+    let kernels: Vec<DMatrix<f64>> = phi.iter().map(|p| p * p.transpose()).collect();
+    // Prior variances s_j^2 and noise variance sigma^2.
+    let mut variance_prior: [f64; JOINTS] = alpha.map(|a| if a >= 1e29 { 0.0 } else { 1.0 / a });
+    let mut noise = 1.0 / *beta;
+    let mut last = None;
+    for iteration in 0..EVIDENCE_ITERATIONS {
+        let mut k = DMatrix::<f64>::identity(rows, rows) * noise;
+        for (kernel, s2) in kernels.iter().zip(&variance_prior) {
+            if *s2 > 0.0 {
+                k += kernel * *s2;
+            }
+        }
+        let Some(k_chol) = k.cholesky() else {
+            anyhow::bail!("joint maps: the covariance of the poses is singular");
+        };
+        let k_inv = k_chol.inverse();
+        let k_inv_a = &k_inv * &a;
+        let Some(m_chol) = (a.transpose() * &k_inv_a).cholesky() else {
+            anyhow::bail!(
+                "joint maps: the posterior is singular (a geometric parameter is not determined)"
+            );
+        };
+        let p = &k_inv - &k_inv_a * m_chol.solve(&k_inv_a.transpose());
+        let pr = &p * residual;
+        let dtheta = m_chol.solve(&(k_inv_a.transpose() * residual));
+        let mut mean = DVector::<f64>::zeros(geometry + JOINTS * per_joint);
+        mean.rows_mut(0, geometry).copy_from(&dtheta);
+        let mut variance = DVector::<f64>::zeros(geometry + JOINTS * per_joint);
+        variance
+            .rows_mut(0, geometry)
+            .copy_from(&m_chol.inverse().diagonal());
+        let mut determined = [0.0; JOINTS];
+        let mut new_prior = variance_prior;
+        for j in 0..JOINTS {
+            let s2 = variance_prior[j];
+            let u = phi[j].transpose() * &pr;
+            let trace = p.component_mul(&kernels[j]).sum();
+            let offset = geometry + j * per_joint;
+            mean.rows_mut(offset, per_joint).copy_from(&(&u * s2));
+            let p_phi = &p * &phi[j];
+            for c in 0..per_joint {
+                let quadratic = phi[j].column(c).dot(&p_phi.column(c));
+                variance[offset + c] = (s2 - s2 * s2 * quadratic).max(0.0);
+            }
+            determined[j] = s2 * trace;
+            new_prior[j] = if trace > 0.0 {
+                s2 * u.norm_squared() / trace
+            } else {
+                0.0
+            };
+            if new_prior[j] < NEGLIGIBLE_AMPLITUDE_RAD * NEGLIGIBLE_AMPLITUDE_RAD {
+                new_prior[j] = 0.0;
+            }
+        }
+        let gamma = geometry as f64 + determined.iter().sum::<f64>();
+        let log_det_k: f64 = k_chol.l().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
+        let log_det_m: f64 = m_chol.l().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
+        let log_evidence = -0.5 * residual.dot(&pr)
+            - 0.5 * log_det_k
+            - 0.5 * log_det_m
+            - 0.5 * (rows - geometry) as f64 * (2.0 * std::f64::consts::PI).ln();
+        let new_noise = noise * noise * pr.norm_squared() / (rows as f64 - gamma).max(1.0);
+        let close = |a: f64, b: f64| {
+            (a == 0.0 && b == 0.0)
+                || (a > 0.0 && b > 0.0 && (a.ln() - b.ln()).abs() < EVIDENCE_TOLERANCE)
+        };
+        let converged = new_prior
+            .iter()
+            .zip(&variance_prior)
+            .all(|(a, b)| close(*a, *b))
+            && close(new_noise, noise);
+        variance_prior = new_prior;
+        noise = new_noise;
+        last = Some(Posterior {
+            mean,
+            variance,
+            log_evidence,
+            determined,
+        });
+        if converged || iteration + 1 == EVIDENCE_ITERATIONS {
+            break;
+        }
+    }
+    *alpha = variance_prior.map(|s2| if s2 > 0.0 { 1.0 / s2 } else { 1e30 });
+    *beta = 1.0 / noise;
+    last.ok_or_else(|| anyhow::anyhow!("joint maps: no evidence iteration ran"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+    use rand_distr::{Distribution, Normal};
+
+    /// A random problem: `rows` equations, `geometry` flat-prior unknowns, `per_joint`
+    /// coefficients per joint, from known coefficients and noise.
+    fn problem(rows: usize, geometry: usize, per_joint: usize) -> (DMatrix<f64>, DVector<f64>) {
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
+        let unit = Normal::new(0.0, 1.0).unwrap();
+        let unknowns = geometry + JOINTS * per_joint;
+        let design = DMatrix::from_fn(rows, unknowns, |_, _| unit.sample(&mut rng));
+        let truth = DVector::from_fn(unknowns, |i, _| {
+            let joint = i.saturating_sub(geometry) / per_joint.max(1);
+            // Joint 6's coefficients are zero: its map is not supported.
+            if i >= geometry && joint == JOINTS - 1 {
+                0.0
+            } else {
+                rng.random_range(-1.0..1.0)
+            }
+        });
+        let noise = DVector::from_fn(rows, |_, _| 0.3 * unit.sample(&mut rng));
+        (design.clone(), design * truth + noise)
+    }
+
+    #[test]
+    fn the_evidence_in_weight_space_and_in_function_space_agree() {
+        // Two derivations of one restricted likelihood: P x P (weight space) and N x N (function
+        // space), both iterated to their own fixed point from the same start.
+        for (rows, per_joint) in [(60, 4), (24, 4)] {
+            let geometry = 3;
+            let (design, residual) = problem(rows, geometry, per_joint);
+            let start = ([1.0; JOINTS], 1.0);
+            let (mut alpha_w, mut beta_w) = start;
+            let weight = evidence(
+                &(design.transpose() * &design),
+                &(design.transpose() * &residual),
+                residual.norm_squared(),
+                rows,
+                geometry,
+                per_joint,
+                &mut alpha_w,
+                &mut beta_w,
+            )
+            .unwrap();
+            let (mut alpha_f, mut beta_f) = start;
+            let function = evidence_function_space(
+                &design,
+                &residual,
+                geometry,
+                per_joint,
+                &mut alpha_f,
+                &mut beta_f,
+            )
+            .unwrap();
+            assert!(
+                (weight.log_evidence - function.log_evidence).abs() < 1e-6,
+                "{} vs {}",
+                weight.log_evidence,
+                function.log_evidence
+            );
+            assert!((weight.mean.clone() - function.mean.clone()).amax() < 1e-5);
+            assert!((weight.variance.clone() - function.variance.clone()).amax() < 1e-5);
+            assert!((beta_w / beta_f - 1.0).abs() < 1e-3);
+            for j in 0..JOINTS {
+                let both_off = alpha_w[j] >= 1e29 && alpha_f[j] >= 1e29;
+                assert!(
+                    both_off || (alpha_w[j] / alpha_f[j] - 1.0).abs() < 1e-3,
+                    "joint {j}: {} vs {}",
+                    alpha_w[j],
+                    alpha_f[j]
+                );
+            }
+            // With enough equations, the map without a signal has the smallest prior amplitude.
+            for alpha in [alpha_w, alpha_f].iter().filter(|_| rows >= 60) {
+                let weakest = (0..JOINTS).max_by(|a, b| alpha[*a].total_cmp(&alpha[*b]));
+                assert_eq!(weakest, Some(JOINTS - 1), "{alpha:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn known_maps_and_geometry_are_recovered_within_their_posterior_uncertainty() {
+        let text = include_str!("../robots/ur10.toml");
+        let file =
+            crate::robot_file::RobotFile::parse(text, std::path::Path::new("ur10.toml")).unwrap();
+        let mut robot = file
+            .to_model::<JOINTS>(std::path::Path::new("ur10.toml"))
+            .unwrap()
+            .robot;
+        // A reflector off the flange axis, so that every joint's distal parameters show.
+        robot.tool = calib_core::FramePose {
+            xyz: [40.0, -30.0, 80.0],
+            rpy: [0.0; 3],
+        };
+        let parameters: Vec<Parameter> = ["da2", "da3", "dd4", "dalpha2", "dtheta2", "dtheta3"]
+            .iter()
+            .map(|n| Parameter::from_name(n, JOINTS).unwrap())
+            .collect();
+        let mut truth_errors = ParameterErrors::<f64, JOINTS>::zero();
+        for (p, v) in parameters.iter().zip([0.3, -0.2, 0.25, 4e-4, -3e-4, 5e-4]) {
+            truth_errors.set(*p, v);
+        }
+        // True maps: 5 harmonics per joint, coefficients of 0.1 mrad (joint 6: none).
+        let harmonics = 5;
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(11);
+        let mut truth = JointMaps::zero(harmonics);
+        for c in truth.coefficients.iter_mut().take(JOINTS - 1).flatten() {
+            *c = rng.random_range(-1e-4..1e-4);
+        }
+        let actual = Kinematics::new(&robot, &truth_errors).unwrap();
+        let noise = Normal::new(0.0, 0.01).unwrap();
+        let poses: Vec<Pose> = (0..400)
+            .map(|_| {
+                let q: [f64; JOINTS] = std::array::from_fn(|_| rng.random_range(-3.1..3.1));
+                let p = actual.forward(&truth.apply(&q)).unwrap().translation.vector;
+                Pose {
+                    q,
+                    position: p + Vector3::from_fn(|_, _| noise.sample(&mut rng)),
+                }
+            })
+            .collect();
+        let found = identify(
+            &robot,
+            &ParameterErrors::zero(),
+            &parameters,
+            &poses,
+            harmonics,
+        )
+        .unwrap();
+        // Noise found as simulated (0.01 mm per coordinate).
+        assert!(
+            (found.noise_mm / 0.01 - 1.0).abs() < 0.15,
+            "{}",
+            found.noise_mm
+        );
+        // Coefficients within 3 posterior standard deviations (at least 97 %), the unsupported
+        // map at zero.
+        let (mut inside, mut total) = (0, 0);
+        for j in 0..JOINTS - 1 {
+            for ((c, t), sd) in found.maps.coefficients[j]
+                .iter()
+                .zip(&truth.coefficients[j])
+                .zip(&found.coefficient_sd[j])
+            {
+                total += 1;
+                if (c - t).abs() <= 3.0 * sd {
+                    inside += 1;
+                }
+                assert!(*sd < 2e-5, "joint {j}: sd {sd}");
+            }
+        }
+        assert!(inside * 100 >= total * 97, "{inside} of {total}");
+        assert!(found.amplitude_rad[JOINTS - 1] <= NEGLIGIBLE_AMPLITUDE_RAD);
+        for (i, p) in parameters.iter().enumerate() {
+            let (e, t) = (found.errors.get(*p).unwrap(), truth_errors.get(*p).unwrap());
+            assert!(
+                (e - t).abs() <= 3.0 * found.parameter_sd[i],
+                "{p:?}: {e} vs {t} (sd {})",
+                found.parameter_sd[i]
+            );
+        }
+    }
+}

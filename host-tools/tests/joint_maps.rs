@@ -1,0 +1,209 @@
+//! Issue 14: per-joint angle-error maps identified with the geometry (`calibrate --model
+//! joint-maps`) on the real UR10 data: calibrate on M random poses of Series B, validate on all
+//! the others.
+
+mod common;
+use common::parse;
+use host_tools::cli::calibrate::{self, CalibrateOptions};
+
+const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml");
+const DATA_B: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/data/ipa-ur10-lasertracker/series-b-joint-configurations.csv"
+);
+const POSITION: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/profiles/ipa-ur10-lasertracker-position.toml"
+);
+
+/// Series B has 1495 poses.
+const SERIES_B_POSES: usize = 1495;
+
+/// Calibrates Series B (position only, least squares) with joint maps on `poses` random poses
+/// (`seed`) and returns (geometric held-out mean, with maps held-out mean), mm.
+fn series_b(poses: usize, seed: u64) -> (f64, f64) {
+    let fraction = ((SERIES_B_POSES - poses) as f64 / SERIES_B_POSES as f64).to_string();
+    let seed_text = seed.to_string();
+    let args = [
+        "--robot",
+        ROBOT,
+        "--data",
+        DATA_B,
+        "--profile",
+        POSITION,
+        "--auto-mask",
+        "--method",
+        "lm",
+        "--validate",
+        &fraction,
+        "--validate-seed",
+        &seed_text,
+        "--model",
+        "joint-maps",
+    ];
+    let c = calibrate::calibrate(&parse::<CalibrateOptions>(&args)).unwrap();
+    let maps = c.result.joint_maps.as_ref().unwrap();
+    assert_eq!(c.result.calibration.poses, poses);
+    let geometric = maps.geometric_validation.unwrap().after.position_mm.mean;
+    let with_maps = c.result.validation.unwrap().after.position_mm.mean;
+    println!(
+        "M = {poses}, seed {seed}: held-out mean {geometric:.4} mm (geometric) -> {with_maps:.4} mm (joint maps, H = {}, noise {:.4} mm; supported {:?})",
+        maps.harmonics,
+        maps.noise_mm,
+        maps.joints.iter().map(|j| j.supported).collect::<Vec<_>>()
+    );
+    // The identified file carries the maps.
+    assert!(c.robot_toml.contains("[joint_maps]"));
+    (geometric, with_maps)
+}
+
+/// M = 50, 5 seeds. The study quoted in issue 14: 0.430 -> 0.224 mm (with gravity compliance,
+/// not modelled here). Goal: at most 0.25 mm, never worse than geometric.
+#[test]
+fn series_b_fifty_poses_with_joint_maps() {
+    let runs: Vec<(f64, f64)> = (0..5).map(|seed| series_b(50, seed)).collect();
+    for (seed, (geometric, with_maps)) in runs.iter().enumerate() {
+        assert!(
+            with_maps < geometric,
+            "seed {seed}: {geometric} -> {with_maps}"
+        );
+    }
+    let mean = |f: fn(&(f64, f64)) -> f64| runs.iter().map(f).sum::<f64>() / runs.len() as f64;
+    let (geometric, with_maps) = (mean(|r| r.0), mean(|r| r.1));
+    println!("M = 50, mean of 5 seeds: {geometric:.4} -> {with_maps:.4} mm");
+    assert!((0.40..0.46).contains(&geometric), "{geometric}");
+    assert!(with_maps <= 0.25, "{with_maps}");
+}
+
+/// M = 200, 3 seeds (slow: `cargo test --release -p host-tools --test joint_maps -- --ignored`).
+/// The study: 0.411 -> 0.130 mm. Goal: at most 0.14 mm.
+#[test]
+#[ignore]
+fn series_b_two_hundred_poses_with_joint_maps() {
+    let runs: Vec<(f64, f64)> = (0..3).map(|seed| series_b(200, seed)).collect();
+    for (seed, (geometric, with_maps)) in runs.iter().enumerate() {
+        assert!(
+            with_maps < geometric,
+            "seed {seed}: {geometric} -> {with_maps}"
+        );
+    }
+    let with_maps = runs.iter().map(|r| r.1).sum::<f64>() / 3.0;
+    println!("M = 200, mean of 3 seeds: {with_maps:.4} mm");
+    assert!(with_maps <= 0.14, "{with_maps}");
+}
+
+/// A robot file with joint maps: commands that model the robot apply the maps (fk, evaluate);
+/// those that cannot yet (export, compensate, simulate) refuse it instead of leaving them out.
+#[test]
+fn a_file_with_joint_maps_is_applied_or_refused_never_ignored() {
+    use common::{calib_in, ok};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let base = [
+        "calibrate",
+        "--robot",
+        ROBOT,
+        "--data",
+        DATA_B,
+        "--profile",
+        POSITION,
+        "--auto-mask",
+        "--method",
+        "lm",
+        "--validate",
+        "0.9666",
+    ];
+    let maps_args = [&base[..], &["--model", "joint-maps", "--out", "maps.toml"]].concat();
+    ok(&calib_in(d, &maps_args));
+    let geometric_args = [&base[..], &["--out", "geometric.toml"]].concat();
+    ok(&calib_in(d, &geometric_args));
+    let text = std::fs::read_to_string(d.join("maps.toml")).unwrap();
+    assert!(text.contains("[joint_maps]") && text.contains("harmonics = "));
+    // fk: the maps move the end point (by up to a few tenths of a millimetre).
+    let fk = |robot: &str| -> Vec<f64> {
+        let out = ok(&calib_in(
+            d,
+            &[
+                "fk",
+                "--robot",
+                robot,
+                "--joints-deg",
+                "-100,-60,30,-100,-50,10",
+                "--json",
+            ],
+        ));
+        let json: serde_json::Value = serde_json::from_str(&out).unwrap();
+        (0..3)
+            .map(|i| json["position_mm"][i].as_f64().unwrap())
+            .collect()
+    };
+    let (with, without) = (fk("maps.toml"), fk("geometric.toml"));
+    let moved = with
+        .iter()
+        .zip(&without)
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!((0.01..2.0).contains(&moved), "{moved} mm");
+    // evaluate on the calibration session (frames refitted): the maps are applied, so the
+    // model with maps fits better than the geometric one.
+    let evaluate = |robot: &str| -> f64 {
+        let out = ok(&calib_in(
+            d,
+            &[
+                "evaluate",
+                "--robot",
+                robot,
+                "--data",
+                DATA_B,
+                "--profile",
+                POSITION,
+                "--json",
+            ],
+        ));
+        let json: serde_json::Value = serde_json::from_str(&out).unwrap();
+        json["position_mm"]["mean"].as_f64().unwrap()
+    };
+    let (with, without) = (evaluate("maps.toml"), evaluate("geometric.toml"));
+    assert!(with < 0.8 * without, "{with} vs {without}");
+    // export, compensate and simulate refuse it and say why.
+    for args in [
+        &[
+            "export",
+            "--params",
+            "maps.toml",
+            "--format",
+            "block",
+            "--out",
+            "b.bin",
+        ][..],
+        &[
+            "compensate",
+            "--robot",
+            ROBOT,
+            "--params",
+            "maps.toml",
+            "--targets",
+            DATA_B,
+            "--out",
+            "c.csv",
+        ][..],
+        &[
+            "simulate",
+            "--robot",
+            "maps.toml",
+            "--out",
+            "s.csv",
+            "--truth-out",
+            "t.toml",
+        ][..],
+    ] {
+        let out = calib_in(d, args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(stderr.contains("has joint maps"), "{args:?}: {stderr}");
+    }
+    for file in ["b.bin", "c.csv", "s.csv", "t.toml"] {
+        assert!(!d.join(file).exists());
+    }
+}
