@@ -213,6 +213,9 @@ pub struct MapIdentification {
     /// Posterior standard deviation of each map's coefficients, per joint, in the order of
     /// [`JointMaps::coefficients`], rad.
     pub coefficient_sd: [Vec<f64>; JOINTS],
+    /// Posterior covariance of each joint's coefficients (in the order of
+    /// [`JointMaps::coefficients`]), rad^2.
+    pub coefficient_covariance: Vec<DMatrix<f64>>,
     /// The prior standard deviation of each joint's coefficients chosen by the evidence, rad.
     pub amplitude_rad: [f64; JOINTS],
     /// The measurement noise chosen by the evidence (per position coordinate), mm.
@@ -222,6 +225,22 @@ pub struct MapIdentification {
     pub log_evidence: f64,
     /// Effective number of map coefficients the data determine (MacKay's gamma), per joint.
     pub determined: [f64; JOINTS],
+}
+
+impl MapIdentification {
+    /// Posterior standard deviation of joint `joint`'s (0-based) angle error at reading `q`,
+    /// rad: `sqrt(phi(q)^T Sigma_j phi(q))`, `phi(q) = [sin(h q)..., cos(h q)...]`.
+    pub fn error_sd(&self, joint: usize, q: f64) -> f64 {
+        let Some(block) = self.coefficient_covariance.get(joint) else {
+            return 0.0;
+        };
+        let h = self.maps.harmonics;
+        let phi = DVector::from_fn(2 * h, |i, _| {
+            let k = (i % h + 1) as f64;
+            if i < h { (k * q).sin() } else { (k * q).cos() }
+        });
+        (block * &phi).dot(&phi).max(0.0).sqrt()
+    }
 }
 
 /// Identifies the maps with the number of harmonics the evidence prefers: starting from 30,
@@ -383,6 +402,7 @@ pub fn identify(
     Ok(MapIdentification {
         errors,
         parameter_sd,
+        coefficient_covariance: solved.blocks.clone(),
         maps,
         coefficient_sd,
         amplitude_rad: alpha.map(|a| 1.0 / a.sqrt()),
@@ -405,6 +425,8 @@ struct Posterior {
     mean: DVector<f64>,
     /// Diagonal of the posterior covariance.
     variance: DVector<f64>,
+    /// Posterior covariance of each joint's coefficients.
+    blocks: Vec<DMatrix<f64>>,
     log_evidence: f64,
     determined: [f64; JOINTS],
 }
@@ -442,6 +464,12 @@ fn evidence(
         let mean = cholesky.solve(projected) * *beta;
         let covariance = cholesky.inverse();
         let variance = covariance.diagonal();
+        let blocks = (0..JOINTS)
+            .map(|j| {
+                let o = geometry + j * per_joint;
+                covariance.view((o, o), (per_joint, per_joint)).into_owned()
+            })
+            .collect();
         // |r - Phi m|^2 = r^T r - 2 m^T Phi^T r + m^T G m.
         let misfit =
             (residual_squared - 2.0 * mean.dot(projected) + (gram * &mean).dot(&mean)).max(0.0);
@@ -477,6 +505,7 @@ fn evidence(
         last = Some(Posterior {
             mean,
             variance,
+            blocks,
             log_evidence,
             determined,
         });
@@ -544,17 +573,20 @@ fn evidence_function_space(
             .copy_from(&m_chol.inverse().diagonal());
         let mut determined = [0.0; JOINTS];
         let mut new_prior = variance_prior;
+        let mut blocks = Vec::with_capacity(JOINTS);
         for j in 0..JOINTS {
             let s2 = variance_prior[j];
             let u = phi[j].transpose() * &pr;
             let trace = p.component_mul(&kernels[j]).sum();
             let offset = geometry + j * per_joint;
             mean.rows_mut(offset, per_joint).copy_from(&(&u * s2));
-            let p_phi = &p * &phi[j];
+            // Sigma_j = s^2 I - s^4 Phi_j^T P Phi_j.
+            let block = DMatrix::<f64>::identity(per_joint, per_joint) * s2
+                - (phi[j].transpose() * &p * &phi[j]) * (s2 * s2);
             for c in 0..per_joint {
-                let quadratic = phi[j].column(c).dot(&p_phi.column(c));
-                variance[offset + c] = (s2 - s2 * s2 * quadratic).max(0.0);
+                variance[offset + c] = block[(c, c)].max(0.0);
             }
+            blocks.push(block);
             determined[j] = s2 * trace;
             new_prior[j] = if trace > 0.0 {
                 s2 * u.norm_squared() / trace
@@ -587,6 +619,7 @@ fn evidence_function_space(
         last = Some(Posterior {
             mean,
             variance,
+            blocks,
             log_evidence,
             determined,
         });
@@ -753,6 +786,19 @@ mod tests {
             }
         }
         assert!(inside * 100 >= total * 97, "{inside} of {total}");
+        // The maps themselves, every 5 deg: within 3 posterior standard deviations.
+        let (mut inside, mut total) = (0, 0);
+        for j in 0..JOINTS - 1 {
+            for i in 0..72 {
+                let q = (f64::from(i) * 5.0 - 180.0).to_radians();
+                total += 1;
+                let miss = (found.maps.error(j, q) - truth.error(j, q)).abs();
+                if miss <= 3.0 * found.error_sd(j, q) {
+                    inside += 1;
+                }
+            }
+        }
+        assert!(inside * 100 >= total * 95, "{inside} of {total}");
         assert!(found.amplitude_rad[JOINTS - 1] <= NEGLIGIBLE_AMPLITUDE_RAD);
         for (i, p) in parameters.iter().enumerate() {
             let (e, t) = (found.errors.get(*p).unwrap(), truth_errors.get(*p).unwrap());

@@ -236,6 +236,85 @@ where
     Ok(())
 }
 
+/// Draws each joint's identified angle-error map (posterior mean, mrad) over one turn with its
+/// 95 % band (+-2 posterior standard deviations) and the calibration readings as ticks: outside
+/// them the map is extrapolated (and the band widens to the prior).
+fn joint_maps<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    curves: &[crate::calibration::maps::MapCurve],
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    area.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    let panels = area.split_evenly((3, 2));
+    for (panel, curve) in panels.iter().zip(curves) {
+        let extent = curve
+            .mean_mrad
+            .iter()
+            .zip(&curve.sd_mrad)
+            .map(|(m, s)| m.abs() + 2.0 * s)
+            .fold(0.0, f64::max)
+            .max(0.05)
+            * 1.1;
+        let mut chart = ChartBuilder::on(panel)
+            .caption(
+                format!("joint {}: angle error (mean, 95 % band)", curve.joint),
+                (FONT, 16),
+            )
+            .margin(8)
+            .x_label_area_size(35)
+            .y_label_area_size(55)
+            .build_cartesian_2d(-180.0..180.0, -extent..extent)
+            .map_err(|e| anyhow!("{e}"))?;
+        chart
+            .configure_mesh()
+            .x_desc("joint reading (deg)")
+            .y_desc("dq (mrad)")
+            .max_light_lines(1)
+            .label_style((FONT, 12))
+            .draw()
+            .map_err(|e| anyhow!("{e}"))?;
+        let band: Vec<(f64, f64)> = curve
+            .q_deg
+            .iter()
+            .zip(curve.mean_mrad.iter().zip(&curve.sd_mrad))
+            .map(|(q, (m, s))| (*q, m + 2.0 * s))
+            .chain(
+                curve
+                    .q_deg
+                    .iter()
+                    .zip(curve.mean_mrad.iter().zip(&curve.sd_mrad))
+                    .rev()
+                    .map(|(q, (m, s))| (*q, m - 2.0 * s)),
+            )
+            .collect();
+        chart
+            .draw_series(std::iter::once(Polygon::new(band, BLUE.mix(0.2).filled())))
+            .map_err(|e| anyhow!("{e}"))?;
+        chart
+            .draw_series(LineSeries::new(
+                curve
+                    .q_deg
+                    .iter()
+                    .copied()
+                    .zip(curve.mean_mrad.iter().copied()),
+                BLUE.stroke_width(2),
+            ))
+            .map_err(|e| anyhow!("{e}"))?;
+        // The calibration readings, wrapped into one turn, as ticks at the bottom.
+        let tick = extent * 0.08;
+        chart
+            .draw_series(curve.readings_deg.iter().map(|q| {
+                let q = (q + 180.0).rem_euclid(360.0) - 180.0;
+                PathElement::new(vec![(q, -extent), (q, -extent + tick)], RED)
+            }))
+            .map_err(|e| anyhow!("{e}"))?;
+    }
+    area.present().map_err(|e| anyhow!("{e}"))?;
+    Ok(())
+}
+
 /// What to plot for one calibration.
 pub struct PlotData<'a> {
     /// Swarm convergence `(generation, best objective)`; empty without the swarm.
@@ -255,11 +334,13 @@ pub struct PlotData<'a> {
     pub validation_before: &'a [f64],
     /// After calibration.
     pub validation_after: &'a [f64],
+    /// The identified joint maps (empty for a geometric calibration).
+    pub joint_maps: &'a [crate::calibration::maps::MapCurve],
 }
 
 /// Stages into `dir` (see [`crate::files::Outputs`]), each as SVG and PNG: `convergence` (with
 /// the swarm), `position-error`, `orientation-error` (with orientation data) and
-/// `validation-histogram` (with validation poses). Nothing is replaced until the outputs are
+/// `validation-histogram` (with validation poses) and `joint-maps` (with joint maps). Nothing is replaced until the outputs are
 /// committed.
 pub fn stage_plots(
     outputs: &mut crate::files::Outputs,
@@ -303,6 +384,12 @@ pub fn stage_plots(
         both!("orientation-error", (SIZE.0, SIZE.1 * 2), |area| {
             orientation_errors(&area, plots.orientation_before, plots.orientation_after)
         });
+    }
+    if !plots.joint_maps.is_empty() {
+        both!("joint-maps", (SIZE.0, SIZE.1 * 2), |area| joint_maps(
+            &area,
+            plots.joint_maps
+        ));
     }
     if !plots.validation_after.is_empty() {
         both!("validation-histogram", SIZE, |area| histogram(

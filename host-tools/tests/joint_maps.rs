@@ -113,8 +113,22 @@ fn a_file_with_joint_maps_is_applied_or_refused_never_ignored() {
         "--validate",
         "0.9666",
     ];
-    let maps_args = [&base[..], &["--model", "joint-maps", "--out", "maps.toml"]].concat();
+    let maps_args = [
+        &base[..],
+        &[
+            "--model",
+            "joint-maps",
+            "--out",
+            "maps.toml",
+            "--plot",
+            "plots",
+        ],
+    ]
+    .concat();
     ok(&calib_in(d, &maps_args));
+    let svg = std::fs::read_to_string(d.join("plots/joint-maps.svg")).unwrap();
+    assert!(svg.contains("joint 1: angle error") && svg.contains("joint 6: angle error"));
+    assert!(d.join("plots/joint-maps.png").exists());
     let geometric_args = [&base[..], &["--out", "geometric.toml"]].concat();
     ok(&calib_in(d, &geometric_args));
     let text = std::fs::read_to_string(d.join("maps.toml")).unwrap();

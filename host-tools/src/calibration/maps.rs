@@ -37,6 +37,24 @@ pub struct JointMapReport {
     pub range_deg: [f64; 2],
 }
 
+/// One joint's identified map sampled for plots.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MapCurve {
+    /// Joint number, 1-based.
+    pub joint: usize,
+    /// Readings, deg, every [`CURVE_STEP_DEG`] over one turn.
+    pub q_deg: Vec<f64>,
+    /// The map's posterior mean at each reading, mrad.
+    pub mean_mrad: Vec<f64>,
+    /// Its posterior standard deviation, mrad.
+    pub sd_mrad: Vec<f64>,
+    /// The calibration readings of this joint, deg.
+    pub readings_deg: Vec<f64>,
+}
+
+/// Sampling step of [`MapCurve`], deg.
+pub const CURVE_STEP_DEG: f64 = 0.5;
+
 /// What the joint-maps stage found.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct JointMapsReport {
@@ -57,6 +75,9 @@ pub struct JointMapsReport {
     /// And on the held-out poses, when given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub geometric_validation: Option<Stage>,
+    /// The maps sampled over one turn with their uncertainty, for plots.
+    #[serde(skip)]
+    pub curves: Vec<MapCurve>,
 }
 
 /// `dataset` with the maps added to every joint reading: what the kinematics sees.
@@ -171,7 +192,29 @@ pub fn add_joint_maps(
             }
         })
         .collect();
+    let turn = (360.0 / CURVE_STEP_DEG) as usize;
+    let curves = (0..JOINTS)
+        .map(|j| {
+            let q_deg: Vec<f64> = (0..=turn)
+                .map(|i| i as f64 * CURVE_STEP_DEG - 180.0)
+                .collect();
+            MapCurve {
+                joint: j + 1,
+                mean_mrad: q_deg
+                    .iter()
+                    .map(|q| found.maps.error(j, q.to_radians()) * 1e3)
+                    .collect(),
+                sd_mrad: q_deg
+                    .iter()
+                    .map(|q| found.error_sd(j, q.to_radians()) * 1e3)
+                    .collect(),
+                readings_deg: poses.iter().map(|p| p.q[j].to_degrees()).collect(),
+                q_deg,
+            }
+        })
+        .collect();
     result.joint_maps = Some(JointMapsReport {
+        curves,
         harmonics: found.maps.harmonics,
         evidence,
         log_evidence: found.log_evidence,

@@ -339,6 +339,11 @@ pub fn write_outputs(
                 orientation_after: &per_pose.orientation_after,
                 validation_before: &per_pose.validation_before,
                 validation_after: &per_pose.validation_after,
+                joint_maps: calibration
+                    .result
+                    .joint_maps
+                    .as_ref()
+                    .map_or(&[][..], |m| m.curves.as_slice()),
             },
         )?;
     }
