@@ -43,6 +43,12 @@ const EVIDENCE_ITERATIONS: usize = 500;
 /// iterations stop.
 const EVIDENCE_TOLERANCE: f64 = 1e-4;
 
+/// A map whose data determine fewer coefficients than this (MacKay's gamma) is switched off: its
+/// columns lie (numerically) in the span of the geometry's, as for a joint that did not move
+/// (its map at the one reading is a joint offset the frames or the geometry already absorb),
+/// and the evidence's update would divide one rounding error by another.
+pub const MIN_DETERMINED: f64 = 0.5;
+
 /// A prior amplitude below this (rad) is treated as zero: the evidence does not support a map.
 pub const NEGLIGIBLE_AMPLITUDE_RAD: f64 = 1e-7;
 
@@ -378,8 +384,15 @@ pub fn identify(
             errors.set(p, old + solved.mean[c]);
         }
         for (j, coefficients) in maps.coefficients.iter_mut().enumerate() {
+            // A map the evidence switched off is exactly zero (its posterior mean is below
+            // rounding anyway).
+            let off = alpha[j] >= 1e29;
             for (k, c) in coefficients.iter_mut().enumerate() {
-                *c = solved.mean[geometry + j * per_joint + k];
+                *c = if off {
+                    0.0
+                } else {
+                    solved.mean[geometry + j * per_joint + k]
+                };
             }
         }
         result = Some(solved);
@@ -405,7 +418,7 @@ pub fn identify(
         coefficient_covariance: solved.blocks.clone(),
         maps,
         coefficient_sd,
-        amplitude_rad: alpha.map(|a| 1.0 / a.sqrt()),
+        amplitude_rad: alpha.map(|a| if a >= 1e29 { 0.0 } else { 1.0 / a.sqrt() }),
         noise_mm: 1.0 / beta.sqrt(),
         log_evidence: solved.log_evidence,
         determined: solved.determined,
@@ -487,7 +500,9 @@ fn evidence(
             prior_energy += alpha[j] * m2;
             log_alpha += per_joint as f64 * alpha[j].ln();
             new_alpha[j] = (g.max(1e-12) / m2.max(1e-300)).min(1e30);
-            if new_alpha[j] > 1.0 / (NEGLIGIBLE_AMPLITUDE_RAD * NEGLIGIBLE_AMPLITUDE_RAD) {
+            if new_alpha[j] > 1.0 / (NEGLIGIBLE_AMPLITUDE_RAD * NEGLIGIBLE_AMPLITUDE_RAD)
+                || g < MIN_DETERMINED
+            {
                 new_alpha[j] = 1e30;
             }
         }
@@ -593,7 +608,9 @@ fn evidence_function_space(
             } else {
                 0.0
             };
-            if new_prior[j] < NEGLIGIBLE_AMPLITUDE_RAD * NEGLIGIBLE_AMPLITUDE_RAD {
+            if new_prior[j] < NEGLIGIBLE_AMPLITUDE_RAD * NEGLIGIBLE_AMPLITUDE_RAD
+                || determined[j] < MIN_DETERMINED
+            {
                 new_prior[j] = 0.0;
             }
         }

@@ -172,7 +172,15 @@ pub fn add_joint_maps(
         &result.errors,
         &mut frames,
     );
-    file.joint_maps = Some(JointMapsSection::new(&found.maps, &ranges));
+    let section = JointMapsSection::new(&found.maps, &ranges);
+    // Never write a file that its own reader refuses.
+    section.to_maps().map_err(|problem| {
+        anyhow::anyhow!(
+            "the identified joint maps are not plausible ({problem}); nothing was written. The poses may not move \
+             that joint enough, or hold an outlier: calibrate with --model geometric, or measure more varied poses"
+        )
+    })?;
+    file.joint_maps = Some(section);
     result.identified_robot = file;
     result.frames = frames;
     let joints = (0..JOINTS)
