@@ -1,0 +1,54 @@
+//! A whole `calib calibrate --model joint-maps` run (files read, geometric calibration by least
+//! squares, then the maps with the evidence) on 50 and on 1000 random poses of the real UR10
+//! Series B, position-only profile, `--auto-mask --method lm`: the speed goals of issue 14 (under
+//! 2 s and under 30 s).
+//!
+//! Run: `cargo bench -p host-tools --bench joint_maps`.
+
+// Set-up of fixed, valid inputs: a failure here is a bug in the benchmark itself.
+#![allow(clippy::unwrap_used)]
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use host_tools::calibration::{CalibrationConfig, ErrorModel, Method, calibrate};
+use host_tools::dataset::{Dataset, split};
+use host_tools::profile::DataProfile;
+use std::path::Path;
+
+fn joint_maps(c: &mut Criterion) {
+    let robot = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml"));
+    let data = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/data/ipa-ur10-lasertracker/series-b-joint-configurations.csv"
+    ));
+    let profile = DataProfile::load(Some(Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/profiles/ipa-ur10-lasertracker-position.toml"
+    ))))
+    .unwrap();
+    let config = CalibrationConfig {
+        method: Method::Lm,
+        model: ErrorModel::JointMaps,
+        auto_mask: true,
+        ..CalibrationConfig::default()
+    };
+    let mut group = c.benchmark_group("joint_maps");
+    group.sample_size(10);
+    for poses in [50usize, 1000] {
+        group.bench_function(
+            format!("calibrate_joint_maps_series_b_{poses}_poses"),
+            |b| {
+                b.iter(|| {
+                    // As `calib calibrate --validate` runs: the file read, the poses drawn.
+                    let all = Dataset::load_with(robot, data, &profile).unwrap();
+                    let n = all.measurements.len();
+                    let (calibration, _) = split(&all, (n - poses) as f64 / n as f64, 0).unwrap();
+                    calibrate(calibration, None, &config).unwrap()
+                })
+            },
+        );
+    }
+    group.finish();
+}
+
+criterion_group!(benches, joint_maps);
+criterion_main!(benches);
