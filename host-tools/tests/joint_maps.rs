@@ -178,6 +178,37 @@ fn a_file_with_joint_maps_is_applied_or_refused_never_ignored() {
     };
     let (with, without) = (evaluate("maps.toml"), evaluate("geometric.toml"));
     assert!(with < 0.8 * without, "{with} vs {without}");
+    // Re-registration keeps the model with its maps; new maps on top of maps are refused.
+    let frames_only = [
+        "calibrate",
+        "--robot",
+        "maps.toml",
+        "--identify",
+        "frames",
+        "--data",
+        DATA_B,
+        "--profile",
+        POSITION,
+        "--method",
+        "lm",
+        "--out",
+        "again.toml",
+    ];
+    ok(&calib_in(d, &frames_only));
+    let again = std::fs::read_to_string(d.join("again.toml")).unwrap();
+    let maps_of = |text: &str| text[text.find("[joint_maps]").unwrap()..].to_string();
+    assert_eq!(maps_of(&again), maps_of(&text));
+    let out = calib_in(
+        d,
+        &[&base[..], &["--model", "joint-maps"]]
+            .concat()
+            .iter()
+            .map(|a| if *a == ROBOT { "maps.toml" } else { a })
+            .collect::<Vec<_>>(),
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("already has joint maps"), "{stderr}");
     // export, compensate and simulate refuse it and say why.
     for args in [
         &[

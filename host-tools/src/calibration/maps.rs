@@ -95,6 +95,19 @@ pub fn with_maps(dataset: &Dataset, maps: &JointMaps) -> anyhow::Result<Dataset>
     Ok(out)
 }
 
+/// Refuses a robot file that already has joint maps as the start of a joint-maps calibration:
+/// its maps would be applied to the data and new ones identified on top.
+pub fn check_robot_file(dataset: &Dataset) -> anyhow::Result<()> {
+    if dataset.file.joint_maps.is_some() {
+        anyhow::bail!(
+            "{}: the robot file already has joint maps; identify new ones from the nominal robot file or the \
+             geometric calibration's file (to keep its model and re-fit only the frames: --identify frames)",
+            dataset.model.path.display()
+        );
+    }
+    Ok(())
+}
+
 /// Adds the joint maps to the geometric calibration `result` of `dataset` (prepared: frames
 /// fitted), validated on `validation`.
 pub fn add_joint_maps(
@@ -103,13 +116,7 @@ pub fn add_joint_maps(
     validation: Option<&Dataset>,
     config: &CalibrationConfig,
 ) -> anyhow::Result<CalibrationResult> {
-    if dataset.file.joint_maps.is_some() {
-        anyhow::bail!(
-            "{}: the robot file already has joint maps; identify new ones from the nominal robot file or the \
-             geometric calibration's file",
-            dataset.model.path.display()
-        );
-    }
+    check_robot_file(dataset)?;
     let geometric = Kinematics::new(&dataset.model.robot, &result.errors)?;
     let residuals: Vec<f64> = dataset
         .measurements

@@ -83,6 +83,9 @@ pub fn calibrate(
     config: &CalibrationConfig,
 ) -> anyhow::Result<CalibrationResult> {
     config.check()?;
+    if config.model == ErrorModel::JointMaps {
+        maps::check_robot_file(&dataset)?;
+    }
     let frames = Frames::chosen(config.frames, &dataset.data);
     let (frames_report, mask) = {
         let mut others: Vec<&mut Dataset> = validation.iter_mut().collect();
