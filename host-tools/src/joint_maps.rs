@@ -205,6 +205,8 @@ pub struct Pose {
     pub q: [f64; JOINTS],
     /// Measured position, mm.
     pub position: Vector3<f64>,
+    /// Measured orientation (6-DoF data), used when [`identify`] is given an orientation scale.
+    pub rotation: Option<nalgebra::Matrix3<f64>>,
 }
 
 /// What [`identify`] found.
@@ -258,10 +260,11 @@ pub fn identify_best(
     start: &ParameterErrors<f64, JOINTS>,
     parameters: &[Parameter],
     poses: &[Pose],
+    orientation_scale_mm: f64,
 ) -> anyhow::Result<(MapIdentification, Vec<(usize, f64)>)> {
     let mut tried: Vec<(usize, f64)> = Vec::new();
     let first = 3 * HARMONICS_STEP;
-    let mut best = identify(robot, start, parameters, poses, first)?;
+    let mut best = identify(robot, start, parameters, poses, orientation_scale_mm, first)?;
     tried.push((first, best.log_evidence));
     for direction in [1isize, -1] {
         let mut h = first;
@@ -269,7 +272,7 @@ pub fn identify_best(
             .checked_add_signed(direction * HARMONICS_STEP as isize)
             .filter(|n| (HARMONICS_STEP..=MAX_HARMONICS).contains(n))
         {
-            let candidate = identify(robot, start, parameters, poses, next)?;
+            let candidate = identify(robot, start, parameters, poses, orientation_scale_mm, next)?;
             tried.push((next, candidate.log_evidence));
             if candidate.log_evidence <= best.log_evidence {
                 break;
@@ -288,16 +291,32 @@ pub fn identify_best(
 
 /// Identifies the maps of `harmonics` harmonics per joint jointly with the geometric parameters
 /// `parameters` of `robot` (in the measurement frames), starting from the geometric
-/// calibration's errors `start`, from `poses`. Errors: too few poses, a non-finite value, a
+/// calibration's errors `start`, from `poses`: their positions, and their orientations (rad)
+/// weighted by `orientation_scale_mm` (mm per rad; 0 ignores them). Errors: too few poses, a non-finite value, a
 /// singular problem.
 pub fn identify(
     robot: &Robot<f64, JOINTS>,
     start: &ParameterErrors<f64, JOINTS>,
     parameters: &[Parameter],
     poses: &[Pose],
+    orientation_scale_mm: f64,
     harmonics: usize,
 ) -> anyhow::Result<MapIdentification> {
-    let rows = 3 * poses.len();
+    // Row offsets: 3 position rows per pose, and 3 orientation rows (rad times
+    // `orientation_scale_mm`) for a pose with orientation when the scale is positive.
+    let use_rotation = |p: &Pose| orientation_scale_mm > 0.0 && p.rotation.is_some();
+    let offsets: Vec<usize> = poses
+        .iter()
+        .scan(0, |next, p| {
+            let at = *next;
+            *next += if use_rotation(p) { 6 } else { 3 };
+            Some(at)
+        })
+        .collect();
+    let rows = poses
+        .iter()
+        .map(|p| if use_rotation(p) { 6 } else { 3 })
+        .sum::<usize>();
     let geometry = parameters.len();
     if harmonics == 0 {
         anyhow::bail!("joint maps need at least one harmonic");
@@ -340,19 +359,30 @@ pub fn identify(
             let angles = JointAngles::new(&q)?;
             let (end, parameter_jacobian) = kinematics.parameter_jacobian(&set, &angles);
             let (_, joint_jacobian) = kinematics.geometric_jacobian(&q)?;
-            let r = pose.position - end.translation.vector;
-            for axis in 0..3 {
-                let row = 3 * i + axis;
+            let mut r = nalgebra::Vector6::<f64>::zeros();
+            r.fixed_rows_mut::<3>(0)
+                .copy_from(&(pose.position - end.translation.vector));
+            let count = if use_rotation(pose) { 6 } else { 3 };
+            if let Some(measured) = pose.rotation.filter(|_| count == 6) {
+                // Left-multiplicative error, as the Jacobians' angular rows: R_m = exp(r) R.
+                let error = measured * end.rotation.matrix().transpose();
+                r.fixed_rows_mut::<3>(3)
+                    .copy_from(&(calib_core::math::so3::log(&error) * orientation_scale_mm));
+            }
+            for axis in 0..count {
+                let row = offsets[i] + axis;
+                let scale = if axis < 3 { 1.0 } else { orientation_scale_mm };
                 residual[row] = r[axis];
                 for (c, &p) in columns.iter().enumerate() {
-                    design[(row, c)] = parameter_jacobian[(axis, p)];
+                    design[(row, c)] = parameter_jacobian[(axis, p)] * scale;
                 }
                 for j in 0..JOINTS {
                     for k in 1..=harmonics {
                         let (s, co) = (k as f64 * pose.q[j]).sin_cos();
                         let base = geometry + j * per_joint;
-                        design[(row, base + k - 1)] = joint_jacobian[(axis, j)] * s;
-                        design[(row, base + harmonics + k - 1)] = joint_jacobian[(axis, j)] * co;
+                        let jq = joint_jacobian[(axis, j)] * scale;
+                        design[(row, base + k - 1)] = jq * s;
+                        design[(row, base + harmonics + k - 1)] = jq * co;
                     }
                 }
             }
@@ -769,6 +799,7 @@ mod tests {
                 Pose {
                     q,
                     position: p + Vector3::from_fn(|_, _| noise.sample(&mut rng)),
+                    rotation: None,
                 }
             })
             .collect();
@@ -777,6 +808,7 @@ mod tests {
             &ParameterErrors::zero(),
             &parameters,
             &poses,
+            0.0,
             harmonics,
         )
         .unwrap();

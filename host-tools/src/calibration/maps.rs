@@ -95,6 +95,27 @@ pub fn with_maps(dataset: &Dataset, maps: &JointMaps) -> anyhow::Result<Dataset>
     Ok(out)
 }
 
+/// The weight of orientation rows in the maps, mm per rad: the ratio of the geometric fit's RMS
+/// position residual to its RMS orientation residual, so that both kinds of row carry the noise
+/// level of the position rows; 0 for position-only data.
+fn orientation_scale(dataset: &Dataset, geometric: &Kinematics<f64, JOINTS>) -> f64 {
+    let (mut position, mut rotation) = (0.0, 0.0);
+    for m in &dataset.measurements {
+        let Some(measured) = m.rotation else {
+            return 0.0;
+        };
+        let pose = geometric.forward_angles(&m.angles);
+        position += (m.position - pose.translation.vector).norm_squared();
+        let error = measured * pose.rotation.matrix().transpose();
+        rotation += calib_core::math::so3::log(&error).norm_squared();
+    }
+    if rotation > 0.0 && position.is_finite() && rotation.is_finite() {
+        (position / rotation).sqrt()
+    } else {
+        0.0
+    }
+}
+
 /// Refuses a robot file that already has joint maps as the start of a joint-maps calibration:
 /// its maps would be applied to the data and new ones identified on top.
 pub fn check_robot_file(dataset: &Dataset) -> anyhow::Result<()> {
@@ -137,11 +158,20 @@ pub fn add_joint_maps(
         poses.push(Pose {
             q: std::array::from_fn(|j| r.q[j]),
             position: Vector3::from(r.position),
+            rotation: r.rotation,
         });
     }
+    // 6-DoF data: the orientation rows too (position rows alone cannot determine the geometry
+    // identified from full poses, such as the probe's rotation).
+    let orientation_scale_mm = orientation_scale(dataset, &geometric);
     let parameters: Vec<_> = result.parameters.iter().map(|p| p.parameter).collect();
-    let (found, evidence) =
-        joint_maps::identify_best(&dataset.model.robot, &result.errors, &parameters, &poses)?;
+    let (found, evidence) = joint_maps::identify_best(
+        &dataset.model.robot,
+        &result.errors,
+        &parameters,
+        &poses,
+        orientation_scale_mm,
+    )?;
     let ranges: [[f64; 2]; JOINTS] = std::array::from_fn(|j| {
         poses
             .iter()
@@ -166,9 +196,11 @@ pub fn add_joint_maps(
         stage.after = after;
         result.per_pose.validation_after = per_pose;
     }
-    for (p, sd) in result.parameters.iter_mut().zip(&found.parameter_sd) {
+    for p in &mut result.parameters {
         p.value = found.errors.get(p.parameter).unwrap_or(0.0);
-        p.std_error = Some(*sd);
+        if let Some(i) = parameters.iter().position(|q| *q == p.parameter) {
+            p.std_error = found.parameter_sd.get(i).copied();
+        }
     }
     result.errors = found.errors;
     let mut frames = result.frames.clone();
