@@ -89,28 +89,9 @@ impl Dataset {
                 data.display()
             );
         }
-        // Joint maps of the robot file are part of the model: the kinematics sees the readings
-        // with each joint's angle error added.
-        let maps = file.joint_maps(robot)?;
-        let mut extrapolated = [0usize; JOINTS];
-        let ranges = file
-            .joint_maps
-            .as_ref()
-            .map(crate::joint_maps::JointMapsSection::ranges)
-            .unwrap_or_default();
         let mut measurements = Vec::with_capacity(data_file.records.len());
         for r in &data_file.records {
             let q: [f64; JOINTS] = std::array::from_fn(|i| r.q[i]);
-            for (j, ((count, range), qi)) in
-                extrapolated.iter_mut().zip(&ranges).zip(&q).enumerate()
-            {
-                let zero = maps
-                    .as_ref()
-                    .is_none_or(|m| m.coefficients[j].iter().all(|c| *c == 0.0));
-                if !zero && (*qi < range[0] - 1e-9 || *qi > range[1] + 1e-9) {
-                    *count += 1;
-                }
-            }
             for (i, (qi, limits)) in q.iter().zip(&model.robot.limits).enumerate() {
                 if !limits.contains(*qi) {
                     bail!(
@@ -125,30 +106,71 @@ impl Dataset {
                     );
                 }
             }
-            let modelled = maps.as_ref().map_or(q, |m| m.apply(&q));
-            let m = Measurement::new(&modelled, Vector3::from(r.position), r.rotation, r.weight)
+            let m = Measurement::new(&q, Vector3::from(r.position), r.rotation, r.weight)
                 .with_context(|| format!("{}:{}", data.display(), r.line))?;
             measurements.push(m);
         }
-        for (j, count) in extrapolated.iter().enumerate() {
-            if *count > 0 {
-                eprintln!(
-                    "warning: {}: {count} poses have joint {} outside the range its joint map was identified on \
-                     ({:.1} to {:.1} deg, [joint_maps] of {}): the map is extrapolated there and may be wrong",
-                    data.display(),
-                    j + 1,
-                    ranges[j][0].to_degrees(),
-                    ranges[j][1].to_degrees(),
-                    robot.display()
-                );
-            }
-        }
-        Ok(Self {
+        let dataset = Self {
             file,
             model,
             data: data_file,
             measurements,
-        })
+        };
+        // Joint maps of the robot file are part of the model: the kinematics sees the readings
+        // with each joint's angle error added.
+        match dataset.file.joint_maps(robot)? {
+            Some(maps) => {
+                dataset.warn_extrapolated(&maps, robot);
+                dataset.with_maps(&maps)
+            }
+            None => Ok(dataset),
+        }
+    }
+
+    /// The dataset with `maps` added to every joint reading: what the kinematics sees.
+    pub fn with_maps(&self, maps: &crate::joint_maps::JointMaps) -> anyhow::Result<Self> {
+        let mut out = self.clone();
+        for (m, r) in out.measurements.iter_mut().zip(&self.data.records) {
+            let q: [f64; JOINTS] = std::array::from_fn(|j| r.q[j]);
+            *m = Measurement::new(
+                &maps.apply(&q),
+                Vector3::from(r.position),
+                r.rotation,
+                r.weight,
+            )
+            .with_context(|| format!("{}:{}", self.data.path.display(), r.line))?;
+        }
+        Ok(out)
+    }
+
+    /// Warns on standard error for every joint whose non-zero map (of the robot file at `robot`)
+    /// is extrapolated: readings outside the range it was identified on.
+    fn warn_extrapolated(&self, maps: &crate::joint_maps::JointMaps, robot: &Path) {
+        let ranges = self
+            .file
+            .joint_maps
+            .as_ref()
+            .map(crate::joint_maps::JointMapsSection::ranges)
+            .unwrap_or_default();
+        for (j, range) in ranges.iter().enumerate().filter(|(j, _)| !maps.is_zero(*j)) {
+            let count = self
+                .data
+                .records
+                .iter()
+                .filter(|r| r.q[j] < range[0] - 1e-9 || r.q[j] > range[1] + 1e-9)
+                .count();
+            if count > 0 {
+                eprintln!(
+                    "warning: {}: {count} poses have joint {} outside the range its joint map was identified on \
+                     ({:.1} to {:.1} deg, [joint_maps] of {}): the map is extrapolated there and may be wrong",
+                    self.data.path.display(),
+                    j + 1,
+                    range[0].to_degrees(),
+                    range[1].to_degrees(),
+                    robot.display()
+                );
+            }
+        }
     }
 
     /// `(the others, the poses at indices)`: the data split in two, file order kept.

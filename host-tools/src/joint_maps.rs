@@ -49,8 +49,56 @@ const EVIDENCE_TOLERANCE: f64 = 1e-4;
 /// and the evidence's update would divide one rounding error by another.
 pub const MIN_DETERMINED: f64 = 0.5;
 
+/// The prior precision (1/rad^2) of a switched-off map: its coefficients are held at zero.
+const SWITCHED_OFF: f64 = 1e30;
+
+/// Whether the prior precision `alpha` switches its map off ([`SWITCHED_OFF`]).
+fn switched_off(alpha: f64) -> bool {
+    alpha >= SWITCHED_OFF / 10.0
+}
+
+/// The prior variance (rad^2) of precision `alpha`; 0 for a switched-off map.
+fn prior_variance(alpha: f64) -> f64 {
+    if switched_off(alpha) {
+        0.0
+    } else {
+        1.0 / alpha
+    }
+}
+
+/// The prior precision (1/rad^2) of variance `s2`; [`SWITCHED_OFF`] for 0.
+fn prior_precision(s2: f64) -> f64 {
+    if s2 > 0.0 { 1.0 / s2 } else { SWITCHED_OFF }
+}
+
+/// Whether the hyperparameters moved by less than [`EVIDENCE_TOLERANCE`] (in their logarithms;
+/// a map switched off in both counts as unmoved).
+fn hyperparameters_converged(
+    (alpha, beta): (&[f64; JOINTS], f64),
+    (new_alpha, new_beta): (&[f64; JOINTS], f64),
+) -> bool {
+    let close = |a: f64, b: f64| (a.ln() - b.ln()).abs() < EVIDENCE_TOLERANCE;
+    alpha
+        .iter()
+        .zip(new_alpha)
+        .all(|(a, b)| (switched_off(*a) && switched_off(*b)) || close(*a, *b))
+        && close(beta, new_beta)
+}
+
 /// A prior amplitude below this (rad) is treated as zero: the evidence does not support a map.
 pub const NEGLIGIBLE_AMPLITUDE_RAD: f64 = 1e-7;
+
+/// The basis of a map at reading `q` (rad), in the order of [`JointMaps::coefficients`]:
+/// `[sin(q), ..., sin(H q), cos(q), ..., cos(H q)]`.
+pub fn harmonic_basis(harmonics: usize, q: f64) -> DVector<f64> {
+    let mut basis = DVector::zeros(2 * harmonics);
+    for k in 1..=harmonics {
+        let (s, c) = (k as f64 * q).sin_cos();
+        basis[k - 1] = s;
+        basis[harmonics + k - 1] = c;
+    }
+    basis
+}
 
 /// The angle-error map of every joint.
 #[derive(Clone, Debug, PartialEq)]
@@ -72,16 +120,20 @@ impl JointMaps {
 
     /// The angle error of joint `joint` (0-based) at reading `q`, rad.
     pub fn error(&self, joint: usize, q: f64) -> f64 {
-        let Some(c) = self.coefficients.get(joint) else {
-            return 0.0;
-        };
-        let h = self.harmonics;
-        (1..=h)
-            .map(|k| {
-                let (s, co) = (k as f64 * q).sin_cos();
-                c[k - 1] * s + c[h + k - 1] * co
-            })
-            .sum()
+        self.coefficients.get(joint).map_or(0.0, |c| {
+            harmonic_basis(self.harmonics, q)
+                .iter()
+                .zip(c)
+                .map(|(b, c)| b * c)
+                .sum()
+        })
+    }
+
+    /// Whether the map of joint `joint` (0-based) is zero everywhere.
+    pub fn is_zero(&self, joint: usize) -> bool {
+        self.coefficients
+            .get(joint)
+            .is_none_or(|c| c.iter().all(|v| *v == 0.0))
     }
 
     /// The joint readings `q` (rad) with every map added: what the kinematics sees.
@@ -242,11 +294,7 @@ impl MapIdentification {
         let Some(block) = self.coefficient_covariance.get(joint) else {
             return 0.0;
         };
-        let h = self.maps.harmonics;
-        let phi = DVector::from_fn(2 * h, |i, _| {
-            let k = (i % h + 1) as f64;
-            if i < h { (k * q).sin() } else { (k * q).cos() }
-        });
+        let phi = harmonic_basis(self.maps.harmonics, q);
         (block * &phi).dot(&phi).max(0.0).sqrt()
     }
 }
@@ -359,6 +407,11 @@ pub fn identify(
             let angles = JointAngles::new(&q)?;
             let (end, parameter_jacobian) = kinematics.parameter_jacobian(&set, &angles);
             let (_, joint_jacobian) = kinematics.geometric_jacobian(&q)?;
+            let bases: Vec<DVector<f64>> = pose
+                .q
+                .iter()
+                .map(|qj| harmonic_basis(harmonics, *qj))
+                .collect();
             let mut r = nalgebra::Vector6::<f64>::zeros();
             r.fixed_rows_mut::<3>(0)
                 .copy_from(&(pose.position - end.translation.vector));
@@ -376,13 +429,10 @@ pub fn identify(
                 for (c, &p) in columns.iter().enumerate() {
                     design[(row, c)] = parameter_jacobian[(axis, p)] * scale;
                 }
-                for j in 0..JOINTS {
-                    for k in 1..=harmonics {
-                        let (s, co) = (k as f64 * pose.q[j]).sin_cos();
-                        let base = geometry + j * per_joint;
-                        let jq = joint_jacobian[(axis, j)] * scale;
-                        design[(row, base + k - 1)] = jq * s;
-                        design[(row, base + harmonics + k - 1)] = jq * co;
+                for (j, basis) in bases.iter().enumerate() {
+                    let jq = joint_jacobian[(axis, j)] * scale;
+                    for (k, b) in basis.iter().enumerate() {
+                        design[(row, geometry + j * per_joint + k)] = jq * b;
                     }
                 }
             }
@@ -416,7 +466,7 @@ pub fn identify(
         for (j, coefficients) in maps.coefficients.iter_mut().enumerate() {
             // A map the evidence switched off is exactly zero (its posterior mean is below
             // rounding anyway).
-            let off = alpha[j] >= 1e29;
+            let off = switched_off(alpha[j]);
             for (k, c) in coefficients.iter_mut().enumerate() {
                 *c = if off {
                     0.0
@@ -448,7 +498,7 @@ pub fn identify(
         coefficient_covariance: solved.blocks.clone(),
         maps,
         coefficient_sd,
-        amplitude_rad: alpha.map(|a| if a >= 1e29 { 0.0 } else { 1.0 / a.sqrt() }),
+        amplitude_rad: alpha.map(|a| prior_variance(a).sqrt()),
         noise_mm: 1.0 / beta.sqrt(),
         log_evidence: solved.log_evidence,
         determined: solved.determined,
@@ -499,7 +549,7 @@ fn evidence(
                 precision[(i, i)] += a;
             }
         }
-        let Some(cholesky) = precision.clone().cholesky() else {
+        let Some(cholesky) = precision.cholesky() else {
             anyhow::bail!(
                 "joint maps: the posterior is singular (a geometric parameter is not determined)"
             );
@@ -529,11 +579,11 @@ fn evidence(
             gamma += g;
             prior_energy += alpha[j] * m2;
             log_alpha += per_joint as f64 * alpha[j].ln();
-            new_alpha[j] = (g.max(1e-12) / m2.max(1e-300)).min(1e30);
+            new_alpha[j] = (g.max(1e-12) / m2.max(1e-300)).min(SWITCHED_OFF);
             if new_alpha[j] > 1.0 / (NEGLIGIBLE_AMPLITUDE_RAD * NEGLIGIBLE_AMPLITUDE_RAD)
                 || g < MIN_DETERMINED
             {
-                new_alpha[j] = 1e30;
+                new_alpha[j] = SWITCHED_OFF;
             }
         }
         let log_det: f64 = cholesky.l().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
@@ -542,9 +592,7 @@ fn evidence(
             - 0.5 * log_det
             - 0.5 * (rows - geometry) as f64 * (2.0 * std::f64::consts::PI).ln();
         let new_beta = ((rows as f64 - gamma).max(1.0)) / misfit.max(1e-300);
-        let converged = new_alpha.iter().zip(alpha.iter()).all(|(a, b)| {
-            (a.ln() - b.ln()).abs() < EVIDENCE_TOLERANCE || (*a >= 1e29 && *b >= 1e29)
-        }) && (new_beta.ln() - beta.ln()).abs() < EVIDENCE_TOLERANCE;
+        let converged = hyperparameters_converged((alpha, *beta), (&new_alpha, new_beta));
         *alpha = new_alpha;
         *beta = new_beta;
         last = Some(Posterior {
@@ -587,7 +635,7 @@ fn evidence_function_space(
         .collect();
     let kernels: Vec<DMatrix<f64>> = phi.iter().map(|p| p * p.transpose()).collect();
     // Prior variances s_j^2 and noise variance sigma^2.
-    let mut variance_prior: [f64; JOINTS] = alpha.map(|a| if a >= 1e29 { 0.0 } else { 1.0 / a });
+    let mut variance_prior: [f64; JOINTS] = alpha.map(prior_variance);
     let mut noise = 1.0 / *beta;
     let mut last = None;
     for iteration in 0..EVIDENCE_ITERATIONS {
@@ -652,15 +700,10 @@ fn evidence_function_space(
             - 0.5 * log_det_m
             - 0.5 * (rows - geometry) as f64 * (2.0 * std::f64::consts::PI).ln();
         let new_noise = noise * noise * pr.norm_squared() / (rows as f64 - gamma).max(1.0);
-        let close = |a: f64, b: f64| {
-            (a == 0.0 && b == 0.0)
-                || (a > 0.0 && b > 0.0 && (a.ln() - b.ln()).abs() < EVIDENCE_TOLERANCE)
-        };
-        let converged = new_prior
-            .iter()
-            .zip(&variance_prior)
-            .all(|(a, b)| close(*a, *b))
-            && close(new_noise, noise);
+        let converged = hyperparameters_converged(
+            (&variance_prior.map(prior_precision), 1.0 / noise),
+            (&new_prior.map(prior_precision), 1.0 / new_noise),
+        );
         variance_prior = new_prior;
         noise = new_noise;
         last = Some(Posterior {
@@ -674,7 +717,7 @@ fn evidence_function_space(
             break;
         }
     }
-    *alpha = variance_prior.map(|s2| if s2 > 0.0 { 1.0 / s2 } else { 1e30 });
+    *alpha = variance_prior.map(prior_precision);
     *beta = 1.0 / noise;
     last.ok_or_else(|| anyhow::anyhow!("joint maps: no evidence iteration ran"))
 }
@@ -745,7 +788,7 @@ mod tests {
             assert!((weight.variance.clone() - function.variance.clone()).amax() < 1e-5);
             assert!((beta_w / beta_f - 1.0).abs() < 1e-3);
             for j in 0..JOINTS {
-                let both_off = alpha_w[j] >= 1e29 && alpha_f[j] >= 1e29;
+                let both_off = switched_off(alpha_w[j]) && switched_off(alpha_f[j]);
                 assert!(
                     both_off || (alpha_w[j] / alpha_f[j] - 1.0).abs() < 1e-3,
                     "joint {j}: {} vs {}",

@@ -7,9 +7,9 @@
 use super::{CalibrationConfig, CalibrationResult, Stage};
 use crate::JOINTS;
 use crate::dataset::Dataset;
-use crate::joint_maps::{self, JointMaps, JointMapsSection, NEGLIGIBLE_AMPLITUDE_RAD, Pose};
+use crate::joint_maps::{self, JointMapsSection, NEGLIGIBLE_AMPLITUDE_RAD, Pose};
 use crate::statistics::table3;
-use calib_core::{Kinematics, Measurement};
+use calib_core::Kinematics;
 use nalgebra::Vector3;
 use serde::Serialize;
 
@@ -78,21 +78,6 @@ pub struct JointMapsReport {
     /// The maps sampled over one turn with their uncertainty, for plots.
     #[serde(skip)]
     pub curves: Vec<MapCurve>,
-}
-
-/// `dataset` with the maps added to every joint reading: what the kinematics sees.
-pub fn with_maps(dataset: &Dataset, maps: &JointMaps) -> anyhow::Result<Dataset> {
-    let mut out = dataset.clone();
-    for (m, r) in out.measurements.iter_mut().zip(&dataset.data.records) {
-        let q: [f64; JOINTS] = std::array::from_fn(|j| r.q[j]);
-        *m = Measurement::new(
-            &maps.apply(&q),
-            Vector3::from(r.position),
-            r.rotation,
-            r.weight,
-        )?;
-    }
-    Ok(out)
 }
 
 /// The weight of orientation rows in the maps, mm per rad: the ratio of the geometric fit's RMS
@@ -181,7 +166,7 @@ pub fn add_joint_maps(
     });
     // The statistics of the model with the maps.
     let actual = Kinematics::new(&dataset.model.robot, &found.errors)?;
-    let mapped = with_maps(dataset, &found.maps)?;
+    let mapped = dataset.with_maps(&found.maps)?;
     let (after, after_poses) = table3(&actual, &mapped);
     let geometric_calibration = result.calibration;
     let geometric_validation = result.validation;
@@ -192,7 +177,7 @@ pub fn add_joint_maps(
     result.per_pose.after = after_poses;
     result.per_pose.orientation_after = crate::statistics::orientation_per_pose(&actual, &mapped);
     if let (Some(v), Some(stage)) = (validation, result.validation.as_mut()) {
-        let (after, per_pose) = table3(&actual, &with_maps(v, &found.maps)?);
+        let (after, per_pose) = table3(&actual, &v.with_maps(&found.maps)?);
         stage.after = after;
         result.per_pose.validation_after = per_pose;
     }
