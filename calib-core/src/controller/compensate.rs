@@ -7,6 +7,13 @@
 //! radians on one scale (1 rad ~ [`CHARACTERISTIC_LENGTH`] mm). Each iteration costs one forward
 //! kinematics with Jacobian and one 6x6 Cholesky solve; the iteration cap bounds the worst case.
 //!
+//! A robot with angle-error maps ([`MappedKinematics`]) is solved in two steps: the damped least
+//! squares above finds the kinematic joint angles that put its geometry on the target, then the
+//! maps' fixed-point inverse (`model::joint_maps`, error bound proved there) gives the readings
+//! to command, and the pose of the whole model at those readings is checked against the
+//! tolerance. The inverse costs one sine and cosine and `2 C` harmonic terms per joint and
+//! iteration, against a forward kinematics with Jacobian and a 6x6 solve for another Newton step.
+//!
 //! Every run ends in a result or an error, never a silent failure: no convergence within the cap,
 //! a joint outside its limits, a correction larger than the configured bound (compared with the
 //! pose the nominal model gives for the start joints), or a near-singular configuration
@@ -14,7 +21,7 @@
 
 use crate::KinematicsError;
 use crate::kinematics::pose_error::PoseError;
-use crate::kinematics::{Kinematics, Pose};
+use crate::kinematics::{Kinematics, MappedKinematics, Pose};
 use crate::model::JointLimits;
 use crate::scalar::Real;
 use core::fmt;
@@ -125,13 +132,105 @@ fn finite<T: Real>(values: &[T]) -> bool {
     values.iter().all(|v| v.finite())
 }
 
+/// The actual robot the compensation drives: a geometric model, possibly with maps from joint
+/// readings to its kinematic angles.
+pub trait ActualRobot<T: Real, const N: usize> {
+    /// The geometric model, evaluated at kinematic angles.
+    fn geometry(&self) -> &Kinematics<T, N>;
+    /// The kinematic angles of joint readings `q`, rad.
+    fn angles(&self, q: &[T; N]) -> [T; N];
+    /// End pose (mm) for joint readings `q` (rad).
+    fn forward(&self, q: &[T; N]) -> Result<Pose<T>, KinematicsError>;
+    /// The settings for solving the geometry alone: tighter where the readings step adds an error.
+    fn geometry_settings(&self, settings: &CompensationSettings<T>) -> CompensationSettings<T>;
+    /// The readings for `solution`, kinematic angles that put the geometry on `target`, with the
+    /// residual of the whole model there.
+    fn readings(
+        &self,
+        solution: Compensated<T, N>,
+        target: &Pose<T>,
+        settings: &CompensationSettings<T>,
+    ) -> Result<Compensated<T, N>, CompensationError>;
+}
+
+impl<T: Real, const N: usize> ActualRobot<T, N> for Kinematics<T, N> {
+    fn geometry(&self) -> &Kinematics<T, N> {
+        self
+    }
+    fn angles(&self, q: &[T; N]) -> [T; N] {
+        *q
+    }
+    fn forward(&self, q: &[T; N]) -> Result<Pose<T>, KinematicsError> {
+        Kinematics::forward(self, q)
+    }
+    fn geometry_settings(&self, settings: &CompensationSettings<T>) -> CompensationSettings<T> {
+        *settings
+    }
+    fn readings(
+        &self,
+        solution: Compensated<T, N>,
+        _: &Pose<T>,
+        _: &CompensationSettings<T>,
+    ) -> Result<Compensated<T, N>, CompensationError> {
+        Ok(solution)
+    }
+}
+
+impl<T: Real, const N: usize, const C: usize> ActualRobot<T, N> for MappedKinematics<T, N, C> {
+    fn geometry(&self) -> &Kinematics<T, N> {
+        &self.geometry
+    }
+    fn angles(&self, q: &[T; N]) -> [T; N] {
+        self.maps.apply(q)
+    }
+    fn forward(&self, q: &[T; N]) -> Result<Pose<T>, KinematicsError> {
+        MappedKinematics::forward(self, q)
+    }
+    /// Half the tolerances: the other half is left for the readings' inverse.
+    fn geometry_settings(&self, settings: &CompensationSettings<T>) -> CompensationSettings<T> {
+        let half = T::of(0.5);
+        CompensationSettings {
+            position_tolerance: settings.position_tolerance * half,
+            rotation_tolerance: settings.rotation_tolerance * half,
+            ..*settings
+        }
+    }
+    /// The fixed point of the maps' inverse to a tenth of the tolerances (a joint error of `e`
+    /// rad moves the end by at most `e` times the reach, taken as [`CHARACTERISTIC_LENGTH`]), then
+    /// the whole model's pose at the readings against the target.
+    fn readings(
+        &self,
+        solution: Compensated<T, N>,
+        target: &Pose<T>,
+        settings: &CompensationSettings<T>,
+    ) -> Result<Compensated<T, N>, CompensationError> {
+        let tolerance = settings
+            .rotation_tolerance
+            .min(settings.position_tolerance / T::of(CHARACTERISTIC_LENGTH))
+            * T::of(0.1);
+        let (q, _) = self.maps.readings(&solution.q, tolerance);
+        let pose = self.forward(&q).map_err(CompensationError::Kinematics)?;
+        let error = PoseError::between(target, &pose);
+        let (dp, dr) = (error.position.norm(), error.rotation.norm());
+        if !(dp <= settings.position_tolerance && dr <= settings.rotation_tolerance) {
+            return Err(CompensationError::NoConvergence);
+        }
+        Ok(Compensated {
+            q,
+            residual_mm: dp,
+            residual_rad: dr,
+            iterations: solution.iterations,
+        })
+    }
+}
+
 /// Joint readings that put the `actual` robot on `target`, starting from `start` (the nominal
 /// controller's inverse kinematics of the target). `nominal` is the model the controller plans
 /// with: the correction bound applies to the difference between the pose it predicts for the
 /// result and for the start.
 pub fn compensate_joints<T: Real, const N: usize>(
     nominal: &Kinematics<T, N>,
-    actual: &Kinematics<T, N>,
+    actual: &impl ActualRobot<T, N>,
     limits: &[JointLimits<T>; N],
     target: &Pose<T>,
     start: &[T; N],
@@ -145,7 +244,7 @@ pub fn compensate_joints<T: Real, const N: usize>(
 /// change from `start`, the controller's joints.
 pub fn compensate_joints_from<T: Real, const N: usize>(
     nominal: &Kinematics<T, N>,
-    actual: &Kinematics<T, N>,
+    actual: &impl ActualRobot<T, N>,
     limits: &[JointLimits<T>; N],
     target: &Pose<T>,
     start: &[T; N],
@@ -155,7 +254,13 @@ pub fn compensate_joints_from<T: Real, const N: usize>(
     if !finite(start) {
         return Err(CompensationError::NonFinite);
     }
-    let solution = solve_joints(actual, target, initial, settings)?;
+    let angles = solve_joints(
+        actual.geometry(),
+        target,
+        &actual.angles(initial),
+        &actual.geometry_settings(settings),
+    )?;
+    let solution = actual.readings(angles, target, settings)?;
     if solution
         .q
         .iter()
@@ -282,7 +387,7 @@ pub fn solve_joints<T: Real, const N: usize>(
 /// commanded pose and the joints the controller will use.
 pub fn predistort<T: Real, const N: usize>(
     nominal: &Kinematics<T, N>,
-    actual: &Kinematics<T, N>,
+    actual: &impl ActualRobot<T, N>,
     limits: &[JointLimits<T>; N],
     target: &Pose<T>,
     start: &[T; N],
@@ -366,8 +471,24 @@ mod tests {
     /// controller's joints are the start. Compensation must put the actual robot on the target;
     /// the check uses the actual model independently of the solver's residual.
     fn run<T: Real>(count: usize, predistortion: bool) -> Outcome {
-        let nominal = Kinematics::nominal(&er10l_c10::<T>()).unwrap();
         let actual = Kinematics::new(&er10l_c10::<T>(), &table2::<T>()).unwrap();
+        run_with(
+            &actual,
+            |q| actual.forward(q).unwrap(),
+            count,
+            predistortion,
+        )
+    }
+
+    /// [`run`] for any actual robot; `truth` evaluates the actual robot's pose independently of
+    /// the solver.
+    fn run_with<T: Real>(
+        actual: &impl ActualRobot<T, 6>,
+        truth: impl Fn(&[T; 6]) -> Pose<T>,
+        count: usize,
+        predistortion: bool,
+    ) -> Outcome {
+        let nominal = Kinematics::nominal(&er10l_c10::<T>()).unwrap();
         let limits = [JointLimits::unlimited(); 6];
         let settings = settings::<T>();
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(5);
@@ -383,7 +504,7 @@ mod tests {
             let q_true: [T; 6] = core::array::from_fn(|_| {
                 T::of(core::f64::consts::PI * (2.0 * f64::unit_from_bits(rng.next_u64()) - 1.0))
             });
-            let target = actual.forward(&q_true).unwrap();
+            let target = truth(&q_true);
             // The controller's plan: nominal inverse kinematics of the target, on the branch of
             // the true joints (a closed-form IK picks the branch; a plan that wandered to another
             // branch is not what a controller would command).
@@ -402,16 +523,16 @@ mod tests {
             }
             tried += 1;
             let start = plan.q;
-            let off = PoseError::between(&target, &actual.forward(&start).unwrap());
+            let off = PoseError::between(&target, &truth(&start));
             out.uncompensated_mean_mm += off.position.norm().to_f64() / count as f64;
             let result = if predistortion {
-                predistort(&nominal, &actual, &limits, &target, &start, &settings).map(|(_, c)| c)
+                predistort(&nominal, actual, &limits, &target, &start, &settings).map(|(_, c)| c)
             } else {
-                compensate_joints(&nominal, &actual, &limits, &target, &start, &settings)
+                compensate_joints(&nominal, actual, &limits, &target, &start, &settings)
             };
             match result {
                 Ok(c) => {
-                    let e = PoseError::between(&target, &actual.forward(&c.q).unwrap());
+                    let e = PoseError::between(&target, &truth(&c.q));
                     out.worst_mm = out.worst_mm.max(e.position.norm().to_f64());
                     out.worst_rad = out.worst_rad.max(e.rotation.norm().to_f64());
                     out.ok += 1;
@@ -465,6 +586,65 @@ mod tests {
         report("f32 joint space", &o);
         assert!(o.ok >= 9_990, "only {} of 10000", o.ok);
         assert!(o.worst_mm <= 1e-2, "{}", o.worst_mm);
+    }
+
+    /// Table 2's geometry with maps of 8 harmonics, up to about 1 mrad per joint (the UR10's are
+    /// 0.15-0.33 mrad RMS).
+    fn mapped<T: Real>() -> MappedKinematics<T, 6, 8> {
+        let mut sin = [[T::zero(); 8]; 6];
+        let mut cos = [[T::zero(); 8]; 6];
+        for j in 0..6 {
+            for h in 0..8 {
+                let sign = if (j + h) % 2 == 0 { 1.0 } else { -1.0 };
+                sin[j][h] = T::of(3e-4 / (1.0 + h as f64) * sign);
+                cos[j][h] = T::of(1e-4 * ((j * 3 + h) % 5) as f64 / 5.0);
+            }
+        }
+        let maps = crate::model::joint_maps::JointMaps::new(8, sin, cos).unwrap();
+        MappedKinematics::new(&er10l_c10(), &table2(), maps).unwrap()
+    }
+
+    /// The mapped robot's pose from the series summed with libm's sine and cosine of `h q` in
+    /// f64, independently of the recurrence and the fixed point.
+    fn mapped_truth<T: Real>(model: &MappedKinematics<T, 6, 8>, q: &[T; 6]) -> Pose<T> {
+        let angles: [T; 6] = core::array::from_fn(|j| {
+            let x = q[j].to_f64();
+            let (a, b) = (
+                model.maps.sin_coefficients(j).unwrap(),
+                model.maps.cos_coefficients(j).unwrap(),
+            );
+            let dq: f64 = (0..8)
+                .map(|h| {
+                    let (s, c) = libm::sincos((h + 1) as f64 * x);
+                    a[h].to_f64() * s + b[h].to_f64() * c
+                })
+                .sum();
+            T::of(x + dq)
+        });
+        model.geometry.forward(&angles).unwrap()
+    }
+
+    #[test]
+    fn joint_space_compensation_with_maps_in_f64_and_f32() {
+        let model = mapped::<f64>();
+        let o = run_with(&model, |q| mapped_truth(&model, q), 2_000, false);
+        report("f64 joint space with maps", &o);
+        assert!(o.ok >= 1_996, "only {} of 2000", o.ok);
+        assert!(o.worst_mm <= 1e-3 && o.worst_rad <= 1e-6, "{}", o.worst_mm);
+        let model = mapped::<f32>();
+        let o = run_with(&model, |q| mapped_truth(&model, q), 2_000, false);
+        report("f32 joint space with maps", &o);
+        assert!(o.ok >= 1_996, "only {} of 2000", o.ok);
+        assert!(o.worst_mm <= 1e-2, "{}", o.worst_mm);
+    }
+
+    #[test]
+    fn predistortion_with_maps_in_f64() {
+        let model = mapped::<f64>();
+        let o = run_with(&model, |q| mapped_truth(&model, q), 2_000, true);
+        report("f64 pre-distortion with maps", &o);
+        assert!(o.ok >= 1_996, "only {} of 2000", o.ok);
+        assert!(o.worst_mm <= 1e-3 && o.worst_rad <= 1e-6, "{}", o.worst_mm);
     }
 
     #[test]

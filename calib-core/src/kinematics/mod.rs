@@ -7,12 +7,15 @@
 //! - [`pose_error`]: `dp = p_measured - p_predicted` (mm), `dr = log(R_measured R_predicted^T)`
 //!   (rad), and its parameter Jacobian;
 //! - [`jacobian`]: the geometric (joint) Jacobian and the parameter Jacobian of the end pose;
+//! - [`mapped`]: the geometry with each joint's angle-error map added to its reading;
 //! - [`ik`]: closed-form nominal inverse kinematics of spherical-wrist 6R robots (8 branches).
 
 mod forward;
 pub mod ik;
 pub mod jacobian;
+pub mod mapped;
 pub(crate) mod mdh;
 pub mod pose_error;
 
 pub use forward::{JointAngles, Kinematics, Pose, PreparedRobot};
+pub use mapped::MappedKinematics;

@@ -22,6 +22,15 @@ pub enum KinematicsError {
         /// Joint number, 1-based.
         joint: u8,
     },
+    /// A joint's angle-error map (1-based joint number) holds a coefficient that is not finite,
+    /// beyond 10 mrad or beyond the harmonics used, or changes faster than its inverse allows
+    /// (slope bound above 0.5, see `model::joint_maps`).
+    InvalidJointMap {
+        /// Joint number, 1-based.
+        joint: u8,
+    },
+    /// The maps use more harmonics than the capacity they were built with.
+    TooManyHarmonics,
     /// The identification mask selects a different number of parameters than the vector holds.
     ParameterCount {
         /// Number of parameters the packed vector holds (the const generic `D`).
@@ -39,6 +48,13 @@ impl fmt::Display for KinematicsError {
             Self::NonFiniteJoint { joint } => write!(f, "joint reading q{joint} is not finite"),
             Self::InvalidLimits { joint } => {
                 write!(f, "limits of joint {joint} are NaN or lower > upper")
+            }
+            Self::InvalidJointMap { joint } => write!(
+                f,
+                "the angle-error map of joint {joint} is not finite, beyond 10 mrad per coefficient or too steep to invert (slope bound above 0.5)"
+            ),
+            Self::TooManyHarmonics => {
+                f.write_str("the angle-error maps use more harmonics than this build holds")
             }
             Self::ParameterCount { expected, found } => write!(
                 f,
