@@ -88,6 +88,20 @@ proptest! {
     fn storage_decode_never_panics(bytes in prop::collection::vec(any::<u8>(), 0..600)) {
         let _ = storage::decode::<f64, 6>(&bytes);
         let _ = storage::decode::<f32, 6>(&bytes);
+        let _ = storage::decode_model::<f32, 6, 64>(&bytes);
+    }
+
+    #[test]
+    fn storage_decode_of_a_version_2_header_with_any_body_never_panics(
+        harmonics in any::<u16>(),
+        body in prop::collection::vec(any::<u8>(), 0..4000),
+    ) {
+        let mut bytes = b"CALB\x02\x00\x04\x06\x01\x00\x00\x00".to_vec();
+        bytes.extend_from_slice(&harmonics.to_le_bytes());
+        bytes.extend_from_slice(&[0, 0]);
+        bytes.extend_from_slice(&body);
+        let _ = storage::decode_model::<f32, 6, 64>(&bytes);
+        let _ = storage::decode_model::<f32, 6, 0>(&bytes);
     }
 
     #[test]
