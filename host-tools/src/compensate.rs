@@ -6,7 +6,8 @@ use crate::JOINTS;
 use crate::tracker_data::TrackerData;
 use anyhow::Context;
 use calib_core::controller::compensate::{
-    Compensated, CompensationError, CompensationSettings, compensate_joints_from, solve_joints,
+    ActualRobot, Compensated, CompensationError, CompensationSettings, compensate_joints_from,
+    solve_joints,
 };
 use calib_core::kinematics::ik::inverse_kinematics;
 use calib_core::kinematics::pose_error::PoseError;
@@ -56,8 +57,20 @@ pub fn compensate_targets(
     settings: &CompensationSettings<f64>,
     branch: usize,
 ) -> anyhow::Result<Vec<TargetOutcome>> {
-    let planned = Kinematics::nominal(nominal).context("nominal robot")?;
     let real = Kinematics::nominal(actual).context("identified robot")?;
+    compensate_targets_of(nominal, &real, targets, settings, branch)
+}
+
+/// [`compensate_targets`] for any actual robot: the geometry alone ([`Kinematics`]) or with
+/// angle-error maps ([`calib_core::kinematics::MappedKinematics`]).
+pub fn compensate_targets_of(
+    nominal: &Robot<f64, JOINTS>,
+    real: &impl ActualRobot<f64, JOINTS>,
+    targets: &TrackerData,
+    settings: &CompensationSettings<f64>,
+    branch: usize,
+) -> anyhow::Result<Vec<TargetOutcome>> {
+    let planned = Kinematics::nominal(nominal).context("nominal robot")?;
     let outcomes = targets
         .records
         .iter()
@@ -84,7 +97,7 @@ pub fn compensate_targets(
                     })
             };
             let result = start.and_then(|start| {
-                compensate_target(&planned, &real, &nominal.limits, &target, &start, settings)
+                compensate_target(&planned, real, &nominal.limits, &target, &start, settings)
             });
             TargetOutcome {
                 id: record.id.clone(),
@@ -112,7 +125,7 @@ pub const RETRY_SPREAD_RAD: f64 = 0.02;
 /// the bound.
 pub fn compensate_target(
     planned: &Kinematics<f64, JOINTS>,
-    real: &Kinematics<f64, JOINTS>,
+    real: &impl ActualRobot<f64, JOINTS>,
     limits: &[calib_core::JointLimits<f64>; JOINTS],
     target: &Pose,
     start: &[f64; JOINTS],
@@ -159,14 +172,17 @@ pub fn compensate_target(
 /// bounds, and the flags that raise them.
 fn needed_correction(
     planned: &Kinematics<f64, JOINTS>,
-    real: &Kinematics<f64, JOINTS>,
+    real: &impl ActualRobot<f64, JOINTS>,
     target: &Pose,
     start: &[f64; JOINTS],
     longer: &CompensationSettings<f64>,
     settings: &CompensationSettings<f64>,
 ) -> String {
     let refused = CompensationError::CorrectionTooLarge.to_string();
-    let Ok(solution) = solve_joints(real, target, start, longer) else {
+    let geometric = real.geometry_settings(longer);
+    let Ok(solution) = solve_joints(real.geometry(), target, &real.angles(start), &geometric)
+        .and_then(|angles| real.readings(angles, target, longer))
+    else {
         return refused;
     };
     let (Ok(before), Ok(after)) = (planned.forward(start), planned.forward(&solution.q)) else {

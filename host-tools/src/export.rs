@@ -1,10 +1,13 @@
-//! Exports of an identified robot: the controller's parameter block (f32 or f64,
-//! byte-identical to [`calib_core::controller::storage::encode`]), a robot file (TOML) or JSON; and
-//! the f64 -> f32 model cast the controller's single-precision core needs.
+//! Exports of an identified robot: the controller's parameter block (f32 or f64, byte-identical
+//! to [`calib_core::controller::storage::encode`], version 1, for a geometric model, and to
+//! [`calib_core::controller::storage::encode_model`], version 2, for a model with joint maps), a
+//! robot file (TOML) or JSON; and the f64 -> f32 model cast the controller's single-precision core
+//! needs.
 
 use crate::JOINTS;
+use crate::joint_maps::{JointMaps, MAX_FILE_HARMONICS};
 use crate::robot_file::{RobotFile, RobotModel};
-use calib_core::controller::storage;
+use calib_core::controller::storage::{self, ControllerModel};
 
 /// Formats of `calib export`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -27,13 +30,34 @@ pub enum BlockScalar {
     F64,
 }
 
-/// The controller's parameter block of `robot` (the identified model) with `sequence`, in the
-/// scalar type of the controller's core.
+/// The controller's parameter block of `robot` (the identified model) and its joint maps, if
+/// any, with `sequence`, in the scalar type of the controller's core. With maps the block is
+/// version 2 with the maps' harmonics; a controller reads it when built with room for at least
+/// as many (the reference firmware: 64).
 pub fn parameter_block(
     robot: &calib_core::Robot<f64, JOINTS>,
+    maps: Option<&JointMaps>,
     scalar: BlockScalar,
     sequence: u32,
 ) -> anyhow::Result<Vec<u8>> {
+    if let Some(maps) = maps {
+        return Ok(match scalar {
+            BlockScalar::F64 => model_block(
+                ControllerModel {
+                    robot: *robot,
+                    maps: maps.to_core::<f64, MAX_FILE_HARMONICS>()?,
+                },
+                sequence,
+            )?,
+            BlockScalar::F32 => model_block(
+                ControllerModel {
+                    robot: to_f32(robot),
+                    maps: maps.to_core::<f32, MAX_FILE_HARMONICS>()?,
+                },
+                sequence,
+            )?,
+        });
+    }
     Ok(match scalar {
         BlockScalar::F64 => {
             let mut buffer = vec![0u8; storage::block_len::<f64, JOINTS>()];
@@ -48,6 +72,16 @@ pub fn parameter_block(
     })
 }
 
+/// A version 2 block of `model`.
+fn model_block<T: calib_core::Real>(
+    model: ControllerModel<T, JOINTS, MAX_FILE_HARMONICS>,
+    sequence: u32,
+) -> anyhow::Result<Vec<u8>> {
+    let mut buffer = vec![0u8; storage::model_block_len::<T, JOINTS>(model.maps.harmonics())];
+    storage::encode_model(&model, sequence, &mut buffer)?;
+    Ok(buffer)
+}
+
 /// `file` (an identified robot file) in `format`.
 pub fn export(
     file: &RobotFile,
@@ -57,7 +91,12 @@ pub fn export(
     sequence: u32,
 ) -> anyhow::Result<Vec<u8>> {
     Ok(match format {
-        ExportFormat::Block => parameter_block(&model.robot, scalar, sequence)?,
+        ExportFormat::Block => parameter_block(
+            &model.robot,
+            file.joint_maps(&model.path)?.as_ref(),
+            scalar,
+            sequence,
+        )?,
         ExportFormat::Toml => file.to_toml("exported by calib export").into_bytes(),
         ExportFormat::Json => serde_json::to_vec_pretty(file)?,
     })

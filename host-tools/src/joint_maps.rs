@@ -20,8 +20,9 @@
 //! goes to zero and the map with it.
 
 use crate::JOINTS;
+use calib_core::model::joint_maps::JointMaps as CoreMaps;
 use calib_core::model::parameters::all_parameters;
-use calib_core::{JointAngles, Kinematics, Parameter, ParameterErrors, ParameterMask, Robot};
+use calib_core::{JointAngles, Kinematics, Parameter, ParameterErrors, ParameterMask, Real, Robot};
 use nalgebra::{DMatrix, DVector, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -140,6 +141,27 @@ impl JointMaps {
     pub fn apply(&self, q: &[f64; JOINTS]) -> [f64; JOINTS] {
         std::array::from_fn(|j| q[j] + self.error(j, q[j]))
     }
+
+    /// The maps as the core evaluates them on the controller, in scalar `T` with room for `C`
+    /// harmonics (rounded to `T`). Error: more than `C` harmonics, or a map the core refuses
+    /// (see [`calib_core::model::joint_maps::JointMaps::new`]; the error names the joint).
+    pub fn to_core<T: Real, const C: usize>(
+        &self,
+    ) -> Result<CoreMaps<T, JOINTS, C>, calib_core::KinematicsError> {
+        let h = self.harmonics;
+        if h > C {
+            return Err(calib_core::KinematicsError::TooManyHarmonics);
+        }
+        let mut sin = [[T::zero(); C]; JOINTS];
+        let mut cos = [[T::zero(); C]; JOINTS];
+        for ((a, b), c) in sin.iter_mut().zip(cos.iter_mut()).zip(&self.coefficients) {
+            for (k, v) in c.iter().enumerate() {
+                let slot = if k < h { &mut a[k] } else { &mut b[k - h] };
+                *slot = T::of(*v);
+            }
+        }
+        CoreMaps::new(h, sin, cos)
+    }
 }
 
 /// Largest magnitude of one map coefficient accepted in a robot file, rad (10 mrad; identified
@@ -238,6 +260,8 @@ impl JointMapsSection {
             c[..h].copy_from_slice(&entry.sin_rad);
             c[h..].copy_from_slice(&entry.cos_rad);
         }
+        maps.to_core::<f64, MAX_FILE_HARMONICS>()
+            .map_err(|e| format!("[joint_maps]: {e}"))?;
         Ok(maps)
     }
 

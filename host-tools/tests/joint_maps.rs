@@ -5,6 +5,7 @@
 mod common;
 use common::parse;
 use host_tools::cli::calibrate::{self, CalibrateOptions};
+use host_tools::robot_file::{RobotFile, RobotModel};
 
 const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml");
 const DATA_B: &str = concat!(
@@ -237,46 +238,159 @@ fn a_file_with_joint_maps_is_applied_or_refused_never_ignored() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("already has joint maps"), "{stderr}");
-    // export, compensate and simulate refuse it and say why.
-    for args in [
-        &[
-            "export",
-            "--params",
-            "maps.toml",
-            "--format",
-            "block",
-            "--out",
-            "b.bin",
-        ][..],
-        &[
-            "compensate",
-            "--robot",
-            ROBOT,
-            "--params",
-            "maps.toml",
-            "--targets",
-            DATA_B,
-            "--out",
-            "c.csv",
-        ][..],
-        &[
-            "simulate",
-            "--robot",
-            "maps.toml",
-            "--out",
-            "s.csv",
-            "--truth-out",
-            "t.toml",
-        ][..],
-    ] {
-        let out = calib_in(d, args);
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
-        assert!(stderr.contains("has joint maps"), "{args:?}: {stderr}");
-    }
-    for file in ["b.bin", "c.csv", "s.csv", "t.toml"] {
+    exported_blocks_hold_the_maps(d);
+    compensation_uses_the_maps(d);
+    // simulate refuses it and says why (it would simulate the geometry alone).
+    let args = [
+        "simulate",
+        "--robot",
+        "maps.toml",
+        "--out",
+        "s.csv",
+        "--truth-out",
+        "t.toml",
+    ];
+    let out = calib_in(d, &args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("has joint maps"), "{stderr}");
+    for file in ["s.csv", "t.toml"] {
         assert!(!d.join(file).exists());
     }
+}
+
+/// `export --format block` of `maps.toml` in `d`: a version 2 block whose geometry is the
+/// file's and whose maps, as the core evaluates them, equal the file's series (summed here with
+/// libm's sine and cosine of `h q`) to the scalar's rounding.
+fn exported_blocks_hold_the_maps(d: &std::path::Path) {
+    use calib_core::controller::storage::{decode_model, model_block_len};
+    use common::{calib_in, ok};
+    let file = RobotFile::read(&d.join("maps.toml")).unwrap();
+    let maps = file.joint_maps(&d.join("maps.toml")).unwrap().unwrap();
+    let model: RobotModel<6> = file.to_model(&d.join("maps.toml")).unwrap();
+    let readings: Vec<f64> = (0..200).map(|i| -6.2 + 0.062 * f64::from(i)).collect();
+    for (scalar, tolerance) in [("f64", 1e-15), ("f32", 2e-9)] {
+        let name = format!("maps-{scalar}.bin");
+        ok(&calib_in(
+            d,
+            &[
+                "export",
+                "--params",
+                "maps.toml",
+                "--format",
+                "block",
+                "--scalar",
+                scalar,
+                "--out",
+                &name,
+            ],
+        ));
+        let bytes = std::fs::read(d.join(&name)).unwrap();
+        let mut worst = 0.0f64;
+        if scalar == "f64" {
+            assert_eq!(bytes.len(), model_block_len::<f64, 6>(maps.harmonics));
+            let (block, _) = decode_model::<f64, 6, 64>(&bytes).unwrap();
+            assert_eq!(block.robot, model.robot);
+            for j in 0..6 {
+                for q in &readings {
+                    worst = worst.max((block.maps.error(j, *q) - maps.error(j, *q)).abs());
+                }
+            }
+        } else {
+            assert_eq!(bytes.len(), model_block_len::<f32, 6>(maps.harmonics));
+            assert!(bytes.len() <= 8192, "{} bytes", bytes.len());
+            let (block, _) = decode_model::<f32, 6, 64>(&bytes).unwrap();
+            assert_eq!(block.robot, host_tools::export::to_f32(&model.robot));
+            for j in 0..6 {
+                for q in &readings {
+                    let core = f64::from(block.maps.error(j, *q as f32));
+                    // The f32 reading itself is rounded: compare at the rounded reading.
+                    let host = maps.error(j, f64::from(*q as f32));
+                    worst = worst.max((core - host).abs());
+                }
+            }
+        }
+        println!(
+            "{scalar} block: {} bytes, maps within {worst:.1e} rad",
+            bytes.len()
+        );
+        assert!(worst < tolerance, "{scalar}: {worst:e} rad");
+    }
+}
+
+/// `compensate --params maps.toml` in `d`: the joints it commands put the robot with maps
+/// (independent reference kinematics at the file's series added to the readings) on the targets;
+/// the geometric model's joints would miss them by the maps' tenths of a millimetre.
+fn compensation_uses_the_maps(d: &std::path::Path) {
+    use common::{calib_in, ok};
+    use host_tools::reference::{self, RefModel};
+    use host_tools::tracker_data::{PoseRow, write_tracker_csv};
+    let nominal_file = RobotFile::read(std::path::Path::new(ROBOT)).unwrap();
+    let nominal = RefModel::from_file(&nominal_file, &[], &[0.0; 6], &[0.0; 6]);
+    let file = RobotFile::read(&d.join("maps.toml")).unwrap();
+    let maps = file.joint_maps(&d.join("maps.toml")).unwrap().unwrap();
+    let actual = RefModel::from_file(&file, &[], &[0.0; 6], &[0.0; 6]);
+    let mut rows = Vec::new();
+    for i in 0..30 {
+        let t = f64::from(i);
+        // Readings within Series B's ranges, where the maps were identified.
+        let q = vec![
+            -1.7 + 0.05 * t,
+            -1.0 - 0.02 * t,
+            0.4 + 0.03 * t,
+            -1.8 + 0.04 * t,
+            -1.0 + 0.02 * t,
+            0.2 + 0.05 * t,
+        ];
+        let pose = nominal.forward(&q);
+        rows.push(PoseRow {
+            id: format!("T{i:02}"),
+            q,
+            position: [pose[0][3], pose[1][3], pose[2][3]],
+            rotation: Some(nalgebra::Matrix3::from_fn(|r, c| pose[r][c])),
+        });
+    }
+    write_tracker_csv(&d.join("targets.csv"), &["frame: base".into()], &rows).unwrap();
+    let misses = |params: &str| -> Vec<f64> {
+        let out = format!("{params}.csv");
+        ok(&calib_in(
+            d,
+            &[
+                "compensate",
+                "--robot",
+                ROBOT,
+                "--params",
+                params,
+                "--targets",
+                "targets.csv",
+                "--out",
+                &out,
+            ],
+        ));
+        let mut reader = csv::Reader::from_path(d.join(&out)).unwrap();
+        reader
+            .records()
+            .enumerate()
+            .map(|(i, record)| {
+                let record = record.unwrap();
+                assert_eq!(&record[9], "ok", "{params} row {i}");
+                let q: [f64; 6] =
+                    std::array::from_fn(|j| record[j + 1].parse::<f64>().unwrap().to_radians());
+                let reached = actual.forward(&maps.apply(&q));
+                let e = reference::pose_error(&nominal.forward(&rows[i].q), &reached);
+                (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt()
+            })
+            .collect()
+    };
+    let with = misses("maps.toml");
+    let without = misses("geometric.toml");
+    let worst = with.iter().fold(0.0f64, |m, v| m.max(*v));
+    let mean_without = without.iter().sum::<f64>() / without.len() as f64;
+    println!(
+        "compensated with maps: worst {worst:.1e} mm; with the geometry only: mean {mean_without:.3} mm"
+    );
+    assert!(worst < 1e-3, "{worst} mm");
+    assert!(mean_without > 0.05, "{mean_without} mm");
 }
 
 /// 200 poses of Series A (a grid: joint 6 mostly at one of a few readings). Joint 6's map is

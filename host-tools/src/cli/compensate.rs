@@ -2,12 +2,15 @@
 //! ([`crate::compensate`]), write one CSV row per target.
 
 use crate::JOINTS;
-use crate::compensate::{Summary, compensate_targets, to_csv};
+use crate::compensate::{Summary, compensate_targets, compensate_targets_of, to_csv};
 use crate::files::Outputs;
+use crate::joint_maps::MAX_FILE_HARMONICS;
 use crate::robot_file::RobotModel;
 use crate::tracker_data::TrackerData;
 use anyhow::bail;
+use calib_core::ParameterErrors;
 use calib_core::controller::compensate::CompensationSettings;
+use calib_core::kinematics::MappedKinematics;
 use std::path::PathBuf;
 
 /// Options of `calib compensate`.
@@ -16,7 +19,8 @@ pub struct CompensateOptions {
     /// Nominal robot file: the model the controller plans with.
     #[arg(long, value_name = "FILE")]
     pub robot: PathBuf,
-    /// Identified robot file (from calib calibrate --out): the actual robot.
+    /// Identified robot file (from calib calibrate --out): the actual robot, with its joint maps
+    /// when it has them (calibrate --model joint-maps).
     #[arg(long, value_name = "FILE")]
     pub params: PathBuf,
     /// Target poses in the base frame (CSV: x_mm, y_mm, z_mm and an orientation; optional
@@ -44,9 +48,11 @@ pub struct CompensateOptions {
 
 /// Runs `calib compensate`.
 pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
-    for path in [&options.robot, &options.params] {
-        crate::robot_file::RobotFile::read(path)?.refuse_joint_maps(path, "calib compensate")?;
-    }
+    crate::robot_file::RobotFile::read(&options.robot)?.refuse_joint_maps(
+        &options.robot,
+        "calib compensate's --robot (the nominal model the controller plans with)",
+    )?;
+    let maps = crate::robot_file::RobotFile::read(&options.params)?.joint_maps(&options.params)?;
     let nominal: RobotModel<JOINTS> = RobotModel::load(&options.robot)?;
     let actual: RobotModel<JOINTS> = RobotModel::load(&options.params)?;
     let targets = TrackerData::read_targets(&options.targets)?;
@@ -84,13 +90,23 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
         max_joint_correction_rad: options.max_joint_correction_deg.to_radians(),
         ..CompensationSettings::default()
     };
-    let outcomes = compensate_targets(
-        &nominal.robot,
-        &actual.robot,
-        &targets,
-        &settings,
-        options.branch,
-    )?;
+    let outcomes = match maps {
+        None => compensate_targets(
+            &nominal.robot,
+            &actual.robot,
+            &targets,
+            &settings,
+            options.branch,
+        )?,
+        Some(maps) => {
+            let real = MappedKinematics::new(
+                &actual.robot,
+                &ParameterErrors::zero(),
+                maps.to_core::<f64, MAX_FILE_HARMONICS>()?,
+            )?;
+            compensate_targets_of(&nominal.robot, &real, &targets, &settings, options.branch)?
+        }
+    };
     let mut outputs = Outputs::new(&[
         ("--robot", &options.robot),
         ("--params", &options.params),

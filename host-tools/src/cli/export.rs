@@ -9,7 +9,8 @@ use std::path::PathBuf;
 /// Options of `calib export`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct ExportOptions {
-    /// Identified robot file.
+    /// Identified robot file; with joint maps (calibrate --model joint-maps) the block is
+    /// version 2 and holds them.
     #[arg(long, value_name = "FILE")]
     pub params: PathBuf,
     /// Output format.
@@ -29,10 +30,6 @@ pub struct ExportOptions {
 /// Runs `calib export`; returns the number of bytes written.
 pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
     let file = RobotFile::read(&options.params)?;
-    file.refuse_joint_maps(
-        &options.params,
-        "calib export (the parameter block and the controller)",
-    )?;
     let model: RobotModel<JOINTS> = file.to_model(&options.params)?;
     let bytes = crate::export::export(
         &file,
