@@ -86,6 +86,9 @@ struct Counter {
     compensation: u64,
     slowest_compensation: u64,
     compensations: u32,
+    maps_compensation: u64,
+    slowest_maps_compensation: u64,
+    maps_compensations: u32,
     first_generation: u64,
     last_generation: u64,
     generations: u32,
@@ -107,6 +110,11 @@ impl Marks for Counter {
                 self.compensation += spent;
                 self.slowest_compensation = self.slowest_compensation.max(spent);
                 self.compensations += 1;
+            }
+            Stage::MapsCompensation => {
+                self.maps_compensation += spent;
+                self.slowest_maps_compensation = self.slowest_maps_compensation.max(spent);
+                self.maps_compensations += 1;
             }
         }
     }
@@ -230,6 +238,93 @@ fn micro_benchmarks() {
     );
 }
 
+/// The parameter region (`.calib_slots`, outside the program's text and rodata): the UR10's
+/// nominal model (version 1 block) and its model with joint maps (version 2), as a controller
+/// keeps them in its parameter flash. The same bytes as `calib_onboard::maps`'s.
+#[unsafe(link_section = ".calib_slots")]
+static NOMINAL_SLOT: [u8; calib_onboard::maps::NOMINAL_BLOCK.len()] =
+    *include_bytes!("../../onboard/data/ur10-nominal.calb");
+#[unsafe(link_section = ".calib_slots")]
+static MAPS_SLOT: [u8; calib_onboard::maps::MAPS_BLOCK.len()] =
+    *include_bytes!("../../onboard/data/ur10-series-b-maps.calb");
+
+/// The compensation with joint maps (`calib_onboard::maps`): logs it and its instruction
+/// counts; `true` when its outcome equals the host's bit for bit.
+#[inline(never)]
+fn compensate_with_maps(counter: &mut Counter) -> bool {
+    let slots = (black_box(&NOMINAL_SLOT[..]), black_box(&MAPS_SLOT[..]));
+    let outcome = match calib_onboard::maps::compensate_with_maps(slots.0, slots.1, counter) {
+        Ok(o) => o,
+        Err(e) => {
+            defmt::error!("the maps job failed: {}", defmt::Debug2Format(&e));
+            return false;
+        }
+    };
+    defmt::info!(
+        "model block with joint maps: {=usize} bytes, {=u32} harmonics per joint",
+        MAPS_SLOT.len(),
+        outcome.harmonics
+    );
+    for (q, r) in outcome.compensated.iter().zip(&outcome.residual_mm) {
+        defmt::info!(
+            "compensated with joint maps: joints {=[?]} rad, residual {=f32} mm",
+            q[..],
+            r
+        );
+    }
+    defmt::info!(
+        "instructions: compensation with joint maps {=u64} (mean of {=u32}; slowest with maps {=u64})",
+        instructions(counter.maps_compensation) / u64::from(counter.maps_compensations.max(1)),
+        counter.maps_compensations,
+        instructions(counter.slowest_maps_compensation)
+    );
+    maps_micro_benchmarks();
+    let ok = outcome.matches_expected();
+    if !ok {
+        defmt::error!("the maps outcome differs from the host's expected-maps.bin");
+    }
+    ok
+}
+
+/// Instructions of loading the maps block and of the maps alone (all joints, the harmonics of the
+/// block): the kinematic angles of six readings, and the readings of six angles (fixed point).
+#[inline(never)]
+fn maps_micro_benchmarks() {
+    use calib_core::controller::storage::{ControllerModel, decode_model_into};
+    use calib_onboard::maps::{CAPACITY, TARGET_JOINTS};
+    let mut model = ControllerModel::<f32, 6, CAPACITY>::geometric(calib_onboard::robot());
+    let t = ticks();
+    let decoded = decode_model_into(black_box(&MAPS_SLOT[..]), &mut model);
+    let spent = ticks() - t;
+    if decoded.is_err() {
+        return;
+    }
+    defmt::info!(
+        "decode the maps block (CRC, checks, bounds): {=u64} instructions",
+        instructions(spent)
+    );
+    let q = TARGET_JOINTS[0];
+    let t = ticks();
+    for _ in 0..100 {
+        let _ = black_box(model.maps.apply(black_box(&q)));
+    }
+    defmt::info!(
+        "joint maps, 6 joints: angles of readings {=u64} instructions",
+        instructions(ticks() - t) / 100
+    );
+    let t = ticks();
+    let mut iterations = 0;
+    for _ in 0..100 {
+        let (_, n) = black_box(model.maps.readings(black_box(&q), 1e-6));
+        iterations = n;
+    }
+    defmt::info!(
+        "joint maps, 6 joints: readings of angles {=u64} instructions ({=u32} fixed-point iterations)",
+        instructions(ticks() - t) / 100,
+        iterations
+    );
+}
+
 #[entry]
 fn main() -> ! {
     let bottom = paint_stack();
@@ -252,6 +347,9 @@ fn main() -> ! {
         compensation: 0,
         slowest_compensation: 0,
         compensations: 0,
+        maps_compensation: 0,
+        slowest_maps_compensation: 0,
+        maps_compensations: 0,
         first_generation: 0,
         last_generation: 0,
         generations: 0,
@@ -297,9 +395,10 @@ fn main() -> ! {
         counter.compensations,
         instructions(counter.slowest_compensation)
     );
+    let maps_ok = compensate_with_maps(&mut counter);
     let peak = top - deepest(bottom, top);
     defmt::info!("peak stack {=usize} bytes", peak);
-    if outcome.matches_expected() {
+    if outcome.matches_expected() && maps_ok {
         defmt::info!("outcome equals the host's bit for bit: PASS");
         debug::exit(debug::EXIT_SUCCESS);
     } else {

@@ -1,7 +1,8 @@
 //! The controller's calibration job, in f32, exactly as the firmware runs it: the paper's
 //! 32-pose scenario with tracker noise (embedded at build time), the paper's swarm (20 particles,
 //! 24 parameters, 2000 generations, seed 0), least squares from the swarm's best, the Table 3
-//! statistics before and after, and compensation of a few target poses.
+//! statistics before and after, and compensation of a few target poses; then ([`maps`]) the
+//! UR10's model with joint maps loaded from a parameter block and compensation with it.
 //!
 //! The same code runs in the firmware (Cortex-M4F under QEMU) and in a host test; the host test
 //! writes the encoded [`Outcome`] to `expected.bin`, which the firmware compares bit for bit.
@@ -17,6 +18,8 @@ use calib_core::identify::statistics::PoseStatistics;
 use calib_core::model::paper;
 use calib_core::{Kinematics, ParameterErrors, ParameterSet, Robot};
 use nalgebra::{Matrix3, SVector, Vector3};
+
+pub mod maps;
 
 mod scenario {
     include!(concat!(env!("OUT_DIR"), "/scenario.rs"));
@@ -92,6 +95,8 @@ pub enum Stage {
     LeastSquares,
     /// One compensation.
     Compensation,
+    /// One compensation with joint maps ([`maps`]).
+    MapsCompensation,
 }
 
 /// Hooks called by [`run`]: the firmware reads its instruction counter in them and logs.
@@ -124,6 +129,8 @@ pub enum Error {
     Swarm,
     /// Least squares failed.
     LeastSquares,
+    /// An embedded parameter block could not be loaded.
+    Block,
 }
 
 /// Table 3 statistics in f32: position mean, std, max (mm), then per axis x, y, z: mean, std,

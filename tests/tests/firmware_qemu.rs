@@ -64,6 +64,14 @@ fn firmware_calibrates_in_qemu_bit_identically() {
         "{log}"
     );
     assert!(log.contains("IPSO: 2000 generations"), "{log}");
+    // The model with joint maps: loaded from its block, 4 targets compensated (the bits are the
+    // host's: part of the PASS above).
+    assert!(log.contains("30 harmonics per joint"), "{log}");
+    assert_eq!(
+        log.matches("compensated with joint maps: joints").count(),
+        4,
+        "{log}"
+    );
     // The decoded statistics are the host's (same job, same bits).
     let host = calib_onboard::run(&mut calib_onboard::NoMarks).unwrap();
     for (name, table) in [("before", host.before), ("after", host.after)] {
@@ -91,6 +99,16 @@ fn firmware_calibrates_in_qemu_bit_identically() {
         ),
         ("whole swarm ", 1_500_000_000, "whole swarm, instructions"),
         ("slowest ", 30_000, "one compensation, instructions"),
+        (
+            "slowest with maps ",
+            40_000,
+            "one compensation with joint maps, instructions",
+        ),
+        (
+            "model block with joint maps: ",
+            8 * 1024,
+            "the model's block, bytes",
+        ),
     ];
     for (prefix, budget, what) in budgets {
         let measured = number_after(&log, prefix);

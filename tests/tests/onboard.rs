@@ -92,3 +92,123 @@ fn the_job_is_accurate_and_its_encoding_is_the_firmwares_expectation() {
 fn libm_atan2(s: f32, c: f32) -> f32 {
     s.atan2(c)
 }
+
+/// The compensation with joint maps (`calib_onboard::maps`, f32): its outcome is the firmware's
+/// expectation (`onboard/expected-maps.bin`, regenerated like `expected.bin`); the embedded blocks
+/// are still what `calib export` makes of their robot files; every target is reached by the
+/// robot with maps as the f64 core evaluates it, and the f64 core's own compensation agrees.
+#[test]
+fn the_maps_job_matches_the_f64_core_and_its_encoding_is_the_firmwares_expectation() {
+    use calib_core::Kinematics;
+    use calib_core::controller::compensate::{CompensationSettings, compensate_joints};
+    use calib_core::controller::storage::{ControllerModel, decode, decode_model};
+    use calib_core::kinematics::pose_error::PoseError;
+    use calib_onboard::maps::{self, MAPS_BLOCK, MAPS_EXPECTED, NOMINAL_BLOCK, TARGET_JOINTS};
+    use host_tools::export::{BlockScalar, parameter_block};
+    use host_tools::robot_file::{RobotFile, RobotModel};
+    use std::path::Path;
+
+    let outcome = maps::compensate_with_maps(NOMINAL_BLOCK, MAPS_BLOCK, &mut NoMarks).unwrap();
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../onboard/expected-maps.bin");
+    if std::env::var_os("CALIB_UPDATE_EXPECTED").is_some() {
+        std::fs::write(path, outcome.encode()).unwrap();
+    } else {
+        assert!(
+            outcome.encode().as_slice() == MAPS_EXPECTED,
+            "onboard/expected-maps.bin is stale: regenerate it with CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test onboard"
+        );
+    }
+    println!("{outcome:?}");
+    assert_eq!(outcome.harmonics, 30);
+
+    // The embedded blocks are the exports of their robot files.
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+    for (file, block) in [
+        ("host-tools/robots/ur10.toml", NOMINAL_BLOCK),
+        ("onboard/data/ur10-series-b-maps.toml", MAPS_BLOCK),
+    ] {
+        let path = Path::new(dir).join(file);
+        let robot_file = RobotFile::read(&path).unwrap();
+        let model: RobotModel<6> = robot_file.to_model(&path).unwrap();
+        let maps = robot_file.joint_maps(&path).unwrap();
+        let exported = parameter_block(&model.robot, maps.as_ref(), BlockScalar::F32, 1).unwrap();
+        assert!(exported == block, "{file}: the embedded block is stale");
+    }
+
+    // The f64 core with the block's values (f32 -> f64 is exact).
+    let (nominal32, _) = decode::<f32, 6>(NOMINAL_BLOCK).unwrap();
+    let (model32, _) = decode_model::<f32, 6, 64>(MAPS_BLOCK).unwrap();
+    let widen = |file_robot: &calib_core::Robot<f32, 6>| calib_core::Robot::<f64, 6> {
+        joints: file_robot.joints.map(|j| calib_core::MdhJoint {
+            a: f64::from(j.a),
+            alpha: f64::from(j.alpha),
+            theta_offset: f64::from(j.theta_offset),
+            d: f64::from(j.d),
+            beta: f64::from(j.beta),
+        }),
+        limits: file_robot.limits.map(|l| calib_core::JointLimits {
+            lower: f64::from(l.lower),
+            upper: f64::from(l.upper),
+        }),
+        base: calib_core::FramePose {
+            xyz: file_robot.base.xyz.map(f64::from),
+            rpy: file_robot.base.rpy.map(f64::from),
+        },
+        tool: calib_core::FramePose {
+            xyz: file_robot.tool.xyz.map(f64::from),
+            rpy: file_robot.tool.rpy.map(f64::from),
+        },
+    };
+    let h = model32.maps.harmonics();
+    let sin = std::array::from_fn(|j| {
+        std::array::from_fn(|k| f64::from(model32.maps.sin_coefficients(j).unwrap()[k]))
+    });
+    let cos = std::array::from_fn(|j| {
+        std::array::from_fn(|k| f64::from(model32.maps.cos_coefficients(j).unwrap()[k]))
+    });
+    let model64: ControllerModel<f64, 6, 64> = ControllerModel {
+        robot: widen(&model32.robot),
+        maps: calib_core::model::joint_maps::JointMaps::new(h, sin, cos).unwrap(),
+    };
+    let nominal64 = Kinematics::nominal(&widen(&nominal32)).unwrap();
+    let actual64 = model64.kinematics().unwrap();
+    let mut worst = (0.0f64, 0.0f64, 0.0f64);
+    for (i, joints) in TARGET_JOINTS.iter().enumerate() {
+        let start = joints.map(f64::from);
+        let target = nominal64.forward(&start).unwrap();
+        let q32 = outcome.compensated[i].map(f64::from);
+        let reached = actual64.forward(&q32).unwrap();
+        let miss = PoseError::between(&target, &reached).position.norm();
+        let c64 = compensate_joints(
+            &nominal64,
+            &actual64,
+            &widen(&nominal32).limits,
+            &target,
+            &start,
+            &CompensationSettings::default(),
+        )
+        .unwrap();
+        let joint_difference = c64
+            .q
+            .iter()
+            .zip(&q32)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        // The correction itself: how far the uncompensated joints miss.
+        let uncompensated = PoseError::between(&target, &actual64.forward(&start).unwrap())
+            .position
+            .norm();
+        worst = (
+            worst.0.max(miss),
+            worst.1.max(joint_difference),
+            worst.2.max(uncompensated),
+        );
+    }
+    println!(
+        "f32 maps compensation: worst miss {:.2e} mm (f64 core), joints within {:.2e} rad of the f64 core's; uncompensated up to {:.3} mm",
+        worst.0, worst.1, worst.2
+    );
+    // The f32 tolerances are 0.01 mm and 1e-5 rad; the joints of two solutions within them differ
+    // by a few times 1e-5 rad.
+    assert!(worst.0 < 0.01 && worst.1 < 1e-4, "{worst:?}");
+    assert!(worst.2 > 0.5, "{worst:?}");
+}

@@ -176,7 +176,7 @@ impl<T: Real, const N: usize> ActualRobot<T, N> for Kinematics<T, N> {
     }
 }
 
-impl<T: Real, const N: usize, const C: usize> ActualRobot<T, N> for MappedKinematics<T, N, C> {
+impl<T: Real, const N: usize, const C: usize> ActualRobot<T, N> for MappedKinematics<'_, T, N, C> {
     fn geometry(&self) -> &Kinematics<T, N> {
         &self.geometry
     }
@@ -590,7 +590,7 @@ mod tests {
 
     /// Table 2's geometry with maps of 8 harmonics, up to about 1 mrad per joint (the UR10's are
     /// 0.15-0.33 mrad RMS).
-    fn mapped<T: Real>() -> MappedKinematics<T, 6, 8> {
+    fn mapped_maps<T: Real>() -> crate::model::joint_maps::JointMaps<T, 6, 8> {
         let mut sin = [[T::zero(); 8]; 6];
         let mut cos = [[T::zero(); 8]; 6];
         for j in 0..6 {
@@ -600,13 +600,18 @@ mod tests {
                 cos[j][h] = T::of(1e-4 * ((j * 3 + h) % 5) as f64 / 5.0);
             }
         }
-        let maps = crate::model::joint_maps::JointMaps::new(8, sin, cos).unwrap();
+        crate::model::joint_maps::JointMaps::new(8, sin, cos).unwrap()
+    }
+
+    fn mapped<T: Real>(
+        maps: &crate::model::joint_maps::JointMaps<T, 6, 8>,
+    ) -> MappedKinematics<'_, T, 6, 8> {
         MappedKinematics::new(&er10l_c10(), &table2(), maps).unwrap()
     }
 
     /// The mapped robot's pose from the series summed with libm's sine and cosine of `h q` in
     /// f64, independently of the recurrence and the fixed point.
-    fn mapped_truth<T: Real>(model: &MappedKinematics<T, 6, 8>, q: &[T; 6]) -> Pose<T> {
+    fn mapped_truth<T: Real>(model: &MappedKinematics<'_, T, 6, 8>, q: &[T; 6]) -> Pose<T> {
         let angles: [T; 6] = core::array::from_fn(|j| {
             let x = q[j].to_f64();
             let (a, b) = (
@@ -626,12 +631,14 @@ mod tests {
 
     #[test]
     fn joint_space_compensation_with_maps_in_f64_and_f32() {
-        let model = mapped::<f64>();
+        let maps = mapped_maps::<f64>();
+        let model = mapped(&maps);
         let o = run_with(&model, |q| mapped_truth(&model, q), 2_000, false);
         report("f64 joint space with maps", &o);
         assert!(o.ok >= 1_996, "only {} of 2000", o.ok);
         assert!(o.worst_mm <= 1e-3 && o.worst_rad <= 1e-6, "{}", o.worst_mm);
-        let model = mapped::<f32>();
+        let maps = mapped_maps::<f32>();
+        let model = mapped(&maps);
         let o = run_with(&model, |q| mapped_truth(&model, q), 2_000, false);
         report("f32 joint space with maps", &o);
         assert!(o.ok >= 1_996, "only {} of 2000", o.ok);
@@ -640,7 +647,8 @@ mod tests {
 
     #[test]
     fn predistortion_with_maps_in_f64() {
-        let model = mapped::<f64>();
+        let maps = mapped_maps::<f64>();
+        let model = mapped(&maps);
         let o = run_with(&model, |q| mapped_truth(&model, q), 2_000, true);
         report("f64 pre-distortion with maps", &o);
         assert!(o.ok >= 1_996, "only {} of 2000", o.ok);

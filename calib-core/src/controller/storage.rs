@@ -75,9 +75,10 @@ impl<T: Real, const N: usize, const C: usize> ControllerModel<T, N, C> {
         }
     }
 
-    /// The model ready to evaluate and compensate with. Error: an invalid geometry.
-    pub fn kinematics(&self) -> Result<MappedKinematics<T, N, C>, KinematicsError> {
-        MappedKinematics::new(&self.robot, &ParameterErrors::zero(), self.maps)
+    /// The model ready to evaluate and compensate with (borrowing the maps). Error: an invalid
+    /// geometry.
+    pub fn kinematics(&self) -> Result<MappedKinematics<'_, T, N, C>, KinematicsError> {
+        MappedKinematics::new(&self.robot, &ParameterErrors::zero(), &self.maps)
     }
 }
 
@@ -297,30 +298,51 @@ pub fn decode<T: Real, const N: usize>(bytes: &[u8]) -> Result<(Robot<T, N>, u32
 /// Reads a block of either version: the model (zero maps from a version 1 block) and its sequence
 /// number. A block whose maps have more than `C` harmonics is
 /// [`StorageError::TooManyHarmonics`]; maps that [`JointMaps::new`] refuses are
-/// [`StorageError::InvalidModel`].
+/// [`StorageError::InvalidModel`]. On a controller prefer [`decode_model_into`] (no copies of
+/// the maps on the stack).
 pub fn decode_model<T: Real, const N: usize, const C: usize>(
     bytes: &[u8],
 ) -> Result<(ControllerModel<T, N, C>, u32), StorageError> {
+    let mut model = ControllerModel::geometric(Robot::from_joints(
+        [MdhJoint {
+            a: T::zero(),
+            alpha: T::zero(),
+            theta_offset: T::zero(),
+            d: T::zero(),
+            beta: T::zero(),
+        }; N],
+    ));
+    let sequence = decode_model_into(bytes, &mut model)?;
+    Ok((model, sequence))
+}
+
+/// [`decode_model`] into `model`, in place; returns the sequence number. On an error `model` is
+/// unchanged unless the block passed its checksum and its maps were refused (then its maps are
+/// zero and its geometry the block's).
+pub fn decode_model_into<T: Real, const N: usize, const C: usize>(
+    bytes: &[u8],
+    model: &mut ControllerModel<T, N, C>,
+) -> Result<u32, StorageError> {
     let block = open_block::<T, N>(bytes, Some(C))?;
     let harmonics = usize::from(block.harmonics);
     let mut reader = Cursor {
         bytes: block.values,
         at: 0,
     };
-    let robot = read_robot(&mut reader)?;
-    let mut sin = [[T::zero(); C]; N];
-    let mut cos = [[T::zero(); C]; N];
-    for (a, b) in sin.iter_mut().zip(cos.iter_mut()) {
-        for v in a
-            .iter_mut()
-            .take(harmonics)
-            .chain(b.iter_mut().take(harmonics))
-        {
-            *v = reader.get().ok_or(StorageError::BufferTooSmall)?;
-        }
-    }
-    let maps = JointMaps::new(harmonics, sin, cos).map_err(StorageError::InvalidModel)?;
-    Ok((ControllerModel { robot, maps }, block.sequence))
+    model.robot = read_robot(&mut reader)?;
+    // Per joint: a_1..a_H, then b_1..b_H.
+    let maps_at = reader.at;
+    let value = |joint: usize, index: usize| -> Option<T> {
+        let at = maps_at + (joint * 2 * harmonics + index) * T::BYTES;
+        T::read_le(block.values.get(at..)?)
+    };
+    model
+        .maps
+        .set(harmonics, |j, h| {
+            Some((value(j, h - 1)?, value(j, harmonics + h - 1)?))
+        })
+        .map_err(StorageError::InvalidModel)?;
+    Ok(block.sequence)
 }
 
 /// The geometry from the start of `reader`, validated.

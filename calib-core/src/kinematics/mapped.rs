@@ -13,21 +13,22 @@ use crate::model::{KinematicsError, Robot};
 use crate::scalar::Real;
 use nalgebra::SMatrix;
 
-/// Geometry and angle-error maps of the actual robot, `C` harmonics of capacity per joint.
+/// Geometry and angle-error maps of the actual robot, `C` harmonics of capacity per joint. The
+/// maps are borrowed: a controller keeps one copy of their coefficients.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MappedKinematics<T: Real, const N: usize, const C: usize> {
+pub struct MappedKinematics<'a, T: Real, const N: usize, const C: usize> {
     /// The geometric model, evaluated at the kinematic angles.
     pub geometry: Kinematics<T, N>,
     /// The maps from readings to kinematic angles.
-    pub maps: JointMaps<T, N, C>,
+    pub maps: &'a JointMaps<T, N, C>,
 }
 
-impl<T: Real, const N: usize, const C: usize> MappedKinematics<T, N, C> {
+impl<'a, T: Real, const N: usize, const C: usize> MappedKinematics<'a, T, N, C> {
     /// `robot + errors` with `maps`; an error names the first non-finite value.
     pub fn new(
         robot: &Robot<T, N>,
         errors: &ParameterErrors<T, N>,
-        maps: JointMaps<T, N, C>,
+        maps: &'a JointMaps<T, N, C>,
     ) -> Result<Self, KinematicsError> {
         Ok(Self {
             geometry: Kinematics::new(robot, errors)?,
@@ -63,7 +64,7 @@ mod tests {
     use crate::model::paper::{er10l_c10, table2};
     extern crate std;
 
-    fn model() -> MappedKinematics<f64, 6, 8> {
+    fn maps() -> JointMaps<f64, 6, 8> {
         let mut sin = [[0.0; 8]; 6];
         let mut cos = [[0.0; 8]; 6];
         for j in 0..6 {
@@ -72,13 +73,17 @@ mod tests {
                 cos[j][h] = 1e-4 * ((j * 3 + h) % 5) as f64 / 5.0;
             }
         }
-        let maps = JointMaps::new(8, sin, cos).unwrap();
+        JointMaps::new(8, sin, cos).unwrap()
+    }
+
+    fn model(maps: &JointMaps<f64, 6, 8>) -> MappedKinematics<'_, f64, 6, 8> {
         MappedKinematics::new(&er10l_c10(), &table2(), maps).unwrap()
     }
 
     #[test]
     fn forward_is_the_geometry_at_the_mapped_angles() {
-        let m = model();
+        let maps = maps();
+        let m = model(&maps);
         let q = [0.3, -0.4, 0.5, 0.2, 0.9, -0.3];
         let t: [f64; 6] = core::array::from_fn(|j| {
             let x = q[j];
@@ -101,7 +106,8 @@ mod tests {
 
     #[test]
     fn the_jacobian_matches_central_differences() {
-        let m = model();
+        let maps = maps();
+        let m = model(&maps);
         let q = [0.3, -0.4, 0.5, 0.2, 0.9, -0.3];
         let (_, jacobian) = m.geometric_jacobian(&q).unwrap();
         let h = 1e-6;

@@ -74,19 +74,57 @@ impl<T: Real, const N: usize, const C: usize> JointMaps<T, N, C> {
         sin: [[T; C]; N],
         cos: [[T; C]; N],
     ) -> Result<Self, KinematicsError> {
-        let used = u16::try_from(harmonics)
+        let mut maps = Self::zero();
+        maps.sin = sin;
+        maps.cos = cos;
+        maps.settle(harmonics)?;
+        Ok(maps)
+    }
+
+    /// Sets the maps in place (no copy of the coefficient arrays, for a controller's stack):
+    /// `coefficient(j, h)` gives `(a_jh, b_jh)` for joint `j` (0-based) and harmonic `h`
+    /// (1-based) up to `harmonics`, or `None` to stop. Refused as [`new`](Self::new) refuses,
+    /// and then the maps are zero.
+    pub fn set(
+        &mut self,
+        harmonics: usize,
+        mut coefficient: impl FnMut(usize, usize) -> Option<(T, T)>,
+    ) -> Result<(), KinematicsError> {
+        *self = Self::zero();
+        if harmonics > C {
+            return Err(KinematicsError::TooManyHarmonics);
+        }
+        for (j, (a, b)) in self.sin.iter_mut().zip(self.cos.iter_mut()).enumerate() {
+            for (h, (a, b)) in a.iter_mut().zip(b.iter_mut()).take(harmonics).enumerate() {
+                let Some(pair) = coefficient(j, h + 1) else {
+                    *self = Self::zero();
+                    return Err(KinematicsError::InvalidJointMap {
+                        joint: joint_number(j),
+                    });
+                };
+                (*a, *b) = pair;
+            }
+        }
+        self.settle(harmonics)
+    }
+
+    /// Checks the coefficients and computes the bounds; zero maps on refusal.
+    fn settle(&mut self, harmonics: usize) -> Result<(), KinematicsError> {
+        let result = self.check_and_bound(harmonics);
+        if result.is_err() {
+            *self = Self::zero();
+        }
+        result
+    }
+
+    fn check_and_bound(&mut self, harmonics: usize) -> Result<(), KinematicsError> {
+        self.harmonics = u16::try_from(harmonics)
             .ok()
             .filter(|_| harmonics <= C)
             .ok_or(KinematicsError::TooManyHarmonics)?;
-        let mut maps = Self {
-            harmonics: used,
-            sin,
-            cos,
-            ..Self::zero()
-        };
         let limit = T::of(MAX_COEFFICIENT);
-        let joints = maps.sin.iter().zip(&maps.cos);
-        let bounds = maps.amplitude_bound.iter_mut().zip(&mut maps.slope_bound);
+        let joints = self.sin.iter().zip(&self.cos);
+        let bounds = self.amplitude_bound.iter_mut().zip(&mut self.slope_bound);
         for (j, ((sin, cos), (amplitude_bound, slope_bound))) in joints.zip(bounds).enumerate() {
             let invalid = KinematicsError::InvalidJointMap {
                 joint: joint_number(j),
@@ -110,7 +148,7 @@ impl<T: Real, const N: usize, const C: usize> JointMaps<T, N, C> {
             *amplitude_bound = amplitude;
             *slope_bound = slope;
         }
-        Ok(maps)
+        Ok(())
     }
 
     /// Harmonics used (at most `C`).

@@ -99,11 +99,8 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
             options.branch,
         )?,
         Some(maps) => {
-            let real = MappedKinematics::new(
-                &actual.robot,
-                &ParameterErrors::zero(),
-                maps.to_core::<f64, MAX_FILE_HARMONICS>()?,
-            )?;
+            let maps = maps.to_core::<f64, MAX_FILE_HARMONICS>()?;
+            let real = MappedKinematics::new(&actual.robot, &ParameterErrors::zero(), &maps)?;
             compensate_targets_of(&nominal.robot, &real, &targets, &settings, options.branch)?
         }
     };
