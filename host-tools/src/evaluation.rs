@@ -29,7 +29,8 @@ pub struct Evaluation {
 /// are registered and fitted first with the geometry fixed: on `fit_poses` poses chosen at random
 /// with `seed` as `calib calibrate --validate` chooses its calibration poses (then kept out of the
 /// statistics), or on all poses (then the statistics include
-/// them, which flatters the model).
+/// them, which flatters the model). With only the base fitted, an identified file's probe stays
+/// the tool ([`probe_kept`]).
 pub fn evaluate(
     dataset: &Dataset,
     frames: Frames,
@@ -38,6 +39,14 @@ pub fn evaluate(
 ) -> anyhow::Result<Evaluation> {
     let k = calib_core::identify::objective::DEFAULT_K;
     let n = dataset.measurements.len();
+    let with_probe;
+    let dataset = match probe_kept(dataset, frames)? {
+        Some(kept) => {
+            with_probe = kept;
+            &with_probe
+        }
+        None => dataset,
+    };
     if frames == Frames::None {
         if fit_poses.is_some() {
             anyhow::bail!(
@@ -77,4 +86,24 @@ pub fn evaluate(
         evaluated_poses: evaluated.measurements.len(),
         fitted_poses_evaluated: !separate,
     })
+}
+
+/// With only the base fitted (`--fit-frames base`), an identified file's probe or reflector
+/// (`[measurement] flange_tool`, identified with the model) stays the tool: the same probe in a
+/// new session needs only the tracker's position re-fitted. `None` when there is nothing to keep.
+fn probe_kept(dataset: &Dataset, frames: Frames) -> anyhow::Result<Option<Dataset>> {
+    let has_probe = dataset
+        .file
+        .measurement
+        .as_ref()
+        .is_some_and(|m| m.flange_tool.is_some());
+    if frames != Frames::Base || !has_probe {
+        return Ok(None);
+    }
+    let mut kept = dataset.clone();
+    kept.file = dataset.file.in_measurement_setup();
+    let mask = kept.model.mask;
+    kept.model = kept.file.to_model(&dataset.model.path)?;
+    kept.model.mask = mask;
+    Ok(Some(kept))
 }

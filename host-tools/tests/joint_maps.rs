@@ -442,3 +442,42 @@ fn a_map_the_poses_do_not_determine_is_kept_at_zero() {
     );
     assert!(with_maps < 0.5 * geometric, "{geometric} -> {with_maps}");
 }
+
+/// A new session with the same probe: Series B's model with joint maps (50 poses,
+/// `onboard/data/ur10-series-b-maps.toml`) on Series D, only the tracker's position (the base)
+/// re-fitted on 30 poses. The probe identified with the model is kept; before, `--fit-frames base`
+/// kept the controller's tool instead (0.588 mm here; 16 mm for a model of Series A).
+#[test]
+fn a_new_session_with_only_the_base_refitted_keeps_the_identified_probe() {
+    let model = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../onboard/data/ur10-series-b-maps.toml"
+    );
+    let data_d = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/data/ipa-ur10-lasertracker/series-d-iso-cubes.csv"
+    );
+    let mean = |frames: &str| -> f64 {
+        let out = common::ok(&common::calib(&[
+            "evaluate",
+            "--robot",
+            model,
+            "--data",
+            data_d,
+            "--profile",
+            POSITION,
+            "--fit-poses",
+            "30",
+            "--fit-frames",
+            frames,
+            "--json",
+        ]));
+        let json: serde_json::Value = serde_json::from_str(&out).unwrap();
+        json["position_mm"]["mean"].as_f64().unwrap()
+    };
+    let (base, both) = (mean("base"), mean("base+tool"));
+    println!(
+        "Series B model on Series D: base re-fitted {base:.4} mm, base and probe {both:.4} mm"
+    );
+    assert!(base < 0.5 && both < 0.45, "{base} {both}");
+}
