@@ -312,6 +312,22 @@ pub struct MapIdentification {
 }
 
 impl MapIdentification {
+    /// The same identification with every map at zero and the geometry `errors` (the geometric
+    /// calibration's): what the stage keeps when the maps do not predict better.
+    pub fn kept_at_zero(mut self, errors: ParameterErrors<f64, JOINTS>) -> Self {
+        self.errors = errors;
+        self.maps = JointMaps::zero(self.maps.harmonics);
+        self.amplitude_rad = [0.0; JOINTS];
+        self.determined = [0.0; JOINTS];
+        for block in &mut self.coefficient_covariance {
+            block.fill(0.0);
+        }
+        for sd in &mut self.coefficient_sd {
+            sd.fill(0.0);
+        }
+        self
+    }
+
     /// Posterior standard deviation of joint `joint`'s (0-based) angle error at reading `q`,
     /// rad: `sqrt(phi(q)^T Sigma_j phi(q))`, `phi(q) = [sin(h q)..., cos(h q)...]`.
     pub fn error_sd(&self, joint: usize, q: f64) -> f64 {

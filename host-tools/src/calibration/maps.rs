@@ -78,6 +78,84 @@ pub struct JointMapsReport {
     /// The maps sampled over one turn with their uncertainty, for plots.
     #[serde(skip)]
     pub curves: Vec<MapCurve>,
+    /// The cross-validation check against the geometry alone.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cross_validation: Option<MapsCrossValidation>,
+}
+
+/// Cross-validation of the model with maps against the geometry alone, on the same folds of the
+/// calibration poses as the geometric calibration's estimate
+/// ([`super::cross_validation::cross_validate`]): each fold predicted by the model (geometry and
+/// maps, the harmonics chosen on all poses) identified without it. Where the maps do not predict
+/// better, they are kept at zero: asking for the model never makes a calibration worse than the
+/// geometry alone on poses it did not see.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct MapsCrossValidation {
+    /// Folds.
+    pub folds: usize,
+    /// Mean position error of the predicted poses with the maps, mm.
+    pub maps_mean_mm: f64,
+    /// The same with the geometry alone, mm.
+    pub geometric_mean_mm: f64,
+    /// The maps did not predict better: the model is the geometry alone.
+    pub kept_at_zero: bool,
+}
+
+/// The cross-validated mean position error (mm) of the model with `harmonics` harmonics, on the
+/// folds of [`super::cross_validation::cross_validate`] over `dataset`'s poses: identified from
+/// each fold's complement within `poses` (`kept[i]` is the dataset index of `poses[i]`; the
+/// outliers left out of `poses` are predicted but never train). `None` when a fold fails.
+fn maps_cross_validation(
+    dataset: &Dataset,
+    kept: &[usize],
+    poses: &[Pose],
+    start: &calib_core::ParameterErrors<f64, JOINTS>,
+    parameters: &[calib_core::Parameter],
+    orientation_scale_mm: f64,
+    harmonics: usize,
+) -> Option<(usize, f64)> {
+    let n = dataset.measurements.len();
+    if n < 3 {
+        return None;
+    }
+    let folds = if n <= super::cross_validation::LEAVE_ONE_OUT_UP_TO {
+        n
+    } else {
+        super::cross_validation::FOLDS
+    };
+    let order = crate::dataset::shuffled(n, 0);
+    let robot = &dataset.model.robot;
+    let mut errors = Vec::with_capacity(n);
+    for fold in 0..folds {
+        let held: std::collections::BTreeSet<usize> =
+            order.iter().skip(fold).step_by(folds).copied().collect();
+        let training: Vec<Pose> = kept
+            .iter()
+            .zip(poses)
+            .filter(|(i, _)| !held.contains(i))
+            .map(|(_, p)| *p)
+            .collect();
+        let found = joint_maps::identify(
+            robot,
+            start,
+            parameters,
+            &training,
+            orientation_scale_mm,
+            harmonics,
+        )
+        .ok()?;
+        let model = Kinematics::new(robot, &found.errors).ok()?;
+        for i in &held {
+            let record = dataset.data.records.get(*i)?;
+            let q: [f64; JOINTS] = std::array::from_fn(|j| record.q.get(j).copied().unwrap_or(0.0));
+            let predicted = model.forward(&found.maps.apply(&q)).ok()?;
+            errors.push((Vector3::from(record.position) - predicted.translation.vector).norm());
+        }
+    }
+    Some((
+        folds,
+        errors.iter().sum::<f64>() / errors.len().max(1) as f64,
+    ))
 }
 
 /// The weight of orientation rows in the maps, mm per rad: the ratio of the geometric fit's RMS
@@ -135,11 +213,13 @@ pub fn add_joint_maps(
     let limit = median + OUTLIER_DEVIATIONS * spread;
     let mut left_out_lines = Vec::new();
     let mut poses = Vec::new();
-    for (r, residual) in dataset.data.records.iter().zip(&residuals) {
+    let mut kept = Vec::new();
+    for (i, (r, residual)) in dataset.data.records.iter().zip(&residuals).enumerate() {
         if *residual > limit || r.weight == 0.0 {
             left_out_lines.push(r.line);
             continue;
         }
+        kept.push(i);
         poses.push(Pose {
             q: std::array::from_fn(|j| r.q[j]),
             position: Vector3::from(r.position),
@@ -150,13 +230,30 @@ pub fn add_joint_maps(
     // identified from full poses, such as the probe's rotation).
     let orientation_scale_mm = orientation_scale(dataset, &geometric);
     let parameters: Vec<_> = result.parameters.iter().map(|p| p.parameter).collect();
-    let (found, evidence) = joint_maps::identify_best(
+    let (mut found, evidence) = joint_maps::identify_best(
         &dataset.model.robot,
         &result.errors,
         &parameters,
         &poses,
         orientation_scale_mm,
     )?;
+    let cross_validation = result.cross_validation.and_then(|geometric| {
+        let (folds, maps_mean_mm) = maps_cross_validation(
+            dataset,
+            &kept,
+            &poses,
+            &result.errors,
+            &parameters,
+            orientation_scale_mm,
+            found.maps.harmonics,
+        )?;
+        Some(MapsCrossValidation {
+            folds,
+            maps_mean_mm,
+            geometric_mean_mm: geometric.calibrated_mean_mm,
+            kept_at_zero: maps_mean_mm >= geometric.calibrated_mean_mm,
+        })
+    });
     let ranges: [[f64; 2]; JOINTS] = std::array::from_fn(|j| {
         poses
             .iter()
@@ -164,49 +261,23 @@ pub fn add_joint_maps(
                 [lo.min(p.q[j]), hi.max(p.q[j])]
             })
     });
-    // The statistics of the model with the maps.
-    let actual = Kinematics::new(&dataset.model.robot, &found.errors)?;
-    let mapped = dataset.with_maps(&found.maps)?;
-    let (after, after_poses) = table3(&actual, &mapped);
+    let kept_at_zero = cross_validation.is_some_and(|c| c.kept_at_zero);
     let geometric_calibration = result.calibration;
     let geometric_validation = result.validation;
-    result.calibration.after = after;
-    for (pose, after) in result.poses.iter_mut().zip(&after_poses) {
-        pose.after_mm = *after;
+    if kept_at_zero {
+        // The geometric calibration stands: its statistics, parameters and file.
+        found = found.kept_at_zero(result.errors);
+    } else {
+        result = with_maps(
+            result,
+            dataset,
+            validation,
+            config,
+            &parameters,
+            &found,
+            &ranges,
+        )?;
     }
-    result.per_pose.after = after_poses;
-    result.per_pose.orientation_after = crate::statistics::orientation_per_pose(&actual, &mapped);
-    if let (Some(v), Some(stage)) = (validation, result.validation.as_mut()) {
-        let (after, per_pose) = table3(&actual, &v.with_maps(&found.maps)?);
-        stage.after = after;
-        result.per_pose.validation_after = per_pose;
-    }
-    for p in &mut result.parameters {
-        p.value = found.errors.get(p.parameter).unwrap_or(0.0);
-        if let Some(i) = parameters.iter().position(|q| *q == p.parameter) {
-            p.std_error = found.parameter_sd.get(i).copied();
-        }
-    }
-    result.errors = found.errors;
-    let mut frames = result.frames.clone();
-    let mut file = super::identified_robot(
-        dataset,
-        config,
-        &result.parameters,
-        &result.errors,
-        &mut frames,
-    );
-    let section = JointMapsSection::new(&found.maps, &ranges);
-    // Never write a file that its own reader refuses.
-    section.to_maps().map_err(|problem| {
-        anyhow::anyhow!(
-            "the identified joint maps are not plausible ({problem}); nothing was written. The poses may not move \
-             that joint enough, or hold an outlier: calibrate with --model geometric, or measure more varied poses"
-        )
-    })?;
-    file.joint_maps = Some(section);
-    result.identified_robot = file;
-    result.frames = frames;
     let joints = (0..JOINTS)
         .map(|j| {
             let values: Vec<f64> = poses.iter().map(|p| found.maps.error(j, p.q[j])).collect();
@@ -255,7 +326,64 @@ pub fn add_joint_maps(
         left_out_lines,
         geometric_calibration,
         geometric_validation,
+        cross_validation,
     });
+    Ok(result)
+}
+
+/// `result` (the geometric calibration) replaced by the model with the maps `found`: statistics,
+/// parameters and the identified robot file with its `[joint_maps]`, the maps identified on
+/// readings within `ranges`.
+fn with_maps(
+    mut result: CalibrationResult,
+    dataset: &Dataset,
+    validation: Option<&Dataset>,
+    config: &CalibrationConfig,
+    parameters: &[calib_core::Parameter],
+    found: &joint_maps::MapIdentification,
+    ranges: &[[f64; 2]; JOINTS],
+) -> anyhow::Result<CalibrationResult> {
+    // The statistics of the model with the maps.
+    let actual = Kinematics::new(&dataset.model.robot, &found.errors)?;
+    let mapped = dataset.with_maps(&found.maps)?;
+    let (after, after_poses) = table3(&actual, &mapped);
+    result.calibration.after = after;
+    for (pose, after) in result.poses.iter_mut().zip(&after_poses) {
+        pose.after_mm = *after;
+    }
+    result.per_pose.after = after_poses;
+    result.per_pose.orientation_after = crate::statistics::orientation_per_pose(&actual, &mapped);
+    if let (Some(v), Some(stage)) = (validation, result.validation.as_mut()) {
+        let (after, per_pose) = table3(&actual, &v.with_maps(&found.maps)?);
+        stage.after = after;
+        result.per_pose.validation_after = per_pose;
+    }
+    for p in &mut result.parameters {
+        p.value = found.errors.get(p.parameter).unwrap_or(0.0);
+        if let Some(i) = parameters.iter().position(|q| *q == p.parameter) {
+            p.std_error = found.parameter_sd.get(i).copied();
+        }
+    }
+    result.errors = found.errors;
+    let mut frames = result.frames.clone();
+    let mut file = super::identified_robot(
+        dataset,
+        config,
+        &result.parameters,
+        &result.errors,
+        &mut frames,
+    );
+    let section = JointMapsSection::new(&found.maps, ranges);
+    // Never write a file that its own reader refuses.
+    section.to_maps().map_err(|problem| {
+        anyhow::anyhow!(
+            "the identified joint maps are not plausible ({problem}); nothing was written. The poses may not move \
+             that joint enough, or hold an outlier: calibrate with --model geometric, or measure more varied poses"
+        )
+    })?;
+    file.joint_maps = Some(section);
+    result.identified_robot = file;
+    result.frames = frames;
     Ok(result)
 }
 
@@ -301,6 +429,18 @@ impl JointMapsReport {
                 "the evidence does not support a map for joint {}: kept at zero (more poses, or a wider range of that joint, may)\n",
                 unsupported.join(", ")
             ));
+        }
+        if let Some(cv) = &self.cross_validation {
+            text.push_str(&format!(
+                "cross-validation ({} folds of the calibration poses): mean |dp| {:.4} mm with the maps, {:.4} mm with the geometry alone\n",
+                cv.folds, cv.maps_mean_mm, cv.geometric_mean_mm
+            ));
+            if cv.kept_at_zero {
+                text.push_str(
+                    "the maps do not predict left-out poses better than the geometry alone: every map is kept at zero and \
+                     the result is the geometric calibration (more poses, or wider joint ranges, may support maps)\n",
+                );
+            }
         }
         if !self.left_out_lines.is_empty() {
             text.push_str(&format!(
