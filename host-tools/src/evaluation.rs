@@ -30,7 +30,7 @@ pub struct Evaluation {
 /// with `seed` as `calib calibrate --validate` chooses its calibration poses (then kept out of the
 /// statistics), or on all poses (then the statistics include
 /// them, which flatters the model). With only the base fitted, an identified file's probe stays
-/// the tool ([`probe_kept`]).
+/// the tool (`probe_kept`).
 pub fn evaluate(
     dataset: &Dataset,
     frames: Frames,

@@ -25,6 +25,22 @@ const FULL_POSE: &str = concat!(
 /// Series B has 1495 poses.
 const SERIES_B_POSES: usize = 1495;
 
+const DATA_A: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/data/ipa-ur10-lasertracker/series-a-grid.csv"
+);
+
+/// Series A has 11,911 poses.
+const SERIES_A_POSES: usize = 11_911;
+
+const DATA_D: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/data/ipa-ur10-lasertracker/series-d-iso-cubes.csv"
+);
+
+/// Series D has 632 poses.
+const SERIES_D_POSES: usize = 632;
+
 /// Calibrates Series B (position only, least squares) with joint maps on `poses` random poses
 /// (`seed`) and returns (geometric held-out mean, with maps held-out mean), mm.
 fn series_b(poses: usize, seed: u64) -> (f64, f64) {
@@ -33,13 +49,25 @@ fn series_b(poses: usize, seed: u64) -> (f64, f64) {
 
 /// As [`series_b`], through `profile`.
 fn series_b_with(profile: &str, poses: usize, seed: u64) -> (f64, f64) {
-    let fraction = ((SERIES_B_POSES - poses) as f64 / SERIES_B_POSES as f64).to_string();
+    held_out(DATA_B, SERIES_B_POSES, profile, poses, seed).unwrap()
+}
+
+/// Calibrates `data` (`total` poses) through `profile` with joint maps on `poses` random poses
+/// (`seed`) and returns (geometric held-out mean, with maps held-out mean), mm; or the refusal.
+fn held_out(
+    data: &str,
+    total: usize,
+    profile: &str,
+    poses: usize,
+    seed: u64,
+) -> anyhow::Result<(f64, f64)> {
+    let fraction = ((total - poses) as f64 / total as f64).to_string();
     let seed_text = seed.to_string();
     let args = [
         "--robot",
         ROBOT,
         "--data",
-        DATA_B,
+        data,
         "--profile",
         profile,
         "--auto-mask",
@@ -52,7 +80,7 @@ fn series_b_with(profile: &str, poses: usize, seed: u64) -> (f64, f64) {
         "--model",
         "joint-maps",
     ];
-    let c = calibrate::calibrate(&parse::<CalibrateOptions>(&args)).unwrap();
+    let c = calibrate::calibrate(&parse::<CalibrateOptions>(&args))?;
     let maps = c.result.joint_maps.as_ref().unwrap();
     assert_eq!(c.result.calibration.poses, poses);
     let geometric = maps.geometric_validation.unwrap().after.position_mm.mean;
@@ -65,7 +93,77 @@ fn series_b_with(profile: &str, poses: usize, seed: u64) -> (f64, f64) {
     );
     // The identified file carries the maps.
     assert!(c.robot_toml.contains("[joint_maps]"));
+    Ok((geometric, with_maps))
+}
+
+/// The mean of the runs' (geometric, with maps) held-out means, each run better with the maps.
+fn means(name: &str, runs: &[(f64, f64)]) -> (f64, f64) {
+    for (i, (geometric, with_maps)) in runs.iter().enumerate() {
+        assert!(
+            with_maps < geometric,
+            "{name} run {i}: {geometric} -> {with_maps}"
+        );
+    }
+    let n = runs.len() as f64;
+    let geometric = runs.iter().map(|r| r.0).sum::<f64>() / n;
+    let with_maps = runs.iter().map(|r| r.1).sum::<f64>() / n;
+    println!(
+        "{name}, mean of {} subsets: {geometric:.4} -> {with_maps:.4} mm",
+        runs.len()
+    );
     (geometric, with_maps)
+}
+
+/// Series A (a grid), position-only, M = 50 (5 seeds) and 200 (3 seeds). The study: 0.435 ->
+/// 0.243 and 0.410 -> 0.125 mm; goal: within 10 % (0.267 and 0.1375 mm). Measured: 0.4347 ->
+/// 0.2227 and 0.4062 -> 0.1353 mm.
+#[test]
+fn series_a_fifty_and_two_hundred_poses_with_joint_maps() {
+    let run =
+        |poses: usize, seed: u64| held_out(DATA_A, SERIES_A_POSES, POSITION, poses, seed).unwrap();
+    let fifty: Vec<_> = (0..5).map(|seed| run(50, seed)).collect();
+    let (geometric, with_maps) = means("Series A, M = 50", &fifty);
+    assert!(
+        (0.41..0.46).contains(&geometric) && with_maps <= 0.243 * 1.1,
+        "{with_maps}"
+    );
+    let two_hundred: Vec<_> = (0..3).map(|seed| run(200, seed)).collect();
+    let (geometric, with_maps) = means("Series A, M = 200", &two_hundred);
+    assert!(
+        (0.38..0.43).contains(&geometric) && with_maps <= 0.125 * 1.1,
+        "{with_maps}"
+    );
+}
+
+/// Series A, M = 1000 (seed 0). The study: 0.404 -> 0.087 mm; goal: within 10 % (0.0957 mm).
+/// Measured: 0.3994 -> 0.0900 mm. About 15 s:
+/// `cargo test --release -p host-tools --test joint_maps -- --ignored series_a_thousand`.
+#[test]
+#[ignore = "slow: 1000 calibration poses, 10,911 held out"]
+fn series_a_thousand_poses_with_joint_maps() {
+    let run = held_out(DATA_A, SERIES_A_POSES, POSITION, 1000, 0).unwrap();
+    let (_, with_maps) = means("Series A, M = 1000", &[run]);
+    assert!(with_maps <= 0.087 * 1.1, "{with_maps}");
+}
+
+/// Series D (ISO cubes, narrow joint ranges), position-only, M = 50 (seeds 0-4) and 200 (seeds
+/// 0-2). The study: about 0.40 -> 0.20-0.23 and 0.372 -> 0.128 mm. **Not reached**: measured
+/// 0.408 -> 0.295 (seed 2 is refused by the geometric calibration's plausibility check, which the
+/// test checks too) and 0.356 -> 0.168 mm; this test holds those figures.
+#[test]
+fn series_d_with_joint_maps_short_of_the_study() {
+    let run = |poses: usize, seed: u64| held_out(DATA_D, SERIES_D_POSES, POSITION, poses, seed);
+    let refused = run(50, 2).unwrap_err().to_string();
+    assert!(refused.contains("plausible"), "{refused}");
+    let fifty: Vec<_> = [0, 1, 3, 4]
+        .iter()
+        .map(|seed| run(50, *seed).unwrap())
+        .collect();
+    let (_, with_maps) = means("Series D, M = 50", &fifty);
+    assert!(with_maps <= 0.30, "{with_maps}");
+    let two_hundred: Vec<_> = (0..3).map(|seed| run(200, seed).unwrap()).collect();
+    let (_, with_maps) = means("Series D, M = 200", &two_hundred);
+    assert!(with_maps <= 0.17, "{with_maps}");
 }
 
 /// M = 50, 5 seeds. The study quoted in issue 14: 0.430 -> 0.224 mm (with gravity compliance,
@@ -393,27 +491,28 @@ fn compensation_uses_the_maps(d: &std::path::Path) {
     assert!(mean_without > 0.05, "{mean_without} mm");
 }
 
-/// 200 poses of Series A (a grid: joint 6 mostly at one of a few readings). Joint 6's map is
+/// 200 poses of Series A (a grid: joint 6 mostly at one of a few readings; the others held out). Joint 6's map is
 /// not determined by them; before maps with less than half a determined coefficient were
 /// switched off, it followed rounding errors to a coefficient of 11 mrad and the run refused its
 /// own result ("the identified joint maps are not plausible"). Now it is kept at zero and the
 /// others are identified.
 #[test]
 fn a_map_the_poses_do_not_determine_is_kept_at_zero() {
-    let data = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/data/ipa-ur10-lasertracker/series-a-grid-200.csv"
-    );
+    let fraction = ((SERIES_A_POSES - 200) as f64 / SERIES_A_POSES as f64).to_string();
     let args = [
         "--robot",
         ROBOT,
         "--data",
-        data,
+        DATA_A,
         "--profile",
         POSITION,
         "--auto-mask",
         "--method",
         "lm",
+        "--validate",
+        &fraction,
+        "--validate-seed",
+        "0",
         "--model",
         "joint-maps",
     ];
