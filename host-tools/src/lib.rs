@@ -11,6 +11,7 @@ pub mod calibration;
 pub mod cli;
 pub mod columns;
 pub mod compensate;
+pub mod compliance;
 pub mod dataset;
 pub mod dispatch;
 pub mod evaluation;

@@ -140,6 +140,14 @@ pub struct RobotFile {
     /// angle-error map, part of the model (see [`crate::joint_maps`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub joint_maps: Option<crate::joint_maps::JointMapsSection>,
+    /// Link masses and centres of mass, the measured load and gravity (see
+    /// [`crate::compliance`]): needed by `calibrate --model joint-maps+compliance`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dynamics: Option<crate::compliance::DynamicsSection>,
+    /// Present in a file identified with `--model joint-maps+compliance`: the gravity compliance
+    /// gains, part of the model.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub compliance: Option<crate::compliance::ComplianceSection>,
 }
 
 /// The measurement setup identified with the geometry: where the tracker saw the robot's base,
@@ -240,6 +248,17 @@ impl RobotFile {
         robot.validate().map_err(|e| invalid(e.to_string()))?;
         if let Some(maps) = &self.joint_maps {
             maps.to_maps().map_err(invalid)?;
+        }
+        if let Some(dynamics) = &self.dynamics {
+            dynamics.to_gravity().map_err(invalid)?;
+        }
+        if let Some(compliance) = &self.compliance {
+            compliance.to_gains().map_err(invalid)?;
+            if self.dynamics.is_none() {
+                return Err(invalid(
+                    "[compliance] needs the [dynamics] it was identified with".to_string(),
+                ));
+            }
         }
         let mask = self.mask(&robot).map_err(invalid)?;
         Ok(RobotModel {
@@ -381,6 +400,20 @@ impl RobotFile {
                 })
             })
             .transpose()
+    }
+
+    /// Refuses a file with gravity compliance for `what` (every command but `calibrate`'s output
+    /// for now), so that no result silently leaves it out.
+    pub fn refuse_compliance(&self, path: &Path, what: &str) -> anyhow::Result<()> {
+        if self.compliance.is_some() {
+            anyhow::bail!(
+                "{}: this robot file has gravity compliance ([compliance], from calibrate --model joint-maps+compliance), \
+                 which {what} cannot apply yet; leaving it out would make the result silently less accurate. \
+                 Use the file of calibrate --model joint-maps here",
+                path.display()
+            );
+        }
+        Ok(())
     }
 
     /// Refuses a file with joint maps for `what` (a command or an output that cannot apply them

@@ -158,6 +158,7 @@ fn print_json_or_text<T: serde::Serialize>(
 /// `calib fk`: the end pose of a robot file for joint readings in degrees.
 fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::Result<()> {
     let file = host_tools::robot_file::RobotFile::read(robot)?;
+    file.refuse_compliance(robot, "calib fk")?;
     let model: RobotModel<JOINTS> = file.to_model(robot)?;
     // Joint maps are part of the model: the kinematics sees each reading with its angle error.
     let joints_deg: Vec<f64> = match file.joint_maps(robot)? {

@@ -162,6 +162,18 @@ pub enum ErrorModel {
     #[value(name = "joint-maps")]
     #[serde(rename = "joint-maps")]
     JointMaps,
+    /// The joint maps and gravity compliance (torsion of joints 2-4, bearing tilt of joints
+    /// 1-4; [`crate::compliance`]) from the robot file's `[dynamics]` masses.
+    #[value(name = "joint-maps+compliance")]
+    #[serde(rename = "joint-maps+compliance")]
+    JointMapsCompliance,
+}
+
+impl ErrorModel {
+    /// Whether the model has joint maps.
+    pub fn maps(self) -> bool {
+        self != Self::Geometric
+    }
 }
 
 /// Everything a calibration needs besides the data. `Default` is the paper's method followed by
@@ -246,7 +258,7 @@ impl CalibrationConfig {
         {
             bail!("--loss-scale-mm must be a finite number > 0, got {scale}");
         }
-        if self.model == ErrorModel::JointMaps && self.identify == Identify::Frames {
+        if self.model.maps() && self.identify == Identify::Frames {
             bail!(
                 "--model joint-maps identifies maps with the geometry; --identify frames keeps the robot file's model \
                  (with its maps, when it has them): drop one of the two"

@@ -4,8 +4,10 @@
 //! robot file and the report are those of the model with the maps. The geometric calibration's
 //! statistics stay in the report for comparison.
 
+use super::ErrorModel;
 use super::{CalibrationConfig, CalibrationResult, Stage};
 use crate::JOINTS;
+use crate::compliance::{self, Gravity};
 use crate::dataset::Dataset;
 use crate::joint_maps::{self, JointMapsSection, NEGLIGIBLE_AMPLITUDE_RAD, Pose};
 use crate::statistics::table3;
@@ -78,6 +80,9 @@ pub struct JointMapsReport {
     /// The maps sampled over one turn with their uncertainty, for plots.
     #[serde(skip)]
     pub curves: Vec<MapCurve>,
+    /// The gravity compliance gains, when identified: `[name, urad/(N m), posterior sd]`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compliance: Option<Vec<(String, f64, f64)>>,
     /// The cross-validation check against the geometry alone.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cross_validation: Option<MapsCrossValidation>,
@@ -108,12 +113,10 @@ pub struct MapsCrossValidation {
 fn maps_cross_validation(
     dataset: &Dataset,
     kept: &[usize],
-    poses: &[Pose],
-    start: &calib_core::ParameterErrors<f64, JOINTS>,
-    parameters: &[calib_core::Parameter],
-    orientation_scale_mm: f64,
+    problem: &joint_maps::MapsProblem<'_>,
     harmonics: usize,
 ) -> Option<(usize, f64)> {
+    let (poses, gravity) = (problem.poses, problem.gravity);
     let n = dataset.measurements.len();
     if n < 3 {
         return None;
@@ -135,21 +138,23 @@ fn maps_cross_validation(
             .filter(|(i, _)| !held.contains(i))
             .map(|(_, p)| *p)
             .collect();
-        let found = joint_maps::identify(
-            robot,
-            start,
-            parameters,
-            &training,
-            orientation_scale_mm,
-            harmonics,
-        )
-        .ok()?;
+        let training_problem = joint_maps::MapsProblem {
+            poses: &training,
+            ..*problem
+        };
+        let found = joint_maps::identify(&training_problem, harmonics).ok()?;
         let model = Kinematics::new(robot, &found.errors).ok()?;
         for i in &held {
             let record = dataset.data.records.get(*i)?;
             let q: [f64; JOINTS] = std::array::from_fn(|j| record.q.get(j).copied().unwrap_or(0.0));
-            let predicted = model.forward(&found.maps.apply(&q)).ok()?;
-            errors.push((Vector3::from(record.position) - predicted.translation.vector).norm());
+            let angles = found.maps.apply(&q);
+            let mut predicted = model.forward(&angles).ok()?.translation.vector;
+            if let (Some(gravity), Some(c)) = (gravity, &found.compliance) {
+                let columns = compliance::columns(gravity, robot, &found.errors, &angles).ok()?;
+                let d = compliance::displacement(&columns, &c.gains);
+                predicted += Vector3::new(d[0], d[1], d[2]);
+            }
+            errors.push((Vector3::from(record.position) - predicted).norm());
         }
     }
     Some((
@@ -181,7 +186,8 @@ fn orientation_scale(dataset: &Dataset, geometric: &Kinematics<f64, JOINTS>) -> 
 
 /// Refuses a robot file that already has joint maps as the start of a joint-maps calibration:
 /// its maps would be applied to the data and new ones identified on top.
-pub fn check_robot_file(dataset: &Dataset) -> anyhow::Result<()> {
+pub fn check_robot_file(dataset: &Dataset, config: &CalibrationConfig) -> anyhow::Result<()> {
+    gravity(dataset, config)?;
     if dataset.file.joint_maps.is_some() {
         anyhow::bail!(
             "{}: the robot file already has joint maps; identify new ones from the nominal robot file or the \
@@ -192,6 +198,52 @@ pub fn check_robot_file(dataset: &Dataset) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The masses of the robot file for `--model joint-maps+compliance` (`None` for the other models);
+/// an error says what the file lacks.
+fn gravity(dataset: &Dataset, config: &CalibrationConfig) -> anyhow::Result<Option<Gravity>> {
+    if config.model != ErrorModel::JointMapsCompliance {
+        return Ok(None);
+    }
+    let Some(dynamics) = &dataset.file.dynamics else {
+        anyhow::bail!(
+            "{}: --model joint-maps+compliance needs the robot's link masses and centres of mass: add a [dynamics] \
+             section (gravity_mps2, one [[dynamics.link]] per joint with mass_kg and com_mm, and [dynamics.tool] for \
+             the probe or reflector; host-tools/robots/ur10.toml has the UR10's)",
+            dataset.model.path.display()
+        );
+    };
+    dynamics
+        .to_gravity()
+        .map(Some)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", dataset.model.path.display()))
+}
+
+/// `dataset` as the model with maps and compliance sees it: the maps added to the readings, the
+/// compliance's displacement taken off the measured poses (so that the geometry's error on it is
+/// the whole model's error).
+pub fn model_view(
+    dataset: &Dataset,
+    found: &joint_maps::MapIdentification,
+    gravity: Option<&Gravity>,
+) -> anyhow::Result<Dataset> {
+    let mut out = dataset.with_maps(&found.maps)?;
+    let (Some(gravity), Some(compliance)) = (gravity, &found.compliance) else {
+        return Ok(out);
+    };
+    for (m, r) in out.measurements.iter_mut().zip(&dataset.data.records) {
+        let q: [f64; JOINTS] = std::array::from_fn(|j| r.q[j]);
+        let angles = found.maps.apply(&q);
+        let columns = compliance::columns(gravity, &dataset.model.robot, &found.errors, &angles)?;
+        let d = compliance::displacement(&columns, &compliance.gains);
+        m.position -= Vector3::new(d[0], d[1], d[2]);
+        if let Some(rotation) = m.rotation.as_mut() {
+            *rotation =
+                nalgebra::Rotation3::new(-Vector3::new(d[3], d[4], d[5])).matrix() * *rotation;
+        }
+    }
+    Ok(out)
+}
+
 /// Adds the joint maps to the geometric calibration `result` of `dataset` (prepared: frames
 /// fitted), validated on `validation`.
 pub fn add_joint_maps(
@@ -200,7 +252,7 @@ pub fn add_joint_maps(
     validation: Option<&Dataset>,
     config: &CalibrationConfig,
 ) -> anyhow::Result<CalibrationResult> {
-    check_robot_file(dataset)?;
+    check_robot_file(dataset, config)?;
     let geometric = Kinematics::new(&dataset.model.robot, &result.errors)?;
     let residuals: Vec<f64> = dataset
         .measurements
@@ -230,23 +282,19 @@ pub fn add_joint_maps(
     // identified from full poses, such as the probe's rotation).
     let orientation_scale_mm = orientation_scale(dataset, &geometric);
     let parameters: Vec<_> = result.parameters.iter().map(|p| p.parameter).collect();
-    let (mut found, evidence) = joint_maps::identify_best(
-        &dataset.model.robot,
-        &result.errors,
-        &parameters,
-        &poses,
+    let gravity = gravity(dataset, config)?;
+    let problem = joint_maps::MapsProblem {
+        robot: &dataset.model.robot,
+        start: &result.errors,
+        parameters: &parameters,
+        poses: &poses,
         orientation_scale_mm,
-    )?;
+        gravity: gravity.as_ref(),
+    };
+    let (mut found, evidence) = joint_maps::identify_best(&problem)?;
     let cross_validation = result.cross_validation.and_then(|geometric| {
-        let (folds, maps_mean_mm) = maps_cross_validation(
-            dataset,
-            &kept,
-            &poses,
-            &result.errors,
-            &parameters,
-            orientation_scale_mm,
-            found.maps.harmonics,
-        )?;
+        let (folds, maps_mean_mm) =
+            maps_cross_validation(dataset, &kept, &problem, found.maps.harmonics)?;
         Some(MapsCrossValidation {
             folds,
             maps_mean_mm,
@@ -274,7 +322,7 @@ pub fn add_joint_maps(
             validation,
             config,
             &parameters,
-            &found,
+            (&found, gravity.as_ref()),
             &ranges,
         )?;
     }
@@ -326,6 +374,13 @@ pub fn add_joint_maps(
         left_out_lines,
         geometric_calibration,
         geometric_validation,
+        compliance: found.compliance.map(|c| {
+            compliance::GAINS
+                .iter()
+                .zip(c.gains.iter().zip(&c.sd))
+                .map(|(g, (v, sd))| (g.to_string(), *v, *sd))
+                .collect()
+        }),
         cross_validation,
     });
     Ok(result)
@@ -340,12 +395,12 @@ fn with_maps(
     validation: Option<&Dataset>,
     config: &CalibrationConfig,
     parameters: &[calib_core::Parameter],
-    found: &joint_maps::MapIdentification,
+    (found, gravity): (&joint_maps::MapIdentification, Option<&Gravity>),
     ranges: &[[f64; 2]; JOINTS],
 ) -> anyhow::Result<CalibrationResult> {
-    // The statistics of the model with the maps.
+    // The statistics of the model with the maps (and the compliance).
     let actual = Kinematics::new(&dataset.model.robot, &found.errors)?;
-    let mapped = dataset.with_maps(&found.maps)?;
+    let mapped = model_view(dataset, found, gravity)?;
     let (after, after_poses) = table3(&actual, &mapped);
     result.calibration.after = after;
     for (pose, after) in result.poses.iter_mut().zip(&after_poses) {
@@ -354,7 +409,7 @@ fn with_maps(
     result.per_pose.after = after_poses;
     result.per_pose.orientation_after = crate::statistics::orientation_per_pose(&actual, &mapped);
     if let (Some(v), Some(stage)) = (validation, result.validation.as_mut()) {
-        let (after, per_pose) = table3(&actual, &v.with_maps(&found.maps)?);
+        let (after, per_pose) = table3(&actual, &model_view(v, found, gravity)?);
         stage.after = after;
         result.per_pose.validation_after = per_pose;
     }
@@ -382,6 +437,16 @@ fn with_maps(
         )
     })?;
     file.joint_maps = Some(section);
+    if let Some(c) = &found.compliance {
+        let section = crate::compliance::ComplianceSection::new(&c.gains);
+        section.to_gains().map_err(|problem| {
+            anyhow::anyhow!(
+                "the identified gravity compliance is not plausible ({problem}); nothing was written. The poses may \
+                 not load the joints differently enough: calibrate with --model joint-maps, or measure more varied poses"
+            )
+        })?;
+        file.compliance = Some(section);
+    }
     result.identified_robot = file;
     result.frames = frames;
     Ok(result)
@@ -429,6 +494,12 @@ impl JointMapsReport {
                 "the evidence does not support a map for joint {}: kept at zero (more poses, or a wider range of that joint, may)\n",
                 unsupported.join(", ")
             ));
+        }
+        if let Some(gains) = &self.compliance {
+            text.push_str("gravity compliance (urad per N m, +- posterior sd; 0 +- 0: no moment in these poses):\n");
+            for (name, value, sd) in gains {
+                text.push_str(&format!("  {name:<24} {value:>9.3} +- {sd:.3}\n"));
+            }
         }
         if let Some(cv) = &self.cross_validation {
             text.push_str(&format!(

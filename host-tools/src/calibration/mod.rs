@@ -83,8 +83,8 @@ pub fn calibrate(
     config: &CalibrationConfig,
 ) -> anyhow::Result<CalibrationResult> {
     config.check()?;
-    if config.model == ErrorModel::JointMaps {
-        maps::check_robot_file(&dataset)?;
+    if config.model.maps() {
+        maps::check_robot_file(&dataset, config)?;
     }
     let frames = Frames::chosen(config.frames, &dataset.data);
     let (frames_report, mask) = {
@@ -117,7 +117,7 @@ pub fn calibrate(
             frames_report
         )
     )?;
-    if config.model == ErrorModel::JointMaps {
+    if config.model.maps() {
         result = maps::add_joint_maps(result, &dataset, validation.as_ref(), config)?;
     }
     result.implausible = plausibility::check(&result);

@@ -52,7 +52,9 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
         &options.robot,
         "calib compensate's --robot (the nominal model the controller plans with)",
     )?;
-    let maps = crate::robot_file::RobotFile::read(&options.params)?.joint_maps(&options.params)?;
+    let params = crate::robot_file::RobotFile::read(&options.params)?;
+    params.refuse_compliance(&options.params, "calib compensate")?;
+    let maps = params.joint_maps(&options.params)?;
     let nominal: RobotModel<JOINTS> = RobotModel::load(&options.robot)?;
     let actual: RobotModel<JOINTS> = RobotModel::load(&options.params)?;
     let targets = TrackerData::read_targets(&options.targets)?;

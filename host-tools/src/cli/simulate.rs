@@ -122,6 +122,7 @@ impl Simulation {
 pub fn simulate(options: &Simulation) -> anyhow::Result<Simulated> {
     let config = options.config()?;
     let file = RobotFile::read(&options.robot)?;
+    file.refuse_compliance(&options.robot, "calib simulate")?;
     file.refuse_joint_maps(&options.robot, "calib simulate")?;
     let simulated = crate::simulate::simulate(&file, &options.robot, &config)?;
     simulated.write(&options.out, &options.truth_out, &options.robot)?;
