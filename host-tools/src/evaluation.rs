@@ -3,6 +3,7 @@
 //! and the reflector or probe) when the data are in a tracker's frame. The geometry is never
 //! changed. Poses used to fit the frames can be kept out of the statistics.
 
+use crate::JOINTS;
 use crate::dataset::Dataset;
 use crate::frames::{Frames, FramesReport};
 use crate::statistics::{Table3, table3};
@@ -55,8 +56,12 @@ pub fn evaluate(
         }
         let (report, _) = crate::frames::prepare(frames, &mut dataset.clone(), &mut [], k)?;
         let kinematics = Kinematics::nominal(&dataset.model.robot)?;
+        let seen = match compliance_of(dataset)? {
+            Some(c) => c.taken_off(dataset, &dataset.model.robot)?,
+            None => dataset.clone(),
+        };
         return Ok(Evaluation {
-            table: table3(&kinematics, dataset).0,
+            table: table3(&kinematics, &seen).0,
             frames: report,
             fitted_poses: 0,
             evaluated_poses: n,
@@ -77,7 +82,26 @@ pub fn evaluate(
         }
         None => (dataset.clone(), dataset.clone(), false),
     };
-    let (report, _) = crate::frames::prepare(frames, &mut fitting, &mut [&mut evaluated], k)?;
+    let (mut report, _) = crate::frames::prepare(frames, &mut fitting, &mut [&mut evaluated], k)?;
+    if let Some(c) = compliance_of(dataset)? {
+        // The frames again, on the poses with the compliance taken off (evaluated in the frames
+        // just fitted: its direction of gravity and lever arms), so that they do not absorb it.
+        let robot = fitting.model.robot;
+        let (mut fitting_seen, mut evaluated_seen) = match fit_poses {
+            Some(count) => crate::dataset::split(
+                &c.taken_off(dataset, &robot)?,
+                (n - count) as f64 / n as f64,
+                seed,
+            )?,
+            None => {
+                let seen = c.taken_off(dataset, &robot)?;
+                (seen.clone(), seen)
+            }
+        };
+        report =
+            crate::frames::prepare(frames, &mut fitting_seen, &mut [&mut evaluated_seen], k)?.0;
+        (fitting, evaluated) = (fitting_seen, evaluated_seen);
+    }
     let kinematics = Kinematics::nominal(&evaluated.model.robot)?;
     Ok(Evaluation {
         table: table3(&kinematics, &evaluated).0,
@@ -106,4 +130,45 @@ fn probe_kept(dataset: &Dataset, frames: Frames) -> anyhow::Result<Option<Datase
     kept.model = kept.file.to_model(&dataset.model.path)?;
     kept.model.mask = mask;
     Ok(Some(kept))
+}
+
+/// The gravity compliance of the dataset's robot file, with what evaluating it needs.
+struct FileCompliance {
+    gravity: crate::compliance::Gravity,
+    gains: [f64; crate::compliance::GAIN_COUNT],
+    maps: Option<crate::joint_maps::JointMaps>,
+}
+
+impl FileCompliance {
+    /// `dataset` with the compliance displacement taken off its measured poses, computed with
+    /// `robot` (the file's model in the data's frames).
+    fn taken_off(
+        &self,
+        dataset: &Dataset,
+        robot: &calib_core::Robot<f64, JOINTS>,
+    ) -> anyhow::Result<Dataset> {
+        crate::compliance::without_displacement(
+            dataset,
+            robot,
+            &calib_core::ParameterErrors::zero(),
+            self.maps.as_ref(),
+            &self.gravity,
+            &self.gains,
+        )
+    }
+}
+
+/// The compliance of the dataset's robot file (`[compliance]` and `[dynamics]`), if it has one.
+fn compliance_of(dataset: &Dataset) -> anyhow::Result<Option<FileCompliance>> {
+    let file = &dataset.file;
+    let (Some(section), Some(dynamics)) = (&file.compliance, &file.dynamics) else {
+        return Ok(None);
+    };
+    let path = &dataset.model.path;
+    let at = |e: String| anyhow::anyhow!("{}: {e}", path.display());
+    Ok(Some(FileCompliance {
+        gravity: dynamics.to_gravity().map_err(at)?,
+        gains: section.to_gains().map_err(at)?,
+        maps: file.joint_maps(path)?,
+    }))
 }

@@ -226,22 +226,18 @@ pub fn model_view(
     found: &joint_maps::MapIdentification,
     gravity: Option<&Gravity>,
 ) -> anyhow::Result<Dataset> {
-    let mut out = dataset.with_maps(&found.maps)?;
-    let (Some(gravity), Some(compliance)) = (gravity, &found.compliance) else {
-        return Ok(out);
-    };
-    for (m, r) in out.measurements.iter_mut().zip(&dataset.data.records) {
-        let q: [f64; JOINTS] = std::array::from_fn(|j| r.q[j]);
-        let angles = found.maps.apply(&q);
-        let columns = compliance::columns(gravity, &dataset.model.robot, &found.errors, &angles)?;
-        let d = compliance::displacement(&columns, &compliance.gains);
-        m.position -= Vector3::new(d[0], d[1], d[2]);
-        if let Some(rotation) = m.rotation.as_mut() {
-            *rotation =
-                nalgebra::Rotation3::new(-Vector3::new(d[3], d[4], d[5])).matrix() * *rotation;
-        }
+    let mapped = dataset.with_maps(&found.maps)?;
+    match (gravity, &found.compliance) {
+        (Some(gravity), Some(c)) => compliance::without_displacement(
+            &mapped,
+            &dataset.model.robot,
+            &found.errors,
+            Some(&found.maps),
+            gravity,
+            &c.gains,
+        ),
+        _ => Ok(mapped),
     }
-    Ok(out)
 }
 
 /// Adds the joint maps to the geometric calibration `result` of `dataset` (prepared: frames

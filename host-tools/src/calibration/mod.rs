@@ -83,6 +83,10 @@ pub fn calibrate(
     config: &CalibrationConfig,
 ) -> anyhow::Result<CalibrationResult> {
     config.check()?;
+    dataset.file.refuse_compliance(
+        &dataset.model.path,
+        "calib calibrate (new parameters or frames on top of it)",
+    )?;
     if config.model.maps() {
         maps::check_robot_file(&dataset, config)?;
     }

@@ -24,5 +24,8 @@ pub struct CheckOptions {
 /// `calib check`: the identifiability analysis of a robot file's parameters on a data file.
 pub fn check(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
     let (_, dataset) = options.input.load()?;
+    dataset
+        .file
+        .refuse_compliance(&options.input.robot, "calib check")?;
     crate::identifiability::check(dataset, options.frames, options.k)
 }
