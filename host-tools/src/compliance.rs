@@ -293,32 +293,6 @@ pub fn displacement(columns: &[[f64; 6]; GAIN_COUNT], gains: &[f64; GAIN_COUNT])
     out
 }
 
-/// `dataset`, whose measurements already see the joint maps `maps` (if any), with the compliance
-/// displacement of `gains` taken off every measured pose: what the geometry `robot + errors` (in
-/// the dataset's frames) alone must explain. The displacement is evaluated at the kinematic
-/// angles (the readings with the maps).
-pub fn without_displacement(
-    dataset: &crate::dataset::Dataset,
-    robot: &Robot<f64, JOINTS>,
-    errors: &ParameterErrors<f64, JOINTS>,
-    maps: Option<&crate::joint_maps::JointMaps>,
-    gravity: &Gravity,
-    gains: &[f64; GAIN_COUNT],
-) -> anyhow::Result<crate::dataset::Dataset> {
-    let mut out = dataset.clone();
-    for (m, r) in out.measurements.iter_mut().zip(&dataset.data.records) {
-        let q: [f64; JOINTS] = std::array::from_fn(|j| r.q.get(j).copied().unwrap_or(0.0));
-        let angles = maps.map_or(q, |maps| maps.apply(&q));
-        let d = displacement(&columns(gravity, robot, errors, &angles)?, gains);
-        m.position -= Vector3::new(d[0], d[1], d[2]);
-        if let Some(rotation) = m.rotation.as_mut() {
-            *rotation =
-                nalgebra::Rotation3::new(-Vector3::new(d[3], d[4], d[5])).matrix() * *rotation;
-        }
-    }
-    Ok(out)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -143,6 +143,33 @@ impl Dataset {
         Ok(out)
     }
 
+    /// The dataset, whose measurements already see the joint maps `maps` (if any), with the
+    /// gravity compliance displacement of `gains` taken off every measured pose: what the geometry
+    /// `robot + errors` (in the dataset's frames) alone must explain. The displacement is
+    /// evaluated at the kinematic angles (the readings with the maps).
+    pub fn without_compliance(
+        &self,
+        robot: &calib_core::Robot<f64, JOINTS>,
+        errors: &calib_core::ParameterErrors<f64, JOINTS>,
+        maps: Option<&crate::joint_maps::JointMaps>,
+        gravity: &crate::compliance::Gravity,
+        gains: &[f64; crate::compliance::GAIN_COUNT],
+    ) -> anyhow::Result<Self> {
+        let mut out = self.clone();
+        for (m, r) in out.measurements.iter_mut().zip(&self.data.records) {
+            let q: [f64; JOINTS] = std::array::from_fn(|j| r.q.get(j).copied().unwrap_or(0.0));
+            let angles = maps.map_or(q, |maps| maps.apply(&q));
+            let columns = crate::compliance::columns(gravity, robot, errors, &angles)?;
+            let d = crate::compliance::displacement(&columns, gains);
+            m.position -= Vector3::new(d[0], d[1], d[2]);
+            if let Some(rotation) = m.rotation.as_mut() {
+                *rotation =
+                    nalgebra::Rotation3::new(-Vector3::new(d[3], d[4], d[5])).matrix() * *rotation;
+            }
+        }
+        Ok(out)
+    }
+
     /// Warns on standard error for every joint whose non-zero map (of the robot file at `robot`)
     /// is extrapolated: readings outside the range it was identified on.
     fn warn_extrapolated(&self, maps: &crate::joint_maps::JointMaps, robot: &Path) {

@@ -147,8 +147,7 @@ impl FileCompliance {
         dataset: &Dataset,
         robot: &calib_core::Robot<f64, JOINTS>,
     ) -> anyhow::Result<Dataset> {
-        crate::compliance::without_displacement(
-            dataset,
+        dataset.without_compliance(
             robot,
             &calib_core::ParameterErrors::zero(),
             self.maps.as_ref(),

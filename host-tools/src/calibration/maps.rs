@@ -228,8 +228,7 @@ pub fn model_view(
 ) -> anyhow::Result<Dataset> {
     let mapped = dataset.with_maps(&found.maps)?;
     match (gravity, &found.compliance) {
-        (Some(gravity), Some(c)) => compliance::without_displacement(
-            &mapped,
+        (Some(gravity), Some(c)) => mapped.without_compliance(
             &dataset.model.robot,
             &found.errors,
             Some(&found.maps),
