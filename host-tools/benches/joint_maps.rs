@@ -1,7 +1,8 @@
-//! A whole `calib calibrate --model joint-maps` run (files read, geometric calibration by least
-//! squares, then the maps with the evidence) on 50 and on 1000 random poses of the real UR10
-//! Series B, position-only profile, `--auto-mask --method lm`: the speed goals of issue 14 (under
-//! 2 s and under 30 s).
+//! A whole `calib calibrate --model joint-maps` (and `joint-maps+compliance`) run (files read,
+//! geometric calibration by least squares, then the maps with the evidence and the
+//! cross-validation check) on 50 and on 1000 random poses of the real UR10 Series B,
+//! position-only profile, `--auto-mask --method lm`: the speed goals of issue 14 (under 2 s and
+//! under 30 s).
 //!
 //! Run: `cargo bench -p host-tools --bench joint_maps`.
 
@@ -25,27 +26,31 @@ fn joint_maps(c: &mut Criterion) {
         "/profiles/ipa-ur10-lasertracker-position.toml"
     ))))
     .unwrap();
-    let config = CalibrationConfig {
-        method: Method::Lm,
-        model: ErrorModel::JointMaps,
-        auto_mask: true,
-        ..CalibrationConfig::default()
-    };
     let mut group = c.benchmark_group("joint_maps");
     group.sample_size(10);
-    for poses in [50usize, 1000] {
-        group.bench_function(
-            format!("calibrate_joint_maps_series_b_{poses}_poses"),
-            |b| {
-                b.iter(|| {
-                    // As `calib calibrate --validate` runs: the file read, the poses drawn.
-                    let all = Dataset::load_with(robot, data, &profile).unwrap();
-                    let n = all.measurements.len();
-                    let (calibration, _) = split(&all, (n - poses) as f64 / n as f64, 0).unwrap();
-                    calibrate(calibration, None, &config).unwrap()
-                })
-            },
-        );
+    let models = [
+        ("joint_maps", ErrorModel::JointMaps),
+        ("joint_maps_compliance", ErrorModel::JointMapsCompliance),
+    ];
+    for ((name, model), poses) in models
+        .iter()
+        .flat_map(|m| [50usize, 1000].map(|poses| (*m, poses)))
+    {
+        let config = CalibrationConfig {
+            method: Method::Lm,
+            model,
+            auto_mask: true,
+            ..CalibrationConfig::default()
+        };
+        group.bench_function(format!("calibrate_{name}_series_b_{poses}_poses"), |b| {
+            b.iter(|| {
+                // As `calib calibrate --validate` runs: the file read, the poses drawn.
+                let all = Dataset::load_with(robot, data, &profile).unwrap();
+                let n = all.measurements.len();
+                let (calibration, _) = split(&all, (n - poses) as f64 / n as f64, 0).unwrap();
+                calibrate(calibration, None, &config).unwrap()
+            })
+        });
     }
     group.finish();
 }

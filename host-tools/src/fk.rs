@@ -1,5 +1,6 @@
 //! `calib fk`: the end pose of a robot model for given joint readings.
 
+use crate::JOINTS;
 use crate::robot_file::RobotModel;
 use anyhow::{Context, bail};
 use calib_core::math::so3;
@@ -81,4 +82,28 @@ pub fn forward_deg<const N: usize>(
     let kinematics = Kinematics::nominal(&model.robot)
         .with_context(|| format!("robot file {}", model.path.display()))?;
     Ok(FkOutput::from_pose(&kinematics.forward(&q)?))
+}
+
+/// [`forward_deg`] of a model with gravity compliance: the end pose moved by the displacement of
+/// `gains` (urad/(N m)) under `gravity` ([`crate::compliance`]) at the same joint angles (degrees;
+/// the kinematic angles when the model has joint maps).
+pub fn forward_deg_compliant(
+    model: &RobotModel<JOINTS>,
+    joints_deg: &[f64],
+    gravity: &crate::compliance::Gravity,
+    gains: &[f64; crate::compliance::GAIN_COUNT],
+) -> anyhow::Result<FkOutput> {
+    forward_deg(model, joints_deg)?;
+    let q: [f64; JOINTS] = std::array::from_fn(|j| joints_deg[j].to_radians());
+    let mut pose = Kinematics::nominal(&model.robot)?.forward(&q)?;
+    let columns = crate::compliance::columns(
+        gravity,
+        &model.robot,
+        &calib_core::ParameterErrors::zero(),
+        &q,
+    )?;
+    let d = crate::compliance::displacement(&columns, gains);
+    pose.translation.vector += nalgebra::Vector3::new(d[0], d[1], d[2]);
+    pose.rotation = Rotation3::new(nalgebra::Vector3::new(d[3], d[4], d[5])) * pose.rotation;
+    Ok(FkOutput::from_pose(&pose))
 }

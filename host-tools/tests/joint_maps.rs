@@ -716,13 +716,6 @@ fn a_file_with_compliance_is_refused_never_ignored() {
     assert!(text.contains("[compliance]") && text.contains("[dynamics]"));
     for args in [
         &[
-            "fk",
-            "--robot",
-            "c.toml",
-            "--joints-deg",
-            "10,20,30,40,50,60",
-        ][..],
-        &[
             "check",
             "--robot",
             "c.toml",
@@ -766,6 +759,44 @@ fn a_file_with_compliance_is_refused_never_ignored() {
     for file in ["b.bin", "t.csv", "s.csv", "s.toml"] {
         assert!(!d.join(file).exists(), "{file}");
     }
+    // fk applies it: the pose moves by the compliance's displacement at the mapped readings.
+    let file = RobotFile::read(&d.join("c.toml")).unwrap();
+    let mut without = file.clone();
+    without.compliance = None;
+    std::fs::write(d.join("no-c.toml"), without.to_toml("test")).unwrap();
+    let fk = |robot: &str| -> nalgebra::Vector3<f64> {
+        let out = ok(&calib_in(
+            d,
+            &[
+                "fk",
+                "--robot",
+                robot,
+                "--joints-deg",
+                "-100,-60,30,-100,-50,10",
+                "--json",
+            ],
+        ));
+        let json: serde_json::Value = serde_json::from_str(&out).unwrap();
+        nalgebra::Vector3::from_fn(|i, _| json["position_mm"][i].as_f64().unwrap())
+    };
+    let moved = fk("c.toml") - fk("no-c.toml");
+    let model: RobotModel<6> = file.to_model(&d.join("c.toml")).unwrap();
+    let maps = file.joint_maps(&d.join("c.toml")).unwrap().unwrap();
+    let q: [f64; 6] = [-100.0f64, -60.0, 30.0, -100.0, -50.0, 10.0].map(f64::to_radians);
+    let gravity = file.dynamics.as_ref().unwrap().to_gravity().unwrap();
+    let gains = file.compliance.as_ref().unwrap().to_gains().unwrap();
+    let columns = host_tools::compliance::columns(
+        &gravity,
+        &model.robot,
+        &calib_core::ParameterErrors::zero(),
+        &maps.apply(&q),
+    )
+    .unwrap();
+    let d6 = host_tools::compliance::displacement(&columns, &gains);
+    let expected = nalgebra::Vector3::new(d6[0], d6[1], d6[2]);
+    println!("fk moved by compliance: {moved} (expected {expected})");
+    assert!(expected.norm() > 1e-3, "{expected}");
+    assert!((moved - expected).norm() < 1e-9, "{moved} vs {expected}");
     // The ER10L-C10's file has no masses.
     let er10 = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
     let out = calib_in(

@@ -158,7 +158,6 @@ fn print_json_or_text<T: serde::Serialize>(
 /// `calib fk`: the end pose of a robot file for joint readings in degrees.
 fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::Result<()> {
     let file = host_tools::robot_file::RobotFile::read(robot)?;
-    file.refuse_compliance(robot, "calib fk")?;
     let model: RobotModel<JOINTS> = file.to_model(robot)?;
     // Joint maps are part of the model: the kinematics sees each reading with its angle error.
     let joints_deg: Vec<f64> = match file.joint_maps(robot)? {
@@ -168,7 +167,19 @@ fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::R
         }
         _ => joints_deg.to_vec(),
     };
-    let pose = fk::forward_deg(&model, &joints_deg)?;
+    // So is gravity compliance: the pose moves by its displacement there.
+    let pose = match (&file.compliance, &file.dynamics) {
+        (Some(compliance), Some(dynamics)) => {
+            let at = |e: String| anyhow::anyhow!("{}: {e}", robot.display());
+            fk::forward_deg_compliant(
+                &model,
+                &joints_deg,
+                &dynamics.to_gravity().map_err(at)?,
+                &compliance.to_gains().map_err(at)?,
+            )?
+        }
+        _ => fk::forward_deg(&model, &joints_deg)?,
+    };
     if json {
         print_line!(
             "{}",
