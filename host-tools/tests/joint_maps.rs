@@ -73,6 +73,36 @@ fn held_out_of(
     poses: usize,
     seed: u64,
 ) -> anyhow::Result<(f64, f64)> {
+    let c = calibrated(model, data, total, profile, poses, seed)?;
+    let maps = c.result.joint_maps.as_ref().unwrap();
+    assert_eq!(c.result.calibration.poses, poses);
+    let geometric = maps.geometric_validation.unwrap().after.position_mm.mean;
+    let with_maps = c.result.validation.unwrap().after.position_mm.mean;
+    println!(
+        "M = {poses}, seed {seed}: held-out mean {geometric:.4} mm (geometric) -> {with_maps:.4} mm (joint maps, H = {}, noise {:.4} mm; supported {:?})",
+        maps.harmonics,
+        maps.noise_mm,
+        maps.joints.iter().map(|j| j.supported).collect::<Vec<_>>()
+    );
+    // The identified file carries the maps (and the compliance).
+    assert!(c.robot_toml.contains("[joint_maps]"));
+    assert_eq!(
+        c.robot_toml.contains("[compliance]"),
+        model == "joint-maps+compliance"
+    );
+    Ok((geometric, with_maps))
+}
+
+/// `calibrate --model model` of the UR10 on `poses` random poses (`seed`) of `data` (`total`
+/// poses), through `profile`, `--auto-mask --method lm`, the other poses held out.
+fn calibrated(
+    model: &str,
+    data: &str,
+    total: usize,
+    profile: &str,
+    poses: usize,
+    seed: u64,
+) -> anyhow::Result<calibrate::Calibration> {
     let fraction = ((total - poses) as f64 / total as f64).to_string();
     let seed_text = seed.to_string();
     let args = [
@@ -92,24 +122,7 @@ fn held_out_of(
         "--model",
         model,
     ];
-    let c = calibrate::calibrate(&parse::<CalibrateOptions>(&args))?;
-    let maps = c.result.joint_maps.as_ref().unwrap();
-    assert_eq!(c.result.calibration.poses, poses);
-    let geometric = maps.geometric_validation.unwrap().after.position_mm.mean;
-    let with_maps = c.result.validation.unwrap().after.position_mm.mean;
-    println!(
-        "M = {poses}, seed {seed}: held-out mean {geometric:.4} mm (geometric) -> {with_maps:.4} mm (joint maps, H = {}, noise {:.4} mm; supported {:?})",
-        maps.harmonics,
-        maps.noise_mm,
-        maps.joints.iter().map(|j| j.supported).collect::<Vec<_>>()
-    );
-    // The identified file carries the maps (and the compliance).
-    assert!(c.robot_toml.contains("[joint_maps]"));
-    assert_eq!(
-        c.robot_toml.contains("[compliance]"),
-        model == "joint-maps+compliance"
-    );
-    Ok((geometric, with_maps))
+    calibrate::calibrate(&parse::<CalibrateOptions>(&args))
 }
 
 /// The mean of the runs' (geometric, with maps) held-out means, each run better with the maps.
@@ -514,25 +527,7 @@ fn compensation_uses_the_maps(d: &std::path::Path) {
 /// others are identified.
 #[test]
 fn a_map_the_poses_do_not_determine_is_kept_at_zero() {
-    let fraction = ((SERIES_A_POSES - 200) as f64 / SERIES_A_POSES as f64).to_string();
-    let args = [
-        "--robot",
-        ROBOT,
-        "--data",
-        DATA_A,
-        "--profile",
-        POSITION,
-        "--auto-mask",
-        "--method",
-        "lm",
-        "--validate",
-        &fraction,
-        "--validate-seed",
-        "0",
-        "--model",
-        "joint-maps",
-    ];
-    let c = calibrate::calibrate(&parse::<CalibrateOptions>(&args)).unwrap();
+    let c = calibrated("joint-maps", DATA_A, SERIES_A_POSES, POSITION, 200, 0).unwrap();
     let maps = c.result.joint_maps.as_ref().unwrap();
     assert_eq!(c.result.calibration.poses, 200);
     let supported: Vec<bool> = maps.joints.iter().map(|j| j.supported).collect();
@@ -568,17 +563,13 @@ fn a_new_session_with_only_the_base_refitted_keeps_the_identified_probe() {
         env!("CARGO_MANIFEST_DIR"),
         "/../onboard/data/ur10-series-b-maps.toml"
     );
-    let data_d = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/data/ipa-ur10-lasertracker/series-d-iso-cubes.csv"
-    );
     let mean = |frames: &str| -> f64 {
         let out = common::ok(&common::calib(&[
             "evaluate",
             "--robot",
             model,
             "--data",
-            data_d,
+            DATA_D,
             "--profile",
             POSITION,
             "--fit-poses",
@@ -604,29 +595,7 @@ fn a_new_session_with_only_the_base_refitted_keeps_the_identified_probe() {
 /// result and the file are the geometric calibration's, and the text says so.
 #[test]
 fn maps_that_do_not_predict_better_are_kept_at_zero() {
-    let data_d = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/data/ipa-ur10-lasertracker/series-d-iso-cubes.csv"
-    );
-    let fraction = ((632 - 50) as f64 / 632.0).to_string();
-    let args = [
-        "--robot",
-        ROBOT,
-        "--data",
-        data_d,
-        "--profile",
-        FULL_POSE,
-        "--auto-mask",
-        "--method",
-        "lm",
-        "--validate",
-        &fraction,
-        "--validate-seed",
-        "4",
-        "--model",
-        "joint-maps",
-    ];
-    let c = calibrate::calibrate(&parse::<CalibrateOptions>(&args)).unwrap();
+    let c = calibrated("joint-maps", DATA_D, SERIES_D_POSES, FULL_POSE, 50, 4).unwrap();
     let maps = c.result.joint_maps.as_ref().unwrap();
     let cv = maps.cross_validation.unwrap();
     println!("{cv:?}");
@@ -821,25 +790,15 @@ fn a_series_a_model_with_compliance_carries_over_to_series_b() {
     use common::{calib_in, ok};
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let fraction = ((SERIES_A_POSES - 200) as f64 / SERIES_A_POSES as f64).to_string();
-    let args = [
-        "--robot",
-        ROBOT,
-        "--data",
-        DATA_A,
-        "--profile",
-        POSITION,
-        "--auto-mask",
-        "--method",
-        "lm",
-        "--validate",
-        &fraction,
-        "--validate-seed",
-        "0",
-        "--model",
+    let c = calibrated(
         "joint-maps+compliance",
-    ];
-    let c = calibrate::calibrate(&parse::<CalibrateOptions>(&args)).unwrap();
+        DATA_A,
+        SERIES_A_POSES,
+        POSITION,
+        200,
+        0,
+    )
+    .unwrap();
     let held_out = c.result.validation.unwrap().after.position_mm.mean;
     std::fs::write(d.join("a.toml"), &c.robot_toml).unwrap();
     let evaluate = |data: &str, fit_poses: &str, seed: &str, frames: &str| -> f64 {

@@ -133,6 +133,16 @@ pub enum Error {
     Block,
 }
 
+/// The little-endian bytes of `words`, in order (an outcome's encoding; the length fixes how
+/// many words are taken).
+pub(crate) fn encode_words<const L: usize>(words: impl Iterator<Item = u32>) -> [u8; L] {
+    let mut out = [0u8; L];
+    for (chunk, word) in out.chunks_exact_mut(4).zip(words) {
+        chunk.copy_from_slice(&word.to_le_bytes());
+    }
+    out
+}
+
 /// Table 3 statistics in f32: position mean, std, max (mm), then per axis x, y, z: mean, std,
 /// max (rad).
 pub type Table = [f32; 12];
@@ -169,7 +179,6 @@ pub const EXPECTED: &[u8] = include_bytes!("../expected.bin");
 impl Outcome {
     /// Little-endian bytes of every field, in declaration order (integers as u32).
     pub fn encode(&self) -> [u8; ENCODED_LEN] {
-        let mut out = [0u8; ENCODED_LEN];
         let words = [
             self.swarm_cost.to_bits(),
             self.generations,
@@ -182,10 +191,7 @@ impl Outcome {
         .chain(self.after.iter().map(|v| v.to_bits()))
         .chain(self.compensated.iter().flatten().map(|v| v.to_bits()))
         .chain(self.residual_mm.iter().map(|v| v.to_bits()));
-        for (chunk, word) in out.chunks_exact_mut(4).zip(words) {
-            chunk.copy_from_slice(&word.to_le_bytes());
-        }
-        out
+        encode_words(words)
     }
 
     /// `true` when the encoded outcome equals [`EXPECTED`] bit for bit.

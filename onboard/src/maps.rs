@@ -50,14 +50,10 @@ pub const MAPS_EXPECTED: &[u8] = include_bytes!("../expected-maps.bin");
 impl MapsOutcome {
     /// Little-endian bytes of every field, in declaration order.
     pub fn encode(&self) -> [u8; MAPS_ENCODED_LEN] {
-        let mut out = [0u8; MAPS_ENCODED_LEN];
         let words = core::iter::once(self.harmonics)
             .chain(self.compensated.iter().flatten().map(|v| v.to_bits()))
             .chain(self.residual_mm.iter().map(|v| v.to_bits()));
-        for (chunk, word) in out.chunks_exact_mut(4).zip(words) {
-            chunk.copy_from_slice(&word.to_le_bytes());
-        }
-        out
+        crate::encode_words(words)
     }
 
     /// `true` when the encoded outcome equals [`MAPS_EXPECTED`] bit for bit.

@@ -303,15 +303,7 @@ pub fn decode<T: Real, const N: usize>(bytes: &[u8]) -> Result<(Robot<T, N>, u32
 pub fn decode_model<T: Real, const N: usize, const C: usize>(
     bytes: &[u8],
 ) -> Result<(ControllerModel<T, N, C>, u32), StorageError> {
-    let mut model = ControllerModel::geometric(Robot::from_joints(
-        [MdhJoint {
-            a: T::zero(),
-            alpha: T::zero(),
-            theta_offset: T::zero(),
-            d: T::zero(),
-            beta: T::zero(),
-        }; N],
-    ));
+    let mut model = ControllerModel::geometric(zero_robot());
     let sequence = decode_model_into(bytes, &mut model)?;
     Ok((model, sequence))
 }
@@ -345,11 +337,9 @@ pub fn decode_model_into<T: Real, const N: usize, const C: usize>(
     Ok(block.sequence)
 }
 
-/// The geometry from the start of `reader`, validated.
-fn read_robot<T: Real, const N: usize>(
-    reader: &mut Cursor<&[u8]>,
-) -> Result<Robot<T, N>, StorageError> {
-    let mut robot = Robot::from_joints(
+/// A robot of zeros, to be overwritten by a block's values.
+fn zero_robot<T: Real, const N: usize>() -> Robot<T, N> {
+    Robot::from_joints(
         [MdhJoint {
             a: T::zero(),
             alpha: T::zero(),
@@ -357,7 +347,14 @@ fn read_robot<T: Real, const N: usize>(
             d: T::zero(),
             beta: T::zero(),
         }; N],
-    );
+    )
+}
+
+/// The geometry from the start of `reader`, validated.
+fn read_robot<T: Real, const N: usize>(
+    reader: &mut Cursor<&[u8]>,
+) -> Result<Robot<T, N>, StorageError> {
+    let mut robot = zero_robot();
     let mut ok = true;
     for_each_slot(&mut robot, |slot| match reader.get::<T>() {
         Some(v) => *slot = v,

@@ -187,28 +187,47 @@ impl<T: Real, const N: usize, const C: usize> JointMaps<T, N, C> {
     /// The angle error of joint `joint` (0-based) at reading `q` and its slope `d dq / dq`:
     /// `(rad, dimensionless)`.
     pub fn error_and_slope(&self, joint: usize, q: T) -> (T, T) {
+        self.fold_harmonics(
+            joint,
+            q,
+            (T::zero(), T::zero()),
+            |(error, slope), h, a, b, s, c| (error + (a * s + b * c), slope + h * (a * c - b * s)),
+        )
+    }
+
+    /// The angle error of joint `joint` (0-based) at reading `q`, rad (the value alone: the
+    /// compensation's hot path).
+    pub fn error(&self, joint: usize, q: T) -> T {
+        self.fold_harmonics(joint, q, T::zero(), |error, _, a, b, s, c| {
+            error + (a * s + b * c)
+        })
+    }
+
+    /// Folds `step(acc, h, a_h, b_h, sin(h q), cos(h q))` over the used harmonics of joint
+    /// `joint`, the sines and cosines by the angle-addition recurrence from one `sin_cos` of `q`.
+    fn fold_harmonics<A>(
+        &self,
+        joint: usize,
+        q: T,
+        init: A,
+        mut step: impl FnMut(A, T, T, T, T, T) -> A,
+    ) -> A {
         let (Some(a), Some(b)) = (self.sin.get(joint), self.cos.get(joint)) else {
-            return (T::zero(), T::zero());
+            return init;
         };
         let used = self.harmonics().min(C);
         if used == 0 {
-            return (T::zero(), T::zero());
+            return init;
         }
         let (s1, c1) = q.sin_cos_fast();
         let (mut s, mut c) = (s1, c1);
-        let (mut error, mut slope, mut order) = (T::zero(), T::zero(), T::zero());
+        let (mut acc, mut order) = (init, T::zero());
         for (a, b) in a.iter().zip(b).take(used) {
             order += T::one();
-            error += *a * s + *b * c;
-            slope += order * (*a * c - *b * s);
+            acc = step(acc, order, *a, *b, s, c);
             (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
         }
-        (error, slope)
-    }
-
-    /// The angle error of joint `joint` (0-based) at reading `q`, rad.
-    pub fn error(&self, joint: usize, q: T) -> T {
-        self.error_and_slope(joint, q).0
+        acc
     }
 
     /// The kinematic joint angles for readings `q`: `q_j + dq_j(q_j)`, rad.
