@@ -5,7 +5,8 @@
 #
 #   firmware/run.sh            build, run, print the log
 #   firmware/run.sh --size     also print the footprint (flash = .vector_table + .text + .rodata,
-#                              the parameter blocks in .calib_slots apart, RAM = .data + .bss;
+#                              the parameter blocks in .calib_slots and the job's measurements
+#                              and expected outcomes in .calib_data apart, RAM = .data + .bss;
 #                              the peak stack is in the log)
 set -euo pipefail
 cd "$(dirname "$0")"
@@ -16,7 +17,8 @@ if [[ "${1:-}" == "--size" ]]; then
         $1 == ".vector_table" || $1 == ".text" || $1 == ".rodata" { flash += $2 }
         $1 == ".data" || $1 == ".bss" { ram += $2 }
         $1 == ".calib_slots" { slots += $2 }
-        END { printf "flash (vector table + text + rodata): %d bytes\nparameter region (.calib_slots: the embedded blocks): %d bytes\nstatic RAM (data + bss): %d bytes\n", flash, slots, ram }'
+        $1 == ".calib_data" { data += $2 }
+        END { printf "flash (vector table + text + rodata): %d bytes\nparameter region (.calib_slots: the embedded blocks): %d bytes\njob data (.calib_data: the measurements and expected outcomes): %d bytes\nstatic RAM (data + bss): %d bytes\n", flash, slots, data, ram }'
 fi
 set +e
 timeout 900 qemu-system-arm -machine mps2-an386 -cpu cortex-m4 -nographic \

@@ -61,8 +61,10 @@ fn main() {
     }
     let out = format!(
         "/// Number of embedded poses.\npub const POSES: usize = {count};\n\
-         /// Per pose: q1..q6 (rad), x, y, z (mm), rotation row-major, as f32 bits.\n\
-         pub const SCENARIO: [[u32; 18]; POSES] = [\n{poses}];\n"
+         /// Per pose: q1..q6 (rad), x, y, z (mm), rotation row-major, as f32 bits. On the\n\
+         /// controller in the job's data region (`.calib_data`): measurements arrive at run time.\n\
+         #[cfg_attr(target_os = \"none\", unsafe(link_section = \".calib_data\"))]\n\
+         pub static SCENARIO: [[u32; 18]; POSES] = [\n{poses}];\n"
     );
     let dir = std::env::var("OUT_DIR").unwrap_or_else(|_| ".".into());
     std::fs::write(format!("{dir}/scenario.rs"), out).unwrap_or_else(|e| panic!("{e}"));

@@ -216,6 +216,54 @@ impl ComplianceSection {
     }
 }
 
+/// The gravity compliance of an identified robot file: its masses and gains.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FileCompliance {
+    /// The masses (`[dynamics]`).
+    pub gravity: Gravity,
+    /// The gains, urad/(N m), in the order of [`GAINS`] (`[compliance]`).
+    pub gains: [f64; GAIN_COUNT],
+}
+
+impl FileCompliance {
+    /// The core's model, in scalar `T`.
+    pub fn to_core<T: calib_core::Real>(
+        &self,
+    ) -> anyhow::Result<calib_core::model::compliance::Compliance<T, JOINTS>> {
+        self.gravity.to_core(&self.gains)
+    }
+}
+
+impl Gravity {
+    /// The core's model of these masses with `gains` (urad/(N m), in the order of [`GAINS`]), in
+    /// scalar `T`: what the controller evaluates (`calib_core::model::compliance`).
+    pub fn to_core<T: calib_core::Real>(
+        &self,
+        gains: &[f64; GAIN_COUNT],
+    ) -> anyhow::Result<calib_core::model::compliance::Compliance<T, JOINTS>> {
+        use calib_core::model::compliance::{Compliance, PointMass, TILT_X, TILT_Y, TORSION};
+        let mass = |(m, c): &(f64, Vector3<f64>)| PointMass {
+            mass_kg: T::of(*m),
+            centre_mm: [T::of(c.x), T::of(c.y), T::of(c.z)],
+        };
+        let mut per_joint = [[T::zero(); 3]; JOINTS];
+        for (gain, value) in GAINS.iter().zip(gains) {
+            let (j, axis) = match gain {
+                Gain::TiltX(j) => (j, TILT_X),
+                Gain::TiltY(j) => (j, TILT_Y),
+                Gain::Torsion(j) => (j, TORSION),
+            };
+            per_joint[j - 1][axis] = T::of(*value);
+        }
+        Ok(Compliance::new(
+            [self.gravity.x, self.gravity.y, self.gravity.z].map(T::of),
+            self.links.each_ref().map(mass),
+            mass(&self.tool),
+            per_joint,
+        )?)
+    }
+}
+
 /// Per gain, the motion `[v (mm); w (rad)]` of the end point (the origin of the tool frame) per
 /// urad/(N m) at kinematic joint angles `q` (rad), for the model `robot + errors` (in whatever
 /// frames it is given: gravity is turned by its base rotation).
@@ -296,6 +344,54 @@ pub fn displacement(columns: &[[f64; 6]; GAIN_COUNT], gains: &[f64; GAIN_COUNT])
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The core's deflection (what the controller applies) equals the displacement of this
+    /// module's gain columns (what the identification fits), on 1,000 random configurations of
+    /// the UR10 with its published masses, a measurement base and probe, and UR10-sized gains.
+    #[test]
+    fn the_core_deflects_as_the_identification_models() {
+        use rand::{RngExt, SeedableRng};
+        let model = crate::robot_file::RobotModel::<JOINTS>::load(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/robots/ur10.toml"
+        )))
+        .unwrap();
+        let file = crate::robot_file::RobotFile::read(&model.path).unwrap();
+        let gravity = file.dynamics.as_ref().unwrap().to_gravity().unwrap();
+        let mut robot = model.robot;
+        robot.base = calib_core::FramePose {
+            xyz: [1500.0, -300.0, 200.0],
+            rpy: [0.02, -0.01, 2.5],
+        };
+        robot.tool = calib_core::FramePose {
+            xyz: [10.0, -5.0, 120.0],
+            rpy: [0.0; 3],
+        };
+        let mut errors = ParameterErrors::zero();
+        errors.joints[1].da = 0.7;
+        errors.joints[2].dtheta = 1e-3;
+        let gains = [4.0, -3.0, 2.5, 1.5, 0.0, 3.0, -2.0, 1.0, 6.0, 4.0, -5.0];
+        let core = gravity.to_core::<f64>(&gains).unwrap();
+        let kinematics = Kinematics::new(&robot, &errors).unwrap();
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(14);
+        let (mut worst_v, mut worst_w, mut largest) = (0.0f64, 0.0f64, 0.0f64);
+        for _ in 0..1000 {
+            let q: [f64; JOINTS] = std::array::from_fn(|_| rng.random_range(-3.1..3.1));
+            let expected = displacement(&columns(&gravity, &robot, &errors, &q).unwrap(), &gains);
+            let (_, d) = core.deflect(&kinematics, &q).unwrap();
+            let v = Vector3::new(expected[0], expected[1], expected[2]);
+            let w = Vector3::new(expected[3], expected[4], expected[5]);
+            worst_v = worst_v.max((d.translation - v).norm());
+            worst_w = worst_w.max((d.rotation - w).norm());
+            largest = largest.max(v.norm());
+        }
+        assert!(
+            worst_v < 1e-9 && worst_w < 1e-12,
+            "{worst_v} mm {worst_w} rad"
+        );
+        // Gains of a few urad/(N m) move the UR10 by tenths of a millimetre.
+        assert!(largest > 0.1 && largest < 5.0, "{largest}");
+    }
 
     /// A point mass on a horizontal arm: the torsion of the joint carrying it is `m g r` times its
     /// gain, the end point moves by that angle times its distance from the axis.

@@ -133,13 +133,12 @@ fn probe_kept(dataset: &Dataset, frames: Frames) -> anyhow::Result<Option<Datase
 }
 
 /// The gravity compliance of the dataset's robot file, with what evaluating it needs.
-struct FileCompliance {
-    gravity: crate::compliance::Gravity,
-    gains: [f64; crate::compliance::GAIN_COUNT],
+struct CompliantFile {
+    compliance: crate::compliance::FileCompliance,
     maps: Option<crate::joint_maps::JointMaps>,
 }
 
-impl FileCompliance {
+impl CompliantFile {
     /// `dataset` with the compliance displacement taken off its measured poses, computed with
     /// `robot` (the file's model in the data's frames).
     fn taken_off(
@@ -151,23 +150,20 @@ impl FileCompliance {
             robot,
             &calib_core::ParameterErrors::zero(),
             self.maps.as_ref(),
-            &self.gravity,
-            &self.gains,
+            &self.compliance.gravity,
+            &self.compliance.gains,
         )
     }
 }
 
 /// The compliance of the dataset's robot file (`[compliance]` and `[dynamics]`), if it has one.
-fn compliance_of(dataset: &Dataset) -> anyhow::Result<Option<FileCompliance>> {
-    let file = &dataset.file;
-    let (Some(section), Some(dynamics)) = (&file.compliance, &file.dynamics) else {
+fn compliance_of(dataset: &Dataset) -> anyhow::Result<Option<CompliantFile>> {
+    let path = &dataset.model.path;
+    let Some(compliance) = dataset.file.gravity_compliance(path)? else {
         return Ok(None);
     };
-    let path = &dataset.model.path;
-    let at = |e: String| anyhow::anyhow!("{}: {e}", path.display());
-    Ok(Some(FileCompliance {
-        gravity: dynamics.to_gravity().map_err(at)?,
-        gains: section.to_gains().map_err(at)?,
-        maps: file.joint_maps(path)?,
+    Ok(Some(CompliantFile {
+        compliance,
+        maps: dataset.file.joint_maps(path)?,
     }))
 }

@@ -1,10 +1,12 @@
 //! Exports of an identified robot: the controller's parameter block (f32 or f64, byte-identical
 //! to [`calib_core::controller::storage::encode`], version 1, for a geometric model, and to
-//! [`calib_core::controller::storage::encode_model`], version 2, for a model with joint maps), a
+//! [`calib_core::controller::storage::encode_model`], version 2, for a model with joint maps or
+//! gravity compliance), a
 //! robot file (TOML) or JSON; and the f64 -> f32 model cast the controller's single-precision core
 //! needs.
 
 use crate::JOINTS;
+use crate::compliance::FileCompliance;
 use crate::joint_maps::{JointMaps, MAX_FILE_HARMONICS};
 use crate::robot_file::{RobotFile, RobotModel};
 use calib_core::controller::storage::{self, ControllerModel};
@@ -30,32 +32,24 @@ pub enum BlockScalar {
     F64,
 }
 
-/// The controller's parameter block of `robot` (the identified model) and its joint maps, if
-/// any, with `sequence`, in the scalar type of the controller's core. With maps the block is
-/// version 2 with the maps' harmonics; a controller reads it when built with room for at least
-/// as many (the reference firmware: 64).
+/// The controller's parameter block of `robot` (the identified model), its joint maps and its
+/// gravity compliance, if any, with `sequence`, in the scalar type of the controller's core.
+/// With maps or compliance the block is version 2 with the maps' harmonics (and the compliance
+/// section); a controller reads it when built with room for at least as many harmonics (the
+/// reference firmware: 64).
 pub fn parameter_block(
     robot: &calib_core::Robot<f64, JOINTS>,
     maps: Option<&JointMaps>,
+    compliance: Option<&FileCompliance>,
     scalar: BlockScalar,
     sequence: u32,
 ) -> anyhow::Result<Vec<u8>> {
-    if let Some(maps) = maps {
+    if maps.is_some() || compliance.is_some() {
         return Ok(match scalar {
-            BlockScalar::F64 => model_block(
-                ControllerModel {
-                    robot: *robot,
-                    maps: maps.to_core::<f64, MAX_FILE_HARMONICS>()?,
-                },
-                sequence,
-            )?,
-            BlockScalar::F32 => model_block(
-                ControllerModel {
-                    robot: to_f32(robot),
-                    maps: maps.to_core::<f32, MAX_FILE_HARMONICS>()?,
-                },
-                sequence,
-            )?,
+            BlockScalar::F64 => model_block(controller_model(*robot, maps, compliance)?, sequence)?,
+            BlockScalar::F32 => {
+                model_block(controller_model(to_f32(robot), maps, compliance)?, sequence)?
+            }
         });
     }
     Ok(match scalar {
@@ -72,12 +66,35 @@ pub fn parameter_block(
     })
 }
 
+/// The controller's model in scalar `T`: `robot`, the maps (zero without) and the compliance
+/// (none without).
+pub fn controller_model<T: calib_core::Real>(
+    robot: calib_core::Robot<T, JOINTS>,
+    maps: Option<&JointMaps>,
+    compliance: Option<&FileCompliance>,
+) -> anyhow::Result<ControllerModel<T, JOINTS, MAX_FILE_HARMONICS>> {
+    let mut model = ControllerModel::geometric(robot);
+    if let Some(maps) = maps {
+        model.maps = maps.to_core::<T, MAX_FILE_HARMONICS>()?;
+    }
+    if let Some(compliance) = compliance {
+        model.compliance = compliance.to_core::<T>()?;
+    }
+    Ok(model)
+}
+
 /// A version 2 block of `model`.
 fn model_block<T: calib_core::Real>(
     model: ControllerModel<T, JOINTS, MAX_FILE_HARMONICS>,
     sequence: u32,
 ) -> anyhow::Result<Vec<u8>> {
-    let mut buffer = vec![0u8; storage::model_block_len::<T, JOINTS>(model.maps.harmonics())];
+    let mut buffer = vec![
+        0u8;
+        storage::model_block_len::<T, JOINTS>(
+            model.maps.harmonics(),
+            model.compliance.is_active()
+        )
+    ];
     storage::encode_model(&model, sequence, &mut buffer)?;
     Ok(buffer)
 }
@@ -94,6 +111,7 @@ pub fn export(
         ExportFormat::Block => parameter_block(
             &model.robot,
             file.joint_maps(&model.path)?.as_ref(),
+            file.gravity_compliance(&model.path)?.as_ref(),
             scalar,
             sequence,
         )?,

@@ -402,6 +402,30 @@ impl RobotFile {
             .transpose()
     }
 
+    /// The gravity compliance of the file (`[compliance]` with the `[dynamics]` it was identified
+    /// with), checked; `None` without it.
+    pub fn gravity_compliance(
+        &self,
+        path: &Path,
+    ) -> Result<Option<crate::compliance::FileCompliance>, RobotFileError> {
+        let invalid = |message: String| RobotFileError::Invalid {
+            path: path.to_owned(),
+            message,
+        };
+        let Some(section) = &self.compliance else {
+            return Ok(None);
+        };
+        let Some(dynamics) = &self.dynamics else {
+            return Err(invalid(
+                "[compliance] needs the [dynamics] it was identified with".to_string(),
+            ));
+        };
+        Ok(Some(crate::compliance::FileCompliance {
+            gravity: dynamics.to_gravity().map_err(invalid)?,
+            gains: section.to_gains().map_err(invalid)?,
+        }))
+    }
+
     /// Refuses a file with gravity compliance for `what` (every command but `calibrate`'s output
     /// for now), so that no result silently leaves it out.
     pub fn refuse_compliance(&self, path: &Path, what: &str) -> anyhow::Result<()> {

@@ -131,7 +131,8 @@ fn the_maps_job_matches_the_f64_core_and_its_encoding_is_the_firmwares_expectati
         let robot_file = RobotFile::read(&path).unwrap();
         let model: RobotModel<6> = robot_file.to_model(&path).unwrap();
         let maps = robot_file.joint_maps(&path).unwrap();
-        let exported = parameter_block(&model.robot, maps.as_ref(), BlockScalar::F32, 1).unwrap();
+        let exported =
+            parameter_block(&model.robot, maps.as_ref(), None, BlockScalar::F32, 1).unwrap();
         assert!(exported == block, "{file}: the embedded block is stale");
     }
 
@@ -169,6 +170,7 @@ fn the_maps_job_matches_the_f64_core_and_its_encoding_is_the_firmwares_expectati
     let model64: ControllerModel<f64, 6, 64> = ControllerModel {
         robot: widen(&model32.robot),
         maps: calib_core::model::joint_maps::JointMaps::new(h, sin, cos).unwrap(),
+        compliance: calib_core::model::compliance::Compliance::none(),
     };
     let nominal64 = Kinematics::nominal(&widen(&nominal32)).unwrap();
     let actual64 = model64.kinematics().unwrap();

@@ -2,9 +2,10 @@
 //! power loss during an update.
 //!
 //! Two versions, explicit little-endian, the same on every target (offsets in bytes; `S` = 4 for
-//! f32, 8 for f64). Version 1 holds the geometry ([`encode`], [`decode`]); version 2 the geometry
-//! and each joint's angle-error map ([`encode_model`]; [`decode_model`] reads both versions, a
-//! version 1 block as maps that are zero):
+//! f32, 8 for f64). Version 1 holds the geometry ([`encode`], [`decode`]); version 2 the geometry,
+//! each joint's angle-error map and, when the model has it, the gravity compliance
+//! ([`encode_model`]; [`decode_model`] reads both versions, a version 1 block as maps that are
+//! zero and no compliance):
 //!
 //! | offset | size | field |
 //! |---|---|---|
@@ -13,14 +14,15 @@
 //! | 6 | 1 | scalar type: 4 = f32, 8 = f64 |
 //! | 7 | 1 | joint count N |
 //! | 8 | 4 | sequence number (wrapping; the newer of two blocks has the larger one) |
-//! | 12 | 4 | version 2 only: harmonics per map `H` (u16), then 0 (u16, reserved) |
+//! | 12 | 4 | version 2 only: harmonics per map `H` (u16), then the sections (u16): bit 0 set when the compliance section follows the maps, the other bits 0 |
 //! | 12 or 16 | S (7N + 12) | the geometry: per joint a, alpha, theta_offset, d, beta (mm, rad), then per joint lower, upper limit (rad), then base xyz (mm) rpy (rad), then tool xyz rpy |
 //! | then | S 2NH | version 2 only: per joint the map's `a_1..a_H` (sin) then `b_1..b_H` (cos), rad |
+//! | then | S (7N + 7) | version 2 with bit 0 only: gravity xyz (m/s^2, base frame), per link mass (kg) and centre xyz (mm), the flange load's mass and centre, per joint the gains tilt x, tilt y, torsion (urad per N m) ([`Compliance`]) |
 //! | end - 4 | 4 | CRC-32 (IEEE 802.3, reflected, as zlib) of all bytes before it |
 //!
-//! A block's length is fixed by its scalar, joint count and `H` ([`block_len`],
+//! A block's length is fixed by its scalar, joint count, `H` and the sections ([`block_len`],
 //! [`model_block_len`]); a controller built with room for `C` harmonics reads blocks with any
-//! `H <= C`. Six joints in f32 with 64 harmonics: 3,308 bytes.
+//! `H <= C`. Six joints in f32 with 64 harmonics: 3,308 bytes, 3,504 with compliance.
 //!
 //! Two slots: [`store`] writes to the slot that does not hold the newest valid block, with the
 //! next sequence number, so an interrupted write can only damage the older copy. [`load`] takes the
@@ -29,6 +31,7 @@
 
 use crate::KinematicsError;
 use crate::kinematics::MappedKinematics;
+use crate::model::compliance::{Compliance, PointMass};
 use crate::model::joint_maps::JointMaps;
 use crate::model::parameters::ParameterErrors;
 use crate::model::{MdhJoint, Robot};
@@ -42,28 +45,33 @@ pub const VERSION: u16 = 1;
 /// Format version of a block with angle-error maps ([`encode_model`]).
 pub const VERSION_MAPS: u16 = 2;
 const HEADER: usize = 12;
-/// Version 2's header: [`HEADER`], harmonics (u16) and a reserved u16.
+/// Version 2's header: [`HEADER`], harmonics (u16) and sections (u16).
 const HEADER_MAPS: usize = 16;
+/// Version 2's sections bit: the compliance section follows the maps.
+const SECTION_COMPLIANCE: u16 = 1;
 
 /// Bytes of a version 1 (geometry) block for scalar `T` and `N` joints.
 pub const fn block_len<T: Real, const N: usize>() -> usize {
     HEADER + (7 * N + 12) * T::BYTES + 4
 }
 
-/// Bytes of a version 2 block (geometry and maps of `harmonics` harmonics) for scalar `T` and `N`
-/// joints.
-pub const fn model_block_len<T: Real, const N: usize>(harmonics: usize) -> usize {
-    HEADER_MAPS + (7 * N + 12 + 2 * N * harmonics) * T::BYTES + 4
+/// Bytes of a version 2 block (geometry, maps of `harmonics` harmonics and, if `compliance`, the
+/// compliance section) for scalar `T` and `N` joints.
+pub const fn model_block_len<T: Real, const N: usize>(harmonics: usize, compliance: bool) -> usize {
+    let compliance_values = if compliance { 7 * N + 7 } else { 0 };
+    HEADER_MAPS + (7 * N + 12 + 2 * N * harmonics + compliance_values) * T::BYTES + 4
 }
 
-/// What the controller compensates with: the identified geometry and each joint's angle-error
-/// map (`C` harmonics of room).
+/// What the controller compensates with: the identified geometry, each joint's angle-error map
+/// (`C` harmonics of room) and the gravity compliance.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ControllerModel<T: Real, const N: usize, const C: usize> {
     /// The geometry (nominal values with the identified errors applied, limits, frames).
     pub robot: Robot<T, N>,
     /// The angle-error maps (zero for a geometric calibration).
     pub maps: JointMaps<T, N, C>,
+    /// The gravity compliance (no gains for a model without it).
+    pub compliance: Compliance<T, N>,
 }
 
 impl<T: Real, const N: usize, const C: usize> ControllerModel<T, N, C> {
@@ -72,13 +80,15 @@ impl<T: Real, const N: usize, const C: usize> ControllerModel<T, N, C> {
         Self {
             robot,
             maps: JointMaps::zero(),
+            compliance: Compliance::none(),
         }
     }
 
-    /// The model ready to evaluate and compensate with (borrowing the maps). Error: an invalid
-    /// geometry.
+    /// The model ready to evaluate and compensate with (borrowing the maps and compliance).
+    /// Error: an invalid geometry or compliance.
     pub fn kinematics(&self) -> Result<MappedKinematics<'_, T, N, C>, KinematicsError> {
-        MappedKinematics::new(&self.robot, &ParameterErrors::zero(), &self.maps)
+        MappedKinematics::new(&self.robot, &ParameterErrors::zero(), &self.maps)?
+            .with_compliance(&self.compliance)
     }
 }
 
@@ -99,6 +109,8 @@ pub enum StorageError {
     WrongJointCount(u8),
     /// The block's maps have more harmonics than this build has room for.
     TooManyHarmonics(u16),
+    /// The block holds sections (bits of its header) this build does not know.
+    UnknownSections(u16),
     /// The checksum does not match: the block is damaged or was not completely written.
     BadChecksum,
     /// The model is invalid (non-finite value or reversed limits; the cause names it).
@@ -120,6 +132,9 @@ impl fmt::Display for StorageError {
                     f,
                     "block holds maps of {h} harmonics, more than this build holds"
                 )
+            }
+            Self::UnknownSections(s) => {
+                write!(f, "block holds sections {s:#06x} this build does not know")
             }
             Self::BadChecksum => f.write_str("block checksum mismatch (damaged or incomplete)"),
             Self::InvalidModel(e) => write!(f, "block holds an invalid model: {e}"),
@@ -172,33 +187,64 @@ pub fn encode_model<T: Real, const N: usize, const C: usize>(
 ) -> Result<usize, StorageError> {
     let harmonics = model.maps.harmonics();
     let stored = u16::try_from(harmonics).map_err(|_| StorageError::TooManyHarmonics(u16::MAX))?;
-    write_block(&model.robot, sequence, Some(stored), out, |writer| {
-        for j in 0..N {
-            let (Some(sin), Some(cos)) = (
-                model.maps.sin_coefficients(j),
-                model.maps.cos_coefficients(j),
-            ) else {
-                continue;
-            };
-            for v in sin.iter().take(harmonics).chain(cos.iter().take(harmonics)) {
-                writer.put(*v);
+    model
+        .compliance
+        .validate()
+        .map_err(StorageError::InvalidModel)?;
+    let compliance = model.compliance.is_active();
+    let sections = if compliance { SECTION_COMPLIANCE } else { 0 };
+    write_block(
+        &model.robot,
+        sequence,
+        Some((stored, sections)),
+        out,
+        |writer| {
+            for j in 0..N {
+                let (Some(sin), Some(cos)) = (
+                    model.maps.sin_coefficients(j),
+                    model.maps.cos_coefficients(j),
+                ) else {
+                    continue;
+                };
+                for v in sin.iter().take(harmonics).chain(cos.iter().take(harmonics)) {
+                    writer.put(*v);
+                }
             }
-        }
-    })
+            if compliance {
+                let c = &model.compliance;
+                let mass =
+                    |m: &PointMass<T>| [m.mass_kg, m.centre_mm[0], m.centre_mm[1], m.centre_mm[2]];
+                let values = c
+                    .gravity_mps2()
+                    .iter()
+                    .copied()
+                    .chain(c.links().iter().flat_map(mass))
+                    .chain(mass(c.load()))
+                    .chain(c.gains().iter().flatten().copied());
+                for v in values {
+                    writer.put(v);
+                }
+            }
+        },
+    )
 }
 
-/// Header, geometry, what `write_maps` writes, CRC; version 2 when `harmonics` is given.
+/// Header, geometry, what `write_maps` writes, CRC; version 2 when `harmonics` and sections are
+/// given.
 fn write_block<T: Real, const N: usize>(
     robot: &Robot<T, N>,
     sequence: u32,
-    harmonics: Option<u16>,
+    harmonics: Option<(u16, u16)>,
     out: &mut [u8],
     write_maps: impl FnOnce(&mut Cursor<&mut [u8]>),
 ) -> Result<usize, StorageError> {
     robot.validate().map_err(StorageError::InvalidModel)?;
     let (len, version) = match harmonics {
         None => (block_len::<T, N>(), VERSION),
-        Some(h) => (model_block_len::<T, N>(usize::from(h)), VERSION_MAPS),
+        Some((h, sections)) => (
+            model_block_len::<T, N>(usize::from(h), sections & SECTION_COMPLIANCE != 0),
+            VERSION_MAPS,
+        ),
     };
     let block = out.get_mut(..len).ok_or(StorageError::BufferTooSmall)?;
     let joints = u8::try_from(N).map_err(|_| StorageError::WrongJointCount(u8::MAX))?;
@@ -210,9 +256,9 @@ fn write_block<T: Real, const N: usize>(
     writer.put_bytes(&version.to_le_bytes());
     writer.put_bytes(&[T::BYTES as u8, joints]);
     writer.put_bytes(&sequence.to_le_bytes());
-    if let Some(h) = harmonics {
+    if let Some((h, sections)) = harmonics {
         writer.put_bytes(&h.to_le_bytes());
-        writer.put_bytes(&[0, 0]);
+        writer.put_bytes(&sections.to_le_bytes());
     }
     for_each_value(robot, |v| writer.put(v));
     write_maps(&mut writer);
@@ -225,10 +271,11 @@ fn write_block<T: Real, const N: usize>(
     Ok(len)
 }
 
-/// A checked block: its harmonics (0 for version 1), sequence number and the bytes of
-/// its values (between the header and the CRC).
+/// A checked block: its harmonics (0 for version 1), sections (0 for version 1), sequence number
+/// and the bytes of its values (between the header and the CRC).
 struct OpenBlock<'a> {
     harmonics: u16,
+    sections: u16,
     sequence: u32,
     values: &'a [u8],
 }
@@ -261,15 +308,20 @@ fn open_block<T: Real, const N: usize>(
     if usize::from(joints) != N {
         return Err(StorageError::WrongJointCount(joints));
     }
-    let (harmonics, header, len) = if version == VERSION {
-        (0, HEADER, block_len::<T, N>())
+    let (harmonics, sections, header, len) = if version == VERSION {
+        (0, 0, HEADER, block_len::<T, N>())
     } else {
         let h = u16_at(12).ok_or(too_small)?;
         if capacity.is_none_or(|c| usize::from(h) > c) {
             return Err(StorageError::TooManyHarmonics(h));
         }
-        let len = model_block_len::<T, N>(usize::from(h));
-        (h, HEADER_MAPS, len)
+        let sections = u16_at(14).ok_or(too_small)?;
+        if sections & !SECTION_COMPLIANCE != 0 {
+            return Err(StorageError::UnknownSections(sections));
+        }
+        let compliance = sections & SECTION_COMPLIANCE != 0;
+        let len = model_block_len::<T, N>(usize::from(h), compliance);
+        (h, sections, HEADER_MAPS, len)
     };
     let body = len - 4;
     let stored_crc = u32_at(body).ok_or(too_small)?;
@@ -279,6 +331,7 @@ fn open_block<T: Real, const N: usize>(
     }
     Ok(OpenBlock {
         harmonics,
+        sections,
         sequence: u32_at(8).ok_or(too_small)?,
         values: block.get(header..).ok_or(too_small)?,
     })
@@ -297,8 +350,8 @@ pub fn decode<T: Real, const N: usize>(bytes: &[u8]) -> Result<(Robot<T, N>, u32
 
 /// Reads a block of either version: the model (zero maps from a version 1 block) and its sequence
 /// number. A block whose maps have more than `C` harmonics is
-/// [`StorageError::TooManyHarmonics`]; maps that [`JointMaps::new`] refuses are
-/// [`StorageError::InvalidModel`]. On a controller prefer [`decode_model_into`] (no copies of
+/// [`StorageError::TooManyHarmonics`]; maps that [`JointMaps::new`] or compliance that
+/// [`Compliance::new`] refuses are [`StorageError::InvalidModel`]. On a controller prefer [`decode_model_into`] (no copies of
 /// the maps on the stack).
 pub fn decode_model<T: Real, const N: usize, const C: usize>(
     bytes: &[u8],
@@ -309,8 +362,8 @@ pub fn decode_model<T: Real, const N: usize, const C: usize>(
 }
 
 /// [`decode_model`] into `model`, in place; returns the sequence number. On an error `model` is
-/// unchanged unless the block passed its checksum and its maps were refused (then its maps are
-/// zero and its geometry the block's).
+/// unchanged unless the block passed its checksum and its maps or compliance were refused (then
+/// its maps are zero or its compliance none, and its geometry the block's).
 pub fn decode_model_into<T: Real, const N: usize, const C: usize>(
     bytes: &[u8],
     model: &mut ControllerModel<T, N, C>,
@@ -334,7 +387,36 @@ pub fn decode_model_into<T: Real, const N: usize, const C: usize>(
             Some((value(j, h - 1)?, value(j, harmonics + h - 1)?))
         })
         .map_err(StorageError::InvalidModel)?;
+    model.compliance = Compliance::none();
+    if block.sections & SECTION_COMPLIANCE != 0 {
+        reader.at = maps_at + 2 * N * harmonics * T::BYTES;
+        model.compliance = read_compliance(&mut reader)?;
+    }
     Ok(block.sequence)
+}
+
+/// The compliance section from `reader`'s position, validated.
+fn read_compliance<T: Real, const N: usize>(
+    reader: &mut Cursor<&[u8]>,
+) -> Result<Compliance<T, N>, StorageError> {
+    let mut next = || reader.get::<T>().ok_or(StorageError::BufferTooSmall);
+    let gravity = [next()?, next()?, next()?];
+    let mut mass = || -> Result<PointMass<T>, StorageError> {
+        Ok(PointMass {
+            mass_kg: next()?,
+            centre_mm: [next()?, next()?, next()?],
+        })
+    };
+    let mut links = [PointMass::none(); N];
+    for link in &mut links {
+        *link = mass()?;
+    }
+    let load = mass()?;
+    let mut gains = [[T::zero(); 3]; N];
+    for gain in gains.iter_mut().flatten() {
+        *gain = next()?;
+    }
+    Compliance::new(gravity, links, load, gains).map_err(StorageError::InvalidModel)
 }
 
 /// A robot of zeros, to be overwritten by a block's values.
@@ -392,7 +474,10 @@ impl<T: Real, const N: usize> Stored for Robot<T, N> {
 
 impl<T: Real, const N: usize, const C: usize> Stored for ControllerModel<T, N, C> {
     fn validate(&self) -> Result<(), StorageError> {
-        self.robot.validate().map_err(StorageError::InvalidModel)
+        self.robot.validate().map_err(StorageError::InvalidModel)?;
+        self.compliance
+            .validate()
+            .map_err(StorageError::InvalidModel)
     }
     fn encode_block(&self, sequence: u32, out: &mut [u8]) -> Result<usize, StorageError> {
         encode_model(self, sequence, out)
@@ -766,15 +851,102 @@ mod tests {
         ControllerModel {
             robot: cast,
             maps: JointMaps::new(40, sin, cos).unwrap(),
+            compliance: Compliance::none(),
         }
+    }
+
+    /// [`identified_with_maps`] with UR10-like masses and 11 gains.
+    fn identified_with_compliance<T: Real>() -> ControllerModel<T, 6, 64> {
+        let mass = |m: f64, c: [f64; 3]| PointMass {
+            mass_kg: T::of(m),
+            centre_mm: c.map(T::of),
+        };
+        let gains = [
+            [12.5, -7.25, 0.0],
+            [3.0, 0.0, 6.125],
+            [-4.0, 2.0, 9.0],
+            [5.0, 1.0, 8.0],
+            [0.0; 3],
+            [0.0; 3],
+        ];
+        ControllerModel {
+            compliance: Compliance::new(
+                [0.0, 0.0, -9.81].map(T::of),
+                [
+                    mass(7.1, [21.0, 0.0, 27.0]),
+                    mass(12.7, [380.0, 0.0, 158.0]),
+                    mass(4.27, [240.0, 0.0, 68.0]),
+                    mass(2.0, [0.0, 7.0, 18.0]),
+                    mass(2.0, [0.0, 7.0, 18.0]),
+                    mass(0.365, [0.0, 0.0, -26.0]),
+                ],
+                mass(1.5, [0.0, 0.0, 60.0]),
+                gains.map(|g| g.map(T::of)),
+            )
+            .unwrap(),
+            ..identified_with_maps()
+        }
+    }
+
+    #[test]
+    fn a_block_with_compliance_round_trips_bit_exactly() {
+        let model = identified_with_compliance::<f32>();
+        let len = model_block_len::<f32, 6>(40, true);
+        assert_eq!(len, model_block_len::<f32, 6>(40, false) + 49 * 4);
+        let mut buffer = [0u8; model_block_len::<f32, 6>(64, true)];
+        assert_eq!(encode_model(&model, 9, &mut buffer), Ok(len));
+        assert_eq!(&buffer[12..16], &[40, 0, 1, 0]);
+        assert_eq!(decode_model::<f32, 6, 64>(&buffer), Ok((model, 9)));
+        let model64 = identified_with_compliance::<f64>();
+        let mut wide = [0u8; model_block_len::<f64, 6>(64, true)];
+        encode_model(&model64, 10, &mut wide).unwrap();
+        assert_eq!(decode_model::<f64, 6, 64>(&wide), Ok((model64, 10)));
+        // Every bit flip is detected.
+        let block = &buffer[..len];
+        for byte in 0..len {
+            for bit in 0..8 {
+                let mut damaged = [0u8; model_block_len::<f32, 6>(64, true)];
+                damaged[..len].copy_from_slice(block);
+                damaged[byte] ^= 1 << bit;
+                assert!(
+                    decode_model::<f32, 6, 64>(&damaged).is_err(),
+                    "flip of bit {bit} in byte {byte} went unnoticed"
+                );
+            }
+        }
+        // A section this build does not know is named, not misread.
+        let mut future = buffer;
+        future[14] = 3;
+        let crc = crc32(&future[..len - 4]);
+        future[len - 4..len].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(
+            decode_model::<f32, 6, 64>(&future),
+            Err(StorageError::UnknownSections(3))
+        );
+        // A model without gains writes no compliance section (the block of the maps alone).
+        let mut plain = model;
+        plain.compliance = Compliance::new(
+            *model.compliance.gravity_mps2(),
+            *model.compliance.links(),
+            *model.compliance.load(),
+            [[0.0; 3]; 6],
+        )
+        .unwrap();
+        assert_eq!(
+            encode_model(&plain, 9, &mut buffer),
+            Ok(model_block_len::<f32, 6>(40, false))
+        );
     }
 
     #[test]
     fn a_block_with_maps_round_trips_bit_exactly_within_8_kib() {
         let model = identified_with_maps::<f32>();
-        assert_eq!(model_block_len::<f32, 6>(40), 16 + (54 + 480) * 4 + 4);
-        assert!(model_block_len::<f32, 6>(64) <= 8192);
-        let mut buffer = [0u8; model_block_len::<f32, 6>(64)];
+        assert_eq!(
+            model_block_len::<f32, 6>(40, false),
+            16 + (54 + 480) * 4 + 4
+        );
+        assert!(model_block_len::<f32, 6>(64, false) <= 8192);
+        let mut buffer = [0u8; model_block_len::<f32, 6>(64, false)];
         assert_eq!(encode_model(&model, 5, &mut buffer), Ok(2156));
         assert_eq!(&buffer[4..6], &[2, 0]);
         assert_eq!(&buffer[12..14], &[40, 0]);
@@ -797,9 +969,9 @@ mod tests {
             Err(StorageError::WrongScalar(4))
         );
         let model64 = identified_with_maps::<f64>();
-        let mut wide = [0u8; model_block_len::<f64, 6>(64)];
+        let mut wide = [0u8; model_block_len::<f64, 6>(64, false)];
         let len = encode_model(&model64, 6, &mut wide).unwrap();
-        assert_eq!(len, model_block_len::<f64, 6>(40));
+        assert_eq!(len, model_block_len::<f64, 6>(40, false));
         assert_eq!(decode_model::<f64, 6, 64>(&wide), Ok((model64, 6)));
     }
 
@@ -816,7 +988,7 @@ mod tests {
 
     #[test]
     fn every_single_bit_flip_of_a_block_with_maps_is_detected() {
-        let mut buffer = [0u8; model_block_len::<f32, 6>(40)];
+        let mut buffer = [0u8; model_block_len::<f32, 6>(40, false)];
         encode_model(&identified_with_maps::<f32>(), 3, &mut buffer).unwrap();
         for byte in 0..buffer.len() {
             for bit in 0..8 {
@@ -836,9 +1008,9 @@ mod tests {
         let first = identified_with_maps::<f32>();
         let mut second = first;
         second.robot.joints[2].d += 0.5;
-        let len = model_block_len::<f32, 6>(64);
-        let mut buffer = [0u8; model_block_len::<f32, 6>(64)];
-        for cut in (0..model_block_len::<f32, 6>(40)).step_by(7) {
+        let len = model_block_len::<f32, 6>(64, false);
+        let mut buffer = [0u8; model_block_len::<f32, 6>(64, false)];
+        for cut in (0..model_block_len::<f32, 6>(40, false)).step_by(7) {
             let mut flash = Flash::new(len);
             store(&mut flash, &first, &mut buffer).unwrap();
             flash.budget = Some(cut);

@@ -31,6 +31,9 @@ pub enum KinematicsError {
     },
     /// The maps use more harmonics than the capacity they were built with.
     TooManyHarmonics,
+    /// The gravity-compliance model holds a value that is not finite or out of range (see
+    /// `model::compliance`).
+    InvalidCompliance,
     /// The identification mask selects a different number of parameters than the vector holds.
     ParameterCount {
         /// Number of parameters the packed vector holds (the const generic `D`).
@@ -56,6 +59,9 @@ impl fmt::Display for KinematicsError {
             Self::TooManyHarmonics => {
                 f.write_str("the angle-error maps use more harmonics than this build holds")
             }
+            Self::InvalidCompliance => f.write_str(
+                "the gravity-compliance model has a value that is not finite or out of range (mass 0-1000 kg, centre within 5000 mm, gain within 1000 urad/(N m), gravity 9-10.5 m/s^2)",
+            ),
             Self::ParameterCount { expected, found } => write!(
                 f,
                 "the identification mask selects {found} parameters, the vector holds {expected}"

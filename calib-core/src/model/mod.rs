@@ -1,8 +1,9 @@
 //! The robot model: the nominal robot ([`Robot`]: Hayati MDH joints, joint limits, base and tool
 //! frames), its parameter errors and the identification mask ([`parameters`]), and the robot of
 //! the source paper ([`paper`]), and the per-joint angle-error maps beyond geometry
-//! ([`joint_maps`]).
+//! ([`joint_maps`]) and gravity compliance ([`compliance`]).
 
+pub mod compliance;
 mod error;
 pub mod joint_maps;
 pub mod paper;

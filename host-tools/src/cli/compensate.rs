@@ -3,14 +3,12 @@
 
 use crate::JOINTS;
 use crate::compensate::{Summary, compensate_targets, compensate_targets_of, to_csv};
+use crate::export::controller_model;
 use crate::files::Outputs;
-use crate::joint_maps::MAX_FILE_HARMONICS;
 use crate::robot_file::RobotModel;
 use crate::tracker_data::TrackerData;
 use anyhow::bail;
-use calib_core::ParameterErrors;
 use calib_core::controller::compensate::CompensationSettings;
-use calib_core::kinematics::MappedKinematics;
 use std::path::PathBuf;
 
 /// Options of `calib compensate`.
@@ -20,7 +18,8 @@ pub struct CompensateOptions {
     #[arg(long, value_name = "FILE")]
     pub robot: PathBuf,
     /// Identified robot file (from calib calibrate --out): the actual robot, with its joint maps
-    /// when it has them (calibrate --model joint-maps).
+    /// and gravity compliance when it has them (calibrate --model joint-maps,
+    /// joint-maps+compliance).
     #[arg(long, value_name = "FILE")]
     pub params: PathBuf,
     /// Target poses in the base frame (CSV: x_mm, y_mm, z_mm and an orientation; optional
@@ -53,8 +52,8 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
         "calib compensate's --robot (the nominal model the controller plans with)",
     )?;
     let params = crate::robot_file::RobotFile::read(&options.params)?;
-    params.refuse_compliance(&options.params, "calib compensate")?;
     let maps = params.joint_maps(&options.params)?;
+    let compliance = params.gravity_compliance(&options.params)?;
     let nominal: RobotModel<JOINTS> = RobotModel::load(&options.robot)?;
     let actual: RobotModel<JOINTS> = RobotModel::load(&options.params)?;
     let targets = TrackerData::read_targets(&options.targets)?;
@@ -92,19 +91,19 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
         max_joint_correction_rad: options.max_joint_correction_deg.to_radians(),
         ..CompensationSettings::default()
     };
-    let outcomes = match maps {
-        None => compensate_targets(
+    let outcomes = if maps.is_none() && compliance.is_none() {
+        compensate_targets(
             &nominal.robot,
             &actual.robot,
             &targets,
             &settings,
             options.branch,
-        )?,
-        Some(maps) => {
-            let maps = maps.to_core::<f64, MAX_FILE_HARMONICS>()?;
-            let real = MappedKinematics::new(&actual.robot, &ParameterErrors::zero(), &maps)?;
-            compensate_targets_of(&nominal.robot, &real, &targets, &settings, options.branch)?
-        }
+        )?
+    } else {
+        // The controller's model: geometry, maps (zero without) and compliance (none without).
+        let model = controller_model(actual.robot, maps.as_ref(), compliance.as_ref())?;
+        let real = model.kinematics()?;
+        compensate_targets_of(&nominal.robot, &real, &targets, &settings, options.branch)?
     };
     let mut outputs = Outputs::new(&[
         ("--robot", &options.robot),

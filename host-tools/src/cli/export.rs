@@ -30,12 +30,6 @@ pub struct ExportOptions {
 /// Runs `calib export`; returns the number of bytes written.
 pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
     let file = RobotFile::read(&options.params)?;
-    if options.format == ExportFormat::Block {
-        file.refuse_compliance(
-            &options.params,
-            "calib export --format block (the parameter block)",
-        )?;
-    }
     let model: RobotModel<JOINTS> = file.to_model(&options.params)?;
     let bytes = crate::export::export(
         &file,
