@@ -239,7 +239,8 @@ fn micro_benchmarks() {
 }
 
 /// The parameter region (`.calib_slots`, outside the program's text and rodata): the UR10's
-/// nominal model (version 1 block) and its model with joint maps (version 2), as a controller
+/// nominal model (version 1 block), its model with joint maps (version 2) and its model with
+/// joint maps and gravity compliance (version 2 with the compliance section), as a controller
 /// keeps them in its parameter flash. The same bytes as `calib_onboard::maps`'s.
 #[unsafe(link_section = ".calib_slots")]
 static NOMINAL_SLOT: [u8; calib_onboard::maps::NOMINAL_BLOCK.len()] =
@@ -247,41 +248,53 @@ static NOMINAL_SLOT: [u8; calib_onboard::maps::NOMINAL_BLOCK.len()] =
 #[unsafe(link_section = ".calib_slots")]
 static MAPS_SLOT: [u8; calib_onboard::maps::MAPS_BLOCK.len()] =
     *include_bytes!("../../onboard/data/ur10-series-b-maps.calb");
+#[unsafe(link_section = ".calib_slots")]
+static COMPLIANCE_SLOT: [u8; calib_onboard::maps::COMPLIANCE_BLOCK.len()] =
+    *include_bytes!("../../onboard/data/ur10-series-b-compliance.calb");
 
-/// The compensation with joint maps (`calib_onboard::maps`): logs it and its instruction
-/// counts; `true` when its outcome equals the host's bit for bit.
+/// The compensation beyond geometry (`calib_onboard::maps`) with the model of `slot` (`what`:
+/// "maps" or "compliance"): logs it and its instruction counts; `true` when its outcome equals
+/// `expected`, the host's, bit for bit.
 #[inline(never)]
-fn compensate_with_maps(counter: &mut Counter) -> bool {
-    let slots = (black_box(&NOMINAL_SLOT[..]), black_box(&MAPS_SLOT[..]));
+fn compensate_with_model(counter: &mut Counter, slot: &[u8], expected: &[u8], what: &str) -> bool {
+    (
+        counter.maps_compensation,
+        counter.slowest_maps_compensation,
+        counter.maps_compensations,
+    ) = (0, 0, 0);
+    let slots = (black_box(&NOMINAL_SLOT[..]), black_box(slot));
     let outcome = match calib_onboard::maps::compensate_with_maps(slots.0, slots.1, counter) {
         Ok(o) => o,
         Err(e) => {
-            defmt::error!("the maps job failed: {}", defmt::Debug2Format(&e));
+            defmt::error!("the {=str} job failed: {}", what, defmt::Debug2Format(&e));
             return false;
         }
     };
     defmt::info!(
-        "model block with joint maps: {=usize} bytes, {=u32} harmonics per joint",
-        MAPS_SLOT.len(),
+        "model block with {=str}: {=usize} bytes, {=u32} harmonics per joint",
+        what,
+        slot.len(),
         outcome.harmonics
     );
     for (q, r) in outcome.compensated.iter().zip(&outcome.residual_mm) {
         defmt::info!(
-            "compensated with joint maps: joints {=[?]} rad, residual {=f32} mm",
+            "compensated with {=str}: joints {=[?]} rad, residual {=f32} mm",
+            what,
             q[..],
             r
         );
     }
     defmt::info!(
-        "instructions: compensation with joint maps {=u64} (mean of {=u32}; slowest with maps {=u64})",
+        "instructions: compensation with {=str} {=u64} (mean of {=u32}; slowest with {=str} {=u64})",
+        what,
         instructions(counter.maps_compensation) / u64::from(counter.maps_compensations.max(1)),
         counter.maps_compensations,
+        what,
         instructions(counter.slowest_maps_compensation)
     );
-    maps_micro_benchmarks();
-    let ok = outcome.matches_expected();
+    let ok = outcome.matches(expected);
     if !ok {
-        defmt::error!("the maps outcome differs from the host's expected-maps.bin");
+        defmt::error!("the {=str} outcome differs from the host's", what);
     }
     ok
 }
@@ -395,10 +408,22 @@ fn main() -> ! {
         counter.compensations,
         instructions(counter.slowest_compensation)
     );
-    let maps_ok = compensate_with_maps(&mut counter);
+    let maps_ok = compensate_with_model(
+        &mut counter,
+        &MAPS_SLOT,
+        &calib_onboard::maps::MAPS_EXPECTED,
+        "maps",
+    );
+    maps_micro_benchmarks();
+    let compliance_ok = compensate_with_model(
+        &mut counter,
+        &COMPLIANCE_SLOT,
+        &calib_onboard::maps::COMPLIANCE_EXPECTED,
+        "compliance",
+    );
     let peak = top - deepest(bottom, top);
     defmt::info!("peak stack {=usize} bytes", peak);
-    if outcome.matches_expected() && maps_ok {
+    if outcome.matches_expected() && maps_ok && compliance_ok {
         defmt::info!("outcome equals the host's bit for bit: PASS");
         debug::exit(debug::EXIT_SUCCESS);
     } else {

@@ -1,12 +1,13 @@
 //! The controller's compensation beyond geometry, in f32, exactly as the firmware runs it: the
 //! UR10's nominal model (a version 1 parameter block, the controller's plan) and its model with
-//! joint maps identified on 50 poses of Series B (a version 2 block) are loaded from embedded
+//! joint maps identified on 50 poses of Series B (a version 2 block), or with joint maps and
+//! gravity compliance (a version 2 block with the compliance section), are loaded from embedded
 //! bytes, and four targets (the nominal pose at joint readings within Series B's ranges) are
-//! compensated with the maps.
+//! compensated with the model.
 //!
-//! Both blocks are `calib export --format block --scalar f32` of `data/ur10-series-b-maps.toml`
-//! and `host-tools/robots/ur10.toml` (the host test `tests/tests/onboard.rs` checks that they
-//! still are).
+//! The blocks are `calib export --format block --scalar f32` of `data/ur10-series-b-maps.toml`,
+//! `data/ur10-series-b-compliance.toml` and `host-tools/robots/ur10.toml` (the host test
+//! `tests/tests/onboard.rs` checks that they still are).
 
 use crate::{Error, Marks, Stage, TARGETS};
 use calib_core::Kinematics;
@@ -18,6 +19,10 @@ pub const NOMINAL_BLOCK: &[u8] = include_bytes!("../data/ur10-nominal.calb");
 
 /// The UR10 with joint maps from Series B (50 poses), version 2 block (f32, 30 harmonics).
 pub const MAPS_BLOCK: &[u8] = include_bytes!("../data/ur10-series-b-maps.calb");
+
+/// The UR10 with joint maps and gravity compliance from Series B (the same 50 poses), version 2
+/// block with the compliance section (f32, 30 harmonics).
+pub const COMPLIANCE_BLOCK: &[u8] = include_bytes!("../data/ur10-series-b-compliance.calb");
 
 /// Harmonics per joint this build has room for.
 pub const CAPACITY: usize = 64;
@@ -50,6 +55,11 @@ pub const MAPS_ENCODED_LEN: usize = 4 * (1 + TARGETS * 6 + TARGETS);
 pub static MAPS_EXPECTED: [u8; include_bytes!("../expected-maps.bin").len()] =
     *include_bytes!("../expected-maps.bin");
 
+/// The expected outcome with [`COMPLIANCE_BLOCK`], as [`MAPS_EXPECTED`].
+#[cfg_attr(target_os = "none", unsafe(link_section = ".calib_data"))]
+pub static COMPLIANCE_EXPECTED: [u8; include_bytes!("../expected-compliance.bin").len()] =
+    *include_bytes!("../expected-compliance.bin");
+
 impl MapsOutcome {
     /// Little-endian bytes of every field, in declaration order.
     pub fn encode(&self) -> [u8; MAPS_ENCODED_LEN] {
@@ -59,9 +69,10 @@ impl MapsOutcome {
         crate::encode_words(words)
     }
 
-    /// `true` when the encoded outcome equals [`MAPS_EXPECTED`] bit for bit.
-    pub fn matches_expected(&self) -> bool {
-        self.encode().as_slice() == MAPS_EXPECTED.as_slice()
+    /// `true` when the encoded outcome equals `expected` ([`MAPS_EXPECTED`],
+    /// [`COMPLIANCE_EXPECTED`]) bit for bit.
+    pub fn matches(&self, expected: &[u8]) -> bool {
+        self.encode().as_slice() == expected
     }
 }
 

@@ -105,9 +105,19 @@ fn firmware_calibrates_in_qemu_bit_identically() {
             "one compensation with joint maps, instructions",
         ),
         (
-            "model block with joint maps: ",
+            "slowest with compliance ",
+            40_000,
+            "one compensation with joint maps and compliance, instructions",
+        ),
+        (
+            "model block with maps: ",
             8 * 1024,
             "the model's block, bytes",
+        ),
+        (
+            "model block with compliance: ",
+            8 * 1024,
+            "the block with compliance, bytes",
         ),
     ];
     for (prefix, budget, what) in budgets {

@@ -99,23 +99,49 @@ fn libm_atan2(s: f32, c: f32) -> f32 {
 /// robot with maps as the f64 core evaluates it, and the f64 core's own compensation agrees.
 #[test]
 fn the_maps_job_matches_the_f64_core_and_its_encoding_is_the_firmwares_expectation() {
+    use calib_onboard::maps::{MAPS_BLOCK, MAPS_EXPECTED};
+    model_job_matches_the_f64_core(
+        MAPS_BLOCK,
+        "onboard/data/ur10-series-b-maps.toml",
+        "expected-maps.bin",
+        &MAPS_EXPECTED,
+    );
+}
+
+/// The same job with the model with joint maps and gravity compliance (block with the compliance
+/// section): the f32 firmware's joints put the f64 model, compliance included, on the targets.
+#[test]
+fn the_compliance_job_matches_the_f64_core_and_its_encoding_is_the_firmwares_expectation() {
+    use calib_onboard::maps::{COMPLIANCE_BLOCK, COMPLIANCE_EXPECTED};
+    model_job_matches_the_f64_core(
+        COMPLIANCE_BLOCK,
+        "onboard/data/ur10-series-b-compliance.toml",
+        "expected-compliance.bin",
+        &COMPLIANCE_EXPECTED,
+    );
+}
+
+/// The compensation job of `calib_onboard::maps` with `block` (the export of `file`): its encoding
+/// is `expected` (the bytes of `onboard/{expected_file}`, rewritten with CALIB_UPDATE_EXPECTED=1),
+/// and its f32 joints put the model, evaluated by the f64 core, on the targets.
+fn model_job_matches_the_f64_core(block: &[u8], file: &str, expected_file: &str, expected: &[u8]) {
     use calib_core::Kinematics;
     use calib_core::controller::compensate::{CompensationSettings, compensate_joints};
     use calib_core::controller::storage::{ControllerModel, decode, decode_model};
     use calib_core::kinematics::pose_error::PoseError;
-    use calib_onboard::maps::{self, MAPS_BLOCK, MAPS_EXPECTED, NOMINAL_BLOCK, TARGET_JOINTS};
+    use calib_onboard::maps::{self, NOMINAL_BLOCK, TARGET_JOINTS};
     use host_tools::export::{BlockScalar, parameter_block};
     use host_tools::robot_file::{RobotFile, RobotModel};
     use std::path::Path;
 
-    let outcome = maps::compensate_with_maps(NOMINAL_BLOCK, MAPS_BLOCK, &mut NoMarks).unwrap();
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../onboard/expected-maps.bin");
+    let outcome = maps::compensate_with_maps(NOMINAL_BLOCK, block, &mut NoMarks).unwrap();
+    let path = format!("{}/../onboard/{expected_file}", env!("CARGO_MANIFEST_DIR"));
     if std::env::var_os("CALIB_UPDATE_EXPECTED").is_some() {
         std::fs::write(path, outcome.encode()).unwrap();
     } else {
         assert!(
-            outcome.encode().as_slice() == MAPS_EXPECTED,
-            "onboard/expected-maps.bin is stale: regenerate it with CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test onboard"
+            outcome.matches(expected),
+            "onboard/{expected_file} is stale: regenerate it with CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test onboard"
         );
     }
     println!("{outcome:?}");
@@ -125,20 +151,27 @@ fn the_maps_job_matches_the_f64_core_and_its_encoding_is_the_firmwares_expectati
     let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
     for (file, block) in [
         ("host-tools/robots/ur10.toml", NOMINAL_BLOCK),
-        ("onboard/data/ur10-series-b-maps.toml", MAPS_BLOCK),
+        (file, block),
     ] {
         let path = Path::new(dir).join(file);
         let robot_file = RobotFile::read(&path).unwrap();
         let model: RobotModel<6> = robot_file.to_model(&path).unwrap();
         let maps = robot_file.joint_maps(&path).unwrap();
-        let exported =
-            parameter_block(&model.robot, maps.as_ref(), None, BlockScalar::F32, 1).unwrap();
+        let compliance = robot_file.gravity_compliance(&path).unwrap();
+        let exported = parameter_block(
+            &model.robot,
+            maps.as_ref(),
+            compliance.as_ref(),
+            BlockScalar::F32,
+            1,
+        )
+        .unwrap();
         assert!(exported == block, "{file}: the embedded block is stale");
     }
 
     // The f64 core with the block's values (f32 -> f64 is exact).
     let (nominal32, _) = decode::<f32, 6>(NOMINAL_BLOCK).unwrap();
-    let (model32, _) = decode_model::<f32, 6, 64>(MAPS_BLOCK).unwrap();
+    let (model32, _) = decode_model::<f32, 6, 64>(block).unwrap();
     let widen = |file_robot: &calib_core::Robot<f32, 6>| calib_core::Robot::<f64, 6> {
         joints: file_robot.joints.map(|j| calib_core::MdhJoint {
             a: f64::from(j.a),
@@ -170,8 +203,13 @@ fn the_maps_job_matches_the_f64_core_and_its_encoding_is_the_firmwares_expectati
     let model64: ControllerModel<f64, 6, 64> = ControllerModel {
         robot: widen(&model32.robot),
         maps: calib_core::model::joint_maps::JointMaps::new(h, sin, cos).unwrap(),
-        compliance: calib_core::model::compliance::Compliance::none(),
+        compliance: widen_compliance(&model32.compliance),
     };
+    assert_eq!(
+        model64.compliance.is_active(),
+        file.contains("compliance"),
+        "{file}"
+    );
     let nominal64 = Kinematics::nominal(&widen(&nominal32)).unwrap();
     let actual64 = model64.kinematics().unwrap();
     let mut worst = (0.0f64, 0.0f64, 0.0f64);
@@ -206,11 +244,29 @@ fn the_maps_job_matches_the_f64_core_and_its_encoding_is_the_firmwares_expectati
         );
     }
     println!(
-        "f32 maps compensation: worst miss {:.2e} mm (f64 core), joints within {:.2e} rad of the f64 core's; uncompensated up to {:.3} mm",
+        "f32 compensation with {file}: worst miss {:.2e} mm (f64 core), joints within {:.2e} rad of the f64 core's; uncompensated up to {:.3} mm",
         worst.0, worst.1, worst.2
     );
     // The f32 tolerances are 0.01 mm and 1e-5 rad; the joints of two solutions within them differ
     // by a few times 1e-5 rad.
     assert!(worst.0 < 0.01 && worst.1 < 1e-4, "{worst:?}");
     assert!(worst.2 > 0.5, "{worst:?}");
+}
+
+/// `c` in f64 (exact).
+fn widen_compliance(
+    c: &calib_core::model::compliance::Compliance<f32, 6>,
+) -> calib_core::model::compliance::Compliance<f64, 6> {
+    use calib_core::model::compliance::{Compliance, PointMass};
+    let mass = |m: &PointMass<f32>| PointMass {
+        mass_kg: f64::from(m.mass_kg),
+        centre_mm: m.centre_mm.map(f64::from),
+    };
+    Compliance::new(
+        c.gravity_mps2().map(f64::from),
+        c.links().each_ref().map(mass),
+        mass(c.load()),
+        c.gains().map(|g| g.map(f64::from)),
+    )
+    .unwrap()
 }

@@ -31,7 +31,7 @@
 
 use crate::KinematicsError;
 use crate::kinematics::MappedKinematics;
-use crate::model::compliance::{Compliance, PointMass};
+use crate::model::compliance::Compliance;
 use crate::model::joint_maps::JointMaps;
 use crate::model::parameters::ParameterErrors;
 use crate::model::{MdhJoint, Robot};
@@ -211,18 +211,9 @@ pub fn encode_model<T: Real, const N: usize, const C: usize>(
                 }
             }
             if compliance {
-                let c = &model.compliance;
-                let mass =
-                    |m: &PointMass<T>| [m.mass_kg, m.centre_mm[0], m.centre_mm[1], m.centre_mm[2]];
-                let values = c
-                    .gravity_mps2()
-                    .iter()
-                    .copied()
-                    .chain(c.links().iter().flat_map(mass))
-                    .chain(mass(c.load()))
-                    .chain(c.gains().iter().flatten().copied());
-                for v in values {
-                    writer.put(v);
+                let mut copy = model.compliance;
+                for v in copy.values_mut() {
+                    writer.put(*v);
                 }
             }
         },
@@ -399,24 +390,12 @@ pub fn decode_model_into<T: Real, const N: usize, const C: usize>(
 fn read_compliance<T: Real, const N: usize>(
     reader: &mut Cursor<&[u8]>,
 ) -> Result<Compliance<T, N>, StorageError> {
-    let mut next = || reader.get::<T>().ok_or(StorageError::BufferTooSmall);
-    let gravity = [next()?, next()?, next()?];
-    let mut mass = || -> Result<PointMass<T>, StorageError> {
-        Ok(PointMass {
-            mass_kg: next()?,
-            centre_mm: [next()?, next()?, next()?],
-        })
-    };
-    let mut links = [PointMass::none(); N];
-    for link in &mut links {
-        *link = mass()?;
+    let mut compliance = Compliance::none();
+    for slot in compliance.values_mut() {
+        *slot = reader.get().ok_or(StorageError::BufferTooSmall)?;
     }
-    let load = mass()?;
-    let mut gains = [[T::zero(); 3]; N];
-    for gain in gains.iter_mut().flatten() {
-        *gain = next()?;
-    }
-    Compliance::new(gravity, links, load, gains).map_err(StorageError::InvalidModel)
+    compliance.validate().map_err(StorageError::InvalidModel)?;
+    Ok(compliance)
 }
 
 /// A robot of zeros, to be overwritten by a block's values.
@@ -857,7 +836,7 @@ mod tests {
 
     /// [`identified_with_maps`] with UR10-like masses and 11 gains.
     fn identified_with_compliance<T: Real>() -> ControllerModel<T, 6, 64> {
-        let mass = |m: f64, c: [f64; 3]| PointMass {
+        let mass = |m: f64, c: [f64; 3]| crate::model::compliance::PointMass {
             mass_kg: T::of(m),
             centre_mm: c.map(T::of),
         };

@@ -7,9 +7,11 @@
 //! - [`pose_error`]: `dp = p_measured - p_predicted` (mm), `dr = log(R_measured R_predicted^T)`
 //!   (rad), and its parameter Jacobian;
 //! - [`jacobian`]: the geometric (joint) Jacobian and the parameter Jacobian of the end pose;
+//! - [`deflection`]: the end frame's motion under gravity compliance;
 //! - [`mapped`]: the geometry with each joint's angle-error map added to its reading;
 //! - [`ik`]: closed-form nominal inverse kinematics of spherical-wrist 6R robots (8 branches).
 
+pub mod deflection;
 mod forward;
 pub mod ik;
 pub mod jacobian;
