@@ -170,6 +170,78 @@ impl Dataset {
         Ok(out)
     }
 
+    /// The dataset with the gravity compliance of its robot file (if any; held fixed) taken off
+    /// every measured pose, evaluated for the geometry `robot + errors` (the file's model in the
+    /// data's frames): what that geometry alone must explain. Without `[compliance]` the dataset
+    /// unchanged. Commands that fit or check the geometry of a file with compliance use it (the
+    /// deflection depends on the geometry only to second order: a few tenths of a millimetre
+    /// times its relative change).
+    pub fn without_file_compliance(
+        &self,
+        robot: &calib_core::Robot<f64, JOINTS>,
+        errors: &calib_core::ParameterErrors<f64, JOINTS>,
+    ) -> anyhow::Result<Self> {
+        let Some(compliance) = self.file.gravity_compliance(&self.model.path)? else {
+            return Ok(self.clone());
+        };
+        let maps = self.file.joint_maps(&self.model.path)?;
+        self.without_compliance(
+            robot,
+            errors,
+            maps.as_ref(),
+            &compliance.gravity,
+            &compliance.gains,
+        )
+    }
+
+    /// The data as the geometry sees them: each record's joint readings replaced by the kinematic
+    /// angles of its measurement (the joint maps added, in (-pi, pi]), its pose by the measured
+    /// pose the measurement holds (the compliance taken off, when it was). For the reference
+    /// kinematics, which knows neither maps nor compliance.
+    pub fn as_seen_by_the_geometry(&self) -> TrackerData {
+        let mut data = self.data.clone();
+        for (r, m) in data.records.iter_mut().zip(&self.measurements) {
+            r.q = m
+                .angles
+                .sin
+                .iter()
+                .zip(&m.angles.cos)
+                .map(|(s, c)| s.atan2(*c))
+                .collect();
+            r.position = m.position.into();
+            r.rotation = m.rotation;
+        }
+        data
+    }
+
+    /// With only the base fitted (`frames` base), an identified file's probe or reflector
+    /// (`[measurement] flange_tool`, identified with the model) stays the tool: the same probe in
+    /// a new session needs only the tracker's position re-fitted. The dataset with the file in
+    /// its measurement setup (`RobotFile::in_measurement_setup`), or `None` when there is
+    /// nothing to keep.
+    pub fn with_identified_probe(
+        &self,
+        frames: crate::frames::Frames,
+    ) -> anyhow::Result<Option<Dataset>> {
+        if frames != crate::frames::Frames::Base || self.identified_probe().is_none() {
+            return Ok(None);
+        }
+        let mut kept = self.clone();
+        kept.file = self.file.in_measurement_setup();
+        let mask = kept.model.mask;
+        kept.model = kept.file.to_model(&self.model.path)?;
+        kept.model.mask = mask;
+        Ok(Some(kept))
+    }
+
+    /// The probe or reflector identified with the file's model (`[measurement] flange_tool`).
+    pub fn identified_probe(&self) -> Option<&crate::robot_file::FrameEntry> {
+        self.file
+            .measurement
+            .as_ref()
+            .and_then(|m| m.flange_tool.as_ref())
+    }
+
     /// Warns on standard error for every joint whose non-zero map (of the robot file at `robot`)
     /// is extrapolated: readings outside the range it was identified on.
     fn warn_extrapolated(&self, maps: &crate::joint_maps::JointMaps, robot: &Path) {

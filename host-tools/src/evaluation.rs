@@ -3,7 +3,6 @@
 //! and the reflector or probe) when the data are in a tracker's frame. The geometry is never
 //! changed. Poses used to fit the frames can be kept out of the statistics.
 
-use crate::JOINTS;
 use crate::dataset::Dataset;
 use crate::frames::{Frames, FramesReport};
 use crate::statistics::{Table3, table3};
@@ -39,9 +38,10 @@ pub fn evaluate(
     seed: u64,
 ) -> anyhow::Result<Evaluation> {
     let k = calib_core::identify::objective::DEFAULT_K;
+    let zero = calib_core::ParameterErrors::zero();
     let n = dataset.measurements.len();
     let with_probe;
-    let dataset = match probe_kept(dataset, frames)? {
+    let dataset = match dataset.with_identified_probe(frames)? {
         Some(kept) => {
             with_probe = kept;
             &with_probe
@@ -56,10 +56,7 @@ pub fn evaluate(
         }
         let (report, _) = crate::frames::prepare(frames, &mut dataset.clone(), &mut [], k)?;
         let kinematics = Kinematics::nominal(&dataset.model.robot)?;
-        let seen = match compliance_of(dataset)? {
-            Some(c) => c.taken_off(dataset, &dataset.model.robot)?,
-            None => dataset.clone(),
-        };
+        let seen = dataset.without_file_compliance(&dataset.model.robot, &zero)?;
         return Ok(Evaluation {
             table: table3(&kinematics, &seen).0,
             frames: report,
@@ -83,18 +80,18 @@ pub fn evaluate(
         None => (dataset.clone(), dataset.clone(), false),
     };
     let (mut report, _) = crate::frames::prepare(frames, &mut fitting, &mut [&mut evaluated], k)?;
-    if let Some(c) = compliance_of(dataset)? {
+    if dataset.file.compliance.is_some() {
         // The frames again, on the poses with the compliance taken off (evaluated in the frames
         // just fitted: its direction of gravity and lever arms), so that they do not absorb it.
         let robot = fitting.model.robot;
         let (mut fitting_seen, mut evaluated_seen) = match fit_poses {
             Some(count) => crate::dataset::split(
-                &c.taken_off(dataset, &robot)?,
+                &dataset.without_file_compliance(&robot, &zero)?,
                 (n - count) as f64 / n as f64,
                 seed,
             )?,
             None => {
-                let seen = c.taken_off(dataset, &robot)?;
+                let seen = dataset.without_file_compliance(&robot, &zero)?;
                 (seen.clone(), seen)
             }
         };
@@ -110,60 +107,4 @@ pub fn evaluate(
         evaluated_poses: evaluated.measurements.len(),
         fitted_poses_evaluated: !separate,
     })
-}
-
-/// With only the base fitted (`--fit-frames base`), an identified file's probe or reflector
-/// (`[measurement] flange_tool`, identified with the model) stays the tool: the same probe in a
-/// new session needs only the tracker's position re-fitted. `None` when there is nothing to keep.
-fn probe_kept(dataset: &Dataset, frames: Frames) -> anyhow::Result<Option<Dataset>> {
-    let has_probe = dataset
-        .file
-        .measurement
-        .as_ref()
-        .is_some_and(|m| m.flange_tool.is_some());
-    if frames != Frames::Base || !has_probe {
-        return Ok(None);
-    }
-    let mut kept = dataset.clone();
-    kept.file = dataset.file.in_measurement_setup();
-    let mask = kept.model.mask;
-    kept.model = kept.file.to_model(&dataset.model.path)?;
-    kept.model.mask = mask;
-    Ok(Some(kept))
-}
-
-/// The gravity compliance of the dataset's robot file, with what evaluating it needs.
-struct CompliantFile {
-    compliance: crate::compliance::FileCompliance,
-    maps: Option<crate::joint_maps::JointMaps>,
-}
-
-impl CompliantFile {
-    /// `dataset` with the compliance displacement taken off its measured poses, computed with
-    /// `robot` (the file's model in the data's frames).
-    fn taken_off(
-        &self,
-        dataset: &Dataset,
-        robot: &calib_core::Robot<f64, JOINTS>,
-    ) -> anyhow::Result<Dataset> {
-        dataset.without_compliance(
-            robot,
-            &calib_core::ParameterErrors::zero(),
-            self.maps.as_ref(),
-            &self.compliance.gravity,
-            &self.compliance.gains,
-        )
-    }
-}
-
-/// The compliance of the dataset's robot file (`[compliance]` and `[dynamics]`), if it has one.
-fn compliance_of(dataset: &Dataset) -> anyhow::Result<Option<CompliantFile>> {
-    let path = &dataset.model.path;
-    let Some(compliance) = dataset.file.gravity_compliance(path)? else {
-        return Ok(None);
-    };
-    Ok(Some(CompliantFile {
-        compliance,
-        maps: dataset.file.joint_maps(path)?,
-    }))
 }

@@ -426,14 +426,14 @@ impl RobotFile {
         }))
     }
 
-    /// Refuses a file with gravity compliance for `what` (every command but `calibrate`'s output
-    /// for now), so that no result silently leaves it out.
+    /// Refuses a file with gravity compliance for `what` (a command that cannot apply it:
+    /// `simulate`), so that no result silently leaves it out.
     pub fn refuse_compliance(&self, path: &Path, what: &str) -> anyhow::Result<()> {
         if self.compliance.is_some() {
             anyhow::bail!(
                 "{}: this robot file has gravity compliance ([compliance], from calibrate --model joint-maps+compliance), \
                  which {what} cannot apply yet; leaving it out would make the result silently less accurate. \
-                 Use the file of calibrate --model joint-maps here",
+                 Use a file without it here (calibrate --model geometric or joint-maps)",
                 path.display()
             );
         }

@@ -139,6 +139,13 @@ pub fn verify(
 ) -> anyhow::Result<Verification> {
     let frames = Frames::chosen(frames, &calibration.data);
     let (_, mask) = crate::frames::prepare(frames, &mut calibration, &mut [&mut validation], k)?;
+    // A robot file's gravity compliance is held fixed and taken off the measured poses at the
+    // registered frames: all three fit the same geometry to the same poses.
+    let zero = ParameterErrors::zero();
+    let (calibration, validation) = (
+        calibration.without_file_compliance(&calibration.model.robot, &zero)?,
+        validation.without_file_compliance(&validation.model.robot, &zero)?,
+    );
     crate::with_parameter_count!(mask.count(), run(&calibration, &validation, &mask, k))
 }
 
@@ -171,7 +178,7 @@ fn run<const D: usize>(
     let fit = crate::reference::lm::fit(
         &calibration.file,
         &names,
-        &calibration.data,
+        &calibration.as_seen_by_the_geometry(),
         k,
         &vec![0.0; D],
     )?;
@@ -228,10 +235,12 @@ fn solve_f32<const D: usize>(
     k: f64,
 ) -> anyhow::Result<SVector<f32, D>> {
     let robot32 = crate::export::to_f32(&calibration.model.robot);
+    // The kinematic angles (with the maps), rounded to f32 as a controller holds them.
+    let seen = calibration.as_seen_by_the_geometry();
     let measurements32 = calibration
         .measurements
         .iter()
-        .zip(&calibration.data.records)
+        .zip(&seen.records)
         .map(|(m, r)| {
             let q: [f32; JOINTS] =
                 std::array::from_fn(|i| r.q.get(i).copied().unwrap_or(0.0) as f32);

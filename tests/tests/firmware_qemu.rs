@@ -64,14 +64,13 @@ fn firmware_calibrates_in_qemu_bit_identically() {
         "{log}"
     );
     assert!(log.contains("IPSO: 2000 generations"), "{log}");
-    // The model with joint maps: loaded from its block, 4 targets compensated (the bits are the
-    // host's: part of the PASS above).
+    // The models with joint maps, and with maps and compliance: loaded from their blocks, 4
+    // targets compensated with each (the bits are the host's: part of the PASS above).
     assert!(log.contains("30 harmonics per joint"), "{log}");
-    assert_eq!(
-        log.matches("compensated with joint maps: joints").count(),
-        4,
-        "{log}"
-    );
+    for what in ["maps", "compliance"] {
+        let line = format!("compensated with {what}: joints");
+        assert_eq!(log.matches(&line).count(), 4, "{line}: {log}");
+    }
     // The decoded statistics are the host's (same job, same bits).
     let host = calib_onboard::run(&mut calib_onboard::NoMarks).unwrap();
     for (name, table) in [("before", host.before), ("after", host.after)] {

@@ -335,8 +335,12 @@ pub struct ParameterMask<const N: usize> {
     tool: u8,
 }
 
-/// Twist below which a joint's axis is taken as nominally parallel to the next one, rad.
-pub const PARALLEL_AXES_TOLERANCE: f64 = 1e-6;
+/// Twist below which a joint's axis is taken as nominally parallel to the next one, rad (0.57
+/// deg): designed twists are 0 or several degrees, and an identified robot's parallel axes stay
+/// within a few milliradians of parallel, so that a file written by a calibration keeps the
+/// parallel joints' `beta` (with `d` there the set is ill-conditioned: `d_i` and `d_(i+1)` move
+/// the chain almost alike).
+pub const PARALLEL_AXES_TOLERANCE: f64 = 1e-2;
 
 impl<const N: usize> ParameterMask<N> {
     /// Nothing identified.
@@ -349,7 +353,8 @@ impl<const N: usize> ParameterMask<N> {
     }
 
     /// The default rule (docs/ARCHITECTURE.md): for joint i identify `a, alpha, theta`, and `d` unless the
-    /// axes of joints i and i+1 are nominally parallel (`|alpha_i| < 1e-6` and `i < N`), in which
+    /// axes of joints i and i+1 are nominally parallel (`|alpha_i| <` [`PARALLEL_AXES_TOLERANCE`]
+    /// and `i < N`), in which
     /// case `beta` replaces `d` (Hayati's fix for parallel axes). Base and tool are not identified.
     /// For the ER10L-C10 this gives the paper's 24 parameters.
     pub fn default_for<T: Real>(robot: &Robot<T, N>) -> Self {

@@ -188,9 +188,9 @@ fn orientation_scale(dataset: &Dataset, geometric: &Kinematics<f64, JOINTS>) -> 
 /// its maps would be applied to the data and new ones identified on top.
 pub fn check_robot_file(dataset: &Dataset, config: &CalibrationConfig) -> anyhow::Result<()> {
     gravity(dataset, config)?;
-    if dataset.file.joint_maps.is_some() {
+    if dataset.file.joint_maps.is_some() || dataset.file.compliance.is_some() {
         anyhow::bail!(
-            "{}: the robot file already has joint maps; identify new ones from the nominal robot file or the \
+            "{}: the robot file already has joint maps or compliance; identify new ones from the nominal robot file or the \
              geometric calibration's file (to keep its model and re-fit only the frames: --identify frames)",
             dataset.model.path.display()
         );

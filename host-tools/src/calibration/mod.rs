@@ -75,6 +75,10 @@ use rayon::prelude::*;
 use std::io::IsTerminal;
 use std::time::Instant;
 
+/// Fits of the geometry with a robot file's gravity compliance taken off the measurements, each
+/// at the previous fit's geometry (see [`calibrate`]).
+const COMPLIANCE_ROUNDS: usize = 2;
+
 /// Calibrates `dataset` (its robot's identification mask plus the frames of `config`), validating
 /// on `validation` when given (poses in the same tracker frame, not used to identify).
 pub fn calibrate(
@@ -83,14 +87,27 @@ pub fn calibrate(
     config: &CalibrationConfig,
 ) -> anyhow::Result<CalibrationResult> {
     config.check()?;
-    dataset.file.refuse_compliance(
-        &dataset.model.path,
-        "calib calibrate (new parameters or frames on top of it)",
-    )?;
     if config.model.maps() {
         maps::check_robot_file(&dataset, config)?;
     }
     let frames = Frames::chosen(config.frames, &dataset.data);
+    // With only the base fitted, the probe identified with the file's model stays the tool (as in
+    // `evaluate --fit-frames base`); the file written keeps the given controller frames and
+    // records the probe in its measurement setup.
+    let given = dataset.file.clone();
+    let probe = dataset.identified_probe().cloned();
+    let probe_kept = match dataset.with_identified_probe(frames)? {
+        Some(kept) => {
+            dataset = kept;
+            if let Some(v) = validation.as_mut()
+                && let Some(kept) = v.with_identified_probe(frames)?
+            {
+                *v = kept;
+            }
+            true
+        }
+        None => false,
+    };
     let (frames_report, mask) = {
         let mut others: Vec<&mut Dataset> = validation.iter_mut().collect();
         crate::frames::prepare(frames, &mut dataset, &mut others, config.k)?
@@ -111,18 +128,48 @@ pub fn calibrate(
         }
     };
     let selection = select_parameters(&dataset, mask, config)?;
-    let mut result = crate::with_parameter_count!(
-        selection.mask.count(),
-        solve(
-            &dataset,
-            validation.as_ref(),
-            config,
-            selection,
-            frames_report
+    let solved = |dataset: &Dataset, validation: Option<&Dataset>| {
+        crate::with_parameter_count!(
+            selection.mask.count(),
+            solve(
+                dataset,
+                validation,
+                config,
+                selection.clone(),
+                frames_report.clone()
+            )
         )
-    )?;
+    };
+    let mut result = if dataset.file.compliance.is_some() {
+        // The file's gravity compliance is part of the model and held fixed: the geometry (or
+        // the frames) is fitted to the measured poses with its deflection taken off, evaluated at
+        // the registered frames, then again at the first fit's errors (second order: below 1e-5
+        // mm on the UR10).
+        let mut errors = ParameterErrors::zero();
+        let mut result = None;
+        for _ in 0..COMPLIANCE_ROUNDS {
+            let calibration = dataset.without_file_compliance(&dataset.model.robot, &errors)?;
+            let held_out = match &validation {
+                Some(v) => Some(v.without_file_compliance(&v.model.robot, &errors)?),
+                None => None,
+            };
+            let round = solved(&calibration, held_out.as_ref())?;
+            errors = round.errors;
+            result = Some(round);
+        }
+        result.ok_or_else(|| anyhow::anyhow!("no compliance round ran"))?
+    } else {
+        solved(&dataset, validation.as_ref())?
+    };
     if config.model.maps() {
         result = maps::add_joint_maps(result, &dataset, validation.as_ref(), config)?;
+    }
+    if probe_kept {
+        let file = &mut result.identified_robot;
+        (file.base, file.tool) = (given.base.clone(), given.tool.clone());
+        if let Some(m) = file.measurement.as_mut() {
+            m.flange_tool = probe;
+        }
     }
     result.implausible = plausibility::check(&result);
     if !result.implausible.is_empty() && !config.accept_implausible {

@@ -30,8 +30,6 @@ pub struct VerifyOptions {
 /// Runs `calib verify`: reads the files, holds out `--validate` of the poses, verifies.
 pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
     let (_, all) = options.input.load()?;
-    all.file
-        .refuse_compliance(&options.input.robot, "calib verify")?;
     let (calibration, validation) =
         crate::dataset::split(&all, options.validate, options.validate_seed)?;
     crate::verify::verify(calibration, validation, options.frames, options.k)
