@@ -620,23 +620,26 @@ fn a_new_session_with_only_the_base_refitted_keeps_the_identified_probe() {
 
 /// Never worse than the geometry on poses it did not see: on 50 full poses of Series D (narrow
 /// ISO-cube joint ranges, orientations that disagree with the positions) the maps predicted the
-/// held-out poses worse (0.5607 -> 0.5814 mm, seed 4). The cross-validation check on the
-/// calibration poses sees it (maps 0.4814 mm, geometry 0.4452 mm): the maps are kept at zero, the
-/// result and the file are the geometric calibration's, and the text says so.
+/// held-out poses worse in seeds 4 (0.5607 -> 0.5814 mm) and 1 (0.4268 -> 0.4335). The
+/// cross-validation check on the calibration poses sees it (seed 4: maps 0.4814 mm, geometry
+/// 0.4452; seed 1: 0.472 and 0.486, not the 5 % gain it asks for): the maps are kept at zero,
+/// the result and the file are the geometric calibration's, and the text says so.
 #[test]
 fn maps_that_do_not_predict_better_are_kept_at_zero() {
-    let c = calibrated("joint-maps", DATA_D, SERIES_D_POSES, FULL_POSE, 50, 4).unwrap();
-    let maps = c.result.joint_maps.as_ref().unwrap();
-    let cv = maps.cross_validation.unwrap();
-    println!("{cv:?}");
-    assert!(cv.kept_at_zero && cv.maps_mean_mm > cv.geometric_mean_mm);
-    let geometric = maps.geometric_validation.unwrap().after.position_mm.mean;
-    let result = c.result.validation.unwrap().after.position_mm.mean;
-    assert_eq!(result, geometric);
-    assert!((0.55..0.57).contains(&result), "{result}");
-    assert!(!c.robot_toml.contains("[joint_maps]"));
-    assert!(maps.joints.iter().all(|j| !j.supported));
-    assert!(c.result.text(None).contains("every map is kept at zero"));
+    for (seed, held_out) in [(4, 0.55..0.57), (1, 0.42..0.43)] {
+        let c = calibrated("joint-maps", DATA_D, SERIES_D_POSES, FULL_POSE, 50, seed).unwrap();
+        let maps = c.result.joint_maps.as_ref().unwrap();
+        let cv = maps.cross_validation.unwrap();
+        println!("seed {seed}: {cv:?}");
+        assert!(cv.kept_at_zero && cv.maps_mean_mm > 0.95 * cv.geometric_mean_mm);
+        let geometric = maps.geometric_validation.unwrap().after.position_mm.mean;
+        let result = c.result.validation.unwrap().after.position_mm.mean;
+        assert_eq!(result, geometric);
+        assert!(held_out.contains(&result), "{result}");
+        assert!(!c.robot_toml.contains("[joint_maps]"));
+        assert!(maps.joints.iter().all(|j| !j.supported));
+        assert!(c.result.text(None).contains("every map is kept at zero"));
+    }
 }
 
 /// Gravity compliance with the maps (`--model joint-maps+compliance`, the UR10's published masses,

@@ -88,12 +88,19 @@ pub struct JointMapsReport {
     pub cross_validation: Option<MapsCrossValidation>,
 }
 
+/// The share by which the maps' cross-validated error must be below the geometry's for the maps
+/// to be kept (5 %). The estimate from a few folds of 50 poses scatters by a few per cent: on 50
+/// full poses of Series D (seed 1) the maps were 3 % better in cross-validation and 1.6 % worse
+/// on the held-out poses; real gains are 8 % and more (Series D full pose, seed 0) and usually
+/// 30-50 %.
+pub const CROSS_VALIDATION_MARGIN: f64 = 0.05;
+
 /// Cross-validation of the model with maps against the geometry alone, on the same folds of the
 /// calibration poses as the geometric calibration's estimate
 /// ([`super::cross_validation::cross_validate`]): each fold predicted by the model (geometry and
 /// maps, the harmonics chosen on all poses) identified without it. Where the maps do not predict
-/// better, they are kept at zero: asking for the model never makes a calibration worse than the
-/// geometry alone on poses it did not see.
+/// at least [`CROSS_VALIDATION_MARGIN`] better, they are kept at zero: asking for the model never
+/// makes a calibration worse than the geometry alone on poses it did not see.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct MapsCrossValidation {
     /// Folds.
@@ -294,7 +301,8 @@ pub fn add_joint_maps(
             folds,
             maps_mean_mm,
             geometric_mean_mm: geometric.calibrated_mean_mm,
-            kept_at_zero: maps_mean_mm >= geometric.calibrated_mean_mm,
+            kept_at_zero: maps_mean_mm
+                >= (1.0 - CROSS_VALIDATION_MARGIN) * geometric.calibrated_mean_mm,
         })
     });
     let ranges: [[f64; 2]; JOINTS] = std::array::from_fn(|j| {
@@ -503,7 +511,7 @@ impl JointMapsReport {
             ));
             if cv.kept_at_zero {
                 text.push_str(
-                    "the maps do not predict left-out poses better than the geometry alone: every map is kept at zero and \
+                    "the maps do not predict left-out poses clearly (5 %) better than the geometry alone: every map is kept at zero and \
                      the result is the geometric calibration (more poses, or wider joint ranges, may support maps)\n",
                 );
             }
