@@ -2,8 +2,8 @@
 //! to [`calib_core::controller::storage::encode`], version 1, for a geometric model, and to
 //! [`calib_core::controller::storage::encode_model`], version 2, for a model with joint maps or
 //! gravity compliance), a
-//! robot file (TOML) or JSON; and the f64 -> f32 model cast the controller's single-precision core
-//! needs.
+//! robot file (TOML) or JSON; the geometry as a URDF or a UR kinematics YAML; and the f64 -> f32
+//! model cast the controller's single-precision core needs.
 
 use crate::JOINTS;
 use crate::compliance::FileCompliance;
@@ -21,6 +21,12 @@ pub enum ExportFormat {
     Toml,
     /// The robot file as JSON.
     Json,
+    /// The geometry as a URDF whose joint origins reproduce calib's forward kinematics exactly
+    /// ([`crate::urdf`]).
+    Urdf,
+    /// The geometry as the `kinematics:` YAML of Universal Robots' ROS description packages
+    /// ([`crate::ur_kinematics`]).
+    UrKinematicsYaml,
 }
 
 /// Scalar of the exported block.
@@ -99,14 +105,34 @@ fn model_block<T: calib_core::Real>(
     Ok(buffer)
 }
 
-/// `file` (an identified robot file) in `format`.
+/// `file` (an identified robot file) in `format`; `scalar` and `sequence` for the block, `urdf`
+/// for the URDF (names; whether a file with joint maps or compliance may be exported as its
+/// geometry alone, also for the UR YAML).
 pub fn export(
     file: &RobotFile,
     model: &RobotModel<JOINTS>,
     format: ExportFormat,
     scalar: BlockScalar,
     sequence: u32,
+    urdf: &crate::urdf::UrdfSettings,
 ) -> anyhow::Result<Vec<u8>> {
+    let source = model.path.display().to_string();
+    let geometry = |what: &str| -> anyhow::Result<()> {
+        let beyond = match (file.joint_maps.is_some(), file.compliance.is_some()) {
+            (true, true) => "joint maps and gravity compliance",
+            (true, false) => "joint maps",
+            (false, true) => "gravity compliance",
+            (false, false) => return Ok(()),
+        };
+        if urdf.geometry_only {
+            return Ok(());
+        }
+        anyhow::bail!(
+            "{source}: the model has {beyond}, which {what} cannot carry: exported, it would be less accurate \
+             than the model (Series B: 0.43 against 0.21 mm held out). Pass --geometry-only to export the geometry \
+             anyway, or use --format block for the controller"
+        )
+    };
     Ok(match format {
         ExportFormat::Block => parameter_block(
             &model.robot,
@@ -117,6 +143,14 @@ pub fn export(
         )?,
         ExportFormat::Toml => file.to_toml("exported by calib export").into_bytes(),
         ExportFormat::Json => serde_json::to_vec_pretty(file)?,
+        ExportFormat::Urdf => {
+            geometry("a URDF")?;
+            crate::urdf::urdf(&model.robot, urdf, &source)?.into_bytes()
+        }
+        ExportFormat::UrKinematicsYaml => {
+            geometry("a UR kinematics file")?;
+            crate::ur_kinematics::yaml(&model.robot, &source)?.into_bytes()
+        }
     })
 }
 

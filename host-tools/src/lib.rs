@@ -30,4 +30,6 @@ pub mod robot_file;
 pub mod simulate;
 pub mod statistics;
 pub mod tracker_data;
+pub mod ur_kinematics;
+pub mod urdf;
 pub mod verify;

@@ -53,7 +53,8 @@ enum Command {
     Evaluate(host_tools::cli::evaluate::EvaluateOptions),
     /// Joints that put the identified robot on target poses (on-line compensation, off line).
     Compensate(CompensateOptions),
-    /// Write identified parameters as the controller's parameter block, TOML or JSON.
+    /// Write identified parameters as the controller's parameter block, TOML, JSON, a URDF or a
+    /// UR kinematics YAML.
     Export(ExportOptions),
     /// Calibrate with the f32 core, the f64 core and the independent reference optimiser and
     /// compare; exits with status 1 when a difference is past its documented tolerance.

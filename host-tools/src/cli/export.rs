@@ -1,4 +1,5 @@
-//! `calib export`: an identified robot file as the controller's parameter block, TOML or JSON.
+//! `calib export`: an identified robot file as the controller's parameter block, TOML, JSON, a
+//! URDF or a UR kinematics YAML.
 
 use crate::JOINTS;
 use crate::export::{BlockScalar, ExportFormat};
@@ -25,18 +26,54 @@ pub struct ExportOptions {
     /// Sequence number written into the block.
     #[arg(long, default_value_t = 1)]
     pub sequence: u32,
+    /// URDF: the links after joints 1..6, comma-separated (default link_1,...,link_6).
+    #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+    pub link_names: Option<Vec<String>>,
+    /// URDF: the revolute joints, comma-separated (default joint_1,...,joint_6).
+    #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+    pub joint_names: Option<Vec<String>>,
+    /// URDF: the root link, where the robot file's `[base]` is given.
+    #[arg(long, default_value = "base_link")]
+    pub base_link: String,
+    /// URDF: the flange link (after joint 6's fixed part).
+    #[arg(long, default_value = "flange")]
+    pub flange_link: String,
+    /// URDF: the controller's tool link (`[tool]` from the flange).
+    #[arg(long, default_value = "tool0")]
+    pub tool_link: String,
+    /// URDF: only the `<joint>` elements, to merge into an existing robot description with these
+    /// link names.
+    #[arg(long)]
+    pub joints_only: bool,
+    /// URDF and UR YAML: export the geometry of a model with joint maps or gravity compliance
+    /// (which they cannot carry) instead of refusing it.
+    #[arg(long)]
+    pub geometry_only: bool,
 }
 
 /// Runs `calib export`; returns the number of bytes written.
 pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
     let file = RobotFile::read(&options.params)?;
     let model: RobotModel<JOINTS> = file.to_model(&options.params)?;
+    let mut urdf = crate::urdf::UrdfSettings::named(&file.name);
+    if let Some(names) = &options.link_names {
+        urdf.links.clone_from(names);
+    }
+    if let Some(names) = &options.joint_names {
+        urdf.joints.clone_from(names);
+    }
+    urdf.base_link.clone_from(&options.base_link);
+    urdf.flange.clone_from(&options.flange_link);
+    urdf.tool.clone_from(&options.tool_link);
+    urdf.joints_only = options.joints_only;
+    urdf.geometry_only = options.geometry_only;
     let bytes = crate::export::export(
         &file,
         &model,
         options.format,
         options.scalar,
         options.sequence,
+        &urdf,
     )?;
     let mut outputs = Outputs::new(&[("--params", &options.params)]);
     outputs.stage("--out", &options.out, &bytes)?;

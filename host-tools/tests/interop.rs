@@ -1,0 +1,309 @@
+//! Handing the model to where it is used (issue 16): the URDF and the UR kinematics YAML, checked
+//! against forward kinematics computed independently of the export (the `k` crate's URDF loader
+//! and kinematics; the YAML's transforms composed here).
+
+mod common;
+
+use calib_core::{Kinematics, Robot};
+use common::{calib_in, ok};
+use host_tools::robot_file::{RobotFile, RobotModel};
+use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, Translation3, Vector3};
+use rand::{RngExt, SeedableRng};
+use std::path::Path;
+
+const UR10: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml");
+const ER10: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
+const SERIES_B: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../onboard/data/ur10-series-b-compliance.toml"
+);
+
+fn model(path: &Path) -> Robot<f64, 6> {
+    let file = RobotFile::read(path).unwrap();
+    let model: RobotModel<6> = file.to_model(path).unwrap();
+    model.robot
+}
+
+/// A robot with every parameter of the chain in use: the ER10L-C10 with the paper's errors
+/// (beta, offsets), a base and a tool turned about every axis, written as a robot file.
+fn everything_in_use(dir: &Path) -> std::path::PathBuf {
+    let mut text = std::fs::read_to_string(ER10).unwrap();
+    text.push_str(
+        "\n[base]\nxyz_mm = [812.5, -143.25, 460.0]\nrpy_deg = [3.5, -7.25, 121.0]\n\
+         \n[tool]\nxyz_mm = [12.5, -4.0, 151.75]\nrpy_deg = [-20.0, 35.0, 95.0]\n",
+    );
+    // The paper's errors on the nominal joints (Table 2 in the robot file's units).
+    let paper = calib_core::model::paper::table2::<f64>();
+    let mut file = RobotFile::parse(&text, Path::new("e.toml")).unwrap();
+    for (entry, e) in file.joint.iter_mut().zip(&paper.joints) {
+        entry.a_mm += e.da;
+        entry.d_mm += e.dd;
+        entry.alpha_deg += e.dalpha.to_degrees();
+        entry.beta_deg += e.dbeta.to_degrees();
+        entry.theta_offset_deg += e.dtheta.to_degrees();
+    }
+    let path = dir.join("everything.toml");
+    std::fs::write(&path, file.to_toml("test")).unwrap();
+    path
+}
+
+/// Largest position (mm) and rotation (rad) difference over 1000 random configurations between
+/// our forward kinematics of `robot` and `other(q)`.
+fn largest_difference(
+    robot: &Robot<f64, 6>,
+    mut other: impl FnMut(&[f64; 6]) -> IsometryMatrix3<f64>,
+) -> (f64, f64) {
+    let ours = Kinematics::nominal(robot).unwrap();
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(16);
+    let (mut position, mut rotation) = (0.0f64, 0.0f64);
+    for _ in 0..1000 {
+        let q: [f64; 6] = std::array::from_fn(|_| rng.random_range(-3.1..3.1));
+        let a = ours.forward(&q).unwrap();
+        let b = other(&q);
+        position = position.max((a.translation.vector - b.translation.vector).norm());
+        // |R_a - R_b|_F / sqrt(2) is the angle between them (to third order).
+        rotation = rotation
+            .max((a.rotation.matrix() - b.rotation.matrix()).norm() / std::f64::consts::SQRT_2);
+    }
+    (position, rotation)
+}
+
+/// The URDF's tool0 through the `k` crate (its URDF reader and kinematics), in mm.
+fn through_k(urdf: &Path) -> impl FnMut(&[f64; 6]) -> IsometryMatrix3<f64> {
+    let chain = k::Chain::<f64>::from_urdf_file(urdf).unwrap();
+    assert_eq!(chain.dof(), 6);
+    move |q| {
+        chain.set_joint_positions(q).unwrap();
+        chain.update_transforms();
+        let t = chain.find_link("tool0").unwrap().world_transform().unwrap();
+        let r = t.rotation.to_rotation_matrix();
+        IsometryMatrix3::from_parts(
+            Translation3::new(
+                t.translation.vector[0] * 1000.0,
+                t.translation.vector[1] * 1000.0,
+                t.translation.vector[2] * 1000.0,
+            ),
+            Rotation3::from_matrix_unchecked(Matrix3::from_fn(|i, j| r[(i, j)])),
+        )
+    }
+}
+
+/// The URDF of the nominal UR10, the identified Series B UR10 (geometry only) and a robot with
+/// every parameter in use reproduces our forward kinematics of the tool to 1e-9 mm and 1e-12 rad
+/// on 1,000 random configurations, read and evaluated by the `k` crate.
+#[test]
+fn the_urdf_reproduces_our_forward_kinematics() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let everything = everything_in_use(d);
+    for (robot, extra) in [
+        (Path::new(UR10), &[][..]),
+        (Path::new(SERIES_B), &["--geometry-only"][..]),
+        (everything.as_path(), &[][..]),
+    ] {
+        let args = [
+            &[
+                "export",
+                "--params",
+                robot.to_str().unwrap(),
+                "--format",
+                "urdf",
+                "--out",
+                "r.urdf",
+            ][..],
+            extra,
+        ]
+        .concat();
+        ok(&calib_in(d, &args));
+        let (position, rotation) = largest_difference(&model(robot), through_k(&d.join("r.urdf")));
+        println!(
+            "{}: URDF through k, largest difference {position:.3e} mm, {rotation:.3e} rad",
+            robot.display()
+        );
+        assert!(position < 1e-9 && rotation < 1e-12, "{position} {rotation}");
+    }
+}
+
+/// Names, the joints-only fragment, and the refusals: a model with joint maps or compliance
+/// (unless --geometry-only), wrong or duplicate names; a refused export writes nothing.
+#[test]
+fn urdf_names_fragment_and_refusals() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let names = "shoulder_link,upper_arm_link,forearm_link,wrist_1_link,wrist_2_link,wrist_3_link";
+    let joints = "shoulder_pan_joint,shoulder_lift_joint,elbow_joint,wrist_1_joint,wrist_2_joint,wrist_3_joint";
+    ok(&calib_in(
+        d,
+        &[
+            "export",
+            "--params",
+            UR10,
+            "--format",
+            "urdf",
+            "--out",
+            "j.xml",
+            "--joints-only",
+            "--link-names",
+            names,
+            "--joint-names",
+            joints,
+            "--base-link",
+            "base_link_inertia",
+        ],
+    ));
+    let text = std::fs::read_to_string(d.join("j.xml")).unwrap();
+    assert_eq!(text.matches("<joint ").count(), 8);
+    assert!(!text.contains("<link ") && !text.contains("<robot"));
+    assert!(text.contains("<joint name=\"shoulder_pan_joint\" type=\"revolute\">"));
+    assert!(text.contains("<parent link=\"base_link_inertia\"/>"));
+    assert!(text.contains("<joint name=\"wrist_3_link-flange\" type=\"fixed\">"));
+    for (args, says) in [
+        (
+            &["--params", SERIES_B][..],
+            "joint maps and gravity compliance, which a URDF cannot carry",
+        ),
+        (
+            &["--params", UR10, "--link-names", "a,b"][..],
+            "need 6 names",
+        ),
+        (
+            &["--params", UR10, "--link-names", "a,b,c,d,e,a"][..],
+            "\"a\" is used twice",
+        ),
+        (
+            &["--params", UR10, "--tool-link", "tool 0"][..],
+            "letters, digits",
+        ),
+    ] {
+        let out = calib_in(
+            d,
+            &[&["export", "--format", "urdf", "--out", "x.urdf"][..], args].concat(),
+        );
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(stderr.contains(says), "{args:?}: {stderr}");
+        assert!(!d.join("x.urdf").exists());
+    }
+}
+
+/// The UR kinematics YAML, read back here and composed as ur_description's URDF chains it
+/// (segment origin, then rotation about z; tool0 is joint 6's frame), reproduces our forward
+/// kinematics of the flange to 1e-9 mm and 1e-12 rad: for the nominal UR10 and the identified
+/// Series B UR10 (geometry only). A model with a transform after joint 6 is refused.
+#[test]
+fn the_ur_kinematics_yaml_reproduces_our_forward_kinematics() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (robot, extra) in [(UR10, &[][..]), (SERIES_B, &["--geometry-only"][..])] {
+        let args = [
+            &[
+                "export",
+                "--params",
+                robot,
+                "--format",
+                "ur-kinematics-yaml",
+                "--out",
+                "k.yaml",
+            ][..],
+            extra,
+        ]
+        .concat();
+        ok(&calib_in(d, &args));
+        let text = std::fs::read_to_string(d.join("k.yaml")).unwrap();
+        let segments = read_segments(&text);
+        assert_eq!(segments.len(), 6);
+        assert!(text.contains("  hash: calib_"));
+        let mut flange_model = model(Path::new(robot));
+        flange_model.tool = calib_core::FramePose::identity();
+        let compose = |q: &[f64; 6]| {
+            segments
+                .iter()
+                .zip(q)
+                .fold(IsometryMatrix3::identity(), |t, (s, qi)| {
+                    t * s * Rotation3::from_axis_angle(&Vector3::z_axis(), *qi)
+                })
+        };
+        let (position, rotation) = largest_difference(&flange_model, compose);
+        println!(
+            "{robot}: UR YAML composed, largest difference {position:.3e} mm, {rotation:.3e} rad"
+        );
+        assert!(position < 1e-9 && rotation < 1e-12, "{position} {rotation}");
+    }
+    // The nominal UR10's segments are those of ur_description's UR10 default_kinematics.yaml
+    // (numbers of Universal Robots' ROS description package, BSD-3-Clause; wrist_3's rotation
+    // written there as roll pi/2, pitch pi, yaw pi, the same as ours, roll -pi/2).
+    ok(&calib_in(
+        d,
+        &[
+            "export",
+            "--params",
+            UR10,
+            "--format",
+            "ur-kinematics-yaml",
+            "--out",
+            "nominal.yaml",
+        ],
+    ));
+    let ours = read_segments(&std::fs::read_to_string(d.join("nominal.yaml")).unwrap());
+    let pi = std::f64::consts::PI;
+    let published = [
+        [0.0, 0.0, 0.1273, 0.0, 0.0, 0.0],
+        [0.0, 0.0, 0.0, pi / 2.0, 0.0, 0.0],
+        [-0.612, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [-0.5723, 0.0, 0.163941, 0.0, 0.0, 0.0],
+        [0.0, -0.1157, 0.0, pi / 2.0, 0.0, 0.0],
+        [0.0, 0.0922, 0.0, pi / 2.0, pi, pi],
+    ];
+    for (i, (a, [x, y, z, roll, pitch, yaw])) in ours.iter().zip(published).enumerate() {
+        let b = IsometryMatrix3::from_parts(
+            Translation3::new(x * 1000.0, y * 1000.0, z * 1000.0),
+            Rotation3::from_euler_angles(roll, pitch, yaw),
+        );
+        let position = (a.translation.vector - b.translation.vector).norm();
+        let rotation = (a.rotation.matrix() - b.rotation.matrix()).norm();
+        assert!(
+            position < 1e-9 && rotation < 1e-12,
+            "segment {i}: {position} {rotation}"
+        );
+    }
+    // a6 of 0.5 mm: no frame for it in a UR description.
+    let text = std::fs::read_to_string(UR10).unwrap();
+    let mut file = RobotFile::parse(&text, Path::new("u.toml")).unwrap();
+    file.joint[5].a_mm = 0.5;
+    std::fs::write(d.join("a6.toml"), file.to_toml("test")).unwrap();
+    let out = calib_in(
+        d,
+        &[
+            "export",
+            "--params",
+            "a6.toml",
+            "--format",
+            "ur-kinematics-yaml",
+            "--out",
+            "x.yaml",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("a6 = 0.5 mm"), "{stderr}");
+    assert!(!d.join("x.yaml").exists());
+}
+
+/// The segments of a UR kinematics YAML (`x, y, z` m, `roll, pitch, yaw` rad) as transforms in
+/// mm, read line by line (the file's fixed layout).
+fn read_segments(text: &str) -> Vec<IsometryMatrix3<f64>> {
+    let mut values: Vec<f64> = Vec::new();
+    let mut out = Vec::new();
+    for line in text.lines().filter(|l| l.starts_with("    ")) {
+        let (_, value) = line.trim().split_once(": ").unwrap();
+        values.push(value.parse().unwrap());
+        if let [x, y, z, roll, pitch, yaw] = values[..] {
+            out.push(IsometryMatrix3::from_parts(
+                Translation3::new(x * 1000.0, y * 1000.0, z * 1000.0),
+                Rotation3::from_euler_angles(roll, pitch, yaw),
+            ));
+            values.clear();
+        }
+    }
+    out
+}
