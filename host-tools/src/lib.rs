@@ -30,6 +30,7 @@ pub mod robot_file;
 pub mod simulate;
 pub mod statistics;
 pub mod tracker_data;
+pub mod ur_calibration;
 pub mod ur_kinematics;
 pub mod urdf;
 pub mod verify;

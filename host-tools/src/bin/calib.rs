@@ -56,6 +56,9 @@ enum Command {
     /// Write identified parameters as the controller's parameter block, TOML, JSON, a URDF or a
     /// UR kinematics YAML.
     Export(ExportOptions),
+    /// Convert a Universal Robots controller's factory calibration (calibration.conf) into a
+    /// robot file: the same geometry in Hayati parameters.
+    ImportUrCalibration(host_tools::cli::import_ur::ImportUrOptions),
     /// Calibrate with the f32 core, the f64 core and the independent reference optimiser and
     /// compare; exits with status 1 when a difference is past its documented tolerance.
     Verify(host_tools::cli::verify::VerifyOptions),
@@ -114,6 +117,10 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Export(options) => {
             let bytes = host_tools::cli::export::export(&options)?;
             print_line!("wrote {} bytes to {}", bytes, options.out.display());
+        }
+        Command::ImportUrCalibration(options) => {
+            let (_, text) = host_tools::cli::import_ur::import(&options)?;
+            print_text!("{text}");
         }
         Command::Evaluate(options) => evaluate(&options)?,
         Command::Check(options) => {

@@ -7,6 +7,7 @@ pub mod compensate;
 pub mod demo;
 pub mod evaluate;
 pub mod export;
+pub mod import_ur;
 pub mod simulate;
 pub mod verify;
 

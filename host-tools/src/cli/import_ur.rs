@@ -1,0 +1,73 @@
+//! `calib import-ur-calibration`: a UR controller's factory calibration (`calibration.conf`) as
+//! our robot file ([`crate::ur_calibration`]).
+
+use crate::JOINTS;
+use crate::files::Outputs;
+use crate::robot_file::{RobotFile, RobotModel};
+use crate::ur_calibration::{Import, UrCalibration};
+use std::path::PathBuf;
+
+/// Options of `calib import-ur-calibration`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct ImportUrOptions {
+    /// The robot's nominal file in classic DH (host-tools/robots/ur5.toml, ur10.toml,
+    /// ur10e.toml).
+    #[arg(long, value_name = "FILE")]
+    pub robot: PathBuf,
+    /// The controller's calibration.conf (its `[mounting]` deltas, m and rad).
+    #[arg(long, value_name = "FILE")]
+    pub calibration: PathBuf,
+    /// The robot file to write: nominal + the calibration as Hayati errors.
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+}
+
+/// Runs `calib import-ur-calibration`; returns the import and the text to print.
+pub fn import(options: &ImportUrOptions) -> anyhow::Result<(Import, String)> {
+    let file = RobotFile::read(&options.robot)?;
+    let model: RobotModel<JOINTS> = file.to_model(&options.robot)?;
+    let calibration = UrCalibration::read(&options.calibration)?;
+    let import = crate::ur_calibration::import(&model.robot, &calibration)?;
+    let listed: Vec<_> = import.mask.iter().collect();
+    let mut out = file.with_errors(
+        &import.errors,
+        listed.iter().copied(),
+        &[],
+        "import-ur-calibration",
+        &options.robot.display().to_string(),
+    );
+    out.measurement = None;
+    let toml = out.to_toml(&format!(
+        "{} with the factory calibration {} (UR classic DH deltas) as Hayati errors, written by calib import-ur-calibration.\n\
+         It reproduces the calibrated classic DH to {:.1e} mm and {:.1e} rad on {} random configurations.",
+        file.name,
+        options.calibration.display(),
+        import.max_position_mm,
+        import.max_rotation_rad,
+        crate::ur_calibration::CHECK_POSES
+    ));
+    let mut outputs = Outputs::new(&[
+        ("--robot", &options.robot),
+        ("--calibration", &options.calibration),
+    ]);
+    outputs.stage("--out", &options.out, toml.as_bytes())?;
+    outputs.commit()?;
+    let mut text = format!(
+        "imported {}: the calibration moves the flange by up to {:.3} mm; the Hayati model reproduces it to {:.1e} mm and {:.1e} rad\n",
+        options.calibration.display(),
+        import.max_change_mm,
+        import.max_position_mm,
+        import.max_rotation_rad
+    );
+    for p in &listed {
+        let value = import.errors.get(*p).unwrap_or(0.0);
+        let shown = if p.is_angle() {
+            format!("{:>12.6} deg", value.to_degrees())
+        } else {
+            format!("{value:>12.6} mm")
+        };
+        text.push_str(&format!("  {:<10} {shown}\n", p.to_string()));
+    }
+    text.push_str(&format!("wrote {}\n", options.out.display()));
+    Ok((import, text))
+}
