@@ -19,6 +19,7 @@ pub mod export;
 pub mod files;
 pub mod fk;
 pub mod frames;
+pub mod html_report;
 pub mod identifiability;
 pub mod joint_maps;
 pub mod orientation_check;

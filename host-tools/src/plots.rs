@@ -400,3 +400,59 @@ pub fn stage_plots(
     }
     Ok(())
 }
+
+/// The plots of [`stage_plots`] as SVG text, for a self-contained page
+/// ([`crate::html_report`]): `(name, caption, svg)` for each plot the data allow.
+pub fn svg_plots(
+    plots: &PlotData<'_>,
+) -> anyhow::Result<Vec<(&'static str, &'static str, String)>> {
+    register_font();
+    let mut out = Vec::new();
+    let mut draw = |name: &'static str,
+                    caption: &'static str,
+                    size: (u32, u32),
+                    f: &dyn Fn(&DrawingArea<SVGBackend<'_>, Shift>) -> anyhow::Result<()>|
+     -> anyhow::Result<()> {
+        let mut svg = String::new();
+        {
+            let area = SVGBackend::with_string(&mut svg, size).into_drawing_area();
+            f(&area)?;
+            area.present().map_err(|e| anyhow!("{e}"))?;
+        }
+        out.push((name, caption, svg));
+        Ok(())
+    };
+    if !plots.before.is_empty() {
+        draw(
+            "position-error",
+            "Absolute position error of every calibration pose, nominal and identified model.",
+            SIZE,
+            &|area| position_errors(area, plots),
+        )?;
+    }
+    if !plots.orientation_after.is_empty() {
+        draw(
+            "orientation-error",
+            "Orientation error per axis of every calibration pose.",
+            (SIZE.0, SIZE.1 * 2),
+            &|area| orientation_errors(area, plots.orientation_before, plots.orientation_after),
+        )?;
+    }
+    if !plots.history.is_empty() {
+        draw(
+            "convergence",
+            "Convergence of the particle swarm: best objective per generation.",
+            SIZE,
+            &|area| convergence(area, plots.history),
+        )?;
+    }
+    if !plots.validation_after.is_empty() {
+        draw(
+            "validation-histogram",
+            "Position errors of the held-out validation poses, nominal and identified model.",
+            SIZE,
+            &|area| histogram(area, plots.validation_before, plots.validation_after),
+        )?;
+    }
+    Ok(out)
+}

@@ -56,6 +56,8 @@ enum Command {
     /// Write identified parameters as the controller's parameter block, TOML, JSON, a URDF or a
     /// UR kinematics YAML.
     Export(ExportOptions),
+    /// Render a calibration's JSON report (calibrate --report) as a self-contained HTML page.
+    Report(host_tools::cli::report::ReportOptions),
     /// Convert a Universal Robots controller's factory calibration (calibration.conf) into a
     /// robot file: the same geometry in Hayati parameters.
     ImportUrCalibration(host_tools::cli::import_ur::ImportUrOptions),
@@ -117,6 +119,10 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::Export(options) => {
             let bytes = host_tools::cli::export::export(&options)?;
             print_line!("wrote {} bytes to {}", bytes, options.out.display());
+        }
+        Command::Report(options) => {
+            let bytes = host_tools::cli::report::report(&options)?;
+            print_line!("wrote {} bytes to {}", bytes, options.html.display());
         }
         Command::ImportUrCalibration(options) => {
             let (_, text) = host_tools::cli::import_ur::import(&options)?;

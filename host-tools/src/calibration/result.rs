@@ -121,7 +121,7 @@ pub struct Outlier {
 }
 
 /// Per-pose errors for plots: `|dp|` (mm) and orientation per axis (deg), before and after.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct PerPose {
     /// `|dp|` per calibration pose with the nominal model, mm.
     pub before: Vec<f64>,
@@ -253,6 +253,12 @@ impl CalibrationResult {
             },
             truth,
             seconds: self.seconds,
+            per_pose: &self.per_pose,
+            convergence: self
+                .swarm
+                .as_ref()
+                .map_or(&[][..], |s| s.history.as_slice()),
+            software: format!("calib {}", env!("CARGO_PKG_VERSION")),
         }
     }
 }
@@ -361,6 +367,12 @@ pub struct Report<'a> {
     pub truth: Option<Vec<TruthRow>>,
     /// Wall-clock time of the optimisation, s.
     pub seconds: f64,
+    /// Per-pose errors (calibration and validation poses), for plots.
+    pub per_pose: &'a PerPose,
+    /// The swarm's convergence: `[generation, best objective]` (empty without the swarm).
+    pub convergence: &'a [(u32, f64)],
+    /// The software that wrote the report.
+    pub software: String,
 }
 
 /// Why the swarm stopped, in words.

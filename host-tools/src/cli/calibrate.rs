@@ -126,6 +126,10 @@ pub struct CalibrateOptions {
     /// JSON report to write.
     #[arg(long, value_name = "FILE")]
     pub report: Option<PathBuf>,
+    /// The report as one self-contained HTML page (tables and plots inline, no network; prints
+    /// well) to write.
+    #[arg(long, value_name = "FILE")]
+    pub html: Option<PathBuf>,
     /// Directory for plots (convergence and position errors, SVG and PNG).
     #[arg(long, value_name = "DIR")]
     pub plot: Option<PathBuf>,
@@ -270,6 +274,8 @@ pub struct OutputPaths {
     pub out: Option<PathBuf>,
     /// The JSON report.
     pub report: Option<PathBuf>,
+    /// The HTML report.
+    pub html: Option<PathBuf>,
     /// The directory of plots.
     pub plot: Option<PathBuf>,
     /// The command's input files, by flag.
@@ -295,6 +301,7 @@ impl CalibrateOptions {
         OutputPaths {
             out: self.out.clone(),
             report: self.report.clone(),
+            html: self.html.clone(),
             plot: self.plot.clone(),
             inputs,
         }
@@ -319,6 +326,11 @@ pub fn write_outputs(
     if let Some(path) = &paths.report {
         let json = serde_json::to_string_pretty(&calibration.report())?;
         outputs.stage("--report", path, json.as_bytes())?;
+    }
+    if let Some(path) = &paths.html {
+        let report = serde_json::to_value(calibration.report())?;
+        let page = crate::html_report::render(&report, &crate::html_report::Rendering::now())?;
+        outputs.stage("--html", path, page.as_bytes())?;
     }
     if let Some(dir) = &paths.plot {
         let per_pose = &calibration.result.per_pose;

@@ -66,6 +66,7 @@ fn calibrate_into(
     let outputs = OutputPaths {
         out: Some(dir.join("identified.toml")),
         report: Some(dir.join("report.json")),
+        html: Some(dir.join("report.html")),
         plot: Some(dir.join("plots")),
         inputs,
     };

@@ -1,0 +1,40 @@
+//! `calib report`: a calibration's JSON report (`calibrate --report`) rendered again, as the
+//! self-contained HTML page of `calibrate --html` ([`crate::html_report`]).
+
+use crate::files::Outputs;
+use anyhow::Context;
+use std::path::PathBuf;
+
+/// Options of `calib report`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct ReportOptions {
+    /// The JSON report of a calibration (calib calibrate --report).
+    #[arg(long, value_name = "FILE")]
+    pub from: PathBuf,
+    /// The HTML page to write.
+    #[arg(long, value_name = "FILE")]
+    pub html: PathBuf,
+}
+
+/// Runs `calib report`; returns the number of bytes written.
+pub fn report(options: &ReportOptions) -> anyhow::Result<usize> {
+    let text = std::fs::read_to_string(&options.from)
+        .with_context(|| format!("{}: cannot read the report", options.from.display()))?;
+    let report: serde_json::Value = serde_json::from_str(&text).with_context(|| {
+        format!(
+            "{}: not a JSON report of calib calibrate",
+            options.from.display()
+        )
+    })?;
+    if !(report["parameters"].is_object() && report["calibration"].is_object()) {
+        anyhow::bail!(
+            "{}: not a JSON report of calib calibrate (no parameters or calibration statistics); write one with calib calibrate --report",
+            options.from.display()
+        );
+    }
+    let page = crate::html_report::render(&report, &crate::html_report::Rendering::now())?;
+    let mut outputs = Outputs::new(&[("--from", &options.from)]);
+    outputs.stage("--html", &options.html, page.as_bytes())?;
+    outputs.commit()?;
+    Ok(page.len())
+}

@@ -1,0 +1,217 @@
+//! The self-contained HTML report (issue 16): structure checked with an HTML parser, every
+//! number it shows against the JSON report, no external reference; rendered in headless
+//! Chromium where it is installed (required with `CALIB_REQUIRE_CHROMIUM=1`, as `.ci/run` sets).
+
+mod common;
+
+use common::{calib_in, ok};
+use scraper::{Html, Selector};
+use std::path::Path;
+
+const UR10: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml");
+const SERIES_B: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/data/ipa-ur10-lasertracker/series-b-joint-configurations.csv"
+);
+const FULL_POSE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/profiles/ipa-ur10-lasertracker.toml"
+);
+
+fn select(page: &Html, css: &str) -> Vec<String> {
+    page.select(&Selector::parse(css).unwrap())
+        .map(|e| e.text().collect::<String>())
+        .collect()
+}
+
+/// The README's real-data example (50 random poses of Series B, 6-DoF, the others held out)
+/// with `--html`: every section, the paper's Table 3 for calibration and held-out poses with the
+/// JSON report's numbers, every identified parameter, the four plots inline, no script and no
+/// reference outside the file; `calib report --from` the JSON renders the same page.
+#[test]
+fn the_html_report_holds_everything_and_nothing_external() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&calib_in(
+        d,
+        &[
+            "calibrate",
+            "--robot",
+            UR10,
+            "--data",
+            SERIES_B,
+            "--profile",
+            FULL_POSE,
+            "--validate",
+            "0.9666",
+            "--report",
+            "r.json",
+            "--html",
+            "r.html",
+        ],
+    ));
+    let html = std::fs::read_to_string(d.join("r.html")).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("r.json")).unwrap()).unwrap();
+    let page = Html::parse_document(&html);
+    assert!(page.errors.is_empty(), "{:?}", page.errors);
+    let sections: Vec<String> = page
+        .select(&Selector::parse("h2[id]").unwrap())
+        .map(|e| e.value().attr("id").unwrap().to_string())
+        .collect();
+    assert_eq!(sections, host_tools::html_report::SECTIONS);
+    // Table 3: calibration and validation, nominal and identified, position and 3 axes.
+    let cells = select(&page, "td");
+    for stage in ["calibration", "validation"] {
+        for model in ["before", "after"] {
+            let mean = json[stage][model]["position_mm"]["mean"].as_f64().unwrap();
+            let shown = format!("{mean:.4}");
+            assert!(cells.contains(&shown), "{stage} {model}: {shown}");
+        }
+    }
+    assert_eq!(
+        select(&page, "h3").len(),
+        2,
+        "calibration and validation tables"
+    );
+    // Every parameter, with its value in the unit shown.
+    let parameters = json["parameters"].as_object().unwrap();
+    assert!(parameters.len() > 20);
+    for (name, p) in parameters {
+        assert!(cells.contains(name), "{name}");
+        let v = p["value"].as_f64().unwrap();
+        let shown = if p["unit"] == "rad" {
+            format!("{:.5}", v.to_degrees())
+        } else {
+            format!("{v:.4}")
+        };
+        assert!(cells.contains(&shown), "{name}: {shown}");
+    }
+    // Every calibration pose, its file line and errors.
+    assert_eq!(
+        page.select(&Selector::parse("table.poses tr").unwrap())
+            .count(),
+        51
+    );
+    // The plots, inline.
+    let figures: Vec<String> = page
+        .select(&Selector::parse("figure[id] > svg").unwrap())
+        .map(|e| e.value().attr("width").unwrap_or("").to_string())
+        .collect();
+    assert_eq!(figures.len(), 4, "{figures:?}");
+    for id in [
+        "plot-position-error",
+        "plot-orientation-error",
+        "plot-convergence",
+        "plot-validation-histogram",
+    ] {
+        assert_eq!(select(&page, &format!("figure#{id} svg")).len(), 1, "{id}");
+    }
+    // Nothing outside the file: no script, stylesheet link, image or frame, no URL attribute.
+    for css in ["script", "link", "img", "iframe", "object", "embed"] {
+        assert!(select(&page, css).is_empty(), "{css}");
+    }
+    for element in page
+        .root_element()
+        .descendants()
+        .filter_map(|n| n.value().as_element())
+    {
+        // (`xmlns` names the SVG namespace; nothing is fetched from it.)
+        for (name, value) in element.attrs().filter(|(n, _)| !n.starts_with("xmlns")) {
+            assert!(
+                !matches!(name, "src" | "href" | "xlink:href") && !value.contains("://"),
+                "{name}={value}"
+            );
+        }
+    }
+    assert!(html.contains("@media print"));
+    assert!(html.contains(&format!("calib {}", env!("CARGO_PKG_VERSION"))));
+    // Rendered again from the JSON: the same page but for the date.
+    ok(&calib_in(
+        d,
+        &["report", "--from", "r.json", "--html", "again.html"],
+    ));
+    let undated = |text: &str| -> String {
+        text.lines()
+            .filter(|l| !l.contains("<td>date</td>") && !l.contains("rendered"))
+            .collect()
+    };
+    let again = std::fs::read_to_string(d.join("again.html")).unwrap();
+    assert_eq!(undated(&again), undated(&html));
+    // Not a report: said, nothing written.
+    std::fs::write(d.join("other.json"), "{\"a\": 1}").unwrap();
+    let out = calib_in(d, &["report", "--from", "other.json", "--html", "x.html"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("not a JSON report"), "{stderr}");
+    assert!(!d.join("x.html").exists());
+    // In a real browser: headless Chromium renders it to a PNG with content.
+    screenshot(&d.join("r.html"), &d.join("r.png"));
+}
+
+/// Renders `page` with headless Chromium into `png` and checks the picture: its size and that
+/// it is not blank. Skips (with a message) where Chromium is missing, unless
+/// `CALIB_REQUIRE_CHROMIUM=1`.
+fn screenshot(page: &Path, png: &Path) {
+    let chromium = ["chromium", "chromium-browser", "google-chrome"]
+        .into_iter()
+        .find(|c| {
+            std::process::Command::new(c)
+                .arg("--version")
+                .output()
+                .is_ok_and(|o| o.status.success())
+        });
+    let Some(chromium) = chromium else {
+        assert!(
+            std::env::var("CALIB_REQUIRE_CHROMIUM").as_deref() != Ok("1"),
+            "CALIB_REQUIRE_CHROMIUM=1 but no chromium found"
+        );
+        eprintln!("skipped: no chromium to render the HTML report (apt-get install chromium)");
+        return;
+    };
+    let profile = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new(chromium)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            "--hide-scrollbars",
+            "--window-size=1000,2400",
+        ])
+        .arg(format!("--user-data-dir={}", profile.path().display()))
+        .arg(format!("--screenshot={}", png.display()))
+        .arg(format!("file://{}", page.display()))
+        .output()
+        .unwrap();
+    assert!(
+        png.exists(),
+        "chromium wrote no screenshot: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let decoder = png::Decoder::new(std::fs::File::open(png).unwrap());
+    let mut reader = decoder.read_info().unwrap();
+    let mut pixels = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut pixels).unwrap();
+    assert_eq!((info.width, info.height), (1000, 2400));
+    let bytes = &pixels[..info.buffer_size()];
+    let white = bytes.iter().filter(|b| **b == 255).count();
+    let dark = bytes.iter().filter(|b| **b < 100).count();
+    println!(
+        "screenshot {}x{}: {:.1} % white bytes, {:.2} % dark",
+        info.width,
+        info.height,
+        100.0 * white as f64 / bytes.len() as f64,
+        100.0 * dark as f64 / bytes.len() as f64
+    );
+    // Text and plot lines on a white page: mostly white, not all of it.
+    assert!(dark as f64 > 0.002 * bytes.len() as f64, "blank page");
+    assert!(white as f64 > 0.5 * bytes.len() as f64, "not the page");
+    if let Ok(dir) = std::env::var("CALIB_SCREENSHOT_DIR") {
+        std::fs::copy(png, Path::new(&dir).join("html-report.png")).unwrap();
+    }
+}
