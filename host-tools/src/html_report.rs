@@ -274,6 +274,13 @@ fn identifiability(page: &mut String, report: &Value) -> anyhow::Result<()> {
         text(&i["undetermined"]),
         text(&report["dropped"]),
     )?;
+    if report["dropped"].as_array().is_some_and(|d| !d.is_empty()) {
+        page.push_str(
+            "<p>Why dropped: first the parameters the data cannot determine (rank deficiency, \
+             with --auto-mask), then, while the pose set is ill-conditioned (scaled condition number \
+             above 1000), the parameter with the largest share of the least determined direction.</p>\n",
+        );
+    }
     if let Some(cv) = report["cross_validation"].as_object() {
         writeln!(
             page,

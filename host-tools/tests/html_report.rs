@@ -145,6 +145,53 @@ fn the_html_report_holds_everything_and_nothing_external() {
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("not a JSON report"), "{stderr}");
     assert!(!d.join("x.html").exists());
+    // Parameters dropped (position-only data, --auto-mask): named, and why.
+    let position = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/profiles/ipa-ur10-lasertracker-position.toml"
+    );
+    ok(&calib_in(
+        d,
+        &[
+            "calibrate",
+            "--robot",
+            UR10,
+            "--data",
+            SERIES_B,
+            "--profile",
+            position,
+            "--validate",
+            "0.9666",
+            "--auto-mask",
+            "--method",
+            "lm",
+            "--report",
+            "p.json",
+            "--html",
+            "p.html",
+        ],
+    ));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("p.json")).unwrap()).unwrap();
+    let dropped: Vec<&str> = json["dropped"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    assert!(!dropped.is_empty());
+    let page = Html::parse_document(&std::fs::read_to_string(d.join("p.html")).unwrap());
+    assert!(
+        select(&page, "td").contains(&dropped.join(", ")),
+        "{dropped:?}"
+    );
+    assert!(
+        select(&page, "p")
+            .iter()
+            .any(|p| p.starts_with("Why dropped"))
+    );
+    // No orientation data: no orientation plot.
+    assert!(select(&page, "figure#plot-orientation-error").is_empty());
     // In a real browser: headless Chromium renders it to a PNG with content.
     screenshot(&d.join("r.html"), &d.join("r.png"));
 }
