@@ -1,21 +1,7 @@
 //! `calib demo` and `calib verify` through the binary.
 
 mod common;
-use common::calib_in;
-
-const UR10: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml");
-const SERIES_B: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/data/ipa-ur10-lasertracker/series-b-joint-configurations.csv"
-);
-const FULL_POSE: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/profiles/ipa-ur10-lasertracker.toml"
-);
-const POSITION: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/profiles/ipa-ur10-lasertracker-position.toml"
-);
+use common::{FULL_POSE, POSITION, SERIES_B, UR10, calib_in};
 
 #[test]
 fn demo_needs_no_input_and_recovers_both_scenarios() {

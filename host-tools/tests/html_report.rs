@@ -4,19 +4,9 @@
 
 mod common;
 
-use common::{calib_in, ok};
+use common::{FULL_POSE, POSITION, SERIES_B, UR10, calib_in, ok};
 use scraper::{Html, Selector};
 use std::path::Path;
-
-const UR10: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml");
-const SERIES_B: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/data/ipa-ur10-lasertracker/series-b-joint-configurations.csv"
-);
-const FULL_POSE: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/profiles/ipa-ur10-lasertracker.toml"
-);
 
 fn select(page: &Html, css: &str) -> Vec<String> {
     page.select(&Selector::parse(css).unwrap())
@@ -146,10 +136,6 @@ fn the_html_report_holds_everything_and_nothing_external() {
     assert!(stderr.contains("not a JSON report"), "{stderr}");
     assert!(!d.join("x.html").exists());
     // Parameters dropped (position-only data, --auto-mask): named, and why.
-    let position = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/profiles/ipa-ur10-lasertracker-position.toml"
-    );
     ok(&calib_in(
         d,
         &[
@@ -159,7 +145,7 @@ fn the_html_report_holds_everything_and_nothing_external() {
             "--data",
             SERIES_B,
             "--profile",
-            position,
+            POSITION,
             "--validate",
             "0.9666",
             "--auto-mask",

@@ -5,13 +5,12 @@
 mod common;
 
 use calib_core::{Kinematics, Robot};
-use common::{calib_in, ok};
+use common::{UR10, calib_in, ok};
 use host_tools::robot_file::{RobotFile, RobotModel};
 use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, Translation3, Vector3};
 use rand::{RngExt, SeedableRng};
 use std::path::Path;
 
-const UR10: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml");
 const ER10: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
 const SERIES_B: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),

@@ -7,6 +7,23 @@ use std::process::{Command, Output};
 
 /// The nominal ER10L-C10 robot file.
 pub const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
+/// The nominal UR10 robot file.
+pub const UR10: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml");
+/// The real UR10 measurements of Series B (1495 poses).
+pub const SERIES_B: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/data/ipa-ur10-lasertracker/series-b-joint-configurations.csv"
+);
+/// Their data profile with orientation (6-DoF).
+pub const FULL_POSE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/profiles/ipa-ur10-lasertracker.toml"
+);
+/// Their data profile with positions only.
+pub const POSITION: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/profiles/ipa-ur10-lasertracker-position.toml"
+);
 
 /// Runs the `calib` binary with `args` in the current directory.
 pub fn calib(args: &[&str]) -> Output {
