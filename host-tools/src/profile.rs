@@ -11,6 +11,7 @@
 //! q1_rad = "shoulder_pan_joint"
 //! x_mm = "measurement_x"
 //! rx_deg = "measurement_rx"
+//! y_mm = { sum = ["target_y", "error_y"] }   # derived: source + source (or difference = [a, b])
 //! [orientation]
 //! euler = "intrinsic"          # or "fixed" (extrinsic)
 //! order = "xyz"                # the order in which the three rotations are applied
@@ -188,6 +189,74 @@ fn point() -> String {
     ".".into()
 }
 
+/// How a derived column combines its two source columns.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Combination {
+    /// `first + second`.
+    Sum,
+    /// `first - second`.
+    Difference,
+}
+
+/// One of our columns computed from two source columns, in the unit of our column (for
+/// example a reached position given as the commanded target plus the measured deviation).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Derived {
+    /// Our column (`x_mm`, ...).
+    pub ours: String,
+    /// Sum or difference.
+    pub combination: Combination,
+    /// The two source columns.
+    pub sources: [String; 2],
+}
+
+impl Derived {
+    /// `{ sum = ["a", "b"] }` or `{ difference = ["a", "b"] }` for our column `ours`.
+    fn parse(ours: &str, table: &toml::Table) -> Result<Self, String> {
+        let usage = format!(
+            "[columns]: {ours} = {{ sum = [\"a\", \"b\"] }} or {{ difference = [\"a\", \"b\"] }} (two source columns)"
+        );
+        let mut entries = table.iter();
+        let (Some((kind, sources)), None) = (entries.next(), entries.next()) else {
+            return Err(usage);
+        };
+        let combination = match kind.as_str() {
+            "sum" => Combination::Sum,
+            "difference" => Combination::Difference,
+            _ => return Err(usage),
+        };
+        let names: Vec<&str> = sources
+            .as_array()
+            .map(|a| a.iter().filter_map(toml::Value::as_str).collect())
+            .unwrap_or_default();
+        match names[..] {
+            [a, b] if sources.as_array().is_some_and(|s| s.len() == 2) => Ok(Self {
+                ours: ours.to_string(),
+                combination,
+                sources: [a.to_string(), b.to_string()],
+            }),
+            _ => Err(usage),
+        }
+    }
+
+    /// The combined value.
+    pub fn combine(&self, first: f64, second: f64) -> f64 {
+        match self.combination {
+            Combination::Sum => first + second,
+            Combination::Difference => first - second,
+        }
+    }
+
+    /// `a + b` or `a - b`, for messages.
+    pub fn describe(&self) -> String {
+        let sign = match self.combination {
+            Combination::Sum => '+',
+            Combination::Difference => '-',
+        };
+        format!("{} {sign} {}", self.sources[0], self.sources[1])
+    }
+}
+
 /// How to read a tracker data file.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DataProfile {
@@ -203,6 +272,8 @@ pub struct DataProfile {
     pub frame: Option<DataFrame>,
     /// `(our column name, source column name)`; `None`: the file uses our column names.
     pub columns: Option<Vec<(String, String)>>,
+    /// Our columns computed from two source columns each (`x_mm = { sum = ["target_x", "dx"] }`).
+    pub derived: Vec<Derived>,
     /// The Euler convention of `rx, ry, rz` columns.
     pub euler: EulerConvention,
 }
@@ -216,6 +287,7 @@ impl Default for DataProfile {
             decimal: b'.',
             frame: None,
             columns: None,
+            derived: Vec::new(),
             euler: EulerConvention::FIXED_XYZ,
         }
     }
@@ -264,14 +336,24 @@ impl DataProfile {
                 "decimal and delimiter are the same character; a file with decimal commas needs another delimiter (e.g. \";\")".into(),
             ));
         }
+        let mut derived = Vec::new();
         let columns = match file.columns {
             None => None,
             Some(table) => {
                 let mut list = Vec::with_capacity(table.len());
                 for (ours, source) in table {
+                    if let Some(combined) = source.as_table() {
+                        if !crate::columns::is_known_column(&ours) {
+                            return Err(invalid(format!(
+                                "[columns]: \"{ours}\" is not one of our columns"
+                            )));
+                        }
+                        derived.push(Derived::parse(&ours, combined).map_err(invalid)?);
+                        continue;
+                    }
                     let source = source.as_str().ok_or_else(|| {
                         invalid(format!(
-                            "[columns]: {ours} must name a source column as a string"
+                            "[columns]: {ours} must name a source column as a string, or combine two: {ours} = {{ sum = [\"a\", \"b\"] }} or {{ difference = [\"a\", \"b\"] }}"
                         ))
                     })?;
                     if !crate::columns::is_known_column(&ours) {
@@ -305,6 +387,7 @@ impl DataProfile {
             decimal,
             frame: file.frame,
             columns,
+            derived,
             euler,
         })
     }

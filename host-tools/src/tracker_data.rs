@@ -259,8 +259,10 @@ impl<'t> Source<'t> {
 struct Layout {
     /// The source column names.
     header: csv::StringRecord,
-    /// Our column for each source column.
+    /// Our column for each source column, then for each derived column.
     columns: Vec<Column>,
+    /// The derived columns and the indices of their two source columns.
+    derived: Vec<(crate::profile::Derived, [usize; 2])>,
     /// Physical line of the header.
     header_line: u64,
     /// Number of joint columns.
@@ -298,7 +300,32 @@ impl Layout {
                 "the header is one column holding semicolons: the file looks semicolon-separated; read it through a data profile with delimiter = \";\" (--profile, see host-tools/profiles/)".into(),
             ));
         }
-        let columns = columns_of(&header, profile, &at)?;
+        let mut columns = columns_of(&header, profile, &at)?;
+        // Derived columns: ours, computed from two source columns, after the source columns.
+        let mut header = header;
+        let mut derived = Vec::with_capacity(profile.derived.len());
+        for d in &profile.derived {
+            let index = |source: &str| {
+                header.iter().position(|h| h == source).ok_or_else(|| {
+                    at(
+                        None,
+                        format!(
+                            "missing column \"{source}\", which the data profile combines into {} = {}",
+                            d.ours,
+                            d.describe()
+                        ),
+                    )
+                })
+            };
+            let sources = [index(&d.sources[0])?, index(&d.sources[1])?];
+            let column = parse_column(&d.ours)
+                .ok_or_else(|| at(None, format!("{} is not one of our columns", d.ours)))?;
+            derived.push((d.clone(), sources));
+            columns.push(column);
+        }
+        for d in &profile.derived {
+            header.push_field(&format!("{} = {}", d.ours, d.describe()));
+        }
         let joints = check_columns(&header, &columns, joints_required, &at)?;
         let count = |f: fn(&Column) -> bool| columns.iter().filter(|c| f(c)).count();
         let quaternions = count(|c| matches!(c, Column::Quaternion(_)));
@@ -317,6 +344,7 @@ impl Layout {
         Ok(Self {
             header,
             columns,
+            derived,
             header_line,
             joints,
             orientation,
@@ -331,16 +359,28 @@ impl Layout {
         profile: &DataProfile,
     ) -> Result<Record, DataError> {
         let line = row.position().map_or(0, |p| source.line_of(p.byte()));
-        if row.len() != self.columns.len() {
+        let fields = self.columns.len() - self.derived.len();
+        if row.len() != fields {
             return Err(source.at(
                 line,
                 None,
-                format!(
-                    "has {} fields, the header has {}",
-                    row.len(),
-                    self.columns.len()
-                ),
+                format!("has {} fields, the header has {fields}", row.len()),
             ));
+        }
+        let mut extra = Vec::with_capacity(self.derived.len());
+        for (d, [a, b]) in &self.derived {
+            let value = |i: usize| {
+                let field = row.get(i).unwrap_or("");
+                number(field, profile.decimal).map_err(|m| {
+                    let name = self.header.get(i).unwrap_or("");
+                    source.at(
+                        line,
+                        Some(format!("{} (\"{name}\", part of {})", i + 1, d.ours)),
+                        m,
+                    )
+                })
+            };
+            extra.push(d.combine(value(*a)?, value(*b)?).to_string());
         }
         let mut record = Record {
             line,
@@ -354,6 +394,7 @@ impl Layout {
         let mut angle = [0.0; 3];
         for (i, ((field, column), name)) in row
             .iter()
+            .chain(extra.iter().map(String::as_str))
             .zip(&self.columns)
             .zip(self.header.iter())
             .enumerate()

@@ -189,3 +189,62 @@ fn a_profile_reads_semicolons_decimal_commas_mapped_columns_and_intrinsic_angles
         "{e}"
     );
 }
+
+/// Derived columns (issue 15): a profile can compute one of our columns as the sum or the
+/// difference of two source columns, as for data that give the commanded target and the
+/// deviation of the reached position (the Barrett WAM set). Values in the unit of our column;
+/// decimal commas as everywhere; errors name the source columns.
+#[test]
+fn a_profile_derives_a_column_from_two_source_columns() {
+    let profile = r#"
+delimiter = ";"
+decimal = ","
+[columns]
+q1_deg = "j1"
+q2_deg = "j2"
+q3_deg = "j3"
+q4_deg = "j4"
+q5_deg = "j5"
+q6_deg = "j6"
+x_m = { sum = ["target_x", "dx"] }
+y_mm = { difference = ["target_y", "minus_dy"] }
+z_mm = "z"
+"#;
+    let profile = DataProfile::parse(profile, Path::new("wam/p.toml")).unwrap();
+    let read = |text: &str| {
+        TrackerData::parse_profiled(text, Path::new("wam/data.csv"), &profile)
+            .map_err(|e| e.to_string())
+    };
+    let header = "j1;j2;j3;j4;j5;j6;target_x;dx;target_y;minus_dy;z";
+    let d = read(&format!(
+        "{header}\n10;20;30;40;50;60;0,5;0,0125;-250,5;-0,75;1000\n"
+    ))
+    .unwrap();
+    let r = &d.records[0];
+    // x = (0.5 + 0.0125) m, y = -250.5 - (-0.75) mm.
+    assert_eq!(r.position, [(0.5 + 0.0125) * 1000.0, -250.5 + 0.75, 1000.0]);
+    assert!((r.q[5] - 60f64.to_radians()).abs() < 1e-15);
+    // A missing source column, a broken value: said with the names.
+    let missing =
+        read("j1;j2;j3;j4;j5;j6;target_x;target_y;minus_dy;z\n0;0;0;0;0;0;1;2;3;4\n").unwrap_err();
+    assert!(
+        missing.contains("missing column \"dx\"") && missing.contains("x_m = target_x + dx"),
+        "{missing}"
+    );
+    let broken = read(&format!("{header}\n0;0;0;0;0;0;0,5;abc;1;2;3\n")).unwrap_err();
+    assert!(
+        broken.contains("\"dx\", part of x_m") && broken.contains("\"abc\" is not a number"),
+        "{broken}"
+    );
+    // Malformed combinations in the profile.
+    for bad in [
+        "x_mm = { sum = [\"a\"] }",
+        "x_mm = { product = [\"a\", \"b\"] }",
+        "x_mm = { sum = [\"a\", \"b\"], difference = [\"a\", \"b\"] }",
+    ] {
+        let e = DataProfile::parse(&format!("[columns]\n{bad}\n"), Path::new("p.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("two source columns"), "{bad}: {e}");
+    }
+}
