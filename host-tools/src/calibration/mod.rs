@@ -143,8 +143,8 @@ pub fn calibrate(
     let mut result = if dataset.file.compliance.is_some() {
         // The file's gravity compliance is part of the model and held fixed: the geometry (or
         // the frames) is fitted to the measured poses with its deflection taken off, evaluated at
-        // the registered frames, then again at the first fit's errors (second order: below 1e-5
-        // mm on the UR10).
+        // the registered frames, then again at the first fit's errors (the deflection depends on
+        // the geometry only through its small change).
         let mut errors = ParameterErrors::zero();
         let mut result = None;
         for _ in 0..COMPLIANCE_ROUNDS {
