@@ -324,3 +324,137 @@ fn targets_without_joints_start_from_the_closed_form_inverse_kinematics() {
     }
     assert!(found, "no branch returned the planned configuration");
 }
+
+/// The UR family (offset wrist, issue 15): `calib compensate` without joints on 1,000 random
+/// reachable targets of the UR10 (joints uniform in +-3.1 rad), the actual robot being a real UR10
+/// factory calibration imported with `import-ur-calibration` (up to 7.9 mm from nominal). Each
+/// target is given the branch its planned joints are on. Measured: 961 put the actual robot on
+/// the target to 1e-3 mm (reference kinematics; worst 9.8e-4 mm), 39 are refused with the reason
+/// (21 no convergence, 12 too close to a singularity, 6 a joint correction beyond the bound);
+/// with set 2 (3.4 mm) 970 and 30. Issue 15 asks for 99.9 %: the compensation of the offset
+/// wrist near its singularities is open; this test guards what is reached and that every miss
+/// is a refusal that says why.
+#[test]
+fn ur_targets_without_joints_are_compensated_from_the_offset_wrist_inverse_kinematics() {
+    use calib_core::Kinematics;
+    use calib_core::kinematics::ik::{closest, inverse_kinematics};
+    use rand::{RngExt, SeedableRng};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ur10 = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml");
+    let conf = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/data/ur-factory-calibration/ur10-test-set-1.conf"
+    );
+    let actual_path = d.join("actual.toml");
+    let out = common::calib_in(
+        d,
+        &[
+            "import-ur-calibration",
+            "--robot",
+            ur10,
+            "--calibration",
+            conf,
+            "--out",
+            actual_path.to_str().unwrap(),
+        ],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let nominal: RobotModel<6> = RobotFile::read(Path::new(ur10))
+        .unwrap()
+        .to_model(Path::new(ur10))
+        .unwrap();
+    let planned = Kinematics::nominal(&nominal.robot).unwrap();
+    let actual = RefModel::from_file(
+        &RobotFile::read(&actual_path).unwrap(),
+        &[],
+        &[0.0; 6],
+        &[0.0; 6],
+    );
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(15);
+    let mut by_branch: Vec<Vec<[f64; 4 * 4]>> = vec![Vec::new(); 8];
+    for _ in 0..1000 {
+        let q: [f64; 6] = std::array::from_fn(|_| rng.random_range(-3.1..3.1));
+        let pose = planned.forward(&q).unwrap();
+        let solutions = inverse_kinematics(&nominal.robot, &pose).unwrap();
+        let best = closest(&solutions, &q).unwrap();
+        let branch = solutions
+            .iter()
+            .position(|s| s.as_ref() == Some(&best))
+            .unwrap();
+        let m = pose.to_homogeneous();
+        by_branch[branch].push(std::array::from_fn(|i| m[(i / 4, i % 4)]));
+    }
+    let (mut reached, mut refused, mut worst) = (0, 0, 0.0f64);
+    for (branch, poses) in by_branch.iter().enumerate().filter(|(_, p)| !p.is_empty()) {
+        let mut text = String::from("x_mm,y_mm,z_mm,qw,qx,qy,qz\n");
+        for m in poses {
+            let pose: [[f64; 4]; 4] =
+                std::array::from_fn(|r| std::array::from_fn(|c| m[r * 4 + c]));
+            text.push_str(&format!(
+                "{},{},{},{}\n",
+                m[3],
+                m[7],
+                m[11],
+                reference::quaternion(&pose)
+                    .map(|v| v.to_string())
+                    .join(",")
+            ));
+        }
+        let targets = d.join(format!("t{branch}.csv"));
+        let out_path = d.join(format!("o{branch}.csv"));
+        std::fs::write(&targets, text).unwrap();
+        let b = branch.to_string();
+        let result = calib(&[
+            "compensate",
+            "--robot",
+            ur10,
+            "--params",
+            actual_path.to_str().unwrap(),
+            "--targets",
+            targets.to_str().unwrap(),
+            "--out",
+            out_path.to_str().unwrap(),
+            "--max-correction-mm",
+            "50",
+            "--max-correction-deg",
+            "5",
+            "--branch",
+            &b,
+        ]);
+        assert!(
+            result.status.success(),
+            "{}",
+            String::from_utf8_lossy(&result.stderr)
+        );
+        let mut reader = csv::Reader::from_path(&out_path).unwrap();
+        for (record, m) in reader.records().zip(poses) {
+            let record = record.unwrap();
+            if &record[9] != "ok" {
+                refused += 1;
+                assert!(record[9].len() > 10, "{record:?}");
+                continue;
+            }
+            let joints: Vec<f64> = (1..=6)
+                .map(|j| record[j].parse::<f64>().unwrap().to_radians())
+                .collect();
+            let pose: [[f64; 4]; 4] =
+                std::array::from_fn(|r| std::array::from_fn(|c| m[r * 4 + c]));
+            let e = reference::pose_error(&pose, &actual.forward(&joints));
+            let miss = (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt();
+            worst = worst.max(miss);
+            if miss < 1e-3 {
+                reached += 1;
+            }
+        }
+    }
+    println!(
+        "UR10, 1000 targets without joints: {reached} reached (worst {worst:.2e} mm), {refused} refused"
+    );
+    assert!(reached >= 950, "{reached} reached, {refused} refused");
+    assert_eq!(reached + refused, 1000);
+}

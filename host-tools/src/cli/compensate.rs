@@ -39,7 +39,8 @@ pub struct CompensateOptions {
     /// Largest allowed change of any joint, deg.
     #[arg(long, default_value_t = 0.5f64.to_degrees())]
     pub max_joint_correction_deg: f64,
-    /// Inverse kinematics branch for targets without joints (closed form, spherical wrist):
+    /// Inverse kinematics branch for targets without joints (closed form: spherical wrist or
+    /// UR-type offset wrist):
     /// 0-7, bit 4 = shoulder back, bit 2 = elbow down, bit 1 = wrist flipped.
     #[arg(long, default_value_t = 0)]
     pub branch: usize,
