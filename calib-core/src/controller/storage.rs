@@ -597,6 +597,47 @@ pub fn load<M: Stored>(flash: &impl FlashSlots, nominal: &M) -> (M, Source) {
     }
 }
 
+/// [`load`] of a [`ControllerModel`] into `model` in place, with the same rule (the newest valid
+/// slot, then the other, then `nominal`'s geometry without maps) and the same [`Source`]: no copy
+/// of the model is made on the stack (a controller with little RAM decodes each slot into its own
+/// model storage, and the chosen one a second time if the other was decoded last).
+pub fn load_model_into<T: Real, const N: usize, const C: usize>(
+    flash: &impl FlashSlots,
+    nominal: &Robot<T, N>,
+    model: &mut ControllerModel<T, N, C>,
+) -> Source {
+    let mut best: Option<(Slot, u32)> = None;
+    let mut newest_header: Option<(Slot, u32)> = None;
+    let mut last_decoded = None;
+    for slot in [Slot::A, Slot::B] {
+        let bytes = flash.read(slot);
+        if let Some(s) = header_sequence(bytes)
+            && newest_header.is_none_or(|(_, n)| newer(s, n))
+        {
+            newest_header = Some((slot, s));
+        }
+        if let Ok(s) = decode_model_into(bytes, model) {
+            last_decoded = Some(slot);
+            if best.is_none_or(|(_, n)| newer(s, n)) {
+                best = Some((slot, s));
+            }
+        }
+    }
+    let Some((slot, s)) = best else {
+        *model = ControllerModel::geometric(*nominal);
+        return Source::Nominal;
+    };
+    if last_decoded != Some(slot) && decode_model_into(flash.read(slot), model).is_err() {
+        // Unreachable: the same bytes decoded a moment ago (kept for a flash that changes).
+        *model = ControllerModel::geometric(*nominal);
+        return Source::Nominal;
+    }
+    match newest_header {
+        Some((other, n)) if other != slot && newer(n, s) => Source::Fallback(slot, s),
+        _ => Source::Newest(slot, s),
+    }
+}
+
 /// Stores `robot` (a [`Robot`] or a [`ControllerModel`]) in the slot that does not hold the
 /// newest valid block, with the next sequence number; `buffer` must hold the block
 /// ([`block_len`] or [`model_block_len`] bytes). Returns the slot and sequence written.
@@ -1002,6 +1043,43 @@ mod tests {
             store(&mut flash, &second, &mut buffer).unwrap();
             assert_eq!(load(&flash, &nominal), (second, Source::Newest(Slot::B, 2)));
         }
+    }
+
+    #[test]
+    fn loading_in_place_chooses_what_load_chooses() {
+        let robot = er10l_c10::<f32>();
+        let nominal = ControllerModel::<f32, 6, 64>::geometric(robot);
+        let first = identified_with_maps::<f32>();
+        let mut second = first;
+        second.robot.joints[2].d += 0.5;
+        let len = model_block_len::<f32, 6>(64, false);
+        let mut buffer = [0u8; model_block_len::<f32, 6>(64, false)];
+        let mut flash = Flash::new(len);
+        let mut model = ControllerModel::<f32, 6, 64>::geometric(er10l_c10());
+        let mut check = |flash: &Flash, expected: (ControllerModel<f32, 6, 64>, Source)| {
+            assert_eq!(load(flash, &nominal), expected);
+            // Start from a model unlike every candidate, so nothing passes by accident.
+            model.robot.joints[0].a = 12345.0;
+            let source = load_model_into(flash, &robot, &mut model);
+            assert_eq!((model, source), expected);
+        };
+        check(&flash, (nominal, Source::Nominal));
+        store(&mut flash, &first, &mut buffer).unwrap();
+        check(&flash, (first, Source::Newest(Slot::A, 1)));
+        store(&mut flash, &second, &mut buffer).unwrap();
+        // B (newer) was decoded last.
+        check(&flash, (second, Source::Newest(Slot::B, 2)));
+        // A third write to A: A is newest and B was decoded last, so A is decoded again.
+        let mut third = second;
+        third.robot.joints[0].a += 1.0;
+        store(&mut flash, &third, &mut buffer).unwrap();
+        check(&flash, (third, Source::Newest(Slot::A, 3)));
+        // A damaged, B valid: falls back to B.
+        flash.slots[0][40] ^= 0x01;
+        check(&flash, (second, Source::Fallback(Slot::B, 2)));
+        // Both damaged: the nominal geometry without maps.
+        flash.slots[1][40] ^= 0x01;
+        check(&flash, (nominal, Source::Nominal));
     }
 
     #[test]
