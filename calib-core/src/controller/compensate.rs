@@ -24,6 +24,7 @@ use crate::kinematics::pose_error::PoseError;
 use crate::kinematics::{Kinematics, MappedKinematics, Pose};
 use crate::model::JointLimits;
 use crate::scalar::Real;
+use core::borrow::Borrow;
 use core::fmt;
 use nalgebra::{SMatrix, SVector};
 
@@ -194,9 +195,11 @@ impl<T: Real, const N: usize> ActualRobot<T, N> for Kinematics<T, N> {
     }
 }
 
-impl<T: Real, const N: usize, const C: usize> ActualRobot<T, N> for MappedKinematics<'_, T, N, C> {
+impl<T: Real, const N: usize, const C: usize, G: Borrow<Kinematics<T, N>>> ActualRobot<T, N>
+    for MappedKinematics<'_, T, N, C, G>
+{
     fn geometry(&self) -> &Kinematics<T, N> {
-        &self.geometry
+        self.geometry.borrow()
     }
     fn angles(&self, q: &[T; N]) -> [T; N] {
         self.maps.apply(q)
@@ -214,7 +217,7 @@ impl<T: Real, const N: usize, const C: usize> ActualRobot<T, N> for MappedKinema
         match self.compliance {
             None => Ok(*target),
             Some(compliance) => {
-                let (_, deflection) = compliance.deflect(&self.geometry, angles)?;
+                let (_, deflection) = compliance.deflect(self.geometry.borrow(), angles)?;
                 Ok(deflection.remove(target))
             }
         }

@@ -84,6 +84,14 @@ impl<T: Real, const N: usize, const C: usize> ControllerModel<T, N, C> {
         }
     }
 
+    /// Makes this the model without maps of `robot`, in place ([`ControllerModel::geometric`]
+    /// without a temporary of the model's size on the stack).
+    pub fn set_geometric(&mut self, robot: &Robot<T, N>) {
+        self.robot = *robot;
+        self.maps.clear();
+        self.compliance = Compliance::none();
+    }
+
     /// The model ready to evaluate and compensate with (borrowing the maps and compliance).
     /// Error: an invalid geometry or compliance.
     pub fn kinematics(&self) -> Result<MappedKinematics<'_, T, N, C>, KinematicsError> {
@@ -624,12 +632,12 @@ pub fn load_model_into<T: Real, const N: usize, const C: usize>(
         }
     }
     let Some((slot, s)) = best else {
-        *model = ControllerModel::geometric(*nominal);
+        model.set_geometric(nominal);
         return Source::Nominal;
     };
     if last_decoded != Some(slot) && decode_model_into(flash.read(slot), model).is_err() {
         // Unreachable: the same bytes decoded a moment ago (kept for a flash that changes).
-        *model = ControllerModel::geometric(*nominal);
+        model.set_geometric(nominal);
         return Source::Nominal;
     }
     match newest_header {

@@ -17,14 +17,17 @@ use crate::model::joint_maps::JointMaps;
 use crate::model::parameters::ParameterErrors;
 use crate::model::{KinematicsError, Robot};
 use crate::scalar::Real;
+use core::borrow::Borrow;
 use nalgebra::SMatrix;
 
 /// Geometry and angle-error maps of the actual robot, `C` harmonics of capacity per joint. The
-/// maps are borrowed: a controller keeps one copy of their coefficients.
+/// maps are borrowed: a controller keeps one copy of their coefficients. The geometry is owned
+/// (`G` = [`Kinematics`], the default) or borrowed (`G` = `&Kinematics`: a controller that keeps
+/// the prepared geometry with the model's coefficients builds this per call without a copy).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MappedKinematics<'a, T: Real, const N: usize, const C: usize> {
+pub struct MappedKinematics<'a, T: Real, const N: usize, const C: usize, G = Kinematics<T, N>> {
     /// The geometric model, evaluated at the kinematic angles.
-    pub geometry: Kinematics<T, N>,
+    pub geometry: G,
     /// The maps from readings to kinematic angles.
     pub maps: &'a JointMaps<T, N, C>,
     /// The gravity compliance, if the model has any (`None`: no deflection).
@@ -44,7 +47,11 @@ impl<'a, T: Real, const N: usize, const C: usize> MappedKinematics<'a, T, N, C> 
             compliance: None,
         })
     }
+}
 
+impl<'a, T: Real, const N: usize, const C: usize, G: Borrow<Kinematics<T, N>>>
+    MappedKinematics<'a, T, N, C, G>
+{
     /// This model with `compliance` (kept only when a gain is set: a model without gains costs
     /// nothing). Error: an invalid compliance model.
     pub fn with_compliance(
@@ -62,8 +69,8 @@ impl<'a, T: Real, const N: usize, const C: usize> MappedKinematics<'a, T, N, C> 
     pub fn forward(&self, q: &[T; N]) -> Result<Pose<T>, KinematicsError> {
         let t = self.maps.apply(q);
         match self.compliance {
-            None => self.geometry.forward(&t),
-            Some(compliance) => compliance.forward(&self.geometry, &t),
+            None => self.geometry.borrow().forward(&t),
+            Some(compliance) => compliance.forward(self.geometry.borrow(), &t),
         }
     }
 
@@ -75,9 +82,9 @@ impl<'a, T: Real, const N: usize, const C: usize> MappedKinematics<'a, T, N, C> 
         q: &[T; N],
     ) -> Result<(Pose<T>, SMatrix<T, 6, N>), KinematicsError> {
         let t = self.maps.apply(q);
-        let (mut pose, mut jacobian) = self.geometry.geometric_jacobian(&t)?;
+        let (mut pose, mut jacobian) = self.geometry.borrow().geometric_jacobian(&t)?;
         if let Some(compliance) = self.compliance {
-            pose = compliance.forward(&self.geometry, &t)?;
+            pose = compliance.forward(self.geometry.borrow(), &t)?;
         }
         for (j, mut column) in jacobian.column_iter_mut().enumerate() {
             let slope = q

@@ -65,6 +65,17 @@ impl<T: Real, const N: usize, const C: usize> JointMaps<T, N, C> {
         }
     }
 
+    /// Sets the maps to zero everywhere in place ([`JointMaps::zero`] without a temporary: a
+    /// controller with little stack resets its model's storage).
+    pub fn clear(&mut self) {
+        self.harmonics = 0;
+        for row in self.sin.iter_mut().chain(self.cos.iter_mut()) {
+            row.fill(T::zero());
+        }
+        self.amplitude_bound.fill(T::zero());
+        self.slope_bound.fill(T::zero());
+    }
+
     /// The maps with `harmonics` used harmonics: `sin[j][h-1] = a_jh`, `cos[j][h-1] = b_jh` (rad);
     /// coefficients beyond `harmonics` must be zero. Refused, naming the joint, when a
     /// coefficient is not finite or beyond [`MAX_COEFFICIENT`], when a map's slope bound exceeds
