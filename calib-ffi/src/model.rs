@@ -154,18 +154,18 @@ pub type CalibCompensatedF64 = CalibCompensated<f64>;
 
 /// The nominal robot as held in a [`CalibRobotF32`]: the robot and its kinematics, prepared once
 /// when the block is decoded (the constant trigonometry of every call saved).
-#[derive(Clone, Copy)]
 pub(crate) struct NominalRobot<T: Real> {
     pub(crate) robot: Robot<T, CALIB_JOINTS>,
     pub(crate) kinematics: Kinematics<T, CALIB_JOINTS>,
 }
 
 impl<T: Real> NominalRobot<T> {
-    /// Prepares `robot`; error: an invalid robot.
-    pub(crate) fn new(robot: Robot<T, CALIB_JOINTS>) -> Result<Self, crate::CalibStatus> {
-        let kinematics =
-            Kinematics::nominal(&robot).map_err(|_| crate::CalibStatus::InvalidModel)?;
-        Ok(Self { robot, kinematics })
+    /// Holds `robot` and prepares its kinematics, in place; error: an invalid robot.
+    pub(crate) fn set(&mut self, robot: &Robot<T, CALIB_JOINTS>) -> Result<(), crate::CalibStatus> {
+        self.robot = *robot;
+        self.kinematics =
+            Kinematics::nominal(&self.robot).map_err(|_| crate::CalibStatus::InvalidModel)?;
+        Ok(())
     }
 }
 
@@ -180,20 +180,20 @@ impl<T: Real> IdentifiedModel<T> {
     /// Prepares the geometry of the model just written to `self.model` (it also validates the
     /// compliance). Error: an invalid model.
     pub(crate) fn prepare(&mut self) -> Result<(), crate::CalibStatus> {
-        self.geometry = self
-            .model
-            .kinematics()
-            .map_err(|_| crate::CalibStatus::InvalidModel)?
-            .geometry;
+        let invalid = |_| crate::CalibStatus::InvalidModel;
+        self.model.compliance.validate().map_err(invalid)?;
+        self.geometry = Kinematics::nominal(&self.model.robot).map_err(invalid)?;
         Ok(())
     }
 
     /// The model's kinematics (readings through the maps, the geometry, the compliance) from the
     /// prepared parts.
-    pub(crate) fn kinematics(&self) -> MappedKinematics<'_, T, CALIB_JOINTS, CALIB_HARMONICS> {
+    pub(crate) fn kinematics(
+        &self,
+    ) -> MappedKinematics<'_, T, CALIB_JOINTS, CALIB_HARMONICS, &Kinematics<T, CALIB_JOINTS>> {
         let compliance = &self.model.compliance;
         MappedKinematics {
-            geometry: self.geometry,
+            geometry: &self.geometry,
             maps: &self.model.maps,
             compliance: compliance.is_active().then_some(compliance),
         }

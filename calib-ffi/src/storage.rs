@@ -142,7 +142,7 @@ unsafe fn decode_robot<T: Real, O: Opaque<Value = NominalRobot<T>>>(
     let value = unsafe { access::cleared(robot) }?;
     // SAFETY: the caller's contract.
     let (decoded, _) = decode::<T, CALIB_JOINTS>(unsafe { access::bytes(block, len) }?)?;
-    *value = NominalRobot::new(decoded)?;
+    value.set(&decoded)?;
     // SAFETY: filled above.
     unsafe { access::mark_filled(robot) };
     Ok(())

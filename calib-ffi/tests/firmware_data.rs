@@ -95,6 +95,28 @@ fn compensated(nominal_block: &[u8], block: &[u8]) -> Vec<[f32; 6]> {
         .collect()
 }
 
+/// The nominal robot's pose at each target's joints (the targets), through the C API.
+fn target_poses(nominal_block: &[u8]) -> Vec<CalibPoseF32> {
+    let mut robot: CalibRobotF32 = unsafe { std::mem::zeroed() };
+    unsafe {
+        assert_eq!(
+            calib_robot_decode_f32(&mut robot, nominal_block.as_ptr(), nominal_block.len()),
+            CalibStatus::Ok
+        );
+    }
+    TARGET_JOINTS
+        .iter()
+        .map(|q| unsafe {
+            let mut target: CalibPoseF32 = std::mem::zeroed();
+            assert_eq!(
+                calib_robot_forward_f32(&robot, q.as_ptr(), &mut target),
+                CalibStatus::Ok
+            );
+            target
+        })
+        .collect()
+}
+
 fn distance(a: &CalibPoseF32, b: &CalibPoseF32) -> f64 {
     a.position_mm
         .iter()
@@ -114,13 +136,14 @@ fn bytes(out: &mut String, name: &str, source: &str, data: &[u8]) {
     writeln!(out, "}};\n").unwrap();
 }
 
-fn bits(out: &mut String, name: &str, comment: &str, rows: &[[f32; 6]]) {
+fn bits<const W: usize>(out: &mut String, name: &str, comment: &str, rows: &[[f32; W]]) {
     writeln!(out, "/* {comment} */").unwrap();
-    writeln!(
-        out,
-        "static const uint32_t {name}[TARGETS][CALIB_JOINTS] = {{"
-    )
-    .unwrap();
+    let width = if W == 6 {
+        "CALIB_JOINTS"
+    } else {
+        "POSE_VALUES"
+    };
+    writeln!(out, "static const uint32_t {name}[TARGETS][{width}] = {{").unwrap();
     for row in rows {
         let items: Vec<String> = row
             .iter()
@@ -163,7 +186,8 @@ fn firmware_data_are_the_exports_and_the_host_results() {
          * the files named; the expected joints are the host's f32 results (the Rust core through\n \
          * the same C API), as IEEE-754 bit patterns. */\n\
          #ifndef CALIB_DATA_H\n#define CALIB_DATA_H\n\n#include <stdint.h>\n#include \"calib.h\"\n\n\
-         #define TARGETS 4\n\n",
+         #define TARGETS 4\n/* A pose as 12 floats: position (mm), then the row-major rotation. */\n\
+         #define POSE_VALUES 12\n\n",
     );
     let files = [
         (
@@ -205,6 +229,21 @@ fn firmware_data_are_the_exports_and_the_host_results() {
         "TARGET_JOINTS",
         "joint readings of the targets, rad",
         &TARGET_JOINTS,
+    );
+    let poses: Vec<[f32; 12]> = target_poses(&nominal)
+        .iter()
+        .map(|p| {
+            let mut v = [0.0; 12];
+            v[..3].copy_from_slice(&p.position_mm);
+            v[3..].copy_from_slice(&p.rotation);
+            v
+        })
+        .collect();
+    bits(
+        &mut out,
+        "TARGET_POSES",
+        "the targets: NOMINAL_F32's pose at TARGET_JOINTS (position mm, row-major rotation)",
+        &poses,
     );
     bits(
         &mut out,

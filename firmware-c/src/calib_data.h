@@ -10,6 +10,8 @@
 #include "calib.h"
 
 #define TARGETS 4
+/* A pose as 12 floats: position (mm), then the row-major rotation. */
+#define POSE_VALUES 12
 
 /* host-tools/robots/ur10.toml, --scalar f32, --sequence 1 (232 bytes) */
 static const uint8_t NOMINAL_F32[232] = {
@@ -554,6 +556,14 @@ static const uint32_t TARGET_JOINTS[TARGETS][CALIB_JOINTS] = {
     {0xbfb33333u, 0xbfcccccdu, 0x3f99999au, 0xbf99999au, 0xbf4ccccdu, 0x3ecccccdu},
     {0xc00ccccdu, 0xbf000000u, 0xbf19999au, 0xc0200000u, 0xbfcccccdu, 0xbe99999au},
     {0xbf99999au, 0xc0000000u, 0x3fe66666u, 0xbf19999au, 0xbecccccdu, 0x3f000000u},
+};
+
+/* the targets: NOMINAL_F32's pose at TARGET_JOINTS (position mm, row-major rotation) */
+static const uint32_t TARGET_POSES[TARGETS][POSE_VALUES] = {
+    {0xc2b624d8u, 0x446f8576u, 0x4479958au, 0x3f59d0e8u, 0xbe85c5c2u, 0xbee96558u, 0x3e176f65u, 0xbf36a3aau, 0x3f2f581fu, 0xbf0111beu, 0xbf2672d4u, 0xbf118187u},
+    {0xc3a5b308u, 0x4410bba1u, 0x4460cad8u, 0x3f36ce9fu, 0xbdf08d60u, 0xbf30ac56u, 0xbe8171ceu, 0xbf766a50u, 0xbdc83e91u, 0xbf271e54u, 0x3e7a29d1u, 0xbf37909au},
+    {0x43b27d7du, 0x443f1b54u, 0x44866919u, 0x3f2e2d08u, 0x3ef7541au, 0x3f0d1699u, 0xbf301c4du, 0x3e2594ccu, 0x3f3520dfu, 0x3e815d6fu, 0xbf5c4b57u, 0x3ee2794bu},
+    {0xc3b5f588u, 0x437943e4u, 0x442cc7e4u, 0x3f25af47u, 0xbd6afd80u, 0xbf42996au, 0xbf38ba3cu, 0xbebc3e4au, 0xbf162d15u, 0xbe7bb98eu, 0x3f6d9db8u, 0xbe8f072eu},
 };
 
 /* compensated joints with GEOMETRIC_F32 (geometry only), rad */

@@ -25,20 +25,24 @@ static void expect(int ok, const char *what) {
 static void expect_status(CalibStatus got, CalibStatus want, const char *what) {
     if (got != want) {
         fail(what);
+#ifdef COMPENSATION_ONLY
+        print_value("  got status", (uint32_t)got); /* no message table in this build */
+#else
         platform_print("  got: ");
         platform_print(calib_status_message((int32_t)got));
         platform_print("\n");
+#endif
     }
 }
 
-void print_value(const char *label, uint64_t value) {
-    char digits[24];
+void print_value(const char *label, uint32_t value) {
+    char digits[12];
     int n = 0;
     do {
         digits[n++] = (char)('0' + value % 10u);
         value /= 10u;
-    } while (value != 0u && n < 23);
-    char text[24];
+    } while (value != 0u && n < 11);
+    char text[12];
     for (int i = 0; i < n; i++) {
         text[i] = digits[n - 1 - i];
     }
@@ -73,21 +77,25 @@ static void joints_of(const uint32_t bits[CALIB_JOINTS], float q[CALIB_JOINTS]) 
     }
 }
 
-static double distance_squared_mm2(const CalibPoseF32 *a, const CalibPoseF32 *b) {
-    double sum = 0.0;
+#ifndef COMPENSATION_ONLY
+static float distance_squared_mm2(const CalibPoseF32 *a, const CalibPoseF32 *b) {
+    float sum = 0.0f;
     for (int i = 0; i < 3; i++) {
-        double d = (double)a->position_mm[i] - (double)b->position_mm[i];
+        float d = a->position_mm[i] - b->position_mm[i];
         sum += d * d;
     }
     return sum; /* squared: no libm needed */
 }
+#endif
 
 /* The controller's caller-owned memory (no heap in the library). */
 static CalibRobotF32 nominal;
 static CalibModelF32 model;
 static uint8_t slot_a[CALIB_BLOCK_MAX_BYTES_F32];
 static uint8_t slot_b[CALIB_BLOCK_MAX_BYTES_F32];
+#ifndef COMPENSATION_ONLY
 static uint8_t scratch[CALIB_BLOCK_MAX_BYTES_F32];
+#endif
 
 static void copy(uint8_t *to, const uint8_t *from, size_t len, size_t room) {
     for (size_t i = 0; i < room; i++) {
@@ -95,26 +103,39 @@ static void copy(uint8_t *to, const uint8_t *from, size_t len, size_t room) {
     }
 }
 
-/* Compensates every target with the loaded model; compares with `expected` bit for bit. */
+static CalibPoseF32 pose_of(const uint32_t bits[POSE_VALUES]) {
+    CalibPoseF32 pose;
+    for (int i = 0; i < 3; i++) {
+        pose.position_mm[i] = float_of(bits[i]);
+    }
+    for (int i = 0; i < 9; i++) {
+        pose.rotation[i] = float_of(bits[3 + i]);
+    }
+    return pose;
+}
+
+/* Compensates every target (the host's poses) with the loaded model; compares with `expected`
+ * bit for bit (the host checked that those joints put the model on the target). The full build
+ * also checks the model's pose at the result here (the compensation-only build leaves forward
+ * kinematics out, as a controller that only compensates would). */
 static void compensate_targets(const uint32_t expected[TARGETS][CALIB_JOINTS], const char *what,
-                               checks_cost *cost, uint64_t *forward_instructions) {
-    uint64_t total = 0, slowest = 0;
+                               checks_cost *cost, uint32_t *forward_instructions) {
+    uint32_t total = 0, slowest = 0;
     for (int t = 0; t < TARGETS; t++) {
         float q[CALIB_JOINTS];
         joints_of(TARGET_JOINTS[t], q);
-        CalibPoseF32 target;
-        expect_status(calib_robot_forward_f32(&nominal, q, &target), CALIB_STATUS_OK,
-                      "nominal forward kinematics of a target");
+        CalibPoseF32 target = pose_of(TARGET_POSES[t]);
         CalibCompensatedF32 result;
-        uint64_t start = platform_instructions();
+        uint32_t start = platform_instructions();
         CalibStatus status = calib_compensate_joints_f32(&nominal, &model, &target, q, NULL, &result);
-        uint64_t spent = platform_instructions() - start;
+        uint32_t spent = platform_instructions() - start;
         total += spent;
         slowest = spent > slowest ? spent : slowest;
         expect_status(status, CALIB_STATUS_OK, what);
         for (int j = 0; j < CALIB_JOINTS; j++) {
             expect(bits_of(result.q[j]) == expected[t][j], what);
         }
+#ifndef COMPENSATION_ONLY
         /* The whole model at the result is on the target: 1e-2 mm (f32 tolerance). */
         CalibPoseF32 reached;
         start = platform_instructions();
@@ -123,7 +144,10 @@ static void compensate_targets(const uint32_t expected[TARGETS][CALIB_JOINTS], c
         if (forward_instructions != NULL) {
             *forward_instructions = platform_instructions() - start;
         }
-        expect(distance_squared_mm2(&reached, &target) <= 1e-4, "compensated pose within 1e-2 mm");
+        expect(distance_squared_mm2(&reached, &target) <= 1e-4f, "compensated pose within 1e-2 mm");
+#else
+        (void)forward_instructions;
+#endif
     }
     if (cost != NULL) {
         cost->mean = total / TARGETS;
@@ -136,13 +160,17 @@ int check_decode(checks_measured *measured) {
     expect(calib_api_version() >> 16 == CALIB_API_VERSION_MAJOR, "API major version");
     expect_status(calib_robot_decode_f32(&nominal, NOMINAL_F32, sizeof NOMINAL_F32),
                   CALIB_STATUS_OK, "decode the nominal robot");
-    uint32_t sequence = 0;
-    uint64_t start = platform_instructions();
-    CalibStatus status =
-        calib_model_decode_f32(&model, GEOMETRIC_F32, sizeof GEOMETRIC_F32, &sequence);
+    /* Slot A: a geometric calibration (sequence 1); slot B: erased flash. */
+    copy(slot_a, GEOMETRIC_F32, sizeof GEOMETRIC_F32, sizeof slot_a);
+    copy(slot_b, GEOMETRIC_F32, 0, sizeof slot_b);
+    CalibSource source;
+    uint32_t start = platform_instructions();
+    CalibStatus status = calib_model_load_f32(&model, slot_a, sizeof slot_a, slot_b, sizeof slot_b,
+                                              &nominal, &source);
     measured->decode_instructions = platform_instructions() - start;
-    expect_status(status, CALIB_STATUS_OK, "decode the geometric model");
-    expect(sequence == 1, "geometric model's sequence number");
+    expect_status(status, CALIB_STATUS_OK, "load the geometric model");
+    expect(source.slot == CALIB_SLOT_A && !source.fallback && source.sequence == 1,
+           "the geometric model is loaded from slot A, sequence 1");
     return failures;
 }
 
@@ -159,7 +187,7 @@ int check_load(checks_measured *measured) {
     copy(slot_a, MAPS_F32, sizeof MAPS_F32, sizeof slot_a);
     copy(slot_b, COMPLIANCE_F32, sizeof COMPLIANCE_F32, sizeof slot_b);
     CalibSource source;
-    uint64_t start = platform_instructions();
+    uint32_t start = platform_instructions();
     CalibStatus status = calib_model_load_f32(&model, slot_a, sizeof slot_a, slot_b, sizeof slot_b,
                                               &nominal, &source);
     measured->load_instructions = platform_instructions() - start;
@@ -176,6 +204,7 @@ int check_compliance(checks_measured *measured) {
     return failures;
 }
 
+#ifndef COMPENSATION_ONLY
 /* A flash driver writing into slot_a / slot_b; with a budget it stops early and fails. */
 static long write_budget = -1;
 
@@ -260,6 +289,23 @@ static void check_kinematics(void) {
     expect_status(calib_model_load_f32(&model, slot_a, sizeof slot_a, slot_b, sizeof slot_b,
                                        &nominal, &source),
                   CALIB_STATUS_OK, "load for kinematics");
+    /* Forward kinematics of the nominal robot: the host's target poses, bit for bit. */
+    for (int t = 0; t < TARGETS; t++) {
+        float joints[CALIB_JOINTS];
+        joints_of(TARGET_JOINTS[t], joints);
+        CalibPoseF32 pose;
+        expect_status(calib_robot_forward_f32(&nominal, joints, &pose), CALIB_STATUS_OK,
+                      "nominal forward kinematics");
+        CalibPoseF32 host = pose_of(TARGET_POSES[t]);
+        for (int i = 0; i < 3; i++) {
+            expect(bits_of(pose.position_mm[i]) == bits_of(host.position_mm[i]),
+                   "nominal forward kinematics: the host's position (bits)");
+        }
+        for (int i = 0; i < 9; i++) {
+            expect(bits_of(pose.rotation[i]) == bits_of(host.rotation[i]),
+                   "nominal forward kinematics: the host's rotation (bits)");
+        }
+    }
     float q[CALIB_JOINTS];
     joints_of(TARGET_JOINTS[1], q);
     CalibPoseF32 target;
@@ -281,8 +327,8 @@ static void check_kinematics(void) {
                   CALIB_STATUS_OK, "pre-distortion");
     CalibPoseF32 reached;
     calib_model_forward_f32(&model, result.q, &reached);
-    expect(distance_squared_mm2(&reached, &target) <= 4e-4, "pre-distorted pose within 2e-2 mm");
-    expect(distance_squared_mm2(&command, &target) > 0.01, "the command differs from the target");
+    expect(distance_squared_mm2(&reached, &target) <= 4e-4f, "pre-distorted pose within 2e-2 mm");
+    expect(distance_squared_mm2(&command, &target) > 0.01f, "the command differs from the target");
 }
 
 static void check_f64(void) {
@@ -383,3 +429,4 @@ int check_api(void) {
     check_refusals();
     return failures;
 }
+#endif /* COMPENSATION_ONLY */

@@ -8,25 +8,25 @@
 /* Writes a NUL-terminated string to the log. */
 void platform_print(const char *text);
 /* Instructions executed so far (0 where the platform cannot count them). */
-uint64_t platform_instructions(void);
+uint32_t platform_instructions(void);
 
 /* Instructions of one compensation over the targets (0 where not counted). */
 typedef struct {
-    uint64_t mean;
-    uint64_t slowest;
+    uint32_t mean;
+    uint32_t slowest;
 } checks_cost;
 
 /* What the checks measured (instructions; 0 where not counted). */
 typedef struct {
-    uint64_t decode_instructions;  /* calib_model_decode_f32 of the geometric block */
-    uint64_t load_instructions;    /* calib_model_load_f32 of two valid slots (maps, compliance) */
+    uint32_t decode_instructions;  /* calib_model_load_f32: a geometric block and erased flash */
+    uint32_t load_instructions;    /* calib_model_load_f32 of two valid slots (maps, compliance) */
     checks_cost geometric;         /* calib_compensate_joints_f32, geometric model */
     checks_cost compliance;        /* the same with maps and gravity compliance */
-    uint64_t forward_instructions; /* calib_model_forward_f32 with maps and compliance */
+    uint32_t forward_instructions; /* calib_model_forward_f32 with maps and compliance */
 } checks_measured;
 
 /* The controller's job in four steps (each returns its number of failed checks), run in this
- * order: decode the nominal robot and a geometric model; compensate the targets with it,
+ * order: decode the nominal robot and load a geometric model (slot B erased); compensate the targets with it,
  * comparing the joints with the host's bit for bit; load the newest valid block of two slots
  * (maps, and maps with compliance); compensate the targets with the loaded model, bit for bit. */
 int check_decode(checks_measured *measured);
@@ -39,6 +39,6 @@ int check_compliance(checks_measured *measured);
 int check_api(void);
 
 /* Prints "label value" and a newline. */
-void print_value(const char *label, uint64_t value);
+void print_value(const char *label, uint32_t value);
 
 #endif

@@ -34,8 +34,8 @@ static uint32_t used_below(uintptr_t top) {
 }
 
 /* A loop of a known instruction count checks the counter (2 instructions per iteration). */
-static uint64_t counted_loop(void) {
-    uint64_t start = platform_instructions();
+static uint32_t counted_loop(void) {
+    uint32_t start = platform_instructions();
     uint32_t n = 150000u;
     __asm__ volatile("1: subs %0, %0, #1\n bne 1b" : "+r"(n)::"cc");
     return platform_instructions() - start;
@@ -54,24 +54,25 @@ int main(void) {
     print_value("counter check (300000 instructions):", counted_loop());
 
     checks_measured m = {0};
-    int failed = step(check_decode, &m, "peak stack of decoding the robot and a model (bytes):");
+    int failed = step(check_decode, &m, "peak stack of decoding the robot and loading a model (bytes):");
     failed += step(check_geometric, &m, "peak stack of a geometric compensation (bytes):");
     failed += step(check_load, &m, "peak stack of loading two slots (bytes):");
     failed += step(check_compliance, &m, "peak stack of a compensation with maps and compliance (bytes):");
-    print_value("decode of the geometric block instructions:", m.decode_instructions);
+    print_value("load of one slot (geometric; other slot erased) instructions:",
+                m.decode_instructions);
     print_value("load of two slots (maps, maps and compliance) instructions:", m.load_instructions);
     print_value("geometric compensation mean instructions:", m.geometric.mean);
     print_value("geometric compensation slowest instructions:", m.geometric.slowest);
     print_value("compensation with maps and compliance mean instructions:", m.compliance.mean);
     print_value("compensation with maps and compliance slowest instructions:", m.compliance.slowest);
+#ifndef COMPENSATION_ONLY
     print_value("model forward kinematics (maps and compliance) instructions:",
                 m.forward_instructions);
-#ifndef COMPENSATION_ONLY
     uintptr_t top = paint();
     failed += check_api();
     print_value("peak stack of the whole API (bytes):", used_below(top));
 #endif
-    print_value("failed checks:", (uint64_t)failed);
+    print_value("failed checks:", (uint32_t)failed);
     platform_print(failed == 0 ? "PASS\n" : "FAILED\n");
     return failed;
 }

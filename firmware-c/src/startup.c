@@ -35,9 +35,9 @@ __attribute__((noreturn)) void platform_exit(int ok) {
  * previous one, which is exact while reads are less than 2^24 ticks (671 million instructions)
  * apart. */
 static uint32_t last_tick = 0x00FFFFFFu;
-static uint64_t ticks;
+static uint32_t ticks;
 
-uint64_t platform_instructions(void) {
+uint32_t platform_instructions(void) {
     uint32_t now = SYST_CVR;
     ticks += (last_tick - now) & 0x00FFFFFFu;
     last_tick = now;
