@@ -39,7 +39,7 @@ for variant in calib-firmware-c-compensation calib-firmware-c; do
     fi
     set +e
     timeout 600 qemu-system-arm -machine mps2-an386 -cpu cortex-m4 -nographic \
-        -semihosting-config enable=on,target=native -icount shift=0 -kernel "$elf"
+        -semihosting-config enable=on,target=native -icount shift=0 -kernel "$elf" 2>&1
     code=$?
     set -e
     echo "$variant exit status: $code"

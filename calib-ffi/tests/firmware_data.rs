@@ -44,15 +44,12 @@ fn export(file: &str, scalar: BlockScalar, sequence: u32) -> Vec<u8> {
     .unwrap()
 }
 
-/// The joints that put `block`'s model on the nominal pose of each target's joints, in f32.
-fn compensated(nominal_block: &[u8], block: &[u8]) -> Vec<[f32; 6]> {
-    let mut robot: CalibRobotF32 = unsafe { std::mem::zeroed() };
+/// The joints that put `block`'s model on each target (the nominal pose at the target's joints),
+/// in f32, through the C API.
+fn compensated(nominal_block: &[u8], targets: &[CalibPoseF32], block: &[u8]) -> Vec<[f32; 6]> {
+    let robot = nominal_robot(nominal_block);
     let mut model: CalibModelF32 = unsafe { std::mem::zeroed() };
     unsafe {
-        assert_eq!(
-            calib_robot_decode_f32(&mut robot, nominal_block.as_ptr(), nominal_block.len()),
-            CalibStatus::Ok
-        );
         assert_eq!(
             calib_model_decode_f32(
                 &mut model,
@@ -65,17 +62,13 @@ fn compensated(nominal_block: &[u8], block: &[u8]) -> Vec<[f32; 6]> {
     }
     TARGET_JOINTS
         .iter()
-        .map(|q| unsafe {
-            let mut target: CalibPoseF32 = std::mem::zeroed();
-            assert_eq!(
-                calib_robot_forward_f32(&robot, q.as_ptr(), &mut target),
-                CalibStatus::Ok
-            );
+        .zip(targets)
+        .map(|(q, target)| unsafe {
             let mut result: CalibCompensatedF32 = std::mem::zeroed();
             let status = calib_compensate_joints_f32(
                 &robot,
                 &model,
-                &target,
+                target,
                 q.as_ptr(),
                 std::ptr::null(),
                 &mut result,
@@ -85,9 +78,9 @@ fn compensated(nominal_block: &[u8], block: &[u8]) -> Vec<[f32; 6]> {
             // not there before (mm-level errors: the compensation did something).
             let mut reached: CalibPoseF32 = std::mem::zeroed();
             calib_model_forward_f32(&model, result.q.as_ptr(), &mut reached);
-            let miss = distance(&reached, &target);
+            let miss = distance(&reached, target);
             calib_model_forward_f32(&model, q.as_ptr(), &mut reached);
-            let uncorrected = distance(&reached, &target);
+            let uncorrected = distance(&reached, target);
             println!("target {q:?}: uncorrected {uncorrected:.3} mm, compensated {miss:.2e} mm");
             assert!(miss <= 1e-2 && uncorrected > 0.3, "{miss} {uncorrected}");
             result.q
@@ -95,8 +88,7 @@ fn compensated(nominal_block: &[u8], block: &[u8]) -> Vec<[f32; 6]> {
         .collect()
 }
 
-/// The nominal robot's pose at each target's joints (the targets), through the C API.
-fn target_poses(nominal_block: &[u8]) -> Vec<CalibPoseF32> {
+fn nominal_robot(nominal_block: &[u8]) -> CalibRobotF32 {
     let mut robot: CalibRobotF32 = unsafe { std::mem::zeroed() };
     unsafe {
         assert_eq!(
@@ -104,6 +96,12 @@ fn target_poses(nominal_block: &[u8]) -> Vec<CalibPoseF32> {
             CalibStatus::Ok
         );
     }
+    robot
+}
+
+/// The nominal robot's pose at each target's joints (the targets), through the C API.
+fn target_poses(nominal_block: &[u8]) -> Vec<CalibPoseF32> {
+    let robot = nominal_robot(nominal_block);
     TARGET_JOINTS
         .iter()
         .map(|q| unsafe {
@@ -174,9 +172,10 @@ fn firmware_data_are_the_exports_and_the_host_results() {
         BlockScalar::F64,
         1,
     );
-    let with_geometry = compensated(&nominal, &geometric);
-    let with_compliance = compensated(&nominal, &compliance);
-    let with_maps = compensated(&nominal, &maps);
+    let targets = target_poses(&nominal);
+    let with_geometry = compensated(&nominal, &targets, &geometric);
+    let with_compliance = compensated(&nominal, &targets, &compliance);
+    let with_maps = compensated(&nominal, &targets, &maps);
 
     let mut out = String::new();
     out.push_str(
@@ -230,7 +229,7 @@ fn firmware_data_are_the_exports_and_the_host_results() {
         "joint readings of the targets, rad",
         &TARGET_JOINTS,
     );
-    let poses: Vec<[f32; 12]> = target_poses(&nominal)
+    let poses: Vec<[f32; 12]> = targets
         .iter()
         .map(|p| {
             let mut v = [0.0; 12];

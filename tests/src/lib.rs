@@ -106,3 +106,46 @@ pub fn distance<T: Real>(core: &Pose<T>, reference: &Mat4) -> (f64, f64) {
     let angle = 2.0 * (dr2.sqrt() / (2.0 * 2f64.sqrt())).asin();
     (dp2.sqrt(), angle)
 }
+
+/// Whether `program args` runs and succeeds (a tool is installed).
+pub fn have(program: &str, args: &[&str]) -> bool {
+    std::process::Command::new(program)
+        .args(args)
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
+
+/// The emulator tests' tools that are missing: the thumbv7em-none-eabihf target, and each
+/// program of `programs` (run with `--version`).
+pub fn missing_embedded_tools<'a>(programs: &[&'a str]) -> Vec<&'a str> {
+    let target_installed = std::process::Command::new("rustup")
+        .args(["target", "list", "--installed"])
+        .output()
+        .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).contains("thumbv7em-none-eabihf"));
+    let mut missing: Vec<&str> = programs
+        .iter()
+        .copied()
+        .filter(|p| !have(p, &["--version"]))
+        .collect();
+    if !target_installed {
+        missing.push("the thumbv7em-none-eabihf target");
+    }
+    missing
+}
+
+/// Runs `firmware-c/run.sh` or `firmware/run.sh` (`script`, from the repository root) with
+/// `--size`, without the outer cargo's settings (they must not leak into the firmware's own
+/// build); prints and returns its standard output and whether it succeeded.
+pub fn run_firmware_script(script: &str) -> (String, bool) {
+    let mut command = std::process::Command::new("bash");
+    command.arg(repo(script)).arg("--size");
+    for (key, _) in std::env::vars() {
+        if key.starts_with("CARGO") || key == "RUSTFLAGS" || key == "RUSTC_WRAPPER" {
+            command.env_remove(key);
+        }
+    }
+    let output = command.output().expect("bash runs");
+    let log = String::from_utf8_lossy(&output.stdout).into_owned();
+    println!("{log}\n{}", String::from_utf8_lossy(&output.stderr));
+    (log, output.status.success())
+}

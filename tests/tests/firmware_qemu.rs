@@ -4,34 +4,13 @@
 //! decoded defmt log. Skips, saying so, when QEMU, the target or defmt-print is missing, unless
 //! `CALIB_REQUIRE_QEMU=1` (as `.ci/run` sets), where a missing tool is a failure.
 
-use std::process::Command;
-
-fn have(program: &str, args: &[&str]) -> bool {
-    Command::new(program)
-        .args(args)
-        .output()
-        .is_ok_and(|o| o.status.success())
-}
-
 #[test]
 fn firmware_calibrates_in_qemu_bit_identically() {
-    let target_installed = Command::new("rustup")
-        .args(["target", "list", "--installed"])
-        .output()
-        .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).contains("thumbv7em-none-eabihf"));
-    let missing: Vec<&str> = [
-        ("qemu-system-arm", have("qemu-system-arm", &["--version"])),
-        ("defmt-print", have("defmt-print", &["--version"])),
-        (
-            "arm-none-eabi-size",
-            have("arm-none-eabi-size", &["--version"]),
-        ),
-        ("the thumbv7em-none-eabihf target", target_installed),
-    ]
-    .into_iter()
-    .filter(|(_, ok)| !ok)
-    .map(|(name, _)| name)
-    .collect();
+    let missing = calib_tests::missing_embedded_tools(&[
+        "qemu-system-arm",
+        "defmt-print",
+        "arm-none-eabi-size",
+    ]);
     if !missing.is_empty() {
         let message = format!(
             "SKIPPED firmware_calibrates_in_qemu_bit_identically: missing {} \
@@ -46,19 +25,8 @@ fn firmware_calibrates_in_qemu_bit_identically() {
         eprintln!("{message}");
         return;
     }
-    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/../firmware/run.sh");
-    let mut command = Command::new("bash");
-    command.arg(script).arg("--size");
-    // The outer cargo's settings must not leak into the firmware's own build.
-    for (key, _) in std::env::vars() {
-        if key.starts_with("CARGO") || key == "RUSTFLAGS" || key == "RUSTC_WRAPPER" {
-            command.env_remove(key);
-        }
-    }
-    let output = command.output().unwrap();
-    let log = String::from_utf8_lossy(&output.stdout);
-    println!("{log}\n{}", String::from_utf8_lossy(&output.stderr));
-    assert!(output.status.success(), "firmware failed");
+    let (log, success) = calib_tests::run_firmware_script("firmware/run.sh");
+    assert!(success, "firmware failed");
     assert!(
         log.contains("outcome equals the host's bit for bit: PASS"),
         "{log}"
