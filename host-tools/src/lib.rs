@@ -12,6 +12,7 @@ pub mod cli;
 pub mod columns;
 pub mod compensate;
 pub mod compliance;
+pub mod craig;
 pub mod dataset;
 pub mod dispatch;
 pub mod evaluation;

@@ -15,6 +15,12 @@
 //! xyz_mm = [0.0, 0.0, 0.0]
 //! rpy_deg = [0.0, 0.0, 0.0]           # R = Rz(yaw) Ry(pitch) Rx(roll)
 //! ```
+//!
+//! A robot published in Craig's modified DH convention is written as it is published, with
+//! `[[craig_joint]]` tables (`alpha_prev_deg`, `a_prev_mm`, `d_mm`, `theta_offset_deg`, and the
+//! optional `limits_deg` and `identify`) and an optional `[craig_flange]` row instead of
+//! `[[joint]]`; reading converts it exactly into our joints and frames ([`crate::craig`]), and
+//! files written back (identified robots) are in our convention.
 
 use calib_core::{
     FramePose, JointLimits, JointParameter, MdhJoint, Parameter, ParameterErrors, ParameterMask,
@@ -119,8 +125,16 @@ pub struct FrameEntry {
 pub struct RobotFile {
     /// Human-readable robot name.
     pub name: String,
-    /// Joints, joint 1 first.
+    /// Joints, joint 1 first (after reading, also those converted from `[[craig_joint]]`).
+    #[serde(default)]
     pub joint: Vec<JointEntry>,
+    /// Joints in Craig's modified DH convention, as published; [`RobotFile::parse`] converts
+    /// them into `joint`, `base` and `tool` and leaves this empty.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub craig_joint: Vec<crate::craig::CraigJointEntry>,
+    /// The fixed row after the last Craig joint (a flange), converted with `craig_joint`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub craig_flange: Option<crate::craig::CraigFlangeEntry>,
     /// Base frame (default identity).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base: Option<FrameEntry>,
@@ -205,10 +219,42 @@ impl RobotFile {
 
     /// Parses robot-file text; `path` only names the source in errors.
     pub fn parse(text: &str, path: &Path) -> Result<Self, RobotFileError> {
-        toml::from_str(text).map_err(|e| RobotFileError::Parse {
+        let mut file: Self = toml::from_str(text).map_err(|e| RobotFileError::Parse {
             path: path.to_owned(),
             message: e.to_string().trim_end().to_owned(),
-        })
+        })?;
+        let invalid = |message: &str| RobotFileError::Invalid {
+            path: path.to_owned(),
+            message: message.to_owned(),
+        };
+        if !file.craig_joint.is_empty() {
+            if !file.joint.is_empty() {
+                return Err(invalid(
+                    "has both [[joint]] and [[craig_joint]] tables: describe the robot in one \
+                     convention (standard DH in [[joint]], Craig's modified DH in [[craig_joint]])",
+                ));
+            }
+            let (joints, base, tool) = crate::craig::to_standard(
+                &file.craig_joint,
+                file.craig_flange.as_ref(),
+                file.base.as_ref(),
+                file.tool.as_ref(),
+            );
+            (file.joint, file.base, file.tool) = (joints, base, tool);
+            file.craig_joint.clear();
+            file.craig_flange = None;
+        } else if file.craig_flange.is_some() {
+            return Err(invalid(
+                "has a [craig_flange] without [[craig_joint]] tables: the flange row belongs to a \
+                 robot described in Craig's convention",
+            ));
+        } else if file.joint.is_empty() {
+            return Err(invalid(
+                "has no joints: add a [[joint]] table per joint (or [[craig_joint]] tables for \
+                 Craig's modified DH convention)",
+            ));
+        }
+        Ok(file)
     }
 
     /// Checks the content and converts it for a robot of `N` joints.

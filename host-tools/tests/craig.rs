@@ -1,0 +1,240 @@
+//! Robot files in Craig's modified DH convention: the converted model reproduces the published
+//! forward kinematics (products of `Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i)` computed
+//! here from the published table, independently of the conversion); the shipped 7-joint robots
+//! read and stand straight at their zero posture; a file mixing conventions is refused.
+
+use calib_core::Kinematics;
+use host_tools::robot_file::{RobotFile, RobotModel};
+use nalgebra::{Matrix4, Vector3};
+use rand::{RngExt, SeedableRng};
+use rand_xoshiro::Xoshiro256PlusPlus;
+use std::path::Path;
+
+fn rx(angle: f64) -> Matrix4<f64> {
+    let (s, c) = angle.sin_cos();
+    Matrix4::new(
+        1.0, 0.0, 0.0, 0.0, 0.0, c, -s, 0.0, 0.0, s, c, 0.0, 0.0, 0.0, 0.0, 1.0,
+    )
+}
+
+fn rz(angle: f64) -> Matrix4<f64> {
+    let (s, c) = angle.sin_cos();
+    Matrix4::new(
+        c, -s, 0.0, 0.0, s, c, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+    )
+}
+
+fn translation(x: f64, y: f64, z: f64) -> Matrix4<f64> {
+    Matrix4::new_translation(&Vector3::new(x, y, z))
+}
+
+/// `Rz(yaw) Ry(pitch) Rx(roll)` with a translation, as a robot file's frame.
+fn frame(xyz: [f64; 3], rpy_deg: [f64; 3]) -> Matrix4<f64> {
+    let [r, p, y] = rpy_deg.map(f64::to_radians);
+    let ry = {
+        let (s, c) = p.sin_cos();
+        Matrix4::new(
+            c, 0.0, s, 0.0, 0.0, 1.0, 0.0, 0.0, -s, 0.0, c, 0.0, 0.0, 0.0, 0.0, 1.0,
+        )
+    };
+    translation(xyz[0], xyz[1], xyz[2]) * rz(y) * ry * rx(r)
+}
+
+/// A Craig row `(alpha_{i-1} deg, a_{i-1} mm, d_i mm)` at joint angle `theta` (rad).
+fn craig(row: (f64, f64, f64), theta: f64) -> Matrix4<f64> {
+    let (alpha, a, d) = row;
+    rx(alpha.to_radians()) * translation(a, 0.0, 0.0) * rz(theta) * translation(0.0, 0.0, d)
+}
+
+/// The largest position (mm) and rotation-matrix element differences of our model's forward
+/// kinematics from `expected` over `samples` random joint vectors within the joint limits (and
+/// one turn).
+fn worst_difference(
+    model: &RobotModel<7>,
+    samples: usize,
+    expected: impl Fn(&[f64; 7]) -> Matrix4<f64>,
+) -> (f64, f64) {
+    let kinematics = Kinematics::nominal(&model.robot).unwrap();
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(7);
+    let (mut position, mut rotation) = (0.0f64, 0.0f64);
+    for _ in 0..samples {
+        let q: [f64; 7] = std::array::from_fn(|j| {
+            let limits = model.robot.limits[j];
+            let bound = |v: f64| v.clamp(-std::f64::consts::PI, std::f64::consts::PI);
+            rng.random_range(bound(limits.lower)..bound(limits.upper))
+        });
+        let ours = kinematics.forward(&q).unwrap().to_homogeneous();
+        let theirs = expected(&q);
+        let d = ours - theirs;
+        position = position.max(d.fixed_view::<3, 1>(0, 3).norm());
+        rotation = rotation.max(d.fixed_view::<3, 3>(0, 0).amax());
+    }
+    (position, rotation)
+}
+
+fn read7(relative: &str) -> RobotModel<7> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(relative);
+    RobotFile::read(&path).unwrap().to_model(&path).unwrap()
+}
+
+#[test]
+fn franka_panda_from_its_published_craig_table_to_1e_9_mm() {
+    let model = read7("robots/franka-panda.toml");
+    // Franka's published table (alpha_{i-1} deg, a_{i-1} mm, d_i mm) and the flange, written
+    // here again from the documentation, not from the file.
+    let rows: [(f64, f64, f64); 7] = [
+        (0.0, 0.0, 333.0),
+        (-90.0, 0.0, 0.0),
+        (90.0, 0.0, 316.0),
+        (90.0, 82.5, 0.0),
+        (-90.0, -82.5, 384.0),
+        (90.0, 0.0, 0.0),
+        (90.0, 88.0, 0.0),
+    ];
+    let (position, rotation) = worst_difference(&model, 2000, |q| {
+        let chain = rows
+            .iter()
+            .zip(q)
+            .fold(Matrix4::<f64>::identity(), |t, (row, qi)| {
+                t * craig(*row, *qi)
+            });
+        chain * craig((0.0, 0.0, 107.0), 0.0)
+    });
+    println!("Panda: worst position difference {position:e} mm, rotation element {rotation:e}");
+    assert!(position <= 1e-9, "{position:e} mm");
+    assert!(rotation <= 1e-12, "{rotation:e}");
+    // The published zero posture: flange at x = 88 mm, z = 333 + 316 + 384 - 107 = 926 mm.
+    let zero = Kinematics::nominal(&model.robot)
+        .unwrap()
+        .forward(&[0.0; 7])
+        .unwrap();
+    let p = zero.translation.vector;
+    assert!((p - Vector3::new(88.0, 0.0, 926.0)).norm() < 1e-9, "{p}");
+}
+
+#[test]
+fn craig_first_row_and_flange_go_into_the_base_and_tool_frames_exactly() {
+    // Every part the conversion moves is non-zero: alpha_0 and a_0, the flange's twist, length,
+    // offset and angle, and the file's own base and tool frames.
+    let text = r#"
+name = "Craig test arm"
+[base]
+xyz_mm = [10.0, -20.0, 30.0]
+rpy_deg = [5.0, -10.0, 15.0]
+[tool]
+xyz_mm = [1.0, 2.0, 150.0]
+rpy_deg = [0.0, 20.0, -30.0]
+[[craig_joint]]
+alpha_prev_deg = 30.0
+a_prev_mm = 50.0
+d_mm = 300.0
+theta_offset_deg = 10.0
+[[craig_joint]]
+alpha_prev_deg = -90.0
+a_prev_mm = 20.0
+d_mm = 5.0
+theta_offset_deg = -5.0
+[[craig_joint]]
+alpha_prev_deg = 0.0
+a_prev_mm = 400.0
+d_mm = 0.0
+theta_offset_deg = 0.0
+[[craig_joint]]
+alpha_prev_deg = 90.0
+a_prev_mm = 35.0
+d_mm = 420.0
+theta_offset_deg = 90.0
+[[craig_joint]]
+alpha_prev_deg = -90.0
+a_prev_mm = 0.0
+d_mm = 0.0
+theta_offset_deg = 0.0
+[[craig_joint]]
+alpha_prev_deg = 90.0
+a_prev_mm = 0.0
+d_mm = 80.0
+theta_offset_deg = 0.0
+[[craig_joint]]
+alpha_prev_deg = -90.0
+a_prev_mm = 12.0
+d_mm = 0.0
+theta_offset_deg = 0.0
+[craig_flange]
+alpha_prev_deg = 45.0
+a_prev_mm = 7.0
+d_mm = 60.0
+theta_deg = 25.0
+"#;
+    let path = Path::new("craig-test.toml");
+    let file = RobotFile::parse(text, path).unwrap();
+    assert!(file.craig_joint.is_empty() && file.craig_flange.is_none());
+    let model: RobotModel<7> = file.to_model(path).unwrap();
+    let rows: [(f64, f64, f64, f64); 7] = [
+        (30.0, 50.0, 300.0, 10.0),
+        (-90.0, 20.0, 5.0, -5.0),
+        (0.0, 400.0, 0.0, 0.0),
+        (90.0, 35.0, 420.0, 90.0),
+        (-90.0, 0.0, 0.0, 0.0),
+        (90.0, 0.0, 80.0, 0.0),
+        (-90.0, 12.0, 0.0, 0.0),
+    ];
+    let (position, rotation) = worst_difference(&model, 500, |q| {
+        let chain = rows
+            .iter()
+            .zip(q)
+            .fold(Matrix4::<f64>::identity(), |t, ((al, a, d, off), qi)| {
+                t * craig((*al, *a, *d), qi + off.to_radians())
+            });
+        frame([10.0, -20.0, 30.0], [5.0, -10.0, 15.0])
+            * chain
+            * craig((45.0, 7.0, 60.0), 25f64.to_radians())
+            * frame([1.0, 2.0, 150.0], [0.0, 20.0, -30.0])
+    });
+    println!("test arm: worst position difference {position:e} mm, rotation element {rotation:e}");
+    assert!(position <= 1e-9, "{position:e} mm");
+    assert!(rotation <= 1e-12, "{rotation:e}");
+}
+
+#[test]
+fn seven_joint_robots_stand_straight_at_zero() {
+    // KUKA LBR iiwa 14: all axes on one line at zero, flange 360 + 420 + 400 + 126 mm up.
+    let iiwa = read7("robots/kuka-iiwa14.toml");
+    let p = Kinematics::nominal(&iiwa.robot)
+        .unwrap()
+        .forward(&[0.0; 7])
+        .unwrap()
+        .translation
+        .vector;
+    assert!((p - Vector3::new(0.0, 0.0, 1306.0)).norm() < 1e-9, "{p}");
+    // Barrett WAM: the elbow's +-45 mm offsets cancel at zero, tool plate 550 + 300 + 60 mm up.
+    let wam = read7("robots/barrett-wam.toml");
+    let p = Kinematics::nominal(&wam.robot)
+        .unwrap()
+        .forward(&[0.0; 7])
+        .unwrap()
+        .translation
+        .vector;
+    assert!((p - Vector3::new(0.0, 0.0, 910.0)).norm() < 1e-9, "{p}");
+}
+
+#[test]
+fn a_file_mixing_conventions_is_refused_with_the_fix() {
+    let both = "name = \"x\"\n[[joint]]\na_mm = 0.0\nalpha_deg = 0.0\ntheta_offset_deg = 0.0\n\
+                d_mm = 0.0\n[[craig_joint]]\nalpha_prev_deg = 0.0\na_prev_mm = 0.0\nd_mm = 0.0\n\
+                theta_offset_deg = 0.0\n";
+    let e = RobotFile::parse(both, Path::new("both.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("both [[joint]] and [[craig_joint]]"), "{e}");
+    let flange = "name = \"x\"\n[[joint]]\na_mm = 0.0\nalpha_deg = 0.0\ntheta_offset_deg = 0.0\n\
+                  d_mm = 0.0\n[craig_flange]\nalpha_prev_deg = 0.0\na_prev_mm = 0.0\nd_mm = 9.0\n";
+    let e = RobotFile::parse(flange, Path::new("flange.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("[craig_flange] without [[craig_joint]]"), "{e}");
+    let none = "name = \"x\"\n";
+    let e = RobotFile::parse(none, Path::new("none.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("has no joints"), "{e}");
+}
