@@ -12,7 +12,6 @@ pub mod cli;
 pub mod columns;
 pub mod compensate;
 pub mod compliance;
-pub mod craig;
 pub mod dataset;
 pub mod dispatch;
 pub mod evaluation;

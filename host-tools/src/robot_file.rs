@@ -19,7 +19,7 @@
 //! A robot published in Craig's modified DH convention is written as it is published, with
 //! `[[craig_joint]]` tables (`alpha_prev_deg`, `a_prev_mm`, `d_mm`, `theta_offset_deg`, and the
 //! optional `limits_deg` and `identify`) and an optional `[craig_flange]` row instead of
-//! `[[joint]]`; reading converts it exactly into our joints and frames ([`crate::craig`]), and
+//! `[[joint]]`; reading converts it exactly into our joints and frames ([`craig`]), and
 //! files written back (identified robots) are in our convention.
 
 use calib_core::{
@@ -28,6 +28,8 @@ use calib_core::{
 };
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+
+pub mod craig;
 
 /// The nominal Efort ER10L-C10 of the paper (Table 1), as the robot file `robots/er10l-c10.toml`.
 pub const ER10L_C10_TOML: &str = include_str!("../robots/er10l-c10.toml");
@@ -131,10 +133,10 @@ pub struct RobotFile {
     /// Joints in Craig's modified DH convention, as published; [`RobotFile::parse`] converts
     /// them into `joint`, `base` and `tool` and leaves this empty.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub craig_joint: Vec<crate::craig::CraigJointEntry>,
+    pub craig_joint: Vec<craig::CraigJointEntry>,
     /// The fixed row after the last Craig joint (a flange), converted with `craig_joint`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub craig_flange: Option<crate::craig::CraigFlangeEntry>,
+    pub craig_flange: Option<craig::CraigFlangeEntry>,
     /// Base frame (default identity).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base: Option<FrameEntry>,
@@ -234,7 +236,7 @@ impl RobotFile {
                      convention (standard DH in [[joint]], Craig's modified DH in [[craig_joint]])",
                 ));
             }
-            let (joints, base, tool) = crate::craig::to_standard(
+            let (joints, base, tool) = craig::to_standard(
                 &file.craig_joint,
                 file.craig_flange.as_ref(),
                 file.base.as_ref(),

@@ -18,7 +18,7 @@
 //! `theta_F, d_F` (before the file's own `[tool]`). Every step is exact: the converted model
 //! reproduces the published forward kinematics to rounding (test: `tests/craig.rs`, Franka Panda).
 
-use crate::robot_file::{FrameEntry, JointEntry};
+use super::{FrameEntry, JointEntry};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
