@@ -1,6 +1,8 @@
 //! Compensation of target poses with an identified robot, off line: for each target, the joints
-//! that put the actual (identified) robot on it, started from the controller's nominal joints
-//! (given, or the closed-form nominal inverse kinematics on a branch).
+//! that put the actual (identified) robot on it, started from the controller's nominal joints:
+//! given, or the nominal inverse kinematics, in closed form on a branch where the structure allows
+//! (spherical wrist, UR-type offset wrist), numerical otherwise
+//! ([`calib_core::controller::numerical_ik`], from the middle of the joint limits).
 
 use crate::JOINTS;
 use crate::tracker_data::TrackerData;
@@ -9,7 +11,8 @@ use calib_core::controller::compensate::{
     ActualRobot, Compensated, CompensationError, CompensationSettings, compensate_joints_from,
     solve_joints,
 };
-use calib_core::kinematics::ik::inverse_kinematics;
+use calib_core::controller::numerical_ik::{NumericalIkSettings, numerical_inverse_kinematics};
+use calib_core::kinematics::ik::{IkError, inverse_kinematics};
 use calib_core::kinematics::pose_error::PoseError;
 use calib_core::{Kinematics, Robot};
 
@@ -22,6 +25,9 @@ use nalgebra::{Rotation3, Translation3};
 pub struct TargetOutcome {
     /// The target's id.
     pub id: String,
+    /// Where the start joints came from: `given`, `closed form, branch B` or `numerical, seed S`
+    /// (empty when none was found).
+    pub start: String,
     /// The compensated joints (rad) and predicted residuals, or why the target was refused.
     pub result: Result<Compensated<f64, JOINTS>, String>,
 }
@@ -80,32 +86,64 @@ pub fn compensate_targets_of(
                 Translation3::from(nalgebra::Vector3::from(record.position)),
                 Rotation3::from_matrix_unchecked(rotation),
             );
-            let start = if targets.joints == JOINTS {
-                Ok(std::array::from_fn(|i| {
-                    record.q.get(i).copied().unwrap_or(0.0)
-                }))
-            } else {
-                // The controller's plan: closed-form nominal inverse kinematics on the branch.
-                inverse_kinematics(nominal, &target)
-                    .map_err(|e| e.to_string())
-                    .and_then(|solutions| {
-                        solutions
-                            .get(branch)
-                            .copied()
-                            .flatten()
-                            .ok_or_else(|| format!("target out of reach on branch {branch}"))
-                    })
-            };
+            let (start, method) =
+                match planned_start(nominal, &planned, &target, record, targets.joints, branch) {
+                    Ok((q, method)) => (Ok(q), method),
+                    Err(e) => (Err(e), String::new()),
+                };
             let result = start.and_then(|start| {
                 compensate_target(&planned, real, &nominal.limits, &target, &start, settings)
             });
             TargetOutcome {
                 id: record.id.clone(),
+                start: method,
                 result,
             }
         })
         .collect();
     Ok(outcomes)
+}
+
+/// The controller's joints for `target` and how they were found: the record's joints when the
+/// file has them; otherwise the nominal inverse kinematics, in closed form on `branch` where the
+/// robot's structure has one, else numerical from the middle of the joint limits (each limit
+/// taken within one turn of zero).
+fn planned_start(
+    nominal: &Robot<f64, JOINTS>,
+    planned: &Kinematics<f64, JOINTS>,
+    target: &Pose,
+    record: &crate::tracker_data::Record,
+    joints_in_file: usize,
+    branch: usize,
+) -> Result<([f64; JOINTS], String), String> {
+    if joints_in_file == JOINTS {
+        let q = std::array::from_fn(|i| record.q.get(i).copied().unwrap_or(0.0));
+        return Ok((q, "given".into()));
+    }
+    match inverse_kinematics(nominal, target) {
+        Ok(solutions) => solutions
+            .get(branch)
+            .copied()
+            .flatten()
+            .map(|q| (q, format!("closed form, branch {branch}")))
+            .ok_or_else(|| format!("target out of reach on branch {branch}")),
+        Err(IkError::UnsupportedGeometry) => {
+            let pi = std::f64::consts::PI;
+            let reference = nominal
+                .limits
+                .map(|l| 0.5 * (l.lower.max(-pi) + l.upper.min(pi)));
+            numerical_inverse_kinematics(
+                planned,
+                &nominal.limits,
+                target,
+                &reference,
+                &NumericalIkSettings::default(),
+            )
+            .map(|s| (s.q, format!("numerical, seed {}", s.seed)))
+            .map_err(|e| e.to_string())
+        }
+        Err(e) => Err(e.to_string()),
+    }
 }
 
 /// Retries after the first run from the controller's joints: the iteration cap is multiplied by
@@ -215,7 +253,7 @@ pub fn to_csv(outcomes: &[TargetOutcome]) -> anyhow::Result<Vec<u8>> {
     let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header = vec!["id".to_string()];
     header.extend((1..=JOINTS).map(|i| format!("q{i}_deg")));
-    header.extend(["residual_mm", "residual_deg", "status"].map(String::from));
+    header.extend(["residual_mm", "residual_deg", "status", "start"].map(String::from));
     writer.write_record(&header)?;
     for outcome in outcomes {
         let mut row = vec![outcome.id.clone()];
@@ -227,10 +265,11 @@ pub fn to_csv(outcomes: &[TargetOutcome]) -> anyhow::Result<Vec<u8>> {
                 row.push("ok".into());
             }
             Err(e) => {
-                row.extend(std::iter::repeat_n(String::new(), 8));
+                row.extend(std::iter::repeat_n(String::new(), JOINTS + 2));
                 row.push(e.clone());
             }
         }
+        row.push(outcome.start.clone());
         writer.write_record(&row)?;
     }
     Ok(writer.into_inner()?)

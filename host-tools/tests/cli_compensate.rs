@@ -96,7 +96,8 @@ fn compensated_joints_put_the_actual_robot_on_the_targets() {
             "q6_deg",
             "residual_mm",
             "residual_deg",
-            "status"
+            "status",
+            "start"
         ]
     );
     let mut worst = (0.0f64, 0.0f64);
@@ -457,4 +458,108 @@ fn ur_targets_without_joints_are_compensated_from_the_offset_wrist_inverse_kinem
     );
     assert!(reached >= 950, "{reached} reached, {refused} refused");
     assert_eq!(reached + refused, 1000);
+}
+
+/// Targets without joints on a 6-joint robot without a closed-form inverse kinematics (the UR10
+/// with a 30 mm shoulder offset `a1`, which neither the spherical nor the offset wrist allows):
+/// the start is the numerical inverse kinematics, and each row says so. 300 random targets (the
+/// nominal forward kinematics of random joints), the actual robot the same with mm-level errors;
+/// every row either puts the actual robot (independent reference kinematics) on its target to
+/// 1e-3 mm or is refused with the reason.
+#[test]
+fn targets_without_joints_on_a_robot_without_closed_form_start_from_numerical_ik() {
+    use calib_core::Kinematics;
+    use rand::{RngExt, SeedableRng};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ur10 =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml")).unwrap();
+    // Joint 1's a_mm (the first one in the file) becomes 30 mm; the actual robot also has
+    // a2 + 0.8 mm and d4 - 0.6 mm.
+    let nominal_text = ur10.replacen("a_mm = 0.0", "a_mm = 30.0", 1);
+    let actual_text = nominal_text
+        .replacen("a_mm = -612.0", "a_mm = -611.2", 1)
+        .replacen("d_mm = 163.941", "d_mm = 163.341", 1);
+    assert_ne!(nominal_text, ur10, "the a1 edit applied");
+    assert_ne!(
+        actual_text,
+        nominal_text.replacen("a_mm = -612.0", "a_mm = -611.2", 1)
+    );
+    let nominal_path = d.join("offset-shoulder.toml");
+    let actual_path = d.join("offset-shoulder-actual.toml");
+    std::fs::write(&nominal_path, &nominal_text).unwrap();
+    std::fs::write(&actual_path, &actual_text).unwrap();
+    let nominal: RobotModel<6> = RobotFile::read(&nominal_path)
+        .unwrap()
+        .to_model(&nominal_path)
+        .unwrap();
+    let planned = Kinematics::nominal(&nominal.robot).unwrap();
+    let actual = RefModel::from_file(
+        &RobotFile::read(&actual_path).unwrap(),
+        &[],
+        &[0.0; 6],
+        &[0.0; 6],
+    );
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(16);
+    let mut text = String::from("x_mm,y_mm,z_mm,qw,qx,qy,qz\n");
+    let mut poses = Vec::new();
+    for _ in 0..300 {
+        let q: [f64; 6] = std::array::from_fn(|_| rng.random_range(-3.1..3.1));
+        let m = planned.forward(&q).unwrap().to_homogeneous();
+        let pose: [[f64; 4]; 4] = std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]));
+        text.push_str(&format!(
+            "{},{},{},{}\n",
+            pose[0][3],
+            pose[1][3],
+            pose[2][3],
+            reference::quaternion(&pose)
+                .map(|v| v.to_string())
+                .join(",")
+        ));
+        poses.push(pose);
+    }
+    let targets = d.join("targets.csv");
+    let out_path = d.join("out.csv");
+    std::fs::write(&targets, text).unwrap();
+    let result = calib(&[
+        "compensate",
+        "--robot",
+        nominal_path.to_str().unwrap(),
+        "--params",
+        actual_path.to_str().unwrap(),
+        "--targets",
+        targets.to_str().unwrap(),
+        "--out",
+        out_path.to_str().unwrap(),
+    ]);
+    assert!(
+        result.status.success(),
+        "{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    let mut reader = csv::Reader::from_path(&out_path).unwrap();
+    let (mut reached, mut refused, mut worst) = (0, 0, 0.0f64);
+    for (record, pose) in reader.records().zip(&poses) {
+        let record = record.unwrap();
+        assert!(record[10].starts_with("numerical, seed "), "{record:?}");
+        if &record[9] != "ok" {
+            refused += 1;
+            assert!(record[9].len() > 10, "{record:?}");
+            continue;
+        }
+        let joints: Vec<f64> = (1..=6)
+            .map(|j| record[j].parse::<f64>().unwrap().to_radians())
+            .collect();
+        let e = reference::pose_error(pose, &actual.forward(&joints));
+        let miss = (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt();
+        worst = worst.max(miss);
+        assert!(miss < 1e-3, "{miss} mm: {record:?}");
+        reached += 1;
+    }
+    println!(
+        "UR10 with a 30 mm shoulder offset, 300 targets without joints, numerical start: \
+         {reached} reached (worst {worst:.2e} mm), {refused} refused"
+    );
+    assert_eq!(reached + refused, 300);
+    assert!(reached >= 285, "{reached} reached, {refused} refused");
 }
