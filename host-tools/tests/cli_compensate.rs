@@ -326,6 +326,48 @@ fn targets_without_joints_start_from_the_closed_form_inverse_kinematics() {
     assert!(found, "no branch returned the planned configuration");
 }
 
+/// A targets CSV (position, unit quaternion) of homogeneous poses.
+fn targets_csv(poses: &[[[f64; 4]; 4]]) -> String {
+    let mut text = String::from("x_mm,y_mm,z_mm,qw,qx,qy,qz\n");
+    for pose in poses {
+        text.push_str(&format!(
+            "{},{},{},{}\n",
+            pose[0][3],
+            pose[1][3],
+            pose[2][3],
+            reference::quaternion(pose).map(|v| v.to_string()).join(",")
+        ));
+    }
+    text
+}
+
+/// Each row of `calib compensate`'s output `out` against its target: the position miss (mm) of
+/// `actual` (the reference kinematics) at the row's joints, or `None` for a refused row (whose
+/// reason is checked to be there), with the row's `start` column.
+fn misses(out: &Path, poses: &[[[f64; 4]; 4]], actual: &RefModel) -> Vec<(Option<f64>, String)> {
+    let mut reader = csv::Reader::from_path(out).unwrap();
+    reader
+        .records()
+        .zip(poses)
+        .map(|(record, pose)| {
+            let record = record.unwrap();
+            let start = record[10].to_string();
+            if &record[9] != "ok" {
+                assert!(record[9].len() > 10, "{record:?}");
+                return (None, start);
+            }
+            let joints: Vec<f64> = (1..=6)
+                .map(|j| record[j].parse::<f64>().unwrap().to_radians())
+                .collect();
+            let e = reference::pose_error(pose, &actual.forward(&joints));
+            (
+                Some((e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt()),
+                start,
+            )
+        })
+        .collect()
+}
+
 /// The UR family (offset wrist, issue 15): `calib compensate` without joints on 1,000 random
 /// reachable targets of the UR10 (joints uniform in +-3.1 rad), the actual robot being a real UR10
 /// factory calibration imported with `import-ur-calibration` (up to 7.9 mm from nominal). Each
@@ -377,7 +419,7 @@ fn ur_targets_without_joints_are_compensated_from_the_offset_wrist_inverse_kinem
         &[0.0; 6],
     );
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(15);
-    let mut by_branch: Vec<Vec<[f64; 4 * 4]>> = vec![Vec::new(); 8];
+    let mut by_branch: Vec<Vec<[[f64; 4]; 4]>> = vec![Vec::new(); 8];
     for _ in 0..1000 {
         let q: [f64; 6] = std::array::from_fn(|_| rng.random_range(-3.1..3.1));
         let pose = planned.forward(&q).unwrap();
@@ -388,27 +430,13 @@ fn ur_targets_without_joints_are_compensated_from_the_offset_wrist_inverse_kinem
             .position(|s| s.as_ref() == Some(&best))
             .unwrap();
         let m = pose.to_homogeneous();
-        by_branch[branch].push(std::array::from_fn(|i| m[(i / 4, i % 4)]));
+        by_branch[branch].push(std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)])));
     }
     let (mut reached, mut refused, mut worst) = (0, 0, 0.0f64);
     for (branch, poses) in by_branch.iter().enumerate().filter(|(_, p)| !p.is_empty()) {
-        let mut text = String::from("x_mm,y_mm,z_mm,qw,qx,qy,qz\n");
-        for m in poses {
-            let pose: [[f64; 4]; 4] =
-                std::array::from_fn(|r| std::array::from_fn(|c| m[r * 4 + c]));
-            text.push_str(&format!(
-                "{},{},{},{}\n",
-                m[3],
-                m[7],
-                m[11],
-                reference::quaternion(&pose)
-                    .map(|v| v.to_string())
-                    .join(",")
-            ));
-        }
         let targets = d.join(format!("t{branch}.csv"));
         let out_path = d.join(format!("o{branch}.csv"));
-        std::fs::write(&targets, text).unwrap();
+        std::fs::write(&targets, targets_csv(poses)).unwrap();
         let b = branch.to_string();
         let result = calib(&[
             "compensate",
@@ -432,24 +460,15 @@ fn ur_targets_without_joints_are_compensated_from_the_offset_wrist_inverse_kinem
             "{}",
             String::from_utf8_lossy(&result.stderr)
         );
-        let mut reader = csv::Reader::from_path(&out_path).unwrap();
-        for (record, m) in reader.records().zip(poses) {
-            let record = record.unwrap();
-            if &record[9] != "ok" {
-                refused += 1;
-                assert!(record[9].len() > 10, "{record:?}");
-                continue;
-            }
-            let joints: Vec<f64> = (1..=6)
-                .map(|j| record[j].parse::<f64>().unwrap().to_radians())
-                .collect();
-            let pose: [[f64; 4]; 4] =
-                std::array::from_fn(|r| std::array::from_fn(|c| m[r * 4 + c]));
-            let e = reference::pose_error(&pose, &actual.forward(&joints));
-            let miss = (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt();
-            worst = worst.max(miss);
-            if miss < 1e-3 {
-                reached += 1;
+        for (miss, _) in misses(&out_path, poses, &actual) {
+            match miss {
+                None => refused += 1,
+                Some(miss) => {
+                    worst = worst.max(miss);
+                    if miss < 1e-3 {
+                        reached += 1;
+                    }
+                }
             }
         }
     }
@@ -501,26 +520,16 @@ fn targets_without_joints_on_a_robot_without_closed_form_start_from_numerical_ik
         &[0.0; 6],
     );
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(16);
-    let mut text = String::from("x_mm,y_mm,z_mm,qw,qx,qy,qz\n");
-    let mut poses = Vec::new();
-    for _ in 0..300 {
-        let q: [f64; 6] = std::array::from_fn(|_| rng.random_range(-3.1..3.1));
-        let m = planned.forward(&q).unwrap().to_homogeneous();
-        let pose: [[f64; 4]; 4] = std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]));
-        text.push_str(&format!(
-            "{},{},{},{}\n",
-            pose[0][3],
-            pose[1][3],
-            pose[2][3],
-            reference::quaternion(&pose)
-                .map(|v| v.to_string())
-                .join(",")
-        ));
-        poses.push(pose);
-    }
+    let poses: Vec<[[f64; 4]; 4]> = (0..300)
+        .map(|_| {
+            let q: [f64; 6] = std::array::from_fn(|_| rng.random_range(-3.1..3.1));
+            let m = planned.forward(&q).unwrap().to_homogeneous();
+            std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
+        })
+        .collect();
     let targets = d.join("targets.csv");
     let out_path = d.join("out.csv");
-    std::fs::write(&targets, text).unwrap();
+    std::fs::write(&targets, targets_csv(&poses)).unwrap();
     let result = calib(&[
         "compensate",
         "--robot",
@@ -537,24 +546,17 @@ fn targets_without_joints_on_a_robot_without_closed_form_start_from_numerical_ik
         "{}",
         String::from_utf8_lossy(&result.stderr)
     );
-    let mut reader = csv::Reader::from_path(&out_path).unwrap();
     let (mut reached, mut refused, mut worst) = (0, 0, 0.0f64);
-    for (record, pose) in reader.records().zip(&poses) {
-        let record = record.unwrap();
-        assert!(record[10].starts_with("numerical, seed "), "{record:?}");
-        if &record[9] != "ok" {
-            refused += 1;
-            assert!(record[9].len() > 10, "{record:?}");
-            continue;
+    for (miss, start) in misses(&out_path, &poses, &actual) {
+        assert!(start.starts_with("numerical, seed "), "{start}");
+        match miss {
+            None => refused += 1,
+            Some(miss) => {
+                worst = worst.max(miss);
+                assert!(miss < 1e-3, "{miss} mm");
+                reached += 1;
+            }
         }
-        let joints: Vec<f64> = (1..=6)
-            .map(|j| record[j].parse::<f64>().unwrap().to_radians())
-            .collect();
-        let e = reference::pose_error(pose, &actual.forward(&joints));
-        let miss = (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt();
-        worst = worst.max(miss);
-        assert!(miss < 1e-3, "{miss} mm: {record:?}");
-        reached += 1;
     }
     println!(
         "UR10 with a 30 mm shoulder offset, 300 targets without joints, numerical start: \
