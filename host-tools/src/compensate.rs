@@ -4,7 +4,6 @@
 //! (spherical wrist, UR-type offset wrist), numerical otherwise
 //! ([`calib_core::controller::numerical_ik`], from the middle of the joint limits).
 
-use crate::JOINTS;
 use crate::tracker_data::TrackerData;
 use anyhow::Context;
 use calib_core::controller::compensate::{
@@ -20,16 +19,16 @@ use calib_core::{Kinematics, Robot};
 type Pose = calib_core::Pose<f64>;
 use nalgebra::{Rotation3, Translation3};
 
-/// The outcome for one target.
+/// The outcome for one target of an `N`-joint robot.
 #[derive(Clone, Debug, PartialEq)]
-pub struct TargetOutcome {
+pub struct TargetOutcome<const N: usize> {
     /// The target's id.
     pub id: String,
     /// Where the start joints came from: `given`, `closed form, branch B` or `numerical, seed S`
     /// (empty when none was found).
     pub start: String,
     /// The compensated joints (rad) and predicted residuals, or why the target was refused.
-    pub result: Result<Compensated<f64, JOINTS>, String>,
+    pub result: Result<Compensated<f64, N>, String>,
 }
 
 /// Counts of a compensation run.
@@ -43,7 +42,7 @@ pub struct Summary {
 
 impl Summary {
     /// The counts of `outcomes`.
-    pub fn of(outcomes: &[TargetOutcome]) -> Self {
+    pub fn of<const N: usize>(outcomes: &[TargetOutcome<N>]) -> Self {
         let ok = outcomes.iter().filter(|o| o.result.is_ok()).count();
         Self {
             ok,
@@ -53,29 +52,29 @@ impl Summary {
 }
 
 /// Compensates every target of `targets` (base frame, with orientation; joints, when the file
-/// has `q1_deg..q6_deg`, are the start): `nominal` is the model the controller plans with,
-/// `actual` the identified robot. `branch` (0-7) picks the inverse kinematics solution for
-/// targets without joints. One outcome per target, in file order.
-pub fn compensate_targets(
-    nominal: &Robot<f64, JOINTS>,
-    actual: &Robot<f64, JOINTS>,
+/// has `q1_deg..qN_deg`, are the start): `nominal` is the model the controller plans with,
+/// `actual` the identified robot. `branch` (0-7) picks the closed-form inverse kinematics
+/// solution for targets without joints. One outcome per target, in file order.
+pub fn compensate_targets<const N: usize>(
+    nominal: &Robot<f64, N>,
+    actual: &Robot<f64, N>,
     targets: &TrackerData,
     settings: &CompensationSettings<f64>,
     branch: usize,
-) -> anyhow::Result<Vec<TargetOutcome>> {
+) -> anyhow::Result<Vec<TargetOutcome<N>>> {
     let real = Kinematics::nominal(actual).context("identified robot")?;
     compensate_targets_of(nominal, &real, targets, settings, branch)
 }
 
 /// [`compensate_targets`] for any actual robot: the geometry alone ([`Kinematics`]) or with
 /// angle-error maps ([`calib_core::kinematics::MappedKinematics`]).
-pub fn compensate_targets_of(
-    nominal: &Robot<f64, JOINTS>,
-    real: &impl ActualRobot<f64, JOINTS>,
+pub fn compensate_targets_of<const N: usize>(
+    nominal: &Robot<f64, N>,
+    real: &impl ActualRobot<f64, N>,
     targets: &TrackerData,
     settings: &CompensationSettings<f64>,
     branch: usize,
-) -> anyhow::Result<Vec<TargetOutcome>> {
+) -> anyhow::Result<Vec<TargetOutcome<N>>> {
     let planned = Kinematics::nominal(nominal).context("nominal robot")?;
     let outcomes = targets
         .records
@@ -106,43 +105,65 @@ pub fn compensate_targets_of(
 
 /// The controller's joints for `target` and how they were found: the record's joints when the
 /// file has them; otherwise the nominal inverse kinematics, in closed form on `branch` where the
-/// robot's structure has one, else numerical from the middle of the joint limits (each limit
-/// taken within one turn of zero).
-fn planned_start(
-    nominal: &Robot<f64, JOINTS>,
-    planned: &Kinematics<f64, JOINTS>,
+/// robot's structure has one (6 joints: spherical or UR-type offset wrist), else numerical from
+/// the middle of the joint limits (each limit taken within one turn of zero).
+fn planned_start<const N: usize>(
+    nominal: &Robot<f64, N>,
+    planned: &Kinematics<f64, N>,
     target: &Pose,
     record: &crate::tracker_data::Record,
     joints_in_file: usize,
     branch: usize,
-) -> Result<([f64; JOINTS], String), String> {
-    if joints_in_file == JOINTS {
+) -> Result<([f64; N], String), String> {
+    if joints_in_file == N {
         let q = std::array::from_fn(|i| record.q.get(i).copied().unwrap_or(0.0));
         return Ok((q, "given".into()));
     }
-    match inverse_kinematics(nominal, target) {
-        Ok(solutions) => solutions
-            .get(branch)
-            .copied()
-            .flatten()
-            .map(|q| (q, format!("closed form, branch {branch}")))
-            .ok_or_else(|| format!("target out of reach on branch {branch}")),
-        Err(IkError::UnsupportedGeometry) => {
-            let pi = std::f64::consts::PI;
-            let reference = nominal
-                .limits
-                .map(|l| 0.5 * (l.lower.max(-pi) + l.upper.min(pi)));
-            numerical_inverse_kinematics(
-                planned,
-                &nominal.limits,
-                target,
-                &reference,
-                &NumericalIkSettings::default(),
-            )
-            .map(|s| (s.q, format!("numerical, seed {}", s.seed)))
-            .map_err(|e| e.to_string())
-        }
-        Err(e) => Err(e.to_string()),
+    match closed_form(nominal, target, branch) {
+        Some(Ok(q)) => return Ok((q, format!("closed form, branch {branch}"))),
+        Some(Err(e)) => return Err(e),
+        None => {}
+    }
+    let pi = std::f64::consts::PI;
+    let reference = nominal
+        .limits
+        .map(|l| 0.5 * (l.lower.max(-pi) + l.upper.min(pi)));
+    numerical_inverse_kinematics(
+        planned,
+        &nominal.limits,
+        target,
+        &reference,
+        &NumericalIkSettings::default(),
+    )
+    .map(|s| (s.q, format!("numerical, seed {}", s.seed)))
+    .map_err(|e| e.to_string())
+}
+
+/// The closed-form inverse kinematics on `branch` when the robot has one (`None`: no closed
+/// form for this structure or joint count).
+fn closed_form<const N: usize>(
+    nominal: &Robot<f64, N>,
+    target: &Pose,
+    branch: usize,
+) -> Option<Result<[f64; N], String>> {
+    // Only 6-joint robots have one: the same robot as a Robot<f64, 6>.
+    let six = Robot::<f64, 6> {
+        joints: nominal.joints.as_slice().try_into().ok()?,
+        limits: nominal.limits.as_slice().try_into().ok()?,
+        base: nominal.base,
+        tool: nominal.tool,
+    };
+    match inverse_kinematics(&six, target) {
+        Ok(solutions) => Some(
+            solutions
+                .get(branch)
+                .copied()
+                .flatten()
+                .and_then(|q| q.as_slice().try_into().ok())
+                .ok_or_else(|| format!("target out of reach on branch {branch}")),
+        ),
+        Err(IkError::UnsupportedGeometry) => None,
+        Err(e) => Some(Err(e.to_string())),
     }
 }
 
@@ -161,14 +182,14 @@ pub const RETRY_SPREAD_RAD: f64 = 0.02;
 /// from [`RETRIES`] points near `start` (the bounds always apply to the change from `start`).
 /// A refusal says why; for a correction beyond the bounds, how large it is and which flag raises
 /// the bound.
-pub fn compensate_target(
-    planned: &Kinematics<f64, JOINTS>,
-    real: &impl ActualRobot<f64, JOINTS>,
-    limits: &[calib_core::JointLimits<f64>; JOINTS],
+pub fn compensate_target<const N: usize>(
+    planned: &Kinematics<f64, N>,
+    real: &impl ActualRobot<f64, N>,
+    limits: &[calib_core::JointLimits<f64>; N],
     target: &Pose,
-    start: &[f64; JOINTS],
+    start: &[f64; N],
     settings: &CompensationSettings<f64>,
-) -> Result<Compensated<f64, JOINTS>, String> {
+) -> Result<Compensated<f64, N>, String> {
     let first = match compensate_joints_from(planned, real, limits, target, start, start, settings)
     {
         Ok(c) => return Ok(c),
@@ -188,7 +209,7 @@ pub fn compensate_target(
     };
     for retry in 0..=RETRIES {
         // Retry 0: the start itself with the longer cap; then fixed spread directions.
-        let initial: [f64; JOINTS] = std::array::from_fn(|j| {
+        let initial: [f64; N] = std::array::from_fn(|j| {
             let direction = ((retry * 7 + j * 3) % 5) as f64 / 2.0 - 1.0;
             start[j] + RETRY_SPREAD_RAD * direction * retry as f64 / RETRIES as f64
         });
@@ -208,11 +229,11 @@ pub fn compensate_target(
 
 /// The refusal of a correction beyond the bounds: the correction the actual robot needs, the
 /// bounds, and the flags that raise them.
-fn needed_correction(
-    planned: &Kinematics<f64, JOINTS>,
-    real: &impl ActualRobot<f64, JOINTS>,
+fn needed_correction<const N: usize>(
+    planned: &Kinematics<f64, N>,
+    real: &impl ActualRobot<f64, N>,
     target: &Pose,
-    start: &[f64; JOINTS],
+    start: &[f64; N],
     longer: &CompensationSettings<f64>,
     settings: &CompensationSettings<f64>,
 ) -> String {
@@ -247,12 +268,12 @@ fn needed_correction(
     )
 }
 
-/// The outcomes as CSV: `id, q1_deg..q6_deg, residual_mm, residual_deg, status` (`ok` or the
-/// error; a refused target leaves the other columns empty).
-pub fn to_csv(outcomes: &[TargetOutcome]) -> anyhow::Result<Vec<u8>> {
+/// The outcomes as CSV: `id, q1_deg..qN_deg, residual_mm, residual_deg, status, start` (`ok` or
+/// the error; a refused target leaves the joints and residuals empty).
+pub fn to_csv<const N: usize>(outcomes: &[TargetOutcome<N>]) -> anyhow::Result<Vec<u8>> {
     let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header = vec!["id".to_string()];
-    header.extend((1..=JOINTS).map(|i| format!("q{i}_deg")));
+    header.extend((1..=N).map(|i| format!("q{i}_deg")));
     header.extend(["residual_mm", "residual_deg", "status", "start"].map(String::from));
     writer.write_record(&header)?;
     for outcome in outcomes {
@@ -265,7 +286,7 @@ pub fn to_csv(outcomes: &[TargetOutcome]) -> anyhow::Result<Vec<u8>> {
                 row.push("ok".into());
             }
             Err(e) => {
-                row.extend(std::iter::repeat_n(String::new(), JOINTS + 2));
+                row.extend(std::iter::repeat_n(String::new(), N + 2));
                 row.push(e.clone());
             }
         }

@@ -343,20 +343,26 @@ fn targets_csv(poses: &[[[f64; 4]; 4]]) -> String {
 
 /// Each row of `calib compensate`'s output `out` against its target: the position miss (mm) of
 /// `actual` (the reference kinematics) at the row's joints, or `None` for a refused row (whose
-/// reason is checked to be there), with the row's `start` column.
-fn misses(out: &Path, poses: &[[[f64; 4]; 4]], actual: &RefModel) -> Vec<(Option<f64>, String)> {
+/// reason is checked to be there), with the row's `start` column; `joints` is the robot's joint
+/// count.
+fn misses(
+    out: &Path,
+    poses: &[[[f64; 4]; 4]],
+    actual: &RefModel,
+    joints: usize,
+) -> Vec<(Option<f64>, String)> {
     let mut reader = csv::Reader::from_path(out).unwrap();
     reader
         .records()
         .zip(poses)
         .map(|(record, pose)| {
             let record = record.unwrap();
-            let start = record[10].to_string();
-            if &record[9] != "ok" {
-                assert!(record[9].len() > 10, "{record:?}");
+            let (status, start) = (&record[joints + 3], record[joints + 4].to_string());
+            if status != "ok" {
+                assert!(status.len() > 10, "{record:?}");
                 return (None, start);
             }
-            let joints: Vec<f64> = (1..=6)
+            let joints: Vec<f64> = (1..=joints)
                 .map(|j| record[j].parse::<f64>().unwrap().to_radians())
                 .collect();
             let e = reference::pose_error(pose, &actual.forward(&joints));
@@ -460,7 +466,7 @@ fn ur_targets_without_joints_are_compensated_from_the_offset_wrist_inverse_kinem
             "{}",
             String::from_utf8_lossy(&result.stderr)
         );
-        for (miss, _) in misses(&out_path, poses, &actual) {
+        for (miss, _) in misses(&out_path, poses, &actual, 6) {
             match miss {
                 None => refused += 1,
                 Some(miss) => {
@@ -547,7 +553,7 @@ fn targets_without_joints_on_a_robot_without_closed_form_start_from_numerical_ik
         String::from_utf8_lossy(&result.stderr)
     );
     let (mut reached, mut refused, mut worst) = (0, 0, 0.0f64);
-    for (miss, start) in misses(&out_path, &poses, &actual) {
+    for (miss, start) in misses(&out_path, &poses, &actual, 6) {
         assert!(start.starts_with("numerical, seed "), "{start}");
         match miss {
             None => refused += 1,
@@ -564,4 +570,110 @@ fn targets_without_joints_on_a_robot_without_closed_form_start_from_numerical_ik
     );
     assert_eq!(reached + refused, 300);
     assert!(reached >= 285, "{reached} reached, {refused} refused");
+}
+
+/// A 7-joint arm through `calib compensate`: the Franka Panda (read from its Craig-convention
+/// file), an actual Panda with mm-level errors, 200 random targets without joints (the nominal
+/// forward kinematics of random joints within the limits). Every row starts from the numerical
+/// inverse kinematics and either puts the actual robot (independent reference kinematics) on its
+/// target to 1e-3 mm or is refused with the reason; with joints given, the row says so.
+#[test]
+fn a_seven_joint_arm_is_compensated_from_numerical_inverse_kinematics() {
+    use calib_core::Kinematics;
+    use rand::{RngExt, SeedableRng};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let panda = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/franka-panda.toml");
+    let text = std::fs::read_to_string(panda).unwrap();
+    let actual_text = text
+        .replacen("d_mm = 333.0", "d_mm = 333.9", 1)
+        .replacen("a_prev_mm = 82.5", "a_prev_mm = 83.2", 1)
+        .replacen("d_mm = 384.0", "d_mm = 383.4", 1);
+    assert_ne!(actual_text, text);
+    let actual_path = d.join("panda-actual.toml");
+    std::fs::write(&actual_path, &actual_text).unwrap();
+    let nominal: RobotModel<7> = RobotFile::read(Path::new(panda))
+        .unwrap()
+        .to_model(Path::new(panda))
+        .unwrap();
+    let planned = Kinematics::nominal(&nominal.robot).unwrap();
+    let actual = RefModel::from_file(
+        &RobotFile::read(&actual_path).unwrap(),
+        &[],
+        &[0.0; 6],
+        &[0.0; 6],
+    );
+    let limits = nominal.robot.limits;
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(17);
+    let joints: Vec<[f64; 7]> = (0..200)
+        .map(|_| std::array::from_fn(|j| rng.random_range(limits[j].lower..limits[j].upper)))
+        .collect();
+    let poses: Vec<[[f64; 4]; 4]> = joints
+        .iter()
+        .map(|q| {
+            let m = planned.forward(q).unwrap().to_homogeneous();
+            std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
+        })
+        .collect();
+    let targets = d.join("targets.csv");
+    let out_path = d.join("out.csv");
+    std::fs::write(&targets, targets_csv(&poses)).unwrap();
+    let run = |targets: &Path| {
+        let result = calib(&[
+            "compensate",
+            "--robot",
+            panda,
+            "--params",
+            actual_path.to_str().unwrap(),
+            "--targets",
+            targets.to_str().unwrap(),
+            "--out",
+            out_path.to_str().unwrap(),
+        ]);
+        assert!(
+            result.status.success(),
+            "{}",
+            String::from_utf8_lossy(&result.stderr)
+        );
+    };
+    run(&targets);
+    let (mut reached, mut refused, mut worst) = (0, 0, 0.0f64);
+    for (miss, start) in misses(&out_path, &poses, &actual, 7) {
+        assert!(start.starts_with("numerical, seed "), "{start}");
+        match miss {
+            None => refused += 1,
+            Some(miss) => {
+                worst = worst.max(miss);
+                assert!(miss < 1e-3, "{miss} mm");
+                reached += 1;
+            }
+        }
+    }
+    println!(
+        "Franka Panda, 200 targets without joints, numerical start: {reached} reached \
+         (worst {worst:.2e} mm), {refused} refused"
+    );
+    assert_eq!(reached + refused, 200);
+    assert!(reached >= 190, "{reached} reached, {refused} refused");
+    // The same targets with the joints that produced them as the start.
+    let mut with_joints = String::from("x_mm,y_mm,z_mm,qw,qx,qy,qz");
+    for j in 1..=7 {
+        with_joints.push_str(&format!(",q{j}_deg"));
+    }
+    with_joints.push('\n');
+    for (line, q) in targets_csv(&poses).lines().skip(1).zip(&joints) {
+        let q: Vec<String> = q.iter().map(|v| v.to_degrees().to_string()).collect();
+        with_joints.push_str(&format!("{line},{}\n", q.join(",")));
+    }
+    let targets_joints = d.join("targets-joints.csv");
+    std::fs::write(&targets_joints, with_joints).unwrap();
+    run(&targets_joints);
+    let rows = misses(&out_path, &poses, &actual, 7);
+    assert!(rows.iter().all(|(_, start)| start == "given"));
+    let given = rows
+        .iter()
+        .filter(|(m, _)| m.is_some_and(|m| m < 1e-3))
+        .count();
+    println!("Franka Panda, the same targets with their joints: {given} reached");
+    assert!(given >= 190, "{given}");
 }

@@ -5,6 +5,7 @@ use crate::JOINTS;
 use crate::compensate::{Summary, compensate_targets, compensate_targets_of, to_csv};
 use crate::export::controller_model;
 use crate::files::Outputs;
+use crate::robot_file::RobotFile;
 use crate::robot_file::RobotModel;
 use crate::tracker_data::TrackerData;
 use anyhow::bail;
@@ -23,8 +24,9 @@ pub struct CompensateOptions {
     #[arg(long, value_name = "FILE")]
     pub params: PathBuf,
     /// Target poses in the base frame (CSV: x_mm, y_mm, z_mm and an orientation; optional
-    /// q1_deg..q6_deg as the start, i.e. the controller's nominal joints for the target; without
-    /// them the closed-form nominal inverse kinematics on --branch is the start).
+    /// q1_deg..qN_deg as the start, i.e. the controller's nominal joints for the target; without
+    /// them the nominal inverse kinematics is the start: closed form on --branch for a spherical
+    /// or UR-type wrist, numerical otherwise, e.g. for 7-joint arms).
     #[arg(long, value_name = "FILE")]
     pub targets: PathBuf,
     /// Output CSV: one row per target, in input order.
@@ -46,17 +48,23 @@ pub struct CompensateOptions {
     pub branch: usize,
 }
 
-/// Runs `calib compensate`.
+/// Runs `calib compensate` for the robot file's joint count (2 to 9 joints; joint maps and
+/// gravity compliance for 6-joint robots).
 pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
-    crate::robot_file::RobotFile::read(&options.robot)?.refuse_joint_maps(
+    let file = RobotFile::read(&options.robot)?;
+    file.refuse_joint_maps(
         &options.robot,
         "calib compensate's --robot (the nominal model the controller plans with)",
     )?;
-    let params = crate::robot_file::RobotFile::read(&options.params)?;
+    crate::with_joint_count!(file.joint.len(), compensate_n(options))
+}
+
+fn compensate_n<const N: usize>(options: &CompensateOptions) -> anyhow::Result<Summary> {
+    let params = RobotFile::read(&options.params)?;
     let maps = params.joint_maps(&options.params)?;
     let compliance = params.gravity_compliance(&options.params)?;
-    let nominal: RobotModel<JOINTS> = RobotModel::load(&options.robot)?;
-    let actual: RobotModel<JOINTS> = RobotModel::load(&options.params)?;
+    let nominal: RobotModel<N> = RobotModel::load(&options.robot)?;
+    let actual: RobotModel<N> = RobotModel::load(&options.params)?;
     let targets = TrackerData::read_targets(&options.targets)?;
     if targets.rows_without_orientation() {
         bail!(
@@ -64,9 +72,9 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
             options.targets.display()
         );
     }
-    if targets.joints != 0 && targets.joints != JOINTS {
+    if targets.joints != 0 && targets.joints != N {
         bail!(
-            "{}: has {} joint columns; give all of q1_deg..q6_deg as start values, or none",
+            "{}: has {} joint columns; give all of q1_deg..q{N}_deg as start values, or none",
             options.targets.display(),
             targets.joints
         );
@@ -101,17 +109,40 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
             options.branch,
         )?
     } else {
-        // The controller's model: geometry, maps (zero without) and compliance (none without).
-        let model = controller_model(actual.robot, maps.as_ref(), compliance.as_ref())?;
+        // The controller's model: geometry, maps (zero without) and compliance (none without),
+        // for the 6-joint robots they are identified for.
+        let six = |m: &RobotModel<N>| {
+            (m as &dyn std::any::Any)
+                .downcast_ref::<RobotModel<JOINTS>>()
+                .cloned()
+        };
+        let (Some(nominal6), Some(actual6)) = (six(&nominal), six(&actual)) else {
+            bail!(
+                "{}: joint maps and gravity compliance are supported for {JOINTS}-joint robots; \
+                 this one has {N}",
+                options.params.display()
+            );
+        };
+        let model = controller_model(actual6.robot, maps.as_ref(), compliance.as_ref())?;
         let real = model.kinematics()?;
-        compensate_targets_of(&nominal.robot, &real, &targets, &settings, options.branch)?
+        let outcomes =
+            compensate_targets_of(&nominal6.robot, &real, &targets, &settings, options.branch)?;
+        return finish(options, &outcomes);
     };
+    finish(options, &outcomes)
+}
+
+/// Writes the outcomes (all or nothing) and counts them.
+fn finish<const N: usize>(
+    options: &CompensateOptions,
+    outcomes: &[crate::compensate::TargetOutcome<N>],
+) -> anyhow::Result<Summary> {
     let mut outputs = Outputs::new(&[
         ("--robot", &options.robot),
         ("--params", &options.params),
         ("--targets", &options.targets),
     ]);
-    outputs.stage("--out", &options.out, &to_csv(&outcomes)?)?;
+    outputs.stage("--out", &options.out, &to_csv(outcomes)?)?;
     outputs.commit()?;
-    Ok(Summary::of(&outcomes))
+    Ok(Summary::of(outcomes))
 }
