@@ -485,6 +485,49 @@ fn ur_targets_without_joints_are_compensated_from_the_offset_wrist_inverse_kinem
     assert_eq!(reached + refused, 1000);
 }
 
+/// Runs `calib compensate` with the default bounds and checks that it succeeded.
+fn compensate_cli(robot: &str, params: &Path, targets: &Path, out: &Path) {
+    let result = calib(&[
+        "compensate",
+        "--robot",
+        robot,
+        "--params",
+        params.to_str().unwrap(),
+        "--targets",
+        targets.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        result.status.success(),
+        "{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+}
+
+/// Counts of an output whose every row started from the numerical inverse kinematics: rows that
+/// put `actual` on the target (each within 1e-3 mm), refused rows, and the worst miss (mm).
+fn numerical_rows(
+    out: &Path,
+    poses: &[[[f64; 4]; 4]],
+    actual: &RefModel,
+    joints: usize,
+) -> (usize, usize, f64) {
+    let (mut reached, mut refused, mut worst) = (0, 0, 0.0f64);
+    for (miss, start) in misses(out, poses, actual, joints) {
+        assert!(start.starts_with("numerical, seed "), "{start}");
+        match miss {
+            None => refused += 1,
+            Some(miss) => {
+                worst = worst.max(miss);
+                assert!(miss < 1e-3, "{miss} mm");
+                reached += 1;
+            }
+        }
+    }
+    (reached, refused, worst)
+}
+
 /// Targets without joints on a 6-joint robot without a closed-form inverse kinematics (the UR10
 /// with a 30 mm shoulder offset `a1`, which neither the spherical nor the offset wrist allows):
 /// the start is the numerical inverse kinematics, and each row says so. 300 random targets (the
@@ -536,34 +579,13 @@ fn targets_without_joints_on_a_robot_without_closed_form_start_from_numerical_ik
     let targets = d.join("targets.csv");
     let out_path = d.join("out.csv");
     std::fs::write(&targets, targets_csv(&poses)).unwrap();
-    let result = calib(&[
-        "compensate",
-        "--robot",
+    compensate_cli(
         nominal_path.to_str().unwrap(),
-        "--params",
-        actual_path.to_str().unwrap(),
-        "--targets",
-        targets.to_str().unwrap(),
-        "--out",
-        out_path.to_str().unwrap(),
-    ]);
-    assert!(
-        result.status.success(),
-        "{}",
-        String::from_utf8_lossy(&result.stderr)
+        &actual_path,
+        &targets,
+        &out_path,
     );
-    let (mut reached, mut refused, mut worst) = (0, 0, 0.0f64);
-    for (miss, start) in misses(&out_path, &poses, &actual, 6) {
-        assert!(start.starts_with("numerical, seed "), "{start}");
-        match miss {
-            None => refused += 1,
-            Some(miss) => {
-                worst = worst.max(miss);
-                assert!(miss < 1e-3, "{miss} mm");
-                reached += 1;
-            }
-        }
-    }
+    let (reached, refused, worst) = numerical_rows(&out_path, &poses, &actual, 6);
     println!(
         "UR10 with a 30 mm shoulder offset, 300 targets without joints, numerical start: \
          {reached} reached (worst {worst:.2e} mm), {refused} refused"
@@ -618,37 +640,8 @@ fn a_seven_joint_arm_is_compensated_from_numerical_inverse_kinematics() {
     let targets = d.join("targets.csv");
     let out_path = d.join("out.csv");
     std::fs::write(&targets, targets_csv(&poses)).unwrap();
-    let run = |targets: &Path| {
-        let result = calib(&[
-            "compensate",
-            "--robot",
-            panda,
-            "--params",
-            actual_path.to_str().unwrap(),
-            "--targets",
-            targets.to_str().unwrap(),
-            "--out",
-            out_path.to_str().unwrap(),
-        ]);
-        assert!(
-            result.status.success(),
-            "{}",
-            String::from_utf8_lossy(&result.stderr)
-        );
-    };
-    run(&targets);
-    let (mut reached, mut refused, mut worst) = (0, 0, 0.0f64);
-    for (miss, start) in misses(&out_path, &poses, &actual, 7) {
-        assert!(start.starts_with("numerical, seed "), "{start}");
-        match miss {
-            None => refused += 1,
-            Some(miss) => {
-                worst = worst.max(miss);
-                assert!(miss < 1e-3, "{miss} mm");
-                reached += 1;
-            }
-        }
-    }
+    compensate_cli(panda, &actual_path, &targets, &out_path);
+    let (reached, refused, worst) = numerical_rows(&out_path, &poses, &actual, 7);
     println!(
         "Franka Panda, 200 targets without joints, numerical start: {reached} reached \
          (worst {worst:.2e} mm), {refused} refused"
@@ -667,7 +660,7 @@ fn a_seven_joint_arm_is_compensated_from_numerical_inverse_kinematics() {
     }
     let targets_joints = d.join("targets-joints.csv");
     std::fs::write(&targets_joints, with_joints).unwrap();
-    run(&targets_joints);
+    compensate_cli(panda, &actual_path, &targets_joints, &out_path);
     let rows = misses(&out_path, &poses, &actual, 7);
     assert!(rows.iter().all(|(_, start)| start == "given"));
     let given = rows
