@@ -115,3 +115,53 @@ fn text_output_names_units() {
     );
     assert!(text.contains("rotation vector (rad)"), "{text}");
 }
+
+/// `calib fk` for 7-joint robots: the KUKA LBR iiwa 14 and the Barrett WAM stand straight at
+/// zero (their link lengths summed: 360 + 420 + 400 + 126 and 550 + 300 + 60 mm, identity
+/// orientation); the Franka Panda, read from its Craig-convention file, at its published zero
+/// pose would break joint 4's limits and is refused, naming them; a wrong joint count is refused.
+#[test]
+fn seven_joint_robots() {
+    for (file, z) in [("kuka-iiwa14.toml", 1306.0), ("barrett-wam.toml", 910.0)] {
+        let robot = format!("{}/robots/{file}", env!("CARGO_MANIFEST_DIR"));
+        let out = calib(&[
+            "fk",
+            "--robot",
+            &robot,
+            "--joints-deg",
+            "0,0,0,0,0,0,0",
+            "--json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let pose: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let p: Vec<f64> = pose["position_mm"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        assert!(
+            (p[0].abs() + p[1].abs() + (p[2] - z).abs()) < 1e-9,
+            "{file}: {p:?}"
+        );
+        assert_eq!(pose["quaternion_wxyz"][0].as_f64(), Some(1.0), "{file}");
+    }
+    let panda = format!("{}/robots/franka-panda.toml", env!("CARGO_MANIFEST_DIR"));
+    let out = calib(&["fk", "--robot", &panda, "--joints-deg", "0,0,0,0,0,0,0"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("q4 = 0 deg is outside the joint limits"),
+        "{stderr}"
+    );
+    let out = calib(&["fk", "--robot", &panda, "--joints-deg", "0,0,0,-90,0,90"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("has 6 values, the robot Franka Emika Panda has 7 joints"),
+        "{stderr}"
+    );
+}

@@ -169,9 +169,54 @@ fn print_json_or_text<T: serde::Serialize>(
     Ok(())
 }
 
-/// `calib fk`: the end pose of a robot file for joint readings in degrees.
+/// `calib fk`: the end pose of a robot file for joint readings in degrees (2 to 9 joints; joint
+/// maps and gravity compliance for 6-joint robots).
 fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::Result<()> {
     let file = host_tools::robot_file::RobotFile::read(robot)?;
+    let (name, pose) = if file.joint.len() == JOINTS {
+        forward_kinematics_six(&file, robot, joints_deg)?
+    } else {
+        if file.joint_maps.is_some() || file.compliance.is_some() {
+            anyhow::bail!(
+                "{}: joint maps and gravity compliance are supported for {JOINTS}-joint robots; \
+                 this one has {}",
+                robot.display(),
+                file.joint.len()
+            );
+        }
+        host_tools::with_joint_count!(
+            file.joint.len(),
+            forward_kinematics_n(&file, robot, joints_deg)
+        )?
+    };
+    if json {
+        print_line!(
+            "{}",
+            serde_json::to_string(&pose).context("serialising the pose")?
+        );
+    } else {
+        print_line!("robot: {} ({})", name, robot.display());
+        print_text!("{}", pose.to_text());
+    }
+    Ok(())
+}
+
+/// The geometry of an `N`-joint robot file at `joints_deg`.
+fn forward_kinematics_n<const N: usize>(
+    file: &host_tools::robot_file::RobotFile,
+    robot: &Path,
+    joints_deg: &[f64],
+) -> anyhow::Result<(String, fk::FkOutput)> {
+    let model: RobotModel<N> = file.to_model(robot)?;
+    Ok((model.name.clone(), fk::forward_deg(&model, joints_deg)?))
+}
+
+/// A 6-joint robot file at `joints_deg`, with its joint maps and gravity compliance.
+fn forward_kinematics_six(
+    file: &host_tools::robot_file::RobotFile,
+    robot: &Path,
+    joints_deg: &[f64],
+) -> anyhow::Result<(String, fk::FkOutput)> {
     let model: RobotModel<JOINTS> = file.to_model(robot)?;
     // Joint maps are part of the model: the kinematics sees each reading with its angle error.
     let joints_deg: Vec<f64> = match file.joint_maps(robot)? {
@@ -194,16 +239,7 @@ fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::R
         }
         _ => fk::forward_deg(&model, &joints_deg)?,
     };
-    if json {
-        print_line!(
-            "{}",
-            serde_json::to_string(&pose).context("serialising the pose")?
-        );
-    } else {
-        print_line!("robot: {} ({})", model.name, robot.display());
-        print_text!("{}", pose.to_text());
-    }
-    Ok(())
+    Ok((model.name, pose))
 }
 
 /// `calib evaluate`: Table 3 of a robot file on a data file.
