@@ -58,14 +58,23 @@ pub fn parameter_block(
             }
         });
     }
+    geometry_block(robot, scalar, sequence)
+}
+
+/// The version 1 parameter block of `robot` (geometry, limits, frames) of any joint count.
+pub fn geometry_block<const N: usize>(
+    robot: &calib_core::Robot<f64, N>,
+    scalar: BlockScalar,
+    sequence: u32,
+) -> anyhow::Result<Vec<u8>> {
     Ok(match scalar {
         BlockScalar::F64 => {
-            let mut buffer = vec![0u8; storage::block_len::<f64, JOINTS>()];
+            let mut buffer = vec![0u8; storage::block_len::<f64, N>()];
             storage::encode(robot, sequence, &mut buffer)?;
             buffer
         }
         BlockScalar::F32 => {
-            let mut buffer = vec![0u8; storage::block_len::<f32, JOINTS>()];
+            let mut buffer = vec![0u8; storage::block_len::<f32, N>()];
             storage::encode(&to_f32(robot), sequence, &mut buffer)?;
             buffer
         }
@@ -154,8 +163,37 @@ pub fn export(
     })
 }
 
+/// [`export`] for a robot of any joint count (joint maps and gravity compliance, and the UR
+/// kinematics file, are for 6-joint robots and refused here): the version 1 block, TOML, JSON or
+/// a URDF.
+pub fn export_geometry<const N: usize>(
+    file: &RobotFile,
+    model: &RobotModel<N>,
+    format: ExportFormat,
+    scalar: BlockScalar,
+    sequence: u32,
+    urdf: &crate::urdf::UrdfSettings,
+) -> anyhow::Result<Vec<u8>> {
+    let source = model.path.display().to_string();
+    if file.joint_maps.is_some() || file.compliance.is_some() {
+        anyhow::bail!(
+            "{source}: joint maps and gravity compliance are supported for {JOINTS}-joint robots; \
+             this one has {N} joints"
+        );
+    }
+    Ok(match format {
+        ExportFormat::Block => geometry_block(&model.robot, scalar, sequence)?,
+        ExportFormat::Toml => file.to_toml("exported by calib export").into_bytes(),
+        ExportFormat::Json => serde_json::to_vec_pretty(file)?,
+        ExportFormat::Urdf => crate::urdf::urdf(&model.robot, urdf, &source)?.into_bytes(),
+        ExportFormat::UrKinematicsYaml => anyhow::bail!(
+            "{source}: a UR kinematics file describes a {JOINTS}-joint UR robot; this one has {N} joints"
+        ),
+    })
+}
+
 /// The model rounded to single precision (limits stay infinite where they are).
-pub fn to_f32(robot: &calib_core::Robot<f64, JOINTS>) -> calib_core::Robot<f32, JOINTS> {
+pub fn to_f32<const N: usize>(robot: &calib_core::Robot<f64, N>) -> calib_core::Robot<f32, N> {
     let f = |v: f64| v as f32;
     calib_core::Robot {
         joints: robot.joints.map(|j| calib_core::MdhJoint {

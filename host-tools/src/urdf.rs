@@ -68,7 +68,7 @@ pub fn frame(pose: &FramePose<f64>) -> IsometryMatrix3<f64> {
 
 /// The origins of the chain: joint 1 (`T_base`), joints 2..N (`F_1..F_(N-1)`), the flange
 /// (`F_N`) and the tool (`T_tool`), N + 2 transforms in mm.
-pub fn chain(robot: &Robot<f64, JOINTS>) -> Vec<IsometryMatrix3<f64>> {
+pub fn chain<const N: usize>(robot: &Robot<f64, N>) -> Vec<IsometryMatrix3<f64>> {
     let mut out = vec![frame(&robot.base)];
     out.extend(robot.joints.iter().map(fixed_part));
     out.push(frame(&robot.tool));
@@ -101,11 +101,16 @@ pub struct UrdfSettings {
 impl UrdfSettings {
     /// The default names: `base_link`, `link_1..link_N`, `joint_1..joint_N`, `flange`, `tool0`.
     pub fn named(robot_name: &str) -> Self {
+        Self::named_for(robot_name, JOINTS)
+    }
+
+    /// [`UrdfSettings::named`] for a robot of `joints` joints.
+    pub fn named_for(robot_name: &str, joints: usize) -> Self {
         Self {
             robot_name: robot_name.to_string(),
             base_link: "base_link".into(),
-            links: (1..=JOINTS).map(|i| format!("link_{i}")).collect(),
-            joints: (1..=JOINTS).map(|i| format!("joint_{i}")).collect(),
+            links: (1..=joints).map(|i| format!("link_{i}")).collect(),
+            joints: (1..=joints).map(|i| format!("joint_{i}")).collect(),
             flange: "flange".into(),
             tool: "tool0".into(),
             joints_only: false,
@@ -122,12 +127,12 @@ impl UrdfSettings {
         ]
     }
 
-    /// Checks the names: the right counts, unique, and plain (letters, digits, `_ - . /`), so
-    /// that they need no escaping in XML.
-    pub fn check(&self) -> anyhow::Result<()> {
-        if self.links.len() != JOINTS || self.joints.len() != JOINTS {
+    /// Checks the names for a robot of `count` joints: the right counts, unique, and plain
+    /// (letters, digits, `_ - . /`), so that they need no escaping in XML.
+    pub fn check(&self, count: usize) -> anyhow::Result<()> {
+        if self.links.len() != count || self.joints.len() != count {
             anyhow::bail!(
-                "--link-names and --joint-names need {JOINTS} names each (one per joint), got {} and {}",
+                "--link-names and --joint-names need {count} names each (one per joint), got {} and {}",
                 self.links.len(),
                 self.joints.len()
             );
@@ -159,12 +164,12 @@ impl UrdfSettings {
 
 /// The URDF (or, with `joints_only`, the `<joint>` elements) of `robot`; `source` names the file
 /// in a comment.
-pub fn urdf(
-    robot: &Robot<f64, JOINTS>,
+pub fn urdf<const N: usize>(
+    robot: &Robot<f64, N>,
     settings: &UrdfSettings,
     source: &str,
 ) -> anyhow::Result<String> {
-    settings.check()?;
+    settings.check(N)?;
     let origins: Vec<Origin> = chain(robot).iter().map(Origin::of).collect();
     let mut joints = String::new();
     let parents = std::iter::once(&settings.base_link).chain(&settings.links);
@@ -194,14 +199,14 @@ pub fn urdf(
         ));
     }
     let [flange_joint, tool_joint] = settings.fixed_joints();
-    let last = &settings.links[JOINTS - 1];
+    let last = &settings.links[N - 1];
     for (name, parent, child, origin) in [
-        (flange_joint, last, &settings.flange, &origins[JOINTS]),
+        (flange_joint, last, &settings.flange, &origins[N]),
         (
             tool_joint,
             &settings.flange,
             &settings.tool,
-            &origins[JOINTS + 1],
+            &origins[N + 1],
         ),
     ] {
         joints.push_str(&format!(

@@ -46,17 +46,20 @@ fn everything_in_use(dir: &Path) -> std::path::PathBuf {
     path
 }
 
-/// Largest position (mm) and rotation (rad) difference over 1000 random configurations between
-/// our forward kinematics of `robot` and `other(q)`.
-fn largest_difference(
-    robot: &Robot<f64, 6>,
-    mut other: impl FnMut(&[f64; 6]) -> IsometryMatrix3<f64>,
+/// Largest position (mm) and rotation (rad) difference over 1000 random configurations (within
+/// the joint limits and +-3.1 rad) between our forward kinematics of `robot` and `other(q)`.
+fn largest_difference<const N: usize>(
+    robot: &Robot<f64, N>,
+    mut other: impl FnMut(&[f64; N]) -> IsometryMatrix3<f64>,
 ) -> (f64, f64) {
     let ours = Kinematics::nominal(robot).unwrap();
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(16);
     let (mut position, mut rotation) = (0.0f64, 0.0f64);
     for _ in 0..1000 {
-        let q: [f64; 6] = std::array::from_fn(|_| rng.random_range(-3.1..3.1));
+        let q: [f64; N] = std::array::from_fn(|j| {
+            let l = robot.limits[j];
+            rng.random_range(l.lower.max(-3.1)..l.upper.min(3.1))
+        });
         let a = ours.forward(&q).unwrap();
         let b = other(&q);
         position = position.max((a.translation.vector - b.translation.vector).norm());
@@ -68,9 +71,9 @@ fn largest_difference(
 }
 
 /// The URDF's tool0 through the `k` crate (its URDF reader and kinematics), in mm.
-fn through_k(urdf: &Path) -> impl FnMut(&[f64; 6]) -> IsometryMatrix3<f64> {
+fn through_k<const N: usize>(urdf: &Path) -> impl FnMut(&[f64; N]) -> IsometryMatrix3<f64> {
     let chain = k::Chain::<f64>::from_urdf_file(urdf).unwrap();
-    assert_eq!(chain.dof(), 6);
+    assert_eq!(chain.dof(), N);
     move |q| {
         chain.set_joint_positions(q).unwrap();
         chain.update_transforms();
@@ -121,6 +124,75 @@ fn the_urdf_reproduces_our_forward_kinematics() {
         );
         assert!(position < 1e-9 && rotation < 1e-12, "{position} {rotation}");
     }
+}
+
+/// 7-joint arms: the URDF of the KUKA LBR iiwa 14, the Franka Panda (from its Craig-convention
+/// file) and the Barrett WAM reproduces our forward kinematics to 1e-9 mm and 1e-12 rad through
+/// the `k` crate; the Panda's f32 block decodes to the file's robot rounded to f32; a UR
+/// kinematics file of a 7-joint robot is refused.
+#[test]
+fn seven_joint_robots_export_to_urdf_and_blocks() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for file in ["kuka-iiwa14.toml", "franka-panda.toml", "barrett-wam.toml"] {
+        let robot = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("robots")
+            .join(file);
+        let args = [
+            "export",
+            "--params",
+            robot.to_str().unwrap(),
+            "--format",
+            "urdf",
+            "--out",
+            "r.urdf",
+        ];
+        ok(&calib_in(d, &args));
+        let model: RobotModel<7> = RobotFile::read(&robot).unwrap().to_model(&robot).unwrap();
+        let (position, rotation) =
+            largest_difference(&model.robot, through_k::<7>(&d.join("r.urdf")));
+        println!(
+            "{file}: URDF through k, largest difference {position:.3e} mm, {rotation:.3e} rad"
+        );
+        assert!(position < 1e-9 && rotation < 1e-12, "{position} {rotation}");
+    }
+    let panda = Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/franka-panda.toml");
+    let block = d.join("panda.calb");
+    ok(&calib_in(
+        d,
+        &[
+            "export",
+            "--params",
+            panda.to_str().unwrap(),
+            "--format",
+            "block",
+            "--sequence",
+            "3",
+            "--out",
+            block.to_str().unwrap(),
+        ],
+    ));
+    let bytes = std::fs::read(&block).unwrap();
+    let (decoded, sequence) = calib_core::controller::storage::decode::<f32, 7>(&bytes).unwrap();
+    let model: RobotModel<7> = RobotFile::read(&panda).unwrap().to_model(&panda).unwrap();
+    assert_eq!(sequence, 3);
+    assert_eq!(decoded, host_tools::export::to_f32(&model.robot));
+    let out = calib_in(
+        d,
+        &[
+            "export",
+            "--params",
+            panda.to_str().unwrap(),
+            "--format",
+            "ur-kinematics-yaml",
+            "--out",
+            "panda.yaml",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("has 7 joints"), "{stderr}");
+    assert!(!d.join("panda.yaml").exists());
 }
 
 /// Names, the joints-only fragment, and the refusals: a model with joint maps or compliance

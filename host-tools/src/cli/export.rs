@@ -26,16 +26,16 @@ pub struct ExportOptions {
     /// Sequence number written into the block.
     #[arg(long, default_value_t = 1)]
     pub sequence: u32,
-    /// URDF: the links after joints 1..6, comma-separated (default link_1,...,link_6).
+    /// URDF: the links after joints 1..N, comma-separated (default link_1,...,link_N).
     #[arg(long, value_delimiter = ',', value_name = "NAMES")]
     pub link_names: Option<Vec<String>>,
-    /// URDF: the revolute joints, comma-separated (default joint_1,...,joint_6).
+    /// URDF: the revolute joints, comma-separated (default joint_1,...,joint_N).
     #[arg(long, value_delimiter = ',', value_name = "NAMES")]
     pub joint_names: Option<Vec<String>>,
     /// URDF: the root link, where the robot file's `[base]` is given.
     #[arg(long, default_value = "base_link")]
     pub base_link: String,
-    /// URDF: the flange link (after joint 6's fixed part).
+    /// URDF: the flange link (after the last joint's fixed part).
     #[arg(long, default_value = "flange")]
     pub flange_link: String,
     /// URDF: the controller's tool link (`[tool]` from the flange).
@@ -51,11 +51,49 @@ pub struct ExportOptions {
     pub geometry_only: bool,
 }
 
-/// Runs `calib export`; returns the number of bytes written.
+/// Runs `calib export`; returns the number of bytes written. Robots of 2 to 9 joints; joint
+/// maps, gravity compliance and the UR kinematics file for 6-joint robots.
 pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
     let file = RobotFile::read(&options.params)?;
-    let model: RobotModel<JOINTS> = file.to_model(&options.params)?;
-    let mut urdf = crate::urdf::UrdfSettings::named(&file.name);
+    let urdf = urdf_settings(options, &file);
+    let bytes = if file.joint.len() == JOINTS {
+        let model: RobotModel<JOINTS> = file.to_model(&options.params)?;
+        crate::export::export(
+            &file,
+            &model,
+            options.format,
+            options.scalar,
+            options.sequence,
+            &urdf,
+        )?
+    } else {
+        crate::with_joint_count!(file.joint.len(), export_n(options, &file, &urdf))?
+    };
+    let mut outputs = Outputs::new(&[("--params", &options.params)]);
+    outputs.stage("--out", &options.out, &bytes)?;
+    outputs.commit()?;
+    Ok(bytes.len())
+}
+
+fn export_n<const N: usize>(
+    options: &ExportOptions,
+    file: &RobotFile,
+    urdf: &crate::urdf::UrdfSettings,
+) -> anyhow::Result<Vec<u8>> {
+    let model: RobotModel<N> = file.to_model(&options.params)?;
+    crate::export::export_geometry(
+        file,
+        &model,
+        options.format,
+        options.scalar,
+        options.sequence,
+        urdf,
+    )
+}
+
+/// The URDF names of the options (defaults for the file's joint count).
+fn urdf_settings(options: &ExportOptions, file: &RobotFile) -> crate::urdf::UrdfSettings {
+    let mut urdf = crate::urdf::UrdfSettings::named_for(&file.name, file.joint.len());
     if let Some(names) = &options.link_names {
         urdf.links.clone_from(names);
     }
@@ -67,16 +105,5 @@ pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
     urdf.tool.clone_from(&options.tool_link);
     urdf.joints_only = options.joints_only;
     urdf.geometry_only = options.geometry_only;
-    let bytes = crate::export::export(
-        &file,
-        &model,
-        options.format,
-        options.scalar,
-        options.sequence,
-        &urdf,
-    )?;
-    let mut outputs = Outputs::new(&[("--params", &options.params)]);
-    outputs.stage("--out", &options.out, &bytes)?;
-    outputs.commit()?;
-    Ok(bytes.len())
+    urdf
 }
