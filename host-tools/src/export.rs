@@ -150,15 +150,16 @@ pub fn export(
             scalar,
             sequence,
         )?,
-        ExportFormat::Toml => file.to_toml("exported by calib export").into_bytes(),
-        ExportFormat::Json => serde_json::to_vec_pretty(file)?,
-        ExportFormat::Urdf => {
-            geometry("a URDF")?;
-            crate::urdf::urdf(&model.robot, urdf, &source)?.into_bytes()
-        }
         ExportFormat::UrKinematicsYaml => {
             geometry("a UR kinematics file")?;
             crate::ur_kinematics::yaml(&model.robot, &source)?.into_bytes()
+        }
+        ExportFormat::Urdf => {
+            geometry("a URDF")?;
+            geometry_formats(file, model, format, scalar, sequence, urdf)?
+        }
+        ExportFormat::Toml | ExportFormat::Json => {
+            geometry_formats(file, model, format, scalar, sequence, urdf)?
         }
     })
 }
@@ -181,6 +182,20 @@ pub fn export_geometry<const N: usize>(
              this one has {N} joints"
         );
     }
+    geometry_formats(file, model, format, scalar, sequence, urdf)
+}
+
+/// The formats of the geometry alone, for any joint count: the version 1 block, TOML, JSON and
+/// a URDF (the UR kinematics file describes a 6-joint UR robot: other counts are refused).
+fn geometry_formats<const N: usize>(
+    file: &RobotFile,
+    model: &RobotModel<N>,
+    format: ExportFormat,
+    scalar: BlockScalar,
+    sequence: u32,
+    urdf: &crate::urdf::UrdfSettings,
+) -> anyhow::Result<Vec<u8>> {
+    let source = model.path.display().to_string();
     Ok(match format {
         ExportFormat::Block => geometry_block(&model.robot, scalar, sequence)?,
         ExportFormat::Toml => file.to_toml("exported by calib export").into_bytes(),

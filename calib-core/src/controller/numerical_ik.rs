@@ -137,12 +137,6 @@ pub fn numerical_inverse_kinematics<T: Real, const N: usize>(
     reference: &[T; N],
     settings: &NumericalIkSettings<T>,
 ) -> Result<NumericalIk<T, N>, NumericalIkError> {
-    if !reference.iter().all(|v| v.finite())
-        || !target.translation.vector.iter().all(|v| v.finite())
-        || !target.rotation.matrix().iter().all(|v| v.finite())
-    {
-        return Err(NumericalIkError::NonFinite);
-    }
     let solve = CompensationSettings {
         position_tolerance: settings.position_tolerance_mm,
         rotation_tolerance: settings.rotation_tolerance_rad,
@@ -159,6 +153,7 @@ pub fn numerical_inverse_kinematics<T: Real, const N: usize>(
         // A solution outside the limits is clamped into them and solved again from there (the
         // other joints take over the motion the clamped ones cannot make), a few times.
         for _ in 0..LIMIT_ROUNDS {
+            // The first run checks the target and the reference: not finite is an error at once.
             let solution = match solve_joints(model, target, &start, &solve) {
                 Ok(s) => s,
                 Err(CompensationError::NonFinite) => return Err(NumericalIkError::NonFinite),
@@ -177,11 +172,9 @@ pub fn numerical_inverse_kinematics<T: Real, const N: usize>(
                     residual_rad: solution.residual_rad,
                 });
             }
-            start = core::array::from_fn(|j| match (q.get(j), limits.get(j)) {
-                (Some(v), Some(l)) => v.max(l.lower).min(l.upper),
-                (Some(v), None) => *v,
-                _ => T::zero(),
-            });
+            for ((s, v), l) in start.iter_mut().zip(q).zip(limits) {
+                *s = v.max(l.lower).min(l.upper);
+            }
         }
     }
     Err(NumericalIkError::NotFound {

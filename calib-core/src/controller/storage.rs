@@ -578,31 +578,44 @@ fn header_sequence(bytes: &[u8]) -> Option<u32> {
     Some(u32::from_le_bytes(bytes.get(8..12)?.try_into().ok()?))
 }
 
+/// The slot and sequence number of the newest block header in the two slots, intact or not.
+fn newest_header(flash: &impl FlashSlots) -> Option<(Slot, u32)> {
+    let mut newest: Option<(Slot, u32)> = None;
+    for slot in [Slot::A, Slot::B] {
+        if let Some(s) = header_sequence(flash.read(slot))
+            && newest.is_none_or(|(_, n)| newer(s, n))
+        {
+            newest = Some((slot, s));
+        }
+    }
+    newest
+}
+
+/// Where loaded parameters come from: `chosen`, the slot and sequence number of the newest valid
+/// block (`None`: the nominal model), a fallback when a newer header stands in the other slot.
+fn source_of(chosen: Option<(Slot, u32)>, flash: &impl FlashSlots) -> Source {
+    match (chosen, newest_header(flash)) {
+        (None, _) => Source::Nominal,
+        // A damaged block with a newer sequence number: its write did not complete.
+        (Some((slot, s)), Some((other, n))) if other != slot && newer(n, s) => {
+            Source::Fallback(slot, s)
+        }
+        (Some((slot, s)), _) => Source::Newest(slot, s),
+    }
+}
+
 /// Loads the newest valid parameters, falling back to the other slot and then to `nominal`.
 pub fn load<M: Stored>(flash: &impl FlashSlots, nominal: &M) -> (M, Source) {
     let mut best: Option<(Slot, M, u32)> = None;
-    let mut newest_header: Option<(Slot, u32)> = None;
     for slot in [Slot::A, Slot::B] {
-        let bytes = flash.read(slot);
-        if let Some(s) = header_sequence(bytes)
-            && newest_header.is_none_or(|(_, n)| newer(s, n))
-        {
-            newest_header = Some((slot, s));
-        }
-        if let Ok((robot, s)) = M::decode_block(bytes)
+        if let Ok((robot, s)) = M::decode_block(flash.read(slot))
             && best.as_ref().is_none_or(|(_, _, n)| newer(s, *n))
         {
             best = Some((slot, robot, s));
         }
     }
-    match best {
-        None => (*nominal, Source::Nominal),
-        Some((slot, robot, s)) => match newest_header {
-            // A damaged block with a newer sequence number: its write did not complete.
-            Some((other, n)) if other != slot && newer(n, s) => (robot, Source::Fallback(slot, s)),
-            _ => (robot, Source::Newest(slot, s)),
-        },
-    }
+    let source = source_of(best.as_ref().map(|(slot, _, s)| (*slot, *s)), flash);
+    (best.map_or(*nominal, |(_, robot, _)| robot), source)
 }
 
 /// [`load`] of a [`ControllerModel`] into `model` in place, with the same rule (the newest valid
@@ -615,35 +628,27 @@ pub fn load_model_into<T: Real, const N: usize, const C: usize>(
     model: &mut ControllerModel<T, N, C>,
 ) -> Source {
     let mut best: Option<(Slot, u32)> = None;
-    let mut newest_header: Option<(Slot, u32)> = None;
     let mut last_decoded = None;
     for slot in [Slot::A, Slot::B] {
-        let bytes = flash.read(slot);
-        if let Some(s) = header_sequence(bytes)
-            && newest_header.is_none_or(|(_, n)| newer(s, n))
-        {
-            newest_header = Some((slot, s));
-        }
-        if let Ok(s) = decode_model_into(bytes, model) {
+        if let Ok(s) = decode_model_into(flash.read(slot), model) {
             last_decoded = Some(slot);
             if best.is_none_or(|(_, n)| newer(s, n)) {
                 best = Some((slot, s));
             }
         }
     }
-    let Some((slot, s)) = best else {
-        model.set_geometric(nominal);
-        return Source::Nominal;
+    let reloaded = match best {
+        Some((slot, _)) if last_decoded != Some(slot) => {
+            // Fails only for a flash that changed since it was decoded a moment ago.
+            decode_model_into(flash.read(slot), model).is_ok()
+        }
+        chosen => chosen.is_some(),
     };
-    if last_decoded != Some(slot) && decode_model_into(flash.read(slot), model).is_err() {
-        // Unreachable: the same bytes decoded a moment ago (kept for a flash that changes).
+    if !reloaded {
         model.set_geometric(nominal);
         return Source::Nominal;
     }
-    match newest_header {
-        Some((other, n)) if other != slot && newer(n, s) => Source::Fallback(slot, s),
-        _ => Source::Newest(slot, s),
-    }
+    source_of(best, flash)
 }
 
 /// Stores `robot` (a [`Robot`] or a [`ControllerModel`]) in the slot that does not hold the

@@ -56,13 +56,51 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
         &options.robot,
         "calib compensate's --robot (the nominal model the controller plans with)",
     )?;
-    crate::with_joint_count!(file.joint.len(), compensate_n(options))
-}
-
-fn compensate_n<const N: usize>(options: &CompensateOptions) -> anyhow::Result<Summary> {
     let params = RobotFile::read(&options.params)?;
     let maps = params.joint_maps(&options.params)?;
     let compliance = params.gravity_compliance(&options.params)?;
+    if maps.is_none() && compliance.is_none() {
+        return crate::with_joint_count!(file.joint.len(), compensate_geometric(options));
+    }
+    if file.joint.len() != JOINTS {
+        bail!(
+            "{}: joint maps and gravity compliance are supported for {JOINTS}-joint robots; \
+             this one has {}",
+            options.params.display(),
+            file.joint.len()
+        );
+    }
+    // The controller's model: geometry, maps (zero without) and compliance (none without).
+    let (nominal, actual, targets, settings) = inputs::<JOINTS>(options)?;
+    let model = controller_model(actual.robot, maps.as_ref(), compliance.as_ref())?;
+    let real = model.kinematics()?;
+    let outcomes =
+        compensate_targets_of(&nominal.robot, &real, &targets, &settings, options.branch)?;
+    finish(options, &outcomes)
+}
+
+/// `calib compensate` of a geometric model of `N` joints.
+fn compensate_geometric<const N: usize>(options: &CompensateOptions) -> anyhow::Result<Summary> {
+    let (nominal, actual, targets, settings) = inputs::<N>(options)?;
+    let outcomes = compensate_targets(
+        &nominal.robot,
+        &actual.robot,
+        &targets,
+        &settings,
+        options.branch,
+    )?;
+    finish(options, &outcomes)
+}
+
+/// The nominal and identified robots, the targets and the settings, checked.
+fn inputs<const N: usize>(
+    options: &CompensateOptions,
+) -> anyhow::Result<(
+    RobotModel<N>,
+    RobotModel<N>,
+    TrackerData,
+    CompensationSettings<f64>,
+)> {
     let nominal: RobotModel<N> = RobotModel::load(&options.robot)?;
     let actual: RobotModel<N> = RobotModel::load(&options.params)?;
     let targets = TrackerData::read_targets(&options.targets)?;
@@ -100,36 +138,7 @@ fn compensate_n<const N: usize>(options: &CompensateOptions) -> anyhow::Result<S
         max_joint_correction_rad: options.max_joint_correction_deg.to_radians(),
         ..CompensationSettings::default()
     };
-    let outcomes = if maps.is_none() && compliance.is_none() {
-        compensate_targets(
-            &nominal.robot,
-            &actual.robot,
-            &targets,
-            &settings,
-            options.branch,
-        )?
-    } else {
-        // The controller's model: geometry, maps (zero without) and compliance (none without),
-        // for the 6-joint robots they are identified for.
-        let six = |m: &RobotModel<N>| {
-            (m as &dyn std::any::Any)
-                .downcast_ref::<RobotModel<JOINTS>>()
-                .cloned()
-        };
-        let (Some(nominal6), Some(actual6)) = (six(&nominal), six(&actual)) else {
-            bail!(
-                "{}: joint maps and gravity compliance are supported for {JOINTS}-joint robots; \
-                 this one has {N}",
-                options.params.display()
-            );
-        };
-        let model = controller_model(actual6.robot, maps.as_ref(), compliance.as_ref())?;
-        let real = model.kinematics()?;
-        let outcomes =
-            compensate_targets_of(&nominal6.robot, &real, &targets, &settings, options.branch)?;
-        return finish(options, &outcomes);
-    };
-    finish(options, &outcomes)
+    Ok((nominal, actual, targets, settings))
 }
 
 /// Writes the outcomes (all or nothing) and counts them.
