@@ -83,7 +83,7 @@ fn calibrate_runs(c: &mut Criterion) {
         ..SimulationConfig::default()
     }
     .in_realistic_cell();
-    simulate::simulate(&RobotFile::read(robot).unwrap(), robot, &config)
+    simulate::simulate::<6>(&RobotFile::read(robot).unwrap(), robot, &config)
         .unwrap()
         .write(&data, &dir.path().join("cell100-truth.toml"), robot)
         .unwrap();
@@ -99,7 +99,7 @@ fn calibrate_runs(c: &mut Criterion) {
     .unwrap();
     // As `calib calibrate` runs: the files read, then the calibration with the default settings.
     let run = |robot: &Path, data: &Path, profile: &DataProfile| {
-        let dataset = Dataset::load_with(robot, data, profile).unwrap();
+        let dataset = Dataset::<6>::load_with(robot, data, profile).unwrap();
         calibrate(dataset, None, &CalibrationConfig::default()).unwrap()
     };
     let mut group = c.benchmark_group("calibrate");

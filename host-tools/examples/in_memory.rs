@@ -52,7 +52,7 @@ fn main() -> anyhow::Result<ExitCode> {
         rpy: [0.0; 3],
     };
     let real = Kinematics::new(&as_built, &paper::table2())?;
-    let calibration = Dataset::from_records(robot.clone(), measure(&real, 42, 2)?, false)?;
+    let calibration = Dataset::<6>::from_records(robot.clone(), measure(&real, 42, 2)?, false)?;
     let validation = Dataset::from_records(robot, measure(&real, 18, 3)?, false)?;
 
     let result = calibrate(calibration, Some(validation), &CalibrationConfig::default())?;

@@ -266,13 +266,19 @@ impl Gravity {
 
 /// Per gain, the motion `[v (mm); w (rad)]` of the end point (the origin of the tool frame) per
 /// urad/(N m) at kinematic joint angles `q` (rad), for the model `robot + errors` (in whatever
-/// frames it is given: gravity is turned by its base rotation).
-pub fn columns(
+/// frames it is given: gravity is turned by its base rotation). Error: a robot of other than
+/// [`JOINTS`] joints (the gravity model has one mass per joint of a 6-joint robot).
+pub fn columns<const N: usize>(
     gravity: &Gravity,
-    robot: &Robot<f64, JOINTS>,
-    errors: &ParameterErrors<f64, JOINTS>,
-    q: &[f64; JOINTS],
+    robot: &Robot<f64, N>,
+    errors: &ParameterErrors<f64, N>,
+    q: &[f64; N],
 ) -> anyhow::Result<[[f64; 6]; GAIN_COUNT]> {
+    if N != JOINTS {
+        anyhow::bail!(
+            "gravity compliance is modelled for {JOINTS}-joint robots; this robot has {N} joints"
+        );
+    }
     let kinematics = Kinematics::new(robot, errors)?;
     let base = kinematics.base();
     let mut frame = Isometry3::from_parts(
@@ -303,7 +309,7 @@ pub fn columns(
         .map(|((m, c), f)| (*m, (f * Point3::from(*c)).coords))
         .chain(std::iter::once((
             gravity.tool.0,
-            (frames[JOINTS] * Point3::from(gravity.tool.1)).coords,
+            (frames[N] * Point3::from(gravity.tool.1)).coords,
         )))
         .collect();
     let mut out = [[0.0; 6]; GAIN_COUNT];

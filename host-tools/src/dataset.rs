@@ -13,19 +13,21 @@ use rand_core::{Rng, SeedableRng};
 use std::path::{Path, PathBuf};
 
 /// A robot file, a data file and the measurements prepared for the core.
+///
+/// `N` is the robot's joint count (the robot file's; 6 unless said).
 #[derive(Clone)]
-pub struct Dataset {
+pub struct Dataset<const N: usize = JOINTS> {
     /// The robot file as read.
     pub file: RobotFile,
     /// The robot in core units, with its identification mask.
-    pub model: RobotModel<JOINTS>,
+    pub model: RobotModel<N>,
     /// The data file as read.
     pub data: TrackerData,
     /// One core measurement per data row.
-    pub measurements: Vec<Measurement<f64, JOINTS>>,
+    pub measurements: Vec<Measurement<f64, N>>,
 }
 
-impl Dataset {
+impl<const N: usize> Dataset<N> {
     /// A dataset from poses held in memory (joints in rad, positions in mm, rotations as
     /// matrices); `base_frame` says the positions are already in the robot's base frame. The same
     /// checks as for files apply; lines in messages are the 1-based index of the pose.
@@ -71,12 +73,18 @@ impl Dataset {
 
     /// Checks the data against the robot and converts them for the core.
     fn from_parts(file: RobotFile, robot: &Path, data_file: TrackerData) -> anyhow::Result<Self> {
-        let model: RobotModel<JOINTS> = file.to_model(robot)?;
+        let model: RobotModel<N> = file.to_model(robot)?;
+        if N != JOINTS && (file.joint_maps.is_some() || file.compliance.is_some()) {
+            bail!(
+                "{}: joint maps and gravity compliance are supported for {JOINTS}-joint robots; this robot has {N} joints: remove [joint_maps] and [compliance]",
+                robot.display()
+            );
+        }
         let data = data_file.path.clone();
         let data = data.as_path();
-        if data_file.joints != JOINTS {
+        if data_file.joints != N {
             bail!(
-                "{}:{}: has {} joint columns, the robot {} has {JOINTS} joints",
+                "{}:{}: has {} joint columns, the robot {} has {N} joints",
                 data.display(),
                 data_file.header_line,
                 data_file.joints,
@@ -91,7 +99,7 @@ impl Dataset {
         }
         let mut measurements = Vec::with_capacity(data_file.records.len());
         for r in &data_file.records {
-            let q: [f64; JOINTS] = std::array::from_fn(|i| r.q[i]);
+            let q: [f64; N] = std::array::from_fn(|i| r.q[i]);
             for (i, (qi, limits)) in q.iter().zip(&model.robot.limits).enumerate() {
                 if !limits.contains(*qi) {
                     bail!(
@@ -131,7 +139,7 @@ impl Dataset {
     pub fn with_maps(&self, maps: &crate::joint_maps::JointMaps) -> anyhow::Result<Self> {
         let mut out = self.clone();
         for (m, r) in out.measurements.iter_mut().zip(&self.data.records) {
-            let q: [f64; JOINTS] = std::array::from_fn(|j| r.q[j]);
+            let q: [f64; N] = std::array::from_fn(|j| r.q[j]);
             *m = Measurement::new(
                 &maps.apply(&q),
                 Vector3::from(r.position),
@@ -149,15 +157,15 @@ impl Dataset {
     /// evaluated at the kinematic angles (the readings with the maps).
     pub fn without_compliance(
         &self,
-        robot: &calib_core::Robot<f64, JOINTS>,
-        errors: &calib_core::ParameterErrors<f64, JOINTS>,
+        robot: &calib_core::Robot<f64, N>,
+        errors: &calib_core::ParameterErrors<f64, N>,
         maps: Option<&crate::joint_maps::JointMaps>,
         gravity: &crate::compliance::Gravity,
         gains: &[f64; crate::compliance::GAIN_COUNT],
     ) -> anyhow::Result<Self> {
         let mut out = self.clone();
         for (m, r) in out.measurements.iter_mut().zip(&self.data.records) {
-            let q: [f64; JOINTS] = std::array::from_fn(|j| r.q.get(j).copied().unwrap_or(0.0));
+            let q: [f64; N] = std::array::from_fn(|j| r.q.get(j).copied().unwrap_or(0.0));
             let angles = maps.map_or(q, |maps| maps.apply(&q));
             let columns = crate::compliance::columns(gravity, robot, errors, &angles)?;
             let d = crate::compliance::displacement(&columns, gains);
@@ -178,8 +186,8 @@ impl Dataset {
     /// times its relative change).
     pub fn without_file_compliance(
         &self,
-        robot: &calib_core::Robot<f64, JOINTS>,
-        errors: &calib_core::ParameterErrors<f64, JOINTS>,
+        robot: &calib_core::Robot<f64, N>,
+        errors: &calib_core::ParameterErrors<f64, N>,
     ) -> anyhow::Result<Self> {
         let Some(compliance) = self.file.gravity_compliance(&self.model.path)? else {
             return Ok(self.clone());
@@ -222,7 +230,7 @@ impl Dataset {
     pub fn with_identified_probe(
         &self,
         frames: crate::frames::Frames,
-    ) -> anyhow::Result<Option<Dataset>> {
+    ) -> anyhow::Result<Option<Self>> {
         if frames != crate::frames::Frames::Base || self.identified_probe().is_none() {
             return Ok(None);
         }
@@ -256,7 +264,10 @@ impl Dataset {
                 .data
                 .records
                 .iter()
-                .filter(|r| r.q[j] < range[0] - 1e-9 || r.q[j] > range[1] + 1e-9)
+                .filter(|r| {
+                    r.q.get(j)
+                        .is_some_and(|q| *q < range[0] - 1e-9 || *q > range[1] + 1e-9)
+                })
                 .count();
             if count > 0 {
                 eprintln!(
@@ -303,7 +314,11 @@ impl Dataset {
 
 /// Splits `inputs` into calibration and validation poses: `fraction` of the poses, chosen at
 /// random with `seed` (deterministic), are held out.
-pub fn split(dataset: &Dataset, fraction: f64, seed: u64) -> anyhow::Result<(Dataset, Dataset)> {
+pub fn split<const N: usize>(
+    dataset: &Dataset<N>,
+    fraction: f64,
+    seed: u64,
+) -> anyhow::Result<(Dataset<N>, Dataset<N>)> {
     if !(fraction > 0.0 && fraction < 1.0) {
         anyhow::bail!("--validate must be a fraction between 0 and 1, got {fraction}");
     }

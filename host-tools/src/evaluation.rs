@@ -31,8 +31,8 @@ pub struct Evaluation {
 /// statistics), or on all poses (then the statistics include
 /// them, which flatters the model). With only the base fitted, an identified file's probe stays
 /// the tool (`probe_kept`).
-pub fn evaluate(
-    dataset: &Dataset,
+pub fn evaluate<const N: usize>(
+    dataset: &Dataset<N>,
     frames: Frames,
     fit_poses: Option<usize>,
     seed: u64,

@@ -274,6 +274,34 @@ fn identifiability(page: &mut String, report: &Value) -> anyhow::Result<()> {
         text(&i["undetermined"]),
         text(&report["dropped"]),
     )?;
+    if let Some(reflector) = i["reflector_on_last_axis"].as_object() {
+        let left_out: Vec<String> = reflector
+            .get("not_identified")
+            .and_then(Value::as_array)
+            .map(|a| {
+                a.iter()
+                    .map(|u| {
+                        let with: Vec<String> = u["with"]
+                            .as_array()
+                            .map(|w| w.iter().map(|p| text(&p[0])).collect())
+                            .unwrap_or_default();
+                        if with.is_empty() {
+                            format!("{} (does not move it)", text(&u["name"]))
+                        } else {
+                            format!("{} (acts like {})", text(&u["name"]), with.join(", "))
+                        }
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        writeln!(
+            page,
+            "<p>Reflector {} mm from the last joint's axis: the last joint barely moves it, so position data \
+             cannot tell apart what moves it alike. Not identified (kept nominal): {}.</p>",
+            num(reflector.get("distance_mm").unwrap_or(&Value::Null), 1),
+            left_out.join(", ")
+        )?;
+    }
     if report["dropped"].as_array().is_some_and(|d| !d.is_empty()) {
         page.push_str(
             "<p>Why dropped: first the parameters the data cannot determine (rank deficiency, \

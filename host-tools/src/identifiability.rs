@@ -3,12 +3,11 @@
 //! are confounded with (the core's [`Identifiability`]), and the least determined direction of an
 //! ill-conditioned pose set.
 
-use crate::JOINTS;
 use crate::dataset::Dataset;
 use anyhow::bail;
 use calib_core::identify::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability, Status};
 use calib_core::identify::lm::LeastSquares;
-use calib_core::{Parameter, ParameterErrors, ParameterMask, ParameterSet, Problem};
+use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, ParameterSet, Problem};
 use nalgebra::SVector;
 use serde::Serialize;
 
@@ -25,6 +24,103 @@ fn named_pairs<S: serde::Serializer>(pairs: &[(Parameter, f64)], s: S) -> Result
 /// Serialises a parameter as its name.
 fn named<S: serde::Serializer>(parameter: &Parameter, s: S) -> Result<S::Ok, S::Error> {
     s.collect_str(parameter)
+}
+
+/// A reflector closer than this to the last joint's axis (mm) is "on the last axis": the last
+/// joint turns it on a circle too small to tell the previous joint's parameters apart (see
+/// [`reflector_on_last_axis`]). Reflectors in a nest on the flange's centre sit a few millimetres
+/// off the axis (the Barrett WAM data: 3.0 mm); a reflector meant to sense the last joint is
+/// mounted tens of millimetres off it.
+pub const REFLECTOR_ON_AXIS_MM: f64 = 10.0;
+
+/// A reflector on (or near) the last joint's axis, and what it leaves undetermined.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ReflectorOnAxis {
+    /// Distance of the reflector from the last joint's axis, mm (of the model with its frames
+    /// fitted).
+    pub distance_mm: f64,
+    /// The parameters not identified, each with the parameters it acts like when the reflector
+    /// is on the axis (as in [`Undetermined`]).
+    pub not_identified: Vec<Undetermined>,
+}
+
+impl ReflectorOnAxis {
+    /// One line for people.
+    pub fn text(&self) -> String {
+        let names: Vec<String> = self
+            .not_identified
+            .iter()
+            .map(|u| {
+                let with: Vec<String> = u.with.iter().map(|(p, _)| p.to_string()).collect();
+                if with.is_empty() {
+                    format!("{} (does not move it)", u.parameter)
+                } else {
+                    format!("{} (acts like {})", u.parameter, with.join(", "))
+                }
+            })
+            .collect();
+        format!(
+            "reflector {:.1} mm from the last joint's axis (below {REFLECTOR_ON_AXIS_MM} mm): the last joint barely moves it, so position data cannot tell apart what moves it alike; not identified (kept nominal): {}\n",
+            self.distance_mm,
+            names.join(", ")
+        )
+    }
+}
+
+/// Position-only data of a reflector on (or within [`REFLECTOR_ON_AXIS_MM`] of) the last joint's
+/// axis: the last joint does not move it, so parameters of the joints before it that move it
+/// alike cannot be told apart (on a Barrett WAM or any arm whose second-last joint has a 90 deg
+/// twist and no offset, the twist `dalpha6` moves it along the axis like `dd6`, the joint zero
+/// `dtheta6` across it like `da6`; only their combinations are determined, and noise decides the
+/// split). Which: the parameters of `mask` that the analysis at the model with the reflector
+/// moved onto the axis finds redundant: the core's pivoting keeps the parameter of each group
+/// the poses determine best, as `--auto-mask` does (on the WAM's grid `da6` and `dd6`, the
+/// twist and zero of joint 6 left out; a subset of the poses may keep the twist instead).
+/// `None`: 6-DoF data (orientations tell them apart), no such parameter, or the reflector
+/// farther from the axis.
+pub fn reflector_on_last_axis<const N: usize>(
+    dataset: &Dataset<N>,
+    mask: &ParameterMask<N>,
+    k: f64,
+) -> anyhow::Result<Option<ReflectorOnAxis>> {
+    if N == 0 || dataset.measurements.iter().any(|m| m.rotation.is_some()) {
+        return Ok(None);
+    }
+    let robot = &dataset.model.robot;
+    let with_tool = Kinematics::nominal(robot)?;
+    let mut flange = *robot;
+    flange.tool = calib_core::FramePose::identity();
+    let flange = Kinematics::nominal(&flange)?;
+    // The reflector at three turns of the last joint (within any limits of +-120 deg or more):
+    // the centre of their circle is on the axis, its radius the distance from the axis.
+    let turns = [-2.0, 0.0, 2.0].map(|third: f64| third * std::f64::consts::FRAC_PI_3);
+    let mut q = [0.0; N];
+    let mut points = Vec::with_capacity(3);
+    for turn in turns {
+        if let Some(last) = q.last_mut() {
+            *last = turn;
+        }
+        points.push(with_tool.forward(&q)?.translation.vector);
+    }
+    let centre = points.iter().sum::<nalgebra::Vector3<f64>>() / 3.0;
+    let distance_mm = points.first().map_or(0.0, |p| (p - centre).norm());
+    if distance_mm >= REFLECTOR_ON_AXIS_MM {
+        return Ok(None);
+    }
+    if let Some(last) = q.last_mut() {
+        *last = 0.0;
+    }
+    let on_axis = flange.forward(&q)?.inverse_transform_point(&centre.into());
+    let mut projected = dataset.clone();
+    projected.model.robot.tool.xyz = [on_axis.x, on_axis.y, on_axis.z];
+    let analysis = crate::with_parameter_count!(mask.count(), analyse(&projected, mask, k))?;
+    if analysis.undetermined.is_empty() {
+        return Ok(None);
+    }
+    Ok(Some(ReflectorOnAxis {
+        distance_mm,
+        not_identified: analysis.undetermined,
+    }))
 }
 
 /// A parameter the data do not determine.
@@ -69,6 +165,10 @@ pub struct IdentifiabilityReport {
     /// The analysed parameter names, in order.
     #[serde(skip)]
     pub names: Vec<Parameter>,
+    /// A reflector on the last joint's axis and the parameters it leaves out of the
+    /// identification (before this analysis).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reflector_on_last_axis: Option<ReflectorOnAxis>,
 }
 
 impl IdentifiabilityReport {
@@ -136,6 +236,9 @@ impl IdentifiabilityReport {
             .map(|s| format!("{s:.3e}"))
             .collect();
         out.push_str(&format!("scaled singular values: {}\n", values.join(" ")));
+        if let Some(reflector) = &self.reflector_on_last_axis {
+            out.push_str(&reflector.text());
+        }
         if self.undetermined.is_empty() {
             out.push_str("every parameter is determined by the data\n");
         }
@@ -163,23 +266,29 @@ impl IdentifiabilityReport {
 
 /// The identifiability of the robot's identified parameters on `dataset`, with the frames
 /// identified as a calibration would (`frames`: `None` chooses from the data), at the nominal model.
-pub fn check(
-    mut dataset: Dataset,
+pub fn check<const N: usize>(
+    mut dataset: Dataset<N>,
     frames: Option<crate::frames::Frames>,
     k: f64,
 ) -> anyhow::Result<IdentifiabilityReport> {
     let frames = crate::frames::Frames::chosen(frames, &dataset.data);
-    let (_, mask) = crate::frames::prepare(frames, &mut dataset, &mut [], k)?;
-    crate::with_parameter_count!(mask.count(), analyse(&dataset, &mask, k))
+    let (_, mut mask) = crate::frames::prepare(frames, &mut dataset, &mut [], k)?;
+    let reflector = reflector_on_last_axis(&dataset, &mask, k)?;
+    for u in reflector.iter().flat_map(|r| &r.not_identified) {
+        mask.set(u.parameter, false);
+    }
+    let mut report = crate::with_parameter_count!(mask.count(), analyse(&dataset, &mask, k))?;
+    report.reflector_on_last_axis = reflector;
+    Ok(report)
 }
 
 /// The identifiability of the parameters selected by `mask` at the nominal model.
-pub fn analyse<const D: usize>(
-    dataset: &Dataset,
-    mask: &ParameterMask<JOINTS>,
+pub fn analyse<const N: usize, const D: usize>(
+    dataset: &Dataset<N>,
+    mask: &ParameterMask<N>,
     k: f64,
 ) -> anyhow::Result<IdentifiabilityReport> {
-    let set = ParameterSet::<JOINTS, D>::from_mask(mask)?;
+    let set = ParameterSet::<N, D>::from_mask(mask)?;
     if dataset.rows() < D {
         bail!(
             "{} poses give {} equations, fewer than the {D} identified parameters",
@@ -243,6 +352,7 @@ pub fn analyse<const D: usize>(
         singular_values: id.singular_values.iter().copied().collect(),
         undetermined,
         names,
+        reflector_on_last_axis: None,
     })
 }
 

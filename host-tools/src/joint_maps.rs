@@ -139,7 +139,8 @@ impl JointMaps {
     }
 
     /// The joint readings `q` (rad) with every map added: what the kinematics sees.
-    pub fn apply(&self, q: &[f64; JOINTS]) -> [f64; JOINTS] {
+    /// Joints without a map (beyond the maps' joint count) are read as they are.
+    pub fn apply<const N: usize>(&self, q: &[f64; N]) -> [f64; N] {
         std::array::from_fn(|j| q[j] + self.error(j, q[j]))
     }
 

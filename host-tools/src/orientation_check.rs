@@ -6,7 +6,6 @@
 //! or inverted quaternions miss them by more. The check names the conventions under which the
 //! data would agree.
 
-use crate::JOINTS;
 use crate::dataset::Dataset;
 use crate::profile::EulerConvention;
 use crate::tracker_data::OrientationColumns;
@@ -80,9 +79,11 @@ fn median_disagreement_deg(flanges: &[Rotation3<f64>], rotations: &[Option<Matri
         .iter()
         .map(|(m, nn)| {
             let predicted = probe * nn * probe.transpose();
-            Rotation3::from_matrix_unchecked(predicted.transpose() * m)
-                .angle()
-                .to_degrees()
+            // The angle from the trace, clamped: rounding puts the trace of a rotation by
+            // nothing just above 3, where `Rotation3::angle` gives NaN (data an identified
+            // model fits exactly, as simulated data).
+            let cos = (((predicted.transpose() * m).trace() - 1.0) / 2.0).clamp(-1.0, 1.0);
+            cos.acos().to_degrees()
         })
         .collect();
     differences.sort_by(f64::total_cmp);
@@ -91,7 +92,7 @@ fn median_disagreement_deg(flanges: &[Rotation3<f64>], rotations: &[Option<Matri
 
 /// Checks the orientations of `dataset` (read with the Euler convention `euler` when they are
 /// angle columns) against the nominal model; an error names the conventions that would agree.
-pub fn check(dataset: &Dataset, euler: &EulerConvention) -> anyhow::Result<()> {
+pub fn check<const N: usize>(dataset: &Dataset<N>, euler: &EulerConvention) -> anyhow::Result<()> {
     let rotations: Vec<Option<Matrix3<f64>>> =
         dataset.data.records.iter().map(|r| r.rotation).collect();
     if rotations.iter().filter(|r| r.is_some()).count() < 3 {
@@ -100,7 +101,7 @@ pub fn check(dataset: &Dataset, euler: &EulerConvention) -> anyhow::Result<()> {
     let mut bare = dataset.model.robot;
     bare.base = calib_core::FramePose::identity();
     bare.tool = calib_core::FramePose::identity();
-    let kinematics = Kinematics::<f64, JOINTS>::nominal(&bare)?;
+    let kinematics = Kinematics::<f64, N>::nominal(&bare)?;
     let flanges: Vec<Rotation3<f64>> = dataset
         .measurements
         .iter()

@@ -127,6 +127,20 @@ pub struct FrameEntry {
 pub struct RobotFile {
     /// Human-readable robot name.
     pub name: String,
+    /// The manufacturer's pose repeatability (ISO 9283), mm: how closely the robot returns to a
+    /// commanded pose. No model fits the robot better than it repeats: the plausibility check of
+    /// a calibration allows a fit of twice this (at least 2 mm RMS). Optional.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub repeatability_mm: Option<f64>,
+    /// The largest geometric length error (mm) a calibration of this robot may identify before
+    /// it is refused as implausible; default 20 mm. Optional, at most 100 mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_length_error_mm: Option<f64>,
+    /// The largest geometric angle error (deg) a calibration of this robot may identify before it
+    /// is refused as implausible; default 3 deg. Optional, at most 10 deg: an arm built to looser
+    /// tolerances (cable drives) says so here, with its reason.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_angle_error_deg: Option<f64>,
     /// Joints, joint 1 first (after reading, also those converted from `[[craig_joint]]`).
     #[serde(default)]
     pub joint: Vec<JointEntry>,
@@ -255,6 +269,19 @@ impl RobotFile {
                 "has no joints: add a [[joint]] table per joint (or [[craig_joint]] tables for \
                  Craig's modified DH convention)",
             ));
+        }
+        for (name, value, most) in [
+            ("repeatability_mm", file.repeatability_mm, 20.0),
+            ("max_length_error_mm", file.max_length_error_mm, 100.0),
+            ("max_angle_error_deg", file.max_angle_error_deg, 10.0),
+        ] {
+            if let Some(v) = value
+                && !(v.is_finite() && v > 0.0 && v <= most)
+            {
+                return Err(invalid(&format!(
+                    "{name} = {v} is out of range: give a value above 0 and at most {most}"
+                )));
+            }
         }
         Ok(file)
     }

@@ -119,11 +119,13 @@ impl SimulationConfig {
 }
 
 /// The outcome of a simulation: the measured poses, the true errors and the true robot.
-pub struct Simulated {
+///
+/// `N` is the robot's joint count.
+pub struct Simulated<const N: usize = JOINTS> {
     /// The poses, as they are written.
     pub rows: Vec<PoseRow>,
     /// The true parameter errors.
-    pub errors: ParameterErrors<f64, JOINTS>,
+    pub errors: ParameterErrors<f64, N>,
     /// The true robot (with its tracker frame and tool) and a `[calibration]` section of the errors.
     pub truth: RobotFile,
     /// `true` when the poses are in the tracker's frame.
@@ -134,7 +136,7 @@ pub struct Simulated {
     pub truth_comment: String,
 }
 
-impl Simulated {
+impl<const N: usize> Simulated<N> {
     /// The poses as in-memory records (for [`crate::dataset::Dataset::from_records`]).
     pub fn records(&self) -> Vec<Record> {
         self.rows
@@ -170,11 +172,11 @@ impl Simulated {
 }
 
 /// Simulates measurements of the robot of `file` (read from `path`, which names it in comments).
-pub fn simulate(
+pub fn simulate<const N: usize>(
     file: &RobotFile,
     path: &Path,
     config: &SimulationConfig,
-) -> anyhow::Result<Simulated> {
+) -> anyhow::Result<Simulated<N>> {
     config.check()?;
     let mut file = file.clone();
     if let Some(tracker) = &config.tracker {
@@ -184,9 +186,9 @@ pub fn simulate(
         let rpy_deg = file.tool.as_ref().map_or([0.0; 3], |t| t.rpy_deg);
         file.tool = Some(FrameEntry { xyz_mm, rpy_deg });
     }
-    let model: RobotModel<JOINTS> = file.to_model(path)?;
+    let model: RobotModel<N> = file.to_model(path)?;
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(config.seed);
-    let errors = true_errors(config, &model, &mut rng);
+    let errors = true_errors(config, &model, &mut rng)?;
     let truth = Kinematics::new(&model.robot, &errors).context("true model")?;
     let rows = measure(config, &model, &truth, &mut rng)?;
     let errors_text = match config.errors {
@@ -196,7 +198,7 @@ pub fn simulate(
             config.random_length_mm, config.random_angle_rad
         ),
     };
-    let listed: Vec<_> = all_parameters::<JOINTS>()
+    let listed: Vec<_> = all_parameters::<N>()
         .filter(|p| model.mask.contains(*p) || errors.get(*p) != Some(0.0))
         .collect();
     let robot = path.display().to_string();
@@ -213,13 +215,17 @@ pub fn simulate(
 }
 
 /// Table 2, or uniform random errors of the identified parameters.
-fn true_errors(
+fn true_errors<const N: usize>(
     config: &SimulationConfig,
-    model: &RobotModel<JOINTS>,
+    model: &RobotModel<N>,
     rng: &mut Xoshiro256PlusPlus,
-) -> ParameterErrors<f64, JOINTS> {
-    match config.errors {
-        TrueErrors::Table2 => paper::table2::<f64>(),
+) -> anyhow::Result<ParameterErrors<f64, N>> {
+    Ok(match config.errors {
+        TrueErrors::Table2 => crate::dispatch::same_type(paper::table2::<f64>()).ok_or_else(|| {
+            anyhow::anyhow!(
+                "Table 2 of the paper holds the errors of a {JOINTS}-joint robot; this robot has {N} joints: use --errors random"
+            )
+        })?,
         TrueErrors::Random => {
             let mut e = ParameterErrors::zero();
             for p in model.mask.iter() {
@@ -232,21 +238,21 @@ fn true_errors(
             }
             e
         }
-    }
+    })
 }
 
 /// The measured poses: commanded joints, the true pose (joint noise added), tracker noise.
-fn measure(
+fn measure<const N: usize>(
     config: &SimulationConfig,
-    model: &RobotModel<JOINTS>,
-    truth: &Kinematics<f64, JOINTS>,
+    model: &RobotModel<N>,
+    truth: &Kinematics<f64, N>,
     rng: &mut Xoshiro256PlusPlus,
 ) -> anyhow::Result<Vec<PoseRow>> {
     let mut rows = Vec::with_capacity(config.poses);
     let position_noise = Normal::new(0.0, config.position_sigma_mm)?;
     let orientation_noise = Normal::new(0.0, config.orientation_sigma_rad)?;
     for i in 0..config.poses {
-        let mut q = [0.0; JOINTS];
+        let mut q = [0.0; N];
         for (qi, limits) in q.iter_mut().zip(&model.robot.limits) {
             let (lo, hi) =
                 if config.within_limits && limits.lower.is_finite() && limits.upper.is_finite() {

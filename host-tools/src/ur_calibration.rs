@@ -236,12 +236,12 @@ pub fn import(nominal: &Robot<f64, JOINTS>, calibration: &UrCalibration) -> anyh
 }
 
 /// Least squares of the `D` parameters of `mask` to `measurements` from the nominal robot.
-fn fit<const D: usize>(
-    nominal: &Robot<f64, JOINTS>,
-    mask: &ParameterMask<JOINTS>,
-    measurements: &[Measurement<f64, JOINTS>],
-) -> anyhow::Result<ParameterErrors<f64, JOINTS>> {
-    let set = ParameterSet::<JOINTS, D>::from_mask(mask)?;
+fn fit<const N: usize, const D: usize>(
+    nominal: &Robot<f64, N>,
+    mask: &ParameterMask<N>,
+    measurements: &[Measurement<f64, N>],
+) -> anyhow::Result<ParameterErrors<f64, N>> {
+    let set = ParameterSet::<N, D>::from_mask(mask)?;
     let problem = Problem::new(
         nominal,
         &ParameterErrors::zero(),

@@ -5,7 +5,6 @@
 //! All three fit the same parameters from the same start (zero errors on the robot with its
 //! frames registered and fitted, as `calib calibrate` prepares it) by least squares.
 
-use crate::JOINTS;
 use crate::dataset::Dataset;
 use crate::frames::Frames;
 use anyhow::Context;
@@ -131,9 +130,9 @@ impl Verification {
 /// Calibrates the poses of `calibration` by least squares with the f32 core, the f64 core and
 /// the reference optimiser (frames prepared as a calibration does; `frames`: `None` chooses from
 /// the data) and compares the three, also on the held-out `validation` poses.
-pub fn verify(
-    mut calibration: Dataset,
-    mut validation: Dataset,
+pub fn verify<const N: usize>(
+    mut calibration: Dataset<N>,
+    mut validation: Dataset<N>,
     frames: Option<Frames>,
     k: f64,
 ) -> anyhow::Result<Verification> {
@@ -149,15 +148,15 @@ pub fn verify(
     crate::with_parameter_count!(mask.count(), run(&calibration, &validation, &mask, k))
 }
 
-fn run<const D: usize>(
-    calibration: &Dataset,
-    validation: &Dataset,
-    mask: &ParameterMask<JOINTS>,
+fn run<const N: usize, const D: usize>(
+    calibration: &Dataset<N>,
+    validation: &Dataset<N>,
+    mask: &ParameterMask<N>,
     k: f64,
 ) -> anyhow::Result<Verification> {
-    let set = ParameterSet::<JOINTS, D>::from_mask(mask)?;
+    let set = ParameterSet::<N, D>::from_mask(mask)?;
     let condition_number =
-        crate::identifiability::analyse::<D>(calibration, mask, k)?.condition_number;
+        crate::identifiability::analyse::<N, D>(calibration, mask, k)?.condition_number;
     let settings = LmSettings::default();
     // f64 core.
     let problem = Problem::new(
@@ -229,9 +228,9 @@ fn run<const D: usize>(
 }
 
 /// The least-squares solution of the f32 core (the controller's), from zero errors.
-fn solve_f32<const D: usize>(
-    calibration: &Dataset,
-    set: ParameterSet<JOINTS, D>,
+fn solve_f32<const N: usize, const D: usize>(
+    calibration: &Dataset<N>,
+    set: ParameterSet<N, D>,
     k: f64,
 ) -> anyhow::Result<SVector<f32, D>> {
     let robot32 = crate::export::to_f32(&calibration.model.robot);
@@ -242,8 +241,7 @@ fn solve_f32<const D: usize>(
         .iter()
         .zip(&seen.records)
         .map(|(m, r)| {
-            let q: [f32; JOINTS] =
-                std::array::from_fn(|i| r.q.get(i).copied().unwrap_or(0.0) as f32);
+            let q: [f32; N] = std::array::from_fn(|i| r.q.get(i).copied().unwrap_or(0.0) as f32);
             Measurement::new(
                 &q,
                 m.position.map(|v| v as f32),

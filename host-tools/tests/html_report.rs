@@ -165,16 +165,35 @@ fn the_html_report_holds_everything_and_nothing_external() {
         .iter()
         .map(|v| v.as_str().unwrap())
         .collect();
-    assert!(!dropped.is_empty());
     let page = Html::parse_document(&std::fs::read_to_string(d.join("p.html")).unwrap());
-    assert!(
-        select(&page, "td").contains(&dropped.join(", ")),
-        "{dropped:?}"
-    );
-    assert!(
+    let shown = if dropped.is_empty() {
+        "none".to_string()
+    } else {
+        dropped.join(", ")
+    };
+    assert!(select(&page, "td").contains(&shown), "{dropped:?}");
+    assert_eq!(
         select(&page, "p")
             .iter()
-            .any(|p| p.starts_with("Why dropped"))
+            .any(|p| p.starts_with("Why dropped")),
+        !dropped.is_empty()
+    );
+    // The T-Mac point is 1.1 mm from joint 6's axis: the page says what that leaves out.
+    let left_out: Vec<&str> = json["identifiability"]["reflector_on_last_axis"]["not_identified"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|u| u["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(left_out, ["dtheta5", "dalpha5"]);
+    assert!(
+        select(&page, "p").iter().any(|p| p
+            .starts_with("Reflector 1.1 mm from the last joint's axis")
+            && p.contains(
+                "Not identified (kept nominal): dtheta5 (acts like da5), dalpha5 (acts like dd5)."
+            )),
+        "{:?}",
+        select(&page, "p")
     );
     // No orientation data: no orientation plot.
     assert!(select(&page, "figure#plot-orientation-error").is_empty());

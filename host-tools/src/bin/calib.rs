@@ -98,10 +98,10 @@ fn run(command: Command) -> anyhow::Result<()> {
             json,
         } => forward_kinematics(&robot, &joints_deg, json)?,
         Command::Simulate(settings) => {
-            let simulated = simulate::simulate(&settings)?;
+            let poses = simulate::simulate(&settings)?;
             print_line!(
                 "wrote {} poses to {} and the true robot to {}",
-                simulated.rows.len(),
+                poses,
                 settings.out.display(),
                 settings.truth_out.display()
             );
@@ -141,16 +141,7 @@ fn run(command: Command) -> anyhow::Result<()> {
             }
         }
         Command::Demo(options) => host_tools::cli::demo::demo(&options)?,
-        Command::Calibrate(options) => {
-            let calibration = calibrate::calibrate(&options)?;
-            // The files first: a closed or full standard output must not lose them.
-            let written = calibrate::write_outputs(&calibration, &options.outputs())?;
-            let mut text = calibration.text;
-            for path in written {
-                text.push_str(&format!("wrote {}\n", path.display()));
-            }
-            print(&text)?;
-        }
+        Command::Calibrate(options) => print(&calibrate::calibrate_and_write(&options)?)?,
     }
     Ok(())
 }

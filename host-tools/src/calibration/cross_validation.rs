@@ -5,7 +5,6 @@
 //! model's is flagged: its calibration is likely to make the robot less accurate.
 
 use super::CalibrationConfig;
-use crate::JOINTS;
 use crate::dataset::Dataset;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
 use calib_core::{Kinematics, ParameterErrors, ParameterSet, Problem};
@@ -46,9 +45,9 @@ impl CrossValidation {
 
 /// Cross-validates the least-squares identification of `set` on `dataset`; `None` with fewer
 /// than 3 poses.
-pub fn cross_validate<const D: usize>(
-    dataset: &Dataset,
-    set: &ParameterSet<JOINTS, D>,
+pub fn cross_validate<const N: usize, const D: usize>(
+    dataset: &Dataset<N>,
+    set: &ParameterSet<N, D>,
     config: &CalibrationConfig,
 ) -> Option<CrossValidation> {
     let n = dataset.measurements.len();

@@ -35,7 +35,7 @@
 //!         }
 //!     })
 //!     .collect();
-//! let dataset = Dataset::from_records(robot, records, true)?;
+//! let dataset = Dataset::<6>::from_records(robot, records, true)?;
 //! let config = CalibrationConfig { method: Method::Lm, ..CalibrationConfig::default() };
 //! let result = calibrate(dataset, None, &config)?;
 //! // Least squares recovers Table 2 from exact data: da2 = 0.2565 mm.
@@ -81,14 +81,14 @@ const COMPLIANCE_ROUNDS: usize = 2;
 
 /// Calibrates `dataset` (its robot's identification mask plus the frames of `config`), validating
 /// on `validation` when given (poses in the same tracker frame, not used to identify).
-pub fn calibrate(
-    mut dataset: Dataset,
-    mut validation: Option<Dataset>,
+pub fn calibrate<const N: usize>(
+    mut dataset: Dataset<N>,
+    mut validation: Option<Dataset<N>>,
     config: &CalibrationConfig,
-) -> anyhow::Result<CalibrationResult> {
+) -> anyhow::Result<CalibrationResult<N>> {
     config.check()?;
     if config.model.maps() {
-        maps::check_robot_file(&dataset, config)?;
+        maps::check_robot_file(six_joints(&dataset)?, config)?;
     }
     let frames = Frames::chosen(config.frames, &dataset.data);
     // With only the base fitted, the probe identified with the file's model stays the tool (as in
@@ -109,7 +109,7 @@ pub fn calibrate(
         None => false,
     };
     let (frames_report, mask) = {
-        let mut others: Vec<&mut Dataset> = validation.iter_mut().collect();
+        let mut others: Vec<&mut Dataset<N>> = validation.iter_mut().collect();
         crate::frames::prepare(frames, &mut dataset, &mut others, config.k)?
     };
     let mask = match config.identify {
@@ -120,7 +120,7 @@ pub fn calibrate(
                     "--identify frames re-registers the frames of a measurement setup: the data must be in a tracker's frame (--frames base or base+tool), not in the base frame"
                 );
             }
-            let mut only_frames = ParameterMask::<JOINTS>::empty();
+            let mut only_frames = ParameterMask::<N>::empty();
             for p in mask.iter() {
                 only_frames.set(p, matches!(p, Parameter::Base(_) | Parameter::Tool(_)));
             }
@@ -128,7 +128,7 @@ pub fn calibrate(
         }
     };
     let selection = select_parameters(&dataset, mask, config)?;
-    let solved = |dataset: &Dataset, validation: Option<&Dataset>| {
+    let solved = |dataset: &Dataset<N>, validation: Option<&Dataset<N>>| {
         crate::with_parameter_count!(
             selection.mask.count(),
             solve(
@@ -162,7 +162,16 @@ pub fn calibrate(
         solved(&dataset, validation.as_ref())?
     };
     if config.model.maps() {
-        result = maps::add_joint_maps(result, &dataset, validation.as_ref(), config)?;
+        let six = crate::dispatch::same_type::<_, CalibrationResult<JOINTS>>(result)
+            .ok_or_else(|| anyhow::anyhow!("{}", joint_maps_need_six::<N>()))?;
+        let validation = validation.as_ref().map(six_joints).transpose()?;
+        result = crate::dispatch::same_type(maps::add_joint_maps(
+            six,
+            six_joints(&dataset)?,
+            validation,
+            config,
+        )?)
+        .ok_or_else(|| anyhow::anyhow!("{}", joint_maps_need_six::<N>()))?;
     }
     if probe_kept {
         let file = &mut result.identified_robot;
@@ -182,11 +191,25 @@ pub fn calibrate(
     Ok(result)
 }
 
+/// Joint maps are identified for [`JOINTS`]-joint robots: the dataset as one, or an error.
+fn six_joints<const N: usize>(dataset: &Dataset<N>) -> anyhow::Result<&Dataset<JOINTS>> {
+    (dataset as &dyn std::any::Any)
+        .downcast_ref()
+        .ok_or_else(|| anyhow::anyhow!("{}", joint_maps_need_six::<N>()))
+}
+
+/// Why `--model joint-maps` refuses a robot of `N` joints.
+fn joint_maps_need_six<const N: usize>() -> String {
+    format!(
+        "--model joint-maps is supported for {JOINTS}-joint robots; this robot has {N} joints (calibrate its geometry with --model geometric)"
+    )
+}
+
 /// The parameters to identify and why.
 #[derive(Clone, Debug)]
-pub struct Selection {
+pub struct Selection<const N: usize = JOINTS> {
     /// The identified parameters.
-    pub mask: ParameterMask<JOINTS>,
+    pub mask: ParameterMask<N>,
     /// The analysis of the parameters asked for (with the condition number reached after
     /// dropping, when parameters were dropped).
     pub identifiability: IdentifiabilityReport,
@@ -197,15 +220,20 @@ pub struct Selection {
 /// Checks that the data determine the parameters of `mask`: refuses what they cannot determine,
 /// or with `auto_mask` drops it; then, unless `keep_ill_conditioned`, drops while the pose set is
 /// ill-conditioned the parameter with the largest share of the least determined direction.
-pub fn select_parameters(
-    dataset: &Dataset,
-    mut mask: ParameterMask<JOINTS>,
+pub fn select_parameters<const N: usize>(
+    dataset: &Dataset<N>,
+    mut mask: ParameterMask<N>,
     config: &CalibrationConfig,
-) -> anyhow::Result<Selection> {
-    let analysed = |mask: &ParameterMask<JOINTS>| {
+) -> anyhow::Result<Selection<N>> {
+    let analysed = |mask: &ParameterMask<N>| {
         crate::with_parameter_count!(mask.count(), analyse(dataset, mask, config.k))
     };
-    let initial = analysed(&mask)?;
+    let reflector = crate::identifiability::reflector_on_last_axis(dataset, &mask, config.k)?;
+    for u in reflector.iter().flat_map(|r| &r.not_identified) {
+        mask.set(u.parameter, false);
+    }
+    let mut initial = analysed(&mask)?;
+    initial.reflector_on_last_axis = reflector;
     let mut identifiability = initial.clone();
     let mut dropped = Vec::new();
     if identifiability.rank < identifiability.parameters {
@@ -250,9 +278,9 @@ pub fn select_parameters(
 
 /// Evaluates the swarm's particles in parallel on the host's cores (rayon); the core's default
 /// evaluates them one by one. Results are identical: each particle's cost is computed alone.
-pub struct Parallel<'o, 'p, const D: usize>(pub &'o Objective<'p, f64, JOINTS, D>);
+pub struct Parallel<'o, 'p, const N: usize, const D: usize>(pub &'o Objective<'p, f64, N, D>);
 
-impl<const D: usize> CostFunction<f64, D> for Parallel<'_, '_, D> {
+impl<const N: usize, const D: usize> CostFunction<f64, D> for Parallel<'_, '_, N, D> {
     fn cost(&mut self, x: &SVector<f64, D>) -> f64 {
         self.0.value(x)
     }
@@ -265,14 +293,14 @@ impl<const D: usize> CostFunction<f64, D> for Parallel<'_, '_, D> {
 }
 
 /// Identifies the `D` parameters of `selection` and evaluates the result.
-fn solve<const D: usize>(
-    dataset: &Dataset,
-    validation: Option<&Dataset>,
+fn solve<const N: usize, const D: usize>(
+    dataset: &Dataset<N>,
+    validation: Option<&Dataset<N>>,
     config: &CalibrationConfig,
-    selection: Selection,
+    selection: Selection<N>,
     mut frames: FramesReport,
-) -> anyhow::Result<CalibrationResult> {
-    let set = ParameterSet::<JOINTS, D>::from_mask(&selection.mask)?;
+) -> anyhow::Result<CalibrationResult<N>> {
+    let set = ParameterSet::<N, D>::from_mask(&selection.mask)?;
     let problem = Problem::new(
         &dataset.model.robot,
         &ParameterErrors::zero(),
@@ -350,8 +378,8 @@ fn solve<const D: usize>(
 }
 
 /// The identified values of `set` with their standard errors, when least squares gave them.
-fn identified_parameters<const D: usize>(
-    set: &ParameterSet<JOINTS, D>,
+fn identified_parameters<const N: usize, const D: usize>(
+    set: &ParameterSet<N, D>,
     best: &SVector<f64, D>,
     standard_errors: Option<&SVector<f64, D>>,
 ) -> Vec<IdentifiedParameter> {
@@ -371,11 +399,11 @@ fn identified_parameters<const D: usize>(
 /// file given plus the identified joint errors, with the controller's base and tool (those of the
 /// robot file given); frames identified from tracker data are the measurement setup and go to
 /// its `[measurement]` section and the report, never into `[base]` and `[tool]`.
-pub(crate) fn identified_robot(
-    dataset: &Dataset,
+pub(crate) fn identified_robot<const N: usize>(
+    dataset: &Dataset<N>,
     config: &CalibrationConfig,
     parameters: &[IdentifiedParameter],
-    errors: &ParameterErrors<f64, JOINTS>,
+    errors: &ParameterErrors<f64, N>,
     frames: &mut FramesReport,
 ) -> crate::robot_file::RobotFile {
     let std_errors: Vec<(Parameter, f64)> = parameters
@@ -441,10 +469,10 @@ struct SwarmRun<const D: usize> {
     best_cost: f64,
 }
 
-fn run_swarm<const D: usize>(
+fn run_swarm<const N: usize, const D: usize>(
     config: &CalibrationConfig,
-    objective: &Objective<'_, f64, JOINTS, D>,
-    set: &ParameterSet<JOINTS, D>,
+    objective: &Objective<'_, f64, N, D>,
+    set: &ParameterSet<N, D>,
 ) -> anyhow::Result<SwarmRun<D>> {
     let swarm = &config.swarm;
     let space = SearchSpace::for_parameters(
@@ -516,11 +544,11 @@ struct Fit<const D: usize> {
     outliers: Vec<Outlier>,
 }
 
-fn least_squares<const D: usize>(
+fn least_squares<const N: usize, const D: usize>(
     config: &CalibrationConfig,
-    least_squares: &LeastSquares<'_, f64, JOINTS, D>,
+    least_squares: &LeastSquares<'_, f64, N, D>,
     start: &SVector<f64, D>,
-    dataset: &Dataset,
+    dataset: &Dataset<N>,
 ) -> anyhow::Result<Fit<D>> {
     let set = least_squares.problem().set();
     let settings = LmSettings {
@@ -623,8 +651,8 @@ impl RobustScale {
 /// and the orientation residuals of the poses separately, `median + OUTLIER_DEVIATIONS * 1.4826 *
 /// MAD` (median absolute deviation), so that orientation counted in millimetres never makes clean
 /// poses outliers.
-pub fn robust_scale<const D: usize>(
-    least_squares: &LeastSquares<'_, f64, JOINTS, D>,
+pub fn robust_scale<const N: usize, const D: usize>(
+    least_squares: &LeastSquares<'_, f64, N, D>,
     start: &SVector<f64, D>,
     settings: &LmSettings<f64>,
     k: f64,
@@ -677,7 +705,10 @@ pub(crate) fn median(v: &mut [f64]) -> f64 {
 }
 
 /// A least-squares error in the user's terms (parameter names, not indices).
-fn lm_error<const D: usize>(error: LmError, set: &ParameterSet<JOINTS, D>) -> anyhow::Error {
+fn lm_error<const N: usize, const D: usize>(
+    error: LmError,
+    set: &ParameterSet<N, D>,
+) -> anyhow::Error {
     match error {
         LmError::UnobservableParameter(i) => {
             let name = set
@@ -695,10 +726,10 @@ fn lm_error<const D: usize>(error: LmError, set: &ParameterSet<JOINTS, D>) -> an
 
 /// Table 3 before and after on the calibration and validation poses, per-pose errors, and the
 /// calibration poses' report rows.
-fn evaluate<const D: usize>(
-    dataset: &Dataset,
-    validation: Option<&Dataset>,
-    errors: &ParameterErrors<f64, JOINTS>,
+fn evaluate<const N: usize, const D: usize>(
+    dataset: &Dataset<N>,
+    validation: Option<&Dataset<N>>,
+    errors: &ParameterErrors<f64, N>,
     fit: Option<&Fit<D>>,
 ) -> anyhow::Result<(Stage, Option<Stage>, PerPose, Vec<PoseReport>)> {
     use crate::statistics::{orientation_per_pose, table3};

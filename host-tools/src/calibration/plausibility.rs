@@ -8,7 +8,8 @@
 use super::CalibrationResult;
 
 /// Largest plausible identified length error (joints, and frames relative to their registration),
-/// mm. Manufacturing errors of a robot's links are below a few millimetres.
+/// mm. Manufacturing errors of a robot's links are below a few millimetres. A robot file's
+/// `max_length_error_mm` replaces it for that robot (and `max_angle_error_deg` the angle bound).
 pub const MAX_LENGTH_ERROR_MM: f64 = 20.0;
 
 /// Largest plausible identified angle error, degrees. Twist and joint zero errors are a fraction
@@ -16,8 +17,13 @@ pub const MAX_LENGTH_ERROR_MM: f64 = 20.0;
 pub const MAX_ANGLE_ERROR_DEG: f64 = 3.0;
 
 /// Largest plausible RMS position residual after calibration, mm. Real robots calibrated with
-/// a geometric model reach 0.1-0.5 mm (the UR10 of the bundled data: 0.42 mm mean).
+/// a geometric model reach 0.1-0.5 mm (the UR10 of the bundled data: 0.42 mm mean). A robot
+/// file's `repeatability_mm` raises it to [`REPEATABILITY_FACTOR`] times that: a cable-driven
+/// Barrett WAM (2 mm repeatability) fits its tracker data to 2.2 mm RMS.
 pub const MAX_FIT_RMS_MM: f64 = 2.0;
+
+/// The plausible fit as a multiple of the robot's repeatability.
+pub const REPEATABILITY_FACTOR: f64 = 2.0;
 
 /// What to check when a result is refused.
 pub const LIKELY_CAUSES: &str = "Likely causes: the units of the data columns (mm or m, deg or rad), the Euler convention of a \
@@ -25,26 +31,55 @@ data profile, the joint order or signs against the robot file, the frames (--fra
 determine the parameters (`calib check`). If the result is right, --accept-implausible writes it.";
 
 /// The problems of `result`, each naming the value and its bound; empty when it is plausible.
-pub fn check(result: &CalibrationResult) -> Vec<String> {
+pub fn check<const N: usize>(result: &CalibrationResult<N>) -> Vec<String> {
     let mut problems = Vec::new();
+    let robot = &result.identified_robot;
     for p in &result.parameters {
-        let (value, bound, unit) = if p.parameter.is_angle() {
-            (p.value.to_degrees(), MAX_ANGLE_ERROR_DEG, "deg")
+        let (value, (bound, whose), unit) = if p.parameter.is_angle() {
+            let bound = robot.max_angle_error_deg.map_or(
+                (MAX_ANGLE_ERROR_DEG, "a robot's geometric errors"),
+                |b| {
+                    (
+                        b,
+                        "this robot's geometric errors (its file's max_angle_error_deg)",
+                    )
+                },
+            );
+            (p.value.to_degrees(), bound, "deg")
         } else {
-            (p.value, MAX_LENGTH_ERROR_MM, "mm")
+            let bound = robot.max_length_error_mm.map_or(
+                (MAX_LENGTH_ERROR_MM, "a robot's geometric errors"),
+                |b| {
+                    (
+                        b,
+                        "this robot's geometric errors (its file's max_length_error_mm)",
+                    )
+                },
+            );
+            (p.value, bound, "mm")
         };
         if !value.is_finite() || value.abs() > bound {
             problems.push(format!(
-                "{} = {value:.4} {unit} is beyond the plausible {bound} {unit} of a robot's geometric errors",
+                "{} = {value:.4} {unit} is beyond the plausible {bound} {unit} of {whose}",
                 p.parameter
             ));
         }
     }
     let rms = result.calibration.after.position_mm.rms;
-    if !rms.is_finite() || rms > MAX_FIT_RMS_MM {
+    let (limit, why) = match result.identified_robot.repeatability_mm {
+        Some(r) if REPEATABILITY_FACTOR * r > MAX_FIT_RMS_MM => (
+            REPEATABILITY_FACTOR * r,
+            format!("{REPEATABILITY_FACTOR} times the robot's repeatability of {r} mm"),
+        ),
+        _ => (
+            MAX_FIT_RMS_MM,
+            "what a geometric model reaches on good data".to_string(),
+        ),
+    };
+    if !rms.is_finite() || rms > limit {
         problems.push(format!(
-            "the calibrated model misses the calibration poses by {rms:.3} mm RMS, more than the {MAX_FIT_RMS_MM} mm \
-             a geometric model reaches on good data"
+            "the calibrated model misses the calibration poses by {rms:.3} mm RMS, more than the {limit} mm \
+             of {why}"
         ));
     }
     problems

@@ -139,7 +139,9 @@ pub struct PerPose {
 
 /// Everything a calibration found.
 #[derive(Clone, Debug)]
-pub struct CalibrationResult {
+///
+/// `N` is the robot's joint count.
+pub struct CalibrationResult<const N: usize = JOINTS> {
     /// The robot's name.
     pub robot: String,
     /// Where the robot came from (a file, or `<memory>`).
@@ -151,7 +153,7 @@ pub struct CalibrationResult {
     /// The identified parameters, in canonical order.
     pub parameters: Vec<IdentifiedParameter>,
     /// All errors (identified ones set, others zero), mm and rad.
-    pub errors: ParameterErrors<f64, JOINTS>,
+    pub errors: ParameterErrors<f64, N>,
     /// The objective before and after.
     pub objective: ObjectiveValues,
     /// The swarm stage, when it ran.
@@ -188,7 +190,7 @@ pub struct CalibrationResult {
     pub joint_maps: Option<super::maps::JointMapsReport>,
 }
 
-impl CalibrationResult {
+impl<const N: usize> CalibrationResult<N> {
     /// The identified parameter called `name` (such as `da2` or `base_tx`).
     pub fn parameter(&self, name: &str) -> Option<&IdentifiedParameter> {
         self.parameters

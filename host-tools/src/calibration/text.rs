@@ -10,7 +10,7 @@ fn condition(c: Option<f64>) -> String {
     c.map_or_else(|| "infinite".to_string(), |c| format!("{c:.3e}"))
 }
 
-impl CalibrationResult {
+impl<const N: usize> CalibrationResult<N> {
     /// The text `calib calibrate` prints; `truth` adds the comparison with known errors.
     pub fn text(&self, truth: Option<&[TruthRow]>) -> String {
         let mut text = self.run_text();
@@ -165,6 +165,10 @@ impl CalibrationResult {
             id.rank,
             condition(id.condition_number)
         );
+        if let Some(reflector) = &id.reflector_on_last_axis {
+            text.push_str("  ");
+            text.push_str(&reflector.text());
+        }
         if id.ill_conditioned && self.dropped.is_empty() {
             text.push_str("  ");
             text.push_str(&id.ill_conditioned_text());

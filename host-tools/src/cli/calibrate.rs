@@ -181,10 +181,11 @@ impl CalibrateOptions {
     }
 }
 
-/// A calibration run by the command: the typed result and what is rendered from it.
-pub struct Calibration {
+/// A calibration run by the command: the typed result and what is rendered from it (`N`: the
+/// robot's joint count).
+pub struct Calibration<const N: usize = JOINTS> {
     /// The typed result.
-    pub result: CalibrationResult,
+    pub result: CalibrationResult<N>,
     /// How the validation poses were chosen.
     pub hold_out: HoldOut,
     /// The comparison with `--truth`, when given.
@@ -195,8 +196,33 @@ pub struct Calibration {
     pub text: String,
 }
 
-/// Runs `calib calibrate` without writing anything: reads the files, calibrates, renders.
-pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
+/// Runs `calib calibrate` as the command does: calibrates (the robot file's joint count one of
+/// [`IDENTIFICATION_JOINT_COUNTS`](crate::dispatch::IDENTIFICATION_JOINT_COUNTS)), writes the
+/// files asked for (all or none), and returns the text to print, with the files written.
+pub fn calibrate_and_write(options: &CalibrateOptions) -> anyhow::Result<String> {
+    crate::with_identification_joint_count!(
+        options.input.joints()?,
+        calibrate_and_write_joints(options)
+    )
+}
+
+/// [`calibrate_and_write`] for an `N`-joint robot.
+fn calibrate_and_write_joints<const N: usize>(
+    options: &CalibrateOptions,
+) -> anyhow::Result<String> {
+    let calibration = calibrate::<N>(options)?;
+    // The files first: a closed or full standard output must not lose them.
+    let written = write_outputs(&calibration, &options.outputs())?;
+    let mut text = calibration.text;
+    for path in written {
+        text.push_str(&format!("wrote {}\n", path.display()));
+    }
+    Ok(text)
+}
+
+/// Runs `calib calibrate` for an `N`-joint robot without writing anything: reads the files,
+/// calibrates, renders.
+pub fn calibrate<const N: usize>(options: &CalibrateOptions) -> anyhow::Result<Calibration<N>> {
     let config = options.config();
     config.check()?; // bad settings are reported before any file is read
     let (profile, all) = options.input.load()?;
@@ -204,7 +230,11 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
         (Some(_), Some(_)) => bail!("use either --validate or --holdout, not both"),
         (Some(path), None) => (
             all,
-            Some(Dataset::load_with(&options.input.robot, path, &profile)?),
+            Some(Dataset::<N>::load_with(
+                &options.input.robot,
+                path,
+                &profile,
+            )?),
         ),
         (None, Some(fraction)) => {
             let (calibration, held) = crate::dataset::split(&all, fraction, options.validate_seed)?;
@@ -216,11 +246,11 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
     Calibration::new(result, options.hold_out(), options.truth.as_deref())
 }
 
-impl Calibration {
+impl<const N: usize> Calibration<N> {
     /// Renders `result`: the text, the identified robot file and, with the robot file of the true
     /// errors at `truth`, the comparison with them.
     pub fn new(
-        result: CalibrationResult,
+        result: CalibrationResult<N>,
         hold_out: HoldOut,
         truth: Option<&std::path::Path>,
     ) -> anyhow::Result<Self> {
@@ -252,8 +282,11 @@ impl Calibration {
 }
 
 /// The identified errors against the true errors of the robot file at `path`.
-fn truth_rows(result: &CalibrationResult, path: &std::path::Path) -> anyhow::Result<Vec<TruthRow>> {
-    let truth = RobotFile::read(path)?.calibration_errors::<JOINTS>(path)?;
+fn truth_rows<const N: usize>(
+    result: &CalibrationResult<N>,
+    path: &std::path::Path,
+) -> anyhow::Result<Vec<TruthRow>> {
+    let truth = RobotFile::read(path)?.calibration_errors::<N>(path)?;
     Ok(result
         .parameters
         .iter()
@@ -310,8 +343,8 @@ impl CalibrateOptions {
 
 /// Writes the outputs of a calibration that were asked for, all together or none (see
 /// [`Outputs`]); returns the files written.
-pub fn write_outputs(
-    calibration: &Calibration,
+pub fn write_outputs<const N: usize>(
+    calibration: &Calibration<N>,
     paths: &OutputPaths,
 ) -> anyhow::Result<Vec<PathBuf>> {
     let inputs: Vec<(&str, &std::path::Path)> = paths

@@ -30,7 +30,12 @@ pub struct EvaluateOptions {
 
 /// Runs `calib evaluate`.
 pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
-    let (_, dataset) = options.input.load()?;
+    crate::with_identification_joint_count!(options.input.joints()?, evaluate_joints(options))
+}
+
+/// `calib evaluate` for an `N`-joint robot.
+fn evaluate_joints<const N: usize>(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
+    let (_, dataset) = options.input.load::<N>()?;
     let frames = Frames::chosen(options.fit_frames, &dataset.data);
     crate::evaluation::evaluate(&dataset, frames, options.fit_poses, options.seed)
 }

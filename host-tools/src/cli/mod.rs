@@ -37,11 +37,16 @@ pub struct InputFiles {
 impl InputFiles {
     /// The data profile, then both files read and checked through it, and the orientations
     /// checked against the robot ([`crate::orientation_check`]).
-    pub fn load(&self) -> anyhow::Result<(DataProfile, Dataset)> {
+    pub fn load<const N: usize>(&self) -> anyhow::Result<(DataProfile, Dataset<N>)> {
         let profile = DataProfile::load(self.profile.as_deref())?;
-        let inputs = Dataset::load_with(&self.robot, &self.data, &profile)?;
+        let inputs = Dataset::<N>::load_with(&self.robot, &self.data, &profile)?;
         crate::orientation_check::check(&inputs, &profile.euler)?;
         Ok((profile, inputs))
+    }
+
+    /// The robot file's joint count (the file is read and checked again by [`Self::load`]).
+    pub fn joints(&self) -> anyhow::Result<usize> {
+        Ok(crate::robot_file::RobotFile::read(&self.robot)?.joint.len())
     }
 }
 

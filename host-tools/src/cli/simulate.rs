@@ -119,12 +119,23 @@ impl Simulation {
 
 /// Runs `calib simulate`: simulates, then writes the tracker CSV to `--out` and the true robot to
 /// `--truth-out` (nothing unless both are ready; each atomically).
-pub fn simulate(options: &Simulation) -> anyhow::Result<Simulated> {
+/// Robots of any joint count in [`JOINT_COUNTS`](crate::dispatch::JOINT_COUNTS); returns the
+/// number of poses written.
+pub fn simulate(options: &Simulation) -> anyhow::Result<usize> {
     let config = options.config()?;
     let file = RobotFile::read(&options.robot)?;
     file.refuse_compliance(&options.robot, "calib simulate")?;
     file.refuse_joint_maps(&options.robot, "calib simulate")?;
-    let simulated = crate::simulate::simulate(&file, &options.robot, &config)?;
+    crate::with_joint_count!(file.joint.len(), simulate_joints(&file, options, &config))
+}
+
+/// `calib simulate` for an `N`-joint robot.
+fn simulate_joints<const N: usize>(
+    file: &RobotFile,
+    options: &Simulation,
+    config: &SimulationConfig,
+) -> anyhow::Result<usize> {
+    let simulated: Simulated<N> = crate::simulate::simulate(file, &options.robot, config)?;
     simulated.write(&options.out, &options.truth_out, &options.robot)?;
-    Ok(simulated)
+    Ok(simulated.rows.len())
 }

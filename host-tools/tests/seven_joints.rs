@@ -1,0 +1,324 @@
+//! A simulated 7-joint robot (KUKA LBR iiwa 14) through every command of `calib`, as a user runs
+//! them: simulate -> check -> calibrate (with plots and reports) -> report -> evaluate -> verify
+//! -> fk -> compensate -> export. The expectation is the simulation's truth: on exact data the
+//! identified errors are the true ones, and the identified model reproduces every measured pose.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+use common::{calib, ok};
+
+use host_tools::robot_file::RobotFile;
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use std::path::Path;
+
+const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/kuka-iiwa14.toml");
+
+/// `dir/name` as a string.
+fn at(dir: &Path, name: &str) -> String {
+    dir.join(name).to_str().unwrap().to_string()
+}
+
+#[test]
+fn every_command_on_a_simulated_seven_joint_robot() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, truth) = (
+        at(dir.path(), "iiwa.csv"),
+        at(dir.path(), "iiwa-truth.toml"),
+    );
+    // Tracker frame, 6-DoF poses, random errors of every identified parameter.
+    let out = ok(&calib(&[
+        "simulate",
+        "--robot",
+        ROBOT,
+        "--errors",
+        "random",
+        "--poses",
+        "60",
+        "--within-limits",
+        "--tracker-xyz-mm",
+        "2000,500,100",
+        "--tracker-rpy-deg",
+        "0,0,30",
+        "--out",
+        &data,
+        "--truth-out",
+        &truth,
+    ]));
+    assert!(out.contains("wrote 60 poses"), "{out}");
+
+    // check: 7 x 5 Hayati parameters minus beta (no parallel axes) = 28, minus what the frames
+    // absorb (dd1, dtheta1; joint 7), plus base 6 and tool 6.
+    let out = ok(&calib(&["check", "--robot", ROBOT, "--data", &data]));
+    assert!(
+        out.contains("identifiability of 34 parameters: rank 34"),
+        "{out}"
+    );
+    assert!(
+        out.contains("every parameter is determined by the data"),
+        "{out}"
+    );
+
+    // calibrate (least squares) with every output.
+    let (identified, report, html, plots) = (
+        at(dir.path(), "iiwa-identified.toml"),
+        at(dir.path(), "report.json"),
+        at(dir.path(), "report.html"),
+        at(dir.path(), "plots"),
+    );
+    let out = ok(&calib(&[
+        "calibrate",
+        "--robot",
+        ROBOT,
+        "--data",
+        &data,
+        "--method",
+        "lm",
+        "--validate",
+        "0.25",
+        "--truth",
+        &truth,
+        "--out",
+        &identified,
+        "--report",
+        &report,
+        "--html",
+        &html,
+        "--plot",
+        &plots,
+    ]));
+    assert!(
+        out.contains("calibrated KUKA LBR iiwa 14 R820 with 45 poses"),
+        "{out}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let truth_rows = json["truth"].as_array().unwrap();
+    assert_eq!(truth_rows.len(), 34);
+    let worst = truth_rows
+        .iter()
+        .filter(|row| {
+            let name = row["name"].as_str().unwrap();
+            !(name.starts_with("base") || name.starts_with("tool"))
+        })
+        .map(|row| (row["identified"].as_f64().unwrap() - row["truth"].as_f64().unwrap()).abs())
+        .fold(0.0, f64::max);
+    println!("largest joint parameter error against the truth: {worst:.2e}");
+    assert!(worst < 1e-9, "{worst}");
+    let after = json["validation"]["after"]["position_mm"]["max"]
+        .as_f64()
+        .unwrap();
+    assert!(after < 1e-9, "held-out max {after} mm");
+    let written = RobotFile::read(Path::new(&identified)).unwrap();
+    assert_eq!(written.joint.len(), 7);
+    for plot in [
+        "position-error.svg",
+        "position-error.png",
+        "validation-histogram.svg",
+    ] {
+        assert!(Path::new(&plots).join(plot).is_file(), "{plot}");
+    }
+    assert!(std::fs::read_to_string(&html).unwrap().contains("iiwa"));
+
+    // The default method (swarm then least squares) reaches the same fit.
+    let out = ok(&calib(&[
+        "calibrate",
+        "--robot",
+        ROBOT,
+        "--data",
+        &data,
+        "--quiet",
+    ]));
+    assert!(out.contains("by ipso+lm"), "{out}");
+
+    // report: the JSON rendered again as a page.
+    let page = at(dir.path(), "again.html");
+    ok(&calib(&["report", "--from", &report, "--html", &page]));
+    assert!(Path::new(&page).is_file());
+
+    // evaluate: the identified model on the data, frames re-fitted: exact.
+    let out = ok(&calib(&[
+        "evaluate",
+        "--robot",
+        &identified,
+        "--data",
+        &data,
+        "--json",
+    ]));
+    let evaluation: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let mean = evaluation["position_mm"]["mean"].as_f64().unwrap();
+    assert!(mean < 1e-6, "evaluate mean {mean} mm");
+
+    // verify: the f32 core, the f64 core and the reference agree.
+    let out = ok(&calib(&["verify", "--robot", ROBOT, "--data", &data]));
+    assert!(out.contains("all within tolerance"), "{out}");
+
+    // fk of the identified file at the first pose, carried into the tracker's frame by the
+    // measurement setup it records (tracker registration, probe on the flange): the measured
+    // pose of the data file.
+    let first = std::fs::read_to_string(&data)
+        .unwrap()
+        .lines()
+        .find(|l| l.starts_with("P001"))
+        .unwrap()
+        .to_string();
+    let fields: Vec<&str> = first.split(',').collect();
+    let joints: Vec<&str> = fields[1..8].to_vec();
+    let measured: Vec<f64> = fields[8..11].iter().map(|v| v.parse().unwrap()).collect();
+    let out = ok(&calib(&[
+        "fk",
+        "--robot",
+        &identified,
+        "--joints-deg",
+        &joints.join(","),
+        "--json",
+    ]));
+    let pose: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let numbers = |key: &str| -> Vec<f64> {
+        pose[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect()
+    };
+    let (p, w) = (numbers("position_mm"), numbers("quaternion_wxyz"));
+    let flange = Isometry3::from_parts(
+        Translation3::new(p[0], p[1], p[2]),
+        UnitQuaternion::from_quaternion(Quaternion::new(w[0], w[1], w[2], w[3])),
+    );
+    let frame = |f: &host_tools::robot_file::FrameEntry| {
+        let [r, p, y] = f.rpy_deg.map(f64::to_radians);
+        Isometry3::from_parts(
+            Translation3::from(Vector3::from(f.xyz_mm)),
+            UnitQuaternion::from_euler_angles(r, p, y),
+        )
+    };
+    let setup = written.measurement.as_ref().unwrap();
+    let predicted =
+        frame(&setup.tracker_base) * flange * frame(setup.flange_tool.as_ref().unwrap());
+    let miss =
+        (predicted.translation.vector - Vector3::new(measured[0], measured[1], measured[2])).norm();
+    println!("fk of the identified file in the measurement setup against the data: {miss:.2e} mm");
+    assert!(miss < 1e-6, "{miss}");
+    let q: [f64; 7] = std::array::from_fn(|i| joints[i].parse::<f64>().unwrap().to_radians());
+
+    // compensate: targets the nominal robot reaches at the simulated joints; the identified
+    // robot is put on them.
+    let nominal = RobotFile::read(Path::new(ROBOT))
+        .unwrap()
+        .to_model::<7>(Path::new(ROBOT))
+        .unwrap()
+        .robot;
+    let target = calib_core::Kinematics::nominal(&nominal)
+        .unwrap()
+        .forward(&q)
+        .unwrap();
+    let quaternion = nalgebra::UnitQuaternion::from_rotation_matrix(&target.rotation);
+    let targets = at(dir.path(), "targets.csv");
+    std::fs::write(
+        &targets,
+        format!(
+            "id,x_mm,y_mm,z_mm,qw,qx,qy,qz,{}\nT1,{},{},{},{},{},{},{},{}\n",
+            (1..=7)
+                .map(|j| format!("q{j}_deg"))
+                .collect::<Vec<_>>()
+                .join(","),
+            target.translation.x,
+            target.translation.y,
+            target.translation.z,
+            quaternion.w,
+            quaternion.i,
+            quaternion.j,
+            quaternion.k,
+            joints.join(",")
+        ),
+    )
+    .unwrap();
+    let compensated = at(dir.path(), "compensated.csv");
+    let out = ok(&calib(&[
+        "compensate",
+        "--robot",
+        ROBOT,
+        "--params",
+        &identified,
+        "--targets",
+        &targets,
+        "--out",
+        &compensated,
+        "--max-correction-mm",
+        "50",
+        "--max-correction-deg",
+        "5",
+    ]));
+    let mut reader = csv::Reader::from_path(&compensated).unwrap();
+    let row = reader.records().next().unwrap().unwrap();
+    assert!(out.contains("compensated 1 of 1 targets"), "{out}\n{row:?}");
+    assert_eq!(&row[10], "ok");
+    let residual: f64 = row[8].parse().unwrap();
+    assert!(residual < 1e-3, "{residual} mm");
+
+    // export: the controller's block of the identified 7-joint robot.
+    let block = at(dir.path(), "iiwa.bin");
+    let out = ok(&calib(&[
+        "export",
+        "--params",
+        &identified,
+        "--format",
+        "block",
+        "--out",
+        &block,
+    ]));
+    assert!(out.contains("wrote"), "{out}");
+    assert!(std::fs::metadata(&block).unwrap().len() > 0);
+}
+
+/// Commands that are defined for 6-joint robots only say so instead of guessing.
+#[test]
+fn six_joint_models_refuse_a_seven_joint_robot_with_a_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, truth) = (at(dir.path(), "d.csv"), at(dir.path(), "t.toml"));
+    let out = calib(&[
+        "simulate",
+        "--robot",
+        ROBOT,
+        "--out",
+        &data,
+        "--truth-out",
+        &truth,
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("Table 2 of the paper holds the errors of a 6-joint robot"),
+        "{err}"
+    );
+    assert!(!Path::new(&data).exists() && !Path::new(&truth).exists());
+
+    ok(&calib(&[
+        "simulate",
+        "--robot",
+        ROBOT,
+        "--errors",
+        "random",
+        "--within-limits",
+        "--out",
+        &data,
+        "--truth-out",
+        &truth,
+    ]));
+    let out = calib(&[
+        "calibrate",
+        "--robot",
+        ROBOT,
+        "--data",
+        &data,
+        "--model",
+        "joint-maps",
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--model joint-maps is supported for 6-joint robots; this robot has 7 joints"),
+        "{err}"
+    );
+}
