@@ -2,7 +2,11 @@
 //! that put the actual (identified) robot on it, started from the controller's nominal joints:
 //! given, or the nominal inverse kinematics, in closed form on a branch where the structure allows
 //! (spherical wrist, UR-type offset wrist), numerical otherwise
-//! ([`calib_core::controller::numerical_ik`], from the middle of the joint limits).
+//! ([`calib_core::controller::numerical_ik`], from the middle of the joint limits, up to
+//! [`NUMERICAL_STARTS`] solutions). Where that fails or the nominal robot cannot reach the target
+//! (within mm of a workspace boundary or singularity, where the two robots part ways), the
+//! identified robot is solved from the nominal (or nearest) configuration, under the same bounds.
+//! The output's `start` column says which way each row went.
 
 use crate::tracker_data::TrackerData;
 use anyhow::Context;
@@ -10,8 +14,10 @@ use calib_core::controller::compensate::{
     ActualRobot, Compensated, CompensationError, CompensationSettings, compensate_joints_from,
     solve_joints,
 };
-use calib_core::controller::numerical_ik::{NumericalIkSettings, numerical_inverse_kinematics};
-use calib_core::kinematics::ik::{IkError, inverse_kinematics};
+use calib_core::controller::numerical_ik::{
+    NumericalIkSettings, numerical_inverse_kinematics_from_seed,
+};
+use calib_core::kinematics::ik::{BRANCHES, IkError, inverse_kinematics, nearest_configurations};
 use calib_core::kinematics::pose_error::PoseError;
 use calib_core::{Kinematics, Robot};
 
@@ -24,8 +30,9 @@ use nalgebra::{Rotation3, Translation3};
 pub struct TargetOutcome<const N: usize> {
     /// The target's id.
     pub id: String,
-    /// Where the start joints came from: `given`, `closed form, branch B` or `numerical, seed S`
-    /// (empty when none was found).
+    /// Where the start joints came from: `given`, `closed form, branch B` (with `nearest
+    /// configuration (X mm beyond the nominal workspace)` for a target the nominal robot cannot
+    /// reach on that branch) or `numerical, seed S` (empty when none was found).
     pub start: String,
     /// The compensated joints (rad) and predicted residuals, or why the target was refused.
     pub result: Result<Compensated<f64, N>, String>,
@@ -85,14 +92,16 @@ pub fn compensate_targets_of<const N: usize>(
                 Translation3::from(nalgebra::Vector3::from(record.position)),
                 Rotation3::from_matrix_unchecked(rotation),
             );
-            let (start, method) =
-                match planned_start(nominal, &planned, &target, record, targets.joints, branch) {
-                    Ok((q, method)) => (Ok(q), method),
-                    Err(e) => (Err(e), String::new()),
-                };
-            let result = start.and_then(|start| {
-                compensate_target(&planned, real, &nominal.limits, &target, &start, settings)
-            });
+            let (result, method) = compensate_record(
+                nominal,
+                &planned,
+                real,
+                &target,
+                record,
+                targets.joints,
+                branch,
+                settings,
+            );
             TargetOutcome {
                 id: record.id.clone(),
                 start: method,
@@ -103,49 +112,220 @@ pub fn compensate_targets_of<const N: usize>(
     Ok(outcomes)
 }
 
-/// The controller's joints for `target` and how they were found: the record's joints when the
-/// file has them; otherwise the nominal inverse kinematics, in closed form on `branch` where the
-/// robot's structure has one (6 joints: spherical or UR-type offset wrist), else numerical from
-/// the middle of the joint limits (each limit taken within one turn of zero).
-fn planned_start<const N: usize>(
+/// Most nominal numerical solutions a target without joints is compensated from: when the
+/// compensation from one fails (it lies near a singularity where the actual robot turns away, or
+/// needs a joint beyond its limit), the next seed's solution is tried.
+pub const NUMERICAL_STARTS: usize = 8;
+
+/// Compensates one record: from the controller's joints when the file has them; otherwise from
+/// the nominal inverse kinematics, in closed form on `branch` where the robot's structure has
+/// one (6 joints: spherical or UR-type offset wrist), else numerical from the middle of the joint
+/// limits (each limit taken within one turn of zero), up to [`NUMERICAL_STARTS`] solutions in
+/// seed order. Returns the outcome and where the start came from (empty when none was found).
+#[allow(clippy::too_many_arguments)]
+fn compensate_record<const N: usize>(
     nominal: &Robot<f64, N>,
     planned: &Kinematics<f64, N>,
+    real: &impl ActualRobot<f64, N>,
     target: &Pose,
     record: &crate::tracker_data::Record,
     joints_in_file: usize,
     branch: usize,
-) -> Result<([f64; N], String), String> {
+    settings: &CompensationSettings<f64>,
+) -> (Result<Compensated<f64, N>, String>, String) {
+    let from = |start: &[f64; N]| {
+        compensate_target(planned, real, &nominal.limits, target, start, settings)
+    };
     if joints_in_file == N {
         let q = std::array::from_fn(|i| record.q.get(i).copied().unwrap_or(0.0));
-        return Ok((q, "given".into()));
+        return (from(&q), "given".into());
     }
-    match closed_form(nominal, target, branch) {
-        Some(Ok(q)) => return Ok((q, format!("closed form, branch {branch}"))),
-        Some(Err(e)) => return Err(e),
+    match closed_form(nominal, planned, target, branch) {
+        Some(Ok(ClosedForm::Exact(q, method))) => {
+            return match from(&q) {
+                Ok(c) => (Ok(c), method),
+                Err(e) => {
+                    on_identified_robot(planned, real, &nominal.limits, target, &q, true, settings)
+                        .map_or_else(
+                            |f| (Err(format!("{e}; then {f}")), method.clone()),
+                            |(c, m)| (Ok(c), format!("{method}; {m}")),
+                        )
+                }
+            };
+        }
+        Some(Ok(ClosedForm::Nearest(q, method))) => {
+            return match on_identified_robot(
+                planned,
+                real,
+                &nominal.limits,
+                target,
+                &q,
+                true,
+                settings,
+            ) {
+                Ok((c, m)) => (Ok(c), format!("{method}; {m}")),
+                Err(e) => (Err(e), method),
+            };
+        }
+        Some(Err(e)) => return (Err(e), String::new()),
         None => {}
     }
     let pi = std::f64::consts::PI;
     let reference = nominal
         .limits
         .map(|l| 0.5 * (l.lower.max(-pi) + l.upper.min(pi)));
-    numerical_inverse_kinematics(
+    // The first failure: its error, method and start.
+    let mut first: Option<(String, String, [f64; N])> = None;
+    let mut not_found = None;
+    let mut seed = 0;
+    for _ in 0..NUMERICAL_STARTS {
+        let start = match numerical_inverse_kinematics_from_seed(
+            planned,
+            &nominal.limits,
+            target,
+            &reference,
+            &NumericalIkSettings::default(),
+            seed,
+        ) {
+            Ok(start) => start,
+            Err(e) => {
+                not_found = Some(e.to_string());
+                break;
+            }
+        };
+        let method = format!("numerical, seed {}", start.seed);
+        match from(&start.q) {
+            Ok(c) => return (Ok(c), method),
+            Err(e) => {
+                first.get_or_insert((e, method, start.q));
+            }
+        }
+        seed = start.seed.saturating_add(1);
+    }
+    let (from_planned, planned_start) = match &first {
+        Some((_, _, q)) => (true, *q),
+        None => (false, reference),
+    };
+    let fallback = on_identified_robot(
         planned,
+        real,
         &nominal.limits,
         target,
-        &reference,
-        &NumericalIkSettings::default(),
-    )
-    .map(|s| (s.q, format!("numerical, seed {}", s.seed)))
-    .map_err(|e| e.to_string())
+        &planned_start,
+        from_planned,
+        settings,
+    );
+    match (fallback, first, not_found) {
+        (Ok((c, m)), Some((_, method, _)), _) => (Ok(c), format!("{method}; {m}")),
+        (Ok((c, m)), None, _) => (Ok(c), m),
+        (Err(_), Some((error, method, _)), _) => (Err(error), method),
+        (Err(_), None, Some(e)) => (Err(e), String::new()),
+        (Err(e), None, None) => (Err(e), String::new()),
+    }
+}
+
+/// A closed-form start and how it was found.
+enum ClosedForm<const N: usize> {
+    /// The nominal robot reaches the target there.
+    Exact([f64; N], String),
+    /// The target is beyond the nominal workspace on the branch: its nearest configuration.
+    Nearest([f64; N], String),
+}
+
+/// The fallback where a compensation from the controller's nominal joints fails or there are
+/// none (the target lies beyond the nominal workspace, or near a singularity where the nominal
+/// and the identified robot part ways): the numerical inverse kinematics of the identified
+/// robot's geometry from `reference` (the planned or nearest nominal configuration, or, with
+/// `planned` false, the middle of the limits), then the compensation from there. The bounds
+/// still hold: the correction is the nominal pose at the result against the target, and, when
+/// `reference` is `planned`, no joint moves from it by more than the joint bound. Returns the
+/// result and how it was found.
+fn on_identified_robot<const N: usize>(
+    planned: &Kinematics<f64, N>,
+    real: &impl ActualRobot<f64, N>,
+    limits: &[calib_core::JointLimits<f64>; N],
+    target: &Pose,
+    reference: &[f64; N],
+    planned_reference: bool,
+    settings: &CompensationSettings<f64>,
+) -> Result<(Compensated<f64, N>, String), String> {
+    let unbounded = CompensationSettings {
+        max_correction_mm: f64::INFINITY,
+        max_correction_rad: f64::INFINITY,
+        ..*settings
+    };
+    let (solution, method) =
+        match compensate_target(planned, real, limits, target, reference, &unbounded) {
+            Ok(solution) => (solution, "the identified robot from there".to_string()),
+            Err(_) => {
+                let mut start = numerical_inverse_kinematics_from_seed(
+                    real.geometry(),
+                    limits,
+                    target,
+                    reference,
+                    &NumericalIkSettings::default(),
+                    0,
+                )
+                .map_err(|e| format!("on the identified robot: {e}"))?;
+                // Whole turns toward the reference where the limits allow.
+                for ((q, r), l) in start.q.iter_mut().zip(reference).zip(limits) {
+                    let turned =
+                        *q + std::f64::consts::TAU * ((r - *q) / std::f64::consts::TAU).round();
+                    if l.contains(turned) {
+                        *q = turned;
+                    }
+                }
+                let solution =
+                    compensate_target(planned, real, limits, target, &start.q, &unbounded)?;
+                (
+                    solution,
+                    format!("numerical on the identified robot, seed {}", start.seed),
+                )
+            }
+        };
+    let (joint, change) = solution
+        .q
+        .iter()
+        .zip(reference)
+        .map(|(q, r)| (q - r).abs())
+        .enumerate()
+        .fold((0, 0.0f64), |m, (j, c)| if c > m.1 { (j, c) } else { m });
+    let nominal_pose = planned.forward(&solution.q).map_err(|e| e.to_string())?;
+    let correction = PoseError::between(&nominal_pose, target);
+    let (mm, rad) = (correction.position.norm(), correction.rotation.norm());
+    if (planned_reference && change > settings.max_joint_correction_rad)
+        || mm > settings.max_correction_mm
+        || rad > settings.max_correction_rad
+    {
+        return Err(format!(
+            "{}: the identified robot reaches the target with {mm:.3} mm and {:.3} deg of correction (bounds {} mm, \
+             --max-correction-mm, and {} deg, --max-correction-deg), moving joint {} by {:.3} deg from the nominal \
+             configuration (bound {:.3} deg, --max-joint-correction-deg)",
+            CompensationError::CorrectionTooLarge,
+            rad.to_degrees(),
+            settings.max_correction_mm,
+            settings.max_correction_rad.to_degrees(),
+            joint + 1,
+            change.to_degrees(),
+            settings.max_joint_correction_rad.to_degrees()
+        ));
+    }
+    Ok((solution, method))
 }
 
 /// The closed-form inverse kinematics on `branch` when the robot has one (`None`: no closed
-/// form for this structure or joint count).
+/// form for this structure or joint count), and how it was found. A target beyond the nominal
+/// workspace on `branch` (within a few mm of a stretched elbow or of the shoulder's cylinder, where
+/// the actual robot's workspace differs from the nominal one by its errors) starts from the
+/// nearest configuration on the workspace boundary
+/// ([`calib_core::kinematics::ik::nearest_configurations`]): the method says how far it is from
+/// the target, and the compensation finds out whether the actual robot reaches it.
 fn closed_form<const N: usize>(
     nominal: &Robot<f64, N>,
+    planned: &Kinematics<f64, N>,
     target: &Pose,
     branch: usize,
-) -> Option<Result<[f64; N], String>> {
+) -> Option<Result<ClosedForm<N>, String>> {
     // Only 6-joint robots have one: the same robot as a Robot<f64, 6>.
     let six = Robot::<f64, 6> {
         joints: nominal.joints.as_slice().try_into().ok()?,
@@ -153,18 +333,42 @@ fn closed_form<const N: usize>(
         base: nominal.base,
         tool: nominal.tool,
     };
+    let on_branch = |solutions: [Option<[f64; 6]>; BRANCHES]| -> Option<[f64; N]> {
+        solutions
+            .get(branch)
+            .copied()
+            .flatten()
+            .and_then(|q| q.as_slice().try_into().ok())
+    };
     match inverse_kinematics(&six, target) {
-        Ok(solutions) => Some(
-            solutions
-                .get(branch)
-                .copied()
-                .flatten()
-                .and_then(|q| q.as_slice().try_into().ok())
-                .ok_or_else(|| format!("target out of reach on branch {branch}")),
-        ),
-        Err(IkError::UnsupportedGeometry) => None,
-        Err(e) => Some(Err(e.to_string())),
+        Ok(solutions) => {
+            if let Some(q) = on_branch(solutions) {
+                return Some(Ok(ClosedForm::Exact(
+                    q,
+                    format!("closed form, branch {branch}"),
+                )));
+            }
+        }
+        Err(IkError::UnsupportedGeometry) => return None,
+        Err(e) => return Some(Err(e.to_string())),
     }
+    let out_of_reach = format!("target out of reach on branch {branch}");
+    let nearest = nearest_configurations(&six, target)
+        .ok()
+        .and_then(on_branch)
+        .and_then(|q| Some((q, planned.forward(&q).ok()?)));
+    Some(match nearest {
+        Some((q, pose)) => {
+            let miss = PoseError::between(target, &pose).position.norm();
+            Ok(ClosedForm::Nearest(
+                q,
+                format!(
+                    "closed form, branch {branch}, nearest configuration ({miss:.3} mm beyond the nominal workspace)"
+                ),
+            ))
+        }
+        None => Err(out_of_reach),
+    })
 }
 
 /// Retries after the first run from the controller's joints: the iteration cap is multiplied by

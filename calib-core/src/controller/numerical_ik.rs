@@ -137,6 +137,20 @@ pub fn numerical_inverse_kinematics<T: Real, const N: usize>(
     reference: &[T; N],
     settings: &NumericalIkSettings<T>,
 ) -> Result<NumericalIk<T, N>, NumericalIkError> {
+    numerical_inverse_kinematics_from_seed(model, limits, target, reference, settings, 0)
+}
+
+/// [`numerical_inverse_kinematics`] with the search begun at seed `first_seed` (0: the
+/// reference posture; `k >= 1`: the k-th Halton point): the next solution after one found at
+/// seed `k - 1` that did not serve (a compensation from it failed, say), in the same order.
+pub fn numerical_inverse_kinematics_from_seed<T: Real, const N: usize>(
+    model: &Kinematics<T, N>,
+    limits: &[JointLimits<T>; N],
+    target: &Pose<T>,
+    reference: &[T; N],
+    settings: &NumericalIkSettings<T>,
+    first_seed: u32,
+) -> Result<NumericalIk<T, N>, NumericalIkError> {
     let solve = CompensationSettings {
         position_tolerance: settings.position_tolerance_mm,
         rotation_tolerance: settings.rotation_tolerance_rad,
@@ -144,7 +158,7 @@ pub fn numerical_inverse_kinematics<T: Real, const N: usize>(
         min_manipulability: settings.min_manipulability,
         ..CompensationSettings::default()
     };
-    for seed in 0..settings.seeds {
+    for seed in first_seed..settings.seeds {
         let mut start = if seed == 0 {
             *reference
         } else {

@@ -78,6 +78,54 @@ pub fn inverse_kinematics<T: Real>(
     robot: &Robot<T, 6>,
     target: &Pose<T>,
 ) -> Result<[Option<[T; 6]>; BRANCHES], IkError> {
+    solve(robot, target, Reach::Exact)
+}
+
+/// [`inverse_kinematics`], except that a branch whose target lies beyond the workspace (the
+/// elbow would have to stretch or fold further than it can, or the wrist come closer to the
+/// shoulder axis than its offset) gives the configuration on the workspace boundary nearest to
+/// it: the `asin`/`acos` arguments are clamped to +-1. Its forward kinematics then misses the
+/// target; a compensation started there finds out whether the actual robot, whose workspace
+/// differs by its errors, reaches it. Every branch that [`inverse_kinematics`] solves is solved
+/// the same.
+pub fn nearest_configurations<T: Real>(
+    robot: &Robot<T, 6>,
+    target: &Pose<T>,
+) -> Result<[Option<[T; 6]>; BRANCHES], IkError> {
+    solve(robot, target, Reach::NearestOnBoundary)
+}
+
+/// What a branch beyond the workspace gives.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Reach {
+    /// Nothing (`None`).
+    Exact,
+    /// The nearest configuration on the workspace boundary.
+    NearestOnBoundary,
+}
+
+impl Reach {
+    /// `ratio` as the argument of an `asin` or `acos`: itself within +-1; beyond, clamped or
+    /// `None`.
+    fn argument<T: Real>(self, ratio: T) -> Option<T> {
+        if !ratio.finite() {
+            return None;
+        }
+        if ratio.abs() <= T::one() {
+            return Some(ratio);
+        }
+        match self {
+            Self::Exact => None,
+            Self::NearestOnBoundary => Some(ratio.max(-T::one()).min(T::one())),
+        }
+    }
+}
+
+fn solve<T: Real>(
+    robot: &Robot<T, 6>,
+    target: &Pose<T>,
+    reach: Reach,
+) -> Result<[Option<[T; 6]>; BRANCHES], IkError> {
     robot.validate().map_err(IkError::Model)?;
     if !target
         .translation
@@ -98,7 +146,7 @@ pub fn inverse_kinematics<T: Real>(
     // Flange pose T_06 = base^-1 * target * tool^-1.
     let flange = kinematics.base().inverse() * target * kinematics.tool().inverse();
     if ur_type {
-        return Ok(offset_wrist(robot, &kinematics, &flange));
+        return Ok(offset_wrist(robot, &kinematics, &flange, reach));
     }
     let r06 = flange.rotation.matrix();
     let z6 = r06.column(2).into_owned();
@@ -110,17 +158,18 @@ pub fn inverse_kinematics<T: Real>(
     let azimuth = pw.y.atan2(pw.x);
     let mut out = [None; BRANCHES];
     for shoulder in 0..2usize {
-        let (theta1, reach) = if shoulder == 0 {
+        let (theta1, radial) = if shoulder == 0 {
             (azimuth, rho)
         } else {
             (azimuth + T::pi(), -rho)
         };
-        let x1 = reach - a1;
+        let x1 = radial - a1;
         let y1 = d1 - pw.z;
-        let cos_psi = (x1 * x1 + y1 * y1 - a2 * a2 - l * l) / (T::of(2.0) * a2 * l);
-        if !cos_psi.finite() || cos_psi.abs() > T::one() {
+        let Some(cos_psi) =
+            reach.argument((x1 * x1 + y1 * y1 - a2 * a2 - l * l) / (T::of(2.0) * a2 * l))
+        else {
             continue;
-        }
+        };
         for elbow in 0..2usize {
             let sin_psi = (T::one() - cos_psi * cos_psi).max(T::zero()).sqrt();
             let sin_psi = if elbow == 0 { sin_psi } else { -sin_psi };
@@ -173,6 +222,7 @@ fn offset_wrist<T: Real>(
     robot: &Robot<T, 6>,
     kinematics: &Kinematics<T, 6>,
     flange: &Pose<T>,
+    reach: Reach,
 ) -> [Option<[T; 6]>; BRANCHES] {
     let j = &robot.joints;
     let [j1, j2, j3, j4, j5, j6] = j;
@@ -180,11 +230,9 @@ fn offset_wrist<T: Real>(
     let p5 = flange.translation.vector - r06.column(2) * j6.d;
     let (a2, a3, d4, d5) = (j2.a, j3.a, j4.d, j5.d);
     let mut out = [None; BRANCHES];
-    let reach = p5.x.hypot(p5.y);
-    let ratio = d4 / reach;
-    if !ratio.finite() || ratio.abs() > T::one() {
+    let Some(ratio) = reach.argument(d4 / p5.x.hypot(p5.y)) else {
         return out;
-    }
+    };
     let azimuth = p5.y.atan2(p5.x);
     let lean = ratio.asin();
     for shoulder in 0..2usize {
@@ -207,10 +255,11 @@ fn offset_wrist<T: Real>(
             let (theta234, b, theta6) = wrist_angles(&r16, wrist == 0);
             let (s234, c234) = theta234.sin_cos_fast();
             let (x, y) = (p5_1.x - d5 * s234, p5_1.y + d5 * c234);
-            let cos3 = (x * x + y * y - a2 * a2 - a3 * a3) / (T::of(2.0) * a2 * a3);
-            if !cos3.finite() || cos3.abs() > T::one() {
+            let Some(cos3) =
+                reach.argument((x * x + y * y - a2 * a2 - a3 * a3) / (T::of(2.0) * a2 * a3))
+            else {
                 continue;
-            }
+            };
             for elbow in 0..2usize {
                 let sin3 = (T::one() - cos3 * cos3).max(T::zero()).sqrt();
                 let sin3 = if elbow == 0 { sin3 } else { -sin3 };
@@ -417,6 +466,55 @@ mod tests {
             worst_mm < 1e-6 && worst_rad < 1e-9,
             "{worst_mm} {worst_rad}"
         );
+    }
+
+    /// A target beyond the stretched elbow: the UR10 with its upper arm 3 mm longer, at a
+    /// straight elbow, reaches 3 mm further along the arm than the nominal UR10 can. The nearest
+    /// configuration is the stretched one with the same joints (closed form: the elbow's `acos`
+    /// at 1), 3 mm short of the target with the orientation exact; every branch that reaches a
+    /// target is the same in both functions.
+    #[test]
+    fn a_target_beyond_the_workspace_gives_the_nearest_boundary_configuration() {
+        let robot = ur10();
+        let kinematics = Kinematics::nominal(&robot).unwrap();
+        let mut longer = ur10();
+        longer.joints[1].a -= 3.0;
+        let longer = Kinematics::nominal(&longer).unwrap();
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
+        let mut worst = 0.0f64;
+        for _ in 0..500 {
+            let mut q: [f64; 6] = core::array::from_fn(|_| {
+                core::f64::consts::PI * (2.0 * f64::unit_from_bits(rng.next_u64()) - 1.0)
+            });
+            let reachable = kinematics.forward(&q).unwrap();
+            let exact = inverse_kinematics(&robot, &reachable).unwrap();
+            let nearest = nearest_configurations(&robot, &reachable).unwrap();
+            for (e, n) in exact.iter().zip(&nearest) {
+                assert!(e.is_none() || e == n, "{e:?} {n:?}");
+            }
+            q[2] = -robot.joints[2].theta_offset; // straight elbow
+            let beyond = longer.forward(&q).unwrap();
+            let exact = inverse_kinematics(&robot, &beyond).unwrap();
+            assert!(
+                closest(&exact, &q)
+                    .is_none_or(|s| s.iter().zip(&q).any(|(a, b)| wrap(a - b).abs() > 1e-3)),
+                "{q:?}"
+            );
+            let nearest = closest(&nearest_configurations(&robot, &beyond).unwrap(), &q).unwrap();
+            let e = PoseError::between(&beyond, &kinematics.forward(&nearest).unwrap());
+            let joints = nearest
+                .iter()
+                .zip(&q)
+                .fold(0.0f64, |m, (a, b)| m.max(wrap(a - b).abs()));
+            worst = worst.max((e.position.norm() - 3.0).abs());
+            assert!(joints < 1e-6, "{q:?} -> {nearest:?}");
+            assert!(e.rotation.norm() < 1e-9, "{e:?}");
+        }
+        extern crate std;
+        std::println!(
+            "3 mm beyond the straight elbow: miss of the nearest configuration 3 mm +- {worst:.1e}"
+        );
+        assert!(worst < 1e-6, "{worst}");
     }
 
     #[test]
