@@ -67,6 +67,21 @@ impl ReflectorOnAxis {
     }
 }
 
+/// The default identification set on `dataset`: `mask` less what a reflector on the last joint's
+/// axis leaves undetermined ([`reflector_on_last_axis`]), and that finding. The one rule
+/// `calibrate`, `check` and `verify` share.
+pub fn default_mask<const N: usize>(
+    dataset: &Dataset<N>,
+    mut mask: ParameterMask<N>,
+    k: f64,
+) -> anyhow::Result<(ParameterMask<N>, Option<ReflectorOnAxis>)> {
+    let reflector = reflector_on_last_axis(dataset, &mask, k)?;
+    for u in reflector.iter().flat_map(|r| &r.not_identified) {
+        mask.set(u.parameter, false);
+    }
+    Ok((mask, reflector))
+}
+
 /// Position-only data of a reflector on (or within [`REFLECTOR_ON_AXIS_MM`] of) the last joint's
 /// axis: the last joint does not move it, so parameters of the joints before it that move it
 /// alike cannot be told apart (on a Barrett WAM or any arm whose second-last joint has a 90 deg
@@ -272,11 +287,8 @@ pub fn check<const N: usize>(
     k: f64,
 ) -> anyhow::Result<IdentifiabilityReport> {
     let frames = crate::frames::Frames::chosen(frames, &dataset.data);
-    let (_, mut mask) = crate::frames::prepare(frames, &mut dataset, &mut [], k)?;
-    let reflector = reflector_on_last_axis(&dataset, &mask, k)?;
-    for u in reflector.iter().flat_map(|r| &r.not_identified) {
-        mask.set(u.parameter, false);
-    }
+    let (_, mask) = crate::frames::prepare(frames, &mut dataset, &mut [], k)?;
+    let (mask, reflector) = default_mask(&dataset, mask, k)?;
     let mut report = crate::with_parameter_count!(mask.count(), analyse(&dataset, &mask, k))?;
     report.reflector_on_last_axis = reflector;
     Ok(report)

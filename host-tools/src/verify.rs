@@ -138,6 +138,7 @@ pub fn verify<const N: usize>(
 ) -> anyhow::Result<Verification> {
     let frames = Frames::chosen(frames, &calibration.data);
     let (_, mask) = crate::frames::prepare(frames, &mut calibration, &mut [&mut validation], k)?;
+    let (mask, _) = crate::identifiability::default_mask(&calibration, mask, k)?;
     // A robot file's gravity compliance is held fixed and taken off the measured poses at the
     // registered frames: all three fit the same geometry to the same poses.
     let zero = ParameterErrors::zero();

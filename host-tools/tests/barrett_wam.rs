@@ -202,3 +202,36 @@ fn check_and_re_registration_through_the_command_line() {
     );
     assert!(refit <= held_out + 1e-9);
 }
+
+/// `calib verify` on the real grid (its default 70/30 split): the f32 and f64 cores and the
+/// independent reference fit the same 29 parameters (the reflector rule applies as in
+/// `calibrate`) and agree within the verify tolerances. Measured: f64 - reference 4.7e-8 mm
+/// (`da4`) and 3.8e-10 rad (`dalpha5`); f32 - f64 3.3e-5 mm and 4.9e-7 rad; validation RMS
+/// 2.4446 mm for all three.
+#[test]
+fn verify_passes_on_the_real_grid() {
+    let out = ok(&calib(&[
+        "verify",
+        "--robot",
+        ROBOT,
+        "--data",
+        GRID,
+        "--profile",
+        PROFILE,
+        "--json",
+    ]));
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    println!("{v}");
+    assert_eq!(v["parameters"], 29);
+    assert_eq!(v["passed"], true);
+    let f64_angle = v["f64_angle"][0].as_f64().unwrap();
+    let f64_length = v["f64_length"][0].as_f64().unwrap();
+    assert!(f64_angle <= 1e-9 && f64_length <= 1e-6, "{v}");
+    let rms: Vec<f64> = v["validation_rms_mm"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert!(rms.iter().all(|r| (r - 2.4446).abs() < 1e-3), "{rms:?}");
+}

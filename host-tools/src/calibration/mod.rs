@@ -193,8 +193,7 @@ pub fn calibrate<const N: usize>(
 
 /// Joint maps are identified for [`JOINTS`]-joint robots: the dataset as one, or an error.
 fn six_joints<const N: usize>(dataset: &Dataset<N>) -> anyhow::Result<&Dataset<JOINTS>> {
-    (dataset as &dyn std::any::Any)
-        .downcast_ref()
+    crate::dispatch::same_type_ref(dataset)
         .ok_or_else(|| anyhow::anyhow!("{}", joint_maps_need_six::<N>()))
 }
 
@@ -222,16 +221,13 @@ pub struct Selection<const N: usize = JOINTS> {
 /// ill-conditioned the parameter with the largest share of the least determined direction.
 pub fn select_parameters<const N: usize>(
     dataset: &Dataset<N>,
-    mut mask: ParameterMask<N>,
+    mask: ParameterMask<N>,
     config: &CalibrationConfig,
 ) -> anyhow::Result<Selection<N>> {
     let analysed = |mask: &ParameterMask<N>| {
         crate::with_parameter_count!(mask.count(), analyse(dataset, mask, config.k))
     };
-    let reflector = crate::identifiability::reflector_on_last_axis(dataset, &mask, config.k)?;
-    for u in reflector.iter().flat_map(|r| &r.not_identified) {
-        mask.set(u.parameter, false);
-    }
+    let (mut mask, reflector) = crate::identifiability::default_mask(dataset, mask, config.k)?;
     let mut initial = analysed(&mask)?;
     initial.reflector_on_last_axis = reflector;
     let mut identifiability = initial.clone();
