@@ -89,3 +89,8 @@ pub fn same_type<A: std::any::Any, B: std::any::Any>(value: A) -> Option<B> {
         .downcast_mut::<Option<B>>()
         .and_then(Option::take)
 }
+
+/// [`same_type`] for a borrowed `value`.
+pub fn same_type_ref<A: std::any::Any, B: std::any::Any>(value: &A) -> Option<&B> {
+    (value as &dyn std::any::Any).downcast_ref()
+}

@@ -114,10 +114,26 @@ fn model_block<T: calib_core::Real>(
     Ok(buffer)
 }
 
-/// `file` (an identified robot file) in `format`; `scalar` and `sequence` for the block, `urdf`
-/// for the URDF (names; whether a file with joint maps or compliance may be exported as its
-/// geometry alone, also for the UR YAML).
-pub fn export(
+/// `file` (an identified robot file of `N` joints) in `format`; `scalar` and `sequence` for the
+/// block, `urdf` for the URDF (names; whether a file with joint maps or compliance may be
+/// exported as its geometry alone, also for the UR YAML). Joint maps, gravity compliance and the
+/// UR kinematics file are for 6-joint robots; other counts export their geometry.
+pub fn export<const N: usize>(
+    file: &RobotFile,
+    model: &RobotModel<N>,
+    format: ExportFormat,
+    scalar: BlockScalar,
+    sequence: u32,
+    urdf: &crate::urdf::UrdfSettings,
+) -> anyhow::Result<Vec<u8>> {
+    match crate::dispatch::same_type_ref::<RobotModel<N>, RobotModel<JOINTS>>(model) {
+        Some(six) => export_six(file, six, format, scalar, sequence, urdf),
+        None => export_geometry(file, model, format, scalar, sequence, urdf),
+    }
+}
+
+/// [`export`] of a 6-joint robot: every format, the model beyond geometry in the block.
+fn export_six(
     file: &RobotFile,
     model: &RobotModel<JOINTS>,
     format: ExportFormat,
@@ -164,10 +180,9 @@ pub fn export(
     })
 }
 
-/// [`export`] for a robot of any joint count (joint maps and gravity compliance, and the UR
-/// kinematics file, are for 6-joint robots and refused here): the version 1 block, TOML, JSON or
-/// a URDF.
-pub fn export_geometry<const N: usize>(
+/// [`export`] for robots of other joint counts than 6 (joint maps, gravity compliance and the UR
+/// kinematics file are refused): the version 1 block, TOML, JSON or a URDF.
+fn export_geometry<const N: usize>(
     file: &RobotFile,
     model: &RobotModel<N>,
     format: ExportFormat,

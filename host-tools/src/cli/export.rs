@@ -1,7 +1,6 @@
 //! `calib export`: an identified robot file as the controller's parameter block, TOML, JSON, a
 //! URDF or a UR kinematics YAML.
 
-use crate::JOINTS;
 use crate::export::{BlockScalar, ExportFormat};
 use crate::files::Outputs;
 use crate::robot_file::{RobotFile, RobotModel};
@@ -56,19 +55,7 @@ pub struct ExportOptions {
 pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
     let file = RobotFile::read(&options.params)?;
     let urdf = urdf_settings(options, &file);
-    let bytes = if file.joint.len() == JOINTS {
-        let model: RobotModel<JOINTS> = file.to_model(&options.params)?;
-        crate::export::export(
-            &file,
-            &model,
-            options.format,
-            options.scalar,
-            options.sequence,
-            &urdf,
-        )?
-    } else {
-        crate::with_joint_count!(file.joint.len(), export_n(options, &file, &urdf))?
-    };
+    let bytes = crate::with_joint_count!(file.joint.len(), export_n(options, &file, &urdf))?;
     let mut outputs = Outputs::new(&[("--params", &options.params)]);
     outputs.stage("--out", &options.out, &bytes)?;
     outputs.commit()?;
@@ -81,7 +68,7 @@ fn export_n<const N: usize>(
     urdf: &crate::urdf::UrdfSettings,
 ) -> anyhow::Result<Vec<u8>> {
     let model: RobotModel<N> = file.to_model(&options.params)?;
-    crate::export::export_geometry(
+    crate::export::export(
         file,
         &model,
         options.format,
