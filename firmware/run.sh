@@ -4,15 +4,27 @@
 # its defmt log with defmt-print. Exits with the firmware's semihosting exit status.
 #
 #   firmware/run.sh            build, run, print the log
+#   firmware/run.sh --bin seven-joints
+#                              the same for the 7-joint compensation binary (src/bin/)
 #   firmware/run.sh --size     also print the footprint (flash = .vector_table + .text + .rodata,
 #                              the parameter blocks in .calib_slots and the job's measurements
 #                              and expected outcomes in .calib_data apart, RAM = .data + .bss;
 #                              the peak stack is in the log)
 set -euo pipefail
 cd "$(dirname "$0")"
+size=false
+bin=calib-firmware
+while [[ $# -gt 0 ]]; do
+    case "$1" in
+        --size) size=true ;;
+        --bin) bin="$2"; shift ;;
+        *) echo "usage: run.sh [--size] [--bin NAME]" >&2; exit 2 ;;
+    esac
+    shift
+done
 cargo build --release --quiet
-elf=target/thumbv7em-none-eabihf/release/calib-firmware
-if [[ "${1:-}" == "--size" ]]; then
+elf=target/thumbv7em-none-eabihf/release/$bin
+if $size; then
     arm-none-eabi-size -A "$elf" | awk '
         $1 == ".vector_table" || $1 == ".text" || $1 == ".rodata" { flash += $2 }
         $1 == ".data" || $1 == ".bss" { ram += $2 }

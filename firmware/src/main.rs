@@ -13,42 +13,15 @@ use calib_core::identify::objective::{DEFAULT_K, Objective};
 use calib_core::{Kinematics, ParameterErrors, ParameterSet, Problem};
 use calib_onboard::{D, Marks, Stage};
 use core::hint::black_box;
-use core::sync::atomic::{AtomicU32, Ordering};
-use cortex_m::peripheral::SYST;
-use cortex_m::peripheral::syst::SystClkSource;
-use cortex_m_rt::{entry, exception};
+use cortex_m_rt::entry;
 use cortex_m_semihosting::debug;
 #[cfg(feature = "log")]
 use defmt_semihosting as _;
 #[cfg(feature = "panic-never")]
 use panic_never as _;
+use timing::{instructions, ticks};
 
-/// SysTick wraps (24-bit counter).
-static WRAPS: AtomicU32 = AtomicU32::new(0);
-
-#[exception]
-fn SysTick() {
-    WRAPS.fetch_add(1, Ordering::Relaxed);
-}
-
-/// SysTick ticks since start (25 MHz on mps2-an386). Under `-icount shift=0` QEMU runs one
-/// instruction per nanosecond of virtual time, so one tick is 40 instructions.
-fn ticks() -> u64 {
-    loop {
-        let wraps = WRAPS.load(Ordering::SeqCst);
-        let current = SYST::get_current();
-        if WRAPS.load(Ordering::SeqCst) == wraps {
-            return u64::from(wraps) * (1 << 24) + u64::from(0x00FF_FFFF - current);
-        }
-    }
-}
-
-/// Instructions per SysTick tick under `-icount shift=0`.
-const INSTRUCTIONS_PER_TICK: u64 = 40;
-
-fn instructions(ticks: u64) -> u64 {
-    ticks * INSTRUCTIONS_PER_TICK
-}
+mod timing;
 
 /// Pattern of the painted stack.
 const PAINT: u32 = 0xCAFE_F00D;
@@ -342,13 +315,7 @@ fn maps_micro_benchmarks() {
 fn main() -> ! {
     let bottom = paint_stack();
     let top = cortex_m::register::msp::read() as usize;
-    if let Some(mut peripherals) = cortex_m::Peripherals::take() {
-        peripherals.SYST.set_clock_source(SystClkSource::Core);
-        peripherals.SYST.set_reload(0x00FF_FFFF);
-        peripherals.SYST.clear_current();
-        peripherals.SYST.enable_interrupt();
-        peripherals.SYST.enable_counter();
-    }
+    timing::start();
     defmt::info!(
         "calib firmware: f32 calibration of the paper's 32-pose scenario with tracker noise"
     );

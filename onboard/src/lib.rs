@@ -20,6 +20,7 @@ use calib_core::{Kinematics, ParameterErrors, ParameterSet, Robot};
 use nalgebra::{Matrix3, SVector, Vector3};
 
 pub mod maps;
+pub mod seven_joints;
 
 mod scenario {
     include!(concat!(env!("OUT_DIR"), "/scenario.rs"));

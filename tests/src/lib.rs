@@ -137,8 +137,13 @@ pub fn missing_embedded_tools<'a>(programs: &[&'a str]) -> Vec<&'a str> {
 /// `--size`, without the outer cargo's settings (they must not leak into the firmware's own
 /// build); prints and returns its standard output and whether it succeeded.
 pub fn run_firmware_script(script: &str) -> (String, bool) {
+    run_firmware_script_with(script, &[])
+}
+
+/// [`run_firmware_script`] with further arguments `args` (e.g. `--bin seven-joints`).
+pub fn run_firmware_script_with(script: &str, args: &[&str]) -> (String, bool) {
     let mut command = std::process::Command::new("bash");
-    command.arg(repo(script)).arg("--size");
+    command.arg(repo(script)).arg("--size").args(args);
     for (key, _) in std::env::vars() {
         if key.starts_with("CARGO") || key == "RUSTFLAGS" || key == "RUSTC_WRAPPER" {
             command.env_remove(key);

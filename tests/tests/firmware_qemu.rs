@@ -95,6 +95,50 @@ fn firmware_calibrates_in_qemu_bit_identically() {
     assert!(ram <= 24 * 1024, "RAM {ram} bytes > 24 KiB");
 }
 
+/// Issue 15, item 6: the compensation for a 7-joint robot (KUKA LBR iiwa 14 R820) on the
+/// Cortex-M4F, its own binary (`firmware/src/bin/seven-joints.rs`): four targets compensated to
+/// the f32 tolerance, the joints' bits equal to the host's run of the same code
+/// (`calib_onboard::seven_joints::run`), and the instruction count and flash within the 6-joint
+/// budgets (30,000 instructions for a compensation; 64 KiB of flash).
+#[test]
+fn seven_joint_compensation_runs_in_qemu() {
+    let missing = calib_tests::missing_embedded_tools(&[
+        "qemu-system-arm",
+        "defmt-print",
+        "arm-none-eabi-size",
+    ]);
+    if !missing.is_empty() {
+        let message = format!(
+            "SKIPPED seven_joint_compensation_runs_in_qemu: missing {}",
+            missing.join(", ")
+        );
+        assert!(
+            std::env::var("CALIB_REQUIRE_QEMU").as_deref() != Ok("1"),
+            "{message}"
+        );
+        eprintln!("{message}");
+        return;
+    }
+    let (log, success) =
+        calib_tests::run_firmware_script_with("firmware/run.sh", &["--bin", "seven-joints"]);
+    assert!(success, "7-joint firmware failed");
+    assert!(
+        log.contains("7-joint compensation within 1e-2 mm: PASS"),
+        "{log}"
+    );
+    let host = calib_onboard::seven_joints::run(&mut calib_onboard::NoMarks).unwrap();
+    let bits = format!("7-joint joint bits {:?}", host.bits());
+    assert!(log.contains(&bits), "{bits}\n{log}");
+    for (before, after) in host.uncompensated_mm.iter().zip(&host.residual_mm) {
+        assert!(*before > 0.5 && *after <= 1e-2, "{before} {after}");
+    }
+    let slowest = number_after(&log, "slowest 7-joint ");
+    let flash = number_after(&log, "flash (vector table + text + rodata): ");
+    println!("7-joint compensation: slowest {slowest} instructions, flash {flash} bytes");
+    assert!(slowest <= 30_000, "{slowest}");
+    assert!(flash <= 64 * 1024, "{flash}");
+}
+
 /// The integer that follows `prefix` in the firmware's log.
 fn number_after(log: &str, prefix: &str) -> u64 {
     log.split(prefix)
