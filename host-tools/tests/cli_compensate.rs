@@ -399,7 +399,6 @@ fn ur_targets_without_joints_are_compensated_from_the_offset_wrist_inverse_kinem
 /// 1,000 targets of the UR10 with the factory calibration `conf` (named `set`) as the actual
 /// robot through `calib compensate` without joints (see the test above).
 fn ur_targets_reached(conf: &str, set: &str) {
-    use calib_core::kinematics::ik::{closest, nearest_configurations};
     use rand::{RngExt, SeedableRng};
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
@@ -433,69 +432,22 @@ fn ur_targets_reached(conf: &str, set: &str) {
         &[0.0; 6],
     );
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(15);
-    let mut by_branch: Vec<Vec<[[f64; 4]; 4]>> = vec![Vec::new(); 8];
+    let mut groups: Vec<(String, Vec<[[f64; 4]; 4]>)> = Vec::new();
     for _ in 0..1000 {
         let q: [f64; 6] = std::array::from_fn(|_| rng.random_range(-3.1..3.1));
         let m = actual.forward(&q);
-        let pose = calib_core::Pose::from_parts(
-            nalgebra::Translation3::new(m[0][3], m[1][3], m[2][3]),
-            nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_fn(|r, c| m[r][c])),
+        push_to_group(
+            &mut groups,
+            nearest_branch(&nominal.robot, &m, &q).to_string(),
+            m,
         );
-        let solutions = nearest_configurations(&nominal.robot, &pose).unwrap();
-        let best = closest(&solutions, &q).unwrap();
-        let branch = solutions
-            .iter()
-            .position(|s| s.as_ref() == Some(&best))
-            .unwrap();
-        by_branch[branch].push(m);
     }
-    let (mut reached, mut refused, mut worst, mut beyond) = (0, 0, 0.0f64, 0);
-    for (branch, poses) in by_branch.iter().enumerate().filter(|(_, p)| !p.is_empty()) {
-        let targets = d.join(format!("t{branch}.csv"));
-        let out_path = d.join(format!("o{branch}.csv"));
-        std::fs::write(&targets, targets_csv(poses)).unwrap();
-        let b = branch.to_string();
-        let result = calib(&[
-            "compensate",
-            "--robot",
-            ur10,
-            "--params",
-            actual_path.to_str().unwrap(),
-            "--targets",
-            targets.to_str().unwrap(),
-            "--out",
-            out_path.to_str().unwrap(),
-            "--max-correction-mm",
-            "50",
-            "--max-correction-deg",
-            "5",
-            "--max-joint-correction-deg",
-            "90",
-            "--branch",
-            &b,
-        ]);
-        assert!(
-            result.status.success(),
-            "{}",
-            String::from_utf8_lossy(&result.stderr)
-        );
-        for (miss, start) in misses(&out_path, poses, &actual, 6) {
-            assert!(
-                start.starts_with(&format!("closed form, branch {b}")),
-                "{start}"
-            );
-            beyond += usize::from(start.contains("nearest configuration"));
-            match miss {
-                None => refused += 1,
-                Some(miss) => {
-                    worst = worst.max(miss);
-                    if miss < 1e-3 {
-                        reached += 1;
-                    }
-                }
-            }
-        }
-    }
+    let Counts {
+        reached,
+        refused,
+        worst,
+        nearest: beyond,
+    } = compensate_groups(d, ur10, &actual_path, &groups, &actual, 6);
     println!(
         "UR10 ({set}), 1000 targets the actual robot reaches, without joints: {reached} reached (worst {worst:.2e} mm), \
          {refused} refused; {beyond} started from the nearest configuration"
@@ -706,7 +658,7 @@ fn a_seven_joint_arm_is_compensated_from_numerical_inverse_kinematics() {
 /// (beyond the 90 deg bound), and one Panda target without convergence.
 #[test]
 fn every_shipped_robot_is_compensated_without_joints() {
-    use calib_core::kinematics::ik::{closest, nearest_configurations};
+    use calib_core::kinematics::ik::nearest_configurations;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let robots = concat!(env!("CARGO_MANIFEST_DIR"), "/robots");
@@ -771,77 +723,17 @@ fn every_shipped_robot_is_compensated_without_joints() {
                 .collect();
             let m = actual.forward(&q);
             let branch = closed_form.as_ref().map_or(String::new(), |model| {
-                let pose = calib_core::Pose::from_parts(
-                    nalgebra::Translation3::new(m[0][3], m[1][3], m[2][3]),
-                    nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_fn(
-                        |r, c| m[r][c],
-                    )),
-                );
-                let solutions = nearest_configurations(&model.robot, &pose).unwrap();
                 let q6: [f64; 6] = q.as_slice().try_into().unwrap();
-                let best = closest(&solutions, &q6).unwrap();
-                solutions
-                    .iter()
-                    .position(|s| s.as_ref() == Some(&best))
-                    .unwrap()
-                    .to_string()
+                nearest_branch(&model.robot, &m, &q6).to_string()
             });
-            match groups.iter_mut().find(|(b, _)| *b == branch) {
-                Some((_, poses)) => poses.push(m),
-                None => groups.push((branch, vec![m])),
-            }
+            push_to_group(&mut groups, branch, m);
         }
-        let (mut reached, mut refused, mut worst) = (0, 0, 0.0f64);
-        for (branch, poses) in &groups {
-            let targets = d.join(format!("{name}-t{branch}.csv"));
-            let out_path = d.join(format!("{name}-o{branch}.csv"));
-            std::fs::write(&targets, targets_csv(poses)).unwrap();
-            let mut args = vec![
-                "compensate",
-                "--robot",
-                robot.to_str().unwrap(),
-                "--params",
-                truth.to_str().unwrap(),
-                "--targets",
-                targets.to_str().unwrap(),
-                "--out",
-                out_path.to_str().unwrap(),
-                "--max-correction-mm",
-                "50",
-                "--max-correction-deg",
-                "5",
-                "--max-joint-correction-deg",
-                "90",
-            ];
-            if !branch.is_empty() {
-                args.extend(["--branch", branch]);
-            }
-            let result = calib(&args);
-            assert!(
-                result.status.success(),
-                "{}",
-                String::from_utf8_lossy(&result.stderr)
-            );
-            for (miss, start) in misses(&out_path, poses, &actual, n) {
-                let method = if branch.is_empty() {
-                    "numerical".to_string()
-                } else {
-                    format!("closed form, branch {branch}")
-                };
-                match miss {
-                    None => {
-                        refused += 1;
-                    }
-                    Some(miss) => {
-                        assert!(start.starts_with(&method), "{start}");
-                        worst = worst.max(miss);
-                        if miss < 1e-3 {
-                            reached += 1;
-                        }
-                    }
-                }
-            }
-        }
+        let Counts {
+            reached,
+            refused,
+            worst,
+            ..
+        } = compensate_groups(d, robot.to_str().unwrap(), &truth, &groups, &actual, n);
         println!(
             "{name} ({n} joints, {}): 1000 reachable targets without joints: {reached} reached (worst {worst:.2e} mm), {refused} refused",
             if closed_form.is_some() {
@@ -856,4 +748,107 @@ fn every_shipped_robot_is_compensated_without_joints() {
             "{name}: {reached} reached, {refused} refused"
         );
     }
+}
+
+/// The branch (0-7) of `robot`'s nominal configuration nearest to `q` for the homogeneous pose
+/// `m` (a target beyond the nominal workspace: of the nearest boundary configuration).
+fn nearest_branch(robot: &calib_core::Robot<f64, 6>, m: &[[f64; 4]; 4], q: &[f64; 6]) -> usize {
+    use calib_core::kinematics::ik::{closest, nearest_configurations};
+    let pose = calib_core::Pose::from_parts(
+        nalgebra::Translation3::new(m[0][3], m[1][3], m[2][3]),
+        nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_fn(|r, c| m[r][c])),
+    );
+    let solutions = nearest_configurations(robot, &pose).unwrap();
+    let best = closest(&solutions, q).unwrap();
+    solutions
+        .iter()
+        .position(|s| s.as_ref() == Some(&best))
+        .unwrap()
+}
+
+/// Adds the pose `m` to the group of `branch`.
+fn push_to_group(groups: &mut Vec<(String, Vec<[[f64; 4]; 4]>)>, branch: String, m: [[f64; 4]; 4]) {
+    match groups.iter_mut().find(|(b, _)| *b == branch) {
+        Some((_, poses)) => poses.push(m),
+        None => groups.push((branch, vec![m])),
+    }
+}
+
+/// Counts of a compensation run over groups of targets.
+#[derive(Default)]
+struct Counts {
+    /// Rows that put the actual robot on the target to 1e-3 mm.
+    reached: usize,
+    /// Refused rows.
+    refused: usize,
+    /// The worst miss of the rows that were not refused, mm.
+    worst: f64,
+    /// Rows started from the nearest configuration (targets beyond the nominal workspace).
+    nearest: usize,
+}
+
+/// Runs `calib compensate` of `robot` with the identified `params` on each group of targets
+/// (with its `--branch` unless empty), bounds 50 mm, 5 deg and 90 deg of joint motion, and counts
+/// the rows against `actual` (reference kinematics of `joints` joints). Every row with a start
+/// says `closed form, branch B` (or `numerical` in a group without a branch).
+fn compensate_groups(
+    dir: &Path,
+    robot: &str,
+    params: &Path,
+    groups: &[(String, Vec<[[f64; 4]; 4]>)],
+    actual: &RefModel,
+    joints: usize,
+) -> Counts {
+    let mut counts = Counts::default();
+    for (i, (branch, poses)) in groups.iter().enumerate() {
+        let targets = dir.join(format!("targets-{i}.csv"));
+        let out = dir.join(format!("out-{i}.csv"));
+        std::fs::write(&targets, targets_csv(poses)).unwrap();
+        let mut args = vec![
+            "compensate",
+            "--robot",
+            robot,
+            "--params",
+            params.to_str().unwrap(),
+            "--targets",
+            targets.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--max-correction-mm",
+            "50",
+            "--max-correction-deg",
+            "5",
+            "--max-joint-correction-deg",
+            "90",
+        ];
+        if !branch.is_empty() {
+            args.extend(["--branch", branch]);
+        }
+        let result = calib(&args);
+        assert!(
+            result.status.success(),
+            "{}",
+            String::from_utf8_lossy(&result.stderr)
+        );
+        let method = if branch.is_empty() {
+            "numerical".to_string()
+        } else {
+            format!("closed form, branch {branch}")
+        };
+        for (miss, start) in misses(&out, poses, actual, joints) {
+            assert!(
+                start.starts_with(&method) || (miss.is_none() && start.is_empty()),
+                "{start}"
+            );
+            counts.nearest += usize::from(start.contains("nearest configuration"));
+            match miss {
+                None => counts.refused += 1,
+                Some(miss) => {
+                    counts.worst = counts.worst.max(miss);
+                    counts.reached += usize::from(miss < 1e-3);
+                }
+            }
+        }
+    }
+    counts
 }

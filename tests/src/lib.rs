@@ -115,6 +115,23 @@ pub fn have(program: &str, args: &[&str]) -> bool {
         .is_ok_and(|o| o.status.success())
 }
 
+/// Whether the emulator test `test` can run: `false` (after saying SKIPPED with `install`, how to
+/// get what is missing) when a tool of `programs` or the target is missing, unless
+/// `CALIB_REQUIRE_QEMU=1` (as `.ci/run` sets), where that is a failure.
+pub fn embedded_tools_present(test: &str, programs: &[&str], install: &str) -> bool {
+    let missing = missing_embedded_tools(programs);
+    if missing.is_empty() {
+        return true;
+    }
+    let message = format!("SKIPPED {test}: missing {} ({install})", missing.join(", "));
+    assert!(
+        std::env::var("CALIB_REQUIRE_QEMU").as_deref() != Ok("1"),
+        "{message}"
+    );
+    eprintln!("{message}");
+    false
+}
+
 /// The emulator tests' tools that are missing: the thumbv7em-none-eabihf target, and each
 /// program of `programs` (run with `--version`).
 pub fn missing_embedded_tools<'a>(programs: &[&'a str]) -> Vec<&'a str> {

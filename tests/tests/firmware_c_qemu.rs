@@ -72,23 +72,11 @@ fn library_sections(map: &str) -> Vec<(String, u64)> {
 
 #[test]
 fn c_firmware_compensates_in_qemu_bit_identically_within_its_budgets() {
-    let missing = calib_tests::missing_embedded_tools(&[
-        "qemu-system-arm",
-        "arm-none-eabi-gcc",
-        "arm-none-eabi-size",
-    ]);
-    if !missing.is_empty() {
-        let message = format!(
-            "SKIPPED c_firmware_compensates_in_qemu_bit_identically_within_its_budgets: missing {} \
-             (apt-get install qemu-system-arm gcc-arm-none-eabi binutils-arm-none-eabi; \
-             rustup target add thumbv7em-none-eabihf)",
-            missing.join(", ")
-        );
-        assert!(
-            std::env::var("CALIB_REQUIRE_QEMU").as_deref() != Ok("1"),
-            "{message}"
-        );
-        eprintln!("{message}");
+    if !calib_tests::embedded_tools_present(
+        "c_firmware_compensates_in_qemu_bit_identically_within_its_budgets",
+        &["qemu-system-arm", "arm-none-eabi-gcc", "arm-none-eabi-size"],
+        "apt-get install qemu-system-arm gcc-arm-none-eabi binutils-arm-none-eabi; rustup target add thumbv7em-none-eabihf",
+    ) {
         return;
     }
     let (log, success) = calib_tests::run_firmware_script("firmware-c/run.sh");

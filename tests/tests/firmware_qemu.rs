@@ -6,23 +6,11 @@
 
 #[test]
 fn firmware_calibrates_in_qemu_bit_identically() {
-    let missing = calib_tests::missing_embedded_tools(&[
-        "qemu-system-arm",
-        "defmt-print",
-        "arm-none-eabi-size",
-    ]);
-    if !missing.is_empty() {
-        let message = format!(
-            "SKIPPED firmware_calibrates_in_qemu_bit_identically: missing {} \
-             (apt-get install qemu-system-arm binutils-arm-none-eabi; cargo install defmt-print --locked; \
-             rustup target add thumbv7em-none-eabihf)",
-            missing.join(", ")
-        );
-        assert!(
-            std::env::var("CALIB_REQUIRE_QEMU").as_deref() != Ok("1"),
-            "{message}"
-        );
-        eprintln!("{message}");
+    if !calib_tests::embedded_tools_present(
+        "firmware_calibrates_in_qemu_bit_identically",
+        &["qemu-system-arm", "defmt-print", "arm-none-eabi-size"],
+        "apt-get install qemu-system-arm binutils-arm-none-eabi; cargo install defmt-print --locked; rustup target add thumbv7em-none-eabihf",
+    ) {
         return;
     }
     let (log, success) = calib_tests::run_firmware_script("firmware/run.sh");
@@ -102,21 +90,11 @@ fn firmware_calibrates_in_qemu_bit_identically() {
 /// budgets (30,000 instructions for a compensation; 64 KiB of flash).
 #[test]
 fn seven_joint_compensation_runs_in_qemu() {
-    let missing = calib_tests::missing_embedded_tools(&[
-        "qemu-system-arm",
-        "defmt-print",
-        "arm-none-eabi-size",
-    ]);
-    if !missing.is_empty() {
-        let message = format!(
-            "SKIPPED seven_joint_compensation_runs_in_qemu: missing {}",
-            missing.join(", ")
-        );
-        assert!(
-            std::env::var("CALIB_REQUIRE_QEMU").as_deref() != Ok("1"),
-            "{message}"
-        );
-        eprintln!("{message}");
+    if !calib_tests::embedded_tools_present(
+        "seven_joint_compensation_runs_in_qemu",
+        &["qemu-system-arm", "defmt-print", "arm-none-eabi-size"],
+        "apt-get install qemu-system-arm binutils-arm-none-eabi; cargo install defmt-print --locked; rustup target add thumbv7em-none-eabihf",
+    ) {
         return;
     }
     let (log, success) =
