@@ -236,10 +236,10 @@ enum ClosedForm<const N: usize> {
 /// none (the target lies beyond the nominal workspace, or near a singularity where the nominal
 /// and the identified robot part ways): the numerical inverse kinematics of the identified
 /// robot's geometry from `reference` (the planned or nearest nominal configuration, or, with
-/// `planned` false, the middle of the limits), then the compensation from there. The bounds
-/// still hold: the correction is the nominal pose at the result against the target, and, when
-/// `reference` is `planned`, no joint moves from it by more than the joint bound. Returns the
-/// result and how it was found.
+/// `planned_reference` false, the middle of the limits), then the compensation from there. The
+/// bounds still hold: the correction is the nominal pose at the result against the target, and,
+/// with `planned_reference`, no joint moves from `reference` by more than the joint bound.
+/// Returns the result and how it was found.
 fn on_identified_robot<const N: usize>(
     planned: &Kinematics<f64, N>,
     real: &impl ActualRobot<f64, N>,
