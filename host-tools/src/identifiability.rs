@@ -28,7 +28,7 @@ fn named<S: serde::Serializer>(parameter: &Parameter, s: S) -> Result<S::Ok, S::
 
 /// A reflector closer than this to the last joint's axis (mm) is "on the last axis": the last
 /// joint turns it on a circle too small to tell the previous joint's parameters apart (see
-/// [`reflector_on_last_axis`]). Reflectors in a nest on the flange's centre sit a few millimetres
+/// [`default_mask`]). Reflectors in a nest on the flange's centre sit a few millimetres
 /// off the axis (the Barrett WAM data: 3.0 mm); a reflector meant to sense the last joint is
 /// mounted tens of millimetres off it.
 pub const REFLECTOR_ON_AXIS_MM: f64 = 10.0;
@@ -68,8 +68,11 @@ impl ReflectorOnAxis {
 }
 
 /// The default identification set on `dataset`: `mask` less what a reflector on the last joint's
-/// axis leaves undetermined ([`reflector_on_last_axis`]), and that finding. The one rule
-/// `calibrate`, `check` and `verify` share.
+/// axis leaves undetermined, and that finding. With position-only data and the reflector within
+/// [`REFLECTOR_ON_AXIS_MM`] of that axis, the parameters that the analysis at the model with the
+/// reflector moved onto the axis finds redundant are left out (on the Barrett WAM `dalpha6` and
+/// `dtheta6`, which then act like `dd6` and `da6`). The one rule `calibrate`, `check` and
+/// `verify` share; the analysis itself is private, so no caller can find it and not apply it.
 pub fn default_mask<const N: usize>(
     dataset: &Dataset<N>,
     mut mask: ParameterMask<N>,
@@ -93,7 +96,7 @@ pub fn default_mask<const N: usize>(
 /// twist and zero of joint 6 left out; a subset of the poses may keep the twist instead).
 /// `None`: 6-DoF data (orientations tell them apart), no such parameter, or the reflector
 /// farther from the axis.
-pub fn reflector_on_last_axis<const N: usize>(
+fn reflector_on_last_axis<const N: usize>(
     dataset: &Dataset<N>,
     mask: &ParameterMask<N>,
     k: f64,

@@ -134,7 +134,7 @@ pub fn embedded_tools_present(test: &str, programs: &[&str], install: &str) -> b
 
 /// The emulator tests' tools that are missing: the thumbv7em-none-eabihf target, and each
 /// program of `programs` (run with `--version`).
-pub fn missing_embedded_tools<'a>(programs: &[&'a str]) -> Vec<&'a str> {
+fn missing_embedded_tools<'a>(programs: &[&'a str]) -> Vec<&'a str> {
     let target_installed = std::process::Command::new("rustup")
         .args(["target", "list", "--installed"])
         .output()
