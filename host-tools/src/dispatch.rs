@@ -1,12 +1,12 @@
 //! The core takes the number of identified parameters and the joint count as const generics;
-//! `calib` learns them from the robot file at run time.
-//! [`with_parameter_count!`](crate::with_parameter_count) maps one to the other for 1 to 40
-//! parameters (the most a 7-joint robot can have identified); [`with_joint_count!`](crate::with_joint_count)
-//! for the joint counts in [`JOINT_COUNTS`] and
-//! [`with_identification_joint_count!`](crate::with_identification_joint_count) for those in
-//! [`IDENTIFICATION_JOINT_COUNTS`]: the places that decide which are compiled.
+//! `calib` learns them from the robot file at run time. [`with_joint_count!`](crate::with_joint_count)
+//! maps the joint count to the core's for the counts in [`JOINT_COUNTS`], the one place that
+//! decides which are compiled; [`with_parameter_count!`](crate::with_parameter_count) maps the
+//! parameter count for a robot of `N` joints up to a limit that depends on `N`
+//! ([`all_parameters`] to analyse, [`solvable_parameters`] to solve), so that a robot of 2
+//! joints does not compile the solver for the 50 parameters of one of 9.
 
-/// The joint counts the commands that dispatch on the robot file's joint count are compiled for.
+/// The joint counts every command is compiled for.
 pub const JOINT_COUNTS: std::ops::RangeInclusive<usize> = 2..=9;
 
 /// Calls `f::<N>(args...)` for the run-time joint count `N` in [`JOINT_COUNTS`]; other counts
@@ -32,48 +32,67 @@ macro_rules! with_joint_count {
     };
 }
 
-/// The joint counts the identification commands (`calibrate`, `check`, `evaluate`, `verify`)
-/// are compiled for: each count instantiates the swarm and least squares once per parameter count
-/// (measured: about 3.8 s of release build per parameter count; 40 counts per joint count), so
-/// they are compiled for the 6- and 7-joint arms nearly every industrial robot and cobot has. To
-/// add a count, add it here and an arm to [`with_identification_joint_count!`](crate::with_identification_joint_count).
-pub const IDENTIFICATION_JOINT_COUNTS: [usize; 2] = [6, 7];
-
-/// Calls `f::<N>(args...)` for the run-time joint count `N` in [`IDENTIFICATION_JOINT_COUNTS`];
-/// other counts give an error naming the supported ones.
-#[macro_export]
-macro_rules! with_identification_joint_count {
-    ($count:expr, $f:ident ( $($arg:expr),* $(,)? )) => {
-        match $count {
-            6 => $f::<6>($($arg),*),
-            7 => $f::<7>($($arg),*),
-            n => Err(anyhow::anyhow!(
-                "the robot file has {n} joints; identification (calibrate, check, evaluate, verify) is compiled for {:?} joints (see host_tools::dispatch::IDENTIFICATION_JOINT_COUNTS)",
-                $crate::dispatch::IDENTIFICATION_JOINT_COUNTS
-            )),
-        }
-    };
+/// Every parameter of a robot of `joints` joints: 5 per joint (`a, d, alpha, beta, theta`) and
+/// 6 each for the base and the tool frame. The identifiability analysis takes any selection of
+/// them (it says which the data cannot determine).
+pub const fn all_parameters(joints: usize) -> usize {
+    5 * joints + 12
 }
 
-/// Calls `f::<_, D>(args...)` for the run-time count `D` of identified parameters in 1..=40
-/// (at most 5 per joint, 35 for the 7-joint robots of [`IDENTIFICATION_JOINT_COUNTS`], plus the
-/// frames less what they absorb: 6 base - 2 + 6 tool - 5; `@frames`: 1..=12, the frames alone);
-/// other counts give an error.
+/// The most parameters of a robot of `joints` revolute joints the data can determine, and so
+/// the most the solvers are compiled for: `4 joints + 6` (Zhuang, Roth and Hamano 1992, "On the
+/// minimality of kinematic parameters": a complete and minimal model has `4R + 2P + 6`; 34 for
+/// 7 joints). A larger selection is refused by the rank check before it reaches a solver.
+pub const fn solvable_parameters(joints: usize) -> usize {
+    4 * joints + 6
+}
+
+/// Calls `f::<_, D>(args...)` for the run-time count `D` of identified parameters of a robot of
+/// `N` joints (`N` a const generic in scope), for `D` in `1..=limit` where `limit` is
+/// [`all_parameters`]`(N)` or [`solvable_parameters`]`(N)` (only those `D` are compiled for that
+/// `N`); other counts give an error. `@frames`: `f::<_, D>` for `D` in 1..=12, the frames alone.
 #[macro_export]
 macro_rules! with_parameter_count {
-    ($count:expr, $f:ident ( $($arg:expr),* $(,)? )) => {
-        $crate::with_parameter_count!(@arms $count, $f, ($($arg),*),
+    ($joints:ident, $limit:ident, $count:expr, $f:ident ( $($arg:expr),* $(,)? )) => {
+        $crate::with_parameter_count!(@arms $joints, $limit, $count, $f, ($($arg),*),
             1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24 25 26 27 28 29 30 31 32
-            33 34 35 36 37 38 39 40)
+            33 34 35 36 37 38 39 40 41 42 43 44 45 46 47 48 49 50 51 52 53 54 55 56 57)
     };
     (@frames $count:expr, $f:ident ( $($arg:expr),* $(,)? )) => {
-        $crate::with_parameter_count!(@arms $count, $f, ($($arg),*), 1 2 3 4 5 6 7 8 9 10 11 12)
-    };
-    (@arms $count:expr, $f:ident, $args:tt, $($d:literal)*) => {
         match $count {
-            $($d => $crate::with_parameter_count!(@call $f, $d, $args),)*
-            n => Err(anyhow::anyhow!("{n} identified parameters; calib supports 1 to 40 (5 per joint of 7 and the frames)")),
+            1 => $f::<_, 1>($($arg),*),
+            2 => $f::<_, 2>($($arg),*),
+            3 => $f::<_, 3>($($arg),*),
+            4 => $f::<_, 4>($($arg),*),
+            5 => $f::<_, 5>($($arg),*),
+            6 => $f::<_, 6>($($arg),*),
+            7 => $f::<_, 7>($($arg),*),
+            8 => $f::<_, 8>($($arg),*),
+            9 => $f::<_, 9>($($arg),*),
+            10 => $f::<_, 10>($($arg),*),
+            11 => $f::<_, 11>($($arg),*),
+            12 => $f::<_, 12>($($arg),*),
+            n => Err(anyhow::anyhow!("{n} frame parameters; the two frames have 1 to 12")),
         }
+    };
+    (@arms $joints:ident, $limit:ident, $count:expr, $f:ident, $args:tt, $($d:literal)*) => {
+        match $count {
+            // `if const`: a count beyond the limit for this joint count is not compiled.
+            $($d => if const { $d <= $crate::dispatch::$limit($joints) } {
+                $crate::with_parameter_count!(@call $f, $d, $args)
+            } else {
+                $crate::with_parameter_count!(@beyond $joints, $limit, $d)
+            },)*
+            n => $crate::with_parameter_count!(@beyond $joints, $limit, n),
+        }
+    };
+    (@beyond $joints:ident, $limit:ident, $n:expr) => {
+        Err(anyhow::anyhow!(
+            "{} identified parameters; calib supports 1 to {} for a robot of {} joints",
+            $n,
+            $crate::dispatch::$limit($joints),
+            $joints
+        ))
     };
     (@call $f:ident, $d:literal, ($($arg:expr),*)) => {
         $f::<_, $d>($($arg),*)

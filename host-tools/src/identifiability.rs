@@ -131,7 +131,12 @@ fn reflector_on_last_axis<const N: usize>(
     let on_axis = flange.forward(&q)?.inverse_transform_point(&centre.into());
     let mut projected = dataset.clone();
     projected.model.robot.tool.xyz = [on_axis.x, on_axis.y, on_axis.z];
-    let analysis = crate::with_parameter_count!(mask.count(), analyse(&projected, mask, k))?;
+    let analysis = crate::with_parameter_count!(
+        N,
+        all_parameters,
+        mask.count(),
+        analyse(&projected, mask, k)
+    )?;
     if analysis.undetermined.is_empty() {
         return Ok(None);
     }
@@ -292,7 +297,8 @@ pub fn check<const N: usize>(
     let frames = crate::frames::Frames::chosen(frames, &dataset.data);
     let (_, mask) = crate::frames::prepare(frames, &mut dataset, &mut [], k)?;
     let (mask, reflector) = default_mask(&dataset, mask, k)?;
-    let mut report = crate::with_parameter_count!(mask.count(), analyse(&dataset, &mask, k))?;
+    let mut report =
+        crate::with_parameter_count!(N, all_parameters, mask.count(), analyse(&dataset, &mask, k))?;
     report.reflector_on_last_axis = reflector;
     Ok(report)
 }

@@ -206,7 +206,12 @@ pub fn import(nominal: &Robot<f64, JOINTS>, calibration: &UrCalibration) -> anyh
             1.0,
         )?);
     }
-    let errors = crate::with_parameter_count!(mask.count(), fit(nominal, &mask, &measurements))?;
+    let errors = crate::with_parameter_count!(
+        JOINTS,
+        solvable_parameters,
+        mask.count(),
+        fit(nominal, &mask, &measurements)
+    )?;
     let imported = Kinematics::new(nominal, &errors)?;
     let plain = Kinematics::nominal(nominal)?;
     let (mut max_position_mm, mut max_rotation_rad, mut max_change_mm) = (0.0f64, 0.0f64, 0.0f64);

@@ -146,7 +146,12 @@ pub fn verify<const N: usize>(
         calibration.without_file_compliance(&calibration.model.robot, &zero)?,
         validation.without_file_compliance(&validation.model.robot, &zero)?,
     );
-    crate::with_parameter_count!(mask.count(), run(&calibration, &validation, &mask, k))
+    crate::with_parameter_count!(
+        N,
+        solvable_parameters,
+        mask.count(),
+        run(&calibration, &validation, &mask, k)
+    )
 }
 
 fn run<const N: usize, const D: usize>(

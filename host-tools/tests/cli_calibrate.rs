@@ -185,6 +185,51 @@ fn same_seed_gives_identical_results() {
     assert_eq!(a["objective"], b["objective"]);
 }
 
+/// The swarm size is chosen at run time: any size runs (evaluations = particles x (generations
+/// + 1)), sizes outside 1-1000 are refused before anything is computed or written.
+#[test]
+fn any_swarm_size_runs_and_an_empty_or_huge_one_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, _) = simulate(dir.path(), &["--poses", "20"]);
+    let report = dir.path().join("swarm.json");
+    let run = |particles: &str| {
+        calib(&[
+            "calibrate",
+            "--robot",
+            ROBOT,
+            "--data",
+            &data,
+            "--method",
+            "ipso",
+            "--generations",
+            "50",
+            "--swarm",
+            particles,
+            // 50 generations of a swarm alone do not converge; the guard would refuse the fit.
+            "--accept-implausible",
+            "--report",
+            report.to_str().unwrap(),
+        ])
+    };
+    ok(&run("15"));
+    let json: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!(json["generations"], 50);
+    assert_eq!(json["evaluations"], 15 * 51);
+    std::fs::remove_file(&report).unwrap();
+    for particles in ["0", "1001"] {
+        let out = run(particles);
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains(&format!(
+                "--swarm {particles} is out of range; choose 1 to 1000 particles"
+            )),
+            "{err}"
+        );
+        assert!(!report.exists());
+    }
+}
+
 #[test]
 fn bad_data_fails_with_file_line_and_column_and_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();

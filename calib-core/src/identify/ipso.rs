@@ -4,8 +4,10 @@
 //! `v <- K (v + c1 r1 (pbest - x) + c2 r2 (gbest - x))`, `x <- x + v` (time step 1),
 //! `K = 2 / |2 - phi - sqrt(phi^2 - 4 phi)|`, `phi = c1 + c2 > 4`.
 //!
-//! Swarm size `P` and dimension `D` are const generics; the whole swarm lives on the stack
-//! (`3 P D + P` scalars: 15.5 KiB for P = 20, D = 24 in f64, half in f32). `r1, r2` are drawn per
+//! The dimension `D` is a const generic. [`optimize`] takes the swarm size `P` as one too and
+//! keeps the whole swarm on the stack (`3 P D + 2 P` scalars: 11.6 KiB for P = 20, D = 24 in
+//! f64, half in f32); [`optimize_in`] runs the same algorithm in memory the caller lends
+//! ([`SwarmMemory`]), for a swarm size chosen at run time. `r1, r2` are drawn per
 //! particle and per dimension from `Xoshiro256Plus` (the xoshiro variant meant for floating-point
 //! numbers; the top 53 or 24 bits are used) seeded by the caller, so the same seed and
 //! data give bit-identical results on every target.
@@ -214,7 +216,8 @@ pub enum IpsoError {
     InvalidCoefficients,
     /// A bound or width is not finite, a width is negative, or a lower bound exceeds its upper one.
     InvalidSearchSpace,
-    /// `D` exceeds the number of Halton bases (64) or `P` is zero.
+    /// `D` exceeds the number of Halton bases (64), the swarm is empty, or the slices of a
+    /// [`SwarmMemory`] differ in length.
     InvalidSize,
 }
 
@@ -267,7 +270,8 @@ fn sanitize<T: Real>(cost: T) -> T {
     }
 }
 
-/// Runs the swarm of `P` particles in `D` dimensions on `cost`.
+/// Runs the swarm of `P` particles in `D` dimensions on `cost`, its state on the stack
+/// ([`optimize_in`] with arrays of `P`).
 pub fn optimize<T, const P: usize, const D: usize>(
     cost: &mut impl CostFunction<T, D>,
     space: &SearchSpace<T, D>,
@@ -277,21 +281,105 @@ pub fn optimize<T, const P: usize, const D: usize>(
 where
     T: Real,
 {
-    if P == 0 || D > MAX_DIMENSION {
+    let mut positions = [SVector::<T, D>::zeros(); P];
+    let mut velocities = [SVector::<T, D>::zeros(); P];
+    let mut best_positions = [SVector::<T, D>::zeros(); P];
+    let mut costs = [T::zero(); P];
+    let mut best_costs = [T::zero(); P];
+    let memory = SwarmMemory::new(
+        &mut positions,
+        &mut velocities,
+        &mut best_positions,
+        &mut costs,
+        &mut best_costs,
+    )?;
+    optimize_in(memory, cost, space, settings, observer)
+}
+
+/// The state of a swarm whose size is known at run time (a host choosing it from a setting):
+/// one entry per particle in each slice, all of the same length (the swarm size).
+pub struct SwarmMemory<'m, T: Real, const D: usize> {
+    positions: &'m mut [SVector<T, D>],
+    velocities: &'m mut [SVector<T, D>],
+    best_positions: &'m mut [SVector<T, D>],
+    costs: &'m mut [T],
+    best_costs: &'m mut [T],
+}
+
+impl<'m, T: Real, const D: usize> SwarmMemory<'m, T, D> {
+    /// The swarm's memory; the slices' contents are overwritten by the run. Fails with
+    /// [`IpsoError::InvalidSize`] unless all have the same non-zero length.
+    pub fn new(
+        positions: &'m mut [SVector<T, D>],
+        velocities: &'m mut [SVector<T, D>],
+        best_positions: &'m mut [SVector<T, D>],
+        costs: &'m mut [T],
+        best_costs: &'m mut [T],
+    ) -> Result<Self, IpsoError> {
+        let p = positions.len();
+        if p == 0
+            || velocities.len() != p
+            || best_positions.len() != p
+            || costs.len() != p
+            || best_costs.len() != p
+        {
+            return Err(IpsoError::InvalidSize);
+        }
+        Ok(Self {
+            positions,
+            velocities,
+            best_positions,
+            costs,
+            best_costs,
+        })
+    }
+
+    /// The number of particles.
+    pub fn particles(&self) -> usize {
+        self.positions.len()
+    }
+}
+
+/// Runs the swarm of `memory.particles()` particles in `D` dimensions on `cost`: the same
+/// algorithm and, for the same swarm size, bit for bit the same result as [`optimize`].
+pub fn optimize_in<T, const D: usize>(
+    memory: SwarmMemory<'_, T, D>,
+    cost: &mut impl CostFunction<T, D>,
+    space: &SearchSpace<T, D>,
+    settings: &IpsoSettings<T>,
+    observer: &mut impl Observer<T>,
+) -> Result<IpsoResult<T, D>, IpsoError>
+where
+    T: Real,
+{
+    let SwarmMemory {
+        positions,
+        velocities,
+        best_positions,
+        costs,
+        best_costs,
+    } = memory;
+    let particles = positions.len() as u64;
+    if particles == 0 || D > MAX_DIMENSION {
         return Err(IpsoError::InvalidSize);
     }
     let k = constriction(settings.c1, settings.c2)?;
     if !space.is_valid() {
         return Err(IpsoError::InvalidSearchSpace);
     }
-    let (mut positions, mut velocities) = halton_start::<T, P, D>(space, settings);
+    halton_start(space, settings, positions, velocities);
 
-    let mut costs = [T::zero(); P];
-    cost.cost_batch(&positions, &mut costs);
-    let mut evaluations = P as u64;
-    let mut best_positions = positions;
-    let mut best_costs = costs.map(sanitize);
-    let (mut global, mut global_cost) = best_of(&best_positions, &best_costs);
+    cost.cost_batch(positions, costs);
+    let mut evaluations = particles;
+    for ((best_x, x), (best_c, c)) in best_positions
+        .iter_mut()
+        .zip(positions.iter())
+        .zip(best_costs.iter_mut().zip(costs.iter()))
+    {
+        *best_x = *x;
+        *best_c = sanitize(*c);
+    }
+    let (mut global, mut global_cost) = best_of(best_positions, best_costs);
     let initial_cost = global_cost;
 
     let mut rng = Xoshiro256Plus::seed_from_u64(settings.seed);
@@ -309,7 +397,7 @@ where
             for ((x, v), pbest) in positions
                 .iter_mut()
                 .zip(velocities.iter_mut())
-                .zip(&best_positions)
+                .zip(best_positions.iter())
             {
                 for (((xj, vj), pj), gj) in x
                     .iter_mut()
@@ -324,10 +412,10 @@ where
                 }
                 clamp(x, v, space);
             }
-            cost.cost_batch(&positions, &mut costs);
-            evaluations += P as u64;
-            personal_bests(&costs, &positions, &mut best_costs, &mut best_positions);
-            let (candidate, candidate_cost) = best_of(&best_positions, &best_costs);
+            cost.cost_batch(positions, costs);
+            evaluations += particles;
+            personal_bests(costs, positions, best_costs, best_positions);
+            let (candidate, candidate_cost) = best_of(best_positions, best_costs);
             if candidate_cost < global_cost {
                 global = candidate;
                 global_cost = candidate_cost;
@@ -359,14 +447,16 @@ where
     })
 }
 
-/// The swarm's start (section 2.2): particle `i` at Halton point `start + i` mapped onto the
-/// initial box, its velocity from point `start + P + i` scaled by the half widths; both clamped.
-fn halton_start<T: Real, const P: usize, const D: usize>(
+/// The swarm's start (section 2.2): particle `i` of `P` at Halton point `start + i` mapped onto
+/// the initial box, its velocity from point `start + P + i` scaled by the half widths; both
+/// clamped.
+fn halton_start<T: Real, const D: usize>(
     space: &SearchSpace<T, D>,
     settings: &IpsoSettings<T>,
-) -> ([SVector<T, D>; P], [SVector<T, D>; P]) {
-    let mut positions = [SVector::<T, D>::zeros(); P];
-    let mut velocities = [SVector::<T, D>::zeros(); P];
+    positions: &mut [SVector<T, D>],
+    velocities: &mut [SVector<T, D>],
+) {
+    let particles = positions.len() as u64;
     let mut unit = [0.0f64; D];
     let two = T::of(2.0);
     let start = settings.halton_start;
@@ -382,7 +472,7 @@ fn halton_start<T: Real, const P: usize, const D: usize>(
             *xj = *c + (two * T::of(*h) - T::one()) * *w;
         }
         halton::halton_point(
-            start.wrapping_add(P as u64 + i),
+            start.wrapping_add(particles + i),
             settings.scrambling,
             &mut unit,
         );
@@ -391,15 +481,14 @@ fn halton_start<T: Real, const P: usize, const D: usize>(
         }
         clamp(x, v, space);
     }
-    (positions, velocities)
 }
 
 /// Each particle's best: replaced where its new cost (non-finite counts as +infinity) is lower.
-fn personal_bests<T: Real, const P: usize, const D: usize>(
-    costs: &[T; P],
-    positions: &[SVector<T, D>; P],
-    best_costs: &mut [T; P],
-    best_positions: &mut [SVector<T, D>; P],
+fn personal_bests<T: Real, const D: usize>(
+    costs: &[T],
+    positions: &[SVector<T, D>],
+    best_costs: &mut [T],
+    best_positions: &mut [SVector<T, D>],
 ) {
     for ((c, best_c), (x, best_x)) in costs
         .iter()
@@ -439,9 +528,9 @@ fn clamp<T: Real, const D: usize>(
 
 /// The position with the lowest cost (the first one on ties; all costs are sanitised, never NaN).
 #[inline(never)] // one copy for both call sites (controller flash)
-fn best_of<T: Real, const P: usize, const D: usize>(
-    positions: &[SVector<T, D>; P],
-    costs: &[T; P],
+fn best_of<T: Real, const D: usize>(
+    positions: &[SVector<T, D>],
+    costs: &[T],
 ) -> (SVector<T, D>, T) {
     let mut pairs = positions.iter().zip(costs);
     let Some((first, first_cost)) = pairs.next() else {
@@ -508,6 +597,44 @@ mod tests {
         settings.seed = 43;
         let c = optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
         assert_ne!(a.best, c.best);
+    }
+
+    #[test]
+    fn lent_memory_gives_the_stack_swarm_bit_for_bit() {
+        let mut settings = IpsoSettings::<f64>::paper();
+        settings.max_generations = 300;
+        settings.seed = 42;
+        let on_stack =
+            optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
+        // Memory larger than needed, lent in part: the swarm size is the slices' length.
+        let mut positions = [SVector::<f64, 24>::repeat(7.0); 30];
+        let mut velocities = [SVector::<f64, 24>::repeat(-7.0); 30];
+        let mut best_positions = [SVector::<f64, 24>::zeros(); 30];
+        let (mut costs, mut best_costs) = ([f64::NAN; 30], [0.0; 30]);
+        let memory = SwarmMemory::new(
+            &mut positions[..20],
+            &mut velocities[..20],
+            &mut best_positions[..20],
+            &mut costs[..20],
+            &mut best_costs[..20],
+        )
+        .unwrap();
+        assert_eq!(memory.particles(), 20);
+        let lent = optimize_in(memory, &mut quadratic, &space(), &settings, &mut Silent).unwrap();
+        assert_eq!(lent, on_stack);
+        assert_eq!(lent.best_cost.to_bits(), on_stack.best_cost.to_bits());
+        assert_eq!(lent.evaluations, 20 * 301);
+
+        let uneven = SwarmMemory::new(
+            &mut positions[..20],
+            &mut velocities[..20],
+            &mut best_positions[..20],
+            &mut costs[..19],
+            &mut best_costs[..20],
+        );
+        assert_eq!(uneven.err(), Some(IpsoError::InvalidSize));
+        let empty = SwarmMemory::<f64, 24>::new(&mut [], &mut [], &mut [], &mut [], &mut []);
+        assert_eq!(empty.err(), Some(IpsoError::InvalidSize));
     }
 
     #[test]

@@ -7,8 +7,9 @@ use calib_core::identify::ipso;
 use calib_core::identify::lm::Loss;
 use serde::Serialize;
 
-/// Swarm sizes the calibration is built for (the core takes the swarm size as a const generic).
-pub const SWARM_SIZES: [usize; 6] = [10, 20, 30, 40, 50, 100];
+/// The swarm sizes `--swarm` accepts (particles; the swarm's memory is allocated for the size
+/// asked, about 24 bytes per particle and identified parameter).
+pub const SWARM_SIZES: std::ops::RangeInclusive<usize> = 1..=1000;
 
 /// Identification method.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
@@ -91,7 +92,7 @@ impl From<ScramblingChoice> for Scrambling {
 /// The swarm's settings (the paper's section 2.2).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct SwarmConfig {
-    /// Particles: one of [`SWARM_SIZES`] (paper: 20).
+    /// Particles: within [`SWARM_SIZES`] (paper: 20).
     pub particles: usize,
     /// Maximum number of generations (paper: 2000).
     pub generations: u32,
@@ -238,9 +239,10 @@ impl CalibrationConfig {
     pub fn check(&self) -> anyhow::Result<()> {
         if !SWARM_SIZES.contains(&self.swarm.particles) {
             bail!(
-                "--swarm {} is not available; choose one of {:?}",
+                "--swarm {} is out of range; choose {} to {} particles (paper: 20)",
                 self.swarm.particles,
-                SWARM_SIZES
+                SWARM_SIZES.start(),
+                SWARM_SIZES.end()
             );
         }
         for (name, v) in [

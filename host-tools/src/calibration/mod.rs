@@ -130,6 +130,8 @@ pub fn calibrate<const N: usize>(
     let selection = select_parameters(&dataset, mask, config)?;
     let solved = |dataset: &Dataset<N>, validation: Option<&Dataset<N>>| {
         crate::with_parameter_count!(
+            N,
+            solvable_parameters,
             selection.mask.count(),
             solve(
                 dataset,
@@ -225,7 +227,12 @@ pub fn select_parameters<const N: usize>(
     config: &CalibrationConfig,
 ) -> anyhow::Result<Selection<N>> {
     let analysed = |mask: &ParameterMask<N>| {
-        crate::with_parameter_count!(mask.count(), analyse(dataset, mask, config.k))
+        crate::with_parameter_count!(
+            N,
+            all_parameters,
+            mask.count(),
+            analyse(dataset, mask, config.k)
+        )
     };
     let (mut mask, reflector) = crate::identifiability::default_mask(dataset, mask, config.k)?;
     let mut initial = analysed(&mask)?;
@@ -508,15 +515,19 @@ fn run_swarm<const N: usize, const D: usize>(
         Control::Continue
     };
     let mut cost = Parallel(objective);
-    macro_rules! swarm {
-        ($($p:literal)*) => {
-            match swarm.particles {
-                $($p => ipso::optimize::<f64, $p, D>(&mut cost, &space, &settings, &mut observer)?,)*
-                other => bail!("--swarm {other} is not available"),
-            }
-        };
-    }
-    let result = swarm!(10 20 30 40 50 100);
+    let particles = swarm.particles;
+    let mut positions = vec![SVector::<f64, D>::zeros(); particles];
+    let mut velocities = positions.clone();
+    let mut best_positions = positions.clone();
+    let (mut costs, mut best_costs) = (vec![0.0; particles], vec![0.0; particles]);
+    let memory = ipso::SwarmMemory::new(
+        &mut positions,
+        &mut velocities,
+        &mut best_positions,
+        &mut costs,
+        &mut best_costs,
+    )?;
+    let result = ipso::optimize_in(memory, &mut cost, &space, &settings, &mut observer)?;
     bar.finish_and_clear();
     let summary = SwarmSummary {
         generations: result.generations,

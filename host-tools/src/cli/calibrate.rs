@@ -78,7 +78,7 @@ pub struct CalibrateOptions {
     /// A separate data file of validation poses.
     #[arg(long, value_name = "FILE")]
     pub holdout: Option<PathBuf>,
-    /// Swarm size (10, 20, 30, 40, 50 or 100).
+    /// Swarm size, particles (1 to 1000).
     #[arg(long, default_value_t = 20)]
     pub swarm: usize,
     /// Maximum number of generations.
@@ -197,13 +197,10 @@ pub struct Calibration<const N: usize = JOINTS> {
 }
 
 /// Runs `calib calibrate` as the command does: calibrates (the robot file's joint count one of
-/// [`IDENTIFICATION_JOINT_COUNTS`](crate::dispatch::IDENTIFICATION_JOINT_COUNTS)), writes the
+/// [`JOINT_COUNTS`](crate::dispatch::JOINT_COUNTS)), writes the
 /// files asked for (all or none), and returns the text to print, with the files written.
 pub fn calibrate_and_write(options: &CalibrateOptions) -> anyhow::Result<String> {
-    crate::with_identification_joint_count!(
-        options.input.joints()?,
-        calibrate_and_write_joints(options)
-    )
+    crate::with_joint_count!(options.input.joints()?, calibrate_and_write_joints(options))
 }
 
 /// [`calibrate_and_write`] for an `N`-joint robot.

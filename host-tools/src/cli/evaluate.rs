@@ -30,7 +30,7 @@ pub struct EvaluateOptions {
 
 /// Runs `calib evaluate`.
 pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
-    crate::with_identification_joint_count!(options.input.joints()?, evaluate_joints(options))
+    crate::with_joint_count!(options.input.joints()?, evaluate_joints(options))
 }
 
 /// `calib evaluate` for an `N`-joint robot.

@@ -1,0 +1,264 @@
+//! Identification of robots of every joint count `calib` is compiled for (2 to 9), as a user
+//! runs it: simulate -> check -> calibrate (least squares, then the default swarm and least
+//! squares) -> evaluate -> verify. The expectations are independent of the tool: the number of
+//! parameters a complete and minimal model has (`4 N + 6` for `N` revolute joints with both
+//! frames identified; Zhuang, Roth and Hamano 1992) and the simulation's truth, which exact data
+//! must give back.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+use common::{calib, ok};
+
+use std::path::Path;
+
+/// A serial arm of `joints` revolute joints in our robot-file format: twists alternating
+/// +-90 deg, except that joints 2 and 3 have parallel axes from four joints on (as the shoulder
+/// and elbow of most industrial arms), links growing along the chain. `every_parameter`: each
+/// joint's `identify` lists all five Hayati parameters instead of the default rule's four.
+fn robot_file(joints: usize, every_parameter: bool) -> String {
+    let mut text = format!("name = \"test arm of {joints} joints\"\n");
+    for j in 1..=joints {
+        let alpha = if joints >= 4 && j == 2 {
+            0.0
+        } else if j % 2 == 0 {
+            -90.0
+        } else {
+            90.0
+        };
+        text.push_str(&format!(
+            "\n[[joint]]\na_mm = {}\nalpha_deg = {alpha}\ntheta_offset_deg = {}\nd_mm = {}\nbeta_deg = 0.0\nlimits_deg = [-170.0, 170.0]\n{}",
+            40.0 + 35.0 * j as f64,
+            if j == 3 { 90.0 } else { 0.0 },
+            if j == 2 { 0.0 } else { 180.0 - 10.0 * j as f64 },
+            if every_parameter {
+                "identify = [\"a\", \"d\", \"alpha\", \"beta\", \"theta\"]\n"
+            } else {
+                ""
+            },
+        ));
+    }
+    text
+}
+
+/// `dir/name` as a string.
+fn at(dir: &Path, name: &str) -> String {
+    dir.join(name).to_str().unwrap().to_string()
+}
+
+/// The runs of one joint count; prints what it measured.
+fn identify(joints: usize) {
+    let dir = tempfile::tempdir().unwrap();
+    let robot = at(dir.path(), "arm.toml");
+    std::fs::write(&robot, robot_file(joints, false)).unwrap();
+    let (data, truth) = (at(dir.path(), "arm.csv"), at(dir.path(), "truth.toml"));
+    // Tracker frame, 6-DoF poses, random errors of every identified parameter.
+    let out = ok(&calib(&[
+        "simulate",
+        "--robot",
+        &robot,
+        "--errors",
+        "random",
+        "--poses",
+        "60",
+        "--within-limits",
+        "--tracker-xyz-mm",
+        "1500,-400,200",
+        "--tracker-rpy-deg",
+        "0,0,-40",
+        "--out",
+        &data,
+        "--truth-out",
+        &truth,
+    ]));
+    assert!(out.contains("wrote 60 poses"), "{out}");
+
+    let minimal = 4 * joints + 6;
+    let out = ok(&calib(&["check", "--robot", &robot, "--data", &data]));
+    assert!(
+        out.contains(&format!(
+            "identifiability of {minimal} parameters: rank {minimal}"
+        )),
+        "{joints} joints: {out}"
+    );
+
+    let report = at(dir.path(), "report.json");
+    let identified = at(dir.path(), "identified.toml");
+    let out = ok(&calib(&[
+        "calibrate",
+        "--robot",
+        &robot,
+        "--data",
+        &data,
+        "--method",
+        "lm",
+        "--validate",
+        "0.25",
+        "--truth",
+        &truth,
+        "--out",
+        &identified,
+        "--report",
+        &report,
+    ]));
+    assert!(out.contains("with 45 poses"), "{out}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let rows = json["truth"].as_array().unwrap();
+    assert_eq!(rows.len(), minimal, "{joints} joints");
+    // The frames' rows differ from the truth's zero by what they absorb of the first and last
+    // joints' errors; the joints' own parameters are the truth.
+    let worst = rows
+        .iter()
+        .filter(|row| {
+            let name = row["name"].as_str().unwrap();
+            !(name.starts_with("base") || name.starts_with("tool"))
+        })
+        .map(|row| (row["identified"].as_f64().unwrap() - row["truth"].as_f64().unwrap()).abs())
+        .fold(0.0, f64::max);
+    let held_out = json["validation"]["after"]["position_mm"]["max"]
+        .as_f64()
+        .unwrap();
+    println!(
+        "{joints} joints: {minimal} parameters, largest error against the truth {worst:.1e}, held-out max {held_out:.1e} mm"
+    );
+    assert!(worst < 1e-8, "{joints} joints: {worst}");
+    assert!(
+        held_out < 1e-8,
+        "{joints} joints: held-out max {held_out} mm"
+    );
+
+    // The default method, the swarm then least squares, reaches the same exact fit.
+    let again = at(dir.path(), "again.json");
+    let out = ok(&calib(&[
+        "calibrate",
+        "--robot",
+        &robot,
+        "--data",
+        &data,
+        "--validate",
+        "0.25",
+        "--report",
+        &again,
+        "--quiet",
+    ]));
+    assert!(out.contains("by ipso+lm"), "{out}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&again).unwrap()).unwrap();
+    let held_out = json["validation"]["after"]["position_mm"]["max"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        held_out < 1e-8,
+        "{joints} joints: held-out max {held_out} mm"
+    );
+
+    let out = ok(&calib(&[
+        "evaluate",
+        "--robot",
+        &identified,
+        "--data",
+        &data,
+        "--json",
+    ]));
+    let evaluation: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let mean = evaluation["position_mm"]["mean"].as_f64().unwrap();
+    assert!(mean < 1e-6, "{joints} joints: evaluate mean {mean} mm");
+
+    let out = ok(&calib(&["verify", "--robot", &robot, "--data", &data]));
+    assert!(
+        out.contains("all within tolerance"),
+        "{joints} joints: {out}"
+    );
+}
+
+#[test]
+fn every_joint_count_from_two_to_nine_is_identified_exactly() {
+    for joints in host_tools::dispatch::JOINT_COUNTS {
+        identify(joints);
+    }
+}
+
+/// Every Hayati parameter of a 9-joint arm asked for: the analysis takes them all and finds the
+/// rank of a complete and minimal model, 4 x 9 + 6 = 42; `--auto-mask` drops the rest and the
+/// calibration is exact.
+#[test]
+fn every_parameter_of_a_nine_joint_arm_is_analysed_and_the_redundant_dropped() {
+    let dir = tempfile::tempdir().unwrap();
+    let robot = at(dir.path(), "arm.toml");
+    std::fs::write(&robot, robot_file(9, true)).unwrap();
+    let (data, truth) = (at(dir.path(), "arm.csv"), at(dir.path(), "truth.toml"));
+    ok(&calib(&[
+        "simulate",
+        "--robot",
+        &robot,
+        "--errors",
+        "random",
+        "--poses",
+        "60",
+        "--within-limits",
+        "--tracker-xyz-mm",
+        "1500,-400,200",
+        "--out",
+        &data,
+        "--truth-out",
+        &truth,
+    ]));
+    let out = ok(&calib(&["check", "--robot", &robot, "--data", &data]));
+    let first = out.lines().next().unwrap();
+    println!("9 joints, every parameter: {first}");
+    assert!(
+        first.ends_with("parameters: rank 42, rank-deficient"),
+        "{out}"
+    );
+    let asked: usize = first.split_whitespace().nth(2).unwrap().parse().unwrap();
+    assert!(asked > 42, "{out}");
+
+    let report = at(dir.path(), "report.json");
+    ok(&calib(&[
+        "calibrate",
+        "--robot",
+        &robot,
+        "--data",
+        &data,
+        "--auto-mask",
+        "--validate",
+        "0.25",
+        "--report",
+        &report,
+        "--quiet",
+    ]));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(json["parameters"].as_object().unwrap().len(), 42);
+    assert_eq!(json["dropped"].as_array().unwrap().len(), asked - 42);
+    let held_out = json["validation"]["after"]["position_mm"]["max"]
+        .as_f64()
+        .unwrap();
+    assert!(held_out < 1e-8, "held-out max {held_out} mm");
+}
+
+#[test]
+fn a_robot_of_ten_joints_is_refused_with_the_supported_counts() {
+    let dir = tempfile::tempdir().unwrap();
+    let robot = at(dir.path(), "arm.toml");
+    std::fs::write(&robot, robot_file(10, false)).unwrap();
+    let (data, truth) = (at(dir.path(), "arm.csv"), at(dir.path(), "truth.toml"));
+    let out = calib(&[
+        "simulate",
+        "--robot",
+        &robot,
+        "--errors",
+        "random",
+        "--out",
+        &data,
+        "--truth-out",
+        &truth,
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("the robot file has 10 joints; this command handles 2 to 9 joints"),
+        "{err}"
+    );
+    assert!(!Path::new(&data).exists() && !Path::new(&truth).exists());
+}
