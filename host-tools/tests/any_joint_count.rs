@@ -1,6 +1,6 @@
-//! Identification of robots of every joint count `calib` is compiled for (2 to 9), as a user
-//! runs it: simulate -> check -> calibrate (least squares, then the default swarm and least
-//! squares) -> evaluate -> verify. The expectations are independent of the tool: the number of
+//! Robots of every joint count `calib` is compiled for (2 to 9), as a user runs them: simulate ->
+//! check -> calibrate (least squares with plots, then the default swarm and least squares) -> evaluate ->
+//! verify -> fk -> compensate (6 joints or more) -> export. The expectations are independent of the tool: the number of
 //! parameters a complete and minimal model has (`4 N + 6` for `N` revolute joints with both
 //! frames identified; Zhuang, Roth and Hamano 1992) and the simulation's truth, which exact data
 //! must give back.
@@ -83,6 +83,7 @@ fn identify(joints: usize) {
 
     let report = at(dir.path(), "report.json");
     let identified = at(dir.path(), "identified.toml");
+    let plots = at(dir.path(), "plots");
     let out = ok(&calib(&[
         "calibrate",
         "--robot",
@@ -99,8 +100,16 @@ fn identify(joints: usize) {
         &identified,
         "--report",
         &report,
+        "--plot",
+        &plots,
     ]));
     assert!(out.contains("with 45 poses"), "{out}");
+    for plot in ["position-error.svg", "position-error.png"] {
+        assert!(
+            Path::new(&plots).join(plot).is_file(),
+            "{joints} joints: {plot}"
+        );
+    }
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     let rows = json["truth"].as_array().unwrap();
@@ -169,6 +178,94 @@ fn identify(joints: usize) {
         out.contains("all within tolerance"),
         "{joints} joints: {out}"
     );
+
+    compensate_and_export(dir.path(), joints, &robot, &identified);
+}
+
+/// fk of the nominal robot at a joint vector gives a target; compensate puts the identified
+/// robot on it (6 joints or more; fewer are refused with the reason and nothing is written);
+/// export writes the controller's block.
+fn compensate_and_export(dir: &Path, joints: usize, robot: &str, identified: &str) {
+    let q: Vec<String> = (1..=joints)
+        .map(|j| format!("{}", 25.0 - 7.0 * j as f64))
+        .collect();
+    let out = ok(&calib(&[
+        "fk",
+        "--robot",
+        robot,
+        "--joints-deg",
+        &q.join(","),
+        "--json",
+    ]));
+    let pose: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let numbers = |key: &str| -> Vec<String> {
+        pose[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap().to_string())
+            .collect()
+    };
+    let targets = at(dir, "targets.csv");
+    std::fs::write(
+        &targets,
+        format!(
+            "id,x_mm,y_mm,z_mm,qw,qx,qy,qz,{}\nT1,{},{},{}\n",
+            (1..=joints)
+                .map(|j| format!("q{j}_deg"))
+                .collect::<Vec<_>>()
+                .join(","),
+            numbers("position_mm").join(","),
+            numbers("quaternion_wxyz").join(","),
+            q.join(",")
+        ),
+    )
+    .unwrap();
+    let compensated = at(dir, "compensated.csv");
+    let out = calib(&[
+        "compensate",
+        "--robot",
+        robot,
+        "--params",
+        identified,
+        "--targets",
+        &targets,
+        "--out",
+        &compensated,
+        "--max-correction-mm",
+        "50",
+        "--max-correction-deg",
+        "5",
+    ]);
+    if joints < 6 {
+        assert!(!out.status.success(), "{joints} joints");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains(&format!(
+                "which takes at least 6 joints; this robot has {joints}"
+            )),
+            "{err}"
+        );
+        assert!(!Path::new(&compensated).exists());
+    } else {
+        let text = ok(&out);
+        let mut reader = csv::Reader::from_path(&compensated).unwrap();
+        let row = reader.records().next().unwrap().unwrap();
+        assert!(
+            text.contains("compensated 1 of 1 targets"),
+            "{text}\n{row:?}"
+        );
+        let residual: f64 = row[joints + 1].parse().unwrap();
+        println!("{joints} joints: compensated to {residual:.1e} mm");
+        assert!(residual < 1e-3, "{joints} joints: {residual} mm");
+    }
+
+    let block = at(dir, "arm.bin");
+    let out = ok(&calib(&[
+        "export", "--params", identified, "--format", "block", "--out", &block,
+    ]));
+    assert!(out.contains("wrote"), "{out}");
+    assert!(std::fs::metadata(&block).unwrap().len() > 0);
 }
 
 #[test]

@@ -48,14 +48,27 @@ pub struct CompensateOptions {
     pub branch: usize,
 }
 
-/// Runs `calib compensate` for the robot file's joint count (2 to 9 joints; joint maps and
-/// gravity compliance for 6-joint robots).
+/// The fewest joints that put a tool on a 6-DoF pose.
+const MIN_JOINTS: usize = 6;
+
+/// Runs `calib compensate` for the robot file's joint count (6 to 9 joints, fewer are refused
+/// with the reason; joint maps and gravity compliance for 6-joint robots).
 pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
     let file = RobotFile::read(&options.robot)?;
     file.refuse_joint_maps(
         &options.robot,
         "calib compensate's --robot (the nominal model the controller plans with)",
     )?;
+    if file.joint.len() < MIN_JOINTS {
+        bail!(
+            "{}: compensation puts the tool on 6-DoF target poses (position and orientation), which \
+             takes at least {MIN_JOINTS} joints; this robot has {}, so the identified robot generally \
+             cannot reach a pose its nominal model reaches (calibrate, check, evaluate, verify, fk \
+             and export take it)",
+            options.robot.display(),
+            file.joint.len()
+        );
+    }
     let params = RobotFile::read(&options.params)?;
     let maps = params.joint_maps(&options.params)?;
     let compliance = params.gravity_compliance(&options.params)?;
