@@ -283,34 +283,65 @@ fn on_identified_robot<const N: usize>(
                 )
             }
         };
-    let (joint, change) = solution
-        .q
-        .iter()
-        .zip(reference)
-        .map(|(q, r)| (q - r).abs())
-        .enumerate()
-        .fold((0, 0.0f64), |m, (j, c)| if c > m.1 { (j, c) } else { m });
     let nominal_pose = planned.forward(&solution.q).map_err(|e| e.to_string())?;
-    let correction = PoseError::between(&nominal_pose, target);
-    let (mm, rad) = (correction.position.norm(), correction.rotation.norm());
-    if (planned_reference && change > settings.max_joint_correction_rad)
-        || mm > settings.max_correction_mm
-        || rad > settings.max_correction_rad
+    let needed = Needed::between(target, &nominal_pose, &solution.q, reference);
+    if (planned_reference && needed.joint_change_rad > settings.max_joint_correction_rad)
+        || needed.correction.position.norm() > settings.max_correction_mm
+        || needed.correction.rotation.norm() > settings.max_correction_rad
     {
-        return Err(format!(
-            "{}: the identified robot reaches the target with {mm:.3} mm and {:.3} deg of correction (bounds {} mm, \
-             --max-correction-mm, and {} deg, --max-correction-deg), moving joint {} by {:.3} deg from the nominal \
-             configuration (bound {:.3} deg, --max-joint-correction-deg)",
-            CompensationError::CorrectionTooLarge,
-            rad.to_degrees(),
-            settings.max_correction_mm,
-            settings.max_correction_rad.to_degrees(),
-            joint + 1,
-            change.to_degrees(),
-            settings.max_joint_correction_rad.to_degrees()
+        return Err(needed.refusal(
+            "the identified robot reaches the target with",
+            "from the nominal configuration",
+            settings,
         ));
     }
     Ok((solution, method))
+}
+
+/// What a compensation needs: the change of the commanded pose and the largest joint move.
+struct Needed {
+    /// The commanded pose's change (mm, rad).
+    correction: PoseError<f64>,
+    /// The joint that moves most, 0-based.
+    joint: usize,
+    /// Its move, rad.
+    joint_change_rad: f64,
+}
+
+impl Needed {
+    /// The change from pose `from` to pose `to`, and joints `q` against `reference`.
+    fn between<const N: usize>(from: &Pose, to: &Pose, q: &[f64; N], reference: &[f64; N]) -> Self {
+        let (joint, joint_change_rad) = q
+            .iter()
+            .zip(reference)
+            .map(|(q, r)| (q - r).abs())
+            .enumerate()
+            .fold((0, 0.0f64), |m, (j, c)| if c > m.1 { (j, c) } else { m });
+        Self {
+            correction: PoseError::between(to, from),
+            joint,
+            joint_change_rad,
+        }
+    }
+
+    /// Why the target was refused, with the numbers against the bounds and the flags that set
+    /// them: `{refused}: {needs} X mm and Y deg of correction (bounds ...), moving joint J by Z
+    /// deg {from} (bound ...)`.
+    fn refusal(&self, needs: &str, from: &str, settings: &CompensationSettings<f64>) -> String {
+        format!(
+            "{}: {needs} {:.3} mm and {:.3} deg of correction (bounds {} mm, --max-correction-mm, \
+             and {} deg, --max-correction-deg), moving joint {} by {:.3} deg {from} (bound {:.3} deg, \
+             --max-joint-correction-deg)",
+            CompensationError::CorrectionTooLarge,
+            self.correction.position.norm(),
+            self.correction.rotation.norm().to_degrees(),
+            settings.max_correction_mm,
+            settings.max_correction_rad.to_degrees(),
+            self.joint + 1,
+            self.joint_change_rad.to_degrees(),
+            settings.max_joint_correction_rad.to_degrees()
+        )
+    }
 }
 
 /// The closed-form inverse kinematics on `branch` when the robot has one (`None`: no closed
@@ -451,24 +482,10 @@ fn needed_correction<const N: usize>(
     let (Ok(before), Ok(after)) = (planned.forward(start), planned.forward(&solution.q)) else {
         return refused;
     };
-    let correction = PoseError::between(&after, &before);
-    let (joint, change) = solution
-        .q
-        .iter()
-        .zip(start)
-        .map(|(q, s)| (q - s).abs())
-        .enumerate()
-        .fold((0, 0.0f64), |m, (j, c)| if c > m.1 { (j, c) } else { m });
-    format!(
-        "{refused}: the actual robot needs {:.3} mm and {:.3} deg of correction (bounds {} mm, --max-correction-mm, \
-         and {} deg, --max-correction-deg) and moves joint {} by {:.3} deg (bound {:.3} deg, --max-joint-correction-deg)",
-        correction.position.norm(),
-        correction.rotation.norm().to_degrees(),
-        settings.max_correction_mm,
-        settings.max_correction_rad.to_degrees(),
-        joint + 1,
-        change.to_degrees(),
-        settings.max_joint_correction_rad.to_degrees()
+    Needed::between(&before, &after, &solution.q, start).refusal(
+        "the actual robot needs",
+        "from the planned joints",
+        settings,
     )
 }
 
