@@ -45,13 +45,12 @@ fn at(dir: &Path, name: &str) -> String {
     dir.join(name).to_str().unwrap().to_string()
 }
 
-/// The runs of one joint count; prints what it measured.
-fn identify(joints: usize) {
-    let dir = tempfile::tempdir().unwrap();
-    let robot = at(dir.path(), "arm.toml");
-    std::fs::write(&robot, robot_file(joints, false)).unwrap();
-    let (data, truth) = (at(dir.path(), "arm.csv"), at(dir.path(), "truth.toml"));
-    // Tracker frame, 6-DoF poses, random errors of every identified parameter.
+/// The arm of `joints` joints written to `dir` and 60 poses simulated for it (tracker frame,
+/// 6-DoF, random errors of every identified parameter): the robot file, the data and the truth.
+fn simulated(dir: &Path, joints: usize, every_parameter: bool) -> (String, String, String) {
+    let robot = at(dir, "arm.toml");
+    std::fs::write(&robot, robot_file(joints, every_parameter)).unwrap();
+    let (data, truth) = (at(dir, "arm.csv"), at(dir, "truth.toml"));
     let out = ok(&calib(&[
         "simulate",
         "--robot",
@@ -71,6 +70,13 @@ fn identify(joints: usize) {
         &truth,
     ]));
     assert!(out.contains("wrote 60 poses"), "{out}");
+    (robot, data, truth)
+}
+
+/// The runs of one joint count; prints what it measured.
+fn identify(joints: usize) {
+    let dir = tempfile::tempdir().unwrap();
+    let (robot, data, truth) = simulated(dir.path(), joints, false);
 
     let minimal = 4 * joints + 6;
     let out = ok(&calib(&["check", "--robot", &robot, "--data", &data]));
@@ -281,25 +287,7 @@ fn every_joint_count_from_two_to_nine_is_identified_exactly() {
 #[test]
 fn every_parameter_of_a_nine_joint_arm_is_analysed_and_the_redundant_dropped() {
     let dir = tempfile::tempdir().unwrap();
-    let robot = at(dir.path(), "arm.toml");
-    std::fs::write(&robot, robot_file(9, true)).unwrap();
-    let (data, truth) = (at(dir.path(), "arm.csv"), at(dir.path(), "truth.toml"));
-    ok(&calib(&[
-        "simulate",
-        "--robot",
-        &robot,
-        "--errors",
-        "random",
-        "--poses",
-        "60",
-        "--within-limits",
-        "--tracker-xyz-mm",
-        "1500,-400,200",
-        "--out",
-        &data,
-        "--truth-out",
-        &truth,
-    ]));
+    let (robot, data, _) = simulated(dir.path(), 9, true);
     let out = ok(&calib(&["check", "--robot", &robot, "--data", &data]));
     let first = out.lines().next().unwrap();
     println!("9 joints, every parameter: {first}");
