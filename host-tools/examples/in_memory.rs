@@ -33,6 +33,7 @@ fn measure(real: &Kinematics<f64, 6>, count: usize, seed: u64) -> anyhow::Result
                 position: [0, 1, 2].map(|k| p[k] + noise.sample(&mut rng)),
                 rotation: None,
                 weight: 1.0,
+                role: None,
             })
         })
         .collect()

@@ -17,6 +17,8 @@ pub enum Column {
     Id,
     /// The pose's weight.
     Weight,
+    /// The pose's role in a measurement plan (`core`, `fill`, `verify`; `calib plan`).
+    Role,
     /// A source column the data profile does not map.
     Ignored,
 }
@@ -62,6 +64,7 @@ pub fn parse_column(name: &str) -> Option<Column> {
         "rz_rad" => Column::Angle(2, 1.0),
         "id" => Column::Id,
         "weight" => Column::Weight,
+        "role" => Column::Role,
         _ => return None,
     })
 }

@@ -55,6 +55,7 @@ impl<const N: usize> Dataset<N> {
             joints,
             orientation,
             records,
+            planned: None,
         };
         Self::from_parts(file, Path::new("<memory>"), data)
     }

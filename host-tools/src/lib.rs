@@ -23,6 +23,7 @@ pub mod html_report;
 pub mod identifiability;
 pub mod joint_maps;
 pub mod orientation_check;
+pub mod plan;
 pub mod plots;
 pub mod profile;
 pub mod reference;

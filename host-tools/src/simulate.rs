@@ -149,6 +149,7 @@ impl<const N: usize> Simulated<N> {
                 position: r.position,
                 rotation: r.rotation,
                 weight: 1.0,
+                role: None,
             })
             .collect()
     }

@@ -99,6 +99,105 @@ pub struct Record {
     pub rotation: Option<Matrix3<f64>>,
     /// Weight (1 when there is no weight column).
     pub weight: f64,
+    /// The pose's role in a measurement plan (the `role` column), if the file has one.
+    pub role: Option<Role>,
+}
+
+/// A pose's role in a measurement plan (`calib plan`; the `role` column of a data file).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Role {
+    /// A pose of the D-optimal core: among the most informative for the identified parameters.
+    Core,
+    /// A fill pose: drawn at random from the working region, keeps the fit representative of it.
+    Fill,
+    /// A verification pose: measured, kept out of the fit, compared with the plan's prediction.
+    Verify,
+}
+
+impl Role {
+    /// The name in the `role` column.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Core => "core",
+            Self::Fill => "fill",
+            Self::Verify => "verify",
+        }
+    }
+
+    /// The role named `name` (`core`, `fill`, `verify`, any case).
+    pub fn parse(name: &str) -> Option<Self> {
+        [Self::Core, Self::Fill, Self::Verify]
+            .into_iter()
+            .find(|r| r.name().eq_ignore_ascii_case(name))
+    }
+}
+
+/// What a plan predicted for its verification poses, from its `# plan prediction:` comment line
+/// (written by `calib plan`, read back by `calibrate` to put the measured error next to it).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct PlannedVerification {
+    /// Predicted mean position error of the verification poses, mm.
+    pub mean_mm: f64,
+    /// Lower end of the predicted 95 % range of that mean, mm.
+    pub low_mm: f64,
+    /// Upper end of the predicted 95 % range of that mean, mm.
+    pub high_mm: f64,
+    /// The noise level the prediction assumed (per coordinate, 1 sigma), mm.
+    pub noise_mm: f64,
+}
+
+impl PlannedVerification {
+    /// The comment line's start.
+    pub const PREFIX: &'static str = "plan prediction:";
+
+    /// The comment line (without `#`).
+    pub fn comment(&self) -> String {
+        format!(
+            "{} verification_mean_mm={} low_mm={} high_mm={} noise_mm={}",
+            Self::PREFIX,
+            self.mean_mm,
+            self.low_mm,
+            self.high_mm,
+            self.noise_mm
+        )
+    }
+
+    /// The prediction of a comment line's text after `#`; `Ok(None)` for another comment.
+    fn parse(comment: &str) -> Result<Option<Self>, String> {
+        let Some(rest) = comment.trim().strip_prefix(Self::PREFIX) else {
+            return Ok(None);
+        };
+        let mut values = std::collections::HashMap::new();
+        for pair in rest.split_whitespace() {
+            let (key, value) = pair
+                .split_once('=')
+                .ok_or_else(|| format!("\"{pair}\" is not key=value"))?;
+            let value: f64 = value
+                .parse()
+                .ok()
+                .filter(|v: &f64| v.is_finite() && *v >= 0.0)
+                .ok_or_else(|| format!("{key} = \"{value}\" is not a length in mm"))?;
+            values.insert(key, value);
+        }
+        let get = |key: &str| {
+            values.get(key).copied().ok_or_else(|| {
+                format!(
+                    "{key} is missing (the line is written by calib plan; restore it or delete it)"
+                )
+            })
+        };
+        let planned = Self {
+            mean_mm: get("verification_mean_mm")?,
+            low_mm: get("low_mm")?,
+            high_mm: get("high_mm")?,
+            noise_mm: get("noise_mm")?,
+        };
+        if !(planned.low_mm <= planned.mean_mm && planned.mean_mm <= planned.high_mm) {
+            return Err("the range low_mm..high_mm does not hold verification_mean_mm".into());
+        }
+        Ok(Some(planned))
+    }
 }
 
 /// A parsed tracker data file.
@@ -117,6 +216,8 @@ pub struct TrackerData {
     pub orientation: OrientationColumns,
     /// The poses, in file order.
     pub records: Vec<Record>,
+    /// What the plan the file was measured from predicted (its `# plan prediction:` line).
+    pub planned: Option<PlannedVerification>,
 }
 
 impl TrackerData {
@@ -128,12 +229,12 @@ impl TrackerData {
     /// Reads and checks a tracker data file through a data profile.
     pub fn read_with(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
         let text = read_text(path)?;
-        Self::parse_with(&text, path, true, profile)
+        Self::parse_with(&text, path, Needs::Measurements, profile)
     }
 
     /// Parses tracker-data text in our format; `path` only names the source in errors.
     pub fn parse(text: &str, path: &Path) -> Result<Self, DataError> {
-        Self::parse_with(text, path, true, &DataProfile::default())
+        Self::parse_with(text, path, Needs::Measurements, &DataProfile::default())
     }
 
     /// Parses tracker-data text through a data profile; `path` only names the source in errors.
@@ -142,20 +243,28 @@ impl TrackerData {
         path: &Path,
         profile: &DataProfile,
     ) -> Result<Self, DataError> {
-        Self::parse_with(text, path, true, profile)
+        Self::parse_with(text, path, Needs::Measurements, profile)
     }
 
     /// Reads a file of target poses: like [`TrackerData::read`], but the joint columns are
     /// optional (when present they are start values).
     pub fn read_targets(path: &Path) -> Result<Self, DataError> {
         let text = read_text(path)?;
-        Self::parse_with(&text, path, false, &DataProfile::default())
+        Self::parse_with(&text, path, Needs::Targets, &DataProfile::default())
+    }
+
+    /// Reads a file of candidate joint configurations (`calib plan --candidates`) through a data
+    /// profile: only the joint columns are read (and `id`); any measurement columns are ignored,
+    /// so a measured file or a plan not yet measured serves as well. Records' positions are zero.
+    pub fn read_joints(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
+        let text = read_text(path)?;
+        Self::parse_with(&text, path, Needs::Joints, profile)
     }
 
     fn parse_with(
         text: &str,
         path: &Path,
-        joints_required: bool,
+        needs: Needs,
         profile: &DataProfile,
     ) -> Result<Self, DataError> {
         // A UTF-8 byte order mark (from some Windows editors) is not part of the first line.
@@ -175,13 +284,24 @@ impl TrackerData {
                     .is_some_and(|c| c.trim().replace(' ', "") == "frame:base")
             }),
         };
+        let mut planned = None;
+        for (i, line) in text.lines().enumerate() {
+            let Some(comment) = line.strip_prefix('#') else {
+                continue;
+            };
+            if let Some(p) =
+                PlannedVerification::parse(comment).map_err(|m| source.at(i as u64 + 1, None, m))?
+            {
+                planned = Some(p);
+            }
+        }
         let mut reader = csv::ReaderBuilder::new()
             .comment(Some(b'#'))
             .delimiter(profile.delimiter)
             .trim(csv::Trim::All)
             .flexible(true)
             .from_reader(text.as_bytes());
-        let layout = Layout::read(&mut reader, &source, joints_required, profile)?;
+        let layout = Layout::read(&mut reader, &source, needs, profile)?;
         let mut records = Vec::new();
         let mut ids = std::collections::HashMap::new();
         for result in reader.records() {
@@ -209,8 +329,20 @@ impl TrackerData {
             joints: layout.joints,
             orientation: layout.orientation,
             records,
+            planned,
         })
     }
+}
+
+/// The columns a file must have.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Needs {
+    /// Measured poses: joints and positions.
+    Measurements,
+    /// Target poses: positions; joints optional (start values).
+    Targets,
+    /// Joint configurations: joints; anything else ignored.
+    Joints,
 }
 
 /// The text being parsed and its file, for errors with physical line numbers.
@@ -277,7 +409,7 @@ impl Layout {
     fn read(
         reader: &mut csv::Reader<&[u8]>,
         source: &Source<'_>,
-        joints_required: bool,
+        needs: Needs,
         profile: &DataProfile,
     ) -> Result<Self, DataError> {
         let header = reader
@@ -326,7 +458,14 @@ impl Layout {
         for d in &profile.derived {
             header.push_field(&format!("{} = {}", d.ours, d.describe()));
         }
-        let joints = check_columns(&header, &columns, joints_required, &at)?;
+        if needs == Needs::Joints {
+            for c in &mut columns {
+                if !matches!(c, Column::Joint(..) | Column::Id) {
+                    *c = Column::Ignored;
+                }
+            }
+        }
+        let joints = check_columns(&header, &columns, needs, &at)?;
         let count = |f: fn(&Column) -> bool| columns.iter().filter(|c| f(c)).count();
         let quaternions = count(|c| matches!(c, Column::Quaternion(_)));
         let angles = count(|c| matches!(c, Column::Angle(..)));
@@ -389,6 +528,7 @@ impl Layout {
             position: [0.0; 3],
             rotation: None,
             weight: 1.0,
+            role: None,
         };
         let mut quaternion = [0.0; 4];
         let mut angle = [0.0; 3];
@@ -406,6 +546,21 @@ impl Layout {
                 Column::Id => {
                     record.id = field.to_string();
                     continue;
+                }
+                Column::Role => {
+                    record.role = Some(Role::parse(field).ok_or_else(|| {
+                        at(format!(
+                            "\"{field}\" is not a role of a measurement plan (core, fill or verify)"
+                        ))
+                    })?);
+                    continue;
+                }
+                Column::Position(..) | Column::Quaternion(_) | Column::Angle(..)
+                    if field.is_empty() =>
+                {
+                    return Err(at(
+                        "empty: this pose has not been measured. A plan written by calib plan is filled in by the tracker software before it is calibrated; delete the rows of poses that could not be measured".into(),
+                    ));
                 }
                 _ => {}
             }
@@ -445,7 +600,7 @@ impl Layout {
                     }
                     record.weight = value;
                 }
-                Column::Id | Column::Ignored => {}
+                Column::Id | Column::Role | Column::Ignored => {}
             }
         }
         record.rotation = match self.orientation {
@@ -538,11 +693,12 @@ fn columns_of(
 }
 
 /// Checks that no column appears twice, that the joints run from q1 to the highest without a
-/// gap (and exist when `joints_required`), and that x, y and z are there; returns the joint count.
+/// gap (and exist unless `needs` targets), and that x, y and z are there (unless `needs` joints
+/// only); returns the joint count.
 fn check_columns(
     header: &csv::StringRecord,
     columns: &[Column],
-    joints_required: bool,
+    needs: Needs,
     at: &impl Fn(Option<String>, String) -> DataError,
 ) -> Result<usize, DataError> {
     let mut seen = std::collections::HashSet::new();
@@ -562,7 +718,7 @@ fn check_columns(
         .iter()
         .filter(|c| matches!(c, Column::Joint(..)))
         .count();
-    if joints == 0 && joints_required {
+    if joints == 0 && needs != Needs::Targets {
         return Err(at(None, "no joint columns (q1_deg, q2_deg, ...)".into()));
     }
     for j in 0..joints {
@@ -574,7 +730,7 @@ fn check_columns(
         }
     }
     for axis in ["x", "y", "z"] {
-        if !seen.contains(axis) {
+        if !seen.contains(axis) && needs != Needs::Joints {
             return Err(at(
                 None,
                 format!("missing position column {axis}_mm (or {axis}_m)"),

@@ -166,6 +166,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
             position: pose.translation.vector.into(),
             rotation: Some(*pose.rotation.matrix()),
             weight: 1.0,
+            role: None,
         });
     }
     let settings = CompensationSettings {
@@ -183,6 +184,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
             joints: 0,
             orientation: OrientationColumns::Quaternion,
             records: records.clone(),
+            planned: None,
         };
         let outcomes = compensate_targets(&nominal, &truth, &targets, &settings, branch).unwrap();
         for (outcome, record) in outcomes.iter().zip(&records) {
@@ -210,6 +212,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
         position: [1200.0, 300.0, 900.0],
         rotation: Some(*nalgebra::Rotation3::from_euler_angles(3.1, 0.1, 0.2).matrix()),
         weight: 1.0,
+        role: None,
     };
     let one = TrackerData {
         path: "targets".into(),
@@ -218,6 +221,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
         joints: 0,
         orientation: OrientationColumns::Quaternion,
         records: vec![record],
+        planned: None,
     };
     let outcome =
         compensate_targets(&nominal, &truth, &one, &CompensationSettings::default(), 0).unwrap();

@@ -47,6 +47,10 @@ enum Command {
     Simulate(Simulation),
     /// Identify the robot's parameter errors from tracker data.
     Calibrate(CalibrateOptions),
+    /// Choose the poses to measure (a D-optimal core, random fill and verification poses) from
+    /// candidate joint configurations, predict the accuracy they give, and write the plan as a
+    /// tracker CSV to be filled by the tracker software.
+    Plan(host_tools::cli::plan::PlanOptions),
     /// Print which identified parameters the data determine (identifiability), without calibrating.
     Check(CheckOptions),
     /// Print the Table 3 statistics of any robot model on any data.
@@ -129,6 +133,14 @@ fn run(command: Command) -> anyhow::Result<()> {
             print_text!("{text}");
         }
         Command::Evaluate(options) => evaluate(&options)?,
+        Command::Plan(options) => {
+            let plan = host_tools::cli::plan::plan(&options)?;
+            print_text!("{}", plan.text());
+            print_line!("wrote {}", options.out.display());
+            if let Some(path) = &options.report {
+                print_line!("wrote {}", path.display());
+            }
+        }
         Command::Check(options) => {
             let report = check::check(&options)?;
             print_json_or_text(options.json, &report, || report.text())?;

@@ -32,6 +32,7 @@
 //!             position: pose.translation.vector.into(),
 //!             rotation: Some(*pose.rotation.matrix()),
 //!             weight: 1.0,
+//!             role: None,
 //!         }
 //!     })
 //!     .collect();
@@ -377,6 +378,7 @@ fn solve<const N: usize, const D: usize>(
         implausible: Vec::new(),
         cross_validation,
         joint_maps: None,
+        plan_check: None,
     })
 }
 

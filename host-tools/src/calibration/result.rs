@@ -188,6 +188,9 @@ pub struct CalibrationResult<const N: usize = JOINTS> {
     /// The joint maps identified with the geometry (`--model joint-maps`); the statistics above
     /// are then those of the model with the maps, the geometric calibration's are in it.
     pub joint_maps: Option<super::maps::JointMapsReport>,
+    /// The measured verification poses of a plan against its prediction (`calib plan`), set by
+    /// `calibrate` when the data file is a measured plan.
+    pub plan_check: Option<crate::plan::PlanCheck>,
 }
 
 impl<const N: usize> CalibrationResult<N> {
@@ -242,6 +245,7 @@ impl<const N: usize> CalibrationResult<N> {
             implausible: &self.implausible,
             cross_validation: self.cross_validation,
             joint_maps: self.joint_maps.as_ref(),
+            plan_check: self.plan_check.as_ref(),
             frames: &self.frames,
             outliers: &self.outliers,
             poses: &self.poses,
@@ -347,6 +351,9 @@ pub struct Report<'a> {
     /// The joint maps identified with the geometry (`--model joint-maps`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub joint_maps: Option<&'a super::maps::JointMapsReport>,
+    /// The plan's verification poses against its prediction, for a measured plan.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub plan_check: Option<&'a crate::plan::PlanCheck>,
     /// The frames identified with the geometry and their values.
     pub frames: &'a FramesReport,
     /// Poses whose residual exceeds the robust loss scale (empty for l2).

@@ -34,6 +34,10 @@ impl<const N: usize> CalibrationResult<N> {
                 &stage.after,
             ));
         }
+        if let Some(check) = &self.plan_check {
+            text.push('\n');
+            text.push_str(&check.text());
+        }
         if let Some(maps) = &self.joint_maps {
             text.push_str(&maps.text());
         }

@@ -10,8 +10,10 @@ use crate::cli::InputFiles;
 use crate::dataset::Dataset;
 use crate::files::Outputs;
 use crate::frames::Frames;
+use crate::plan::Measure;
 use crate::report::TruthRow;
 use crate::robot_file::RobotFile;
+use crate::tracker_data::Role;
 use anyhow::bail;
 use calib_core::identify::ipso;
 use std::path::PathBuf;
@@ -223,6 +225,31 @@ pub fn calibrate<const N: usize>(options: &CalibrateOptions) -> anyhow::Result<C
     let config = options.config();
     config.check()?; // bad settings are reported before any file is read
     let (profile, all) = options.input.load()?;
+    // A measured plan (calib plan): its verification poses are the hold-out.
+    let verify: Vec<usize> = (all.data.records.iter().enumerate())
+        .filter(|(_, r)| r.role == Some(Role::Verify))
+        .map(|(i, _)| i)
+        .collect();
+    if !verify.is_empty() {
+        if options.holdout.is_some() || options.validate.is_some() {
+            bail!(
+                "{}: the plan's {} verify poses are the hold-out; drop --validate and --holdout (or the file's role column)",
+                options.input.data.display(),
+                verify.len()
+            );
+        }
+        let (fitted, held) = all.partition(&verify);
+        let result = calibration::calibrate(fitted.clone(), Some(held), &config)?;
+        let result = with_plan_check(result, &fitted, &config)?;
+        let hold_out = HoldOut {
+            holdout: Some(format!(
+                "{} (the plan's verify poses)",
+                options.input.data.display()
+            )),
+            ..options.hold_out()
+        };
+        return Calibration::new(result, hold_out, options.truth.as_deref());
+    }
     let (dataset, validation) = match (&options.holdout, options.validate) {
         (Some(_), Some(_)) => bail!("use either --validate or --holdout, not both"),
         (Some(path), None) => (
@@ -241,6 +268,38 @@ pub fn calibrate<const N: usize>(options: &CalibrateOptions) -> anyhow::Result<C
     };
     let result = calibration::calibrate(dataset, validation, &config)?;
     Calibration::new(result, options.hold_out(), options.truth.as_deref())
+}
+
+/// `result` of a measured plan's fitted poses `fitted` with the check of its verification poses
+/// against the plan's prediction (when the file kept the plan's prediction line).
+fn with_plan_check<const N: usize>(
+    mut result: CalibrationResult<N>,
+    fitted: &Dataset<N>,
+    config: &crate::calibration::CalibrationConfig,
+) -> anyhow::Result<CalibrationResult<N>> {
+    let (Some(predicted), Some(validation)) = (fitted.data.planned, &result.validation) else {
+        return Ok(result);
+    };
+    let measure = if fitted.data.rows_without_orientation() {
+        Measure::Position
+    } else {
+        Measure::Pose
+    };
+    let poses: Vec<(String, Vec<f64>, f64)> = (fitted.data.records.iter())
+        .zip(&result.poses)
+        .map(|(r, p)| (r.id.clone(), r.q.clone(), p.after_mm))
+        .collect();
+    result.plan_check = Some(crate::plan::check_plan(
+        predicted,
+        validation.after.position_mm.mean,
+        validation.poses,
+        &fitted.file,
+        &fitted.model.path,
+        &poses,
+        measure,
+        config.k,
+    )?);
+    Ok(result)
 }
 
 impl<const N: usize> Calibration<N> {

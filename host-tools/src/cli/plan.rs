@@ -1,0 +1,234 @@
+//! `calib plan`: choose the poses to measure from candidate joint configurations, predict the
+//! accuracy they give, and write the plan as a tracker CSV without measurements
+//! ([`crate::plan`]).
+
+use crate::files::Outputs;
+use crate::plan::{self, Measure, Plan, PlanSettings};
+use crate::profile::DataProfile;
+use crate::robot_file::RobotFile;
+use crate::tracker_data::TrackerData;
+use anyhow::{Context, bail};
+use std::path::PathBuf;
+
+/// Options of `calib plan`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct PlanOptions {
+    /// Robot model file (TOML): the nominal model and the parameters to identify.
+    #[arg(long, value_name = "FILE")]
+    pub robot: PathBuf,
+    /// Candidate joint configurations (poses the cell can reach without collision): a tracker
+    /// CSV whose joint columns are read (anything else is ignored), or another export through
+    /// --profile.
+    #[arg(long, value_name = "FILE", required_unless_present = "generate")]
+    pub candidates: Option<PathBuf>,
+    /// Data profile for a --candidates file not in our CSV format.
+    #[arg(long, value_name = "FILE", requires = "candidates")]
+    pub profile: Option<PathBuf>,
+    /// Generate this many candidates within the joint limits (+-180 deg where unlimited), a
+    /// Halton sequence, instead of reading them.
+    #[arg(long, value_name = "N", conflicts_with = "candidates")]
+    pub generate: Option<usize>,
+    /// With --generate: keep only candidates whose nominal tool point lies in this box of the
+    /// base frame, mm.
+    #[arg(
+        long,
+        value_name = "XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX",
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        requires = "generate"
+    )]
+    pub box_mm: Option<Vec<f64>>,
+    /// Poses to fit (core and fill poses); the verification poses come on top.
+    #[arg(long, value_name = "N")]
+    pub poses: usize,
+    /// D-optimal core poses among --poses (the rest are random fill poses). Default: 12, or
+    /// the fewest poses that give as many equations as parameters if that is more.
+    #[arg(long, value_name = "N")]
+    pub core: Option<usize>,
+    /// Verification poses, measured and kept out of the fit.
+    #[arg(long, value_name = "N", default_value_t = plan::DEFAULT_VERIFY)]
+    pub verify: usize,
+    /// No two plan poses closer than this in joint space (Euclidean over the joints), deg.
+    #[arg(long, value_name = "DEG", default_value_t = plan::DEFAULT_MIN_DISTANCE_DEG)]
+    pub min_distance_deg: f64,
+    /// What the tracker measures: a reflector's position, or a 6-DoF probe's pose.
+    #[arg(long, value_enum)]
+    pub measure: Measure,
+    /// Noise of each measured position coordinate, 1 sigma, mm: the tracker's and the robot's
+    /// repeatability together (unmodelled errors act as more noise).
+    #[arg(long, value_name = "MM", required_unless_present = "noise_from")]
+    pub noise_mm: Option<f64>,
+    /// Noise of each measured orientation axis, 1 sigma, deg (--measure pose). Default: the
+    /// position noise over sqrt(k), the ratio the fit's weight k assumes.
+    #[arg(long, value_name = "DEG", requires = "noise_mm")]
+    pub noise_deg: Option<f64>,
+    /// Take the noise levels from a previous calibration's JSON report (calibrate --report):
+    /// the RMS residuals of its calibration poses, per coordinate and per orientation axis,
+    /// corrected for the parameters fitted (sqrt(rows / (rows - parameters))). They include the
+    /// errors the geometric model does not describe.
+    #[arg(long, value_name = "FILE", conflicts_with = "noise_mm")]
+    pub noise_from: Option<PathBuf>,
+    /// Orientation weight k, mm^2/rad^2 (as for calibrate).
+    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K)]
+    pub k: f64,
+    /// Seed of the random fill and verification poses.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// The plan: a tracker CSV with a role column and empty measurement columns.
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Also write the plan and its prediction as JSON.
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
+}
+
+impl PlanOptions {
+    /// The noise levels (mm per position coordinate, deg per orientation axis): the flags, or
+    /// the residuals of the report of --noise-from.
+    fn noise(&self) -> anyhow::Result<(f64, f64)> {
+        let weighted = |mm: f64| (mm / self.k.sqrt()).to_degrees();
+        match (&self.noise_mm, &self.noise_from) {
+            (Some(mm), _) => Ok((*mm, self.noise_deg.unwrap_or_else(|| weighted(*mm)))),
+            (None, Some(path)) => noise_of_report(path),
+            (None, None) => bail!("give the noise level: --noise-mm or --noise-from"),
+        }
+    }
+}
+
+/// The noise levels of a calibration's JSON report: RMS residual per position coordinate (mm)
+/// and per orientation axis (deg) of its calibration poses, times sqrt(rows / (rows -
+/// parameters)).
+fn noise_of_report(path: &std::path::Path) -> anyhow::Result<(f64, f64)> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read the report", path.display()))?;
+    let report: serde_json::Value = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a JSON report of calibrate", path.display()))?;
+    let number =
+        |pointer: &str| {
+            report.pointer(pointer).and_then(serde_json::Value::as_f64).ok_or_else(|| {
+            anyhow::anyhow!(
+                "{}: no {pointer}; give the JSON report of calibrate (--report) or --noise-mm",
+                path.display()
+            )
+        })
+        };
+    let rows = number("/least_squares/rows")?;
+    let parameters = report
+        .pointer("/parameters")
+        .and_then(serde_json::Value::as_object)
+        .map_or(0, serde_json::Map::len) as f64;
+    if rows.partial_cmp(&parameters) != Some(std::cmp::Ordering::Greater) {
+        bail!(
+            "{}: the calibration has no residual degrees of freedom",
+            path.display()
+        );
+    }
+    let dof = (rows / (rows - parameters)).sqrt();
+    let position = number("/calibration/after/position_mm/rms")? / 3f64.sqrt() * dof;
+    let orientation = match ["x", "y", "z"]
+        .map(|a| number(&format!("/calibration/after/orientation_deg/{a}/rms")))
+    {
+        [Ok(x), Ok(y), Ok(z)] => ((x * x + y * y + z * z) / 3.0).sqrt() * dof,
+        // Position-only calibration: the weighted equivalent.
+        _ => (position / calib_core::identify::objective::DEFAULT_K.sqrt()).to_degrees(),
+    };
+    Ok((position, orientation))
+}
+
+/// `calib plan`: plans, writes the plan (and the report) together, returns the plan.
+pub fn plan(options: &PlanOptions) -> anyhow::Result<Plan> {
+    let file = RobotFile::read(&options.robot)?;
+    let candidates: Vec<(String, Vec<f64>)> = match (&options.candidates, options.generate) {
+        (Some(path), _) => {
+            let profile = DataProfile::load(options.profile.as_deref())?;
+            TrackerData::read_joints(path, &profile)?
+                .records
+                .into_iter()
+                .map(|r| (r.id, r.q))
+                .collect()
+        }
+        (None, Some(count)) => {
+            let box_mm = match options.box_mm.as_deref() {
+                None => None,
+                Some(&[a, b, c, d, e, f]) => {
+                    if !(a < b && c < d && e < f) {
+                        bail!("--box-mm: each minimum must be below its maximum");
+                    }
+                    Some([a, b, c, d, e, f])
+                }
+                Some(_) => bail!("--box-mm takes six values: XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX"),
+            };
+            if count > MAX_CANDIDATES {
+                bail!("--generate {count}: at most {MAX_CANDIDATES} candidates");
+            }
+            plan::generate(&file, &options.robot, count, box_mm)?
+        }
+        (None, None) => bail!("give the candidates: --candidates FILE or --generate N"),
+    };
+    if candidates.len() > MAX_CANDIDATES {
+        bail!(
+            "{} candidates: at most {MAX_CANDIDATES} (thin them out)",
+            candidates.len()
+        );
+    }
+    let rows = options.measure.rows();
+    let (noise_mm, noise_deg) = options.noise()?;
+    let settings = PlanSettings {
+        poses: options.poses,
+        core: options
+            .core
+            .unwrap_or(plan::DEFAULT_CORE)
+            .min(options.poses),
+        verify: options.verify,
+        min_distance_deg: options.min_distance_deg,
+        measure: options.measure,
+        noise_mm,
+        noise_deg,
+        k: options.k,
+        seed: options.seed,
+    };
+    let mut plan = plan::plan(&file, &options.robot, &candidates, &settings)?;
+    // Too few core poses to determine the parameters alone: make the core large enough.
+    let needed = plan.parameters.len().div_ceil(rows);
+    if options.core.is_none() && settings.core < needed && needed <= options.poses {
+        plan = plan::plan(
+            &file,
+            &options.robot,
+            &candidates,
+            &PlanSettings {
+                core: needed,
+                ..settings
+            },
+        )?;
+    }
+    let source = match (&options.candidates, options.generate) {
+        (Some(path), _) => format!("candidates {}", path.display()),
+        (_, n) => format!("{} generated candidates", n.unwrap_or(0)),
+    };
+    let comments = [
+        format!(
+            "measurement plan by calib plan for {} ({}), {source}",
+            file.name,
+            options.robot.display()
+        ),
+        "fill in the measurement columns (tracker frame) and calibrate this file: the verify poses are held out".to_string(),
+    ];
+    let mut inputs = vec![("--robot", options.robot.as_path())];
+    if let Some(path) = &options.candidates {
+        inputs.push(("--candidates", path.as_path()));
+    }
+    let mut outputs = Outputs::new(&inputs);
+    outputs.stage("--out", &options.out, plan.csv(&comments)?.as_bytes())?;
+    if let Some(path) = &options.report {
+        outputs.stage(
+            "--report",
+            path,
+            serde_json::to_string_pretty(&plan)?.as_bytes(),
+        )?;
+    }
+    outputs.commit()?;
+    Ok(plan)
+}
+
+/// Most candidates `calib plan` takes (the greedy selection's time grows with their number).
+pub const MAX_CANDIDATES: usize = 100_000;
