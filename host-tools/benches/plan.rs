@@ -8,7 +8,7 @@
 #![allow(clippy::unwrap_used)]
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use host_tools::plan::{self, Measure, PlanSettings};
+use host_tools::plan::{self, Measure, PlanModel, PlanSettings};
 use host_tools::robot_file::RobotFile;
 use std::path::Path;
 
@@ -22,6 +22,7 @@ fn plan_from_1000_candidates(c: &mut Criterion) {
         verify: plan::DEFAULT_VERIFY,
         min_distance_deg: plan::DEFAULT_MIN_DISTANCE_DEG,
         measure: Measure::Pose,
+        model: PlanModel::Geometric,
         noise_mm: 0.3,
         noise_deg: 0.04,
         k: calib_core::identify::objective::DEFAULT_K,

@@ -64,6 +64,17 @@ impl Measure {
     }
 }
 
+/// The model a plan is for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum PlanModel {
+    /// The geometric parameters and the frames (`calibrate --model geometric`): random fill.
+    Geometric,
+    /// The geometry and each joint's angle-error map (`calibrate --model joint-maps`, 6-joint
+    /// robots): the core as for the geometry, fill poses that cover each joint's range evenly.
+    JointMaps,
+}
+
 /// How to plan.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct PlanSettings {
@@ -77,6 +88,8 @@ pub struct PlanSettings {
     pub min_distance_deg: f64,
     /// What the tracker measures.
     pub measure: Measure,
+    /// The model the plan is for.
+    pub model: PlanModel,
     /// Noise of each measured position coordinate (tracker and robot repeatability), 1 sigma,
     /// mm.
     pub noise_mm: f64,
@@ -249,6 +262,9 @@ impl Plan {
             count(Role::Verify),
             self.settings.min_distance_deg
         );
+        if self.settings.model == PlanModel::JointMaps {
+            out.push_str("for joint maps: the fill poses cover each joint's range evenly (the maps are identified from each joint's own readings); the core and the prediction are for the geometric parameters\n");
+        }
         out.push_str(&format!(
             "optimised for the {} parameters the calibration identifies ({}), measuring {}\n",
             self.parameters.len(),
@@ -403,6 +419,12 @@ pub fn plan(
 ) -> anyhow::Result<Plan> {
     settings.check()?;
     let joints = file.joint.len();
+    if settings.model == PlanModel::JointMaps && joints != crate::JOINTS {
+        bail!(
+            "joint maps are identified for {}-joint robots; this robot has {joints} joints (plan its geometry: --model geometric)",
+            crate::JOINTS
+        );
+    }
     if let Some((id, q)) = candidates.iter().find(|(_, q)| q.len() != joints) {
         bail!(
             "candidate {id} has {} joint values, the robot has {joints} joints",
@@ -425,12 +447,12 @@ pub fn plan(
     )?;
     let parameters = info.parameters.len();
     let rows = settings.measure.rows();
-    if settings.poses * rows < parameters {
+    if settings.poses * rows <= parameters {
         bail!(
-            "{} poses give {} equations, fewer than the {parameters} identified parameters: plan at least {} poses",
+            "{} poses give {} equations for {parameters} identified parameters: a fit needs more equations than parameters (to estimate its own noise); plan at least {} poses",
             settings.poses,
             settings.poses * rows,
-            parameters.div_ceil(rows)
+            parameters / rows + 1
         );
     }
     // Columns scaled to unit RMS over the candidates: units and lever arms drop out of the
@@ -499,15 +521,22 @@ pub fn plan(
         information += scaled[i].transpose() * &scaled[i];
         chosen.push((i, Role::Core));
     }
-    // Fill and verification poses: random candidates, far enough from every chosen pose.
+    // Fill and verification poses: random candidates, far enough from every chosen pose; for
+    // joint maps the fill poses spread each joint's readings instead.
     let order = crate::dataset::shuffled(candidates.len(), settings.seed);
-    let mut random = order.into_iter();
+    let mut random = order.clone().into_iter();
+    let ranges = joint_ranges(&q);
     for (role, count) in [
         (Role::Fill, settings.poses - settings.core),
         (Role::Verify, settings.verify),
     ] {
         for _ in 0..count {
-            let Some(i) = random.by_ref().find(|i| far_enough(&chosen, *i)) else {
+            let next = if role == Role::Fill && settings.model == PlanModel::JointMaps {
+                even_fill(&q, &ranges, &chosen, &order, |i| far_enough(&chosen, i))
+            } else {
+                random.by_ref().find(|i| far_enough(&chosen, *i))
+            };
+            let Some(i) = next else {
                 bail!(
                     "only {} candidates are at least {} deg apart, {wanted} are needed; lower --min-distance-deg or give more candidates",
                     chosen.len(),
@@ -547,6 +576,56 @@ pub fn plan(
         settings: settings.clone(),
         prediction,
     })
+}
+
+/// Each joint's range of readings over the candidates, rad (0 for a joint that does not move).
+fn joint_ranges(q: &[Vec<f64>]) -> Vec<f64> {
+    let joints = q.first().map_or(0, Vec::len);
+    (0..joints)
+        .map(|j| {
+            let (low, high) = q
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), c| {
+                    (l.min(c[j]), h.max(c[j]))
+                });
+            (high - low).max(0.0)
+        })
+        .collect()
+}
+
+/// The fill pose for joint maps: of the candidates that `eligible` admits (tried in `order`, the
+/// first wins a tie), the one whose readings are farthest, joint by joint, from the readings
+/// already chosen: the sum over the joints of the distance to the nearest chosen reading, as a
+/// fraction of the joint's range. Each map is identified from its own joint's readings, so the
+/// fill covers every joint's range evenly instead of the extremes a D-optimal set favours.
+fn even_fill(
+    q: &[Vec<f64>],
+    ranges: &[f64],
+    chosen: &[(usize, Role)],
+    order: &[usize],
+    eligible: impl Fn(usize) -> bool,
+) -> Option<usize> {
+    let spread = |i: usize| -> f64 {
+        (ranges.iter().enumerate())
+            .filter(|(_, r)| **r > 0.0)
+            .map(|(j, r)| {
+                let nearest = (chosen.iter())
+                    .map(|(c, _)| (q[*c][j] - q[i][j]).abs())
+                    .fold(f64::INFINITY, f64::min);
+                nearest.min(*r) / r
+            })
+            .sum()
+    };
+    order
+        .iter()
+        .copied()
+        .filter(|i| eligible(*i))
+        .map(|i| (i, spread(i)))
+        .fold(None, |best: Option<(usize, f64)>, (i, s)| match best {
+            Some((_, b)) if b >= s => best,
+            _ => Some((i, s)),
+        })
+        .map(|(i, _)| i)
 }
 
 /// Euclidean joint-space distance, degrees.
@@ -851,8 +930,14 @@ fn generate_joints<const N: usize>(
     }
     if out.len() < count {
         bail!(
-            "only {} of {count} generated configurations put the tool point in the box {box_mm:?} mm (base frame); widen the box or give candidates (--candidates)",
-            out.len()
+            "only {} of {count} generated configurations put the tool point in the box {} mm (base frame); widen the box or give candidates (--candidates)",
+            out.len(),
+            box_mm
+                .map(|b| format!(
+                    "x {} ... {}, y {} ... {}, z {} ... {}",
+                    b[0], b[1], b[2], b[3], b[4], b[5]
+                ))
+                .unwrap_or_default()
         );
     }
     Ok(out)

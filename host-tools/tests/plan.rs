@@ -6,11 +6,11 @@
 mod common;
 use common::parse;
 
-use host_tools::calibration::{self, CalibrationConfig, Method};
+use host_tools::calibration::{self, CalibrationConfig, ErrorModel, Method};
 use host_tools::cli::calibrate::{self as calibrate_cli, CalibrateOptions};
 use host_tools::cli::plan::{self as plan_cli, PlanOptions};
 use host_tools::dataset::Dataset;
-use host_tools::plan::{self, Measure, PlanSettings};
+use host_tools::plan::{self, Measure, PlanModel, PlanSettings};
 use host_tools::profile::DataProfile;
 use host_tools::tracker_data::{Role, TrackerData};
 use std::collections::HashMap;
@@ -32,6 +32,10 @@ const SERIES_D: &str = concat!(
 const PROFILE: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/profiles/ipa-ur10-lasertracker.toml"
+);
+const POSITION: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/profiles/ipa-ur10-lasertracker-position.toml"
 );
 
 /// Noise levels assumed by the plans, per position coordinate (mm) and orientation axis (deg):
@@ -55,7 +59,16 @@ fn held_out_mean(fit: &Dataset<6>, validation: &Dataset<6>) -> f64 {
         method: Method::Lm,
         ..CalibrationConfig::default()
     };
-    let result = calibration::calibrate(fit.clone(), Some(validation.clone()), &config).unwrap();
+    held_out_mean_with(fit, validation, &config)
+}
+
+/// [`held_out_mean`] with `config`.
+fn held_out_mean_with(
+    fit: &Dataset<6>,
+    validation: &Dataset<6>,
+    config: &CalibrationConfig,
+) -> f64 {
+    let result = calibration::calibrate(fit.clone(), Some(validation.clone()), config).unwrap();
     result.validation.unwrap().after.position_mm.mean
 }
 
@@ -94,6 +107,7 @@ fn split(dataset: &Dataset<6>, seed: u64) -> Split {
             verify: plan::DEFAULT_VERIFY,
             min_distance_deg: plan::DEFAULT_MIN_DISTANCE_DEG,
             measure: Measure::Pose,
+            model: PlanModel::Geometric,
             noise_mm: NOISE_MM,
             noise_deg: NOISE_DEG,
             k: calib_core::identify::objective::DEFAULT_K,
@@ -280,24 +294,27 @@ fn plan_measure_calibrate_end_to_end() {
         .into_iter()
         .map(|r| (r.id.clone(), r))
         .collect();
-    let text = std::fs::read_to_string(&plan_csv).unwrap();
-    let mut filled = String::new();
-    for line in text.lines() {
-        let fields: Vec<&str> = line.split(',').collect();
-        match measured.get(fields[0]) {
-            Some(r) if !line.starts_with('#') => {
-                let q = nalgebra::UnitQuaternion::from_matrix(&r.rotation.unwrap());
-                let mut row: Vec<String> = fields[..8].iter().map(|s| s.to_string()).collect();
-                row.extend(r.position.iter().map(f64::to_string));
-                row.extend([q.w, q.i, q.j, q.k].map(|v| v.to_string()));
-                filled.push_str(&row.join(","));
+    let fill = |from: &Path, to: &Path| {
+        let text = std::fs::read_to_string(from).unwrap();
+        let mut filled = String::new();
+        for line in text.lines() {
+            let fields: Vec<&str> = line.split(',').collect();
+            match measured.get(fields[0]) {
+                Some(r) if !line.starts_with('#') => {
+                    let q = nalgebra::UnitQuaternion::from_matrix(&r.rotation.unwrap());
+                    let mut row: Vec<String> = fields[..8].iter().map(|s| s.to_string()).collect();
+                    row.extend(r.position.iter().map(f64::to_string));
+                    row.extend([q.w, q.i, q.j, q.k].map(|v| v.to_string()));
+                    filled.push_str(&row.join(","));
+                }
+                _ => filled.push_str(line),
             }
-            _ => filled.push_str(line),
+            filled.push('\n');
         }
-        filled.push('\n');
-    }
+        std::fs::write(to, filled).unwrap();
+    };
     let filled_csv = dir.path().join("measured.csv");
-    std::fs::write(&filled_csv, filled).unwrap();
+    fill(&plan_csv, &filled_csv);
     let c = calibrate(&filled_csv).unwrap();
     assert_eq!(c.result.calibration.poses, 30);
     let v = c.result.validation.as_ref().unwrap();
@@ -321,6 +338,54 @@ fn plan_measure_calibrate_end_to_end() {
         c.text
     );
     println!("{}", check.text());
+    // The same plan with a noise level far below the data's: the measured verification error is
+    // above the predicted range, flagged with the poses to look at first.
+    let optimistic_csv = dir.path().join("optimistic-plan.csv");
+    let options: PlanOptions = parse(&[
+        "--robot",
+        ROBOT,
+        "--candidates",
+        SERIES_B,
+        "--profile",
+        PROFILE,
+        "--poses",
+        "30",
+        "--measure",
+        "pose",
+        "--noise-mm",
+        "0.02",
+        "--noise-deg",
+        "0.002",
+        "--out",
+        optimistic_csv.to_str().unwrap(),
+    ]);
+    let optimistic = plan_cli::plan(&options).unwrap();
+    let same = |p: &plan::Plan| p.poses.iter().map(|q| q.candidate).collect::<Vec<_>>();
+    assert_eq!(
+        same(&optimistic),
+        same(&p),
+        "the noise level changes the prediction only"
+    );
+    let measured_optimistic = dir.path().join("measured-optimistic.csv");
+    fill(&optimistic_csv, &measured_optimistic);
+    let c = calibrate(&measured_optimistic).unwrap();
+    let check = c.result.plan_check.as_ref().unwrap();
+    assert!(
+        check.gap && check.measured_mean_mm > check.predicted.high_mm,
+        "{check:?}"
+    );
+    assert!(
+        c.text.contains("WARNING: the verification error is"),
+        "{}",
+        c.text
+    );
+    assert!(c.text.contains("largest leverage:") && c.text.contains("largest residual:"));
+    // The poses listed by residual are the fitted poses of the largest residuals.
+    let mut residuals: Vec<f64> = c.result.poses.iter().map(|p| p.after_mm).collect();
+    residuals.sort_by(|a, b| b.total_cmp(a));
+    let listed: Vec<f64> = check.largest_residual.iter().map(|r| r.2).collect();
+    assert_eq!(listed, residuals[..3].to_vec());
+    println!("{}", check.text());
     // With a hold-out of its own, the file's verify poses would be silently mixed: refused.
     let options: CalibrateOptions = parse(&[
         "--robot",
@@ -335,4 +400,172 @@ fn plan_measure_calibrate_end_to_end() {
         .unwrap_err()
         .to_string();
     assert!(both.contains("verify poses are the hold-out"), "{both}");
+}
+
+/// The largest gap between the readings of `poses` in each joint, as a fraction of the joint's
+/// range over `all` (its ends count as readings of the range), averaged over the joints.
+fn coverage_gap(all: &Dataset<6>, poses: &[usize]) -> f64 {
+    let mut total = 0.0;
+    for j in 0..6 {
+        let readings: Vec<f64> = all.data.records.iter().map(|r| r.q[j]).collect();
+        let (low, high) = readings
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                (l.min(*v), h.max(*v))
+            });
+        let mut chosen: Vec<f64> = poses.iter().map(|i| readings[*i]).collect();
+        chosen.push(low);
+        chosen.push(high);
+        chosen.sort_by(f64::total_cmp);
+        let gap = chosen.windows(2).map(|w| w[1] - w[0]).fold(0.0, f64::max);
+        total += gap / (high - low);
+    }
+    total / 6.0
+}
+
+/// Item 4, joint maps: 50 poses planned for the maps (core 12, fill covering each joint's range)
+/// against 50 planned for the geometry (random fill) and 50 random poses, calibrated with
+/// `--model joint-maps` (least squares, `--auto-mask`, positions only, as the joint-map tests),
+/// 5 splits of Series B, held out on 40 %.
+#[test]
+fn series_b_plan_for_joint_maps() {
+    let profile = DataProfile::load(Some(Path::new(POSITION))).unwrap();
+    let dataset = Dataset::<6>::load_with(Path::new(ROBOT), Path::new(SERIES_B), &profile).unwrap();
+    let config = CalibrationConfig {
+        method: Method::Lm,
+        model: ErrorModel::JointMaps,
+        auto_mask: true,
+        ..CalibrationConfig::default()
+    };
+    println!(
+        "Series B, joint maps, 50 poses: held-out mean position error (mm) and mean largest gap in each joint's readings (fraction of its range)"
+    );
+    println!("split  plan-maps      plan-geometry  random");
+    let mut sums = [[0.0; 2]; 3];
+    for seed in 0..5 {
+        let (pool, validation) = host_tools::dataset::split(&dataset, 0.4, seed).unwrap();
+        let candidates: Vec<(String, Vec<f64>)> = (pool.data.records.iter())
+            .map(|r| (r.id.clone(), r.q.clone()))
+            .collect();
+        let mut row = Vec::new();
+        for model in [PlanModel::JointMaps, PlanModel::Geometric] {
+            let settings = PlanSettings {
+                poses: 50,
+                core: plan::DEFAULT_CORE,
+                verify: plan::DEFAULT_VERIFY,
+                min_distance_deg: plan::DEFAULT_MIN_DISTANCE_DEG,
+                measure: Measure::Position,
+                model,
+                noise_mm: NOISE_MM,
+                noise_deg: NOISE_DEG,
+                k: calib_core::identify::objective::DEFAULT_K,
+                seed,
+            };
+            let p = plan::plan(&pool.file, Path::new(ROBOT), &candidates, &settings).unwrap();
+            let mut fitted: Vec<usize> = (p.poses.iter())
+                .filter(|q| q.role != Role::Verify)
+                .map(|q| q.candidate)
+                .collect();
+            fitted.sort_unstable();
+            row.push((
+                held_out_mean_with(&subset(&pool, &fitted), &validation, &config),
+                coverage_gap(&pool, &fitted),
+            ));
+        }
+        let order = host_tools::dataset::shuffled(pool.measurements.len(), seed + 1000);
+        let mut random = order[..50].to_vec();
+        random.sort_unstable();
+        row.push((
+            held_out_mean_with(&subset(&pool, &random), &validation, &config),
+            coverage_gap(&pool, &random),
+        ));
+        println!(
+            "{seed:>5}  {:.4} {:.3}   {:.4} {:.3}   {:.4} {:.3}",
+            row[0].0, row[0].1, row[1].0, row[1].1, row[2].0, row[2].1
+        );
+        for (sum, (mean, gap)) in sums.iter_mut().zip(&row) {
+            sum[0] += mean / 5.0;
+            sum[1] += gap / 5.0;
+        }
+        // The fill covers each joint's range: its largest gap is below random poses'.
+        assert!(row[0].1 < row[2].1, "split {seed}: {row:?}");
+    }
+    println!(
+        " mean  {:.4} {:.3}   {:.4} {:.3}   {:.4} {:.3}",
+        sums[0][0], sums[0][1], sums[1][0], sums[1][1], sums[2][0], sums[2][1]
+    );
+    // Well below the geometric calibration's 0.43 mm (README: joint maps from 50 random poses
+    // 0.233 mm on all others).
+    assert!(sums.iter().all(|s| s[0] < 0.35), "{sums:?}");
+}
+
+/// What `calib plan` cannot stand behind it refuses, saying what to change, and writes nothing.
+#[test]
+fn plan_refuses_what_it_cannot_stand_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("plan.csv");
+    let refused = |args: &[&str]| {
+        let all = [
+            &["--robot", ROBOT, "--measure", "pose", "--noise-mm", "0.05"][..],
+            &["--out", out.to_str().unwrap()][..],
+            args,
+        ]
+        .concat();
+        let message = match plan_cli::plan(&parse::<PlanOptions>(&all)) {
+            Ok(_) => panic!("{args:?} was planned"),
+            Err(e) => e.to_string(),
+        };
+        assert!(!out.exists(), "{message}");
+        message
+    };
+    let few = refused(&["--generate", "30", "--poses", "20"]);
+    assert!(
+        few.contains("30 candidates cannot give 20 fitted and 15 verification poses"),
+        "{few}"
+    );
+    // 5 6-DoF poses: 30 equations for the UR10's 30 parameters, no redundancy left.
+    let square = refused(&["--generate", "100", "--poses", "5"]);
+    assert!(square.contains("plan at least 6 poses"), "{square}");
+    let far = refused(&[
+        "--generate",
+        "100",
+        "--poses",
+        "20",
+        "--box-mm",
+        "5000,6000,0,1,0,1",
+    ]);
+    assert!(far.contains("widen the box"), "{far}");
+    let crowded = refused(&[
+        "--generate",
+        "40",
+        "--poses",
+        "20",
+        "--min-distance-deg",
+        "250",
+    ]);
+    assert!(crowded.contains("lower --min-distance-deg"), "{crowded}");
+    // A 7-joint robot cannot be planned for joint maps (6-joint models).
+    let iiwa = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/kuka-iiwa14.toml");
+    let all = [
+        "--robot",
+        iiwa,
+        "--measure",
+        "pose",
+        "--noise-mm",
+        "0.05",
+        "--out",
+        out.to_str().unwrap(),
+        "--generate",
+        "200",
+        "--poses",
+        "40",
+        "--model",
+        "joint-maps",
+    ];
+    let maps = plan_cli::plan(&parse::<PlanOptions>(&all))
+        .map(|_| ())
+        .unwrap_err()
+        .to_string();
+    assert!(maps.contains("6-joint robots"), "{maps}");
+    assert!(!out.exists());
 }

@@ -3,7 +3,7 @@
 //! ([`crate::plan`]).
 
 use crate::files::Outputs;
-use crate::plan::{self, Measure, Plan, PlanSettings};
+use crate::plan::{self, Measure, Plan, PlanModel, PlanSettings};
 use crate::profile::DataProfile;
 use crate::robot_file::RobotFile;
 use crate::tracker_data::TrackerData;
@@ -54,6 +54,10 @@ pub struct PlanOptions {
     /// What the tracker measures: a reflector's position, or a 6-DoF probe's pose.
     #[arg(long, value_enum)]
     pub measure: Measure,
+    /// The model the calibration will identify: the geometry (random fill poses), or the
+    /// geometry with joint maps (fill poses that cover each joint's range evenly).
+    #[arg(long, value_enum, default_value_t = PlanModel::Geometric)]
+    pub model: PlanModel,
     /// Noise of each measured position coordinate, 1 sigma, mm: the tracker's and the robot's
     /// repeatability together (unmodelled errors act as more noise).
     #[arg(long, value_name = "MM", required_unless_present = "noise_from")]
@@ -182,6 +186,7 @@ pub fn plan(options: &PlanOptions) -> anyhow::Result<Plan> {
         verify: options.verify,
         min_distance_deg: options.min_distance_deg,
         measure: options.measure,
+        model: options.model,
         noise_mm,
         noise_deg,
         k: options.k,
