@@ -245,24 +245,30 @@ fn plan_measure_calibrate_end_to_end() {
         report.to_str().unwrap(),
     ]);
     calibrate_cli::calibrate_and_write(&options).unwrap();
+    // 30 fitted and 15 verify poses of Series B, 6-DoF, with the noise levels of `noise`.
+    let plan_series_b = |noise: &[&str], out: &Path| {
+        let all = [
+            &[
+                "--robot",
+                ROBOT,
+                "--candidates",
+                SERIES_B,
+                "--profile",
+                PROFILE,
+                "--poses",
+                "30",
+                "--measure",
+                "pose",
+                "--out",
+            ][..],
+            &[out.to_str().unwrap()][..],
+            noise,
+        ]
+        .concat();
+        plan_cli::plan(&parse::<PlanOptions>(&all)).unwrap()
+    };
     let plan_csv = dir.path().join("plan.csv");
-    let options: PlanOptions = parse(&[
-        "--robot",
-        ROBOT,
-        "--candidates",
-        SERIES_B,
-        "--profile",
-        PROFILE,
-        "--poses",
-        "30",
-        "--measure",
-        "pose",
-        "--noise-from",
-        report.to_str().unwrap(),
-        "--out",
-        plan_csv.to_str().unwrap(),
-    ]);
-    let p = plan_cli::plan(&options).unwrap();
+    let p = plan_series_b(&["--noise-from", report.to_str().unwrap()], &plan_csv);
     println!("{}", p.text());
     let noise = (p.prediction.noise_mm, p.prediction.noise_deg.unwrap());
     println!("noise from the Series A calibration: {noise:?}");
@@ -341,25 +347,10 @@ fn plan_measure_calibrate_end_to_end() {
     // The same plan with a noise level far below the data's: the measured verification error is
     // above the predicted range, flagged with the poses to look at first.
     let optimistic_csv = dir.path().join("optimistic-plan.csv");
-    let options: PlanOptions = parse(&[
-        "--robot",
-        ROBOT,
-        "--candidates",
-        SERIES_B,
-        "--profile",
-        PROFILE,
-        "--poses",
-        "30",
-        "--measure",
-        "pose",
-        "--noise-mm",
-        "0.02",
-        "--noise-deg",
-        "0.002",
-        "--out",
-        optimistic_csv.to_str().unwrap(),
-    ]);
-    let optimistic = plan_cli::plan(&options).unwrap();
+    let optimistic = plan_series_b(
+        &["--noise-mm", "0.02", "--noise-deg", "0.002"],
+        &optimistic_csv,
+    );
     let same = |p: &plan::Plan| p.poses.iter().map(|q| q.candidate).collect::<Vec<_>>();
     assert_eq!(
         same(&optimistic),
