@@ -330,13 +330,14 @@ fn plan_measure_calibrate_end_to_end() {
     assert_eq!(check.predicted, predicted);
     assert_eq!(check.measured_mean_mm, v.after.position_mm.mean);
     assert_eq!(check.gap, check.measured_mean_mm > predicted.high_mm);
-    // Leverages of 30 poses and 30 parameters sum to 30; each is between 0 and 6 rows.
+    // A pose's leverage is between 0 and its 6 rows.
     assert_eq!(check.largest_leverage.len(), 3);
+    assert!(check.leverage_note.is_none());
     assert!(
         check
             .largest_leverage
             .iter()
-            .all(|(_, h, _)| *h > 0.0 && *h <= 6.0)
+            .all(|(_, h, _)| h.is_some_and(|h| h > 0.0 && h <= 6.0))
     );
     assert!(
         c.text.contains("plan check: 15 verification poses"),
@@ -559,4 +560,29 @@ fn plan_refuses_what_it_cannot_stand_behind() {
         .to_string();
     assert!(maps.contains("6-joint robots"), "{maps}");
     assert!(!out.exists());
+}
+
+/// The leverages of a fit are the diagonal of its hat matrix: they sum to the number of
+/// parameters (its trace), here the UR10's 30 with 6-DoF data and 25 with positions only.
+#[test]
+fn leverages_sum_to_the_parameter_count() {
+    let dataset = load(SERIES_B);
+    let q: Vec<Vec<f64>> = dataset
+        .data
+        .records
+        .iter()
+        .take(40)
+        .map(|r| r.q.clone())
+        .collect();
+    for (measure, parameters) in [(Measure::Pose, 30.0), (Measure::Position, 25.0)] {
+        let k = calib_core::identify::objective::DEFAULT_K;
+        let h = plan::leverages(&dataset.file, Path::new(ROBOT), &q, measure, k).unwrap();
+        let sum: f64 = h.iter().sum();
+        println!("{measure:?}: 40 poses, leverages sum to {sum:.12}");
+        assert!((sum - parameters).abs() < 1e-9, "{sum}");
+        assert!(
+            h.iter()
+                .all(|h| *h > 0.0 && *h <= measure.rows() as f64 + 1e-12)
+        );
+    }
 }

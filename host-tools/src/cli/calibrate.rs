@@ -298,7 +298,7 @@ fn with_plan_check<const N: usize>(
         &poses,
         measure,
         config.k,
-    )?);
+    ));
     Ok(result)
 }
 
