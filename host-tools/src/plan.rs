@@ -732,8 +732,10 @@ fn predict(
             settings.noise_deg.to_radians() * settings.k.sqrt()
         }
     };
-    let normal = stacked.transpose() * &stacked;
-    let Some(inverse) = normal.clone().cholesky().map(|c| c.inverse()) else {
+    let Some(inverse) = (stacked.transpose() * &stacked)
+        .cholesky()
+        .map(|c| c.inverse())
+    else {
         bail!(
             "the fitted poses do not determine every parameter (singular information matrix); plan more poses or a smaller identify list"
         );

@@ -240,7 +240,7 @@ pub fn calibrate<const N: usize>(options: &CalibrateOptions) -> anyhow::Result<C
         }
         let (fitted, held) = all.partition(&verify);
         let result = calibration::calibrate(fitted.clone(), Some(held), &config)?;
-        let result = with_plan_check(result, &fitted, &config)?;
+        let result = with_plan_check(result, &fitted, &config);
         let hold_out = HoldOut {
             holdout: Some(format!(
                 "{} (the plan's verify poses)",
@@ -276,9 +276,9 @@ fn with_plan_check<const N: usize>(
     mut result: CalibrationResult<N>,
     fitted: &Dataset<N>,
     config: &crate::calibration::CalibrationConfig,
-) -> anyhow::Result<CalibrationResult<N>> {
+) -> CalibrationResult<N> {
     let (Some(predicted), Some(validation)) = (fitted.data.planned, &result.validation) else {
-        return Ok(result);
+        return result;
     };
     let measure = if fitted.data.rows_without_orientation() {
         Measure::Position
@@ -299,7 +299,7 @@ fn with_plan_check<const N: usize>(
         measure,
         config.k,
     ));
-    Ok(result)
+    result
 }
 
 impl<const N: usize> Calibration<N> {
