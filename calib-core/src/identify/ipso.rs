@@ -399,11 +399,14 @@ where
                 .zip(velocities.iter_mut())
                 .zip(best_positions.iter())
             {
+                // Plain slices: nalgebra's matrix iterators check for the end of a column at
+                // every step (a third of the update's instructions on the controller).
                 for (((xj, vj), pj), gj) in x
+                    .as_mut_slice()
                     .iter_mut()
-                    .zip(v.iter_mut())
-                    .zip(pbest.iter())
-                    .zip(global.iter())
+                    .zip(v.as_mut_slice().iter_mut())
+                    .zip(pbest.as_slice())
+                    .zip(global.as_slice())
                 {
                     let (r1, r2) = T::unit_pair(&mut || rng.next_u64());
                     // Eq. (10): constriction-factor velocity update, then x <- x + v.
@@ -511,10 +514,11 @@ fn clamp<T: Real, const D: usize>(
     space: &SearchSpace<T, D>,
 ) {
     for (((xj, vj), lo), hi) in x
+        .as_mut_slice()
         .iter_mut()
-        .zip(v.iter_mut())
-        .zip(space.lower.iter())
-        .zip(space.upper.iter())
+        .zip(v.as_mut_slice().iter_mut())
+        .zip(space.lower.as_slice())
+        .zip(space.upper.as_slice())
     {
         if *xj < *lo {
             *xj = *lo;
