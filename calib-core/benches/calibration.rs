@@ -10,7 +10,9 @@
 use calib_core::Problem;
 use calib_core::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
 use calib_core::identify::lm::{LeastSquares, LmSettings};
-use calib_core::identify::objective::{DEFAULT_K, Measurement, MeasurementSet, Objective};
+use calib_core::identify::objective::{
+    DEFAULT_K, Measurement, MeasurementSet, Objective, PoseLanes,
+};
 use calib_core::model::paper::{er10l_c10, table2};
 use calib_core::{Kinematics, ParameterErrors, ParameterSet, Real};
 use criterion::{Criterion, criterion_group, criterion_main};
@@ -74,7 +76,61 @@ fn paper_run<T: Real>(c: &mut Criterion, name: &str) {
     group.finish();
 }
 
+/// Eq. (7) in f64 from lanes collected once (`Objective::value_of_lanes`), compiled for the
+/// baseline (SSE2), for AVX2, and for AVX2 with AVX-512VL's 32 vector registers.
+fn objective_lanes(c: &mut Criterion) {
+    let robot = er10l_c10::<f64>();
+    let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
+    let data = measurements::<f64>();
+    let problem = Problem::new(
+        &robot,
+        &ParameterErrors::zero(),
+        set,
+        data.as_slice(),
+        DEFAULT_K,
+    )
+    .unwrap();
+    let objective = Objective::new(&problem);
+    let lanes: Vec<_> = objective.lanes().collect();
+    let x = SVector::<f64, 24>::repeat(1e-3);
+    c.bench_function("objective_32_poses_f64_lanes_baseline", |b| {
+        b.iter(|| objective.value_of_lanes(black_box(&x), &lanes))
+    });
+    #[cfg(target_arch = "x86_64")]
+    {
+        #[target_feature(enable = "avx2")]
+        fn avx2(
+            o: &Objective<'_, f64, 6, 24>,
+            x: &SVector<f64, 24>,
+            l: &[PoseLanes<f64, 6>],
+        ) -> f64 {
+            o.value_of_lanes(x, l)
+        }
+        #[target_feature(enable = "avx2,avx512f,avx512vl")]
+        fn avx512(
+            o: &Objective<'_, f64, 6, 24>,
+            x: &SVector<f64, 24>,
+            l: &[PoseLanes<f64, 6>],
+        ) -> f64 {
+            o.value_of_lanes(x, l)
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            c.bench_function("objective_32_poses_f64_lanes_avx2", |b| {
+                // SAFETY: AVX2 detected above.
+                b.iter(|| unsafe { avx2(&objective, black_box(&x), &lanes) })
+            });
+        }
+        if std::arch::is_x86_feature_detected!("avx512vl") {
+            c.bench_function("objective_32_poses_f64_lanes_avx512vl", |b| {
+                // SAFETY: AVX-512VL (and so AVX2 and AVX-512F) detected above.
+                b.iter(|| unsafe { avx512(&objective, black_box(&x), &lanes) })
+            });
+        }
+    }
+}
+
 fn benches(c: &mut Criterion) {
+    objective_lanes(c);
     paper_run::<f64>(c, "f64");
     paper_run::<f32>(c, "f32");
 }

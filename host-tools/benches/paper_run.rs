@@ -1,5 +1,8 @@
 //! The paper's whole swarm run (20 particles, 24 parameters, 2000 generations, 32 poses, f64) as
-//! `calib calibrate` runs it: the core's IPSO with the particles evaluated on all cores.
+//! `calib calibrate` runs it: the core's IPSO with the particles evaluated on all cores by a
+//! `SwarmTeam` (and on one thread, for comparison); then the same scenario end to end: the
+//! library's `calibrate` with `--method ipso` and the whole `calib calibrate --method ipso`
+//! process (issue 19's goal: at most 20 ms).
 //!
 //! Also a whole `calib calibrate` run on 100 poses measured in the tracker's frame (default
 //! method ipso+lm, frames registered and identified, files read and checked), and on the real
@@ -15,7 +18,7 @@ use calib_core::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
 use calib_core::identify::objective::{DEFAULT_K, Measurement, Objective};
 use calib_core::{ParameterErrors, ParameterSet};
 use criterion::{Criterion, criterion_group, criterion_main};
-use host_tools::calibration::Parallel;
+use host_tools::calibration::swarm_team::{LaneObjective, SwarmTeam};
 use host_tools::tracker_data::TrackerData;
 use nalgebra::Vector3;
 use std::path::Path;
@@ -48,15 +51,58 @@ fn paper_run(c: &mut Criterion) {
     let space = SearchSpace::paper(&set);
     let mut group = c.benchmark_group("paper_run");
     group.sample_size(10);
-    group.bench_function("ipso_20x24x2000_32_poses_f64_parallel", |b| {
+    let lanes = LaneObjective::new(&objective);
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+    let swarm = |threads: usize| {
+        SwarmTeam::run(&lanes, threads, |team| {
+            ipso::optimize::<f64, 20, 24>(team, &space, &IpsoSettings::paper(), &mut Silent)
+                .unwrap()
+        })
+    };
+    group.bench_function("ipso_20x24x2000_32_poses_f64_all_cores", |b| {
+        b.iter(|| swarm(cores))
+    });
+    group.bench_function("ipso_20x24x2000_32_poses_f64_one_thread", |b| {
+        b.iter(|| swarm(1))
+    });
+    group.finish();
+
+    // End to end, as `calib calibrate --robot robots/er10l-c10.toml --data
+    // data/er10l-c10-sim32.csv --method ipso` runs it: in the library, and as a whole process.
+    use host_tools::calibration::{CalibrationConfig, Method, calibrate};
+    use host_tools::dataset::Dataset;
+    let robot = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/robots/er10l-c10.toml"
+    ));
+    let config = CalibrationConfig {
+        method: Method::Ipso,
+        ..CalibrationConfig::default()
+    };
+    let mut group = c.benchmark_group("paper_run_end_to_end");
+    group.sample_size(20);
+    group.bench_function("calibrate_ipso_library", |b| {
         b.iter(|| {
-            ipso::optimize::<f64, 20, 24>(
-                &mut Parallel(&objective),
-                &space,
-                &IpsoSettings::paper(),
-                &mut Silent,
-            )
-            .unwrap()
+            let dataset = Dataset::<6>::load(robot, path).unwrap();
+            calibrate(dataset, None, &config).unwrap()
+        })
+    });
+    let out = tempfile::tempdir().unwrap();
+    let model = out.path().join("model.toml");
+    group.bench_function("calib_calibrate_ipso_process", |b| {
+        b.iter(|| {
+            let status = std::process::Command::new(env!("CARGO_BIN_EXE_calib"))
+                .arg("calibrate")
+                .arg("--robot")
+                .arg(robot)
+                .arg("--data")
+                .arg(path)
+                .args(["--method", "ipso", "--out"])
+                .arg(&model)
+                .stdout(std::process::Stdio::null())
+                .status()
+                .unwrap();
+            assert!(status.success());
         })
     });
     group.finish();

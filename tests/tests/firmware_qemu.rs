@@ -52,7 +52,8 @@ fn firmware_calibrates_in_qemu_bit_identically() {
             3_000,
             "forward kinematics, instructions",
         ),
-        ("whole swarm ", 1_500_000_000, "whole swarm, instructions"),
+        // Issue 19 lowered the swarm's goal from 1.5e9 to 1.0e9 (measured 9.04e8).
+        ("whole swarm ", 1_000_000_000, "whole swarm, instructions"),
         ("slowest ", 30_000, "one compensation, instructions"),
         (
             "slowest with maps ",

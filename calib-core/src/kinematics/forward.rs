@@ -253,6 +253,7 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
     /// End frames of [`LANES`](crate::kinematics::mdh::LANES) poses at once from their joint cosines and
     /// sines as lanes (the structure-of-arrays form of [`Kinematics::forward_angles`], which the
     /// compiler vectorises).
+    #[inline(always)] // into `Objective::value_of_lanes` and wherever that is inlined
     pub(crate) fn forward_lanes(&self, cos: &[Lanes<T>; N], sin: &[Lanes<T>; N]) -> LaneFrame<T> {
         let r = self.base.rotation.matrix();
         let t = &self.base.translation.vector;

@@ -51,6 +51,7 @@ pub mod cross_validation;
 pub mod maps;
 pub mod plausibility;
 mod result;
+pub mod swarm_team;
 mod text;
 
 pub use config::{
@@ -67,14 +68,14 @@ use crate::dataset::Dataset;
 use crate::frames::{Frames, FramesReport};
 use crate::identifiability::{IdentifiabilityReport, analyse};
 use anyhow::bail;
-use calib_core::identify::ipso::{self, Control, CostFunction, IpsoSettings, SearchSpace};
+use calib_core::identify::ipso::{self, Control, IpsoSettings, SearchSpace};
 use calib_core::identify::lm::{LeastSquares, LmError, LmResult, LmSettings};
 use calib_core::identify::objective::Objective;
 use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, ParameterSet, Problem};
 use nalgebra::SVector;
-use rayon::prelude::*;
 use std::io::IsTerminal;
 use std::time::Instant;
+use swarm_team::{LaneObjective, SwarmTeam};
 
 /// Fits of the geometry with a robot file's gravity compliance taken off the measurements, each
 /// at the previous fit's geometry (see [`calibrate`]).
@@ -278,22 +279,6 @@ pub fn select_parameters<const N: usize>(
         identifiability,
         dropped,
     })
-}
-
-/// Evaluates the swarm's particles in parallel on the host's cores (rayon); the core's default
-/// evaluates them one by one. Results are identical: each particle's cost is computed alone.
-pub struct Parallel<'o, 'p, const N: usize, const D: usize>(pub &'o Objective<'p, f64, N, D>);
-
-impl<const N: usize, const D: usize> CostFunction<f64, D> for Parallel<'_, '_, N, D> {
-    fn cost(&mut self, x: &SVector<f64, D>) -> f64 {
-        self.0.value(x)
-    }
-    fn cost_batch(&mut self, xs: &[SVector<f64, D>], out: &mut [f64]) {
-        let objective = self.0;
-        out.par_iter_mut()
-            .zip(xs.par_iter())
-            .for_each(|(c, x)| *c = objective.value(x));
-    }
 }
 
 /// Identifies the `D` parameters of `selection` and evaluates the result.
@@ -516,7 +501,6 @@ fn run_swarm<const N: usize, const D: usize>(
         }
         Control::Continue
     };
-    let mut cost = Parallel(objective);
     let particles = swarm.particles;
     let mut positions = vec![SVector::<f64, D>::zeros(); particles];
     let mut velocities = positions.clone();
@@ -529,7 +513,13 @@ fn run_swarm<const N: usize, const D: usize>(
         &mut costs,
         &mut best_costs,
     )?;
-    let result = ipso::optimize_in(memory, &mut cost, &space, &settings, &mut observer)?;
+    let lanes = LaneObjective::new(objective);
+    let threads = std::thread::available_parallelism()
+        .map_or(1, std::num::NonZero::get)
+        .min(particles);
+    let result = SwarmTeam::run(&lanes, threads, |team| {
+        ipso::optimize_in(memory, team, &space, &settings, &mut observer)
+    })?;
     bar.finish_and_clear();
     let summary = SwarmSummary {
         generations: result.generations,
