@@ -4,8 +4,8 @@
 //! sleeping threads for it each generation (as a general-purpose pool does) cost more than the
 //! work split saved. A [`SwarmTeam`] keeps its helper threads for one swarm run
 //! ([`SwarmTeam::run`], scoped threads): each generation the calling thread publishes the
-//! particles, every member (the caller too) takes one particle at a time until none is left, and
-//! the caller then waits for the others to finish theirs. Waiting spins ([`SPINS`] checks, about a millisecond) and then
+//! particles, every member (the caller too) takes blocks of particles until none is left, and the
+//! caller then waits for the others to finish theirs. Waiting spins ([`SPINS`] checks, about a millisecond) and then
 //! yields the core at every check, so a loaded machine still makes progress.
 //!
 //! Every particle's cost is computed alone by [`LaneObjective::value`]: the measurements in lane
@@ -153,9 +153,13 @@ fn wait_until(mut ready: impl FnMut() -> bool) {
 struct Shared<const D: usize> {
     /// Bumped by the caller once the particles of a generation are published.
     generation: AtomicU64,
-    /// The next particle to take (every member takes one at a time, so a member slowed down,
-    /// by the scheduler or by the caller's own work, takes fewer).
+    /// The next particle to take. Members take blocks of `block` particles (two blocks per
+    /// member and generation), so a member slowed down, by the scheduler or by the caller's own
+    /// work, takes fewer; one particle at a time cost a cache-line transfer each (measured: the
+    /// whole process 28.5-29 ms against 25.3 with fixed shares).
     next: AtomicUsize,
+    /// Particles per block.
+    block: AtomicUsize,
     /// Helpers done with the current generation.
     finished: AtomicUsize,
     /// Set when the run is over (also on an early return).
@@ -196,6 +200,7 @@ impl<'o, 'p, const N: usize, const D: usize> SwarmTeam<'_, 'o, 'p, N, D> {
             finished: AtomicUsize::new(0),
             stop: AtomicBool::new(false),
             next: AtomicUsize::new(0),
+            block: AtomicUsize::new(1),
             particles: RwLock::new(Vec::new()),
             costs: RwLock::new(Vec::new()),
         };
@@ -244,7 +249,7 @@ fn helper<const N: usize, const D: usize>(
     }
 }
 
-/// Evaluates the published particles one at a time until none is left to take.
+/// Evaluates the published particles, a block at a time, until no block is left to take.
 fn take_particles<const N: usize, const D: usize>(
     objective: &LaneObjective<'_, '_, N, D>,
     shared: &Shared<D>,
@@ -254,12 +259,16 @@ fn take_particles<const N: usize, const D: usize>(
         .read()
         .unwrap_or_else(PoisonError::into_inner);
     let costs = shared.costs.read().unwrap_or_else(PoisonError::into_inner);
+    let block = shared.block.load(Ordering::Acquire).max(1);
     loop {
-        let i = shared.next.fetch_add(1, Ordering::AcqRel);
-        let (Some(x), Some(cost)) = (particles.get(i), costs.get(i)) else {
+        let start = shared.next.fetch_add(block, Ordering::AcqRel);
+        let end = (start + block).min(particles.len());
+        let (Some(xs), Some(out)) = (particles.get(start..end), costs.get(start..end)) else {
             return;
         };
-        cost.store(objective.value(x).to_bits(), Ordering::Relaxed);
+        for (x, cost) in xs.iter().zip(out) {
+            cost.store(objective.value(x).to_bits(), Ordering::Relaxed);
+        }
     }
 }
 
@@ -292,6 +301,9 @@ impl<const N: usize, const D: usize> CostFunction<f64, D> for SwarmTeam<'_, '_, 
             costs.resize_with(xs.len(), || AtomicU64::new(f64::NAN.to_bits()));
         }
         self.shared.next.store(0, Ordering::Release);
+        self.shared
+            .block
+            .store(xs.len().div_ceil(2 * self.members), Ordering::Release);
         self.shared.finished.store(0, Ordering::Release);
         self.shared.generation.fetch_add(1, Ordering::AcqRel);
         take_particles(self.objective, self.shared);
