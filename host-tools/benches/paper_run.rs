@@ -15,12 +15,11 @@
 
 use calib_core::Problem;
 use calib_core::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
-use calib_core::identify::objective::{DEFAULT_K, Measurement, Objective};
+use calib_core::identify::objective::{DEFAULT_K, Objective};
 use calib_core::{ParameterErrors, ParameterSet};
 use criterion::{Criterion, criterion_group, criterion_main};
 use host_tools::calibration::swarm_team::{LaneObjective, SwarmTeam};
-use host_tools::tracker_data::TrackerData;
-use nalgebra::Vector3;
+use host_tools::dataset::Dataset;
 use std::path::Path;
 
 fn paper_run(c: &mut Criterion) {
@@ -28,15 +27,11 @@ fn paper_run(c: &mut Criterion) {
         env!("CARGO_MANIFEST_DIR"),
         "/data/er10l-c10-sim32.csv"
     ));
-    let data = TrackerData::read(path).unwrap();
-    let measurements: Vec<Measurement<f64, 6>> = data
-        .records
-        .iter()
-        .map(|r| {
-            let q: [f64; 6] = std::array::from_fn(|i| r.q[i]);
-            Measurement::new(&q, Vector3::from(r.position), r.rotation, 1.0).unwrap()
-        })
-        .collect();
+    let robot_file = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/robots/er10l-c10.toml"
+    ));
+    let measurements = Dataset::<6>::load(robot_file, path).unwrap().measurements;
     let robot = calib_core::model::paper::er10l_c10::<f64>();
     let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
     let problem = Problem::new(
@@ -70,11 +65,6 @@ fn paper_run(c: &mut Criterion) {
     // End to end, as `calib calibrate --robot robots/er10l-c10.toml --data
     // data/er10l-c10-sim32.csv --method ipso` runs it: in the library, and as a whole process.
     use host_tools::calibration::{CalibrationConfig, Method, calibrate};
-    use host_tools::dataset::Dataset;
-    let robot = Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/robots/er10l-c10.toml"
-    ));
     let config = CalibrationConfig {
         method: Method::Ipso,
         ..CalibrationConfig::default()
@@ -83,7 +73,7 @@ fn paper_run(c: &mut Criterion) {
     group.sample_size(20);
     group.bench_function("calibrate_ipso_library", |b| {
         b.iter(|| {
-            let dataset = Dataset::<6>::load(robot, path).unwrap();
+            let dataset = Dataset::<6>::load(robot_file, path).unwrap();
             calibrate(dataset, None, &config).unwrap()
         })
     });
@@ -94,7 +84,7 @@ fn paper_run(c: &mut Criterion) {
             let status = std::process::Command::new(env!("CARGO_BIN_EXE_calib"))
                 .arg("calibrate")
                 .arg("--robot")
-                .arg(robot)
+                .arg(robot_file)
                 .arg("--data")
                 .arg(path)
                 .args(["--method", "ipso", "--out"])

@@ -21,8 +21,9 @@ use nalgebra::SVector;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{PoisonError, RwLock};
 
-/// The instruction set an evaluation is compiled for, chosen at run time.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// The instruction set an evaluation is compiled for, chosen at run time (ordered narrowest
+/// first).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Vectors {
     /// The build's baseline (SSE2 on x86-64).
     Baseline,
@@ -57,7 +58,7 @@ impl Vectors {
         let widest = Self::detected();
         [Self::Baseline, Self::Avx2, Self::Avx512]
             .into_iter()
-            .filter(|v| *v as u8 <= widest as u8)
+            .filter(|v| *v <= widest)
             .collect()
     }
 }
@@ -82,11 +83,7 @@ impl<'o, 'p, const N: usize, const D: usize> LaneObjective<'o, 'p, N, D> {
         Self {
             objective,
             lanes: objective.lanes().collect(),
-            vectors: if vectors as u8 <= widest as u8 {
-                vectors
-            } else {
-                widest
-            },
+            vectors: vectors.min(widest),
         }
     }
 
@@ -153,13 +150,13 @@ fn wait_until(mut ready: impl FnMut() -> bool) {
 struct Shared<const D: usize> {
     /// Bumped by the caller once the particles of a generation are published.
     generation: AtomicU64,
-    /// The next particle to take. Members take blocks of `block` particles (two blocks per
-    /// member and generation), so a member slowed down, by the scheduler or by the caller's own
-    /// work, takes fewer; one particle at a time cost a cache-line transfer each (measured: the
-    /// whole process 28.5-29 ms against 25.3 with fixed shares).
+    /// The next particle to take. Members take blocks of particles (`blocks` per generation),
+    /// so a member slowed down, by the scheduler or by the caller's own work, takes fewer; one
+    /// particle at a time cost a cache-line transfer each (measured: the whole process 28.5-29 ms
+    /// against 25.3 with fixed shares).
     next: AtomicUsize,
-    /// Particles per block.
-    block: AtomicUsize,
+    /// Blocks a generation's particles are taken in: two per thread asked for.
+    blocks: usize,
     /// Helpers done with the current generation.
     finished: AtomicUsize,
     /// Set when the run is over (also on an early return).
@@ -200,7 +197,7 @@ impl<'o, 'p, const N: usize, const D: usize> SwarmTeam<'_, 'o, 'p, N, D> {
             finished: AtomicUsize::new(0),
             stop: AtomicBool::new(false),
             next: AtomicUsize::new(0),
-            block: AtomicUsize::new(1),
+            blocks: 2 * wanted,
             particles: RwLock::new(Vec::new()),
             costs: RwLock::new(Vec::new()),
         };
@@ -259,7 +256,7 @@ fn take_particles<const N: usize, const D: usize>(
         .read()
         .unwrap_or_else(PoisonError::into_inner);
     let costs = shared.costs.read().unwrap_or_else(PoisonError::into_inner);
-    let block = shared.block.load(Ordering::Acquire).max(1);
+    let block = particles.len().div_ceil(shared.blocks).max(1);
     loop {
         let start = shared.next.fetch_add(block, Ordering::AcqRel);
         let end = (start + block).min(particles.len());
@@ -301,9 +298,6 @@ impl<const N: usize, const D: usize> CostFunction<f64, D> for SwarmTeam<'_, '_, 
             costs.resize_with(xs.len(), || AtomicU64::new(f64::NAN.to_bits()));
         }
         self.shared.next.store(0, Ordering::Release);
-        self.shared
-            .block
-            .store(xs.len().div_ceil(2 * self.members), Ordering::Release);
         self.shared.finished.store(0, Ordering::Release);
         self.shared.generation.fetch_add(1, Ordering::AcqRel);
         take_particles(self.objective, self.shared);
@@ -326,21 +320,15 @@ mod tests {
     use calib_core::identify::objective::{DEFAULT_K, Measurement};
     use calib_core::{ParameterErrors, ParameterSet, Problem};
 
-    /// The bundled paper scenario (32 simulated poses of the ER10L-C10).
+    /// The bundled paper scenario (32 simulated poses of the ER10L-C10), as `calibrate` reads it.
     fn paper_measurements() -> Vec<Measurement<f64, 6>> {
-        let path = std::path::Path::new(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/data/er10l-c10-sim32.csv"
-        ));
-        let data = crate::tracker_data::TrackerData::read(path).expect("bundled data");
-        data.records
-            .iter()
-            .map(|r| {
-                let q: [f64; 6] = std::array::from_fn(|i| r.q[i]);
-                Measurement::new(&q, nalgebra::Vector3::from(r.position), r.rotation, 1.0)
-                    .expect("valid measurement")
-            })
-            .collect()
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        crate::dataset::Dataset::<6>::load(
+            &dir.join("robots/er10l-c10.toml"),
+            &dir.join("data/er10l-c10-sim32.csv"),
+        )
+        .expect("bundled files")
+        .measurements
     }
 
     /// Every vector path this CPU has, and every team size, gives the swarm of
