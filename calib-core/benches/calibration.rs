@@ -77,7 +77,8 @@ fn paper_run<T: Real>(c: &mut Criterion, name: &str) {
 }
 
 /// Eq. (7) in f64 from lanes collected once (`Objective::value_of_lanes`), compiled for the
-/// baseline (SSE2), for AVX2, and for AVX2 with AVX-512VL's 32 vector registers.
+/// baseline (SSE2), for AVX2, and for AVX2 with AVX-512VL's 32 vector registers (lanes of 4 poses
+/// in 256-bit vectors, and of 8 poses in AVX-512's 512-bit vectors).
 fn objective_lanes(c: &mut Criterion) {
     let robot = er10l_c10::<f64>();
     let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
@@ -91,8 +92,12 @@ fn objective_lanes(c: &mut Criterion) {
     )
     .unwrap();
     let objective = Objective::new(&problem);
-    let lanes: Vec<_> = objective.lanes().collect();
+    let lanes: Vec<PoseLanes<f64, 6>> = objective.lanes().collect();
+    let lanes8: Vec<PoseLanes<f64, 6, 8>> = objective.lanes().collect();
     let x = SVector::<f64, 24>::repeat(1e-3);
+    c.bench_function("candidate_model_f64", |b| {
+        b.iter(|| problem.kinematics(black_box(&x)))
+    });
     c.bench_function("objective_32_poses_f64_lanes_baseline", |b| {
         b.iter(|| objective.value_of_lanes(black_box(&x), &lanes))
     });
@@ -107,10 +112,10 @@ fn objective_lanes(c: &mut Criterion) {
             o.value_of_lanes(x, l)
         }
         #[target_feature(enable = "avx2,avx512f,avx512vl")]
-        fn avx512(
+        fn avx512<const L: usize>(
             o: &Objective<'_, f64, 6, 24>,
             x: &SVector<f64, 24>,
-            l: &[PoseLanes<f64, 6>],
+            l: &[PoseLanes<f64, 6, L>],
         ) -> f64 {
             o.value_of_lanes(x, l)
         }
@@ -124,6 +129,10 @@ fn objective_lanes(c: &mut Criterion) {
             c.bench_function("objective_32_poses_f64_lanes_avx512vl", |b| {
                 // SAFETY: AVX-512VL (and so AVX2 and AVX-512F) detected above.
                 b.iter(|| unsafe { avx512(&objective, black_box(&x), &lanes) })
+            });
+            c.bench_function("objective_32_poses_f64_lanes8_avx512", |b| {
+                // SAFETY: as above.
+                b.iter(|| unsafe { avx512(&objective, black_box(&x), &lanes8) })
             });
         }
     }

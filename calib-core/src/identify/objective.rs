@@ -188,42 +188,44 @@ impl<T: Real, const N: usize, const M: usize> MeasurementSet<T, N, M> {
     }
 }
 
-/// At most `LANES` measurements (4 on a PC, 1 on ARM) in lane layout (structure of arrays), as the objective reads
-/// them: lane `i` of every field belongs to the same pose. Unused lanes hold a pose of weight 0
-/// (joints at zero, identity rotation), whose term is exactly zero.
+/// At most `L` measurements in lane layout (structure of arrays), as the objective reads them:
+/// lane `i` of every field belongs to the same pose. `L` is `LANES` (4 on a PC, 1 on ARM) unless
+/// said otherwise. Unused lanes hold a pose of weight 0 (joints at zero, identity rotation), whose
+/// term is exactly zero.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PoseLanes<T: Real, const N: usize> {
-    cos: [Lanes<T>; N],
-    sin: [Lanes<T>; N],
-    position: [Lanes<T>; 3],
+pub struct PoseLanes<T: Real, const N: usize, const L: usize = LANES> {
+    cos: [Lanes<T, L>; N],
+    sin: [Lanes<T, L>; N],
+    position: [Lanes<T, L>; 3],
     /// Measured rotation columns; the identity for position-only poses.
-    rotation: [[Lanes<T>; 3]; 3],
-    weight: Lanes<T>,
+    rotation: [[Lanes<T, L>; 3]; 3],
+    weight: Lanes<T, L>,
     /// 1 where the pose has a measured rotation, 0 otherwise.
-    orientation: Lanes<T>,
+    orientation: Lanes<T, L>,
 }
 
-impl<T: Real, const N: usize> PoseLanes<T, N> {
-    /// The first `LANES` measurements of `chunk` in lanes (more are ignored).
+impl<T: Real, const N: usize, const L: usize> PoseLanes<T, N, L> {
+    /// The first `L` measurements of `chunk` in lanes (more are ignored).
     #[inline(always)]
     pub fn gather(chunk: &[Measurement<T, N>]) -> Self {
-        let zero = Lanes::<T>::zeros();
+        let zero = Lanes::<T, L>::zeros();
+        let one = Lanes::<T, L>::repeat(T::one());
         let mut rotation = [[zero; 3]; 3];
         for (j, column) in rotation.iter_mut().enumerate() {
             if let Some(entry) = column.get_mut(j) {
-                *entry = Lanes::repeat(T::one());
+                *entry = one;
             }
         }
         let mut poses = Self {
-            cos: [Lanes::repeat(T::one()); N],
+            cos: [one; N],
             sin: [zero; N],
             position: [zero; 3],
             rotation,
             weight: zero,
             orientation: zero,
         };
-        for (m, lane) in chunk.iter().zip(0..LANES) {
-            let set = |lanes: &mut Lanes<T>, value: T| {
+        for (m, lane) in chunk.iter().zip(0..L) {
+            let set = |lanes: &mut Lanes<T, L>, value: T| {
                 if let Some(v) = lanes.get_mut(lane) {
                     *v = value;
                 }
@@ -252,6 +254,16 @@ impl<T: Real, const N: usize> PoseLanes<T, N> {
         }
         poses
     }
+}
+
+/// `0 + t_1 + ... + t_L`, lane by lane: the order of every sum of `Objective::value`.
+#[inline(always)]
+fn sum_in_order<T: Real, const L: usize>(terms: &Lanes<T, L>) -> T {
+    let mut sum = T::zero();
+    for term in terms.iter() {
+        sum += *term;
+    }
+    sum
 }
 
 /// Eq. (7) for the parameters of a [`ParameterSet`](crate::ParameterSet) over a set of measurements: the swarm's
@@ -292,49 +304,68 @@ impl<'p, T: Real, const N: usize, const D: usize> Objective<'p, T, N, D> {
             .chunks(GROUP)
             .map(|group| {
                 group.chunks(LANES).fold(T::zero(), |sum, chunk| {
-                    sum + self.lanes_value(&kinematics, &PoseLanes::gather(chunk))
+                    let poses = PoseLanes::<T, N>::gather(chunk);
+                    sum + sum_in_order(&self.lane_terms(&kinematics, &poses))
                 })
             })
             .fold(T::zero(), |sum, v| sum + v)
     }
 
-    /// The measurements in lane layout, `LANES` poses per item in measurement order (the last
-    /// one padded with poses that weigh nothing): what [`Objective::value_of_lanes`] reads.
-    pub fn lanes(&self) -> impl Iterator<Item = PoseLanes<T, N>> + 'p {
-        self.problem
-            .measurements()
-            .chunks(LANES)
-            .map(PoseLanes::gather)
+    /// The measurements in lane layout, `L` poses per item in measurement order (the last one
+    /// padded with poses that weigh nothing): what [`Objective::value_of_lanes`] reads. `L` is
+    /// `LANES` (4 on a PC, 1 on ARM) for the layout [`Objective::value`] uses; any width gives
+    /// the same bits (eight lanes in AVX-512's 512-bit registers measured slower than four:
+    /// `cargo bench -p calib-core --bench calibration -- lanes`).
+    /// Zero lanes do not compile.
+    pub fn lanes<const L: usize>(&self) -> impl Iterator<Item = PoseLanes<T, N, L>> + 'p {
+        const { assert!(L > 0, "at least one lane") };
+        self.problem.measurements().chunks(L).map(PoseLanes::gather)
     }
 
     /// Eq. (7) at `x` over measurements already in lane layout: `lanes` must be
-    /// [`Objective::lanes`] of this objective, collected once. Bit for bit [`Objective::value`],
-    /// without gathering the poses on every call. Always inlined, so that a caller compiled for
-    /// wider vectors (AVX2) gets the whole evaluation in them.
+    /// [`Objective::lanes`] of this objective, collected once, with any number `L` of lanes. Bit
+    /// for bit [`Objective::value`] (the poses' terms are summed in its groups of `GROUP` (4)
+    /// whatever `L`), without gathering the poses on every call. Always inlined, so that a
+    /// caller compiled for wider vectors (AVX2, AVX-512) gets the whole evaluation in them.
     #[inline(always)]
-    pub fn value_of_lanes(&self, x: &SVector<T, D>, lanes: &[PoseLanes<T, N>]) -> T {
+    pub fn value_of_lanes<const L: usize>(
+        &self,
+        x: &SVector<T, D>,
+        lanes: &[PoseLanes<T, N, L>],
+    ) -> T {
         if !x.iter().all(|v| v.finite()) {
             return T::of(f64::INFINITY);
         }
         let kinematics = self.problem.kinematics(x);
-        // The groups of GROUP poses of `value` (GROUP / LANES items each), summed in its order.
-        // Plain loops: a `fold` taking a closure stayed a function of its own, compiled without
-        // the caller's AVX2 (measured: two thirds of the run in it).
+        // The groups of GROUP poses of `value`, summed in its order; the padding's terms are +0,
+        // which changes no sum. Plain loops: a `fold` taking a closure stayed a function of its
+        // own, compiled without the caller's AVX2 (measured: two thirds of the run in it).
         let mut total = T::zero();
-        for group in lanes.chunks(GROUP / LANES) {
-            let mut sum = T::zero();
-            for poses in group {
-                sum += self.lanes_value(&kinematics, poses);
+        let mut group = T::zero();
+        let mut in_group = 0;
+        for poses in lanes {
+            let terms = self.lane_terms(&kinematics, poses);
+            for term in terms.iter() {
+                group += *term;
+                in_group += 1;
+                if in_group == GROUP {
+                    total += group;
+                    group = T::zero();
+                    in_group = 0;
+                }
             }
-            total += sum;
         }
-        total
+        total + group
     }
 
-    /// Eq. (7) summed over the [`LANES`] poses of `poses`.
+    /// Eq. (7)'s term of each of the `L` poses of `poses` (0 in padding lanes).
     #[inline(always)]
-    fn lanes_value(&self, kinematics: &Kinematics<T, N>, poses: &PoseLanes<T, N>) -> T {
-        let zero = Lanes::<T>::zeros();
+    fn lane_terms<const L: usize>(
+        &self,
+        kinematics: &Kinematics<T, N>,
+        poses: &PoseLanes<T, N, L>,
+    ) -> Lanes<T, L> {
+        let zero = Lanes::<T, L>::zeros();
         let frame = kinematics.forward_lanes(&poses.cos, &poses.sin);
         let mut dp2 = zero;
         for (measured, predicted) in poses.position.iter().zip(&frame.origin) {
@@ -350,17 +381,18 @@ impl<'p, T: Real, const N: usize, const D: usize> Objective<'p, T, N, D> {
                 chord2 += d.component_mul(&d);
             }
         }
-        let mut sum = T::zero();
-        for (((dp2, chord2), w), has_rotation) in dp2
-            .iter()
+        let mut terms = zero;
+        for ((((term, dp2), chord2), w), has_rotation) in terms
+            .iter_mut()
+            .zip(dp2.iter())
             .zip(chord2.iter())
             .zip(poses.weight.iter())
             .zip(poses.orientation.iter())
         {
             let angle2 = so3::angle_squared_from_chord(*chord2) * *has_rotation;
-            sum += *w * (self.problem.k() * angle2 + *dp2).sqrt_ieee();
+            *term = *w * (self.problem.k() * angle2 + *dp2).sqrt_ieee();
         }
-        sum
+        terms
     }
 
     /// The pose error of every measurement at `x`, in measurement order, passed to `visit`
@@ -415,36 +447,47 @@ mod tests {
         )
     }
 
-    /// `value_of_lanes` over the collected lanes gives `value` bit for bit, with a last group
-    /// that is not full and position-only poses among full ones.
-    #[test]
-    fn lanes_collected_once_give_the_same_bits() {
-        let robot = er10l_c10::<f64>();
-        let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
-        let mut data: std::vec::Vec<_> = paper_measurements::<f64>(1).as_slice().to_vec();
-        data.truncate(29);
-        for m in data.iter_mut().step_by(3) {
-            m.rotation = None;
-            m.weight = 0.5;
-        }
-        let problem =
-            Problem::new(&robot, &ParameterErrors::zero(), set, &data, DEFAULT_K).unwrap();
-        let objective = Objective::new(&problem);
-        let lanes: std::vec::Vec<_> = objective.lanes().collect();
-        assert_eq!(lanes.len(), 29usize.div_ceil(LANES));
+    /// `value_of_lanes` over lanes of `L` poses, collected once, gives `value` bit for bit.
+    fn check_lanes_of<const L: usize>(objective: &Objective<'_, f64, 6, 24>, poses: usize) {
+        let lanes: std::vec::Vec<PoseLanes<f64, 6, L>> = objective.lanes().collect();
+        assert_eq!(lanes.len(), poses.div_ceil(L));
         for i in 0..5 {
             let x = SVector::<f64, 24>::from_fn(|j, _| 1e-3 * (i as f64 - 2.0) * (j as f64 - 11.0));
             let (gathered, collected) = (objective.value(&x), objective.value_of_lanes(&x, &lanes));
             assert_eq!(
                 gathered.to_bits(),
                 collected.to_bits(),
-                "{gathered} {collected}"
+                "{L} lanes, {poses} poses: {gathered} {collected}"
             );
             assert!(gathered > 0.0);
         }
         let mut nan = SVector::<f64, 24>::zeros();
         nan[3] = f64::NAN;
         assert_eq!(objective.value_of_lanes(&nan, &lanes), f64::INFINITY);
+    }
+
+    /// `value_of_lanes` gives `value` bit for bit for 1, 2, 4 and 8 lanes, with a last group that
+    /// is not full (29 poses), padding that fills a group of its own (17 poses in lanes of 8) and
+    /// position-only poses among full ones.
+    #[test]
+    fn lanes_collected_once_give_the_same_bits() {
+        let robot = er10l_c10::<f64>();
+        let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
+        for poses in [29, 17] {
+            let mut data: std::vec::Vec<_> = paper_measurements::<f64>(1).as_slice().to_vec();
+            data.truncate(poses);
+            for m in data.iter_mut().step_by(3) {
+                m.rotation = None;
+                m.weight = 0.5;
+            }
+            let problem =
+                Problem::new(&robot, &ParameterErrors::zero(), set, &data, DEFAULT_K).unwrap();
+            let objective = Objective::new(&problem);
+            check_lanes_of::<1>(&objective, poses);
+            check_lanes_of::<2>(&objective, poses);
+            check_lanes_of::<LANES>(&objective, poses);
+            check_lanes_of::<8>(&objective, poses);
+        }
     }
 
     #[test]

@@ -250,17 +250,21 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
         )
     }
 
-    /// End frames of [`LANES`](crate::kinematics::mdh::LANES) poses at once from their joint cosines and
-    /// sines as lanes (the structure-of-arrays form of [`Kinematics::forward_angles`], which the
-    /// compiler vectorises).
+    /// End frames of `L` poses at once from their joint cosines and sines as lanes (the
+    /// structure-of-arrays form of [`Kinematics::forward_angles`], which the compiler vectorises).
     #[inline(always)] // into `Objective::value_of_lanes` and wherever that is inlined
-    pub(crate) fn forward_lanes(&self, cos: &[Lanes<T>; N], sin: &[Lanes<T>; N]) -> LaneFrame<T> {
+    pub(crate) fn forward_lanes<const L: usize>(
+        &self,
+        cos: &[Lanes<T, L>; N],
+        sin: &[Lanes<T, L>; N],
+    ) -> LaneFrame<T, L> {
         let r = self.base.rotation.matrix();
         let t = &self.base.translation.vector;
-        let column = |j: usize| [0, 1, 2].map(|i| Lanes::repeat(r[(i, j)]));
+        let repeat = Lanes::<T, L>::repeat;
+        let column = |j: usize| [0, 1, 2].map(|i| repeat(r[(i, j)]));
         let mut frame = LaneFrame {
             columns: [column(0), column(1), column(2)],
-            origin: [Lanes::repeat(t.x), Lanes::repeat(t.y), Lanes::repeat(t.z)],
+            origin: [repeat(t.x), repeat(t.y), repeat(t.z)],
         };
         for ((joint, c), s) in self.joints.iter().zip(cos).zip(sin) {
             joint.append_lanes(&mut frame, c, s);
@@ -269,10 +273,10 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
             let rt = self.tool.rotation.matrix();
             let tt = &self.tool.translation.vector;
             let [c0, c1, c2] = frame.columns;
-            let mix = |a: T, b: T, c: T| -> [Lanes<T>; 3] {
+            let mix = |a: T, b: T, c: T| -> [Lanes<T, L>; 3] {
                 [0, 1, 2].map(|i| {
                     let pick =
-                        |col: &[Lanes<T>; 3]| col.get(i).copied().unwrap_or_else(Lanes::zeros);
+                        |col: &[Lanes<T, L>; 3]| col.get(i).copied().unwrap_or_else(Lanes::zeros);
                     pick(&c0) * a + pick(&c1) * b + pick(&c2) * c
                 })
             };

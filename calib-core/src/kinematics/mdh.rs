@@ -18,27 +18,28 @@ pub const LANES: usize = if cfg!(target_arch = "arm") { 1 } else { 4 };
 /// (the summation order that makes every [`LANES`] give the same bits).
 pub const GROUP: usize = 4;
 
-/// One value for each of [`LANES`] poses (structure of arrays, so the compiler vectorises).
-pub type Lanes<T> = SVector<T, LANES>;
+/// One value for each of `L` poses, [`LANES`] unless said otherwise (structure of arrays, so the
+/// compiler vectorises).
+pub type Lanes<T, const L: usize = LANES> = SVector<T, L>;
 
-/// A frame for [`LANES`] poses at once: the columns of the rotation and the origin, each
-/// coordinate as lanes.
+/// A frame for `L` poses at once ([`LANES`] unless said otherwise): the columns of the rotation
+/// and the origin, each coordinate as lanes.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LaneFrame<T: Real> {
+pub struct LaneFrame<T: Real, const L: usize = LANES> {
     /// Columns x, y, z of the rotation; `columns[j][i]` is entry (i, j) in every lane.
-    pub columns: [[Lanes<T>; 3]; 3],
+    pub columns: [[Lanes<T, L>; 3]; 3],
     /// Origin, mm.
-    pub origin: [Lanes<T>; 3],
+    pub origin: [Lanes<T, L>; 3],
 }
 
 /// `a * ca + b * cb` for three lane coordinates.
 #[inline(always)]
-fn combine<T: Real>(
-    a: &[Lanes<T>; 3],
-    ca: &Lanes<T>,
-    b: &[Lanes<T>; 3],
-    cb: &Lanes<T>,
-) -> [Lanes<T>; 3] {
+fn combine<T: Real, const L: usize>(
+    a: &[Lanes<T, L>; 3],
+    ca: &Lanes<T, L>,
+    b: &[Lanes<T, L>; 3],
+    cb: &Lanes<T, L>,
+) -> [Lanes<T, L>; 3] {
     let [a0, a1, a2] = a;
     let [b0, b1, b2] = b;
     [
@@ -50,7 +51,12 @@ fn combine<T: Real>(
 
 /// `a * ca + b * cb` for three lane coordinates and scalar factors.
 #[inline(always)]
-fn combine_scalar<T: Real>(a: &[Lanes<T>; 3], ca: T, b: &[Lanes<T>; 3], cb: T) -> [Lanes<T>; 3] {
+fn combine_scalar<T: Real, const L: usize>(
+    a: &[Lanes<T, L>; 3],
+    ca: T,
+    b: &[Lanes<T, L>; 3],
+    cb: T,
+) -> [Lanes<T, L>; 3] {
     let [a0, a1, a2] = a;
     let [b0, b1, b2] = b;
     [a0 * ca + b0 * cb, a1 * ca + b1 * cb, a2 * ca + b2 * cb]
@@ -157,9 +163,14 @@ impl<T: Real> PreparedJoint<T> {
 }
 
 impl<T: Real> PreparedJoint<T> {
-    /// [`PreparedJoint::append`] for [`LANES`] poses at once, with `cos q` and `sin q` as lanes.
+    /// [`PreparedJoint::append`] for `L` poses at once, with `cos q` and `sin q` as lanes.
     #[inline(always)]
-    pub fn append_lanes(&self, frame: &mut LaneFrame<T>, cos_q: &Lanes<T>, sin_q: &Lanes<T>) {
+    pub fn append_lanes<const L: usize>(
+        &self,
+        frame: &mut LaneFrame<T, L>,
+        cos_q: &Lanes<T, L>,
+        sin_q: &Lanes<T, L>,
+    ) {
         let (co, so) = self.offset;
         let ct = cos_q * co - sin_q * so;
         let st = sin_q * co + cos_q * so;

@@ -10,6 +10,7 @@ use calib_core::identify::lm::{LeastSquares, LmSettings};
 use calib_core::{Kinematics, ParameterErrors, ParameterSet, Problem};
 use nalgebra::SVector;
 use serde::Serialize;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Poses up to which every pose is its own fold (leave-one-out).
 pub const LEAVE_ONE_OUT_UP_TO: usize = 20;
@@ -63,35 +64,42 @@ pub fn cross_validate<const N: usize, const D: usize>(
         ..LmSettings::default()
     };
     let loss = config.loss.with_scale(config.loss_scale_mm.unwrap_or(1.0));
-    let (mut nominal_errors, mut errors, mut failed) = (Vec::new(), Vec::new(), 0);
-    for fold in 0..folds {
+    // Each fold's least squares alone; `None` when it failed.
+    let fold_errors = |fold: usize| -> Option<(Vec<f64>, Vec<f64>)> {
         let mut held: Vec<usize> = order.iter().skip(fold).step_by(folds).copied().collect();
         held.sort_unstable();
         let (training, predicted) = dataset.partition(&held);
-        let fitted = Problem::new(
+        let problem = Problem::new(
             &training.model.robot,
             &ParameterErrors::zero(),
             *set,
             &training.measurements,
             config.k,
         )
-        .ok()
-        .and_then(|problem| {
-            let least_squares = LeastSquares::new(&problem);
-            let mut weights = vec![1.0; training.measurements.len()];
-            let x = least_squares
-                .solve_robust(&SVector::zeros(), &settings, loss, &mut weights)
-                .ok()?
-                .result
-                .x;
-            Kinematics::new(&training.model.robot, &set.unpack(&x)).ok()
-        });
-        let Some(model) = fitted else {
-            failed += 1;
-            continue;
-        };
-        errors.extend(crate::statistics::table3(&model, &predicted).1);
-        nominal_errors.extend(crate::statistics::table3(&nominal, &predicted).1);
+        .ok()?;
+        let least_squares = LeastSquares::new(&problem);
+        let mut weights = vec![1.0; training.measurements.len()];
+        let x = least_squares
+            .solve_robust(&SVector::zeros(), &settings, loss, &mut weights)
+            .ok()?
+            .result
+            .x;
+        let model = Kinematics::new(&training.model.robot, &set.unpack(&x)).ok()?;
+        Some((
+            crate::statistics::table3(&model, &predicted).1,
+            crate::statistics::table3(&nominal, &predicted).1,
+        ))
+    };
+    let (mut nominal_errors, mut errors, mut failed) = (Vec::new(), Vec::new(), 0);
+    // In fold order whichever thread fitted it, so the sums below are the same bits.
+    for fold in on_all_cores(folds, fold_errors) {
+        match fold {
+            Some((calibrated, nominal)) => {
+                errors.extend(calibrated);
+                nominal_errors.extend(nominal);
+            }
+            None => failed += 1,
+        }
     }
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
     let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len().max(1) as f64).sqrt();
@@ -103,4 +111,66 @@ pub fn cross_validate<const N: usize, const D: usize>(
         calibrated_rms_mm: rms,
         failed_folds: failed,
     })
+}
+
+/// `work(i)` for `i` in `0..count`, spread over the cores (scoped threads taking the next index
+/// from a shared counter; the calling thread is one of them, and a thread the system refuses is
+/// one fewer), returned in index order.
+fn on_all_cores<R: Send>(count: usize, work: impl Fn(usize) -> R + Sync) -> Vec<R> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, std::num::NonZeroUsize::get)
+        .min(count);
+    let next = AtomicUsize::new(0);
+    let take = || {
+        let mut done = Vec::new();
+        loop {
+            let i = next.fetch_add(1, Ordering::Relaxed);
+            if i >= count {
+                return done;
+            }
+            done.push((i, work(i)));
+        }
+    };
+    let mut results: Vec<(usize, R)> = std::thread::scope(|scope| {
+        let helpers: Vec<_> = (1..threads)
+            .filter_map(|_| std::thread::Builder::new().spawn_scoped(scope, take).ok())
+            .collect();
+        let mut all = take();
+        for helper in helpers {
+            // A helper that panicked lost its folds: they are computed again here.
+            if let Ok(done) = helper.join() {
+                all.extend(done);
+            }
+        }
+        all
+    });
+    results.sort_by_key(|(i, _)| *i);
+    let mut ordered = Vec::with_capacity(count);
+    let mut results = results.into_iter().peekable();
+    for i in 0..count {
+        match results.next_if(|(j, _)| *j == i) {
+            Some((_, r)) => ordered.push(r),
+            None => ordered.push(work(i)),
+        }
+    }
+    ordered
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every index is worked once, whichever thread took it, and the results come back in index
+    /// order (what makes the folds' sums the same bits on any number of cores).
+    #[test]
+    fn work_on_all_cores_comes_back_in_index_order() {
+        let calls = AtomicUsize::new(0);
+        let squares = on_all_cores(37, |i| {
+            calls.fetch_add(1, Ordering::Relaxed);
+            i * i
+        });
+        assert_eq!(squares, (0..37).map(|i| i * i).collect::<Vec<_>>());
+        assert_eq!(calls.load(Ordering::Relaxed), 37);
+        assert!(on_all_cores(0, |i| i).is_empty());
+    }
 }
