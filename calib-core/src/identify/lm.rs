@@ -221,16 +221,9 @@ pub struct LeastSquares<'p, T: Real, const N: usize, const D: usize> {
     sqrt_k: T,
 }
 
-/// Below this, `rii^2 + ai^2` of a Givens rotation may have lost digits to subnormals (in f32:
-/// 1.2e-38 is the smallest normal), and the rotation uses `hypot`.
-const TINY_SQUARE: f64 = 1e-30;
-
 /// Triangular factor, `Q^T r` and `|r|^2` of the stacked residual, accumulated row by row.
 struct Factor<T: Real, const D: usize> {
-    /// `R^T`, so that row `i` of `R`, which every Givens rotation updates, is the contiguous
-    /// column `i` (with `R` itself the row was strided and each entry bounds-checked: the
-    /// factorisation was 43 % of `calib calibrate --method lm`).
-    rt: SMatrix<T, D, D>,
+    r: SMatrix<T, D, D>,
     qtr: SVector<T, D>,
     sum_squares: T,
 }
@@ -238,51 +231,38 @@ struct Factor<T: Real, const D: usize> {
 impl<T: Real, const D: usize> Factor<T, D> {
     fn new() -> Self {
         Self {
-            rt: SMatrix::zeros(),
+            r: SMatrix::zeros(),
             qtr: SVector::zeros(),
             sum_squares: T::zero(),
         }
     }
 
-    /// The upper triangular `R`.
-    fn r(&self) -> SMatrix<T, D, D> {
-        self.rt.transpose()
-    }
-
     /// Rotates the row `(a, b)` (Jacobian row and residual) into `R` and `Q^T r`.
     fn add_row(&mut self, mut a: SVector<T, D>, mut b: T) {
         self.sum_squares += b * b;
-        let rows = self.rt.as_mut_slice().chunks_exact_mut(D);
-        for (i, (row, q)) in rows.zip(self.qtr.iter_mut()).enumerate() {
-            // Row i of R from its diagonal on, and the same entries of a.
-            let (Some(row), Some(a)) = (row.get_mut(i..), a.as_mut_slice().get_mut(i..)) else {
-                continue;
-            };
-            let (Some(rii), Some(ai)) = (row.first().copied(), a.first().copied()) else {
-                continue;
-            };
+        for i in 0..D {
+            let ai = a.get(i).copied().unwrap_or_else(T::zero);
             if ai == T::zero() {
                 continue;
             }
-            // sqrt(rii^2 + ai^2) from the squares unless they leave the normal range (then the
-            // slower `hypot`, which scales): the exactly rounded `hypot` took most of the
-            // factorisation's time.
-            let h2 = rii * rii + ai * ai;
-            let h = if h2.finite() && h2 > T::of(TINY_SQUARE) {
-                h2.sqrt()
-            } else {
-                rii.hypot(ai)
-            };
-            let inverse = T::one() / h;
-            let (c, s) = (rii * inverse, ai * inverse);
-            for (rij, aj) in row.iter_mut().zip(a.iter_mut()) {
-                let (r0, a0) = (*rij, *aj);
-                *rij = c * r0 + s * a0;
-                *aj = c * a0 - s * r0;
+            let rii = self.r.get((i, i)).copied().unwrap_or_else(T::zero);
+            let h = rii.hypot(ai);
+            let (c, s) = (rii / h, ai / h);
+            for j in i..D {
+                if let (Some(rij), Some(aj)) = (self.r.get((i, j)).copied(), a.get(j).copied()) {
+                    if let Some(v) = self.r.get_mut((i, j)) {
+                        *v = c * rij + s * aj;
+                    }
+                    if let Some(v) = a.get_mut(j) {
+                        *v = c * aj - s * rij;
+                    }
+                }
             }
-            let qi = *q;
-            *q = c * qi + s * b;
-            b = c * b - s * qi;
+            if let Some(q) = self.qtr.get_mut(i) {
+                let qi = *q;
+                *q = c * qi + s * b;
+                b = c * b - s * qi;
+            }
         }
     }
 }
@@ -392,7 +372,7 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
     /// The triangular factor `R` of the Jacobian at `x` (`J = Q R`), for the identifiability
     /// analysis.
     pub fn jacobian_factor(&self, x: &SVector<T, D>) -> SMatrix<T, D, D> {
-        self.factor(x, &[]).r()
+        self.factor(x, &[]).r
     }
 
     fn factor(&self, x: &SVector<T, D>, robust: &[T]) -> Factor<T, D> {
@@ -497,7 +477,7 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
             return Err(LmError::NonFinite);
         }
         let initial_cost = cost;
-        let mut scale = column_norms(&factor.r());
+        let mut scale = column_norms(&factor.r);
         if let Some(i) = scale.iter().position(|s| *s == T::zero()) {
             return Err(LmError::UnobservableParameter(
                 u16::try_from(i).unwrap_or(u16::MAX),
@@ -526,8 +506,8 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
                 break LmStop::Step;
             }
             // Predicted reduction 0.5 (|Q^T r|^2 - |R delta + Q^T r|^2).
-            let predicted = half
-                * (factor.qtr.norm_squared() - (factor.r() * delta + factor.qtr).norm_squared());
+            let predicted =
+                half * (factor.qtr.norm_squared() - (factor.r * delta + factor.qtr).norm_squared());
             let candidate = x + delta;
             let candidate_cost = self.weighted_cost(&candidate, robust);
             evaluations += 1;
@@ -543,7 +523,7 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
                 factor = self.factor(&x, robust);
                 evaluations += 1;
                 cost = factor.sum_squares * half;
-                for (s, n) in scale.iter_mut().zip(column_norms(&factor.r()).iter()) {
+                for (s, n) in scale.iter_mut().zip(column_norms(&factor.r).iter()) {
                     *s = s.max(*n);
                 }
                 let t = T::of(2.0) * rho - T::one();
@@ -568,7 +548,7 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
             evaluations,
             rows,
             stop,
-            r: factor.r(),
+            r: factor.r,
         })
     }
 }
@@ -576,11 +556,11 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
 /// MINPACK's scaled gradient test value `max_i |J_i^T r| / (|J_i| |r|)` at a factor with
 /// `0.5 |r|^2 = cost`; `J^T r = R^T Q^T r`.
 fn gradient_cosine<T: Real, const D: usize>(factor: &Factor<T, D>, cost: T) -> T {
-    let gradient = factor.rt * factor.qtr;
+    let gradient = factor.r.transpose() * factor.qtr;
     let r_norm = (T::of(2.0) * cost).sqrt();
     gradient
         .iter()
-        .zip(column_norms(&factor.r()).iter())
+        .zip(column_norms(&factor.r).iter())
         .map(|(g, n)| {
             if *n > T::zero() {
                 g.abs() / (*n * r_norm)
@@ -604,7 +584,7 @@ fn damped_step<T: Real, const D: usize>(
     lambda: T,
 ) -> Option<SVector<T, D>> {
     let mut damped = Factor {
-        rt: factor.rt,
+        r: factor.r,
         qtr: factor.qtr,
         sum_squares: T::zero(),
     };
@@ -616,7 +596,7 @@ fn damped_step<T: Real, const D: usize>(
         }
         damped.add_row(row, T::zero());
     }
-    let solution = damped.r().solve_upper_triangular(&damped.qtr)?;
+    let solution = damped.r.solve_upper_triangular(&damped.qtr)?;
     let delta = -solution;
     delta.iter().all(|v| v.finite()).then_some(delta)
 }
@@ -744,15 +724,14 @@ mod tests {
             jtr += a * b;
             factor.add_row(a, b);
         }
-        let r = factor.r();
-        assert!((r.transpose() * r - jtj).abs().max() < 1e-13);
-        assert!((r.transpose() * factor.qtr - jtr).abs().max() < 1e-13);
+        assert!((factor.r.transpose() * factor.r - jtj).abs().max() < 1e-13);
+        assert!((factor.r.transpose() * factor.qtr - jtr).abs().max() < 1e-13);
         // Upper triangular: every entry below the diagonal is exactly zero, the diagonal is not.
         for i in 0..3 {
             for j in 0..i {
-                assert_eq!(r[(i, j)], 0.0, "R[({i}, {j})]");
+                assert_eq!(factor.r[(i, j)], 0.0, "R[({i}, {j})]");
             }
-            assert!(r[(i, i)].abs() > 0.1, "R[({i}, {i})]");
+            assert!(factor.r[(i, i)].abs() > 0.1, "R[({i}, {i})]");
         }
         // |r|^2 is accumulated exactly as the sum of the squared residuals (1 + 4 + 0.25 + 9).
         assert_eq!(factor.sum_squares, 14.25);

@@ -5,12 +5,14 @@
 //! work split saved. A [`SwarmTeam`] keeps its helper threads for one swarm run
 //! ([`SwarmTeam::run`], scoped threads): each generation the calling thread publishes the
 //! particles, every member (the caller too) takes blocks of particles until none is left, and the
-//! caller then waits for the others to finish theirs. Waiting spins ([`SPINS`] checks, about a millisecond) and then
+//! caller then waits until every particle is evaluated (not for the helpers: one that did not
+//! wake up in time took nothing and is not waited for). Waiting spins ([`SPINS`] checks, about a millisecond) and then
 //! yields the core at every check, so a loaded machine still makes progress.
 //!
 //! Every particle's cost is computed alone by [`LaneObjective::value`]: the measurements in lane
-//! layout collected once ([`Objective::lanes`]) and, where the CPU has AVX2 or AVX-512 (detected
-//! at run time; the binary still runs on baseline x86-64), the evaluation compiled for it. Rust never
+//! layout collected once ([`Objective::lanes`]) and, where the CPU has AVX-512 (detected at run
+//! time; the binary still runs on baseline x86-64), the evaluation compiled for it (an AVX2 build
+//! exists too, for tests: it measured slower than the baseline, [`Vectors::preferred`]). Rust never
 //! fuses a multiplication and an addition on its own, so the wider vectors compute the same
 //! operations with the same roundings: the costs, and the swarm, are bit for bit those of
 //! [`Objective::value`] on one thread (test `team_evaluates_bit_for_bit`).
@@ -30,8 +32,8 @@ pub enum Vectors {
     /// AVX2: 256-bit vectors, 16 registers.
     Avx2,
     /// AVX2 with AVX-512F/VL: the same 256-bit vectors, 32 registers (the lanes of a frame no
-    /// longer spill: 0.59 us per paper objective against 1.19 with AVX2 alone and 1.41 baseline,
-    /// `cargo bench -p calib-core --bench calibration -- lanes`).
+    /// longer spill: 0.53-0.56 us per paper objective against 1.10 with AVX2 alone and 0.80
+    /// baseline, `cargo bench -p calib-core --bench calibration -- lanes`).
     Avx512,
 }
 
@@ -53,6 +55,17 @@ impl Vectors {
         Self::Baseline
     }
 
+    /// What an evaluation uses by default on this CPU: AVX-512 where it has it, otherwise the
+    /// baseline. The AVX2 build measured slower than the baseline one (1.10 against 0.80 us per
+    /// paper objective: with 16 registers the lanes of a frame spill), so it is only used when
+    /// asked for ([`LaneObjective::with_vectors`]).
+    pub fn preferred() -> Self {
+        match Self::detected() {
+            Self::Avx2 => Self::Baseline,
+            widest => widest,
+        }
+    }
+
     /// The paths this CPU can run, narrowest first (for tests comparing them).
     pub fn available() -> Vec<Self> {
         let widest = Self::detected();
@@ -71,10 +84,10 @@ pub struct LaneObjective<'o, 'p, const N: usize, const D: usize> {
 }
 
 impl<'o, 'p, const N: usize, const D: usize> LaneObjective<'o, 'p, N, D> {
-    /// Collects the measurements of `objective` in lanes; evaluates with the widest vectors
-    /// this CPU has.
+    /// Collects the measurements of `objective` in lanes; evaluates with
+    /// [`Vectors::preferred`].
     pub fn new(objective: &'o Objective<'p, f64, N, D>) -> Self {
-        Self::with_vectors(objective, Vectors::detected())
+        Self::with_vectors(objective, Vectors::preferred())
     }
 
     /// The same with the given vectors, or the widest this CPU has if it lacks them.
@@ -146,21 +159,37 @@ fn wait_until(mut ready: impl FnMut() -> bool) {
     }
 }
 
+/// An atomic on cache lines of its own (128 bytes: two lines, which some CPUs fetch in pairs), so
+/// that one member writing it does not take from the others the line they spin on.
+#[repr(align(128))]
+#[derive(Default)]
+struct Padded<A>(A);
+
+impl<A> std::ops::Deref for Padded<A> {
+    type Target = A;
+    fn deref(&self) -> &A {
+        &self.0
+    }
+}
+
 /// What the caller and the helpers share during one swarm run.
 struct Shared<const D: usize> {
     /// Bumped by the caller once the particles of a generation are published.
-    generation: AtomicU64,
+    generation: Padded<AtomicU64>,
     /// The next particle to take. Members take blocks of particles (`blocks` per generation),
-    /// so a member slowed down, by the scheduler or by the caller's own work, takes fewer; one
-    /// particle at a time cost a cache-line transfer each (measured: the whole process 28.5-29 ms
-    /// against 25.3 with fixed shares).
-    next: AtomicUsize,
-    /// Blocks a generation's particles are taken in: two per thread asked for.
+    /// so a member slowed down, by the scheduler or by the caller's own work, takes fewer, and one
+    /// that does not wake up in time takes none.
+    next: Padded<AtomicUsize>,
+    /// Blocks a generation's particles are taken in: one per thread asked for (the whole
+    /// `calib calibrate --method ipso` process, `perf stat -r 40`, two threads: 21.3-21.8 ms
+    /// with 2 blocks, 22.5-23.4 with 4, 23.9 with 8, 24.6 with 20; every claim is a cache-line
+    /// transfer, and a generation is about 10 us of work).
     blocks: usize,
-    /// Helpers done with the current generation.
-    finished: AtomicUsize,
+    /// Particles of the current generation evaluated: the caller waits for all of them, not for
+    /// the helpers, so a helper that took nothing (descheduled) does not hold it up.
+    evaluated: Padded<AtomicUsize>,
     /// Set when the run is over (also on an early return).
-    stop: AtomicBool,
+    stop: Padded<AtomicBool>,
     particles: RwLock<Vec<SVector<f64, D>>>,
     /// The costs' bits, one per particle, written by whoever evaluated it.
     costs: RwLock<Vec<AtomicU64>>,
@@ -193,16 +222,16 @@ impl<'o, 'p, const N: usize, const D: usize> SwarmTeam<'_, 'o, 'p, N, D> {
     ) -> R {
         let wanted = threads.max(1);
         let shared = Shared {
-            generation: AtomicU64::new(0),
-            finished: AtomicUsize::new(0),
-            stop: AtomicBool::new(false),
-            next: AtomicUsize::new(0),
-            blocks: 2 * wanted,
+            generation: Padded::default(),
+            evaluated: Padded::default(),
+            stop: Padded::default(),
+            next: Padded::default(),
+            blocks: wanted,
             particles: RwLock::new(Vec::new()),
             costs: RwLock::new(Vec::new()),
         };
         std::thread::scope(|scope| {
-            let _stop = StopOnDrop(&shared.stop);
+            let _stop = StopOnDrop(&shared.stop.0);
             // A helper the system cannot start is one member fewer (never a panic).
             let helpers = (1..wanted)
                 .filter(|_| {
@@ -242,7 +271,6 @@ fn helper<const N: usize, const D: usize>(
         }
         seen = shared.generation.load(Ordering::Acquire);
         take_particles(objective, shared);
-        shared.finished.fetch_add(1, Ordering::AcqRel);
     }
 }
 
@@ -266,6 +294,8 @@ fn take_particles<const N: usize, const D: usize>(
         for (x, cost) in xs.iter().zip(out) {
             cost.store(objective.value(x).to_bits(), Ordering::Relaxed);
         }
+        // Release: the costs stored above are visible to whoever sees the count.
+        shared.evaluated.fetch_add(xs.len(), Ordering::AcqRel);
     }
 }
 
@@ -297,11 +327,12 @@ impl<const N: usize, const D: usize> CostFunction<f64, D> for SwarmTeam<'_, '_, 
                 .unwrap_or_else(PoisonError::into_inner);
             costs.resize_with(xs.len(), || AtomicU64::new(f64::NAN.to_bits()));
         }
+        // The count first: a helper can claim particles as soon as `next` is reset.
+        self.shared.evaluated.store(0, Ordering::Release);
         self.shared.next.store(0, Ordering::Release);
-        self.shared.finished.store(0, Ordering::Release);
         self.shared.generation.fetch_add(1, Ordering::AcqRel);
         take_particles(self.objective, self.shared);
-        wait_until(|| self.shared.finished.load(Ordering::Acquire) + 1 >= self.members);
+        wait_until(|| self.shared.evaluated.load(Ordering::Acquire) >= xs.len());
         let costs = self
             .shared
             .costs
