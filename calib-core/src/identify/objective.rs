@@ -21,6 +21,7 @@ use crate::kinematics::{JointAngles, Kinematics};
 use crate::math::so3;
 use crate::scalar::Real;
 use crate::{KinematicsError, Pose};
+use core::borrow::Borrow;
 use core::fmt;
 use nalgebra::{Matrix3, SVector, Vector3};
 
@@ -256,16 +257,6 @@ impl<T: Real, const N: usize, const L: usize> PoseLanes<T, N, L> {
     }
 }
 
-/// `0 + t_1 + ... + t_L`, lane by lane: the order of every sum of `Objective::value`.
-#[inline(always)]
-fn sum_in_order<T: Real, const L: usize>(terms: &Lanes<T, L>) -> T {
-    let mut sum = T::zero();
-    for term in terms.iter() {
-        sum += *term;
-    }
-    sum
-}
-
 /// Eq. (7) for the parameters of a [`ParameterSet`](crate::ParameterSet) over a set of measurements: the swarm's
 /// view of a [`Problem`].
 #[derive(Clone, Copy, Debug)]
@@ -297,18 +288,8 @@ impl<'p, T: Real, const N: usize, const D: usize> Objective<'p, T, N, D> {
         if !x.iter().all(|v| v.finite()) {
             return T::of(f64::INFINITY);
         }
-        let kinematics = self.problem.kinematics(x);
-        // Sum within groups of GROUP poses, then the groups: the same order for every LANES.
-        self.problem
-            .measurements()
-            .chunks(GROUP)
-            .map(|group| {
-                group.chunks(LANES).fold(T::zero(), |sum, chunk| {
-                    let poses = PoseLanes::<T, N>::gather(chunk);
-                    sum + sum_in_order(&self.lane_terms(&kinematics, &poses))
-                })
-            })
-            .fold(T::zero(), |sum, v| sum + v)
+        let lanes = self.problem.measurements().chunks(LANES);
+        self.sum_in_groups(x, lanes.map(PoseLanes::<T, N>::gather))
     }
 
     /// The measurements in lane layout, `L` poses per item in measurement order (the last one
@@ -333,18 +314,29 @@ impl<'p, T: Real, const N: usize, const D: usize> Objective<'p, T, N, D> {
         x: &SVector<T, D>,
         lanes: &[PoseLanes<T, N, L>],
     ) -> T {
+        self.sum_in_groups(x, lanes)
+    }
+
+    /// Eq. (7) at `x` over poses in lanes: the terms summed within groups of `GROUP` poses, then
+    /// the groups, the same order for every lane width (the padding's terms are +0, which
+    /// changes no sum). Non-finite `x` gives +infinity. Plain loops: a `fold` taking a closure
+    /// stayed a function of its own, compiled without the caller's AVX2 (measured: two thirds
+    /// of the run in it).
+    #[inline(always)]
+    fn sum_in_groups<const L: usize, P: Borrow<PoseLanes<T, N, L>>>(
+        &self,
+        x: &SVector<T, D>,
+        lanes: impl IntoIterator<Item = P>,
+    ) -> T {
         if !x.iter().all(|v| v.finite()) {
             return T::of(f64::INFINITY);
         }
         let kinematics = self.problem.kinematics(x);
-        // The groups of GROUP poses of `value`, summed in its order; the padding's terms are +0,
-        // which changes no sum. Plain loops: a `fold` taking a closure stayed a function of its
-        // own, compiled without the caller's AVX2 (measured: two thirds of the run in it).
         let mut total = T::zero();
         let mut group = T::zero();
         let mut in_group = 0;
         for poses in lanes {
-            let terms = self.lane_terms(&kinematics, poses);
+            let terms = self.lane_terms(&kinematics, poses.borrow());
             for term in terms.iter() {
                 group += *term;
                 in_group += 1;

@@ -131,29 +131,30 @@ fn on_all_cores<R: Send>(count: usize, work: impl Fn(usize) -> R + Sync) -> Vec<
             done.push((i, work(i)));
         }
     };
-    let mut results: Vec<(usize, R)> = std::thread::scope(|scope| {
+    let done: Vec<(usize, R)> = std::thread::scope(|scope| {
         let helpers: Vec<_> = (1..threads)
             .filter_map(|_| std::thread::Builder::new().spawn_scoped(scope, take).ok())
             .collect();
         let mut all = take();
         for helper in helpers {
-            // A helper that panicked lost its folds: they are computed again here.
+            // A helper that panicked lost its indices: they are worked again below.
             if let Ok(done) = helper.join() {
                 all.extend(done);
             }
         }
         all
     });
-    results.sort_by_key(|(i, _)| *i);
-    let mut ordered = Vec::with_capacity(count);
-    let mut results = results.into_iter().peekable();
-    for i in 0..count {
-        match results.next_if(|(j, _)| *j == i) {
-            Some((_, r)) => ordered.push(r),
-            None => ordered.push(work(i)),
+    let mut ordered: Vec<Option<R>> = (0..count).map(|_| None).collect();
+    for (i, r) in done {
+        if let Some(slot) = ordered.get_mut(i) {
+            *slot = Some(r);
         }
     }
     ordered
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| r.unwrap_or_else(|| work(i)))
+        .collect()
 }
 
 #[cfg(test)]

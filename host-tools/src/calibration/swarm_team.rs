@@ -231,7 +231,7 @@ impl<'o, 'p, const N: usize, const D: usize> SwarmTeam<'_, 'o, 'p, N, D> {
             costs: RwLock::new(Vec::new()),
         };
         std::thread::scope(|scope| {
-            let _stop = StopOnDrop(&shared.stop.0);
+            let _stop = StopOnDrop(&shared.stop);
             // A helper the system cannot start is one member fewer (never a panic).
             let helpers = (1..wanted)
                 .filter(|_| {
