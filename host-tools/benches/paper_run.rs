@@ -20,6 +20,7 @@ use calib_core::{ParameterErrors, ParameterSet};
 use criterion::{Criterion, criterion_group, criterion_main};
 use host_tools::calibration::swarm_team::{LaneObjective, SwarmTeam};
 use host_tools::dataset::Dataset;
+use nalgebra::SVector;
 use std::path::Path;
 
 fn paper_run(c: &mut Criterion) {
@@ -48,10 +49,16 @@ fn paper_run(c: &mut Criterion) {
     group.sample_size(10);
     let lanes = LaneObjective::new(&objective);
     let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+    let settings = IpsoSettings::paper();
     let swarm = |threads: usize| {
-        SwarmTeam::run(&lanes, threads, |team| {
-            ipso::optimize::<f64, 20, 24>(team, &space, &IpsoSettings::paper(), &mut Silent)
-                .unwrap()
+        SwarmTeam::run(&lanes, threads, settings.seed, |team, pairs| {
+            let mut x = [SVector::zeros(); 20];
+            let (mut v, mut best) = (x, x);
+            let (mut costs, mut best_costs) = ([0.0; 20], [0.0; 20]);
+            let memory =
+                ipso::SwarmMemory::new(&mut x, &mut v, &mut best, &mut costs, &mut best_costs)
+                    .unwrap();
+            ipso::optimize_drawing(memory, team, pairs, &space, &settings, &mut Silent).unwrap()
         })
     };
     group.bench_function("ipso_20x24x2000_32_poses_f64_all_cores", |b| {
@@ -60,6 +67,18 @@ fn paper_run(c: &mut Criterion) {
     group.bench_function("ipso_20x24x2000_32_poses_f64_one_thread", |b| {
         b.iter(|| swarm(1))
     });
+    // The same team, the random pairs drawn by the swarm itself during its update (as before
+    // the pairs were drawn ahead by a helper).
+    group.bench_function(
+        "ipso_20x24x2000_32_poses_f64_all_cores_pairs_in_update",
+        |b| {
+            b.iter(|| {
+                SwarmTeam::run(&lanes, cores, settings.seed, |team, _| {
+                    ipso::optimize::<f64, 20, 24>(team, &space, &settings, &mut Silent).unwrap()
+                })
+            })
+        },
+    );
     group.finish();
 
     // End to end, as `calib calibrate --robot robots/er10l-c10.toml --data

@@ -9,8 +9,9 @@
 //! f64, half in f32); [`optimize_in`] runs the same algorithm in memory the caller lends
 //! ([`SwarmMemory`]), for a swarm size chosen at run time. `r1, r2` are drawn per
 //! particle and per dimension from `Xoshiro256Plus` (the xoshiro variant meant for floating-point
-//! numbers; the top 53 or 24 bits are used) seeded by the caller, so the same seed and
-//! data give bit-identical results on every target.
+//! numbers; the top 53 or 24 bits are used) seeded by the caller ([`RandomStream`]), so the same
+//! seed and data give bit-identical results on every target; [`optimize_drawing`] takes them
+//! from the caller ([`RandomPairs`]), who may draw a generation's pairs ahead on another core.
 //!
 //! Initialisation: particle `i` (0-based) takes Halton point `start + i` for its position,
 //! `center + (2h - 1) half_width`, and Halton point `start + P + i` (the continuation of the same
@@ -352,6 +353,71 @@ pub fn optimize_in<T, const D: usize>(
 where
     T: Real,
 {
+    let mut random = RandomStream::new(settings.seed);
+    optimize_drawing(memory, cost, &mut random, space, settings, observer)
+}
+
+/// Where a swarm's `r1, r2` come from: pairs of uniform numbers in `[0, 1)` taken in a fixed
+/// order, generation by generation, particle by particle, dimension by dimension (`r1` then
+/// `r2`). [`RandomStream`] draws them as they are taken; a host can draw a generation's pairs
+/// ahead of time on another core ([`RandomStream::fill`] gives the same numbers) while the
+/// particles are evaluated.
+pub trait RandomPairs<T> {
+    /// Called before each generation's update, which then takes exactly `pairs` pairs (the
+    /// number of particles times `D`). The default does nothing.
+    fn generation(&mut self, pairs: usize) {
+        let _ = pairs;
+    }
+
+    /// The next pair `(r1, r2)`.
+    fn pair(&mut self) -> (T, T);
+}
+
+/// The swarm's generator: `Xoshiro256Plus` seeded with [`IpsoSettings::seed`], from which
+/// [`optimize`] and [`optimize_in`] draw. f64 takes the top 53 bits of one draw for `r1` and of
+/// the next for `r2`; f32 takes both from one draw (its top 24 bits and the 24 after them).
+#[derive(Clone, Debug)]
+pub struct RandomStream {
+    rng: Xoshiro256Plus,
+}
+
+impl RandomStream {
+    /// The stream of the swarm run with this seed.
+    pub fn new(seed: u64) -> Self {
+        Self {
+            rng: Xoshiro256Plus::seed_from_u64(seed),
+        }
+    }
+
+    /// The next `out.len()` pairs, as [`RandomPairs::pair`] would give them one by one.
+    pub fn fill<T: Real>(&mut self, out: &mut [(T, T)]) {
+        for pair in out {
+            *pair = T::unit_pair(&mut || self.rng.next_u64());
+        }
+    }
+}
+
+impl<T: Real> RandomPairs<T> for RandomStream {
+    #[inline(always)]
+    fn pair(&mut self) -> (T, T) {
+        T::unit_pair(&mut || self.rng.next_u64())
+    }
+}
+
+/// [`optimize_in`] with `r1, r2` taken from `random` instead of the stream of `settings.seed`
+/// (which is then not used): bit for bit [`optimize_in`]'s result when `random` gives
+/// [`RandomStream::new`]`(settings.seed)`'s pairs in order.
+pub fn optimize_drawing<T, const D: usize>(
+    memory: SwarmMemory<'_, T, D>,
+    cost: &mut impl CostFunction<T, D>,
+    random: &mut impl RandomPairs<T>,
+    space: &SearchSpace<T, D>,
+    settings: &IpsoSettings<T>,
+    observer: &mut impl Observer<T>,
+) -> Result<IpsoResult<T, D>, IpsoError>
+where
+    T: Real,
+{
     let SwarmMemory {
         positions,
         velocities,
@@ -382,7 +448,6 @@ where
     let (mut global, mut global_cost) = best_of(best_positions, best_costs);
     let initial_cost = global_cost;
 
-    let mut rng = Xoshiro256Plus::seed_from_u64(settings.seed);
     let (c1, c2) = (settings.c1, settings.c2);
     let mut generations = 0;
     let mut stalled = 0u32;
@@ -394,6 +459,7 @@ where
     } else {
         while generations < settings.max_generations {
             generations += 1;
+            random.generation(positions.len() * D);
             for ((x, v), pbest) in positions
                 .iter_mut()
                 .zip(velocities.iter_mut())
@@ -408,7 +474,7 @@ where
                     .zip(pbest.as_slice())
                     .zip(global.as_slice())
                 {
-                    let (r1, r2) = T::unit_pair(&mut || rng.next_u64());
+                    let (r1, r2) = random.pair();
                     // Eq. (10): constriction-factor velocity update, then x <- x + v.
                     *vj = k * (*vj + c1 * r1 * (*pj - *xj) + c2 * r2 * (*gj - *xj));
                     *xj += *vj;
@@ -639,6 +705,73 @@ mod tests {
         assert_eq!(uneven.err(), Some(IpsoError::InvalidSize));
         let empty = SwarmMemory::<f64, 24>::new(&mut [], &mut [], &mut [], &mut [], &mut []);
         assert_eq!(empty.err(), Some(IpsoError::InvalidSize));
+    }
+
+    /// A generation's pairs drawn ahead into a buffer (as a host drawing on another core does).
+    struct DrawnAhead {
+        stream: RandomStream,
+        buffer: [(f64, f64); 20 * 24],
+        taken: usize,
+        generations: u32,
+    }
+
+    impl RandomPairs<f64> for DrawnAhead {
+        fn generation(&mut self, pairs: usize) {
+            assert_eq!(pairs, self.buffer.len());
+            self.stream.fill(&mut self.buffer);
+            self.taken = 0;
+            self.generations += 1;
+        }
+
+        fn pair(&mut self) -> (f64, f64) {
+            self.taken += 1;
+            self.buffer[self.taken - 1]
+        }
+    }
+
+    #[test]
+    fn pairs_drawn_ahead_give_the_stream_swarm_bit_for_bit() {
+        // The stream is xoshiro256+ and the top 53 bits of each draw, r1 before r2.
+        let mut rng = Xoshiro256Plus::seed_from_u64(42);
+        let mut first = [(0.0, 0.0); 2];
+        RandomStream::new(42).fill(&mut first);
+        for (r1, r2) in first {
+            assert_eq!(r1, (rng.next_u64() >> 11) as f64 / 9_007_199_254_740_992.0);
+            assert_eq!(r2, (rng.next_u64() >> 11) as f64 / 9_007_199_254_740_992.0);
+        }
+
+        let mut settings = IpsoSettings::<f64>::paper();
+        settings.max_generations = 300;
+        settings.seed = 42;
+        let drawn = optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent);
+        let mut ahead = DrawnAhead {
+            stream: RandomStream::new(42),
+            buffer: [(0.0, 0.0); 20 * 24],
+            taken: 0,
+            generations: 0,
+        };
+        let (mut x, mut v, mut p) = (
+            [SVector::zeros(); 20],
+            [SVector::zeros(); 20],
+            [SVector::zeros(); 20],
+        );
+        let (mut c, mut pc) = ([0.0; 20], [0.0; 20]);
+        let memory = SwarmMemory::new(&mut x, &mut v, &mut p, &mut c, &mut pc).unwrap();
+        // The seed in the settings is not used: the pairs come from `ahead`.
+        settings.seed = 7;
+        let result = optimize_drawing(
+            memory,
+            &mut quadratic,
+            &mut ahead,
+            &space(),
+            &settings,
+            &mut Silent,
+        );
+        assert_eq!(ahead.generations, 300);
+        assert_eq!(result, drawn);
+        let (result, drawn) = (result.unwrap(), drawn.unwrap());
+        assert_eq!(result.best_cost.to_bits(), drawn.best_cost.to_bits());
+        assert!(result.best_cost < 1e-3 * result.initial_cost);
     }
 
     #[test]

@@ -517,8 +517,8 @@ fn run_swarm<const N: usize, const D: usize>(
     let threads = std::thread::available_parallelism()
         .map_or(1, std::num::NonZero::get)
         .min(particles);
-    let result = SwarmTeam::run(&lanes, threads, |team| {
-        ipso::optimize_in(memory, team, &space, &settings, &mut observer)
+    let result = SwarmTeam::run(&lanes, threads, settings.seed, |team, pairs| {
+        ipso::optimize_drawing(memory, team, pairs, &space, &settings, &mut observer)
     })?;
     bar.finish_and_clear();
     let summary = SwarmSummary {
