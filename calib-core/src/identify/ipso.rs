@@ -392,7 +392,7 @@ impl RandomStream {
     /// The next `out.len()` pairs, as [`RandomPairs::pair`] would give them one by one.
     pub fn fill<T: Real>(&mut self, out: &mut [(T, T)]) {
         for pair in out {
-            *pair = T::unit_pair(&mut || self.rng.next_u64());
+            *pair = RandomPairs::<T>::pair(self);
         }
     }
 }

@@ -452,19 +452,18 @@ impl<const N: usize, const D: usize> CostFunction<f64, D> for SwarmTeam<'_, '_, 
     }
 
     fn cost_batch(&mut self, xs: &[SVector<f64, D>], out: &mut [f64]) {
-        if self.members == 1 || xs.len() < 2 {
+        let evaluate_here = |out: &mut [f64]| {
             for (c, x) in out.iter_mut().zip(xs) {
                 *c = self.objective.value(x);
             }
-            return;
+        };
+        if self.members == 1 || xs.len() < 2 {
+            return evaluate_here(out);
         }
         let slots = self.shared.slots.get_or_init(|| Slots::new(xs.len(), D));
         if slots.particles() != xs.len() {
             // Not the swarm the slots were made for: evaluated here.
-            for (c, x) in out.iter_mut().zip(xs) {
-                *c = self.objective.value(x);
-            }
-            return;
+            return evaluate_here(out);
         }
         // The caller takes the first block before publishing, and evaluates it from `xs`: only
         // the others' coordinates are copied (the lines a helper reads have to move between
