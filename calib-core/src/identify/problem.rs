@@ -99,6 +99,7 @@ impl<'a, T: Real, const N: usize, const D: usize> Problem<'a, T, N, D> {
     }
 
     /// All errors for the packed vector `x`: the fixed values with the identified ones replaced.
+    #[cfg_attr(not(target_arch = "arm"), inline(always))]
     pub fn errors(&self, x: &SVector<T, D>) -> ParameterErrors<T, N> {
         let mut errors = self.fixed;
         self.set.unpack_into(x, &mut errors);
@@ -106,6 +107,7 @@ impl<'a, T: Real, const N: usize, const D: usize> Problem<'a, T, N, D> {
     }
 
     /// The actual model at the packed errors `x`.
+    #[cfg_attr(not(target_arch = "arm"), inline(always))]
     pub fn kinematics(&self, x: &SVector<T, D>) -> Kinematics<T, N> {
         self.robot.actual(&self.errors(x))
     }

@@ -61,6 +61,7 @@ pub struct Kinematics<T: Real, const N: usize> {
 }
 
 /// A frame with the rotation-error axes of its `R_nominal Rz(rz) Ry(ry) Rx(rx)` parametrisation.
+#[cfg_attr(not(target_arch = "arm"), inline(always))]
 fn frame_with_errors<T: Real>(nominal: &Pose<T>, errors: &FrameErrors<T>) -> (Pose<T>, Matrix3<T>) {
     let zero = |v: &[T; 3]| v.iter().all(|x| *x == T::zero());
     if zero(&errors.translation) && zero(&errors.rotation) {
@@ -137,6 +138,7 @@ impl<T: Real, const N: usize> PreparedRobot<T, N> {
     /// addition and the small-angle polynomial of `trig::sin_cos_small`, so for errors within
     /// 0.1 rad no libm call is made. Non-finite errors give a model that evaluates to NaN (no panic);
     /// [`Kinematics::new`] checks them first.
+    #[cfg_attr(not(target_arch = "arm"), inline(always))]
     pub fn actual(&self, errors: &ParameterErrors<T, N>) -> Kinematics<T, N> {
         let mut joints = [PreparedJoint::from_trig(
             T::zero(),

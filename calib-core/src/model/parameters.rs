@@ -248,6 +248,7 @@ impl<T: Real, const N: usize> ParameterErrors<T, N> {
 
     /// Sets the error of one parameter; returns `false` (and changes nothing) for a joint number
     /// outside `1..=N`.
+    #[cfg_attr(not(target_arch = "arm"), inline(always))]
     pub fn set(&mut self, parameter: Parameter, value: T) -> bool {
         let slot = match parameter {
             Parameter::Joint { joint, kind } => {
@@ -481,6 +482,7 @@ impl<const N: usize, const D: usize> ParameterSet<N, D> {
     }
 
     /// Writes the packed values into `errors`, leaving parameters outside the set unchanged.
+    #[cfg_attr(not(target_arch = "arm"), inline(always))]
     pub fn unpack_into<T: Real>(&self, x: &SVector<T, D>, errors: &mut ParameterErrors<T, N>) {
         for (xi, p) in x.iter().zip(&self.parameters) {
             errors.set(*p, *xi);

@@ -117,9 +117,7 @@ pub fn cross_validate<const N: usize, const D: usize>(
 /// from a shared counter; the calling thread is one of them, and a thread the system refuses is
 /// one fewer), returned in index order.
 fn on_all_cores<R: Send>(count: usize, work: impl Fn(usize) -> R + Sync) -> Vec<R> {
-    let threads = std::thread::available_parallelism()
-        .map_or(1, std::num::NonZeroUsize::get)
-        .min(count);
+    let threads = super::cores().min(count);
     let next = AtomicUsize::new(0);
     let take = || {
         let mut done = Vec::new();

@@ -448,6 +448,14 @@ pub(crate) fn identified_robot<const N: usize>(
     file
 }
 
+/// The cores this process may run on ([`std::thread::available_parallelism`], 1 when unknown),
+/// asked once per process: every asking reads the cgroup's CPU quota files (25-60 us each,
+/// measured on this machine), and a calibration asks for the swarm and the cross-validation.
+pub(crate) fn cores() -> usize {
+    static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, std::num::NonZero::get))
+}
+
 /// The swarm's outcome.
 struct SwarmRun<const D: usize> {
     summary: SwarmSummary,
@@ -514,11 +522,9 @@ fn run_swarm<const N: usize, const D: usize>(
         &mut best_costs,
     )?;
     let lanes = LaneObjective::new(objective);
-    let threads = std::thread::available_parallelism()
-        .map_or(1, std::num::NonZero::get)
-        .min(particles);
+    let threads = cores().min(particles);
     let result = SwarmTeam::run(&lanes, threads, settings.seed, |team, pairs| {
-        ipso::optimize_drawing(memory, team, pairs, &space, &settings, &mut observer)
+        team.optimize(memory, pairs, &space, &settings, &mut observer)
     })?;
     bar.finish_and_clear();
     let summary = SwarmSummary {
