@@ -40,6 +40,15 @@ pub trait CostFunction<T: Real, const D: usize> {
             *c = self.cost(x);
         }
     }
+
+    /// Told by the swarm, during a generation's update, that particle `index` has its new
+    /// position `x` (final for this generation; the particles come in order, from 0, and
+    /// [`CostFunction::cost_batch`] then asks for all of them). A host evaluating on other
+    /// threads starts on the first particles while the others are updated. The default does
+    /// nothing.
+    fn position_ready(&mut self, index: usize, x: &SVector<T, D>) {
+        let _ = (index, x);
+    }
 }
 
 impl<T: Real, const D: usize, F: FnMut(&SVector<T, D>) -> T> CostFunction<T, D> for F {
@@ -474,10 +483,11 @@ where
         while generations < settings.max_generations {
             generations += 1;
             random.generation(positions.len() * D);
-            for ((x, v), pbest) in positions
+            for (index, ((x, v), pbest)) in positions
                 .iter_mut()
                 .zip(velocities.iter_mut())
                 .zip(best_positions.iter())
+                .enumerate()
             {
                 // Eq. (10): constriction-factor velocity update, then x <- x + v.
                 let step = |xj: &mut T, vj: &mut T, pj: T, gj: T, (r1, r2): (T, T)| {
@@ -506,6 +516,7 @@ where
                     step(xj, vj, *pj, *gj, random.pair());
                 }
                 clamp(x, v, space);
+                cost.position_ready(index, x);
             }
             cost.cost_batch(positions, costs);
             evaluations += particles;
@@ -814,6 +825,48 @@ mod tests {
         let (result, drawn) = (result.unwrap(), drawn.unwrap());
         assert_eq!(result.best_cost.to_bits(), drawn.best_cost.to_bits());
         assert!(result.best_cost < 1e-3 * result.initial_cost);
+    }
+
+    /// A cost function is told each particle's new position during the update, in order, and
+    /// they are the positions `cost_batch` then asks for (none before the initial swarm's).
+    #[test]
+    fn positions_are_announced_in_order_before_their_costs() {
+        struct Announced {
+            seen: [SVector<f64, 24>; 20],
+            next: usize,
+            batches: u32,
+        }
+        impl CostFunction<f64, 24> for Announced {
+            fn cost(&mut self, x: &SVector<f64, 24>) -> f64 {
+                quadratic(x)
+            }
+            fn position_ready(&mut self, index: usize, x: &SVector<f64, 24>) {
+                assert_eq!(index, self.next);
+                self.seen[index] = *x;
+                self.next += 1;
+            }
+            fn cost_batch(&mut self, xs: &[SVector<f64, 24>], out: &mut [f64]) {
+                let announced = if self.batches == 0 { 0 } else { xs.len() };
+                assert_eq!(self.next, announced);
+                assert_eq!(&self.seen[..announced], &xs[..announced]);
+                self.next = 0;
+                self.batches += 1;
+                for (x, c) in xs.iter().zip(out) {
+                    *c = quadratic(x);
+                }
+            }
+        }
+        let mut settings = IpsoSettings::<f64>::paper();
+        settings.max_generations = 50;
+        let mut announced = Announced {
+            seen: [SVector::zeros(); 20],
+            next: 0,
+            batches: 0,
+        };
+        let told = optimize::<f64, 20, 24>(&mut announced, &space(), &settings, &mut Silent);
+        let plain = optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent);
+        assert_eq!(announced.batches, 51);
+        assert_eq!(told, plain);
     }
 
     #[test]
