@@ -58,7 +58,8 @@ fn paper_run(c: &mut Criterion) {
             let memory =
                 ipso::SwarmMemory::new(&mut x, &mut v, &mut best, &mut costs, &mut best_costs)
                     .unwrap();
-            ipso::optimize_drawing(memory, team, pairs, &space, &settings, &mut Silent).unwrap()
+            team.optimize(memory, pairs, &space, &settings, &mut Silent)
+                .unwrap()
         })
     };
     group.bench_function("ipso_20x24x2000_32_poses_f64_all_cores", |b| {

@@ -386,10 +386,11 @@ impl<'o, 'p, const N: usize, const D: usize> SwarmTeam<'_, 'o, 'p, N, D> {
         self.members
     }
 
-    /// [`ipso::optimize_drawing`] with this team as the cost and `pairs`, compiled for the
-    /// objective's [`Vectors`]: the swarm's update between generations (velocities, positions,
-    /// walls: on the caller alone, while the helpers wait) runs in the wider vectors too. Same
-    /// operations, same roundings: the same swarm bit for bit (test `team_evaluates_bit_for_bit`).
+    /// [`ipso::optimize_drawing`] with this team as the cost and `pairs`, compiled for AVX-512
+    /// when the objective evaluates with it ([`Vectors::Avx512`]; otherwise the baseline): the
+    /// swarm's update between generations (velocities, positions, walls: on the caller alone)
+    /// then vectorises too. Same operations, same roundings: the same swarm bit for bit (test
+    /// `team_evaluates_bit_for_bit`).
     pub fn optimize(
         &mut self,
         memory: SwarmMemory<'_, f64, D>,
@@ -399,38 +400,17 @@ impl<'o, 'p, const N: usize, const D: usize> SwarmTeam<'_, 'o, 'p, N, D> {
         observer: &mut impl Observer<f64>,
     ) -> Result<IpsoResult<f64, D>, IpsoError> {
         #[cfg(target_arch = "x86_64")]
-        match self.objective.vectors() {
+        if self.objective.vectors() == Vectors::Avx512 {
             // SAFETY: an objective keeps only vectors `Vectors::detected` found on this CPU.
-            Vectors::Avx512 => {
-                return unsafe { optimize_avx512(memory, self, pairs, space, settings, observer) };
-            }
-            // SAFETY: as above.
-            Vectors::Avx2 => {
-                return unsafe { optimize_avx2(memory, self, pairs, space, settings, observer) };
-            }
-            Vectors::Baseline => {}
+            return unsafe { optimize_avx512(memory, self, pairs, space, settings, observer) };
         }
         ipso::optimize_drawing(memory, self, pairs, space, settings, observer)
     }
 }
 
-/// [`ipso::optimize_drawing`] compiled for AVX2 (it is inlined on a PC).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn optimize_avx2<const N: usize, const D: usize>(
-    memory: SwarmMemory<'_, f64, D>,
-    team: &mut SwarmTeam<'_, '_, '_, N, D>,
-    pairs: &mut TeamPairs<'_, D>,
-    space: &SearchSpace<f64, D>,
-    settings: &IpsoSettings<f64>,
-    observer: &mut impl Observer<f64>,
-) -> Result<IpsoResult<f64, D>, IpsoError> {
-    ipso::optimize_drawing(memory, team, pairs, space, settings, observer)
-}
-
-/// [`ipso::optimize_drawing`] compiled for AVX2 with AVX-512F/VL: the update of the paper's
-/// swarm alone, its pairs ready, 0.97 ms per run against 1.37 in the baseline's SSE2 (a scratch
-/// criterion bench; 1.52 before the pairs were taken a particle at a time).
+/// [`ipso::optimize_drawing`] (inlined on a PC) compiled for AVX2 with AVX-512F/VL: the update
+/// of the paper's swarm alone, its pairs ready, 0.97 ms per run against 1.37 in the baseline's
+/// SSE2 (a scratch criterion bench; 1.52 before the pairs were taken a particle at a time).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,avx512f,avx512vl")]
 fn optimize_avx512<const N: usize, const D: usize>(
