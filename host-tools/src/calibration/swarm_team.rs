@@ -558,6 +558,20 @@ impl<const N: usize, const D: usize> SwarmTeam<'_, '_, '_, N, D> {
         }
     }
 
+    /// Ends a generation [`CostFunction::position_ready`] started that no `cost_batch` of its
+    /// swarm completed (another swarm's batch came, or a new generation): every particle marked
+    /// ready (the members evaluate what the slots hold; those costs are not used), then waited
+    /// for, so that no member is still in it when the next generation resets the counts.
+    fn settle(&mut self) {
+        if self.started.take().is_some()
+            && let Some(slots) = self.shared.slots.get()
+        {
+            let (_, published) = split(slots.particles(), self.shared.blocks);
+            self.shared.ready.store(published, Ordering::Release);
+            self.finish_generation(published);
+        }
+    }
+
     /// Waits until the members have evaluated the `published` particles, taking the blocks
     /// nobody has taken.
     fn finish_generation(&self, published: usize) {
@@ -583,6 +597,7 @@ impl<const N: usize, const D: usize> CostFunction<f64, D> for SwarmTeam<'_, '_, 
             return; // the first generation: published by `cost_batch`
         };
         if index == 0 {
+            self.settle();
             self.start_generation();
             self.started = Some(0);
         }
@@ -596,29 +611,22 @@ impl<const N: usize, const D: usize> CostFunction<f64, D> for SwarmTeam<'_, '_, 
     }
 
     fn cost_batch(&mut self, xs: &[SVector<f64, D>], out: &mut [f64]) {
-        let started = self.started.take();
-        let evaluate_here = |out: &mut [f64]| {
+        let slots = (self.members > 1 && xs.len() > 1)
+            .then(|| self.shared.slots.get_or_init(|| Slots::new(xs.len(), D)))
+            .filter(|slots| slots.particles() == xs.len());
+        let Some(slots) = slots else {
+            // A team of one, a swarm of one particle, or not the swarm the slots were made
+            // for: evaluated here.
+            self.settle();
             for (c, x) in out.iter_mut().zip(xs) {
                 *c = self.objective.value(x);
             }
+            return;
         };
-        if self.members == 1 || xs.len() < 2 {
-            return evaluate_here(out);
-        }
-        let slots = self.shared.slots.get_or_init(|| Slots::new(xs.len(), D));
         let (_, published) = split(slots.particles(), self.shared.blocks);
-        if slots.particles() != xs.len() {
-            // Not the swarm the slots were made for: evaluated here, after the members have
-            // settled a generation `position_ready` started (its costs are not used).
-            if started.is_some() {
-                self.shared.ready.store(published, Ordering::Release);
-                self.finish_generation(published);
-            }
-            return evaluate_here(out);
-        }
         // The particles `position_ready` has not published (all of them in the first
         // generation), then all marked ready at once.
-        let done = match started {
+        let done = match self.started.take() {
             Some(done) => done,
             None => {
                 self.start_generation();
@@ -863,6 +871,47 @@ mod tests {
     ) -> Result<ipso::IpsoResult<f64, 24>, ipso::IpsoError> {
         let mut memory = swarm_memory(particles);
         team.optimize(memory.lend(), pairs, space, settings, &mut Silent)
+    }
+
+    /// A generation `position_ready` started and its swarm did not complete (a batch of another
+    /// size came, or the next generation started) is settled: no member is left waiting in it,
+    /// and every batch's costs are the objective's.
+    #[test]
+    fn a_generation_left_unfinished_is_settled() {
+        with_paper_objective(|_, objective| {
+            let lanes = LaneObjective::new(objective);
+            let xs: Vec<SVector<f64, 24>> = (0..20)
+                .map(|i| SVector::from_fn(|j, _| 1e-3 * (i as f64 - 9.5) * ((j % 3) as f64 - 1.0)))
+                .collect();
+            let expected: Vec<u64> = xs.iter().map(|x| objective.value(x).to_bits()).collect();
+            // Positions announced and then given up: not the ones asked for afterwards.
+            let other: Vec<SVector<f64, 24>> = xs.iter().map(|x| x * 2.0).collect();
+            let batches = SwarmTeam::run(&lanes, 2, 1, |team, _| {
+                let mut costs = vec![0.0; 20];
+                team.cost_batch(&xs, &mut costs);
+                let mut batches = vec![costs.clone()];
+                // Three particles announced, then a batch of one particle.
+                for (i, x) in other.iter().enumerate().take(3) {
+                    team.position_ready(i, x);
+                }
+                let mut one = [0.0];
+                team.cost_batch(&xs[5..6], &mut one);
+                batches.push(one.to_vec());
+                // Four announced, four again from the start, then the whole batch.
+                for announced in [&other, &xs] {
+                    for (i, x) in announced.iter().enumerate().take(4) {
+                        team.position_ready(i, x);
+                    }
+                }
+                team.cost_batch(&xs, &mut costs);
+                batches.push(costs);
+                batches
+            });
+            let bits = |costs: &[f64]| costs.iter().map(|c| c.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&batches[0]), expected);
+            assert_eq!(bits(&batches[1]), [expected[5]]);
+            assert_eq!(bits(&batches[2]), expected);
+        });
     }
 
     /// The pairs come in the stream's order whatever the swarm announces: drawn ahead, drawn
