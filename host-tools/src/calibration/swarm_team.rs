@@ -231,14 +231,21 @@ struct Shared<const D: usize> {
 struct Slots {
     coordinates: Box<[AtomicU64]>,
     costs: Box<[AtomicU64]>,
+    /// The generation's split among the members ([`split`]), fixed with the slots: the block
+    /// size, and the particles published (all but the caller's block).
+    block: usize,
+    published: usize,
 }
 
 impl Slots {
-    fn new(particles: usize, dimension: usize) -> Self {
+    fn new(particles: usize, dimension: usize, blocks: usize) -> Self {
         let bits = |n: usize| (0..n).map(|_| AtomicU64::new(f64::NAN.to_bits())).collect();
+        let (block, published) = split(particles, blocks);
         Self {
             coordinates: bits(particles * dimension),
             costs: bits(particles),
+            block,
+            published,
         }
     }
 
@@ -501,7 +508,7 @@ fn take_particles<const N: usize, const D: usize>(
     let Some(slots) = shared.slots.get() else {
         return;
     };
-    let (block, published) = split(slots.particles(), shared.blocks);
+    let (block, published) = (slots.block, slots.published);
     loop {
         // Acquire: `ready` was reset before `next` was.
         let start = shared.next.fetch_add(block, Ordering::AcqRel);
@@ -566,9 +573,8 @@ impl<const N: usize, const D: usize> SwarmTeam<'_, '_, '_, N, D> {
         if self.started.take().is_some()
             && let Some(slots) = self.shared.slots.get()
         {
-            let (_, published) = split(slots.particles(), self.shared.blocks);
-            self.shared.ready.store(published, Ordering::Release);
-            self.finish_generation(published);
+            self.shared.ready.store(slots.published, Ordering::Release);
+            self.finish_generation(slots.published);
         }
     }
 
@@ -601,8 +607,7 @@ impl<const N: usize, const D: usize> CostFunction<f64, D> for SwarmTeam<'_, '_, 
             self.start_generation();
             self.started = Some(0);
         }
-        let (_, published) = split(slots.particles(), self.shared.blocks);
-        if self.started == Some(index) && index < published {
+        if self.started == Some(index) && index < slots.published {
             Self::store_coordinates(slots, index, x);
             // Release: with the coordinates above.
             self.shared.ready.store(index + 1, Ordering::Release);
@@ -612,7 +617,11 @@ impl<const N: usize, const D: usize> CostFunction<f64, D> for SwarmTeam<'_, '_, 
 
     fn cost_batch(&mut self, xs: &[SVector<f64, D>], out: &mut [f64]) {
         let slots = (self.members > 1 && xs.len() > 1)
-            .then(|| self.shared.slots.get_or_init(|| Slots::new(xs.len(), D)))
+            .then(|| {
+                self.shared
+                    .slots
+                    .get_or_init(|| Slots::new(xs.len(), D, self.shared.blocks))
+            })
             .filter(|slots| slots.particles() == xs.len());
         let Some(slots) = slots else {
             // A team of one, a swarm of one particle, or not the swarm the slots were made
@@ -623,7 +632,7 @@ impl<const N: usize, const D: usize> CostFunction<f64, D> for SwarmTeam<'_, '_, 
             }
             return;
         };
-        let (_, published) = split(slots.particles(), self.shared.blocks);
+        let published = slots.published;
         // The particles `position_ready` has not published (all of them in the first
         // generation), then all marked ready at once.
         let done = match self.started.take() {
