@@ -223,7 +223,9 @@ pub struct LeastSquares<'p, T: Real, const N: usize, const D: usize> {
 
 /// Triangular factor, `Q^T r` and `|r|^2` of the stacked residual, accumulated row by row.
 struct Factor<T: Real, const D: usize> {
-    r: SMatrix<T, D, D>,
+    /// `R` transposed: column `i` holds row `i` of `R`, contiguous in memory, which is what a
+    /// rotation updates (so the update is a loop over two slices, vectorised on a PC).
+    rt: SMatrix<T, D, D>,
     qtr: SVector<T, D>,
     sum_squares: T,
 }
@@ -231,10 +233,15 @@ struct Factor<T: Real, const D: usize> {
 impl<T: Real, const D: usize> Factor<T, D> {
     fn new() -> Self {
         Self {
-            r: SMatrix::zeros(),
+            rt: SMatrix::zeros(),
             qtr: SVector::zeros(),
             sum_squares: T::zero(),
         }
+    }
+
+    /// The upper triangular factor `R`.
+    fn r(&self) -> SMatrix<T, D, D> {
+        self.rt.transpose()
     }
 
     /// Rotates the row `(a, b)` (Jacobian row and residual) into `R` and `Q^T r`.
@@ -271,18 +278,19 @@ impl<T: Real, const D: usize> Factor<T, D> {
         if ai == T::zero() {
             return;
         }
-        let rii = self.r.get((i, i)).copied().unwrap_or_else(T::zero);
+        let (Some(r_row), Some(a_row)) = (
+            self.rt.as_mut_slice().get_mut(i * D + i..(i + 1) * D),
+            a.as_mut_slice().get_mut(i..),
+        ) else {
+            return;
+        };
+        let rii = r_row.first().copied().unwrap_or_else(T::zero);
         let h = rii.hypot(ai);
         let (c, s) = (rii / h, ai / h);
-        for j in i..D {
-            if let (Some(rij), Some(aj)) = (self.r.get((i, j)).copied(), a.get(j).copied()) {
-                if let Some(v) = self.r.get_mut((i, j)) {
-                    *v = c * rij + s * aj;
-                }
-                if let Some(v) = a.get_mut(j) {
-                    *v = c * aj - s * rij;
-                }
-            }
+        for (rij, aj) in r_row.iter_mut().zip(a_row.iter_mut()) {
+            let (r, a) = (*rij, *aj);
+            *rij = c * r + s * a;
+            *aj = c * a - s * r;
         }
         if let Some(q) = self.qtr.get_mut(i) {
             let qi = *q;
@@ -292,10 +300,10 @@ impl<T: Real, const D: usize> Factor<T, D> {
     }
 }
 
-/// Rows rotated into the factor at once ([`Factor::add_rows`]): 4 on a PC, whose processors
+/// Rows rotated into the factor at once ([`Factor::add_rows`]): 8 on a PC, whose processors
 /// overlap the rows' rotations; 1 on ARM (the controller's core runs in order: the rows one
 /// after the other, [`Factor::add_row`]).
-const ROWS_AT_ONCE: usize = if cfg!(target_arch = "arm") { 1 } else { 4 };
+const ROWS_AT_ONCE: usize = if cfg!(target_arch = "arm") { 1 } else { 8 };
 
 /// Rows on their way into a [`Factor`], rotated in [`ROWS_AT_ONCE`] at a time: the same bits as
 /// adding them one by one.
@@ -445,7 +453,7 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
     /// The triangular factor `R` of the Jacobian at `x` (`J = Q R`), for the identifiability
     /// analysis.
     pub fn jacobian_factor(&self, x: &SVector<T, D>) -> SMatrix<T, D, D> {
-        self.factor(x, &[]).r
+        self.factor(x, &[]).r()
     }
 
     fn factor(&self, x: &SVector<T, D>, robust: &[T]) -> Factor<T, D> {
@@ -552,7 +560,8 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
             return Err(LmError::NonFinite);
         }
         let initial_cost = cost;
-        let mut scale = column_norms(&factor.r);
+        let mut r = factor.r();
+        let mut scale = column_norms(&r);
         if let Some(i) = scale.iter().position(|s| *s == T::zero()) {
             return Err(LmError::UnobservableParameter(
                 u16::try_from(i).unwrap_or(u16::MAX),
@@ -565,7 +574,7 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
             if cost == T::zero() {
                 break LmStop::ZeroResidual;
             }
-            if gradient_cosine(&factor, cost) <= settings.gtol {
+            if gradient_cosine(&factor, &r, cost) <= settings.gtol {
                 break LmStop::Gradient;
             }
             if iterations >= settings.max_iterations {
@@ -582,7 +591,7 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
             }
             // Predicted reduction 0.5 (|Q^T r|^2 - |R delta + Q^T r|^2).
             let predicted =
-                half * (factor.qtr.norm_squared() - (factor.r * delta + factor.qtr).norm_squared());
+                half * (factor.qtr.norm_squared() - (r * delta + factor.qtr).norm_squared());
             let candidate = x + delta;
             let candidate_cost = self.weighted_cost(&candidate, robust);
             evaluations += 1;
@@ -596,9 +605,10 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
                 x = candidate;
                 let previous = cost;
                 factor = self.factor(&x, robust);
+                r = factor.r();
                 evaluations += 1;
                 cost = factor.sum_squares * half;
-                for (s, n) in scale.iter_mut().zip(column_norms(&factor.r).iter()) {
+                for (s, n) in scale.iter_mut().zip(column_norms(&r).iter()) {
                     *s = s.max(*n);
                 }
                 let t = T::of(2.0) * rho - T::one();
@@ -623,19 +633,23 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
             evaluations,
             rows,
             stop,
-            r: factor.r,
+            r,
         })
     }
 }
 
 /// MINPACK's scaled gradient test value `max_i |J_i^T r| / (|J_i| |r|)` at a factor with
-/// `0.5 |r|^2 = cost`; `J^T r = R^T Q^T r`.
-fn gradient_cosine<T: Real, const D: usize>(factor: &Factor<T, D>, cost: T) -> T {
-    let gradient = factor.r.transpose() * factor.qtr;
+/// `0.5 |r|^2 = cost` whose triangular factor is `r`; `J^T r = R^T Q^T r`.
+fn gradient_cosine<T: Real, const D: usize>(
+    factor: &Factor<T, D>,
+    r: &SMatrix<T, D, D>,
+    cost: T,
+) -> T {
+    let gradient = r.transpose() * factor.qtr;
     let r_norm = (T::of(2.0) * cost).sqrt();
     gradient
         .iter()
-        .zip(column_norms(&factor.r).iter())
+        .zip(column_norms(r).iter())
         .map(|(g, n)| {
             if *n > T::zero() {
                 g.abs() / (*n * r_norm)
@@ -659,7 +673,7 @@ fn damped_step<T: Real, const D: usize>(
     lambda: T,
 ) -> Option<SVector<T, D>> {
     let mut damped = Factor {
-        r: factor.r,
+        rt: factor.rt,
         qtr: factor.qtr,
         sum_squares: T::zero(),
     };
@@ -673,7 +687,7 @@ fn damped_step<T: Real, const D: usize>(
         batch.push(&mut damped, row, T::zero());
     }
     batch.finish(&mut damped);
-    let solution = damped.r.solve_upper_triangular(&damped.qtr)?;
+    let solution = damped.r().solve_upper_triangular(&damped.qtr)?;
     let delta = -solution;
     delta.iter().all(|v| v.finite()).then_some(delta)
 }
@@ -801,14 +815,14 @@ mod tests {
             jtr += a * b;
             factor.add_row(a, b);
         }
-        assert!((factor.r.transpose() * factor.r - jtj).abs().max() < 1e-13);
-        assert!((factor.r.transpose() * factor.qtr - jtr).abs().max() < 1e-13);
+        assert!((factor.r().transpose() * factor.r() - jtj).abs().max() < 1e-13);
+        assert!((factor.r().transpose() * factor.qtr - jtr).abs().max() < 1e-13);
         // Upper triangular: every entry below the diagonal is exactly zero, the diagonal is not.
         for i in 0..3 {
             for j in 0..i {
-                assert_eq!(factor.r[(i, j)], 0.0, "R[({i}, {j})]");
+                assert_eq!(factor.r()[(i, j)], 0.0, "R[({i}, {j})]");
             }
-            assert!(factor.r[(i, i)].abs() > 0.1, "R[({i}, {i})]");
+            assert!(factor.r()[(i, i)].abs() > 0.1, "R[({i}, {i})]");
         }
         // |r|^2 is accumulated exactly as the sum of the squared residuals (1 + 4 + 0.25 + 9).
         assert_eq!(factor.sum_squares, 14.25);
@@ -841,7 +855,7 @@ mod tests {
                 batched.add_rows(&mut chunk);
             }
             let bits = |f: &Factor<f64, 6>| {
-                let mut v: std::vec::Vec<u64> = f.r.iter().map(|x| x.to_bits()).collect();
+                let mut v: std::vec::Vec<u64> = f.rt.iter().map(|x| x.to_bits()).collect();
                 v.extend(f.qtr.iter().map(|x| x.to_bits()));
                 v.push(f.sum_squares.to_bits());
                 v
@@ -854,7 +868,7 @@ mod tests {
             batch.push(&mut pushed, *a, *b);
         }
         batch.finish(&mut pushed);
-        assert_eq!(pushed.r, one_by_one.r);
+        assert_eq!(pushed.rt, one_by_one.rt);
         assert_eq!(pushed.qtr, one_by_one.qtr);
     }
 
