@@ -131,7 +131,7 @@ fn on_all_cores<R: Send>(count: usize, work: impl Fn(usize) -> R + Sync) -> Vec<
     };
     let done: Vec<(usize, R)> = std::thread::scope(|scope| {
         let helpers: Vec<_> = (1..threads)
-            .filter_map(|_| std::thread::Builder::new().spawn_scoped(scope, take).ok())
+            .filter_map(|_| super::helper_threads::spawn(scope, "calib-folds", take))
             .collect();
         let mut all = take();
         for helper in helpers {

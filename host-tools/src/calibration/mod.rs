@@ -48,6 +48,7 @@
 
 mod config;
 pub mod cross_validation;
+mod helper_threads;
 pub mod maps;
 pub mod plausibility;
 mod result;

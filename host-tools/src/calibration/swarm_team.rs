@@ -357,17 +357,13 @@ impl<'o, 'p, const N: usize, const D: usize> SwarmTeam<'_, 'o, 'p, N, D> {
         std::thread::scope(|scope| {
             let _stop = StopOnDrop(&shared.stop);
             // A helper the system cannot start is one member fewer (never a panic).
-            let caller_cpu = current_cpu();
             let helpers = (1..wanted)
                 .filter(|_| {
                     let shared = &shared;
-                    std::thread::Builder::new()
-                        .name("calib-swarm".into())
-                        .spawn_scoped(scope, move || {
-                            keep_off(caller_cpu);
-                            helper(objective, shared)
-                        })
-                        .is_ok()
+                    super::helper_threads::spawn(scope, "calib-swarm", move || {
+                        helper(objective, shared);
+                    })
+                    .is_some()
                 })
                 .count();
             let members = 1 + helpers;
@@ -429,43 +425,6 @@ fn optimize_avx512<const N: usize, const D: usize>(
     observer: &mut impl Observer<f64>,
 ) -> Result<IpsoResult<f64, D>, IpsoError> {
     ipso::optimize_drawing(memory, team, pairs, space, settings, observer)
-}
-
-/// The CPU the calling thread runs on, where the system says.
-fn current_cpu() -> Option<usize> {
-    #[cfg(target_os = "linux")]
-    {
-        nix::sched::sched_getcpu().ok()
-    }
-    #[cfg(not(target_os = "linux"))]
-    {
-        None
-    }
-}
-
-/// Keeps the calling helper off `cpu` (the caller's CPU when the team started), where the system
-/// allows it; nothing happens when `cpu` is the only one allowed, or unknown.
-///
-/// A new thread starts on its parent's CPU and is moved to an idle one only when the scheduler
-/// balances its load, a few milliseconds later; until then the caller and the helper share one
-/// CPU and each spins while the other cannot run. Measured on this 2-vCPU machine with a scratch
-/// program that runs the paper's swarm on a team once in a fresh process (four runs each,
-/// alternating): 19.9-26.0 ms without this, 18.9-21.7 ms with it.
-fn keep_off(cpu: Option<usize>) {
-    #[cfg(target_os = "linux")]
-    if let Some(cpu) = cpu {
-        use nix::sched::{sched_getaffinity, sched_setaffinity};
-        let this_thread = nix::unistd::Pid::from_raw(0);
-        if let Ok(mut allowed) = sched_getaffinity(this_thread)
-            && allowed.is_set(cpu).unwrap_or(false)
-            && allowed.unset(cpu).is_ok()
-        {
-            // Fails (and changes nothing) when no other CPU is allowed.
-            let _ = sched_setaffinity(this_thread, &allowed);
-        }
-    }
-    #[cfg(not(target_os = "linux"))]
-    let _ = cpu;
 }
 
 fn helper<const N: usize, const D: usize>(
