@@ -16,7 +16,7 @@ use calib_core::identify::objective::{
 use calib_core::model::paper::{er10l_c10, table2};
 use calib_core::{Kinematics, ParameterErrors, ParameterSet, Real};
 use criterion::{Criterion, criterion_group, criterion_main};
-use nalgebra::SVector;
+use nalgebra::{SVector, U24};
 use std::hint::black_box;
 
 fn measurements<T: Real>() -> MeasurementSet<T, 6, 32> {
@@ -32,7 +32,7 @@ fn measurements<T: Real>() -> MeasurementSet<T, 6, 32> {
 
 fn paper_run<T: Real>(c: &mut Criterion, name: &str) {
     let robot = er10l_c10::<T>();
-    let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
+    let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
     let data = measurements::<T>();
     let problem = Problem::new(
         &robot,
@@ -53,7 +53,7 @@ fn paper_run<T: Real>(c: &mut Criterion, name: &str) {
     group.bench_function(format!("ipso_20x24x2000_32_poses_{name}"), |b| {
         b.iter(|| {
             let mut cost = |x: &SVector<T, 24>| objective.value(x);
-            ipso::optimize::<T, 20, 24>(&mut cost, &space, &IpsoSettings::paper(), &mut Silent)
+            ipso::optimize::<T, 20, U24>(&mut cost, &space, &IpsoSettings::paper(), &mut Silent)
                 .unwrap()
         })
     });
@@ -81,7 +81,7 @@ fn paper_run<T: Real>(c: &mut Criterion, name: &str) {
 /// in 256-bit vectors, and of 8 poses in AVX-512's 512-bit vectors).
 fn objective_lanes(c: &mut Criterion) {
     let robot = er10l_c10::<f64>();
-    let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
+    let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
     let data = measurements::<f64>();
     let problem = Problem::new(
         &robot,
@@ -105,7 +105,7 @@ fn objective_lanes(c: &mut Criterion) {
     {
         #[target_feature(enable = "avx2")]
         fn avx2(
-            o: &Objective<'_, f64, 6, 24>,
+            o: &Objective<'_, f64, 6, U24>,
             x: &SVector<f64, 24>,
             l: &[PoseLanes<f64, 6>],
         ) -> f64 {
@@ -113,7 +113,7 @@ fn objective_lanes(c: &mut Criterion) {
         }
         #[target_feature(enable = "avx2,avx512f,avx512vl")]
         fn avx512<const L: usize>(
-            o: &Objective<'_, f64, 6, 24>,
+            o: &Objective<'_, f64, 6, U24>,
             x: &SVector<f64, 24>,
             l: &[PoseLanes<f64, 6, L>],
         ) -> f64 {
@@ -143,13 +143,13 @@ fn objective_lanes(c: &mut Criterion) {
 /// sum of the coordinates), so the time is what the swarm adds to 40,020 objective evaluations.
 fn swarm_alone(c: &mut Criterion) {
     let robot = er10l_c10::<f64>();
-    let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
+    let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
     let space = SearchSpace::paper(&set);
     let mut group = c.benchmark_group("paper_run");
     group.bench_function("ipso_20x24x2000_update_only_f64", |b| {
         b.iter(|| {
             let mut cost = |x: &SVector<f64, 24>| x.sum().abs();
-            ipso::optimize::<f64, 20, 24>(&mut cost, &space, &IpsoSettings::paper(), &mut Silent)
+            ipso::optimize::<f64, 20, U24>(&mut cost, &space, &IpsoSettings::paper(), &mut Silent)
                 .unwrap()
         })
     });

@@ -11,6 +11,7 @@ use calib_core::kinematics::pose_error::pose_error_jacobian;
 use calib_core::model::paper::er10l_c10 as er10l;
 use calib_core::{Kinematics, ParameterErrors, ParameterSet, Real};
 use criterion::{Criterion, criterion_group, criterion_main};
+use nalgebra::U24;
 use std::hint::black_box;
 
 fn errors<T: Real>() -> ParameterErrors<T, 6> {
@@ -48,7 +49,7 @@ fn benches(c: &mut Criterion) {
 
     let robot = er10l::<f64>();
     let kinematics = Kinematics::nominal(&robot).unwrap();
-    let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
+    let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
     let q = [0.3, -0.7, 1.1, 2.0, -1.4, 0.6];
     let measured = Kinematics::new(&robot, &errors())
         .unwrap()

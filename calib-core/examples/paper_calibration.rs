@@ -11,6 +11,7 @@ use calib_core::model::paper;
 use calib_core::{
     Kinematics, LeastSquares, Measurement, Objective, ParameterErrors, ParameterSet, Problem,
 };
+use nalgebra::U24;
 use std::process::ExitCode;
 
 fn main() -> Result<ExitCode, Box<dyn std::error::Error>> {
@@ -24,7 +25,7 @@ fn main() -> Result<ExitCode, Box<dyn std::error::Error>> {
             std::array::from_fn(|j| f64::from((i * 7 + j as u32 * 3) % 11) * 0.5 - 2.5);
         measurements.push(Measurement::from_pose(&q, &real.forward(&q)?)?);
     }
-    let set = ParameterSet::<6, 24>::default_for(&robot)?;
+    let set = ParameterSet::<6, U24>::default_for(&robot)?;
     let problem = Problem::new(
         &robot,
         &ParameterErrors::zero(),
@@ -35,7 +36,7 @@ fn main() -> Result<ExitCode, Box<dyn std::error::Error>> {
     // The paper's swarm on the objective of eq. (7).
     let objective = Objective::new(&problem);
     let mut cost = |x: &nalgebra::SVector<f64, 24>| objective.value(x);
-    let swarm = ipso::optimize::<f64, 20, 24>(
+    let swarm = ipso::optimize::<f64, 20, U24>(
         &mut cost,
         &SearchSpace::paper(&set),
         &IpsoSettings::paper(),

@@ -40,11 +40,13 @@
 //!         Ok::<_, Box<dyn core::error::Error>>(Measurement::from_pose(&q, &measured)?)
 //!     })
 //!     .collect::<Result<_, _>>()?;
-//! let set = ParameterSet::<6, 24>::default_for(&robot)?; // the paper's 24 parameters
+//! // The paper's 24 parameters; the count a type: `U24` fixed at compile time (a controller), or
+//! // `nalgebra::Dyn` for the count a robot file selects at run time (a host).
+//! let set = ParameterSet::<6, nalgebra::U24>::default_for(&robot)?;
 //! let problem = Problem::new(&robot, &ParameterErrors::zero(), set, &measurements, 1e6)?;
-//! let start = nalgebra::SVector::zeros(); // from the nominal model
+//! let start = problem.set().zeros(); // from the nominal model
 //! let fit = LeastSquares::new(&problem).solve(&start, &LmSettings::default())?;
-//! let identified = set.unpack(&fit.x);
+//! let identified = problem.set().unpack(&fit.x);
 //! assert!((identified.joints[1].da - 0.2565).abs() < 1e-9); // Table 2: da2 = 0.2565 mm
 //! # Ok::<(), Box<dyn core::error::Error>>(())
 //! ```

@@ -9,7 +9,7 @@ use calib_core::identify::objective::{Measurement, Objective};
 use calib_core::math::so3;
 use calib_core::model::paper::{er10l_c10, table2};
 use calib_core::{Kinematics, MdhJoint, ParameterErrors, ParameterSet, Pose, Problem, Robot};
-use nalgebra::{Matrix3, Rotation3, SVector, Translation3, Vector3};
+use nalgebra::{Matrix3, Rotation3, SVector, Translation3, U24, Vector3};
 use proptest::prelude::*;
 
 /// Any f64, NaN and infinities included, with ordinary values most of the time.
@@ -114,7 +114,7 @@ proptest! {
     ) {
         let rotation = Rotation3::new(Vector3::from(r)).into_inner();
         let robot = er10l_c10::<f64>();
-        let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
+        let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
         let measured = Measurement::new(&q, Vector3::from(p), Some(rotation), w);
         if let Ok(m) = measured {
             let data = [m; 30];

@@ -133,7 +133,7 @@ fn micro_benchmarks() {
     let Ok(measurements) = calib_onboard::measurements() else {
         return;
     };
-    let Ok(set) = ParameterSet::<6, D>::default_for(&robot) else {
+    let Ok(set) = ParameterSet::<6, nalgebra::Const<D>>::default_for(&robot) else {
         return;
     };
     let Ok(kinematics) = Kinematics::new(&robot, &calib_core::model::paper::table2::<f32>()) else {

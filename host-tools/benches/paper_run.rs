@@ -20,7 +20,7 @@ use calib_core::{ParameterErrors, ParameterSet};
 use criterion::{Criterion, criterion_group, criterion_main};
 use host_tools::calibration::swarm_team::{LaneObjective, SwarmTeam};
 use host_tools::dataset::Dataset;
-use nalgebra::SVector;
+use nalgebra::{DVector, Dyn};
 use std::path::Path;
 
 fn paper_run(c: &mut Criterion) {
@@ -34,7 +34,8 @@ fn paper_run(c: &mut Criterion) {
     ));
     let measurements = Dataset::<6>::load(robot_file, path).unwrap().measurements;
     let robot = calib_core::model::paper::er10l_c10::<f64>();
-    let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
+    // The count at run time, as `calibrate` has it.
+    let set = ParameterSet::<6, Dyn>::default_for(&robot).unwrap();
     let problem = Problem::new(
         &robot,
         &ParameterErrors::zero(),
@@ -44,7 +45,7 @@ fn paper_run(c: &mut Criterion) {
     )
     .unwrap();
     let objective = Objective::new(&problem);
-    let space = SearchSpace::paper(&set);
+    let space = SearchSpace::paper(problem.set());
     let mut group = c.benchmark_group("paper_run");
     group.sample_size(10);
     let lanes = LaneObjective::new(&objective);
@@ -52,8 +53,8 @@ fn paper_run(c: &mut Criterion) {
     let settings = IpsoSettings::paper();
     let swarm = |threads: usize| {
         SwarmTeam::run(&lanes, threads, settings.seed, |team, pairs| {
-            let mut x = [SVector::zeros(); 20];
-            let (mut v, mut best) = (x, x);
+            let mut x: [DVector<f64>; 20] = std::array::from_fn(|_| DVector::zeros(24));
+            let (mut v, mut best) = (x.clone(), x.clone());
             let (mut costs, mut best_costs) = ([0.0; 20], [0.0; 20]);
             let memory =
                 ipso::SwarmMemory::new(&mut x, &mut v, &mut best, &mut costs, &mut best_costs)
@@ -75,7 +76,7 @@ fn paper_run(c: &mut Criterion) {
         |b| {
             b.iter(|| {
                 SwarmTeam::run(&lanes, cores, settings.seed, |team, _| {
-                    ipso::optimize::<f64, 20, 24>(team, &space, &settings, &mut Silent).unwrap()
+                    ipso::optimize::<f64, 20, Dyn>(team, &space, &settings, &mut Silent).unwrap()
                 })
             })
         },

@@ -491,10 +491,11 @@ pub fn prepare<const N: usize>(
     let mut fitted_inputs = inputs.clone();
     fitted_inputs.model = measured_model(&registered, inputs, "registered")?;
     fitted_inputs.model.mask = inputs.model.mask;
-    let errors = crate::with_parameter_count!(
-        @frames frame_mask.count(),
-        fit_frames(&fitted_inputs, &frame_mask, k)
-    )?;
+    let frame_parameters = frame_mask.count();
+    if !(1..=12).contains(&frame_parameters) {
+        anyhow::bail!("{frame_parameters} frame parameters; the two frames have 1 to 12");
+    }
+    let errors = fit_frames(&fitted_inputs, &frame_mask, k)?;
     let mut fitted = registered.with_errors(&errors, [], &[], "", "");
     fitted.calibration = None;
     let mut model = measured_model(&fitted, inputs, "fitted")?;
@@ -594,12 +595,12 @@ fn spread(points: &[Vector3<f64>]) -> f64 {
 }
 
 /// Least-squares fit of the frame parameters in `mask` alone (nominal geometry).
-fn fit_frames<const N: usize, const D: usize>(
+fn fit_frames<const N: usize>(
     inputs: &crate::dataset::Dataset<N>,
     mask: &ParameterMask<N>,
     k: f64,
 ) -> anyhow::Result<calib_core::ParameterErrors<f64, N>> {
-    let set = calib_core::ParameterSet::<N, D>::from_mask(mask)?;
+    let set = calib_core::ParameterSet::<N, nalgebra::Dyn>::from_mask(mask)?;
     let problem = calib_core::Problem::new(
         &inputs.model.robot,
         &calib_core::ParameterErrors::zero(),
@@ -608,10 +609,11 @@ fn fit_frames<const N: usize, const D: usize>(
         k,
     )
     .context("fitting the frames")?;
+    let set = problem.set();
     let least_squares = calib_core::identify::lm::LeastSquares::new(&problem);
     let result = least_squares
         .solve(
-            &nalgebra::SVector::zeros(),
+            &set.zeros(),
             &calib_core::identify::lm::LmSettings::default(),
         )
         .context("fitting the frames")?;

@@ -8,7 +8,7 @@ use anyhow::bail;
 use calib_core::identify::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability, Status};
 use calib_core::identify::lm::LeastSquares;
 use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, ParameterSet, Problem};
-use nalgebra::SVector;
+use nalgebra::{DVector, Dyn};
 use serde::Serialize;
 
 /// Scaled condition number above which a pose set is reported as ill-conditioned: the weakest
@@ -131,12 +131,7 @@ fn reflector_on_last_axis<const N: usize>(
     let on_axis = flange.forward(&q)?.inverse_transform_point(&centre.into());
     let mut projected = dataset.clone();
     projected.model.robot.tool.xyz = [on_axis.x, on_axis.y, on_axis.z];
-    let analysis = crate::with_parameter_count!(
-        N,
-        all_parameters,
-        mask.count(),
-        analyse(&projected, mask, k)
-    )?;
+    let analysis = analyse(&projected, mask, k)?;
     if analysis.undetermined.is_empty() {
         return Ok(None);
     }
@@ -297,22 +292,23 @@ pub fn check<const N: usize>(
     let frames = crate::frames::Frames::chosen(frames, &dataset.data);
     let (_, mask) = crate::frames::prepare(frames, &mut dataset, &mut [], k)?;
     let (mask, reflector) = default_mask(&dataset, mask, k)?;
-    let mut report =
-        crate::with_parameter_count!(N, all_parameters, mask.count(), analyse(&dataset, &mask, k))?;
+    let mut report = analyse(&dataset, &mask, k)?;
     report.reflector_on_last_axis = reflector;
     Ok(report)
 }
 
 /// The identifiability of the parameters selected by `mask` at the nominal model.
-pub fn analyse<const N: usize, const D: usize>(
+pub fn analyse<const N: usize>(
     dataset: &Dataset<N>,
     mask: &ParameterMask<N>,
     k: f64,
 ) -> anyhow::Result<IdentifiabilityReport> {
-    let set = ParameterSet::<N, D>::from_mask(mask)?;
-    if dataset.rows() < D {
+    let count = mask.count();
+    crate::dispatch::check_parameter_count(N, count, crate::dispatch::all_parameters(N))?;
+    let set = ParameterSet::<N, Dyn>::from_mask(mask)?;
+    if dataset.rows() < count {
         bail!(
-            "{} poses give {} equations, fewer than the {D} identified parameters",
+            "{} poses give {} equations, fewer than the {count} identified parameters",
             dataset.measurements.len(),
             dataset.rows()
         );
@@ -324,8 +320,9 @@ pub fn analyse<const N: usize, const D: usize>(
         &dataset.measurements,
         k,
     )?;
+    let set = problem.set();
     let least_squares = LeastSquares::new(&problem);
-    let r = least_squares.jacobian_factor(&SVector::zeros());
+    let r = least_squares.jacobian_factor(&set.zeros());
     let id = Identifiability::from_factor(&r, dataset.measurements.len(), DEFAULT_RANK_TOLERANCE);
     let names = set.parameters().to_vec();
     let mut undetermined = Vec::new();
@@ -349,7 +346,7 @@ pub fn analyse<const N: usize, const D: usize>(
                 Status::NotIdentifiable => "not identifiable",
                 _ => "redundant",
             },
-            with: if *status == Status::NotIdentifiable {
+            with: if status == &Status::NotIdentifiable {
                 Vec::new()
             } else {
                 with
@@ -363,7 +360,7 @@ pub fn analyse<const N: usize, const D: usize>(
         weakest_direction,
         ill_conditioned,
         condition_number_after_drop: None,
-        parameters: D,
+        parameters: count,
         rank: id.rank,
         condition_number: id
             .condition_number
@@ -378,10 +375,7 @@ pub fn analyse<const N: usize, const D: usize>(
 }
 
 /// The components of the core's least determined direction of magnitude >= 0.2, largest first.
-fn weakest_direction<const D: usize>(
-    direction: &SVector<f64, D>,
-    names: &[Parameter],
-) -> Vec<(Parameter, f64)> {
+fn weakest_direction(direction: &DVector<f64>, names: &[Parameter]) -> Vec<(Parameter, f64)> {
     let mut out: Vec<(Parameter, f64)> = direction
         .iter()
         .zip(names)

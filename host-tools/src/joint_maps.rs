@@ -485,7 +485,7 @@ pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> anyhow::Result<M
         );
     }
     let all = all_mask();
-    let set = calib_core::ParameterSet::<JOINTS, 42>::from_mask(&all)?;
+    let set = calib_core::ParameterSet::<JOINTS, nalgebra::U42>::from_mask(&all)?;
     let columns: Vec<usize> = parameters
         .iter()
         .map(|p| {

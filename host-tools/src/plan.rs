@@ -365,8 +365,7 @@ fn information<const N: usize>(
     let frames = Frames::chosen(None, &dataset.data);
     let (_, mask) = crate::frames::prepare(frames, &mut dataset, &mut [], k)?;
     let (mut mask, _) = crate::identifiability::default_mask(&dataset, mask, k)?;
-    let report =
-        crate::with_parameter_count!(N, all_parameters, mask.count(), analyse(&dataset, &mask, k))?;
+    let report = analyse(&dataset, &mask, k)?;
     let undetermined = report.to_drop();
     for p in &undetermined {
         mask.set(*p, false);
@@ -399,7 +398,7 @@ fn pose_rows<const N: usize>(
     for (j, p) in parameters.iter().enumerate() {
         let mut one = ParameterMask::<N>::empty();
         one.set(*p, true);
-        let set = ParameterSet::<N, 1>::from_mask(&one)?;
+        let set = ParameterSet::<N, nalgebra::U1>::from_mask(&one)?;
         let (_, twist) = kinematics.parameter_jacobian(&set, angles);
         for i in 0..rows {
             let scale = if i < 3 { 1.0 } else { k.sqrt() };

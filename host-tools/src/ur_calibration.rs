@@ -21,7 +21,7 @@ use calib_core::{
     JointParameter, Kinematics, MdhJoint, Measurement, Parameter, ParameterErrors, ParameterMask,
     ParameterSet, Problem, Robot,
 };
-use nalgebra::SVector;
+use nalgebra::Dyn;
 use rand::{RngExt, SeedableRng};
 use std::path::Path;
 
@@ -206,12 +206,12 @@ pub fn import(nominal: &Robot<f64, JOINTS>, calibration: &UrCalibration) -> anyh
             1.0,
         )?);
     }
-    let errors = crate::with_parameter_count!(
+    crate::dispatch::check_parameter_count(
         JOINTS,
-        solvable_parameters,
         mask.count(),
-        fit(nominal, &mask, &measurements)
+        crate::dispatch::solvable_parameters(JOINTS),
     )?;
+    let errors = fit(nominal, &mask, &measurements)?;
     let imported = Kinematics::new(nominal, &errors)?;
     let plain = Kinematics::nominal(nominal)?;
     let (mut max_position_mm, mut max_rotation_rad, mut max_change_mm) = (0.0f64, 0.0f64, 0.0f64);
@@ -241,12 +241,12 @@ pub fn import(nominal: &Robot<f64, JOINTS>, calibration: &UrCalibration) -> anyh
 }
 
 /// Least squares of the `D` parameters of `mask` to `measurements` from the nominal robot.
-fn fit<const N: usize, const D: usize>(
+fn fit<const N: usize>(
     nominal: &Robot<f64, N>,
     mask: &ParameterMask<N>,
     measurements: &[Measurement<f64, N>],
 ) -> anyhow::Result<ParameterErrors<f64, N>> {
-    let set = ParameterSet::<N, D>::from_mask(mask)?;
+    let set = ParameterSet::<N, Dyn>::from_mask(mask)?;
     let problem = Problem::new(
         nominal,
         &ParameterErrors::zero(),
@@ -254,12 +254,13 @@ fn fit<const N: usize, const D: usize>(
         measurements,
         calib_core::identify::objective::DEFAULT_K,
     )?;
+    let set = problem.set();
     let settings = LmSettings {
         max_iterations: 200,
         ..LmSettings::default()
     };
     let fit = LeastSquares::new(&problem)
-        .solve(&SVector::zeros(), &settings)
+        .solve(&set.zeros(), &settings)
         .context("fitting the Hayati parameters to the UR calibration")?;
     Ok(set.unpack(&fit.x))
 }

@@ -12,7 +12,7 @@ use calib_core::Problem;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
 use calib_core::identify::objective::Measurement;
 use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, ParameterSet};
-use nalgebra::SVector;
+use nalgebra::{DVector, Dyn};
 use serde::Serialize;
 
 /// Tolerances of `calib verify`; past any of them it exits non-zero.
@@ -146,38 +146,38 @@ pub fn verify<const N: usize>(
         calibration.without_file_compliance(&calibration.model.robot, &zero)?,
         validation.without_file_compliance(&validation.model.robot, &zero)?,
     );
-    crate::with_parameter_count!(
+    crate::dispatch::check_parameter_count(
         N,
-        solvable_parameters,
         mask.count(),
-        run(&calibration, &validation, &mask, k)
-    )
+        crate::dispatch::solvable_parameters(N),
+    )?;
+    run(&calibration, &validation, &mask, k)
 }
 
-fn run<const N: usize, const D: usize>(
+fn run<const N: usize>(
     calibration: &Dataset<N>,
     validation: &Dataset<N>,
     mask: &ParameterMask<N>,
     k: f64,
 ) -> anyhow::Result<Verification> {
-    let set = ParameterSet::<N, D>::from_mask(mask)?;
-    let condition_number =
-        crate::identifiability::analyse::<N, D>(calibration, mask, k)?.condition_number;
+    let set = ParameterSet::<N, Dyn>::from_mask(mask)?;
+    let parameters = set.len();
+    let condition_number = crate::identifiability::analyse(calibration, mask, k)?.condition_number;
     let settings = LmSettings::default();
     // f64 core.
     let problem = Problem::new(
         &calibration.model.robot,
         &ParameterErrors::zero(),
-        set,
+        set.clone(),
         &calibration.measurements,
         k,
     )?;
     let least_squares = LeastSquares::new(&problem);
     let x64 = least_squares
-        .solve(&SVector::zeros(), &settings)
+        .solve(&set.zeros(), &settings)
         .context("f64 core")?
         .x;
-    let x32 = solve_f32(calibration, set, k)?;
+    let x32 = solve_f32(calibration, set.clone(), k)?;
     // Reference optimiser.
     let names: Vec<String> = set.parameters().iter().map(ToString::to_string).collect();
     let fit = crate::reference::lm::fit(
@@ -185,19 +185,19 @@ fn run<const N: usize, const D: usize>(
         &names,
         &calibration.as_seen_by_the_geometry(),
         k,
-        &vec![0.0; D],
+        &vec![0.0; parameters],
     )?;
     let xref: Vec<f64> = fit.errors.iter().map(|(_, v)| *v).collect();
 
-    let rms = |x: &SVector<f64, D>| -> anyhow::Result<f64> {
+    let rms = |x: &DVector<f64>| -> anyhow::Result<f64> {
         let kinematics = Kinematics::new(&validation.model.robot, &set.unpack(x))?;
         let (table, _) = crate::statistics::table3(&kinematics, validation);
         Ok(table.position_mm.rms)
     };
     let x32_64 = x32.map(f64::from);
-    let xref_v = SVector::<f64, D>::from_iterator(xref.iter().copied());
+    let xref_v = DVector::<f64>::from_vec(xref);
     let validation_rms_mm = [rms(&x32_64)?, rms(&x64)?, rms(&xref_v)?];
-    let largest = |a: &SVector<f64, D>, b: &SVector<f64, D>, angles: bool| -> (f64, String) {
+    let largest = |a: &DVector<f64>, b: &DVector<f64>, angles: bool| -> (f64, String) {
         set.parameters()
             .iter()
             .zip(a.iter().zip(b.iter()))
@@ -218,7 +218,7 @@ fn run<const N: usize, const D: usize>(
         && f32_angle.0 <= F32_ANGLE_RAD
         && (r32 - r64).abs() <= F32_VALIDATION_MM;
     Ok(Verification {
-        parameters: D,
+        parameters,
         poses: (
             calibration.measurements.len(),
             validation.measurements.len(),
@@ -234,11 +234,11 @@ fn run<const N: usize, const D: usize>(
 }
 
 /// The least-squares solution of the f32 core (the controller's), from zero errors.
-fn solve_f32<const N: usize, const D: usize>(
+fn solve_f32<const N: usize>(
     calibration: &Dataset<N>,
-    set: ParameterSet<N, D>,
+    set: ParameterSet<N, Dyn>,
     k: f64,
-) -> anyhow::Result<SVector<f32, D>> {
+) -> anyhow::Result<DVector<f32>> {
     let robot32 = crate::export::to_f32(&calibration.model.robot);
     // The kinematic angles (with the maps), rounded to f32 as a controller holds them.
     let seen = calibration.as_seen_by_the_geometry();
@@ -266,7 +266,7 @@ fn solve_f32<const N: usize, const D: usize>(
     )?;
     let settings32 = LmSettings::<f32>::default();
     let x32 = LeastSquares::new(&problem32)
-        .solve(&SVector::zeros(), &settings32)
+        .solve(&problem32.set().zeros(), &settings32)
         .context("f32 core")?
         .x;
     Ok(x32)

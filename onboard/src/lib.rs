@@ -17,7 +17,7 @@ use calib_core::identify::objective::{DEFAULT_K, Measurement, Objective};
 use calib_core::identify::statistics::PoseStatistics;
 use calib_core::model::paper;
 use calib_core::{Kinematics, ParameterErrors, ParameterSet, Robot};
-use nalgebra::{Matrix3, SVector, Vector3};
+use nalgebra::{Const, Matrix3, SVector, Vector3};
 
 pub mod maps;
 pub mod seven_joints;
@@ -225,7 +225,7 @@ pub fn table(kinematics: &Kinematics<f32, 6>, measurements: &[Measurement<f32, 6
 pub fn run(marks: &mut impl Marks) -> Result<Outcome, Error> {
     let robot = robot();
     let measurements = measurements()?;
-    let set = ParameterSet::<6, D>::default_for(&robot).map_err(|_| Error::Problem)?;
+    let set = ParameterSet::<6, Const<D>>::default_for(&robot).map_err(|_| Error::Problem)?;
     let zero = ParameterErrors::zero();
     let k = DEFAULT_K as f32;
     let problem = Problem::new(&robot, &zero, set, &measurements, k).map_err(|_| Error::Problem)?;
@@ -236,9 +236,9 @@ pub fn run(marks: &mut impl Marks) -> Result<Outcome, Error> {
         marks.generation(generation, best);
         Control::Continue
     };
-    let swarm = ipso::optimize::<f32, P, D>(
+    let swarm = ipso::optimize::<f32, P, Const<D>>(
         &mut |x: &SVector<f32, D>| objective.value(x),
-        &SearchSpace::paper(&set),
+        &SearchSpace::paper(problem.set()),
         &IpsoSettings::paper(),
         &mut observer,
     )
@@ -252,7 +252,7 @@ pub fn run(marks: &mut impl Marks) -> Result<Outcome, Error> {
         .map_err(|_| Error::LeastSquares)?;
     marks.end(Stage::LeastSquares);
 
-    let identified = set.unpack(&lm.x);
+    let identified = problem.set().unpack(&lm.x);
     let nominal = Kinematics::nominal(&robot).map_err(|_| Error::Problem)?;
     let actual = Kinematics::new(&robot, &identified).map_err(|_| Error::Problem)?;
     let before = table(&nominal, &measurements);

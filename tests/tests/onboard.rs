@@ -27,7 +27,7 @@ fn the_job_is_accurate_and_its_encoding_is_the_firmwares_expectation() {
     println!("{outcome:?}");
     // Against the truth (Table 2): 0.02 mm and 1e-4 rad tracker noise on 32 poses.
     let robot = paper::er10l_c10::<f64>();
-    let set = ParameterSet::<6, D>::default_for(&robot).unwrap();
+    let set = ParameterSet::<6, nalgebra::Const<D>>::default_for(&robot).unwrap();
     let truth = set.pack(&paper::table2::<f64>());
     for (i, (got, want)) in outcome.errors.iter().zip(truth.iter()).enumerate() {
         let tolerance = if set.parameters()[i].is_angle() {

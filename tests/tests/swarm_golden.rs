@@ -6,7 +6,7 @@ use calib_core::identify::halton::{self, Scrambling};
 use calib_core::identify::objective::{Measurement, Objective};
 use calib_core::{Kinematics, ParameterSet};
 use calib_tests::{read_csv, table2_errors};
-use nalgebra::SVector;
+use nalgebra::{DVector, Dyn, SVector, U24};
 
 #[test]
 fn halton_points_match_golden_vectors() {
@@ -52,8 +52,10 @@ fn objective_matches_golden_values() {
             Measurement::from_pose(&q, &truth.forward(&q).unwrap()).unwrap()
         })
         .collect();
-    let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
+    // The count compiled (as on the controller) and at run time (as on a host): the same bits.
+    let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
     let at_table2 = set.pack(&table2_errors::<f64>());
+    let dynamic_set = ParameterSet::<6, Dyn>::default_for(&robot).unwrap();
     let text =
         std::fs::read_to_string(calib_tests::data("vectors/objective-er10l-c10.txt")).unwrap();
     let mut checked = 0;
@@ -66,6 +68,7 @@ fn objective_matches_golden_values() {
         } else {
             SVector::zeros()
         };
+        let dynamic_x = DVector::from_column_slice(x.as_slice());
         let problem = Problem::new(
             &robot,
             &calib_core::ParameterErrors::zero(),
@@ -76,6 +79,16 @@ fn objective_matches_golden_values() {
         .unwrap();
         let objective = Objective::new(&problem);
         let value = objective.value(&x);
+        let dynamic_problem = Problem::new(
+            &robot,
+            &calib_core::ParameterErrors::zero(),
+            dynamic_set.clone(),
+            &measurements,
+            k,
+        )
+        .unwrap();
+        let dynamic = Objective::new(&dynamic_problem).value(&dynamic_x);
+        assert_eq!(value.to_bits(), dynamic.to_bits(), "k={k} {}", f[1]);
         assert!(
             (value - golden).abs() <= 1e-10 * golden.max(1.0),
             "k={k} {}: {value} vs {golden}",

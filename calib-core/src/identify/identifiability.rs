@@ -12,7 +12,8 @@
 //!   (only a combination with them is determined). [`Identifiability::combination`] names those.
 
 use crate::scalar::Real;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, U1};
 
 /// Relative singular value below which a direction counts as undetermined. In f64 the scaled
 /// Jacobian of exactly redundant parameters has values near 1e-15; determined ones stay above
@@ -32,10 +33,13 @@ pub enum Status {
 }
 
 /// The identifiability analysis of `D` parameters.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Identifiability<T: Real, const D: usize> {
+#[derive(Clone, Debug, PartialEq)]
+pub struct Identifiability<T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D> + Allocator<D, U1>,
+{
     /// Singular values of the scaled Jacobian, largest first.
-    pub singular_values: SVector<T, D>,
+    pub singular_values: OVector<T, D>,
     /// Numerical rank.
     pub rank: usize,
     /// Condition number `s_max / s_min` of the scaled Jacobian (infinite if rank-deficient).
@@ -45,21 +49,26 @@ pub struct Identifiability<T: Real, const D: usize> {
     /// The least determined direction: the unit right singular vector of the smallest singular
     /// value of the scaled Jacobian (one component per parameter, scaled units). An
     /// ill-conditioned pose set leaves the parameters with large components uncertain.
-    pub weakest_direction: SVector<T, D>,
+    pub weakest_direction: OVector<T, D>,
     /// Parameter indices in pivot order: the first `rank` are determined.
-    pub pivots: [usize; D],
+    pub pivots: OVector<usize, D>,
     /// Status of every parameter (set order).
-    pub status: [Status; D],
+    pub status: OVector<Status, D>,
     /// Pivoted triangular factor of the scaled Jacobian (columns in pivot order).
-    pivoted: SMatrix<T, D, D>,
+    pivoted: OMatrix<T, D, D>,
 }
 
-impl<T: Real, const D: usize> Identifiability<T, D> {
+impl<T: Real, D: Dim> Identifiability<T, D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
     /// Analyses the triangular factor `r` of the (unscaled) Jacobian of `poses` measurements.
-    pub fn from_factor(r: &SMatrix<T, D, D>, poses: usize, tolerance: T) -> Self {
+    pub fn from_factor(r: &OMatrix<T, D, D>, poses: usize, tolerance: T) -> Self {
         // Scale every column to unit norm. A column that is zero up to rounding (relative to the
         // largest column) is set to zero: scaling it would blow rounding noise up to a unit column.
-        let mut scaled = *r;
+        let mut scaled = r.clone();
+        let (dim, _) = r.shape_generic();
+        let d = dim.value();
         let largest_column = r
             .column_iter()
             .map(|c| c.norm())
@@ -73,7 +82,7 @@ impl<T: Real, const D: usize> Identifiability<T, D> {
             }
         }
         let (values, vectors) = singular_values_and_vectors(&scaled);
-        let weakest = (0..D).fold(0, |best, i| match (values.get(i), values.get(best)) {
+        let weakest = (0..d).fold(0, |best, i| match (values.get(i), values.get(best)) {
             (Some(v), Some(b)) if v < b => i,
             _ => best,
         });
@@ -85,7 +94,7 @@ impl<T: Real, const D: usize> Identifiability<T, D> {
         let largest = sorted.iter().copied().fold(T::zero(), |a, b| a.max(b));
         let rank = sorted.iter().filter(|s| **s > tolerance * largest).count();
         let smallest = sorted.iter().copied().fold(largest, |a, b| a.min(b));
-        let condition_number = if rank == D && smallest > T::zero() {
+        let condition_number = if rank == d && smallest > T::zero() {
             largest / smallest
         } else {
             T::of(f64::INFINITY)
@@ -94,16 +103,16 @@ impl<T: Real, const D: usize> Identifiability<T, D> {
             .iter()
             .map(|s| s.max(T::of(f64::MIN_POSITIVE)).ln())
             .fold(T::zero(), |a, b| a + b)
-            / T::of(D as f64);
+            / T::of(d as f64);
         // The geometric mean is 0 as soon as one direction is undetermined.
-        let observability = if rank == D {
+        let observability = if rank == d {
             log_mean.exp() / T::of(poses.max(1) as f64).sqrt()
         } else {
             T::zero()
         };
 
         let (pivots, pivoted) = pivoted_qr(&scaled);
-        let mut status = [Status::Identifiable; D];
+        let mut status = OVector::<Status, D>::from_element_generic(dim, U1, Status::Identifiable);
         for index in pivots.iter().skip(rank) {
             // The remaining norm of its pivoted column says whether it has any effect at all.
             let column_norm = scaled.column(*index).norm();
@@ -132,13 +141,14 @@ impl<T: Real, const D: usize> Identifiability<T, D> {
     /// pivots: changing p by `delta` (scaled units) is indistinguishable from changing every
     /// determined `x_j` by `c_j delta`. Entries below `threshold` in magnitude are set to zero.
     /// `None` for a determined parameter.
-    pub fn combination(&self, parameter: usize, threshold: T) -> Option<SVector<T, D>> {
+    pub fn combination(&self, parameter: usize, threshold: T) -> Option<OVector<T, D>> {
         let position = self.pivots.iter().position(|p| *p == parameter)?;
         if position < self.rank {
             return None;
         }
         // Solve R11 c = r12 for the pivoted column at `position`.
-        let mut c = SVector::<T, D>::zeros();
+        let dim = self.weakest_direction.shape_generic().0;
+        let mut c = OVector::<T, D>::zeros_generic(dim, U1);
         for i in (0..self.rank).rev() {
             let mut value = self
                 .pivoted
@@ -154,7 +164,7 @@ impl<T: Real, const D: usize> Identifiability<T, D> {
                 *ci = value / rii;
             }
         }
-        let mut out = SVector::<T, D>::zeros();
+        let mut out = OVector::<T, D>::zeros_generic(dim, U1);
         for (ci, index) in c.iter().zip(self.pivots.iter()).take(self.rank) {
             if ci.abs() >= threshold
                 && let Some(o) = out.get_mut(*index)
@@ -172,16 +182,21 @@ impl<T: Real, const D: usize> Identifiability<T, D> {
 /// `A V = U S`) hold the right singular vectors in the same column order. At most 64 sweeps, so it
 /// ends on any input. (nalgebra's SVD needs dimension arithmetic that a const generic `D` cannot
 /// express in the core's bounds.)
-fn singular_values_and_vectors<T: Real, const D: usize>(
-    a: &SMatrix<T, D, D>,
-) -> (SVector<T, D>, SMatrix<T, D, D>) {
-    let mut u = *a;
-    let mut v = SMatrix::<T, D, D>::identity();
+fn singular_values_and_vectors<T: Real, D: Dim>(
+    a: &OMatrix<T, D, D>,
+) -> (OVector<T, D>, OMatrix<T, D, D>)
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    let mut u = a.clone();
+    let (dim, _) = a.shape_generic();
+    let d = dim.value();
+    let mut v = OMatrix::<T, D, D>::identity_generic(dim, dim);
     let epsilon = T::default_epsilon();
     for _sweep in 0..64 {
         let mut rotated = false;
-        for p in 0..D {
-            for q in (p + 1)..D {
+        for p in 0..d {
+            for q in (p + 1)..d {
                 let (alpha, beta, gamma) = {
                     let cp = u.column(p);
                     let cq = u.column(q);
@@ -208,18 +223,16 @@ fn singular_values_and_vectors<T: Real, const D: usize>(
             break;
         }
     }
-    (SVector::from_iterator(u.column_iter().map(|c| c.norm())), v)
+    let values = OVector::from_iterator_generic(dim, U1, u.column_iter().map(|c| c.norm()));
+    (values, v)
 }
 
 /// Columns `p, q` of `m` replaced by `c p - s q` and `s p + c q`.
-fn rotate_columns<T: Real, const D: usize>(
-    m: &mut SMatrix<T, D, D>,
-    p: usize,
-    q: usize,
-    c: T,
-    s: T,
-) {
-    for i in 0..D {
+fn rotate_columns<T: Real, D: Dim>(m: &mut OMatrix<T, D, D>, p: usize, q: usize, c: T, s: T)
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    for i in 0..m.nrows() {
         let (Some(mp), Some(mq)) = (m.get((i, p)).copied(), m.get((i, q)).copied()) else {
             continue;
         };
@@ -234,23 +247,27 @@ fn rotate_columns<T: Real, const D: usize>(
 
 /// Householder QR with column pivoting of a square matrix: the pivot order and the triangular
 /// factor with its columns in that order.
-fn pivoted_qr<T: Real, const D: usize>(a: &SMatrix<T, D, D>) -> ([usize; D], SMatrix<T, D, D>) {
-    let mut m = *a;
-    let mut pivots = [0usize; D];
-    for (i, p) in pivots.iter_mut().enumerate() {
-        *p = i;
-    }
-    for k in 0..D {
+fn pivoted_qr<T: Real, D: Dim>(a: &OMatrix<T, D, D>) -> (OVector<usize, D>, OMatrix<T, D, D>)
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    let mut m = a.clone();
+    let (dim, _) = a.shape_generic();
+    let d = dim.value();
+    let mut pivots = OVector::<usize, D>::from_iterator_generic(dim, U1, 0..d);
+    // One Householder vector, reused for every column.
+    let mut v = OVector::<T, D>::zeros_generic(dim, U1);
+    for k in 0..d {
         // Column with the largest remaining norm (rows k..); first on ties.
-        let remaining = |m: &SMatrix<T, D, D>, j: usize| -> T {
-            (k..D)
+        let remaining = |m: &OMatrix<T, D, D>, j: usize| -> T {
+            (k..d)
                 .map(|i| m.get((i, j)).copied().unwrap_or_else(T::zero))
                 .map(|v| v * v)
                 .fold(T::zero(), |s, v| s + v)
         };
         let mut best = k;
         let mut best_norm = remaining(&m, k);
-        for j in (k + 1)..D {
+        for j in (k + 1)..d {
             let n = remaining(&m, j);
             if n > best_norm {
                 best = j;
@@ -259,7 +276,7 @@ fn pivoted_qr<T: Real, const D: usize>(a: &SMatrix<T, D, D>) -> ([usize; D], SMa
         }
         if best != k {
             m.swap_columns(k, best);
-            pivots.swap(k, best);
+            pivots.as_mut_slice().swap(k, best);
         }
         // Householder reflection zeroing rows k+1.. of column k.
         let norm = best_norm.sqrt();
@@ -268,8 +285,8 @@ fn pivoted_qr<T: Real, const D: usize>(a: &SMatrix<T, D, D>) -> ([usize; D], SMa
         }
         let akk = m.get((k, k)).copied().unwrap_or_else(T::zero);
         let alpha = if akk > T::zero() { -norm } else { norm };
-        let mut v = SVector::<T, D>::zeros();
-        for i in k..D {
+        v.fill(T::zero());
+        for i in k..d {
             if let (Some(vi), Some(mi)) = (v.get_mut(i), m.get((i, k))) {
                 *vi = *mi;
             }
@@ -281,15 +298,15 @@ fn pivoted_qr<T: Real, const D: usize>(a: &SMatrix<T, D, D>) -> ([usize; D], SMa
         if vnorm2 == T::zero() {
             continue;
         }
-        for j in k..D {
-            let dot = (k..D)
+        for j in k..d {
+            let dot = (k..d)
                 .map(|i| {
                     v.get(i).copied().unwrap_or_else(T::zero)
                         * m.get((i, j)).copied().unwrap_or_else(T::zero)
                 })
                 .fold(T::zero(), |s, x| s + x);
             let factor = T::of(2.0) * dot / vnorm2;
-            for i in k..D {
+            for i in k..d {
                 let vi = v.get(i).copied().unwrap_or_else(T::zero);
                 if let Some(mij) = m.get_mut((i, j)) {
                     *mij -= factor * vi;
@@ -306,13 +323,14 @@ mod tests {
     use crate::model::paper::{er10l_c10, paper_measurements};
     use crate::model::parameters::{ParameterErrors, ParameterMask, ParameterSet};
     use crate::{LeastSquares, Problem};
+    use nalgebra::{U24, U30};
     extern crate std;
     use std::string::{String, ToString};
     use std::vec::Vec;
 
-    fn analyse(position_only: bool) -> (Identifiability<f64, 24>, ParameterSet<6, 24>) {
+    fn analyse(position_only: bool) -> (Identifiability<f64, U24>, ParameterSet<6, U24>) {
         let robot = er10l_c10::<f64>();
-        let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
+        let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
         let mut data = paper_measurements::<f64>(1);
         let mut list: Vec<_> = data.as_slice().to_vec();
         if position_only {
@@ -335,8 +353,8 @@ mod tests {
     }
 
     fn names(
-        set: &ParameterSet<6, 24>,
-        id: &Identifiability<f64, 24>,
+        set: &ParameterSet<6, U24>,
+        id: &Identifiability<f64, U24>,
         status: Status,
     ) -> Vec<String> {
         set.parameters()
@@ -412,7 +430,7 @@ mod tests {
         for kind in FrameParameter::ALL {
             mask.set(Parameter::Base(kind), true);
         }
-        let set = ParameterSet::<6, 30>::from_mask(&mask).unwrap();
+        let set = ParameterSet::<6, U30>::from_mask(&mask).unwrap();
         let data = paper_measurements::<f64>(1);
         let problem =
             Problem::new(&robot, &ParameterErrors::zero(), set, data.as_slice(), 1e6).unwrap();

@@ -24,18 +24,22 @@
 use crate::identify::halton::{self, MAX_DIMENSION, Scrambling};
 use crate::scalar::Real;
 use core::fmt;
-use nalgebra::SVector;
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OVector, U1};
 use rand_core::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256Plus;
 
 /// Something to minimise: the cost of a packed parameter vector. Non-finite costs count as +inf.
-pub trait CostFunction<T: Real, const D: usize> {
+pub trait CostFunction<T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
     /// The cost at `x`.
-    fn cost(&mut self, x: &SVector<T, D>) -> T;
+    fn cost(&mut self, x: &OVector<T, D>) -> T;
 
     /// The costs of several points (`out[i]` for `xs[i]`); the swarm calls this once per
     /// generation. The default evaluates one after the other; a host may evaluate in parallel.
-    fn cost_batch(&mut self, xs: &[SVector<T, D>], out: &mut [T]) {
+    fn cost_batch(&mut self, xs: &[OVector<T, D>], out: &mut [T]) {
         for (x, c) in xs.iter().zip(out.iter_mut()) {
             *c = self.cost(x);
         }
@@ -46,13 +50,16 @@ pub trait CostFunction<T: Real, const D: usize> {
     /// [`CostFunction::cost_batch`] then asks for all of them). A host evaluating on other
     /// threads starts on the first particles while the others are updated. The default does
     /// nothing.
-    fn position_ready(&mut self, index: usize, x: &SVector<T, D>) {
+    fn position_ready(&mut self, index: usize, x: &OVector<T, D>) {
         let _ = (index, x);
     }
 }
 
-impl<T: Real, const D: usize, F: FnMut(&SVector<T, D>) -> T> CostFunction<T, D> for F {
-    fn cost(&mut self, x: &SVector<T, D>) -> T {
+impl<T: Real, D: Dim, F: FnMut(&OVector<T, D>) -> T> CostFunction<T, D> for F
+where
+    DefaultAllocator: Allocator<D>,
+{
+    fn cost(&mut self, x: &OVector<T, D>) -> T {
         self(x)
     }
 }
@@ -89,16 +96,27 @@ impl<T> Observer<T> for Silent {
 }
 
 /// Where the swarm starts and where it may search (per parameter, mm or rad).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SearchSpace<T: Real, const D: usize> {
+#[derive(Clone, Debug, PartialEq)]
+pub struct SearchSpace<T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
     /// Centre of the initial swarm (usually the current estimate, e.g. zero errors).
-    pub center: SVector<T, D>,
+    pub center: OVector<T, D>,
     /// Half width of the initial positions and velocities (paper: 0.01 rad, 0.5 mm).
-    pub half_width: SVector<T, D>,
+    pub half_width: OVector<T, D>,
     /// Lower search bound.
-    pub lower: SVector<T, D>,
+    pub lower: OVector<T, D>,
     /// Upper search bound.
-    pub upper: SVector<T, D>,
+    pub upper: OVector<T, D>,
+}
+
+/// `Copy` for a fixed dimension (`Const<D>`).
+impl<T: Real, D: Dim> Copy for SearchSpace<T, D>
+where
+    DefaultAllocator: Allocator<D>,
+    OVector<T, D>: Copy,
+{
 }
 
 /// Paper's initial half range of angle errors, rad.
@@ -109,7 +127,10 @@ pub const PAPER_LENGTH_RANGE: f64 = 0.5;
 /// wall in one of two seeds of the paper scenario; with 5, 10 and 100 it converged in all tried.
 pub const DEFAULT_BOUND_FACTOR: f64 = 10.0;
 
-impl<T: Real, const D: usize> SearchSpace<T, D> {
+impl<T: Real, D: Dim> SearchSpace<T, D>
+where
+    DefaultAllocator: Allocator<D>,
+{
     /// The space of the parameters of `set` around zero errors: initial half range `angle` (rad)
     /// for angles and `length` (mm) for lengths, bounds `bound_factor` times that.
     pub fn for_parameters<const N: usize>(
@@ -118,12 +139,14 @@ impl<T: Real, const D: usize> SearchSpace<T, D> {
         length: T,
         bound_factor: T,
     ) -> Self {
-        let widths = SVector::<T, D>::from_iterator(
+        let widths = OVector::<T, D>::from_iterator_generic(
+            set.dim(),
+            U1,
             set.parameters()
                 .iter()
                 .map(|p| if p.is_angle() { angle } else { length }),
         );
-        Self::around(SVector::zeros(), widths, bound_factor)
+        Self::around(set.zeros(), widths, bound_factor)
     }
 
     /// [`SearchSpace::for_parameters`] with the paper's ranges (0.01 rad, 0.5 mm) and
@@ -139,19 +162,19 @@ impl<T: Real, const D: usize> SearchSpace<T, D> {
 
     /// The box `center +- half_width` for the start and `center +- bound_factor * half_width` for
     /// the search.
-    pub fn around(center: SVector<T, D>, half_width: SVector<T, D>, bound_factor: T) -> Self {
-        let reach = half_width * bound_factor;
+    pub fn around(center: OVector<T, D>, half_width: OVector<T, D>, bound_factor: T) -> Self {
+        let reach = &half_width * bound_factor;
         Self {
+            lower: &center - &reach,
+            upper: &center + &reach,
             center,
             half_width,
-            lower: center - reach,
-            upper: center + reach,
         }
     }
 
     /// Finite everywhere, non-negative half widths and `lower <= upper` in every dimension.
     pub fn is_valid(&self) -> bool {
-        let finite = |v: &SVector<T, D>| v.iter().all(|x| x.finite());
+        let finite = |v: &OVector<T, D>| v.iter().all(|x| x.finite());
         finite(&self.center)
             && finite(&self.half_width)
             && finite(&self.lower)
@@ -246,10 +269,13 @@ impl fmt::Display for IpsoError {
 impl core::error::Error for IpsoError {}
 
 /// The outcome of a swarm run.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct IpsoResult<T: Real, const D: usize> {
+#[derive(Clone, Debug, PartialEq)]
+pub struct IpsoResult<T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
     /// Best position found (mm, rad).
-    pub best: SVector<T, D>,
+    pub best: OVector<T, D>,
     /// Its cost.
     pub best_cost: T,
     /// Cost of the best initial particle.
@@ -260,6 +286,14 @@ pub struct IpsoResult<T: Real, const D: usize> {
     pub evaluations: u64,
     /// Why it stopped.
     pub stop: StopReason,
+}
+
+/// `Copy` for a fixed dimension (`Const<D>`).
+impl<T: Real, D: Dim> Copy for IpsoResult<T, D>
+where
+    DefaultAllocator: Allocator<D>,
+    OVector<T, D>: Copy,
+{
 }
 
 /// The constriction factor `K` of eq. (10) for `phi = c1 + c2 > 4`.
@@ -282,7 +316,7 @@ fn sanitize<T: Real>(cost: T) -> T {
 
 /// Runs the swarm of `P` particles in `D` dimensions on `cost`, its state on the stack
 /// ([`optimize_in`] with arrays of `P`).
-pub fn optimize<T, const P: usize, const D: usize>(
+pub fn optimize<T, const P: usize, D: Dim>(
     cost: &mut impl CostFunction<T, D>,
     space: &SearchSpace<T, D>,
     settings: &IpsoSettings<T>,
@@ -290,10 +324,12 @@ pub fn optimize<T, const P: usize, const D: usize>(
 ) -> Result<IpsoResult<T, D>, IpsoError>
 where
     T: Real,
+    DefaultAllocator: Allocator<D>,
 {
-    let mut positions = [SVector::<T, D>::zeros(); P];
-    let mut velocities = [SVector::<T, D>::zeros(); P];
-    let mut best_positions = [SVector::<T, D>::zeros(); P];
+    let zeros = || OVector::<T, D>::zeros_generic(space.center.shape_generic().0, U1);
+    let mut positions: [OVector<T, D>; P] = core::array::from_fn(|_| zeros());
+    let mut velocities: [OVector<T, D>; P] = core::array::from_fn(|_| zeros());
+    let mut best_positions: [OVector<T, D>; P] = core::array::from_fn(|_| zeros());
     let mut costs = [T::zero(); P];
     let mut best_costs = [T::zero(); P];
     let memory = SwarmMemory::new(
@@ -308,21 +344,27 @@ where
 
 /// The state of a swarm whose size is known at run time (a host choosing it from a setting):
 /// one entry per particle in each slice, all of the same length (the swarm size).
-pub struct SwarmMemory<'m, T: Real, const D: usize> {
-    positions: &'m mut [SVector<T, D>],
-    velocities: &'m mut [SVector<T, D>],
-    best_positions: &'m mut [SVector<T, D>],
+pub struct SwarmMemory<'m, T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    positions: &'m mut [OVector<T, D>],
+    velocities: &'m mut [OVector<T, D>],
+    best_positions: &'m mut [OVector<T, D>],
     costs: &'m mut [T],
     best_costs: &'m mut [T],
 }
 
-impl<'m, T: Real, const D: usize> SwarmMemory<'m, T, D> {
+impl<'m, T: Real, D: Dim> SwarmMemory<'m, T, D>
+where
+    DefaultAllocator: Allocator<D>,
+{
     /// The swarm's memory; the slices' contents are overwritten by the run. Fails with
     /// [`IpsoError::InvalidSize`] unless all have the same non-zero length.
     pub fn new(
-        positions: &'m mut [SVector<T, D>],
-        velocities: &'m mut [SVector<T, D>],
-        best_positions: &'m mut [SVector<T, D>],
+        positions: &'m mut [OVector<T, D>],
+        velocities: &'m mut [OVector<T, D>],
+        best_positions: &'m mut [OVector<T, D>],
         costs: &'m mut [T],
         best_costs: &'m mut [T],
     ) -> Result<Self, IpsoError> {
@@ -352,7 +394,7 @@ impl<'m, T: Real, const D: usize> SwarmMemory<'m, T, D> {
 
 /// Runs the swarm of `memory.particles()` particles in `D` dimensions on `cost`: the same
 /// algorithm and, for the same swarm size, bit for bit the same result as [`optimize`].
-pub fn optimize_in<T, const D: usize>(
+pub fn optimize_in<T, D: Dim>(
     memory: SwarmMemory<'_, T, D>,
     cost: &mut impl CostFunction<T, D>,
     space: &SearchSpace<T, D>,
@@ -361,6 +403,7 @@ pub fn optimize_in<T, const D: usize>(
 ) -> Result<IpsoResult<T, D>, IpsoError>
 where
     T: Real,
+    DefaultAllocator: Allocator<D>,
 {
     let mut random = RandomStream::new(settings.seed);
     optimize_drawing(memory, cost, &mut random, space, settings, observer)
@@ -427,7 +470,7 @@ impl<T: Real> RandomPairs<T> for RandomStream {
 /// [`RandomStream::new`]`(settings.seed)`'s pairs in order. Always inlined on a PC, so that a
 /// caller compiled for wider vectors (AVX-512) gets the swarm's update in them.
 #[cfg_attr(not(target_arch = "arm"), inline(always))]
-pub fn optimize_drawing<T, const D: usize>(
+pub fn optimize_drawing<T, D: Dim>(
     memory: SwarmMemory<'_, T, D>,
     cost: &mut impl CostFunction<T, D>,
     random: &mut impl RandomPairs<T>,
@@ -437,6 +480,7 @@ pub fn optimize_drawing<T, const D: usize>(
 ) -> Result<IpsoResult<T, D>, IpsoError>
 where
     T: Real,
+    DefaultAllocator: Allocator<D>,
 {
     let SwarmMemory {
         positions,
@@ -446,7 +490,17 @@ where
         best_costs,
     } = memory;
     let particles = positions.len() as u64;
-    if particles == 0 || D > MAX_DIMENSION {
+    let dimension = space.center.shape_generic().0;
+    let d = dimension.value();
+    let sized = |x: &OVector<T, D>| x.len() == d;
+    if particles == 0
+        || d > MAX_DIMENSION
+        || ![&space.half_width, &space.lower, &space.upper]
+            .into_iter()
+            .all(sized)
+        || !positions.iter().chain(velocities.iter()).all(sized)
+        || !best_positions.iter().all(sized)
+    {
         return Err(IpsoError::InvalidSize);
     }
     let k = constriction(settings.c1, settings.c2)?;
@@ -462,16 +516,25 @@ where
         .zip(positions.iter())
         .zip(best_costs.iter_mut().zip(costs.iter()))
     {
-        *best_x = *x;
+        best_x.copy_from(x);
         *best_c = sanitize(*c);
     }
-    let (mut global, mut global_cost) = best_of(best_positions, best_costs);
+    // The first particle if all costs are infinite (never NaN: sanitised).
+    let mut global = OVector::<T, D>::zeros_generic(dimension, U1);
+    let mut global_cost = T::of(f64::INFINITY);
+    if let Some((x, c)) = best_of(best_positions, best_costs) {
+        global.copy_from(x);
+        global_cost = c;
+    }
     let initial_cost = global_cost;
 
     let (c1, c2) = (settings.c1, settings.c2);
     // One particle's pairs (on a PC, see the update).
     #[cfg(not(target_arch = "arm"))]
-    let (mut r1, mut r2) = ([T::zero(); D], [T::zero(); D]);
+    let (mut r1, mut r2) = (
+        OVector::<T, D>::zeros_generic(dimension, U1),
+        OVector::<T, D>::zeros_generic(dimension, U1),
+    );
     let mut generations = 0;
     let mut stalled = 0u32;
     let mut stop = StopReason::MaxGenerations;
@@ -482,7 +545,7 @@ where
     } else {
         while generations < settings.max_generations {
             generations += 1;
-            random.generation(positions.len() * D);
+            random.generation(positions.len() * d);
             for (index, ((x, v), pbest)) in positions
                 .iter_mut()
                 .zip(velocities.iter_mut())
@@ -506,8 +569,10 @@ where
                 // the swarm's instructions).
                 #[cfg(not(target_arch = "arm"))]
                 {
-                    random.particle(&mut r1, &mut r2);
-                    for (((xj, vj), (pj, gj)), (r1, r2)) in coordinates.zip(r1.iter().zip(&r2)) {
+                    random.particle(r1.as_mut_slice(), r2.as_mut_slice());
+                    for (((xj, vj), (pj, gj)), (r1, r2)) in
+                        coordinates.zip(r1.as_slice().iter().zip(r2.as_slice()))
+                    {
                         step(xj, vj, *pj, *gj, (*r1, *r2));
                     }
                 }
@@ -521,9 +586,9 @@ where
             cost.cost_batch(positions, costs);
             evaluations += particles;
             personal_bests(costs, positions, best_costs, best_positions);
-            let (candidate, candidate_cost) = best_of(best_positions, best_costs);
-            if candidate_cost < global_cost {
-                global = candidate;
+            let improved = best_of(best_positions, best_costs).filter(|(_, c)| *c < global_cost);
+            if let Some((candidate, candidate_cost)) = improved {
+                global.copy_from(candidate);
                 global_cost = candidate_cost;
                 stalled = 0;
             } else {
@@ -556,33 +621,32 @@ where
 /// The swarm's start (section 2.2): particle `i` of `P` at Halton point `start + i` mapped onto
 /// the initial box, its velocity from point `start + P + i` scaled by the half widths; both
 /// clamped.
-fn halton_start<T: Real, const D: usize>(
+fn halton_start<T: Real, D: Dim>(
     space: &SearchSpace<T, D>,
     settings: &IpsoSettings<T>,
-    positions: &mut [SVector<T, D>],
-    velocities: &mut [SVector<T, D>],
-) {
+    positions: &mut [OVector<T, D>],
+    velocities: &mut [OVector<T, D>],
+) where
+    DefaultAllocator: Allocator<D>,
+{
     let particles = positions.len() as u64;
-    let mut unit = [0.0f64; D];
+    let mut point = [0.0f64; MAX_DIMENSION];
+    let unit = point.get_mut(..space.center.len()).unwrap_or_default();
     let two = T::of(2.0);
     let start = settings.halton_start;
     for (i, (x, v)) in positions.iter_mut().zip(velocities.iter_mut()).enumerate() {
         let i = i as u64;
-        halton::halton_point(start.wrapping_add(i), settings.scrambling, &mut unit);
+        halton::halton_point(start.wrapping_add(i), settings.scrambling, unit);
         for (((xj, h), c), w) in x
             .iter_mut()
-            .zip(&unit)
+            .zip(unit.iter())
             .zip(space.center.iter())
             .zip(space.half_width.iter())
         {
             *xj = *c + (two * T::of(*h) - T::one()) * *w;
         }
-        halton::halton_point(
-            start.wrapping_add(particles + i),
-            settings.scrambling,
-            &mut unit,
-        );
-        for ((vj, h), w) in v.iter_mut().zip(&unit).zip(space.half_width.iter()) {
+        halton::halton_point(start.wrapping_add(particles + i), settings.scrambling, unit);
+        for ((vj, h), w) in v.iter_mut().zip(unit.iter()).zip(space.half_width.iter()) {
             *vj = (two * T::of(*h) - T::one()) * *w;
         }
         clamp(x, v, space);
@@ -590,12 +654,14 @@ fn halton_start<T: Real, const D: usize>(
 }
 
 /// Each particle's best: replaced where its new cost (non-finite counts as +infinity) is lower.
-fn personal_bests<T: Real, const D: usize>(
+fn personal_bests<T: Real, D: Dim>(
     costs: &[T],
-    positions: &[SVector<T, D>],
+    positions: &[OVector<T, D>],
     best_costs: &mut [T],
-    best_positions: &mut [SVector<T, D>],
-) {
+    best_positions: &mut [OVector<T, D>],
+) where
+    DefaultAllocator: Allocator<D>,
+{
     for ((c, best_c), (x, best_x)) in costs
         .iter()
         .zip(best_costs.iter_mut())
@@ -604,7 +670,7 @@ fn personal_bests<T: Real, const D: usize>(
         let c = sanitize(*c);
         if c < *best_c {
             *best_c = c;
-            *best_x = *x;
+            best_x.copy_from(x);
         }
     }
 }
@@ -613,11 +679,10 @@ fn personal_bests<T: Real, const D: usize>(
 /// selects, no branches: which coordinates hit a wall is random, and mispredicted branches were
 /// a quarter of the update there (the loop vectorises instead).
 #[cfg_attr(target_arch = "arm", inline(never))] // one copy for both call sites (controller flash)
-fn clamp<T: Real, const D: usize>(
-    x: &mut SVector<T, D>,
-    v: &mut SVector<T, D>,
-    space: &SearchSpace<T, D>,
-) {
+fn clamp<T: Real, D: Dim>(x: &mut OVector<T, D>, v: &mut OVector<T, D>, space: &SearchSpace<T, D>)
+where
+    DefaultAllocator: Allocator<D>,
+{
     for (((xj, vj), lo), hi) in x
         .as_mut_slice()
         .iter_mut()
@@ -649,24 +714,27 @@ fn clamp<T: Real, const D: usize>(
     }
 }
 
-/// The position with the lowest cost (the first one on ties; all costs are sanitised, never NaN).
+/// The position with the lowest cost (the first one on ties; all costs are sanitised, never
+/// NaN), borrowed: the caller copies it only when it improves (no allocation for `Dyn`).
 #[inline(never)] // one copy for both call sites (controller flash)
-fn best_of<T: Real, const D: usize>(
-    positions: &[SVector<T, D>],
+fn best_of<'a, T: Real, D: Dim>(
+    positions: &'a [OVector<T, D>],
     costs: &[T],
-) -> (SVector<T, D>, T) {
+) -> Option<(&'a OVector<T, D>, T)>
+where
+    DefaultAllocator: Allocator<D>,
+{
     let mut pairs = positions.iter().zip(costs);
-    let Some((first, first_cost)) = pairs.next() else {
-        return (SVector::zeros(), T::of(f64::INFINITY));
-    };
-    pairs.fold((*first, *first_cost), |best, (x, c)| {
-        if *c < best.1 { (*x, *c) } else { best }
-    })
+    let (first, first_cost) = pairs.next()?;
+    Some(pairs.fold((first, *first_cost), |best, (x, c)| {
+        if *c < best.1 { (x, *c) } else { best }
+    }))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::{SVector, U24, U65};
 
     /// A convex quadratic in 24 dimensions with minimum 0 at `x*` (well inside the box).
     fn quadratic(x: &SVector<f64, 24>) -> f64 {
@@ -679,7 +747,7 @@ mod tests {
             .sum()
     }
 
-    fn space() -> SearchSpace<f64, 24> {
+    fn space() -> SearchSpace<f64, U24> {
         SearchSpace::around(SVector::zeros(), SVector::repeat(0.05), 2.0)
     }
 
@@ -700,7 +768,7 @@ mod tests {
         let mut settings = IpsoSettings::paper();
         settings.seed = 7;
         let result =
-            optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
+            optimize::<f64, 20, U24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
         assert!(result.best_cost < 1e-10, "best {}", result.best_cost);
         assert!(result.initial_cost > 1e-3);
         assert_eq!(result.generations, 2000);
@@ -713,12 +781,12 @@ mod tests {
         let mut settings = IpsoSettings::<f64>::paper();
         settings.max_generations = 300;
         settings.seed = 42;
-        let a = optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
-        let b = optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
+        let a = optimize::<f64, 20, U24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
+        let b = optimize::<f64, 20, U24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
         assert_eq!(a, b);
         assert_eq!(a.best_cost.to_bits(), b.best_cost.to_bits());
         settings.seed = 43;
-        let c = optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
+        let c = optimize::<f64, 20, U24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
         assert_ne!(a.best, c.best);
     }
 
@@ -728,7 +796,7 @@ mod tests {
         settings.max_generations = 300;
         settings.seed = 42;
         let on_stack =
-            optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
+            optimize::<f64, 20, U24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
         // Memory larger than needed, lent in part: the swarm size is the slices' length.
         let mut positions = [SVector::<f64, 24>::repeat(7.0); 30];
         let mut velocities = [SVector::<f64, 24>::repeat(-7.0); 30];
@@ -756,7 +824,7 @@ mod tests {
             &mut best_costs[..20],
         );
         assert_eq!(uneven.err(), Some(IpsoError::InvalidSize));
-        let empty = SwarmMemory::<f64, 24>::new(&mut [], &mut [], &mut [], &mut [], &mut []);
+        let empty = SwarmMemory::<f64, U24>::new(&mut [], &mut [], &mut [], &mut [], &mut []);
         assert_eq!(empty.err(), Some(IpsoError::InvalidSize));
     }
 
@@ -796,7 +864,7 @@ mod tests {
         let mut settings = IpsoSettings::<f64>::paper();
         settings.max_generations = 300;
         settings.seed = 42;
-        let drawn = optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent);
+        let drawn = optimize::<f64, 20, U24>(&mut quadratic, &space(), &settings, &mut Silent);
         let mut ahead = DrawnAhead {
             stream: RandomStream::new(42),
             buffer: [(0.0, 0.0); 20 * 24],
@@ -836,7 +904,7 @@ mod tests {
             next: usize,
             batches: u32,
         }
-        impl CostFunction<f64, 24> for Announced {
+        impl CostFunction<f64, U24> for Announced {
             fn cost(&mut self, x: &SVector<f64, 24>) -> f64 {
                 quadratic(x)
             }
@@ -863,8 +931,8 @@ mod tests {
             next: 0,
             batches: 0,
         };
-        let told = optimize::<f64, 20, 24>(&mut announced, &space(), &settings, &mut Silent);
-        let plain = optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent);
+        let told = optimize::<f64, 20, U24>(&mut announced, &space(), &settings, &mut Silent);
+        let plain = optimize::<f64, 20, U24>(&mut quadratic, &space(), &settings, &mut Silent);
         assert_eq!(announced.batches, 51);
         assert_eq!(told, plain);
     }
@@ -873,14 +941,14 @@ mod tests {
     fn stops_on_target_stall_and_cancel() {
         let mut settings = IpsoSettings::<f64>::paper();
         settings.target_cost = 1e-4;
-        let r = optimize::<f64, 20, 24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
+        let r = optimize::<f64, 20, U24>(&mut quadratic, &space(), &settings, &mut Silent).unwrap();
         assert_eq!(r.stop, StopReason::TargetReached);
         assert!(r.best_cost <= 1e-4 && r.generations < 2000);
 
         // A constant cost never improves.
         settings = IpsoSettings::paper();
         settings.stall_generations = 25;
-        let r = optimize::<f64, 5, 24>(
+        let r = optimize::<f64, 5, U24>(
             &mut |_: &SVector<f64, 24>| 1.0,
             &space(),
             &settings,
@@ -898,7 +966,7 @@ mod tests {
                 Control::Continue
             }
         };
-        let r = optimize::<f64, 5, 24>(
+        let r = optimize::<f64, 5, U24>(
             &mut quadratic,
             &space(),
             &IpsoSettings::paper(),
@@ -921,7 +989,7 @@ mod tests {
         };
         let mut settings = IpsoSettings::paper();
         settings.max_generations = 200;
-        let r = optimize::<f64, 20, 24>(&mut nan_sometimes, &s, &settings, &mut Silent).unwrap();
+        let r = optimize::<f64, 20, U24>(&mut nan_sometimes, &s, &settings, &mut Silent).unwrap();
         assert!(inside);
         assert!(r.best_cost.is_finite() && r.best[0] <= 0.02);
     }
@@ -932,12 +1000,12 @@ mod tests {
         bad.lower[3] = 1.0;
         let settings = IpsoSettings::paper();
         assert_eq!(
-            optimize::<f64, 20, 24>(&mut quadratic, &bad, &settings, &mut Silent),
+            optimize::<f64, 20, U24>(&mut quadratic, &bad, &settings, &mut Silent),
             Err(IpsoError::InvalidSearchSpace)
         );
         let s0 = SearchSpace::around(SVector::<f64, 65>::zeros(), SVector::repeat(1.0), 1.0);
         assert_eq!(
-            optimize::<f64, 4, 65>(&mut |_: &SVector<f64, 65>| 0.0, &s0, &settings, &mut Silent),
+            optimize::<f64, 4, U65>(&mut |_: &SVector<f64, 65>| 0.0, &s0, &settings, &mut Silent),
             Err(IpsoError::InvalidSize)
         );
     }
@@ -948,7 +1016,7 @@ mod tests {
         settings.seed = 7;
         let space = SearchSpace::around(SVector::<f32, 24>::zeros(), SVector::repeat(0.05), 2.0);
         let mut f = |x: &SVector<f32, 24>| quadratic(&x.map(f64::from)) as f32;
-        let r = optimize::<f32, 20, 24>(&mut f, &space, &settings, &mut Silent).unwrap();
+        let r = optimize::<f32, 20, U24>(&mut f, &space, &settings, &mut Silent).unwrap();
         assert!(r.best_cost < 1e-9, "{}", r.best_cost);
     }
 }

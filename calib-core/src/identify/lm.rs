@@ -17,7 +17,8 @@ use crate::identify::Problem;
 use crate::kinematics::pose_error::pose_error_jacobian;
 use crate::scalar::Real;
 use core::fmt;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, U1};
 
 /// Settings of a least-squares run.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -148,8 +149,11 @@ impl<T: Real> Loss<T> {
 }
 
 /// The outcome of a robust least-squares run.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RobustResult<T: Real, const D: usize> {
+#[derive(Clone, Debug, PartialEq)]
+pub struct RobustResult<T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
     /// The final weighted least-squares run.
     pub result: LmResult<T, D>,
     /// Reweightings done.
@@ -158,11 +162,22 @@ pub struct RobustResult<T: Real, const D: usize> {
     pub outliers: u32,
 }
 
+/// `Copy` for a fixed dimension (`Const<D>`).
+impl<T: Real, D: Dim> Copy for RobustResult<T, D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+    LmResult<T, D>: Copy,
+{
+}
+
 /// The outcome of a least-squares run.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LmResult<T: Real, const D: usize> {
+#[derive(Clone, Debug, PartialEq)]
+pub struct LmResult<T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
     /// The parameters (mm, rad).
-    pub x: SVector<T, D>,
+    pub x: OVector<T, D>,
     /// `0.5 |r|^2` at the start.
     pub initial_cost: T,
     /// `0.5 |r|^2` at the result.
@@ -176,15 +191,27 @@ pub struct LmResult<T: Real, const D: usize> {
     /// Why it stopped.
     pub stop: LmStop,
     /// The triangular factor of `J` at the result (`J = Q R`).
-    pub r: SMatrix<T, D, D>,
+    pub r: OMatrix<T, D, D>,
 }
 
-impl<T: Real, const D: usize> LmResult<T, D> {
+/// `Copy` for a fixed dimension (`Const<D>`).
+impl<T: Real, D: Dim> Copy for LmResult<T, D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+    OVector<T, D>: Copy,
+    OMatrix<T, D, D>: Copy,
+{
+}
+
+impl<T: Real, D: Dim> LmResult<T, D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
     /// Residual standard deviation `sqrt(|r|^2 / (m - D))` (mm-equivalent units).
     pub fn sigma(&self) -> T {
         let dof = self
             .rows
-            .saturating_sub(u32::try_from(D).unwrap_or(u32::MAX));
+            .saturating_sub(u32::try_from(self.x.len()).unwrap_or(u32::MAX));
         if dof == 0 {
             return T::zero();
         }
@@ -193,61 +220,75 @@ impl<T: Real, const D: usize> LmResult<T, D> {
 
     /// Covariance of the parameters, `sigma^2 (J^T J)^-1 = sigma^2 R^-1 R^-T` (mm^2, mm rad,
     /// rad^2), computed from `R` without forming `J^T J`. `None` if `R` is singular.
-    pub fn covariance(&self) -> Option<SMatrix<T, D, D>> {
-        let r_inv = self
-            .r
-            .solve_upper_triangular(&SMatrix::<T, D, D>::identity())?;
+    pub fn covariance(&self) -> Option<OMatrix<T, D, D>> {
+        let r_inv = self.r_inverse()?;
         let sigma = self.sigma();
-        Some(r_inv * r_inv.transpose() * (sigma * sigma))
+        Some(product_by_columns(&r_inv, &r_inv.transpose()) * (sigma * sigma))
     }
 
     /// Standard error of every parameter, `sigma sqrt(diag((J^T J)^-1))`: `sigma` times the row
     /// norms of `R^-1` (mm, rad). `None` if `R` is singular.
-    pub fn standard_errors(&self) -> Option<SVector<T, D>> {
-        let r_inv = self
-            .r
-            .solve_upper_triangular(&SMatrix::<T, D, D>::identity())?;
+    pub fn standard_errors(&self) -> Option<OVector<T, D>> {
+        let r_inv = self.r_inverse()?;
         let sigma = self.sigma();
-        Some(SVector::from_iterator(
+        Some(OVector::<T, D>::from_iterator_generic(
+            r_inv.shape_generic().0,
+            U1,
             r_inv.row_iter().map(|row| sigma * row.norm()),
         ))
+    }
+
+    /// `R^-1`, or `None` if `R` is singular.
+    fn r_inverse(&self) -> Option<OMatrix<T, D, D>> {
+        let (rows, columns) = self.r.shape_generic();
+        self.r
+            .solve_upper_triangular(&OMatrix::<T, D, D>::identity_generic(rows, columns))
     }
 }
 
 /// Least squares over a [`Problem`]: its identified parameters over its measurements.
 #[derive(Clone, Copy, Debug)]
-pub struct LeastSquares<'p, T: Real, const N: usize, const D: usize> {
+pub struct LeastSquares<'p, T: Real, const N: usize, D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
     problem: &'p Problem<'p, T, N, D>,
     sqrt_k: T,
 }
 
 /// Triangular factor, `Q^T r` and `|r|^2` of the stacked residual, accumulated row by row.
-struct Factor<T: Real, const D: usize> {
+struct Factor<T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
     /// `R` transposed: column `i` holds row `i` of `R`, contiguous in memory, which is what a
     /// rotation updates (so the update is a loop over two slices, vectorised on a PC).
-    rt: SMatrix<T, D, D>,
-    qtr: SVector<T, D>,
+    rt: OMatrix<T, D, D>,
+    qtr: OVector<T, D>,
     sum_squares: T,
 }
 
-impl<T: Real, const D: usize> Factor<T, D> {
-    fn new() -> Self {
+impl<T: Real, D: Dim> Factor<T, D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    fn new(dim: D) -> Self {
         Self {
-            rt: SMatrix::zeros(),
-            qtr: SVector::zeros(),
+            rt: OMatrix::zeros_generic(dim, dim),
+            qtr: OVector::zeros_generic(dim, U1),
             sum_squares: T::zero(),
         }
     }
 
     /// The upper triangular factor `R`.
-    fn r(&self) -> SMatrix<T, D, D> {
+    fn r(&self) -> OMatrix<T, D, D> {
         self.rt.transpose()
     }
 
     /// Rotates the row `(a, b)` (Jacobian row and residual) into `R` and `Q^T r`.
-    fn add_row(&mut self, mut a: SVector<T, D>, mut b: T) {
+    fn add_row(&mut self, mut a: OVector<T, D>, mut b: T) {
         self.sum_squares += b * b;
-        for i in 0..D {
+        for i in 0..self.qtr.len() {
             self.rotate(i, &mut a, &mut b);
         }
     }
@@ -258,13 +299,14 @@ impl<T: Real, const D: usize> Factor<T, D> {
     /// of square roots and divisions (each column's rotation waits for the previous one); the
     /// rows' chains are independent, so a processor that runs instructions out of order
     /// overlaps them.
-    fn add_rows(&mut self, rows: &mut [(SVector<T, D>, T)]) {
+    fn add_rows(&mut self, rows: &mut [(OVector<T, D>, T)]) {
         for (_, b) in rows.iter() {
             self.sum_squares += *b * *b;
         }
-        for step in 0..(D + rows.len()).saturating_sub(1) {
+        let d = self.qtr.len();
+        for step in 0..(d + rows.len()).saturating_sub(1) {
             for (r, (a, b)) in rows.iter_mut().enumerate() {
-                if let Some(i) = step.checked_sub(r).filter(|i| *i < D) {
+                if let Some(i) = step.checked_sub(r).filter(|i| *i < d) {
                     self.rotate(i, a, b);
                 }
             }
@@ -273,13 +315,14 @@ impl<T: Real, const D: usize> Factor<T, D> {
 
     /// The Givens rotation of row `(a, b)` against row `i` of `R` that zeroes `a[i]`.
     #[inline(always)]
-    fn rotate(&mut self, i: usize, a: &mut SVector<T, D>, b: &mut T) {
+    fn rotate(&mut self, i: usize, a: &mut OVector<T, D>, b: &mut T) {
         let ai = a.get(i).copied().unwrap_or_else(T::zero);
         if ai == T::zero() {
             return;
         }
+        let d = self.qtr.len();
         let (Some(r_row), Some(a_row)) = (
-            self.rt.as_mut_slice().get_mut(i * D + i..(i + 1) * D),
+            self.rt.as_mut_slice().get_mut(i * d + i..(i + 1) * d),
             a.as_mut_slice().get_mut(i..),
         ) else {
             return;
@@ -307,28 +350,35 @@ const ROWS_AT_ONCE: usize = if cfg!(target_arch = "arm") { 1 } else { 8 };
 
 /// Rows on their way into a [`Factor`], rotated in [`ROWS_AT_ONCE`] at a time: the same bits as
 /// adding them one by one.
-struct RowBatch<T: Real, const D: usize> {
-    rows: [(SVector<T, D>, T); ROWS_AT_ONCE],
+struct RowBatch<T: Real, D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    rows: [(OVector<T, D>, T); ROWS_AT_ONCE],
     held: usize,
 }
 
-impl<T: Real, const D: usize> RowBatch<T, D> {
-    fn new() -> Self {
+impl<T: Real, D: Dim> RowBatch<T, D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    fn new(dim: D) -> Self {
         Self {
-            rows: [(SVector::zeros(), T::zero()); ROWS_AT_ONCE],
+            rows: core::array::from_fn(|_| (OVector::zeros_generic(dim, U1), T::zero())),
             held: 0,
         }
     }
 
     /// Adds the row `(a, b)`, rotating the batch into `factor` once it is full.
     #[inline(always)]
-    fn push(&mut self, factor: &mut Factor<T, D>, a: SVector<T, D>, b: T) {
+    fn push(&mut self, factor: &mut Factor<T, D>, a: &OVector<T, D>, b: T) {
         if ROWS_AT_ONCE == 1 {
-            factor.add_row(a, b);
+            factor.add_row(a.clone(), b);
             return;
         }
-        if let Some(row) = self.rows.get_mut(self.held) {
-            *row = (a, b);
+        if let Some((row, row_b)) = self.rows.get_mut(self.held) {
+            row.copy_from(a);
+            *row_b = b;
             self.held += 1;
         }
         if self.held == ROWS_AT_ONCE {
@@ -348,7 +398,10 @@ impl<T: Real, const D: usize> RowBatch<T, D> {
     }
 }
 
-impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
+impl<'p, T: Real, const N: usize, D: Dim> LeastSquares<'p, T, N, D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D> + Allocator<nalgebra::U6, D>,
+{
     /// Least squares over `problem`; `k` (mm^2/rad^2) weights the orientation rows as in eq. (7).
     pub fn new(problem: &'p Problem<'p, T, N, D>) -> Self {
         Self {
@@ -376,13 +429,15 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
     /// for rotation rows; `robust` holds one weight per measurement (empty: all 1).
     fn for_each_row(
         &self,
-        x: &SVector<T, D>,
+        x: &OVector<T, D>,
         robust: &[T],
         with_jacobian: bool,
-        mut row: impl FnMut(&SVector<T, D>, T),
+        mut row: impl FnMut(&OVector<T, D>, T),
     ) {
         let kinematics = self.problem.kinematics(x);
-        let zero = SVector::<T, D>::zeros();
+        let zero = self.problem.set().zeros::<T>();
+        // One scaled Jacobian row at a time, in one buffer (no allocation per row for `Dyn`).
+        let mut scaled = zero.clone();
         for (index, m) in self.problem.measurements().iter().enumerate() {
             let robust_weight = robust.get(index).copied().unwrap_or_else(T::one);
             let w = (m.weight * robust_weight).sqrt();
@@ -402,7 +457,11 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
                 };
                 let value = value.unwrap_or_else(T::zero) * scale;
                 match &jacobian {
-                    Some(j) => row(&(j.row(i).transpose() * scale), value),
+                    Some(j) => {
+                        scaled.tr_copy_from(&j.row(i));
+                        scaled *= scale;
+                        row(&scaled, value)
+                    }
                     None => row(&zero, value),
                 }
             }
@@ -411,7 +470,7 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
 
     /// Residual norm of every pose at `x`, `sqrt(|dp|^2 + k |dr|^2)` (mm; `|dp|` for position-only
     /// poses), without weights, into `out` (one entry per measurement).
-    pub fn pose_residual_norms(&self, x: &SVector<T, D>, out: &mut [T]) {
+    pub fn pose_residual_norms(&self, x: &OVector<T, D>, out: &mut [T]) {
         self.for_each_pose_norm(x, |index, norm| {
             if let Some(o) = out.get_mut(index) {
                 *o = norm;
@@ -420,7 +479,7 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
     }
 
     /// Calls `visit(index, norm)` with the residual norm of every pose at `x`.
-    fn for_each_pose_norm(&self, x: &SVector<T, D>, mut visit: impl FnMut(usize, T)) {
+    fn for_each_pose_norm(&self, x: &OVector<T, D>, mut visit: impl FnMut(usize, T)) {
         let kinematics = self.problem.kinematics(x);
         for (index, m) in self.problem.measurements().iter().enumerate() {
             let predicted = kinematics.forward_angles(&m.angles);
@@ -438,13 +497,13 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
     }
 
     /// `0.5 |r|^2` at `x`.
-    pub fn cost(&self, x: &SVector<T, D>) -> T {
+    pub fn cost(&self, x: &OVector<T, D>) -> T {
         let mut sum = T::zero();
         self.for_each_row(x, &[], false, |_, r| sum += r * r);
         sum / T::of(2.0)
     }
 
-    fn weighted_cost(&self, x: &SVector<T, D>, robust: &[T]) -> T {
+    fn weighted_cost(&self, x: &OVector<T, D>, robust: &[T]) -> T {
         let mut sum = T::zero();
         self.for_each_row(x, robust, false, |_, r| sum += r * r);
         sum / T::of(2.0)
@@ -452,14 +511,15 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
 
     /// The triangular factor `R` of the Jacobian at `x` (`J = Q R`), for the identifiability
     /// analysis.
-    pub fn jacobian_factor(&self, x: &SVector<T, D>) -> SMatrix<T, D, D> {
+    pub fn jacobian_factor(&self, x: &OVector<T, D>) -> OMatrix<T, D, D> {
         self.factor(x, &[]).r()
     }
 
-    fn factor(&self, x: &SVector<T, D>, robust: &[T]) -> Factor<T, D> {
-        let mut factor = Factor::new();
-        let mut batch = RowBatch::new();
-        self.for_each_row(x, robust, true, |a, b| batch.push(&mut factor, *a, b));
+    fn factor(&self, x: &OVector<T, D>, robust: &[T]) -> Factor<T, D> {
+        let dim = self.problem.set().dim();
+        let mut factor = Factor::new(dim);
+        let mut batch = RowBatch::new(dim);
+        self.for_each_row(x, robust, true, |a, b| batch.push(&mut factor, a, b));
         batch.finish(&mut factor);
         factor
     }
@@ -467,7 +527,7 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
     /// Runs Levenberg-Marquardt from `x0`.
     pub fn solve(
         &self,
-        x0: &SVector<T, D>,
+        x0: &OVector<T, D>,
         settings: &LmSettings<T>,
     ) -> Result<LmResult<T, D>, LmError> {
         self.solve_weighted(x0, settings, &[])
@@ -480,7 +540,7 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
     /// loss scale are counted as outliers.
     pub fn solve_robust(
         &self,
-        x0: &SVector<T, D>,
+        x0: &OVector<T, D>,
         settings: &LmSettings<T>,
         loss: Loss<T>,
         weights: &mut [T],
@@ -530,12 +590,13 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
 
     /// The residual rows, after checking that they can determine the parameters and that the
     /// start is finite.
-    fn check_start(&self, x0: &SVector<T, D>) -> Result<u32, LmError> {
+    fn check_start(&self, x0: &OVector<T, D>) -> Result<u32, LmError> {
         let rows = self.rows();
-        if (rows as usize) < D {
+        let parameters = self.problem.set().len();
+        if (rows as usize) < parameters {
             return Err(LmError::TooFewResiduals {
                 rows,
-                parameters: u16::try_from(D).unwrap_or(u16::MAX),
+                parameters: u16::try_from(parameters).unwrap_or(u16::MAX),
             });
         }
         if !x0.iter().all(|v| v.finite()) {
@@ -546,13 +607,13 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
 
     fn solve_weighted(
         &self,
-        x0: &SVector<T, D>,
+        x0: &OVector<T, D>,
         settings: &LmSettings<T>,
         robust: &[T],
     ) -> Result<LmResult<T, D>, LmError> {
         let rows = self.check_start(x0)?;
         let half = T::of(0.5);
-        let mut x = *x0;
+        let mut x = x0.clone();
         let mut factor = self.factor(&x, robust);
         let mut evaluations = 1;
         let mut cost = factor.sum_squares * half;
@@ -591,8 +652,8 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
             }
             // Predicted reduction 0.5 (|Q^T r|^2 - |R delta + Q^T r|^2).
             let predicted =
-                half * (factor.qtr.norm_squared() - (r * delta + factor.qtr).norm_squared());
-            let candidate = x + delta;
+                half * (factor.qtr.norm_squared() - (&r * &delta + &factor.qtr).norm_squared());
+            let candidate = &x + &delta;
             let candidate_cost = self.weighted_cost(&candidate, robust);
             evaluations += 1;
             let actual = cost - candidate_cost;
@@ -640,12 +701,11 @@ impl<'p, T: Real, const N: usize, const D: usize> LeastSquares<'p, T, N, D> {
 
 /// MINPACK's scaled gradient test value `max_i |J_i^T r| / (|J_i| |r|)` at a factor with
 /// `0.5 |r|^2 = cost` whose triangular factor is `r`; `J^T r = R^T Q^T r`.
-fn gradient_cosine<T: Real, const D: usize>(
-    factor: &Factor<T, D>,
-    r: &SMatrix<T, D, D>,
-    cost: T,
-) -> T {
-    let gradient = r.transpose() * factor.qtr;
+fn gradient_cosine<T: Real, D: Dim>(factor: &Factor<T, D>, r: &OMatrix<T, D, D>, cost: T) -> T
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    let gradient = r.transpose() * &factor.qtr;
     let r_norm = (T::of(2.0) * cost).sqrt();
     gradient
         .iter()
@@ -662,29 +722,55 @@ fn gradient_cosine<T: Real, const D: usize>(
 
 /// Column norms of `R` (equal to those of `J`, since `Q` is orthogonal).
 #[inline(never)] // three call sites: one copy (controller flash)
-fn column_norms<T: Real, const D: usize>(r: &SMatrix<T, D, D>) -> SVector<T, D> {
-    SVector::from_iterator(r.column_iter().map(|c| c.norm()))
+fn column_norms<T: Real, D: Dim>(r: &OMatrix<T, D, D>) -> OVector<T, D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    OVector::from_iterator_generic(r.shape_generic().1, U1, r.column_iter().map(|c| c.norm()))
+}
+
+/// `a b` column by column (`a` times each column of `b`): the order of operations nalgebra uses
+/// for fixed sizes, also for `Dyn` (whose products nalgebra hands to a blocked kernel that sums
+/// in another order), so that a covariance has the same bits for `Const` and `Dyn`.
+pub(crate) fn product_by_columns<T: Real, D: Dim>(
+    a: &OMatrix<T, D, D>,
+    b: &OMatrix<T, D, D>,
+) -> OMatrix<T, D, D>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
+    let (rows, columns) = b.shape_generic();
+    let mut out = OMatrix::<T, D, D>::zeros_generic(rows, columns);
+    for (mut column, b_column) in out.column_iter_mut().zip(b.column_iter()) {
+        column.gemv(T::one(), a, &b_column, T::zero());
+    }
+    out
 }
 
 /// Solves `[R; sqrt(lambda) S] delta = -[Q^T r; 0]` in the least-squares sense.
-fn damped_step<T: Real, const D: usize>(
+fn damped_step<T: Real, D: Dim>(
     factor: &Factor<T, D>,
-    scale: &SVector<T, D>,
+    scale: &OVector<T, D>,
     lambda: T,
-) -> Option<SVector<T, D>> {
+) -> Option<OVector<T, D>>
+where
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
+{
     let mut damped = Factor {
-        rt: factor.rt,
-        qtr: factor.qtr,
+        rt: factor.rt.clone(),
+        qtr: factor.qtr.clone(),
         sum_squares: T::zero(),
     };
     let root = lambda.sqrt();
-    let mut batch = RowBatch::new();
+    let dim = scale.shape_generic().0;
+    let mut batch = RowBatch::new(dim);
+    let mut row = OVector::<T, D>::zeros_generic(dim, U1);
     for (i, s) in scale.iter().enumerate() {
-        let mut row = SVector::<T, D>::zeros();
+        row.fill(T::zero());
         if let Some(v) = row.get_mut(i) {
             *v = root * *s;
         }
-        batch.push(&mut damped, row, T::zero());
+        batch.push(&mut damped, &row, T::zero());
     }
     batch.finish(&mut damped);
     let solution = damped.r().solve_upper_triangular(&damped.qtr)?;
@@ -698,13 +784,14 @@ mod tests {
     use crate::identify::objective::Measurement;
     use crate::model::paper::{er10l_c10, paper_measurements, table2};
     use crate::{JointParameter, Parameter, ParameterErrors, ParameterSet};
+    use nalgebra::{SMatrix, SVector, U3, U6, U24};
     extern crate std;
 
     /// LM from the nominal model (zero errors) on the noise-free paper scenario; returns the worst
     /// length (mm) and angle (rad) errors against Table 2 and the result.
-    fn recover<T: Real>() -> (f64, f64, LmResult<T, 24>) {
+    fn recover<T: Real>() -> (f64, f64, LmResult<T, U24>) {
         let robot = er10l_c10::<T>();
-        let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
+        let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
         let data = paper_measurements::<T>(1);
         let problem = Problem::new(
             &robot,
@@ -757,13 +844,13 @@ mod tests {
         use crate::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
         use crate::identify::objective::Objective;
         let robot = er10l_c10::<f32>();
-        let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
+        let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
         let data = paper_measurements::<f32>(1);
         let problem =
             Problem::new(&robot, &ParameterErrors::zero(), set, data.as_slice(), 1e6).unwrap();
         let objective = Objective::new(&problem);
         let mut cost = |x: &SVector<f32, 24>| objective.value(x);
-        let swarm = ipso::optimize::<f32, 20, 24>(
+        let swarm = ipso::optimize::<f32, 20, U24>(
             &mut cost,
             &SearchSpace::paper(&set),
             &IpsoSettings::paper(),
@@ -806,7 +893,7 @@ mod tests {
             ([2.0, 0.0, 1.0], 0.5),
             ([-1.0, 1.0, 1.0], 3.0),
         ];
-        let mut factor = Factor::<f64, 3>::new();
+        let mut factor = Factor::<f64, U3>::new(U3);
         let mut jtj = SMatrix::<f64, 3, 3>::zeros();
         let mut jtr = SVector::<f64, 3>::zeros();
         for (a, b) in rows {
@@ -844,17 +931,17 @@ mod tests {
                 (a, (r as f64 * 0.7).cos())
             })
             .collect();
-        let mut one_by_one = Factor::<f64, 6>::new();
+        let mut one_by_one = Factor::<f64, U6>::new(U6);
         for (a, b) in &rows {
             one_by_one.add_row(*a, *b);
         }
         for size in 1..=5 {
-            let mut batched = Factor::<f64, 6>::new();
+            let mut batched = Factor::<f64, U6>::new(U6);
             for chunk in rows.chunks(size) {
                 let mut chunk = chunk.to_vec();
                 batched.add_rows(&mut chunk);
             }
-            let bits = |f: &Factor<f64, 6>| {
+            let bits = |f: &Factor<f64, U6>| {
                 let mut v: std::vec::Vec<u64> = f.rt.iter().map(|x| x.to_bits()).collect();
                 v.extend(f.qtr.iter().map(|x| x.to_bits()));
                 v.push(f.sum_squares.to_bits());
@@ -862,10 +949,10 @@ mod tests {
             };
             assert_eq!(bits(&batched), bits(&one_by_one), "batches of {size}");
         }
-        let mut batch = RowBatch::new();
-        let mut pushed = Factor::<f64, 6>::new();
+        let mut batch = RowBatch::new(U6);
+        let mut pushed = Factor::<f64, U6>::new(U6);
         for (a, b) in &rows {
-            batch.push(&mut pushed, *a, *b);
+            batch.push(&mut pushed, a, *b);
         }
         batch.finish(&mut pushed);
         assert_eq!(pushed.rt, one_by_one.rt);
@@ -875,7 +962,7 @@ mod tests {
     #[test]
     fn too_few_poses_and_unobservable_parameters_are_errors() {
         let robot = er10l_c10::<f64>();
-        let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
+        let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
         let data = paper_measurements::<f64>(1);
         let three = &data.as_slice()[..3];
         let problem = Problem::new(&robot, &ParameterErrors::zero(), set, three, 1e6).unwrap();

@@ -23,7 +23,8 @@ use crate::scalar::Real;
 use crate::{KinematicsError, Pose};
 use core::borrow::Borrow;
 use core::fmt;
-use nalgebra::{Matrix3, SVector, Vector3};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, Matrix3, OVector, Vector3};
 
 /// Default orientation weight `k` of eq. (7), mm^2/rad^2 (see the module docs).
 pub const DEFAULT_K: f64 = 1e6;
@@ -260,11 +261,17 @@ impl<T: Real, const N: usize, const L: usize> PoseLanes<T, N, L> {
 /// Eq. (7) for the parameters of a [`ParameterSet`](crate::ParameterSet) over a set of measurements: the swarm's
 /// view of a [`Problem`].
 #[derive(Clone, Copy, Debug)]
-pub struct Objective<'p, T: Real, const N: usize, const D: usize> {
+pub struct Objective<'p, T: Real, const N: usize, D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
     problem: &'p Problem<'p, T, N, D>,
 }
 
-impl<'p, T: Real, const N: usize, const D: usize> Objective<'p, T, N, D> {
+impl<'p, T: Real, const N: usize, D: Dim> Objective<'p, T, N, D>
+where
+    DefaultAllocator: Allocator<D>,
+{
     /// The objective of `problem`: its identified parameters over its measurements, with its `k`
     /// ([`DEFAULT_K`] by default).
     pub fn new(problem: &'p Problem<'p, T, N, D>) -> Self {
@@ -284,7 +291,7 @@ impl<'p, T: Real, const N: usize, const D: usize> Objective<'p, T, N, D> {
     /// evaluates many candidates keeps [`Objective::lanes`] and calls [`Objective::value_of_lanes`]
     /// (the same bits).
     #[inline(never)]
-    pub fn value(&self, x: &SVector<T, D>) -> T {
+    pub fn value(&self, x: &OVector<T, D>) -> T {
         if !x.iter().all(|v| v.finite()) {
             return T::of(f64::INFINITY);
         }
@@ -311,7 +318,7 @@ impl<'p, T: Real, const N: usize, const D: usize> Objective<'p, T, N, D> {
     #[inline(always)]
     pub fn value_of_lanes<const L: usize>(
         &self,
-        x: &SVector<T, D>,
+        x: &OVector<T, D>,
         lanes: &[PoseLanes<T, N, L>],
     ) -> T {
         self.sum_in_groups(x, lanes)
@@ -325,7 +332,7 @@ impl<'p, T: Real, const N: usize, const D: usize> Objective<'p, T, N, D> {
     #[inline(always)]
     fn sum_in_groups<const L: usize, P: Borrow<PoseLanes<T, N, L>>>(
         &self,
-        x: &SVector<T, D>,
+        x: &OVector<T, D>,
         lanes: impl IntoIterator<Item = P>,
     ) -> T {
         if !x.iter().all(|v| v.finite()) {
@@ -336,7 +343,7 @@ impl<'p, T: Real, const N: usize, const D: usize> Objective<'p, T, N, D> {
         let mut group = T::zero();
         let mut in_group = 0;
         for poses in lanes {
-            let terms = self.lane_terms(&kinematics, poses.borrow());
+            let terms = lane_terms(self.problem.k(), &kinematics, poses.borrow());
             for term in terms.iter() {
                 group += *term;
                 in_group += 1;
@@ -350,48 +357,11 @@ impl<'p, T: Real, const N: usize, const D: usize> Objective<'p, T, N, D> {
         total + group
     }
 
-    /// Eq. (7)'s term of each of the `L` poses of `poses` (0 in padding lanes).
-    #[inline(always)]
-    fn lane_terms<const L: usize>(
-        &self,
-        kinematics: &Kinematics<T, N>,
-        poses: &PoseLanes<T, N, L>,
-    ) -> Lanes<T, L> {
-        let zero = Lanes::<T, L>::zeros();
-        let frame = kinematics.forward_lanes(&poses.cos, &poses.sin);
-        let mut dp2 = zero;
-        for (measured, predicted) in poses.position.iter().zip(&frame.origin) {
-            let d = measured - predicted;
-            dp2 += d.component_mul(&d);
-        }
-        // Column by column, entry by entry (nested loops over arrays of 3 unroll; a flattened
-        // iterator kept its bookkeeping: 15 instructions per entry on the controller).
-        let mut chord2 = zero;
-        for (measured, predicted) in poses.rotation.iter().zip(&frame.columns) {
-            for (m, p) in measured.iter().zip(predicted) {
-                let d = m - p;
-                chord2 += d.component_mul(&d);
-            }
-        }
-        let mut terms = zero;
-        for ((((term, dp2), chord2), w), has_rotation) in terms
-            .iter_mut()
-            .zip(dp2.iter())
-            .zip(chord2.iter())
-            .zip(poses.weight.iter())
-            .zip(poses.orientation.iter())
-        {
-            let angle2 = so3::angle_squared_from_chord(*chord2) * *has_rotation;
-            *term = *w * (self.problem.k() * angle2 + *dp2).sqrt_ieee();
-        }
-        terms
-    }
-
     /// The pose error of every measurement at `x`, in measurement order, passed to `visit`
     /// (rotation zero for position-only measurements).
     pub fn pose_errors(
         &self,
-        x: &SVector<T, D>,
+        x: &OVector<T, D>,
         mut visit: impl FnMut(&Measurement<T, N>, PoseError<T>),
     ) {
         let kinematics = self.problem.kinematics(x);
@@ -401,9 +371,47 @@ impl<'p, T: Real, const N: usize, const D: usize> Objective<'p, T, N, D> {
     }
 }
 
+/// Eq. (7)'s term (orientation weight `k`) of each of the `L` poses of `poses` (0 in padding lanes).
+#[inline(always)]
+fn lane_terms<T: Real, const N: usize, const L: usize>(
+    k: T,
+    kinematics: &Kinematics<T, N>,
+    poses: &PoseLanes<T, N, L>,
+) -> Lanes<T, L> {
+    let zero = Lanes::<T, L>::zeros();
+    let frame = kinematics.forward_lanes(&poses.cos, &poses.sin);
+    let mut dp2 = zero;
+    for (measured, predicted) in poses.position.iter().zip(&frame.origin) {
+        let d = measured - predicted;
+        dp2 += d.component_mul(&d);
+    }
+    // Column by column, entry by entry (nested loops over arrays of 3 unroll; a flattened
+    // iterator kept its bookkeeping: 15 instructions per entry on the controller).
+    let mut chord2 = zero;
+    for (measured, predicted) in poses.rotation.iter().zip(&frame.columns) {
+        for (m, p) in measured.iter().zip(predicted) {
+            let d = m - p;
+            chord2 += d.component_mul(&d);
+        }
+    }
+    let mut terms = zero;
+    for ((((term, dp2), chord2), w), has_rotation) in terms
+        .iter_mut()
+        .zip(dp2.iter())
+        .zip(chord2.iter())
+        .zip(poses.weight.iter())
+        .zip(poses.orientation.iter())
+    {
+        let angle2 = so3::angle_squared_from_chord(*chord2) * *has_rotation;
+        *term = *w * (k * angle2 + *dp2).sqrt_ieee();
+    }
+    terms
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::{SVector, U24};
     extern crate std;
     use crate::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
     use crate::model::paper::{er10l_c10, paper_measurements, table2};
@@ -414,7 +422,7 @@ mod tests {
     /// (mm), the worst angle error (rad) against Table 2, and the initial and final objective.
     fn paper_run<T: Real>() -> (f64, f64, f64, f64) {
         let robot = er10l_c10::<T>();
-        let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
+        let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
         let data = paper_measurements::<T>(1);
         let problem = Problem::new(
             &robot,
@@ -427,8 +435,9 @@ mod tests {
         let objective = Objective::new(&problem);
         let space = SearchSpace::paper(&set);
         let mut cost = |x: &SVector<T, 24>| objective.value(x);
-        let r = ipso::optimize::<T, 20, 24>(&mut cost, &space, &IpsoSettings::paper(), &mut Silent)
-            .unwrap();
+        let r =
+            ipso::optimize::<T, 20, U24>(&mut cost, &space, &IpsoSettings::paper(), &mut Silent)
+                .unwrap();
         let truth = set.pack(&table2::<T>());
         let (worst_mm, worst_rad) = set.largest_differences(&r.best, &truth);
         (
@@ -440,7 +449,7 @@ mod tests {
     }
 
     /// `value_of_lanes` over lanes of `L` poses, collected once, gives `value` bit for bit.
-    fn check_lanes_of<const L: usize>(objective: &Objective<'_, f64, 6, 24>, poses: usize) {
+    fn check_lanes_of<const L: usize>(objective: &Objective<'_, f64, 6, U24>, poses: usize) {
         let lanes: std::vec::Vec<PoseLanes<f64, 6, L>> = objective.lanes().collect();
         assert_eq!(lanes.len(), poses.div_ceil(L));
         for i in 0..5 {
@@ -464,7 +473,7 @@ mod tests {
     #[test]
     fn lanes_collected_once_give_the_same_bits() {
         let robot = er10l_c10::<f64>();
-        let set = ParameterSet::<6, 24>::default_for(&robot).unwrap();
+        let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
         for poses in [29, 17] {
             let mut data: std::vec::Vec<_> = paper_measurements::<f64>(1).as_slice().to_vec();
             data.truncate(poses);

@@ -12,7 +12,8 @@ use crate::model::Robot;
 use crate::model::parameters::{ParameterErrors, ParameterSet};
 use crate::scalar::Real;
 use core::fmt;
-use nalgebra::SVector;
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OVector};
 
 /// Why a calibration problem was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,7 +52,10 @@ impl From<KinematicsError> for ProblemError {
 
 /// The data and model of one calibration, checked once.
 #[derive(Clone, Debug)]
-pub struct Problem<'a, T: Real, const N: usize, const D: usize> {
+pub struct Problem<'a, T: Real, const N: usize, D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
     robot: PreparedRobot<T, N>,
     fixed: ParameterErrors<T, N>,
     set: ParameterSet<N, D>,
@@ -59,7 +63,10 @@ pub struct Problem<'a, T: Real, const N: usize, const D: usize> {
     k: T,
 }
 
-impl<'a, T: Real, const N: usize, const D: usize> Problem<'a, T, N, D> {
+impl<'a, T: Real, const N: usize, D: Dim> Problem<'a, T, N, D>
+where
+    DefaultAllocator: Allocator<D>,
+{
     /// The problem of identifying the parameters of `set`; the others keep the values of `fixed`
     /// (usually zero). `k` weights orientation, mm^2/rad^2 (eq. 7).
     pub fn new(
@@ -100,7 +107,7 @@ impl<'a, T: Real, const N: usize, const D: usize> Problem<'a, T, N, D> {
 
     /// All errors for the packed vector `x`: the fixed values with the identified ones replaced.
     #[cfg_attr(not(target_arch = "arm"), inline(always))]
-    pub fn errors(&self, x: &SVector<T, D>) -> ParameterErrors<T, N> {
+    pub fn errors(&self, x: &OVector<T, D>) -> ParameterErrors<T, N> {
         let mut errors = self.fixed;
         self.set.unpack_into(x, &mut errors);
         errors
@@ -108,7 +115,7 @@ impl<'a, T: Real, const N: usize, const D: usize> Problem<'a, T, N, D> {
 
     /// The actual model at the packed errors `x`.
     #[cfg_attr(not(target_arch = "arm"), inline(always))]
-    pub fn kinematics(&self, x: &SVector<T, D>) -> Kinematics<T, N> {
+    pub fn kinematics(&self, x: &OVector<T, D>) -> Kinematics<T, N> {
         self.robot.actual(&self.errors(x))
     }
 }

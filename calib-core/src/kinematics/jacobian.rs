@@ -8,7 +8,8 @@ use crate::kinematics::{JointAngles, Kinematics, Pose};
 use crate::model::KinematicsError;
 use crate::model::parameters::{FrameParameter, JointParameter, Parameter, ParameterSet};
 use crate::scalar::Real;
-use nalgebra::{Matrix3, SMatrix, Vector3, Vector6};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, Matrix3, OMatrix, SMatrix, U6, Vector3, Vector6};
 
 /// `[v; omega]` of a rotation about `axis` through `pivot`, seen at the end point `end`.
 fn rotation_twist<T: Real>(axis: Vector3<T>, pivot: &Vector3<T>, end: &Vector3<T>) -> Vector6<T> {
@@ -48,11 +49,14 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
 
     /// End pose and parameter Jacobian (6 x D, rows `[v; omega]` per mm or rad of each parameter
     /// of `set`, in the set's order) for precomputed joint angles.
-    pub fn parameter_jacobian<const D: usize>(
+    pub fn parameter_jacobian<D: Dim>(
         &self,
         set: &ParameterSet<N, D>,
         angles: &JointAngles<T, N>,
-    ) -> (Pose<T>, SMatrix<T, 6, D>) {
+    ) -> (Pose<T>, OMatrix<T, U6, D>)
+    where
+        DefaultAllocator: Allocator<D> + Allocator<U6, D>,
+    {
         let chain = self.chain(angles);
         let end = chain.end.translation.vector;
         let zero = Vector6::zeros();
@@ -104,6 +108,7 @@ mod tests {
     use crate::model::Robot;
     use crate::model::paper::{er10l_with_frames, table2};
     use crate::model::parameters::{ParameterErrors, ParameterMask, all_parameters};
+    use nalgebra::U42;
 
     const Q: [[f64; 6]; 3] = [
         [0.3, -0.7, 1.1, 2.0, -1.4, 0.6],
@@ -120,7 +125,7 @@ mod tests {
         e
     }
 
-    fn all_set() -> ParameterSet<6, 42> {
+    fn all_set() -> ParameterSet<6, U42> {
         let mut mask = ParameterMask::empty();
         for p in all_parameters::<6>() {
             mask.set(p, true);

@@ -7,7 +7,8 @@ use crate::math::so3;
 use crate::model::KinematicsError;
 use crate::model::parameters::ParameterSet;
 use crate::scalar::Real;
-use nalgebra::{SMatrix, Vector3};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, Dim, OMatrix, U6, Vector3};
 
 /// Position and orientation error of one measured pose.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -33,16 +34,19 @@ impl<T: Real> PoseError<T> {
 /// Jacobian with respect to the `D` parameters of `set`: rows `[dp (mm); dr (rad)]` per unit
 /// parameter (mm or rad). The rotation rows use the exact derivative of the log map
 /// (`-Jr^-1(dr) * omega`), not only the small-angle form.
-pub fn pose_error_jacobian<T: Real, const N: usize, const D: usize>(
+pub fn pose_error_jacobian<T: Real, const N: usize, D: Dim>(
     kinematics: &Kinematics<T, N>,
     set: &ParameterSet<N, D>,
     angles: &JointAngles<T, N>,
     measured: &Pose<T>,
-) -> (PoseError<T>, SMatrix<T, 6, D>) {
+) -> (PoseError<T>, OMatrix<T, U6, D>)
+where
+    DefaultAllocator: Allocator<D> + Allocator<U6, D>,
+{
     let (predicted, twist) = kinematics.parameter_jacobian(set, angles);
     let error = PoseError::between(measured, &predicted);
     let jr_inv = so3::right_jacobian_inverse(&error.rotation);
-    let mut jacobian = SMatrix::<T, 6, D>::zeros();
+    let mut jacobian = OMatrix::<T, U6, D>::zeros_generic(U6, set.dim());
     for (mut out, column) in jacobian.column_iter_mut().zip(twist.column_iter()) {
         let v = column.fixed_rows::<3>(0);
         let w = column.fixed_rows::<3>(3);

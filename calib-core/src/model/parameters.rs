@@ -20,7 +20,8 @@ use crate::model::KinematicsError;
 use crate::model::Robot;
 use crate::scalar::Real;
 use core::fmt;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DefaultAllocator, Dim, OMatrix, OVector, SVector, U1};
 
 /// The five MDH parameters of a joint, in canonical order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -423,45 +424,103 @@ impl<const N: usize> ParameterMask<N> {
 }
 
 /// The `D` identified parameters of an N-joint robot, in canonical order: the meaning of every
-/// entry of a packed parameter vector `SVector<T, D>` and every column of a parameter Jacobian.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct ParameterSet<const N: usize, const D: usize> {
-    parameters: [Parameter; D],
+/// entry of a packed parameter vector `OVector<T, D>` and every column of a parameter Jacobian.
+///
+/// The count `D` is a nalgebra dimension: `Const<24>` on the controller (the sizes, and so the
+/// code, fixed at compile time, no heap), [`nalgebra::Dyn`] on a host that learns the count from
+/// a robot file at run time (one compiled solver for every count; the vectors on the heap).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ParameterSet<const N: usize, D: Dim>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    parameters: OVector<Parameter, D>,
 }
 
-impl<const N: usize, const D: usize> ParameterSet<N, D> {
+/// A fixed-size set (`Const<D>`) is `Copy`, as the controller's code expects.
+impl<const N: usize, D: Dim> Copy for ParameterSet<N, D>
+where
+    DefaultAllocator: Allocator<D>,
+    OVector<Parameter, D>: Copy,
+{
+}
+
+#[cfg(feature = "defmt")]
+impl<const N: usize, D: Dim> defmt::Format for ParameterSet<N, D>
+where
+    DefaultAllocator: Allocator<D>,
+{
+    fn format(&self, f: defmt::Formatter) {
+        defmt::write!(f, "ParameterSet({=[?]})", self.parameters.as_slice());
+    }
+}
+
+impl<const N: usize, D: Dim> ParameterSet<N, D>
+where
+    DefaultAllocator: Allocator<D>,
+{
     /// The default identification set of `robot` ([`ParameterMask::default_for`]: the paper's
-    /// 24 parameters for the ER10L-C10); an error unless it selects exactly `D` parameters.
+    /// 24 parameters for the ER10L-C10); for a fixed `D` an error unless it selects exactly `D`
+    /// parameters.
     pub fn default_for<T: Real>(robot: &Robot<T, N>) -> Result<Self, KinematicsError> {
         Self::from_mask(&ParameterMask::default_for(robot))
     }
 
-    /// The set selected by `mask`; an error unless it selects exactly `D` parameters.
+    /// The set selected by `mask`; for a fixed `D` an error unless it selects exactly `D`
+    /// parameters ([`nalgebra::Dyn`] takes the count the mask selects).
     pub fn from_mask(mask: &ParameterMask<N>) -> Result<Self, KinematicsError> {
         let found = mask.count();
-        if found != D {
-            return Err(KinematicsError::ParameterCount {
-                expected: u16::try_from(D).unwrap_or(u16::MAX),
-                found: u16::try_from(found).unwrap_or(u16::MAX),
-            });
-        }
-        let mut parameters = [Parameter::Base(FrameParameter::Tx); D];
-        for (slot, parameter) in parameters.iter_mut().zip(mask.iter()) {
+        // A fixed `D` is built from its own value (nalgebra's check of it then folds away: no
+        // panic can remain in the controller's code), `Dyn` from the count found.
+        let dim = match D::try_to_usize() {
+            Some(expected) if found != expected => {
+                return Err(KinematicsError::ParameterCount {
+                    expected: u16::try_from(expected).unwrap_or(u16::MAX),
+                    found: u16::try_from(found).unwrap_or(u16::MAX),
+                });
+            }
+            Some(expected) => D::from_usize(expected),
+            None => D::from_usize(found),
+        };
+        // Mapped from zeros: nalgebra's fill from an iterator of the enum kept a length check
+        // (a panicking branch) on the controller.
+        let mut parameters =
+            OVector::<u8, D>::zeros_generic(dim, U1).map(|_| Parameter::Base(FrameParameter::Tx));
+        for (slot, parameter) in parameters.as_mut_slice().iter_mut().zip(mask.iter()) {
             *slot = parameter;
         }
         Ok(Self { parameters })
     }
 
     /// The parameters in packed order.
-    pub fn parameters(&self) -> &[Parameter; D] {
-        &self.parameters
+    pub fn parameters(&self) -> &[Parameter] {
+        self.parameters.as_slice()
+    }
+
+    /// The number of parameters (the length of a packed vector).
+    pub fn len(&self) -> usize {
+        self.parameters.len()
+    }
+
+    /// Whether the set is empty.
+    pub fn is_empty(&self) -> bool {
+        self.parameters.is_empty()
+    }
+
+    /// The dimension of a packed vector, as nalgebra's generic constructors take it.
+    pub fn dim(&self) -> D {
+        self.parameters.shape_generic().0
+    }
+
+    /// A packed vector of zeros (mm, rad).
+    pub fn zeros<T: Real>(&self) -> OVector<T, D> {
+        OVector::<T, D>::zeros_generic(self.dim(), U1)
     }
 
     /// The mask that selects this set.
     pub fn mask(&self) -> ParameterMask<N> {
         let mut mask = ParameterMask::empty();
-        for p in &self.parameters {
+        for p in self.parameters() {
             mask.set(*p, true);
         }
         mask
@@ -469,13 +528,13 @@ impl<const N: usize, const D: usize> ParameterSet<N, D> {
 
     /// Position of `parameter` in the packed vector, if identified.
     pub fn index_of(&self, parameter: Parameter) -> Option<usize> {
-        self.parameters.iter().position(|p| *p == parameter)
+        self.parameters().iter().position(|p| *p == parameter)
     }
 
     /// Packs the identified errors into a vector (mm and rad, canonical order).
-    pub fn pack<T: Real>(&self, errors: &ParameterErrors<T, N>) -> SVector<T, D> {
-        let mut x = SVector::<T, D>::zeros();
-        for (xi, p) in x.iter_mut().zip(&self.parameters) {
+    pub fn pack<T: Real>(&self, errors: &ParameterErrors<T, N>) -> OVector<T, D> {
+        let mut x = self.zeros();
+        for (xi, p) in x.iter_mut().zip(self.parameters()) {
             *xi = errors.get(*p).unwrap_or_else(T::zero);
         }
         x
@@ -483,14 +542,14 @@ impl<const N: usize, const D: usize> ParameterSet<N, D> {
 
     /// Writes the packed values into `errors`, leaving parameters outside the set unchanged.
     #[cfg_attr(not(target_arch = "arm"), inline(always))]
-    pub fn unpack_into<T: Real>(&self, x: &SVector<T, D>, errors: &mut ParameterErrors<T, N>) {
-        for (xi, p) in x.iter().zip(&self.parameters) {
+    pub fn unpack_into<T: Real>(&self, x: &OVector<T, D>, errors: &mut ParameterErrors<T, N>) {
+        for (xi, p) in x.iter().zip(self.parameters()) {
             errors.set(*p, *xi);
         }
     }
 
     /// The errors with the packed values set and every other error zero.
-    pub fn unpack<T: Real>(&self, x: &SVector<T, D>) -> ParameterErrors<T, N> {
+    pub fn unpack<T: Real>(&self, x: &OVector<T, D>) -> ParameterErrors<T, N> {
         let mut errors = ParameterErrors::zero();
         self.unpack_into(x, &mut errors);
         errors
@@ -499,9 +558,9 @@ impl<const N: usize, const D: usize> ParameterSet<N, D> {
     /// The largest length difference (mm) and the largest angle difference (rad) between two
     /// packed vectors of this set, such as identified errors against the truth. A non-finite
     /// difference is returned as such, never hidden by a finite one.
-    pub fn largest_differences<T: Real>(&self, a: &SVector<T, D>, b: &SVector<T, D>) -> (T, T) {
+    pub fn largest_differences<T: Real>(&self, a: &OVector<T, D>, b: &OVector<T, D>) -> (T, T) {
         let (mut length, mut angle) = (T::zero(), T::zero());
-        for (p, (x, y)) in self.parameters.iter().zip(a.iter().zip(b.iter())) {
+        for (p, (x, y)) in self.parameters().iter().zip(a.iter().zip(b.iter())) {
             let d = (*x - *y).abs();
             let largest = if p.is_angle() {
                 &mut angle
@@ -519,9 +578,12 @@ impl<const N: usize, const D: usize> ParameterSet<N, D> {
     pub(crate) fn columns<T: Real, const R: usize>(
         &self,
         mut column: impl FnMut(Parameter) -> SVector<T, R>,
-    ) -> SMatrix<T, R, D> {
-        let mut m = SMatrix::<T, R, D>::zeros();
-        for (mut col, p) in m.column_iter_mut().zip(&self.parameters) {
+    ) -> OMatrix<T, Const<R>, D>
+    where
+        DefaultAllocator: Allocator<Const<R>, D>,
+    {
+        let mut m = OMatrix::<T, Const<R>, D>::zeros_generic(Const::<R>, self.dim());
+        for (mut col, p) in m.column_iter_mut().zip(self.parameters()) {
             col.copy_from(&column(*p));
         }
         m
@@ -532,6 +594,7 @@ impl<const N: usize, const D: usize> ParameterSet<N, D> {
 mod tests {
     use super::*;
     use crate::model::paper::{er10l_c10 as er10l, table2};
+    use nalgebra::{U23, U24};
     extern crate std;
     use std::string::ToString;
     use std::vec::Vec;
@@ -539,7 +602,7 @@ mod tests {
     #[test]
     fn largest_differences_split_lengths_and_angles_and_keep_nan() {
         let set =
-            ParameterSet::<6, 24>::default_for(&crate::model::paper::er10l_c10::<f64>()).unwrap();
+            ParameterSet::<6, U24>::default_for(&crate::model::paper::er10l_c10::<f64>()).unwrap();
         let truth = set.pack(&crate::model::paper::table2::<f64>());
         let mut found = truth;
         found[0] += 0.25; // da1, mm
@@ -579,7 +642,7 @@ mod tests {
     #[test]
     fn pack_and_unpack_round_trip_table2() {
         let mask = ParameterMask::default_for(&er10l::<f64>());
-        let set = ParameterSet::<6, 24>::from_mask(&mask).unwrap();
+        let set = ParameterSet::<6, U24>::from_mask(&mask).unwrap();
         let errors = table2::<f64>();
         let x = set.pack(&errors);
         // Packed order: da1 first, dd1 at index 6, dbeta2 at 17, dtheta6 last.
@@ -601,7 +664,7 @@ mod tests {
     fn wrong_parameter_count_is_an_error() {
         let mask = ParameterMask::default_for(&er10l::<f64>());
         assert_eq!(
-            ParameterSet::<6, 23>::from_mask(&mask),
+            ParameterSet::<6, U23>::from_mask(&mask),
             Err(KinematicsError::ParameterCount {
                 expected: 23,
                 found: 24

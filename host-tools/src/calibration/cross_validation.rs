@@ -8,7 +8,7 @@ use super::CalibrationConfig;
 use crate::dataset::Dataset;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
 use calib_core::{Kinematics, ParameterErrors, ParameterSet, Problem};
-use nalgebra::SVector;
+use nalgebra::Dyn;
 use serde::Serialize;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -46,9 +46,9 @@ impl CrossValidation {
 
 /// Cross-validates the least-squares identification of `set` on `dataset`; `None` with fewer
 /// than 3 poses.
-pub fn cross_validate<const N: usize, const D: usize>(
+pub fn cross_validate<const N: usize>(
     dataset: &Dataset<N>,
-    set: &ParameterSet<N, D>,
+    set: &ParameterSet<N, Dyn>,
     config: &CalibrationConfig,
 ) -> Option<CrossValidation> {
     let n = dataset.measurements.len();
@@ -72,7 +72,7 @@ pub fn cross_validate<const N: usize, const D: usize>(
         let problem = Problem::new(
             &training.model.robot,
             &ParameterErrors::zero(),
-            *set,
+            set.clone(),
             &training.measurements,
             config.k,
         )
@@ -80,7 +80,7 @@ pub fn cross_validate<const N: usize, const D: usize>(
         let least_squares = LeastSquares::new(&problem);
         let mut weights = vec![1.0; training.measurements.len()];
         let x = least_squares
-            .solve_robust(&SVector::zeros(), &settings, loss, &mut weights)
+            .solve_robust(&set.zeros(), &settings, loss, &mut weights)
             .ok()?
             .result
             .x;

@@ -73,7 +73,7 @@ use calib_core::identify::ipso::{self, Control, IpsoSettings, SearchSpace};
 use calib_core::identify::lm::{LeastSquares, LmError, LmResult, LmSettings};
 use calib_core::identify::objective::Objective;
 use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, ParameterSet, Problem};
-use nalgebra::SVector;
+use nalgebra::{DVector, Dyn};
 use std::io::IsTerminal;
 use std::time::Instant;
 use swarm_team::{LaneObjective, SwarmTeam};
@@ -132,17 +132,17 @@ pub fn calibrate<const N: usize>(
     };
     let selection = select_parameters(&dataset, mask, config)?;
     let solved = |dataset: &Dataset<N>, validation: Option<&Dataset<N>>| {
-        crate::with_parameter_count!(
+        crate::dispatch::check_parameter_count(
             N,
-            solvable_parameters,
             selection.mask.count(),
-            solve(
-                dataset,
-                validation,
-                config,
-                selection.clone(),
-                frames_report.clone()
-            )
+            crate::dispatch::solvable_parameters(N),
+        )?;
+        solve(
+            dataset,
+            validation,
+            config,
+            selection.clone(),
+            frames_report.clone(),
         )
     };
     let mut result = if dataset.file.compliance.is_some() {
@@ -230,12 +230,12 @@ pub fn select_parameters<const N: usize>(
     config: &CalibrationConfig,
 ) -> anyhow::Result<Selection<N>> {
     let analysed = |mask: &ParameterMask<N>| {
-        crate::with_parameter_count!(
+        crate::dispatch::check_parameter_count(
             N,
-            all_parameters,
             mask.count(),
-            analyse(dataset, mask, config.k)
-        )
+            crate::dispatch::all_parameters(N),
+        )?;
+        analyse(dataset, mask, config.k)
     };
     let (mut mask, reflector) = crate::identifiability::default_mask(dataset, mask, config.k)?;
     let mut initial = analysed(&mask)?;
@@ -283,14 +283,14 @@ pub fn select_parameters<const N: usize>(
 }
 
 /// Identifies the `D` parameters of `selection` and evaluates the result.
-fn solve<const N: usize, const D: usize>(
+fn solve<const N: usize>(
     dataset: &Dataset<N>,
     validation: Option<&Dataset<N>>,
     config: &CalibrationConfig,
     selection: Selection<N>,
     mut frames: FramesReport,
 ) -> anyhow::Result<CalibrationResult<N>> {
-    let set = ParameterSet::<N, D>::from_mask(&selection.mask)?;
+    let set = ParameterSet::<N, Dyn>::from_mask(&selection.mask)?;
     let problem = Problem::new(
         &dataset.model.robot,
         &ParameterErrors::zero(),
@@ -298,15 +298,18 @@ fn solve<const N: usize, const D: usize>(
         &dataset.measurements,
         config.k,
     )?;
+    let set = problem.set();
     let objective = Objective::new(&problem);
-    let zero = SVector::<f64, D>::zeros();
+    let zero = set.zeros();
     let started = Instant::now();
     let swarm = if config.method.swarm() {
-        Some(run_swarm(config, &objective, &set)?)
+        Some(run_swarm(config, &objective, set)?)
     } else {
         None
     };
-    let start = swarm.as_ref().map_or(zero, |s| s.best);
+    let start = swarm
+        .as_ref()
+        .map_or_else(|| zero.clone(), |s| s.best.clone());
     let fit = if config.method.least_squares() {
         Some(least_squares(
             config,
@@ -318,9 +321,9 @@ fn solve<const N: usize, const D: usize>(
         None
     };
     let seconds = started.elapsed().as_secs_f64();
-    let best = fit.as_ref().map_or(start, |f| f.result.x);
+    let best = fit.as_ref().map_or(start, |f| f.result.x.clone());
     let standard_errors = fit.as_ref().and_then(|f| f.result.standard_errors());
-    let parameters = identified_parameters(&set, &best, standard_errors.as_ref());
+    let parameters = identified_parameters(set, &best, standard_errors.as_ref());
     let errors = set.unpack(&best);
     let (calibration, validation, per_pose, poses) =
         evaluate(dataset, validation, &errors, fit.as_ref())?;
@@ -333,7 +336,7 @@ fn solve<const N: usize, const D: usize>(
             .or(config.loss_scale_mm),
         ..config.clone()
     };
-    let cross_validation = cross_validation::cross_validate(dataset, &set, &cv_config);
+    let cross_validation = cross_validation::cross_validate(dataset, set, &cv_config);
     let initial = objective.value(&zero);
     Ok(CalibrationResult {
         robot: dataset.model.name.clone(),
@@ -369,10 +372,10 @@ fn solve<const N: usize, const D: usize>(
 }
 
 /// The identified values of `set` with their standard errors, when least squares gave them.
-fn identified_parameters<const N: usize, const D: usize>(
-    set: &ParameterSet<N, D>,
-    best: &SVector<f64, D>,
-    standard_errors: Option<&SVector<f64, D>>,
+fn identified_parameters<const N: usize>(
+    set: &ParameterSet<N, Dyn>,
+    best: &DVector<f64>,
+    standard_errors: Option<&DVector<f64>>,
 ) -> Vec<IdentifiedParameter> {
     set.parameters()
         .iter()
@@ -458,21 +461,21 @@ pub(crate) fn cores() -> usize {
 }
 
 /// The swarm's outcome.
-struct SwarmRun<const D: usize> {
+struct SwarmRun {
     summary: SwarmSummary,
     /// The best point found.
-    best: SVector<f64, D>,
+    best: DVector<f64>,
     /// The best objective of the initial swarm.
     initial_cost: f64,
     /// The best objective found.
     best_cost: f64,
 }
 
-fn run_swarm<const N: usize, const D: usize>(
+fn run_swarm<const N: usize>(
     config: &CalibrationConfig,
-    objective: &Objective<'_, f64, N, D>,
-    set: &ParameterSet<N, D>,
-) -> anyhow::Result<SwarmRun<D>> {
+    objective: &Objective<'_, f64, N, Dyn>,
+    set: &ParameterSet<N, Dyn>,
+) -> anyhow::Result<SwarmRun> {
     let swarm = &config.swarm;
     let space = SearchSpace::for_parameters(
         set,
@@ -511,7 +514,7 @@ fn run_swarm<const N: usize, const D: usize>(
         Control::Continue
     };
     let particles = swarm.particles;
-    let mut positions = vec![SVector::<f64, D>::zeros(); particles];
+    let mut positions = vec![set.zeros::<f64>(); particles];
     let mut velocities = positions.clone();
     let mut best_positions = positions.clone();
     let (mut costs, mut best_costs) = (vec![0.0; particles], vec![0.0; particles]);
@@ -543,19 +546,19 @@ fn run_swarm<const N: usize, const D: usize>(
 }
 
 /// The least-squares stage: its result, report, robust weights and outliers.
-struct Fit<const D: usize> {
-    result: LmResult<f64, D>,
+struct Fit {
+    result: LmResult<f64, Dyn>,
     report: LeastSquaresReport,
     weights: Vec<f64>,
     outliers: Vec<Outlier>,
 }
 
-fn least_squares<const N: usize, const D: usize>(
+fn least_squares<const N: usize>(
     config: &CalibrationConfig,
-    least_squares: &LeastSquares<'_, f64, N, D>,
-    start: &SVector<f64, D>,
+    least_squares: &LeastSquares<'_, f64, N, Dyn>,
+    start: &DVector<f64>,
     dataset: &Dataset<N>,
-) -> anyhow::Result<Fit<D>> {
+) -> anyhow::Result<Fit> {
     let set = least_squares.problem().set();
     let settings = LmSettings {
         max_iterations: config.lm_iterations,
@@ -657,9 +660,9 @@ impl RobustScale {
 /// and the orientation residuals of the poses separately, `median + OUTLIER_DEVIATIONS * 1.4826 *
 /// MAD` (median absolute deviation), so that orientation counted in millimetres never makes clean
 /// poses outliers.
-pub fn robust_scale<const N: usize, const D: usize>(
-    least_squares: &LeastSquares<'_, f64, N, D>,
-    start: &SVector<f64, D>,
+pub fn robust_scale<const N: usize>(
+    least_squares: &LeastSquares<'_, f64, N, Dyn>,
+    start: &DVector<f64>,
     settings: &LmSettings<f64>,
     k: f64,
 ) -> anyhow::Result<RobustScale> {
@@ -711,10 +714,7 @@ pub(crate) fn median(v: &mut [f64]) -> f64 {
 }
 
 /// A least-squares error in the user's terms (parameter names, not indices).
-fn lm_error<const N: usize, const D: usize>(
-    error: LmError,
-    set: &ParameterSet<N, D>,
-) -> anyhow::Error {
+fn lm_error<const N: usize>(error: LmError, set: &ParameterSet<N, Dyn>) -> anyhow::Error {
     match error {
         LmError::UnobservableParameter(i) => {
             let name = set
@@ -732,11 +732,11 @@ fn lm_error<const N: usize, const D: usize>(
 
 /// Table 3 before and after on the calibration and validation poses, per-pose errors, and the
 /// calibration poses' report rows.
-fn evaluate<const N: usize, const D: usize>(
+fn evaluate<const N: usize>(
     dataset: &Dataset<N>,
     validation: Option<&Dataset<N>>,
     errors: &ParameterErrors<f64, N>,
-    fit: Option<&Fit<D>>,
+    fit: Option<&Fit>,
 ) -> anyhow::Result<(Stage, Option<Stage>, PerPose, Vec<PoseReport>)> {
     use crate::statistics::{orientation_per_pose, table3};
     let nominal = Kinematics::nominal(&dataset.model.robot)?;

@@ -33,7 +33,7 @@ use calib_core::identify::ipso::{
     SearchSpace, SwarmMemory,
 };
 use calib_core::identify::objective::{Objective, PoseLanes};
-use nalgebra::SVector;
+use nalgebra::{DVector, Dyn};
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Mutex, OnceLock, PoisonError};
 
@@ -91,21 +91,21 @@ impl Vectors {
 }
 
 /// Eq. (7) of an objective with its measurements collected once in lane layout.
-pub struct LaneObjective<'o, 'p, const N: usize, const D: usize> {
-    objective: &'o Objective<'p, f64, N, D>,
+pub struct LaneObjective<'o, 'p, const N: usize> {
+    objective: &'o Objective<'p, f64, N, Dyn>,
     lanes: Vec<PoseLanes<f64, N>>,
     vectors: Vectors,
 }
 
-impl<'o, 'p, const N: usize, const D: usize> LaneObjective<'o, 'p, N, D> {
+impl<'o, 'p, const N: usize> LaneObjective<'o, 'p, N> {
     /// Collects the measurements of `objective` in lanes; evaluates with
     /// [`Vectors::preferred`].
-    pub fn new(objective: &'o Objective<'p, f64, N, D>) -> Self {
+    pub fn new(objective: &'o Objective<'p, f64, N, Dyn>) -> Self {
         Self::with_vectors(objective, Vectors::preferred())
     }
 
     /// The same with the given vectors, or the widest this CPU has if it lacks them.
-    pub fn with_vectors(objective: &'o Objective<'p, f64, N, D>, vectors: Vectors) -> Self {
+    pub fn with_vectors(objective: &'o Objective<'p, f64, N, Dyn>, vectors: Vectors) -> Self {
         let widest = Vectors::detected();
         Self {
             objective,
@@ -115,7 +115,7 @@ impl<'o, 'p, const N: usize, const D: usize> LaneObjective<'o, 'p, N, D> {
     }
 
     /// The cost at `x`: bit for bit `objective.value(x)`.
-    pub fn value(&self, x: &SVector<f64, D>) -> f64 {
+    pub fn value(&self, x: &DVector<f64>) -> f64 {
         #[cfg(target_arch = "x86_64")]
         match self.vectors {
             // SAFETY: `with_vectors` keeps only what `Vectors::detected` found on this CPU.
@@ -137,9 +137,9 @@ impl<'o, 'p, const N: usize, const D: usize> LaneObjective<'o, 'p, N, D> {
 /// evaluation is).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn value_avx2<const N: usize, const D: usize>(
-    objective: &Objective<'_, f64, N, D>,
-    x: &SVector<f64, D>,
+fn value_avx2<const N: usize>(
+    objective: &Objective<'_, f64, N, Dyn>,
+    x: &DVector<f64>,
     lanes: &[PoseLanes<f64, N>],
 ) -> f64 {
     objective.value_of_lanes(x, lanes)
@@ -148,9 +148,9 @@ fn value_avx2<const N: usize, const D: usize>(
 /// [`Objective::value_of_lanes`] compiled for AVX2 with AVX-512F/VL's 32 registers.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,avx512f,avx512vl")]
-fn value_avx512<const N: usize, const D: usize>(
-    objective: &Objective<'_, f64, N, D>,
-    x: &SVector<f64, D>,
+fn value_avx512<const N: usize>(
+    objective: &Objective<'_, f64, N, Dyn>,
+    x: &DVector<f64>,
     lanes: &[PoseLanes<f64, N>],
 ) -> f64 {
     objective.value_of_lanes(x, lanes)
@@ -187,7 +187,7 @@ impl<A> std::ops::Deref for Padded<A> {
 }
 
 /// What the caller and the helpers share during one swarm run.
-struct Shared<const D: usize> {
+struct Shared {
     /// Bumped by the caller once the particles of a generation are published.
     generation: Padded<AtomicU64>,
     /// The next particle to take. Members take blocks of particles (`blocks` per generation),
@@ -229,6 +229,8 @@ struct Shared<const D: usize> {
 /// the particle): atomics, read and written without locks, so that publishing a generation
 /// takes no lock the members would pass between their cores.
 struct Slots {
+    /// Coordinates per particle (the number of parameters).
+    dimension: usize,
     coordinates: Box<[AtomicU64]>,
     costs: Box<[AtomicU64]>,
     /// The generation's split among the members ([`split`]), fixed with the slots: the block
@@ -242,6 +244,7 @@ impl Slots {
         let bits = |n: usize| (0..n).map(|_| AtomicU64::new(f64::NAN.to_bits())).collect();
         let (block, published) = split(particles, blocks);
         Self {
+            dimension,
             coordinates: bits(particles * dimension),
             costs: bits(particles),
             block,
@@ -284,7 +287,7 @@ impl DrawnAhead {
     }
 }
 
-impl<const D: usize> Shared<D> {
+impl Shared {
     fn draws(&self) -> std::sync::MutexGuard<'_, DrawnAhead> {
         self.draws.lock().unwrap_or_else(PoisonError::into_inner)
     }
@@ -315,26 +318,29 @@ impl Drop for StopOnDrop<'_> {
 }
 
 /// The particles' costs on several threads, the caller one of them; see the module docs.
-pub struct SwarmTeam<'t, 'o, 'p, const N: usize, const D: usize> {
-    objective: &'t LaneObjective<'o, 'p, N, D>,
-    shared: &'t Shared<D>,
+pub struct SwarmTeam<'t, 'o, 'p, const N: usize> {
+    objective: &'t LaneObjective<'o, 'p, N>,
+    shared: &'t Shared,
     members: usize,
     /// The current generation was started by [`CostFunction::position_ready`], which has
     /// published this many particles.
     started: Option<usize>,
+    /// The particle the caller evaluates from the slots (sized once: no allocation in a
+    /// generation).
+    particle: DVector<f64>,
 }
 
-impl<'o, 'p, const N: usize, const D: usize> SwarmTeam<'_, 'o, 'p, N, D> {
+impl<'o, 'p, const N: usize> SwarmTeam<'_, 'o, 'p, N> {
     /// Runs `swarm` with a team of `threads` (at least 1; the caller and `threads - 1` helpers,
     /// fewer if the system cannot start them) evaluating `objective`, and the pairs `r1, r2` of
     /// the stream of `seed` ([`RandomStream`]) drawn ahead by a helper while the caller updates;
     /// the helpers end when `swarm` returns. `swarm` gets the team as the cost function and its
     /// pairs for [`ipso::optimize_drawing`] (or [`SwarmTeam::optimize`]).
     pub fn run<R>(
-        objective: &LaneObjective<'o, 'p, N, D>,
+        objective: &LaneObjective<'o, 'p, N>,
         threads: usize,
         seed: u64,
-        swarm: impl FnOnce(&mut SwarmTeam<'_, 'o, 'p, N, D>, &mut TeamPairs<'_, D>) -> R,
+        swarm: impl FnOnce(&mut SwarmTeam<'_, 'o, 'p, N>, &mut TeamPairs<'_>) -> R,
     ) -> R {
         let wanted = threads.max(1);
         let shared = Shared {
@@ -373,6 +379,7 @@ impl<'o, 'p, const N: usize, const D: usize> SwarmTeam<'_, 'o, 'p, N, D> {
                     shared: &shared,
                     members,
                     started: None,
+                    particle: DVector::zeros(0),
                 },
                 &mut TeamPairs {
                     shared: &shared,
@@ -396,12 +403,12 @@ impl<'o, 'p, const N: usize, const D: usize> SwarmTeam<'_, 'o, 'p, N, D> {
     /// `team_evaluates_bit_for_bit`).
     pub fn optimize(
         &mut self,
-        memory: SwarmMemory<'_, f64, D>,
-        pairs: &mut TeamPairs<'_, D>,
-        space: &SearchSpace<f64, D>,
+        memory: SwarmMemory<'_, f64, Dyn>,
+        pairs: &mut TeamPairs<'_>,
+        space: &SearchSpace<f64, Dyn>,
         settings: &IpsoSettings<f64>,
         observer: &mut impl Observer<f64>,
-    ) -> Result<IpsoResult<f64, D>, IpsoError> {
+    ) -> Result<IpsoResult<f64, Dyn>, IpsoError> {
         #[cfg(target_arch = "x86_64")]
         if self.objective.vectors() == Vectors::Avx512 {
             // SAFETY: an objective keeps only vectors `Vectors::detected` found on this CPU.
@@ -416,22 +423,21 @@ impl<'o, 'p, const N: usize, const D: usize> SwarmTeam<'_, 'o, 'p, N, D> {
 /// SSE2 (a scratch criterion bench; 1.52 before the pairs were taken a particle at a time).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,avx512f,avx512vl")]
-fn optimize_avx512<const N: usize, const D: usize>(
-    memory: SwarmMemory<'_, f64, D>,
-    team: &mut SwarmTeam<'_, '_, '_, N, D>,
-    pairs: &mut TeamPairs<'_, D>,
-    space: &SearchSpace<f64, D>,
+fn optimize_avx512<const N: usize>(
+    memory: SwarmMemory<'_, f64, Dyn>,
+    team: &mut SwarmTeam<'_, '_, '_, N>,
+    pairs: &mut TeamPairs<'_>,
+    space: &SearchSpace<f64, Dyn>,
     settings: &IpsoSettings<f64>,
     observer: &mut impl Observer<f64>,
-) -> Result<IpsoResult<f64, D>, IpsoError> {
+) -> Result<IpsoResult<f64, Dyn>, IpsoError> {
     ipso::optimize_drawing(memory, team, pairs, space, settings, observer)
 }
 
-fn helper<const N: usize, const D: usize>(
-    objective: &LaneObjective<'_, '_, N, D>,
-    shared: &Shared<D>,
-) {
+fn helper<const N: usize>(objective: &LaneObjective<'_, '_, N>, shared: &Shared) {
     let mut seen = 0;
+    // The particle evaluated, sized once (no allocation in a generation).
+    let mut particle = DVector::zeros(0);
     loop {
         wait_until(|| {
             shared.stop.load(Ordering::Acquire)
@@ -444,7 +450,7 @@ fn helper<const N: usize, const D: usize>(
         let generation = shared.generation.load(Ordering::Acquire);
         if generation != seen {
             seen = generation;
-            take_particles(objective, shared);
+            take_particles(objective, shared, &mut particle);
         }
         shared.draw_if_unclaimed();
     }
@@ -460,13 +466,18 @@ fn split(particles: usize, blocks: usize) -> (usize, usize) {
 
 /// Evaluates published particles, a block at a time, until no block is left to take; waits for
 /// each particle of a block taken until it is published.
-fn take_particles<const N: usize, const D: usize>(
-    objective: &LaneObjective<'_, '_, N, D>,
-    shared: &Shared<D>,
+fn take_particles<const N: usize>(
+    objective: &LaneObjective<'_, '_, N>,
+    shared: &Shared,
+    particle: &mut DVector<f64>,
 ) {
     let Some(slots) = shared.slots.get() else {
         return;
     };
+    let d = slots.dimension;
+    if particle.len() != d {
+        *particle = DVector::zeros(d);
+    }
     let (block, published) = (slots.block, slots.published);
     loop {
         // Acquire: `ready` was reset before `next` was.
@@ -476,12 +487,12 @@ fn take_particles<const N: usize, const D: usize>(
             return;
         }
         let (Some(coordinates), Some(costs)) = (
-            slots.coordinates.get(start * D..end * D),
+            slots.coordinates.get(start * d..end * d),
             slots.costs.get(start..end),
         ) else {
             return;
         };
-        for (i, (x, cost)) in (start..).zip(coordinates.chunks_exact(D).zip(costs)) {
+        for (i, (x, cost)) in (start..).zip(coordinates.chunks_exact(d.max(1)).zip(costs)) {
             // Acquire: the coordinates stored before `ready` passed `i` are visible.
             wait_until(|| {
                 shared.ready.load(Ordering::Acquire) > i || shared.stop.load(Ordering::Acquire)
@@ -489,17 +500,17 @@ fn take_particles<const N: usize, const D: usize>(
             if shared.ready.load(Ordering::Acquire) <= i {
                 return; // the run is over
             }
-            let x = SVector::<f64, D>::from_iterator(
-                x.iter().map(|c| f64::from_bits(c.load(Ordering::Relaxed))),
-            );
-            cost.store(objective.value(&x).to_bits(), Ordering::Relaxed);
+            for (p, c) in particle.iter_mut().zip(x) {
+                *p = f64::from_bits(c.load(Ordering::Relaxed));
+            }
+            cost.store(objective.value(particle).to_bits(), Ordering::Relaxed);
         }
         // Release: the costs stored above are visible to whoever sees the count.
         shared.evaluated.fetch_add(costs.len(), Ordering::AcqRel);
     }
 }
 
-impl<const N: usize, const D: usize> SwarmTeam<'_, '_, '_, N, D> {
+impl<const N: usize> SwarmTeam<'_, '_, '_, N> {
     /// Starts a generation: nothing published, nothing evaluated, every block free. The members
     /// are done with the previous generation (the caller waited for all of its particles); one
     /// that claims a block of the new generation before it sees the count waits for its
@@ -516,8 +527,9 @@ impl<const N: usize, const D: usize> SwarmTeam<'_, '_, '_, N, D> {
     }
 
     /// Copies the coordinates of particle `index` into the slots (not yet marked ready).
-    fn store_coordinates(slots: &Slots, index: usize, x: &SVector<f64, D>) {
-        if let Some(slot) = slots.coordinates.get(index * D..(index + 1) * D) {
+    fn store_coordinates(slots: &Slots, index: usize, x: &DVector<f64>) {
+        let d = slots.dimension;
+        if let Some(slot) = slots.coordinates.get(index * d..(index + 1) * d) {
             for (slot, c) in slot.iter().zip(x.iter()) {
                 slot.store(c.to_bits(), Ordering::Relaxed);
             }
@@ -539,22 +551,22 @@ impl<const N: usize, const D: usize> SwarmTeam<'_, '_, '_, N, D> {
 
     /// Waits until the members have evaluated the `published` particles, taking the blocks
     /// nobody has taken.
-    fn finish_generation(&self, published: usize) {
+    fn finish_generation(&mut self, published: usize) {
         // Looked at first (a load): a claim (a locked write) would take the counter's line from
         // the helper that has it (about 0.2 us a generation, measured).
         if self.shared.next.load(Ordering::Acquire) < published {
-            take_particles(self.objective, self.shared);
+            take_particles(self.objective, self.shared, &mut self.particle);
         }
         wait_until(|| self.shared.evaluated.load(Ordering::Acquire) >= published);
     }
 }
 
-impl<const N: usize, const D: usize> CostFunction<f64, D> for SwarmTeam<'_, '_, '_, N, D> {
-    fn cost(&mut self, x: &SVector<f64, D>) -> f64 {
+impl<const N: usize> CostFunction<f64, Dyn> for SwarmTeam<'_, '_, '_, N> {
+    fn cost(&mut self, x: &DVector<f64>) -> f64 {
         self.objective.value(x)
     }
 
-    fn position_ready(&mut self, index: usize, x: &SVector<f64, D>) {
+    fn position_ready(&mut self, index: usize, x: &DVector<f64>) {
         if self.members == 1 {
             return;
         }
@@ -574,14 +586,15 @@ impl<const N: usize, const D: usize> CostFunction<f64, D> for SwarmTeam<'_, '_, 
         }
     }
 
-    fn cost_batch(&mut self, xs: &[SVector<f64, D>], out: &mut [f64]) {
+    fn cost_batch(&mut self, xs: &[DVector<f64>], out: &mut [f64]) {
+        let dimension = xs.first().map_or(0, |x| x.len());
         let slots = (self.members > 1 && xs.len() > 1)
             .then(|| {
                 self.shared
                     .slots
-                    .get_or_init(|| Slots::new(xs.len(), D, self.shared.blocks))
+                    .get_or_init(|| Slots::new(xs.len(), dimension, self.shared.blocks))
             })
-            .filter(|slots| slots.particles() == xs.len());
+            .filter(|slots| slots.particles() == xs.len() && slots.dimension == dimension);
         let Some(slots) = slots else {
             // A team of one, a swarm of one particle, or not the swarm the slots were made
             // for: evaluated here.
@@ -620,8 +633,8 @@ impl<const N: usize, const D: usize> CostFunction<f64, D> for SwarmTeam<'_, '_, 
 /// The swarm's pairs `r1, r2` during a [`SwarmTeam::run`]: those a member drew ahead while the
 /// particles were evaluated, in the order of the stream, drawn on the spot when there are none
 /// (a team of one, a swarm of one particle).
-pub struct TeamPairs<'t, const D: usize> {
-    shared: &'t Shared<D>,
+pub struct TeamPairs<'t> {
+    shared: &'t Shared,
     /// The last draw job taken.
     taken: u64,
     /// This generation's pairs and the next one to give.
@@ -629,7 +642,7 @@ pub struct TeamPairs<'t, const D: usize> {
     next: usize,
 }
 
-impl<const D: usize> TeamPairs<'_, D> {
+impl TeamPairs<'_> {
     /// Appends pairs drawn from the stream after those this has (taking the vector when all
     /// of them are given).
     fn queue(&mut self, drawn: &mut Pairs) {
@@ -663,7 +676,7 @@ impl<const D: usize> TeamPairs<'_, D> {
     }
 }
 
-impl<const D: usize> RandomPairs<f64> for TeamPairs<'_, D> {
+impl RandomPairs<f64> for TeamPairs<'_> {
     fn generation(&mut self, pairs: usize) {
         // Every draw from the stream, by a job or here, is queued in the order it was drawn:
         // only one job is ever outstanding, and it is taken before anything is drawn here.
@@ -716,6 +729,7 @@ mod tests {
     use calib_core::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
     use calib_core::identify::objective::{DEFAULT_K, Measurement};
     use calib_core::{ParameterErrors, ParameterSet, Problem};
+    use nalgebra::{SVector, U24};
 
     /// The bundled paper scenario (32 simulated poses of the ER10L-C10), as `calibrate` reads it.
     fn paper_measurements() -> Vec<Measurement<f64, 6>> {
@@ -729,19 +743,50 @@ mod tests {
     }
 
     /// `check` of the paper's objective (its 24 parameters) on the bundled measurements.
-    fn with_paper_objective(check: impl FnOnce(&ParameterSet<6, 24>, &Objective<'_, f64, 6, 24>)) {
+    /// The objective with the count at run time (`Dyn`, as `calibrate` has it) and, as the
+    /// controller compiles it, fixed (`U24`).
+    fn with_paper_objective(
+        check: impl FnOnce(&Objective<'_, f64, 6, Dyn>, &Objective<'_, f64, 6, U24>),
+    ) {
         let robot = calib_core::model::paper::er10l_c10::<f64>();
-        let set = ParameterSet::<6, 24>::default_for(&robot).expect("paper set");
         let measurements = paper_measurements();
-        let problem = Problem::new(
+        let problem = |set| {
+            Problem::new(
+                &robot,
+                &ParameterErrors::zero(),
+                set,
+                &measurements,
+                DEFAULT_K,
+            )
+            .expect("valid problem")
+        };
+        let dynamic = problem(ParameterSet::<6, Dyn>::default_for(&robot).expect("paper set"));
+        let fixed = Problem::new(
             &robot,
             &ParameterErrors::zero(),
-            set,
+            ParameterSet::<6, U24>::default_for(&robot).expect("paper set"),
             &measurements,
             DEFAULT_K,
         )
         .expect("valid problem");
-        check(&set, &Objective::new(&problem));
+        check(&Objective::new(&dynamic), &Objective::new(&fixed));
+    }
+
+    /// `a` (run-time count) and `b` (compiled count) to the last bit.
+    fn assert_same_swarm(
+        a: &ipso::IpsoResult<f64, Dyn>,
+        b: &ipso::IpsoResult<f64, U24>,
+        what: &str,
+    ) {
+        let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(a.best.as_slice()), bits(b.best.as_slice()), "{what}");
+        assert_eq!(a.best_cost.to_bits(), b.best_cost.to_bits(), "{what}");
+        assert_eq!(a.initial_cost.to_bits(), b.initial_cost.to_bits(), "{what}");
+        assert_eq!(
+            (a.generations, a.evaluations, a.stop),
+            (b.generations, b.evaluations, b.stop),
+            "{what}"
+        );
     }
 
     /// Every vector path this CPU has, and every team size, gives the swarm of
@@ -752,15 +797,17 @@ mod tests {
     }
 
     fn team_evaluates_bit_for_bit_on(
-        set: &ParameterSet<6, 24>,
-        objective: &Objective<'_, f64, 6, 24>,
+        objective: &Objective<'_, f64, 6, Dyn>,
+        fixed: &Objective<'_, f64, 6, U24>,
     ) {
-        let space = SearchSpace::paper(set);
+        let space = SearchSpace::paper(objective.problem().set());
+        let fixed_space = SearchSpace::paper(fixed.problem().set());
         let mut settings = IpsoSettings::paper();
         settings.max_generations = 300;
-        let mut plain = |x: &SVector<f64, 24>| objective.value(x);
-        let expected = ipso::optimize::<f64, 20, 24>(&mut plain, &space, &settings, &mut Silent)
-            .expect("valid settings");
+        let mut plain = |x: &SVector<f64, 24>| fixed.value(x);
+        let expected =
+            ipso::optimize::<f64, 20, U24>(&mut plain, &fixed_space, &settings, &mut Silent)
+                .expect("valid settings");
         assert!(expected.best_cost < 0.01 * expected.initial_cost);
         let available = Vectors::available();
         assert_eq!(available.first(), Some(&Vectors::Baseline));
@@ -768,10 +815,12 @@ mod tests {
             let lanes = LaneObjective::with_vectors(objective, vectors);
             assert_eq!(lanes.vectors(), vectors);
             for i in 0..8 {
-                let x = SVector::<f64, 24>::from_fn(|j, _| {
+                let x = DVector::<f64>::from_fn(24, |j, _| {
                     2e-3 * (i as f64 - 3.5) * ((j % 5) as f64 - 2.0)
                 });
                 assert_eq!(lanes.value(&x).to_bits(), objective.value(&x).to_bits());
+                let x24 = SVector::<f64, 24>::from_column_slice(x.as_slice());
+                assert_eq!(lanes.value(&x).to_bits(), fixed.value(&x24).to_bits());
             }
             for threads in [1, 2, 3] {
                 let team = SwarmTeam::run(&lanes, threads, settings.seed, |team, pairs| {
@@ -779,34 +828,48 @@ mod tests {
                     swarm_of(20, team, pairs, &space, &settings)
                 })
                 .expect("valid settings");
-                assert_eq!(team, expected, "{vectors:?}, {threads} threads");
-                assert_eq!(team.best_cost.to_bits(), expected.best_cost.to_bits());
+                assert_same_swarm(&team, &expected, &format!("{vectors:?}, {threads} threads"));
             }
         }
         // A swarm of one particle: the team evaluates it on the caller and draws its pairs
         // there too.
-        let mut memory = swarm_memory(1);
-        let alone = ipso::optimize_in(memory.lend(), &mut plain, &space, &settings, &mut Silent)
-            .expect("valid settings");
+        let mut memory = [SVector::<f64, 24>::zeros(); 3];
+        let [x, v, best] = &mut memory;
+        let (mut costs, mut best_costs) = ([0.0], [0.0]);
+        let alone = ipso::optimize_in(
+            ipso::SwarmMemory::new(
+                std::slice::from_mut(x),
+                std::slice::from_mut(v),
+                std::slice::from_mut(best),
+                &mut costs,
+                &mut best_costs,
+            )
+            .expect("slices of one length"),
+            &mut plain,
+            &fixed_space,
+            &settings,
+            &mut Silent,
+        )
+        .expect("valid settings");
         let lanes = LaneObjective::new(objective);
         let team = SwarmTeam::run(&lanes, 2, settings.seed, |team, pairs| {
             swarm_of(1, team, pairs, &space, &settings)
         })
         .expect("valid settings");
-        assert_eq!(team, alone);
+        assert_same_swarm(&team, &alone, "one particle");
     }
 
     /// The state of a swarm of `particles`.
     struct Memory {
-        x: Vec<SVector<f64, 24>>,
-        v: Vec<SVector<f64, 24>>,
-        best: Vec<SVector<f64, 24>>,
+        x: Vec<DVector<f64>>,
+        v: Vec<DVector<f64>>,
+        best: Vec<DVector<f64>>,
         costs: Vec<f64>,
         best_costs: Vec<f64>,
     }
 
     fn swarm_memory(particles: usize) -> Memory {
-        let zero = vec![SVector::zeros(); particles];
+        let zero = vec![DVector::zeros(24); particles];
         Memory {
             x: zero.clone(),
             v: zero.clone(),
@@ -817,7 +880,7 @@ mod tests {
     }
 
     impl Memory {
-        fn lend(&mut self) -> ipso::SwarmMemory<'_, f64, 24> {
+        fn lend(&mut self) -> ipso::SwarmMemory<'_, f64, Dyn> {
             ipso::SwarmMemory::new(
                 &mut self.x,
                 &mut self.v,
@@ -832,11 +895,11 @@ mod tests {
     /// The swarm of `particles` on a team, as `calibrate` runs it.
     fn swarm_of(
         particles: usize,
-        team: &mut SwarmTeam<'_, '_, '_, 6, 24>,
-        pairs: &mut TeamPairs<'_, 24>,
-        space: &SearchSpace<f64, 24>,
+        team: &mut SwarmTeam<'_, '_, '_, 6>,
+        pairs: &mut TeamPairs<'_>,
+        space: &SearchSpace<f64, Dyn>,
         settings: &IpsoSettings<f64>,
-    ) -> Result<ipso::IpsoResult<f64, 24>, ipso::IpsoError> {
+    ) -> Result<ipso::IpsoResult<f64, Dyn>, ipso::IpsoError> {
         let mut memory = swarm_memory(particles);
         team.optimize(memory.lend(), pairs, space, settings, &mut Silent)
     }
@@ -846,14 +909,16 @@ mod tests {
     /// and every batch's costs are the objective's.
     #[test]
     fn a_generation_left_unfinished_is_settled() {
-        with_paper_objective(|_, objective| {
+        with_paper_objective(|objective, _| {
             let lanes = LaneObjective::new(objective);
-            let xs: Vec<SVector<f64, 24>> = (0..20)
-                .map(|i| SVector::from_fn(|j, _| 1e-3 * (i as f64 - 9.5) * ((j % 3) as f64 - 1.0)))
+            let xs: Vec<DVector<f64>> = (0..20)
+                .map(|i| {
+                    DVector::from_fn(24, |j, _| 1e-3 * (i as f64 - 9.5) * ((j % 3) as f64 - 1.0))
+                })
                 .collect();
             let expected: Vec<u64> = xs.iter().map(|x| objective.value(x).to_bits()).collect();
             // Positions announced and then given up: not the ones asked for afterwards.
-            let other: Vec<SVector<f64, 24>> = xs.iter().map(|x| x * 2.0).collect();
+            let other: Vec<DVector<f64>> = xs.iter().map(|x| x * 2.0).collect();
             let batches = SwarmTeam::run(&lanes, 2, 1, |team, _| {
                 let mut costs = vec![0.0; 20];
                 team.cost_batch(&xs, &mut costs);
@@ -886,14 +951,14 @@ mod tests {
     /// on the spot, and more than announced.
     #[test]
     fn team_pairs_follow_the_stream() {
-        with_paper_objective(|_, objective| team_pairs_follow_the_stream_on(objective));
+        with_paper_objective(|objective, _| team_pairs_follow_the_stream_on(objective));
     }
 
-    fn team_pairs_follow_the_stream_on(objective: &Objective<'_, f64, 6, 24>) {
+    fn team_pairs_follow_the_stream_on(objective: &Objective<'_, f64, 6, Dyn>) {
         let lanes = LaneObjective::new(objective);
         let mut expected = vec![(0.0, 0.0); 4 * 24 + 7];
         RandomStream::new(5).fill(&mut expected);
-        let xs = vec![SVector::<f64, 24>::zeros(); 2];
+        let xs = vec![DVector::<f64>::zeros(24); 2];
         let taken = SwarmTeam::run(&lanes, 2, 5, |team, pairs| {
             let mut taken = Vec::new();
             // Drawn on the spot: three announced, five taken.
