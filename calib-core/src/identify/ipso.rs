@@ -432,6 +432,14 @@ pub trait RandomPairs<T> {
             (*a, *b) = self.pair();
         }
     }
+
+    /// The next `count` pairs lent in place as `(r1, r2)`, when the source holds them drawn
+    /// ahead (then taken, as [`RandomPairs::particle`] would take them); `None` (the default)
+    /// when it does not, and nothing is taken. A PC's update then reads them without a copy.
+    fn lend_particle(&mut self, count: usize) -> Option<(&[T], &[T])> {
+        let _ = count;
+        None
+    }
 }
 
 /// The swarm's generator: `Xoshiro256Plus` seeded with [`IpsoSettings::seed`], from which
@@ -516,14 +524,14 @@ where
         .zip(positions.iter())
         .zip(best_costs.iter_mut().zip(costs.iter()))
     {
-        best_x.copy_from(x);
+        copy(best_x, x);
         *best_c = sanitize(*c);
     }
     // The first particle if all costs are infinite (never NaN: sanitised).
     let mut global = OVector::<T, D>::zeros_generic(dimension, U1);
     let mut global_cost = T::of(f64::INFINITY);
     if let Some((x, c)) = best_of(best_positions, best_costs) {
-        global.copy_from(x);
+        copy(&mut global, x);
         global_cost = c;
     }
     let initial_cost = global_cost;
@@ -569,10 +577,14 @@ where
                 // the swarm's instructions).
                 #[cfg(not(target_arch = "arm"))]
                 {
-                    random.particle(r1.as_mut_slice(), r2.as_mut_slice());
-                    for (((xj, vj), (pj, gj)), (r1, r2)) in
-                        coordinates.zip(r1.as_slice().iter().zip(r2.as_slice()))
-                    {
+                    let (r1, r2) = match random.lend_particle(d) {
+                        Some(lent) => lent,
+                        None => {
+                            random.particle(r1.as_mut_slice(), r2.as_mut_slice());
+                            (r1.as_slice(), r2.as_slice())
+                        }
+                    };
+                    for (((xj, vj), (pj, gj)), (r1, r2)) in coordinates.zip(r1.iter().zip(r2)) {
                         step(xj, vj, *pj, *gj, (*r1, *r2));
                     }
                 }
@@ -588,7 +600,7 @@ where
             personal_bests(costs, positions, best_costs, best_positions);
             let improved = best_of(best_positions, best_costs).filter(|(_, c)| *c < global_cost);
             if let Some((candidate, candidate_cost)) = improved {
-                global.copy_from(candidate);
+                copy(&mut global, candidate);
                 global_cost = candidate_cost;
                 stalled = 0;
             } else {
@@ -670,7 +682,7 @@ fn personal_bests<T: Real, D: Dim>(
         let c = sanitize(*c);
         if c < *best_c {
             *best_c = c;
-            best_x.copy_from(x);
+            copy(best_x, x);
         }
     }
 }
@@ -701,16 +713,26 @@ where
         }
         #[cfg(not(target_arch = "arm"))]
         {
-            let (below, above) = (*xj < *lo, *xj > *hi);
+            // Selects between values already loaded (a select between the three addresses
+            // became a gather for a dimension known only at run time).
+            let (x, lo, hi) = (*xj, *lo, *hi);
+            let (below, above) = (x < lo, x > hi);
             *vj = if below || above { T::zero() } else { *vj };
-            *xj = if below {
-                *lo
-            } else if above {
-                *hi
-            } else {
-                *xj
-            };
+            let x = if below { lo } else { x };
+            *xj = if above { hi } else { x };
         }
+    }
+}
+
+/// `to = from` for two vectors of the swarm's dimension: one block copy (nalgebra's `copy_from`
+/// goes entry by entry through its strides). The dimensions are checked at the start of a run.
+#[inline(always)]
+fn copy<T: Real, D: Dim>(to: &mut OVector<T, D>, from: &OVector<T, D>)
+where
+    DefaultAllocator: Allocator<D>,
+{
+    if let Some(to) = to.as_mut_slice().get_mut(..from.len()) {
+        to.copy_from_slice(from.as_slice());
     }
 }
 

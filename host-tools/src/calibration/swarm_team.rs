@@ -705,6 +705,16 @@ impl RandomPairs<f64> for TeamPairs<'_> {
         (r1, r2)
     }
 
+    fn lend_particle(&mut self, count: usize) -> Option<(&[f64], &[f64])> {
+        let queued = self.next..self.next + count;
+        let (r1, r2) = (
+            self.pairs.r1.get(queued.clone())?,
+            self.pairs.r2.get(queued)?,
+        );
+        self.next += count;
+        Some((r1, r2))
+    }
+
     fn particle(&mut self, r1: &mut [f64], r2: &mut [f64]) {
         let queued = self.next..self.next + r1.len();
         match (self.pairs.r1.get(queued.clone()), self.pairs.r2.get(queued)) {
