@@ -16,7 +16,8 @@ use calib_core::identify::objective::{
 use calib_core::model::paper::{er10l_c10, table2};
 use calib_core::{Kinematics, ParameterErrors, ParameterSet, Real};
 use criterion::{Criterion, criterion_group, criterion_main};
-use nalgebra::{SVector, U24};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DVector, DefaultAllocator, Dim, Dyn, OVector, SVector, U24};
 use std::hint::black_box;
 
 fn measurements<T: Real>() -> MeasurementSet<T, 6, 32> {
@@ -98,6 +99,20 @@ fn objective_lanes(c: &mut Criterion) {
     c.bench_function("candidate_model_f64", |b| {
         b.iter(|| problem.kinematics(black_box(&x)))
     });
+    // The count at run time, as a host runs it.
+    let dynamic_problem = Problem::new(
+        &robot,
+        &ParameterErrors::zero(),
+        ParameterSet::<6, Dyn>::default_for(&robot).unwrap(),
+        data.as_slice(),
+        DEFAULT_K,
+    )
+    .unwrap();
+    let dynamic = Objective::new(&dynamic_problem);
+    let dynamic_x = DVector::<f64>::repeat(24, 1e-3);
+    c.bench_function("candidate_model_f64_dyn", |b| {
+        b.iter(|| dynamic_problem.kinematics(black_box(&dynamic_x)))
+    });
     c.bench_function("objective_32_poses_f64_lanes_baseline", |b| {
         b.iter(|| objective.value_of_lanes(black_box(&x), &lanes))
     });
@@ -112,11 +127,14 @@ fn objective_lanes(c: &mut Criterion) {
             o.value_of_lanes(x, l)
         }
         #[target_feature(enable = "avx2,avx512f,avx512vl")]
-        fn avx512<const L: usize>(
-            o: &Objective<'_, f64, 6, U24>,
-            x: &SVector<f64, 24>,
+        fn avx512<const L: usize, D: Dim>(
+            o: &Objective<'_, f64, 6, D>,
+            x: &OVector<f64, D>,
             l: &[PoseLanes<f64, 6, L>],
-        ) -> f64 {
+        ) -> f64
+        where
+            DefaultAllocator: Allocator<D>,
+        {
             o.value_of_lanes(x, l)
         }
         if std::arch::is_x86_feature_detected!("avx2") {
@@ -129,6 +147,10 @@ fn objective_lanes(c: &mut Criterion) {
             c.bench_function("objective_32_poses_f64_lanes_avx512vl", |b| {
                 // SAFETY: AVX-512VL (and so AVX2 and AVX-512F) detected above.
                 b.iter(|| unsafe { avx512(&objective, black_box(&x), &lanes) })
+            });
+            c.bench_function("objective_32_poses_f64_lanes_avx512vl_dyn", |b| {
+                // SAFETY: as above.
+                b.iter(|| unsafe { avx512(&dynamic, black_box(&dynamic_x), &lanes) })
             });
             c.bench_function("objective_32_poses_f64_lanes8_avx512", |b| {
                 // SAFETY: as above.

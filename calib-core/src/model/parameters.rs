@@ -543,7 +543,9 @@ where
     /// Writes the packed values into `errors`, leaving parameters outside the set unchanged.
     #[cfg_attr(not(target_arch = "arm"), inline(always))]
     pub fn unpack_into<T: Real>(&self, x: &OVector<T, D>, errors: &mut ParameterErrors<T, N>) {
-        for (xi, p) in x.iter().zip(self.parameters()) {
+        // A plain slice: nalgebra's iterator checks for a column's end at every step, which a
+        // run-time count (`Dyn`) does not fold away.
+        for (xi, p) in x.as_slice().iter().zip(self.parameters()) {
             errors.set(*p, *xi);
         }
     }

@@ -500,7 +500,7 @@ fn take_particles<const N: usize>(
             if shared.ready.load(Ordering::Acquire) <= i {
                 return; // the run is over
             }
-            for (p, c) in particle.iter_mut().zip(x) {
+            for (p, c) in particle.as_mut_slice().iter_mut().zip(x) {
                 *p = f64::from_bits(c.load(Ordering::Relaxed));
             }
             cost.store(objective.value(particle).to_bits(), Ordering::Relaxed);
@@ -530,7 +530,7 @@ impl<const N: usize> SwarmTeam<'_, '_, '_, N> {
     fn store_coordinates(slots: &Slots, index: usize, x: &DVector<f64>) {
         let d = slots.dimension;
         if let Some(slot) = slots.coordinates.get(index * d..(index + 1) * d) {
-            for (slot, c) in slot.iter().zip(x.iter()) {
+            for (slot, c) in slot.iter().zip(x.as_slice()) {
                 slot.store(c.to_bits(), Ordering::Relaxed);
             }
         }
