@@ -75,9 +75,9 @@ impl<const N: usize> Dataset<N> {
     /// Checks the data against the robot and converts them for the core.
     fn from_parts(file: RobotFile, robot: &Path, data_file: TrackerData) -> anyhow::Result<Self> {
         let model: RobotModel<N> = file.to_model(robot)?;
-        if N != JOINTS && (file.joint_maps.is_some() || file.compliance.is_some()) {
+        if N != JOINTS && file.compliance.is_some() {
             bail!(
-                "{}: joint maps and gravity compliance are supported for {JOINTS}-joint robots; this robot has {N} joints: remove [joint_maps] and [compliance]",
+                "{}: gravity compliance is modelled for {JOINTS}-joint robots; this robot has {N} joints: remove [compliance]",
                 robot.display()
             );
         }

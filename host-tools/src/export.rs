@@ -90,7 +90,7 @@ pub fn controller_model<T: calib_core::Real>(
 ) -> anyhow::Result<ControllerModel<T, JOINTS, MAX_FILE_HARMONICS>> {
     let mut model = ControllerModel::geometric(robot);
     if let Some(maps) = maps {
-        model.maps = maps.to_core::<T, MAX_FILE_HARMONICS>()?;
+        model.maps = maps.to_core::<T, JOINTS, MAX_FILE_HARMONICS>()?;
     }
     if let Some(compliance) = compliance {
         model.compliance = compliance.to_core::<T>()?;

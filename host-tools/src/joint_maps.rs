@@ -19,7 +19,6 @@
 //! When the evidence does not support a map (too few poses, a narrow joint range), its amplitude
 //! goes to zero and the map with it.
 
-use crate::JOINTS;
 use crate::compliance::{GAIN_COUNT, Gravity};
 use calib_core::model::joint_maps::JointMaps as CoreMaps;
 use calib_core::model::parameters::all_parameters;
@@ -76,8 +75,8 @@ fn prior_precision(s2: f64) -> f64 {
 /// Whether the hyperparameters moved by less than [`EVIDENCE_TOLERANCE`] (in their logarithms;
 /// a map switched off in both counts as unmoved).
 fn hyperparameters_converged(
-    (alpha, beta): (&[f64; JOINTS], f64),
-    (new_alpha, new_beta): (&[f64; JOINTS], f64),
+    (alpha, beta): (&[f64], f64),
+    (new_alpha, new_beta): (&[f64], f64),
 ) -> bool {
     let close = |a: f64, b: f64| (a.ln() - b.ln()).abs() < EVIDENCE_TOLERANCE;
     alpha
@@ -107,17 +106,22 @@ pub fn harmonic_basis(harmonics: usize, q: f64) -> DVector<f64> {
 pub struct JointMaps {
     /// Harmonics per joint, `H`.
     pub harmonics: usize,
-    /// Per joint, `[a_1..a_H, b_1..b_H]`, rad.
-    pub coefficients: [Vec<f64>; JOINTS],
+    /// Per joint (joint 1 first, one per joint of the robot), `[a_1..a_H, b_1..b_H]`, rad.
+    pub coefficients: Vec<Vec<f64>>,
 }
 
 impl JointMaps {
-    /// Maps that are zero everywhere.
-    pub fn zero(harmonics: usize) -> Self {
+    /// Maps of `joints` joints that are zero everywhere.
+    pub fn zero(joints: usize, harmonics: usize) -> Self {
         Self {
             harmonics,
-            coefficients: std::array::from_fn(|_| vec![0.0; 2 * harmonics]),
+            coefficients: vec![vec![0.0; 2 * harmonics]; joints],
         }
+    }
+
+    /// The number of joints mapped.
+    pub fn joints(&self) -> usize {
+        self.coefficients.len()
     }
 
     /// The angle error of joint `joint` (0-based) at reading `q`, rad.
@@ -147,15 +151,21 @@ impl JointMaps {
     /// The maps as the core evaluates them on the controller, in scalar `T` with room for `C`
     /// harmonics (rounded to `T`). Error: more than `C` harmonics, or a map the core refuses
     /// (see [`calib_core::model::joint_maps::JointMaps::new`]; the error names the joint).
-    pub fn to_core<T: Real, const C: usize>(
+    /// A robot of `N` joints needs the maps of `N` joints (a [`JointMapsSection`] read for the
+    /// robot file is checked so): other counts are refused as the maps of joint 1 (none would
+    /// be right).
+    pub fn to_core<T: Real, const N: usize, const C: usize>(
         &self,
-    ) -> Result<CoreMaps<T, JOINTS, C>, calib_core::KinematicsError> {
+    ) -> Result<CoreMaps<T, N, C>, calib_core::KinematicsError> {
         let h = self.harmonics;
         if h > C {
             return Err(calib_core::KinematicsError::TooManyHarmonics);
         }
-        let mut sin = [[T::zero(); C]; JOINTS];
-        let mut cos = [[T::zero(); C]; JOINTS];
+        if self.coefficients.len() != N {
+            return Err(calib_core::KinematicsError::InvalidJointMap { joint: 1 });
+        }
+        let mut sin = [[T::zero(); C]; N];
+        let mut cos = [[T::zero(); C]; N];
         for ((a, b), c) in sin.iter_mut().zip(cos.iter_mut()).zip(&self.coefficients) {
             for (k, v) in c.iter().enumerate() {
                 let slot = if k < h { &mut a[k] } else { &mut b[k - h] };
@@ -200,7 +210,7 @@ pub struct JointMapEntry {
 
 impl JointMapsSection {
     /// The section of `maps`, identified on readings within `ranges` (rad, per joint).
-    pub fn new(maps: &JointMaps, ranges: &[[f64; 2]; JOINTS]) -> Self {
+    pub fn new(maps: &JointMaps, ranges: &[[f64; 2]]) -> Self {
         let h = maps.harmonics;
         Self {
             harmonics: h,
@@ -217,22 +227,22 @@ impl JointMapsSection {
         }
     }
 
-    /// The maps, checked: one per joint, `harmonics` finite coefficients within
-    /// [`MAX_COEFFICIENT_RAD`] each. The error names the joint and the field.
-    pub fn to_maps(&self) -> Result<JointMaps, String> {
+    /// The maps of a robot of `joints` joints, checked: one per joint, `harmonics` finite
+    /// coefficients within [`MAX_COEFFICIENT_RAD`] each. The error names the joint and the field.
+    pub fn to_maps(&self, joints: usize) -> Result<JointMaps, String> {
         let h = self.harmonics;
         if h == 0 || h > MAX_FILE_HARMONICS {
             return Err(format!(
                 "[joint_maps]: harmonics = {h}, expected 1 to {MAX_FILE_HARMONICS}"
             ));
         }
-        if self.joint.len() != JOINTS {
+        if self.joint.len() != joints {
             return Err(format!(
-                "[joint_maps]: {} [[joint_maps.joint]] tables, expected {JOINTS} (one per joint)",
+                "[joint_maps]: {} [[joint_maps.joint]] tables, expected {joints} (one per joint)",
                 self.joint.len()
             ));
         }
-        let mut maps = JointMaps::zero(h);
+        let mut maps = JointMaps::zero(joints, h);
         for (j, (entry, c)) in self.joint.iter().zip(&mut maps.coefficients).enumerate() {
             let joint = j + 1;
             for (name, values) in [("sin_rad", &entry.sin_rad), ("cos_rad", &entry.cos_rad)] {
@@ -261,9 +271,22 @@ impl JointMapsSection {
             }
             c[..h].copy_from_slice(&entry.sin_rad);
             c[h..].copy_from_slice(&entry.cos_rad);
+            // The core's checks, joint by joint (the joint count is known here at run time).
+            let one = JointMaps {
+                harmonics: h,
+                coefficients: vec![c.clone()],
+            };
+            one.to_core::<f64, 1, MAX_FILE_HARMONICS>()
+                .map_err(|e| match e {
+                    calib_core::KinematicsError::InvalidJointMap { .. } => {
+                        calib_core::KinematicsError::InvalidJointMap {
+                            joint: u8::try_from(joint).unwrap_or(u8::MAX),
+                        }
+                    }
+                    other => other,
+                })
+                .map_err(|e| format!("[joint_maps]: {e}"))?;
         }
-        maps.to_core::<f64, MAX_FILE_HARMONICS>()
-            .map_err(|e| format!("[joint_maps]: {e}"))?;
         Ok(maps)
     }
 
@@ -278,9 +301,9 @@ impl JointMapsSection {
 
 /// One calibration pose: joint readings (rad) and the measured position (mm, measurement frame).
 #[derive(Clone, Copy, Debug)]
-pub struct Pose {
+pub struct Pose<const N: usize> {
     /// Joint readings, rad.
-    pub q: [f64; JOINTS],
+    pub q: [f64; N],
     /// Measured position, mm.
     pub position: Vector3<f64>,
     /// Measured orientation (6-DoF data), used when [`identify`] is given an orientation scale.
@@ -292,15 +315,15 @@ pub struct Pose {
 /// their positions, and their orientations (rad) weighted by `orientation_scale_mm` (mm per rad;
 /// 0 ignores them); with `gravity`, the compliance gains too (flat prior, like the geometry).
 #[derive(Clone, Copy, Debug)]
-pub struct MapsProblem<'a> {
+pub struct MapsProblem<'a, const N: usize> {
     /// The robot in the measurement frames.
-    pub robot: &'a Robot<f64, JOINTS>,
+    pub robot: &'a Robot<f64, N>,
     /// The geometric calibration's errors: the first linearisation point.
-    pub start: &'a ParameterErrors<f64, JOINTS>,
+    pub start: &'a ParameterErrors<f64, N>,
     /// The geometric parameters identified with the maps.
     pub parameters: &'a [Parameter],
     /// The calibration poses.
-    pub poses: &'a [Pose],
+    pub poses: &'a [Pose<N>],
     /// Weight of the orientation rows, mm per rad (0: positions only).
     pub orientation_scale_mm: f64,
     /// The masses for gravity compliance, when it is identified too.
@@ -321,11 +344,11 @@ pub struct Compliance {
 /// 1 % of the most visible gain of the same joint (RMS over the poses): a gain whose moment
 /// component (nearly) vanishes in every pose, such as joint 2's tilt about the vertical on a UR,
 /// cannot be told from noise and is left out (zero).
-fn active_gains(
+fn active_gains<const N: usize>(
     gravity: &Gravity,
-    robot: &Robot<f64, JOINTS>,
-    start: &ParameterErrors<f64, JOINTS>,
-    poses: &[Pose],
+    robot: &Robot<f64, N>,
+    start: &ParameterErrors<f64, N>,
+    poses: &[Pose<N>],
 ) -> anyhow::Result<Vec<usize>> {
     let mut size = [0.0f64; GAIN_COUNT];
     for pose in poses {
@@ -351,41 +374,41 @@ fn active_gains(
 
 /// What [`identify`] found.
 #[derive(Clone, Debug)]
-pub struct MapIdentification {
+pub struct MapIdentification<const N: usize> {
     /// The gravity compliance identified with the maps (when asked for).
     pub compliance: Option<Compliance>,
     /// The geometry: errors on top of the robot given (mm, rad), for every parameter identified.
-    pub errors: ParameterErrors<f64, JOINTS>,
+    pub errors: ParameterErrors<f64, N>,
     /// Posterior standard deviation of each geometric parameter, in the order given, mm or rad.
     pub parameter_sd: Vec<f64>,
     /// The maps (posterior mean).
     pub maps: JointMaps,
     /// Posterior standard deviation of each map's coefficients, per joint, in the order of
     /// [`JointMaps::coefficients`], rad.
-    pub coefficient_sd: [Vec<f64>; JOINTS],
+    pub coefficient_sd: [Vec<f64>; N],
     /// Posterior covariance of each joint's coefficients (in the order of
     /// [`JointMaps::coefficients`]), rad^2.
     pub coefficient_covariance: Vec<DMatrix<f64>>,
     /// The prior standard deviation of each joint's coefficients chosen by the evidence, rad.
-    pub amplitude_rad: [f64; JOINTS],
+    pub amplitude_rad: [f64; N],
     /// The measurement noise chosen by the evidence (per position coordinate), mm.
     pub noise_mm: f64,
     /// Log evidence of the calibration poses (up to a constant that depends only on the poses
     /// and the geometric parameters identified).
     pub log_evidence: f64,
     /// Effective number of map coefficients the data determine (MacKay's gamma), per joint.
-    pub determined: [f64; JOINTS],
+    pub determined: [f64; N],
 }
 
-impl MapIdentification {
+impl<const N: usize> MapIdentification<N> {
     /// The same identification with every map at zero and the geometry `errors` (the geometric
     /// calibration's): what the stage keeps when the maps do not predict better.
-    pub fn kept_at_zero(mut self, errors: ParameterErrors<f64, JOINTS>) -> Self {
+    pub fn kept_at_zero(mut self, errors: ParameterErrors<f64, N>) -> Self {
         self.errors = errors;
         self.compliance = None;
-        self.maps = JointMaps::zero(self.maps.harmonics);
-        self.amplitude_rad = [0.0; JOINTS];
-        self.determined = [0.0; JOINTS];
+        self.maps = JointMaps::zero(N, self.maps.harmonics);
+        self.amplitude_rad = [0.0; N];
+        self.determined = [0.0; N];
         for block in &mut self.coefficient_covariance {
             block.fill(0.0);
         }
@@ -410,9 +433,9 @@ impl MapIdentification {
 /// steps of [`HARMONICS_STEP`] up or down while the log evidence rises, within
 /// `HARMONICS_STEP..=MAX_HARMONICS`. Returns the best identification and the log evidence of
 /// every count tried (harmonics, log evidence).
-pub fn identify_best(
-    problem: &MapsProblem<'_>,
-) -> anyhow::Result<(MapIdentification, Vec<(usize, f64)>)> {
+pub fn identify_best<const N: usize>(
+    problem: &MapsProblem<'_, N>,
+) -> anyhow::Result<(MapIdentification<N>, Vec<(usize, f64)>)> {
     let mut tried: Vec<(usize, f64)> = Vec::new();
     let first = 3 * HARMONICS_STEP;
     let mut best = identify(problem, first)?;
@@ -446,7 +469,10 @@ pub fn identify_best(
 /// weighted by `orientation_scale_mm` (mm per rad; 0 ignores them); with `gravity`, the
 /// compliance gains too (flat prior, like the geometry). Errors: too few poses, a non-finite
 /// value, a singular problem.
-pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> anyhow::Result<MapIdentification> {
+pub fn identify<const N: usize>(
+    problem: &MapsProblem<'_, N>,
+    harmonics: usize,
+) -> anyhow::Result<MapIdentification<N>> {
     let MapsProblem {
         robot,
         start,
@@ -457,7 +483,7 @@ pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> anyhow::Result<M
     } = *problem;
     // Row offsets: 3 position rows per pose, and 3 orientation rows (rad times
     // `orientation_scale_mm`) for a pose with orientation when the scale is positive.
-    let use_rotation = |p: &Pose| orientation_scale_mm > 0.0 && p.rotation.is_some();
+    let use_rotation = |p: &Pose<N>| orientation_scale_mm > 0.0 && p.rotation.is_some();
     let offsets: Vec<usize> = poses
         .iter()
         .scan(0, |next, p| {
@@ -484,8 +510,8 @@ pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> anyhow::Result<M
             poses.len()
         );
     }
-    let all = all_mask();
-    let set = calib_core::ParameterSet::<JOINTS, nalgebra::U42>::from_mask(&all)?;
+    let all = all_mask::<N>();
+    let set = calib_core::ParameterSet::<N, nalgebra::Dyn>::from_mask(&all)?;
     let columns: Vec<usize> = parameters
         .iter()
         .map(|p| {
@@ -494,11 +520,11 @@ pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> anyhow::Result<M
         })
         .collect::<anyhow::Result<_>>()?;
     let per_joint = 2 * harmonics;
-    let unknowns = geometry + JOINTS * per_joint;
+    let unknowns = geometry + N * per_joint;
     let mut errors = *start;
-    let mut maps = JointMaps::zero(harmonics);
+    let mut maps = JointMaps::zero(N, harmonics);
     // Prior precisions of the joint groups (1/s_j^2) and the noise precision (1/sigma^2).
-    let mut alpha = [1.0 / (1e-4f64).powi(2); JOINTS];
+    let mut alpha = [1.0 / (1e-4f64).powi(2); N];
     let mut beta = 1.0 / (0.05f64).powi(2);
     let mut result = None;
     for _ in 0..LINEARISATIONS {
@@ -507,10 +533,8 @@ pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> anyhow::Result<M
         // solved for the total coefficients, whose prior is centred on zero).
         let mut design = DMatrix::<f64>::zeros(rows, unknowns);
         let mut residual = DVector::<f64>::zeros(rows);
-        let current: DVector<f64> = DVector::from_iterator(
-            JOINTS * per_joint,
-            maps.coefficients.iter().flatten().copied(),
-        );
+        let current: DVector<f64> =
+            DVector::from_iterator(N * per_joint, maps.coefficients.iter().flatten().copied());
         for (i, pose) in poses.iter().enumerate() {
             let q = maps.apply(&pose.q);
             let angles = JointAngles::new(&q)?;
@@ -559,7 +583,7 @@ pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> anyhow::Result<M
         if !design.iter().chain(residual.iter()).all(|v| v.is_finite()) {
             anyhow::bail!("joint maps: a Jacobian or residual is not finite");
         }
-        residual += design.columns(geometry, JOINTS * per_joint) * &current;
+        residual += design.columns(geometry, N * per_joint) * &current;
         let solved = if rows < unknowns {
             evidence_function_space(
                 &design, &residual, geometry, per_joint, &mut alpha, &mut beta,
@@ -634,23 +658,23 @@ pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> anyhow::Result<M
     })
 }
 
-fn all_mask() -> ParameterMask<JOINTS> {
-    let mut mask = ParameterMask::<JOINTS>::empty();
-    for p in all_parameters::<JOINTS>() {
+fn all_mask<const N: usize>() -> ParameterMask<N> {
+    let mut mask = ParameterMask::<N>::empty();
+    for p in all_parameters::<N>() {
         mask.set(p, true);
     }
     mask
 }
 
 /// The posterior of one linearisation.
-struct Posterior {
+struct Posterior<const N: usize> {
     mean: DVector<f64>,
     /// Diagonal of the posterior covariance.
     variance: DVector<f64>,
     /// Posterior covariance of each joint's coefficients.
     blocks: Vec<DMatrix<f64>>,
     log_evidence: f64,
-    determined: [f64; JOINTS],
+    determined: [f64; N],
 }
 
 /// Bayesian linear regression with a flat prior on the first `geometry` unknowns and a zero-mean
@@ -659,16 +683,16 @@ struct Posterior {
 /// `gamma_j = sum_k (1 - alpha_j Sigma_kk)`, `alpha_j = gamma_j / |m_j|^2`,
 /// `beta = (N - gamma) / |r - Phi m|^2`).
 #[allow(clippy::too_many_arguments)]
-fn evidence(
+fn evidence<const N: usize>(
     gram: &DMatrix<f64>,
     projected: &DVector<f64>,
     residual_squared: f64,
     rows: usize,
     geometry: usize,
     per_joint: usize,
-    alpha: &mut [f64; JOINTS],
+    alpha: &mut [f64; N],
     beta: &mut f64,
-) -> anyhow::Result<Posterior> {
+) -> anyhow::Result<Posterior<N>> {
     let mut last = None;
     for iteration in 0..EVIDENCE_ITERATIONS {
         let mut precision = gram * *beta;
@@ -686,7 +710,7 @@ fn evidence(
         let mean = cholesky.solve(projected) * *beta;
         let covariance = cholesky.inverse();
         let variance = covariance.diagonal();
-        let blocks = (0..JOINTS)
+        let blocks = (0..N)
             .map(|j| {
                 let o = geometry + j * per_joint;
                 covariance.view((o, o), (per_joint, per_joint)).into_owned()
@@ -695,12 +719,12 @@ fn evidence(
         // |r - Phi m|^2 = r^T r - 2 m^T Phi^T r + m^T G m.
         let misfit =
             (residual_squared - 2.0 * mean.dot(projected) + (gram * &mean).dot(&mean)).max(0.0);
-        let mut determined = [0.0; JOINTS];
+        let mut determined = [0.0; N];
         let mut gamma = geometry as f64;
         let mut prior_energy = 0.0;
         let mut log_alpha = 0.0;
         let mut new_alpha = *alpha;
-        for j in 0..JOINTS {
+        for j in 0..N {
             let range = geometry + j * per_joint..geometry + (j + 1) * per_joint;
             let m2: f64 = range.clone().map(|i| mean[i] * mean[i]).sum();
             let g: f64 = range.map(|i| 1.0 - alpha[j] * variance[i]).sum();
@@ -745,17 +769,17 @@ fn evidence(
 /// `-r^T P r / 2 - log|K| / 2 - log|A^T K^-1 A| / 2 - (N - D) log(2 pi) / 2`,
 /// `P = K^-1 - K^-1 A (A^T K^-1 A)^-1 A^T K^-1`. Then `m_j = s_j^2 Phi_j^T P r`,
 /// `gamma_j = s_j^2 tr(P Phi_j Phi_j^T)`, and `r - A dtheta - Phi m = sigma^2 P r`.
-fn evidence_function_space(
+fn evidence_function_space<const N: usize>(
     design: &DMatrix<f64>,
     residual: &DVector<f64>,
     geometry: usize,
     per_joint: usize,
-    alpha: &mut [f64; JOINTS],
+    alpha: &mut [f64; N],
     beta: &mut f64,
-) -> anyhow::Result<Posterior> {
+) -> anyhow::Result<Posterior<N>> {
     let rows = design.nrows();
     let a = design.columns(0, geometry).into_owned();
-    let phi: Vec<DMatrix<f64>> = (0..JOINTS)
+    let phi: Vec<DMatrix<f64>> = (0..N)
         .map(|j| {
             design
                 .columns(geometry + j * per_joint, per_joint)
@@ -764,7 +788,7 @@ fn evidence_function_space(
         .collect();
     let kernels: Vec<DMatrix<f64>> = phi.iter().map(|p| p * p.transpose()).collect();
     // Prior variances s_j^2 and noise variance sigma^2.
-    let mut variance_prior: [f64; JOINTS] = alpha.map(prior_variance);
+    let mut variance_prior: [f64; N] = alpha.map(prior_variance);
     let mut noise = 1.0 / *beta;
     let mut last = None;
     for iteration in 0..EVIDENCE_ITERATIONS {
@@ -787,16 +811,16 @@ fn evidence_function_space(
         let p = &k_inv - &k_inv_a * m_chol.solve(&k_inv_a.transpose());
         let pr = &p * residual;
         let dtheta = m_chol.solve(&(k_inv_a.transpose() * residual));
-        let mut mean = DVector::<f64>::zeros(geometry + JOINTS * per_joint);
+        let mut mean = DVector::<f64>::zeros(geometry + N * per_joint);
         mean.rows_mut(0, geometry).copy_from(&dtheta);
-        let mut variance = DVector::<f64>::zeros(geometry + JOINTS * per_joint);
+        let mut variance = DVector::<f64>::zeros(geometry + N * per_joint);
         variance
             .rows_mut(0, geometry)
             .copy_from(&m_chol.inverse().diagonal());
-        let mut determined = [0.0; JOINTS];
+        let mut determined = [0.0; N];
         let mut new_prior = variance_prior;
-        let mut blocks = Vec::with_capacity(JOINTS);
-        for j in 0..JOINTS {
+        let mut blocks = Vec::with_capacity(N);
+        for j in 0..N {
             let s2 = variance_prior[j];
             let u = phi[j].transpose() * &pr;
             let trace = p.component_mul(&kernels[j]).sum();
@@ -854,6 +878,7 @@ fn evidence_function_space(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::JOINTS;
     use rand::{RngExt, SeedableRng};
     use rand_distr::{Distribution, Normal};
 
@@ -935,29 +960,46 @@ mod tests {
 
     #[test]
     fn known_maps_and_geometry_are_recovered_within_their_posterior_uncertainty() {
-        recovered_within_their_posterior_uncertainty(None);
+        recovered_within_their_posterior_uncertainty::<JOINTS>(UR10, None);
     }
+
+    /// The same on a 7-joint arm (the KUKA LBR iiwa 14): maps on joints 1 to 6, none on 7.
+    #[test]
+    fn known_maps_and_geometry_of_a_seven_joint_arm_are_recovered_within_their_posterior_uncertainty()
+     {
+        recovered_within_their_posterior_uncertainty::<7>(IIWA, None);
+    }
+
+    /// A robot file's text and name.
+    type RobotText = (&'static str, &'static str);
+    const UR10: RobotText = (include_str!("../robots/ur10.toml"), "ur10.toml");
+    const IIWA: RobotText = (
+        include_str!("../robots/kuka-iiwa14.toml"),
+        "kuka-iiwa14.toml",
+    );
 
     /// The same with gravity compliance (the UR10's masses, a 1.5 kg probe): the 10 gains the
     /// poses see recovered within 3 posterior standard deviations, joint 2's tilt about the
     /// vertical (which no pose loads) left at zero.
     #[test]
     fn known_maps_compliance_and_geometry_are_recovered_within_their_posterior_uncertainty() {
-        recovered_within_their_posterior_uncertainty(Some([
-            8.0, -6.0, 10.0, 15.0, 0.0, 9.0, 5.0, -7.0, 20.0, 8.0, 12.0,
-        ]));
+        recovered_within_their_posterior_uncertainty::<JOINTS>(
+            UR10,
+            Some([8.0, -6.0, 10.0, 15.0, 0.0, 9.0, 5.0, -7.0, 20.0, 8.0, 12.0]),
+        );
     }
 
-    /// Simulates 400 poses of the UR10 with geometric errors, 5-harmonic maps and, when given,
-    /// compliance `gains` (urad/(N m)), 0.01 mm noise; identifies and checks the recovery.
-    fn recovered_within_their_posterior_uncertainty(gains: Option<[f64; GAIN_COUNT]>) {
-        let text = include_str!("../robots/ur10.toml");
-        let file =
-            crate::robot_file::RobotFile::parse(text, std::path::Path::new("ur10.toml")).unwrap();
-        let mut robot = file
-            .to_model::<JOINTS>(std::path::Path::new("ur10.toml"))
-            .unwrap()
-            .robot;
+    /// Simulates 400 poses of the robot `(text, name)` of `N` joints with geometric errors,
+    /// 5-harmonic maps on every joint but the last and, when given, compliance `gains`
+    /// (urad/(N m), a 6-joint robot with masses), 0.01 mm noise; identifies and checks the
+    /// recovery.
+    fn recovered_within_their_posterior_uncertainty<const N: usize>(
+        (text, name): RobotText,
+        gains: Option<[f64; GAIN_COUNT]>,
+    ) {
+        let path = std::path::Path::new(name);
+        let file = crate::robot_file::RobotFile::parse(text, path).unwrap();
+        let mut robot = file.to_model::<N>(path).unwrap().robot;
         // A reflector off the flange axis, so that every joint's distal parameters show.
         robot.tool = calib_core::FramePose {
             xyz: [40.0, -30.0, 80.0],
@@ -965,30 +1007,30 @@ mod tests {
         };
         let parameters: Vec<Parameter> = ["da2", "da3", "dd4", "dalpha2", "dtheta2", "dtheta3"]
             .iter()
-            .map(|n| Parameter::from_name(n, JOINTS).unwrap())
+            .map(|n| Parameter::from_name(n, N).unwrap())
             .collect();
-        let mut truth_errors = ParameterErrors::<f64, JOINTS>::zero();
+        let mut truth_errors = ParameterErrors::<f64, N>::zero();
         for (p, v) in parameters.iter().zip([0.3, -0.2, 0.25, 4e-4, -3e-4, 5e-4]) {
             truth_errors.set(*p, v);
         }
         // True maps: 5 harmonics per joint, coefficients of 0.1 mrad (joint 6: none).
         let harmonics = 5;
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(11);
-        let mut truth = JointMaps::zero(harmonics);
-        for c in truth.coefficients.iter_mut().take(JOINTS - 1).flatten() {
+        let mut truth = JointMaps::zero(N, harmonics);
+        for c in truth.coefficients.iter_mut().take(N - 1).flatten() {
             *c = rng.random_range(-1e-4..1e-4);
         }
         let actual = Kinematics::new(&robot, &truth_errors).unwrap();
         let noise = Normal::new(0.0, 0.01).unwrap();
-        let gravity = file.dynamics.as_ref().unwrap().to_gravity().unwrap();
-        let poses: Vec<Pose> = (0..400)
+        let gravity = gains.map(|_| file.dynamics.as_ref().unwrap().to_gravity().unwrap());
+        let poses: Vec<Pose<N>> = (0..400)
             .map(|_| {
-                let q: [f64; JOINTS] = std::array::from_fn(|_| rng.random_range(-3.1..3.1));
+                let q: [f64; N] = std::array::from_fn(|_| rng.random_range(-3.1..3.1));
                 let angles = truth.apply(&q);
                 let mut p = actual.forward(&angles).unwrap().translation.vector;
-                if let Some(g) = &gains {
+                if let (Some(g), Some(gravity)) = (&gains, &gravity) {
                     let columns =
-                        crate::compliance::columns(&gravity, &robot, &truth_errors, &angles)
+                        crate::compliance::columns(gravity, &robot, &truth_errors, &angles)
                             .unwrap();
                     let d = crate::compliance::displacement(&columns, g);
                     p += Vector3::new(d[0], d[1], d[2]);
@@ -1006,7 +1048,7 @@ mod tests {
             parameters: &parameters,
             poses: &poses,
             orientation_scale_mm: 0.0,
-            gravity: gains.map(|_| &gravity),
+            gravity: gravity.as_ref(),
         };
         let found = identify(&problem, harmonics).unwrap();
         if let Some(truth_gains) = gains {
@@ -1037,7 +1079,7 @@ mod tests {
         // Coefficients within 3 posterior standard deviations (at least 97 %), the unsupported
         // map at zero.
         let (mut inside, mut total) = (0, 0);
-        for j in 0..JOINTS - 1 {
+        for j in 0..N - 1 {
             for ((c, t), sd) in found.maps.coefficients[j]
                 .iter()
                 .zip(&truth.coefficients[j])
@@ -1053,7 +1095,7 @@ mod tests {
         assert!(inside * 100 >= total * 97, "{inside} of {total}");
         // The maps themselves, every 5 deg: within 3 posterior standard deviations.
         let (mut inside, mut total) = (0, 0);
-        for j in 0..JOINTS - 1 {
+        for j in 0..N - 1 {
             for i in 0..72 {
                 let q = (f64::from(i) * 5.0 - 180.0).to_radians();
                 total += 1;
@@ -1064,7 +1106,7 @@ mod tests {
             }
         }
         assert!(inside * 100 >= total * 95, "{inside} of {total}");
-        assert!(found.amplitude_rad[JOINTS - 1] <= NEGLIGIBLE_AMPLITUDE_RAD);
+        assert!(found.amplitude_rad[N - 1] <= NEGLIGIBLE_AMPLITUDE_RAD);
         for (i, p) in parameters.iter().enumerate() {
             let (e, t) = (found.errors.get(*p).unwrap(), truth_errors.get(*p).unwrap());
             assert!(

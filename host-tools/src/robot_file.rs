@@ -322,7 +322,7 @@ impl RobotFile {
         };
         robot.validate().map_err(|e| invalid(e.to_string()))?;
         if let Some(maps) = &self.joint_maps {
-            maps.to_maps().map_err(invalid)?;
+            maps.to_maps(N).map_err(invalid)?;
         }
         if let Some(dynamics) = &self.dynamics {
             dynamics.to_gravity().map_err(invalid)?;
@@ -469,10 +469,11 @@ impl RobotFile {
         self.joint_maps
             .as_ref()
             .map(|m| {
-                m.to_maps().map_err(|message| RobotFileError::Invalid {
-                    path: path.to_owned(),
-                    message,
-                })
+                m.to_maps(self.joint.len())
+                    .map_err(|message| RobotFileError::Invalid {
+                        path: path.to_owned(),
+                        message,
+                    })
             })
             .transpose()
     }

@@ -122,6 +122,41 @@ fn random_twenty_after_calibrating_on_the_grid() {
     assert!(r.implausible.is_empty());
 }
 
+/// Joint maps on a 7-joint arm: identified jointly with the geometry on the 216 grid poses. The
+/// evidence (noise about 1.2 mm per coordinate, the robot's repeatability 2 mm) supports no map,
+/// and the maps' cross-validation keeps every map at zero: the result is the geometric
+/// calibration (held out: the independent float64 calibration's 3.09 / 3.28 / 5.90 mm).
+#[test]
+fn joint_maps_are_identified_on_the_seven_joint_arm_and_kept_at_zero_when_they_do_not_predict() {
+    let c = calibrate(&["--holdout", RANDOM, "--model", "joint-maps"]);
+    let r = &c.result;
+    let maps = r.joint_maps.as_ref().expect("the joint-maps stage ran");
+    assert_eq!(maps.joints.len(), 7);
+    let cv = maps
+        .cross_validation
+        .expect("the maps' cross-validation ran");
+    println!(
+        "joint maps, {} harmonics, noise {:.3} mm; cross-validation {:.3} mm with maps, {:.3} mm geometry",
+        maps.harmonics, maps.noise_mm, cv.maps_mean_mm, cv.geometric_mean_mm
+    );
+    assert!(cv.kept_at_zero);
+    assert!(
+        maps.joints
+            .iter()
+            .all(|j| !j.supported && j.max_mrad == 0.0)
+    );
+    assert!(
+        (maps.noise_mm - 1.17).abs() < 0.05,
+        "noise {}",
+        maps.noise_mm
+    );
+    let after = &r.validation.as_ref().unwrap().after.position_mm;
+    assert!(after.mean <= 3.15, "random 20 mean {}", after.mean);
+    assert!((after.rms - 3.28).abs() < 0.05 && (after.max - 5.90).abs() < 0.1);
+    // The geometric calibration's file: no [joint_maps] written for maps kept at zero.
+    assert!(r.identified_robot.joint_maps.is_none());
+}
+
 #[test]
 fn grid_seventy_thirty_over_five_seeds() {
     let mut calibrated = Vec::new();

@@ -272,7 +272,8 @@ fn every_command_on_a_simulated_seven_joint_robot() {
     assert!(std::fs::metadata(&block).unwrap().len() > 0);
 }
 
-/// Commands that are defined for 6-joint robots only say so instead of guessing.
+/// Commands that are defined for 6-joint robots only say so instead of guessing; joint maps are
+/// identified for 7 joints too.
 #[test]
 fn six_joint_models_refuse_a_seven_joint_robot_with_a_reason() {
     let dir = tempfile::tempdir().unwrap();
@@ -306,7 +307,10 @@ fn six_joint_models_refuse_a_seven_joint_robot_with_a_reason() {
         "--truth-out",
         &truth,
     ]));
-    let out = calib(&[
+    // Joint maps are identified for any joint count (issue 37); the gravity compliance's gains
+    // are those of a 6R arm.
+    let identified = at(dir.path(), "maps.toml");
+    let out = ok(&calib(&[
         "calibrate",
         "--robot",
         ROBOT,
@@ -314,11 +318,25 @@ fn six_joint_models_refuse_a_seven_joint_robot_with_a_reason() {
         &data,
         "--model",
         "joint-maps",
+        "--out",
+        &identified,
+    ]));
+    assert!(out.contains("joint maps"), "{out}");
+    assert!(Path::new(&identified).exists());
+    let out = calib(&[
+        "calibrate",
+        "--robot",
+        ROBOT,
+        "--data",
+        &data,
+        "--model",
+        "joint-maps+compliance",
     ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("--model joint-maps is supported for 6-joint robots; this robot has 7 joints"),
+        err.contains("gravity compliance is modelled for 6-joint robots")
+            && err.contains("7 joints"),
         "{err}"
     );
 }

@@ -117,10 +117,10 @@ pub struct MapsCrossValidation {
 /// folds of [`super::cross_validation::cross_validate`] over `dataset`'s poses: identified from
 /// each fold's complement within `poses` (`kept[i]` is the dataset index of `poses[i]`; the
 /// outliers left out of `poses` are predicted but never train). `None` when a fold fails.
-fn maps_cross_validation(
-    dataset: &Dataset,
+fn maps_cross_validation<const N: usize>(
+    dataset: &Dataset<N>,
     kept: &[usize],
-    problem: &joint_maps::MapsProblem<'_>,
+    problem: &joint_maps::MapsProblem<'_, N>,
     harmonics: usize,
 ) -> Option<(usize, f64)> {
     let (poses, gravity) = (problem.poses, problem.gravity);
@@ -139,7 +139,7 @@ fn maps_cross_validation(
     for fold in 0..folds {
         let held: std::collections::BTreeSet<usize> =
             order.iter().skip(fold).step_by(folds).copied().collect();
-        let training: Vec<Pose> = kept
+        let training: Vec<Pose<N>> = kept
             .iter()
             .zip(poses)
             .filter(|(i, _)| !held.contains(i))
@@ -153,7 +153,7 @@ fn maps_cross_validation(
         let model = Kinematics::new(robot, &found.errors).ok()?;
         for i in &held {
             let record = dataset.data.records.get(*i)?;
-            let q: [f64; JOINTS] = std::array::from_fn(|j| record.q.get(j).copied().unwrap_or(0.0));
+            let q: [f64; N] = std::array::from_fn(|j| record.q.get(j).copied().unwrap_or(0.0));
             let angles = found.maps.apply(&q);
             let mut predicted = model.forward(&angles).ok()?.translation.vector;
             if let (Some(gravity), Some(c)) = (gravity, &found.compliance) {
@@ -173,7 +173,7 @@ fn maps_cross_validation(
 /// The weight of orientation rows in the maps, mm per rad: the ratio of the geometric fit's RMS
 /// position residual to its RMS orientation residual, so that both kinds of row carry the noise
 /// level of the position rows; 0 for position-only data.
-fn orientation_scale(dataset: &Dataset, geometric: &Kinematics<f64, JOINTS>) -> f64 {
+fn orientation_scale<const N: usize>(dataset: &Dataset<N>, geometric: &Kinematics<f64, N>) -> f64 {
     let (mut position, mut rotation) = (0.0, 0.0);
     for m in &dataset.measurements {
         let Some(measured) = m.rotation else {
@@ -193,7 +193,10 @@ fn orientation_scale(dataset: &Dataset, geometric: &Kinematics<f64, JOINTS>) -> 
 
 /// Refuses a robot file that already has joint maps as the start of a joint-maps calibration:
 /// its maps would be applied to the data and new ones identified on top.
-pub fn check_robot_file(dataset: &Dataset, config: &CalibrationConfig) -> anyhow::Result<()> {
+pub fn check_robot_file<const N: usize>(
+    dataset: &Dataset<N>,
+    config: &CalibrationConfig,
+) -> anyhow::Result<()> {
     gravity(dataset, config)?;
     if dataset.file.joint_maps.is_some() || dataset.file.compliance.is_some() {
         anyhow::bail!(
@@ -207,9 +210,18 @@ pub fn check_robot_file(dataset: &Dataset, config: &CalibrationConfig) -> anyhow
 
 /// The masses of the robot file for `--model joint-maps+compliance` (`None` for the other models);
 /// an error says what the file lacks.
-fn gravity(dataset: &Dataset, config: &CalibrationConfig) -> anyhow::Result<Option<Gravity>> {
+fn gravity<const N: usize>(
+    dataset: &Dataset<N>,
+    config: &CalibrationConfig,
+) -> anyhow::Result<Option<Gravity>> {
     if config.model != ErrorModel::JointMapsCompliance {
         return Ok(None);
+    }
+    if N != JOINTS {
+        anyhow::bail!(
+            "--model joint-maps+compliance: gravity compliance is modelled for {JOINTS}-joint robots (the torsion and \
+             tilt gains of joints 1 to 4 of a 6R arm); this robot has {N} joints: calibrate with --model joint-maps"
+        );
     }
     let Some(dynamics) = &dataset.file.dynamics else {
         anyhow::bail!(
@@ -228,11 +240,11 @@ fn gravity(dataset: &Dataset, config: &CalibrationConfig) -> anyhow::Result<Opti
 /// `dataset` as the model with maps and compliance sees it: the maps added to the readings, the
 /// compliance's displacement taken off the measured poses (so that the geometry's error on it is
 /// the whole model's error).
-pub fn model_view(
-    dataset: &Dataset,
-    found: &joint_maps::MapIdentification,
+pub fn model_view<const N: usize>(
+    dataset: &Dataset<N>,
+    found: &joint_maps::MapIdentification<N>,
     gravity: Option<&Gravity>,
-) -> anyhow::Result<Dataset> {
+) -> anyhow::Result<Dataset<N>> {
     let mapped = dataset.with_maps(&found.maps)?;
     match (gravity, &found.compliance) {
         (Some(gravity), Some(c)) => mapped.without_compliance(
@@ -248,12 +260,12 @@ pub fn model_view(
 
 /// Adds the joint maps to the geometric calibration `result` of `dataset` (prepared: frames
 /// fitted), validated on `validation`.
-pub fn add_joint_maps(
-    mut result: CalibrationResult,
-    dataset: &Dataset,
-    validation: Option<&Dataset>,
+pub fn add_joint_maps<const N: usize>(
+    mut result: CalibrationResult<N>,
+    dataset: &Dataset<N>,
+    validation: Option<&Dataset<N>>,
     config: &CalibrationConfig,
-) -> anyhow::Result<CalibrationResult> {
+) -> anyhow::Result<CalibrationResult<N>> {
     check_robot_file(dataset, config)?;
     let geometric = Kinematics::new(&dataset.model.robot, &result.errors)?;
     let residuals: Vec<f64> = dataset
@@ -305,7 +317,7 @@ pub fn add_joint_maps(
                 >= (1.0 - CROSS_VALIDATION_MARGIN) * geometric.calibrated_mean_mm,
         })
     });
-    let ranges: [[f64; 2]; JOINTS] = std::array::from_fn(|j| {
+    let ranges: [[f64; 2]; N] = std::array::from_fn(|j| {
         poses
             .iter()
             .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], p| {
@@ -329,7 +341,7 @@ pub fn add_joint_maps(
             &ranges,
         )?;
     }
-    let joints = (0..JOINTS)
+    let joints = (0..N)
         .map(|j| {
             let values: Vec<f64> = poses.iter().map(|p| found.maps.error(j, p.q[j])).collect();
             let rms =
@@ -347,7 +359,7 @@ pub fn add_joint_maps(
         })
         .collect();
     let turn = (360.0 / CURVE_STEP_DEG) as usize;
-    let curves = (0..JOINTS)
+    let curves = (0..N)
         .map(|j| {
             let q_deg: Vec<f64> = (0..=turn)
                 .map(|i| i as f64 * CURVE_STEP_DEG - 180.0)
@@ -392,15 +404,15 @@ pub fn add_joint_maps(
 /// `result` (the geometric calibration) replaced by the model with the maps `found`: statistics,
 /// parameters and the identified robot file with its `[joint_maps]`, the maps identified on
 /// readings within `ranges`.
-fn with_maps(
-    mut result: CalibrationResult,
-    dataset: &Dataset,
-    validation: Option<&Dataset>,
+fn with_maps<const N: usize>(
+    mut result: CalibrationResult<N>,
+    dataset: &Dataset<N>,
+    validation: Option<&Dataset<N>>,
     config: &CalibrationConfig,
     parameters: &[calib_core::Parameter],
-    (found, gravity): (&joint_maps::MapIdentification, Option<&Gravity>),
-    ranges: &[[f64; 2]; JOINTS],
-) -> anyhow::Result<CalibrationResult> {
+    (found, gravity): (&joint_maps::MapIdentification<N>, Option<&Gravity>),
+    ranges: &[[f64; 2]; N],
+) -> anyhow::Result<CalibrationResult<N>> {
     // The statistics of the model with the maps (and the compliance).
     let actual = Kinematics::new(&dataset.model.robot, &found.errors)?;
     let mapped = model_view(dataset, found, gravity)?;
@@ -433,7 +445,7 @@ fn with_maps(
     );
     let section = JointMapsSection::new(&found.maps, ranges);
     // Never write a file that its own reader refuses.
-    section.to_maps().map_err(|problem| {
+    section.to_maps(N).map_err(|problem| {
         anyhow::anyhow!(
             "the identified joint maps are not plausible ({problem}); nothing was written. The poses may not move \
              that joint enough, or hold an outlier: calibrate with --model geometric, or measure more varied poses"

@@ -91,7 +91,7 @@ pub fn calibrate<const N: usize>(
 ) -> anyhow::Result<CalibrationResult<N>> {
     config.check()?;
     if config.model.maps() {
-        maps::check_robot_file(six_joints(&dataset)?, config)?;
+        maps::check_robot_file(&dataset, config)?;
     }
     let frames = Frames::chosen(config.frames, &dataset.data);
     // With only the base fitted, the probe identified with the file's model stays the tool (as in
@@ -167,16 +167,7 @@ pub fn calibrate<const N: usize>(
         solved(&dataset, validation.as_ref())?
     };
     if config.model.maps() {
-        let six = crate::dispatch::same_type::<_, CalibrationResult<JOINTS>>(result)
-            .ok_or_else(|| anyhow::anyhow!("{}", joint_maps_need_six::<N>()))?;
-        let validation = validation.as_ref().map(six_joints).transpose()?;
-        result = crate::dispatch::same_type(maps::add_joint_maps(
-            six,
-            six_joints(&dataset)?,
-            validation,
-            config,
-        )?)
-        .ok_or_else(|| anyhow::anyhow!("{}", joint_maps_need_six::<N>()))?;
+        result = maps::add_joint_maps(result, &dataset, validation.as_ref(), config)?;
     }
     if probe_kept {
         let file = &mut result.identified_robot;
@@ -194,19 +185,6 @@ pub fn calibrate<const N: usize>(
         );
     }
     Ok(result)
-}
-
-/// Joint maps are identified for [`JOINTS`]-joint robots: the dataset as one, or an error.
-fn six_joints<const N: usize>(dataset: &Dataset<N>) -> anyhow::Result<&Dataset<JOINTS>> {
-    crate::dispatch::same_type_ref(dataset)
-        .ok_or_else(|| anyhow::anyhow!("{}", joint_maps_need_six::<N>()))
-}
-
-/// Why `--model joint-maps` refuses a robot of `N` joints.
-fn joint_maps_need_six<const N: usize>() -> String {
-    format!(
-        "--model joint-maps is supported for {JOINTS}-joint robots; this robot has {N} joints (calibrate its geometry with --model geometric)"
-    )
 }
 
 /// The parameters to identify and why.
