@@ -227,37 +227,48 @@ pub struct FileCompliance {
 
 impl FileCompliance {
     /// The core's model, in scalar `T`.
-    pub fn to_core<T: calib_core::Real>(
+    /// The core's model for a robot of `N` joints: refused unless `N` is [`JOINTS`] (the gains
+    /// are those of a 6R arm's joints 1 to 4).
+    pub fn to_core<T: calib_core::Real, const N: usize>(
         &self,
-    ) -> anyhow::Result<calib_core::model::compliance::Compliance<T, JOINTS>> {
+    ) -> anyhow::Result<calib_core::model::compliance::Compliance<T, N>> {
         self.gravity.to_core(&self.gains)
     }
 }
 
 impl Gravity {
     /// The core's model of these masses with `gains` (urad/(N m), in the order of [`GAINS`]), in
-    /// scalar `T`: what the controller evaluates (`calib_core::model::compliance`).
-    pub fn to_core<T: calib_core::Real>(
+    /// scalar `T`: what the controller evaluates (`calib_core::model::compliance`), for a robot
+    /// of `N` joints; refused unless `N` is [`JOINTS`].
+    pub fn to_core<T: calib_core::Real, const N: usize>(
         &self,
         gains: &[f64; GAIN_COUNT],
-    ) -> anyhow::Result<calib_core::model::compliance::Compliance<T, JOINTS>> {
+    ) -> anyhow::Result<calib_core::model::compliance::Compliance<T, N>> {
+        if N != JOINTS {
+            anyhow::bail!(
+                "gravity compliance is modelled for {JOINTS}-joint robots; this robot has {N} joints"
+            );
+        }
         use calib_core::model::compliance::{Compliance, PointMass, TILT_X, TILT_Y, TORSION};
         let mass = |(m, c): &(f64, Vector3<f64>)| PointMass {
             mass_kg: T::of(*m),
             centre_mm: [T::of(c.x), T::of(c.y), T::of(c.z)],
         };
-        let mut per_joint = [[T::zero(); 3]; JOINTS];
+        let mut per_joint = [[T::zero(); 3]; N];
         for (gain, value) in GAINS.iter().zip(gains) {
             let (j, axis) = match gain {
                 Gain::TiltX(j) => (j, TILT_X),
                 Gain::TiltY(j) => (j, TILT_Y),
                 Gain::Torsion(j) => (j, TORSION),
             };
-            per_joint[j - 1][axis] = T::of(*value);
+            if let Some(slot) = per_joint.get_mut(j - 1).and_then(|g| g.get_mut(axis)) {
+                *slot = T::of(*value);
+            }
         }
+        let none = (0.0, Vector3::zeros());
         Ok(Compliance::new(
             [self.gravity.x, self.gravity.y, self.gravity.z].map(T::of),
-            self.links.each_ref().map(mass),
+            std::array::from_fn(|j| mass(self.links.get(j).unwrap_or(&none))),
             mass(&self.tool),
             per_joint,
         )?)
@@ -377,7 +388,7 @@ mod tests {
         errors.joints[1].da = 0.7;
         errors.joints[2].dtheta = 1e-3;
         let gains = [4.0, -3.0, 2.5, 1.5, 0.0, 3.0, -2.0, 1.0, 6.0, 4.0, -5.0];
-        let core = gravity.to_core::<f64>(&gains).unwrap();
+        let core = gravity.to_core::<f64, JOINTS>(&gains).unwrap();
         let kinematics = Kinematics::new(&robot, &errors).unwrap();
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(14);
         let (mut worst_v, mut worst_w, mut largest) = (0.0f64, 0.0f64, 0.0f64);

@@ -39,7 +39,7 @@ pub const fn all_parameters(joints: usize) -> usize {
 }
 
 /// The most parameters of a robot of `joints` revolute joints the data can determine, and so
-/// the most the solvers are compiled for: `4 joints + 6` (Zhuang, Roth and Hamano 1992, "On the
+/// the most the solvers take: `4 joints + 6` (Zhuang, Roth and Hamano 1992, "On the
 /// minimality of kinematic parameters": a complete and minimal model has `4R + 2P + 6`; 34 for
 /// 7 joints). A larger selection is refused by the rank check before it reaches a solver.
 pub const fn solvable_parameters(joints: usize) -> usize {
@@ -58,19 +58,4 @@ pub fn check_parameter_count(joints: usize, count: usize, limit: usize) -> anyho
             "{count} identified parameters; calib supports 1 to {limit} for a robot of {joints} joints"
         ))
     }
-}
-
-/// `value` as a `B` when its type `A` is `B` (such as a `Dataset<N>` as a `Dataset<6>` when `N`
-/// is 6), else `None`: how code generic over the joint count reaches the models defined for
-/// 6-joint robots only (joint maps, gravity compliance).
-pub fn same_type<A: std::any::Any, B: std::any::Any>(value: A) -> Option<B> {
-    let mut slot = Some(value);
-    (&mut slot as &mut dyn std::any::Any)
-        .downcast_mut::<Option<B>>()
-        .and_then(Option::take)
-}
-
-/// [`same_type`] for a borrowed `value`.
-pub fn same_type_ref<A: std::any::Any, B: std::any::Any>(value: &A) -> Option<&B> {
-    (value as &dyn std::any::Any).downcast_ref()
 }

@@ -43,8 +43,8 @@ pub enum BlockScalar {
 /// With maps or compliance the block is version 2 with the maps' harmonics (and the compliance
 /// section); a controller reads it when built with room for at least as many harmonics (the
 /// reference firmware: 64).
-pub fn parameter_block(
-    robot: &calib_core::Robot<f64, JOINTS>,
+pub fn parameter_block<const N: usize>(
+    robot: &calib_core::Robot<f64, N>,
     maps: Option<&JointMaps>,
     compliance: Option<&FileCompliance>,
     scalar: BlockScalar,
@@ -83,59 +83,43 @@ pub fn geometry_block<const N: usize>(
 
 /// The controller's model in scalar `T`: `robot`, the maps (zero without) and the compliance
 /// (none without).
-pub fn controller_model<T: calib_core::Real>(
-    robot: calib_core::Robot<T, JOINTS>,
+pub fn controller_model<T: calib_core::Real, const N: usize>(
+    robot: calib_core::Robot<T, N>,
     maps: Option<&JointMaps>,
     compliance: Option<&FileCompliance>,
-) -> anyhow::Result<ControllerModel<T, JOINTS, MAX_FILE_HARMONICS>> {
+) -> anyhow::Result<ControllerModel<T, N, MAX_FILE_HARMONICS>> {
     let mut model = ControllerModel::geometric(robot);
     if let Some(maps) = maps {
-        model.maps = maps.to_core::<T, JOINTS, MAX_FILE_HARMONICS>()?;
+        model.maps = maps.to_core::<T, N, MAX_FILE_HARMONICS>()?;
     }
     if let Some(compliance) = compliance {
-        model.compliance = compliance.to_core::<T>()?;
+        model.compliance = compliance.to_core::<T, N>()?;
     }
     Ok(model)
 }
 
 /// A version 2 block of `model`.
-fn model_block<T: calib_core::Real>(
-    model: ControllerModel<T, JOINTS, MAX_FILE_HARMONICS>,
+fn model_block<T: calib_core::Real, const N: usize>(
+    model: ControllerModel<T, N, MAX_FILE_HARMONICS>,
     sequence: u32,
 ) -> anyhow::Result<Vec<u8>> {
-    let mut buffer = vec![
-        0u8;
-        storage::model_block_len::<T, JOINTS>(
-            model.maps.harmonics(),
-            model.compliance.is_active()
-        )
-    ];
+    let mut buffer =
+        vec![
+            0u8;
+            storage::model_block_len::<T, N>(model.maps.harmonics(), model.compliance.is_active())
+        ];
     storage::encode_model(&model, sequence, &mut buffer)?;
     Ok(buffer)
 }
 
 /// `file` (an identified robot file of `N` joints) in `format`; `scalar` and `sequence` for the
 /// block, `urdf` for the URDF (names; whether a file with joint maps or compliance may be
-/// exported as its geometry alone, also for the UR YAML). Joint maps, gravity compliance and the
-/// UR kinematics file are for 6-joint robots; other counts export their geometry.
+/// exported as its geometry alone, also for the UR YAML). The block carries the joint maps of any
+/// joint count and the gravity compliance of a 6-joint robot; the UR kinematics file is for
+/// 6-joint robots.
 pub fn export<const N: usize>(
     file: &RobotFile,
     model: &RobotModel<N>,
-    format: ExportFormat,
-    scalar: BlockScalar,
-    sequence: u32,
-    urdf: &crate::urdf::UrdfSettings,
-) -> anyhow::Result<Vec<u8>> {
-    match crate::dispatch::same_type_ref::<RobotModel<N>, RobotModel<JOINTS>>(model) {
-        Some(six) => export_six(file, six, format, scalar, sequence, urdf),
-        None => export_geometry(file, model, format, scalar, sequence, urdf),
-    }
-}
-
-/// [`export`] of a 6-joint robot: every format, the model beyond geometry in the block.
-fn export_six(
-    file: &RobotFile,
-    model: &RobotModel<JOINTS>,
     format: ExportFormat,
     scalar: BlockScalar,
     sequence: u32,
@@ -167,6 +151,11 @@ fn export_six(
             sequence,
         )?,
         ExportFormat::UrKinematicsYaml => {
+            if N != JOINTS {
+                anyhow::bail!(
+                    "{source}: a UR kinematics file describes a {JOINTS}-joint UR robot; this one has {N} joints"
+                );
+            }
             geometry("a UR kinematics file")?;
             crate::ur_kinematics::yaml(&model.robot, &source)?.into_bytes()
         }
@@ -178,26 +167,6 @@ fn export_six(
             geometry_formats(file, model, format, scalar, sequence, urdf)?
         }
     })
-}
-
-/// [`export`] for robots of other joint counts than 6 (joint maps, gravity compliance and the UR
-/// kinematics file are refused): the version 1 block, TOML, JSON or a URDF.
-fn export_geometry<const N: usize>(
-    file: &RobotFile,
-    model: &RobotModel<N>,
-    format: ExportFormat,
-    scalar: BlockScalar,
-    sequence: u32,
-    urdf: &crate::urdf::UrdfSettings,
-) -> anyhow::Result<Vec<u8>> {
-    let source = model.path.display().to_string();
-    if file.joint_maps.is_some() || file.compliance.is_some() {
-        anyhow::bail!(
-            "{source}: joint maps and gravity compliance are supported for {JOINTS}-joint robots; \
-             this one has {N} joints"
-        );
-    }
-    geometry_formats(file, model, format, scalar, sequence, urdf)
 }
 
 /// The formats of the geometry alone, for any joint count: the version 1 block, TOML, JSON and

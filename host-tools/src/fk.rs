@@ -1,6 +1,5 @@
 //! `calib fk`: the end pose of a robot model for given joint readings.
 
-use crate::JOINTS;
 use crate::robot_file::RobotModel;
 use anyhow::{Context, bail};
 use calib_core::math::so3;
@@ -87,14 +86,14 @@ pub fn forward_deg<const N: usize>(
 /// [`forward_deg`] of a model with gravity compliance: the end pose moved by the displacement of
 /// `gains` (urad/(N m)) under `gravity` ([`crate::compliance`]) at the same joint angles (degrees;
 /// the kinematic angles when the model has joint maps).
-pub fn forward_deg_compliant(
-    model: &RobotModel<JOINTS>,
+pub fn forward_deg_compliant<const N: usize>(
+    model: &RobotModel<N>,
     joints_deg: &[f64],
     gravity: &crate::compliance::Gravity,
     gains: &[f64; crate::compliance::GAIN_COUNT],
 ) -> anyhow::Result<FkOutput> {
     forward_deg(model, joints_deg)?;
-    let q: [f64; JOINTS] = std::array::from_fn(|j| joints_deg[j].to_radians());
+    let q: [f64; N] = std::array::from_fn(|j| joints_deg[j].to_radians());
     let mut pose = Kinematics::nominal(&model.robot)?.forward(&q)?;
     let columns = crate::compliance::columns(
         gravity,

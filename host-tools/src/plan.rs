@@ -418,12 +418,6 @@ pub fn plan(
 ) -> anyhow::Result<Plan> {
     settings.check()?;
     let joints = file.joint.len();
-    if settings.model == PlanModel::JointMaps && joints != crate::JOINTS {
-        bail!(
-            "joint maps are identified for {}-joint robots; this robot has {joints} joints (plan its geometry: --model geometric)",
-            crate::JOINTS
-        );
-    }
     if let Some((id, q)) = candidates.iter().find(|(_, q)| q.len() != joints) {
         bail!(
             "candidate {id} has {} joint values, the robot has {joints} joints",

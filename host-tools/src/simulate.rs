@@ -222,11 +222,20 @@ fn true_errors<const N: usize>(
     rng: &mut Xoshiro256PlusPlus,
 ) -> anyhow::Result<ParameterErrors<f64, N>> {
     Ok(match config.errors {
-        TrueErrors::Table2 => crate::dispatch::same_type(paper::table2::<f64>()).ok_or_else(|| {
-            anyhow::anyhow!(
-                "Table 2 of the paper holds the errors of a {JOINTS}-joint robot; this robot has {N} joints: use --errors random"
-            )
-        })?,
+        TrueErrors::Table2 => {
+            if N != JOINTS {
+                anyhow::bail!(
+                    "Table 2 of the paper holds the errors of a {JOINTS}-joint robot; this robot has {N} joints: use --errors random"
+                );
+            }
+            // Every parameter of the paper's robot, by name (the same joints: N is 6).
+            let table2 = paper::table2::<f64>();
+            let mut e = ParameterErrors::zero();
+            for p in calib_core::model::parameters::all_parameters::<JOINTS>() {
+                e.set(p, table2.get(p).unwrap_or(0.0));
+            }
+            e
+        }
         TrueErrors::Random => {
             let mut e = ParameterErrors::zero();
             for p in model.mask.iter() {

@@ -46,9 +46,21 @@ fn x_part(joint: &MdhJoint<f64>) -> IsometryMatrix3<f64> {
     )
 }
 
-/// The six segments (mm), or why the model has no UR form.
-pub fn segments(robot: &Robot<f64, JOINTS>) -> anyhow::Result<Vec<IsometryMatrix3<f64>>> {
-    let last = &robot.joints[JOINTS - 1];
+/// The six segments (mm), or why the model has no UR form (a robot of other than six joints
+/// is no UR).
+pub fn segments<const N: usize>(
+    robot: &Robot<f64, N>,
+) -> anyhow::Result<Vec<IsometryMatrix3<f64>>> {
+    let (Some(last), Some(first)) = (robot.joints.last(), robot.joints.first()) else {
+        anyhow::bail!(
+            "a UR kinematics file describes a {JOINTS}-joint UR robot; this one has none"
+        );
+    };
+    if N != JOINTS {
+        anyhow::bail!(
+            "a UR kinematics file describes a {JOINTS}-joint UR robot; this one has {N} joints"
+        );
+    }
     if last.a != 0.0 || last.alpha != 0.0 || last.beta != 0.0 {
         anyhow::bail!(
             "the model has a fixed transform after joint 6 (a6 = {} mm, alpha6 = {} deg, beta6 = {} deg), \
@@ -60,7 +72,7 @@ pub fn segments(robot: &Robot<f64, JOINTS>) -> anyhow::Result<Vec<IsometryMatrix
             last.beta.to_degrees()
         );
     }
-    let mut out = vec![frame(&robot.base) * z_part(&robot.joints[0])];
+    let mut out = vec![frame(&robot.base) * z_part(first)];
     for pair in robot.joints.windows(2) {
         out.push(x_part(&pair[0]) * z_part(&pair[1]));
     }
@@ -68,7 +80,7 @@ pub fn segments(robot: &Robot<f64, JOINTS>) -> anyhow::Result<Vec<IsometryMatrix
 }
 
 /// The YAML of `robot` (`source` names the file in a comment).
-pub fn yaml(robot: &Robot<f64, JOINTS>, source: &str) -> anyhow::Result<String> {
+pub fn yaml<const N: usize>(robot: &Robot<f64, N>, source: &str) -> anyhow::Result<String> {
     // Positional notation with every digit (Rust's f64 Display round-trips and never writes an
     // exponent, which YAML 1.1 readers such as PyYAML, used by xacro, would take for a string).
     let mut body = String::from("kinematics:\n");

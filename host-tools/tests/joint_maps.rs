@@ -838,7 +838,7 @@ fn a_file_with_compliance_is_applied_or_refused_never_ignored() {
     let bytes = std::fs::read(d.join("b.bin")).unwrap();
     assert_eq!(bytes.len(), model_block_len::<f64, 6>(maps.harmonics, true));
     let (block, _) = decode_model::<f64, 6, 64>(&bytes).unwrap();
-    assert_eq!(block.compliance, c.to_core::<f64>().unwrap());
+    assert_eq!(block.compliance, c.to_core::<f64, 6>().unwrap());
     assert!(block.compliance.is_active());
     // compensate applies it: the robot with maps and compliance reaches the targets.
     compensation_uses_the_model(d, "c.toml", "no-c.toml", 0.1);

@@ -2,7 +2,6 @@
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
-use host_tools::JOINTS;
 use host_tools::cli::calibrate::{self, CalibrateOptions};
 use host_tools::cli::check::{self, CheckOptions};
 use host_tools::cli::compensate::CompensateOptions;
@@ -172,26 +171,14 @@ fn print_json_or_text<T: serde::Serialize>(
     Ok(())
 }
 
-/// `calib fk`: the end pose of a robot file for joint readings in degrees (2 to 9 joints; joint
-/// maps and gravity compliance for 6-joint robots).
+/// `calib fk`: the end pose of a robot file for joint readings in degrees (2 to 9 joints, with
+/// their joint maps; gravity compliance for 6-joint robots).
 fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::Result<()> {
     let file = host_tools::robot_file::RobotFile::read(robot)?;
-    let (name, pose) = if file.joint.len() == JOINTS {
-        forward_kinematics_six(&file, robot, joints_deg)?
-    } else {
-        if file.joint_maps.is_some() || file.compliance.is_some() {
-            anyhow::bail!(
-                "{}: joint maps and gravity compliance are supported for {JOINTS}-joint robots; \
-                 this one has {}",
-                robot.display(),
-                file.joint.len()
-            );
-        }
-        host_tools::with_joint_count!(
-            file.joint.len(),
-            forward_kinematics_n(&file, robot, joints_deg)
-        )?
-    };
+    let (name, pose) = host_tools::with_joint_count!(
+        file.joint.len(),
+        forward_kinematics_n(&file, robot, joints_deg)
+    )?;
     if json {
         print_line!(
             "{}",
@@ -204,27 +191,17 @@ fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::R
     Ok(())
 }
 
-/// The geometry of an `N`-joint robot file at `joints_deg`.
+/// An `N`-joint robot file at `joints_deg`, with its joint maps and gravity compliance.
 fn forward_kinematics_n<const N: usize>(
     file: &host_tools::robot_file::RobotFile,
     robot: &Path,
     joints_deg: &[f64],
 ) -> anyhow::Result<(String, fk::FkOutput)> {
     let model: RobotModel<N> = file.to_model(robot)?;
-    Ok((model.name.clone(), fk::forward_deg(&model, joints_deg)?))
-}
-
-/// A 6-joint robot file at `joints_deg`, with its joint maps and gravity compliance.
-fn forward_kinematics_six(
-    file: &host_tools::robot_file::RobotFile,
-    robot: &Path,
-    joints_deg: &[f64],
-) -> anyhow::Result<(String, fk::FkOutput)> {
-    let model: RobotModel<JOINTS> = file.to_model(robot)?;
     // Joint maps are part of the model: the kinematics sees each reading with its angle error.
     let joints_deg: Vec<f64> = match file.joint_maps(robot)? {
-        Some(maps) if joints_deg.len() == JOINTS => {
-            let q: [f64; JOINTS] = std::array::from_fn(|j| joints_deg[j].to_radians());
+        Some(maps) if joints_deg.len() == N => {
+            let q: [f64; N] = std::array::from_fn(|j| joints_deg[j].to_radians());
             maps.apply(&q).iter().map(|q| q.to_degrees()).collect()
         }
         _ => joints_deg.to_vec(),

@@ -1,7 +1,6 @@
 //! `calib compensate`: read the nominal and identified robots and the targets, compensate
 //! ([`crate::compensate`]), write one CSV row per target.
 
-use crate::JOINTS;
 use crate::compensate::{Summary, compensate_targets, compensate_targets_of, to_csv};
 use crate::export::controller_model;
 use crate::files::Outputs;
@@ -52,7 +51,7 @@ pub struct CompensateOptions {
 const MIN_JOINTS: usize = 6;
 
 /// Runs `calib compensate` for the robot file's joint count (6 to 9 joints, fewer are refused
-/// with the reason; joint maps and gravity compliance for 6-joint robots).
+/// with the reason; joint maps for every count, gravity compliance for 6-joint robots).
 pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
     let file = RobotFile::read(&options.robot)?;
     file.refuse_joint_maps(
@@ -75,17 +74,22 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
     if maps.is_none() && compliance.is_none() {
         return crate::with_joint_count!(file.joint.len(), compensate_geometric(options));
     }
-    if file.joint.len() != JOINTS {
-        bail!(
-            "{}: joint maps and gravity compliance are supported for {JOINTS}-joint robots; \
-             this one has {}",
-            options.params.display(),
-            file.joint.len()
-        );
-    }
-    // The controller's model: geometry, maps (zero without) and compliance (none without).
-    let (nominal, actual, targets, settings) = inputs::<JOINTS>(options)?;
-    let model = controller_model(actual.robot, maps.as_ref(), compliance.as_ref())?;
+    let beyond = (maps.as_ref(), compliance.as_ref());
+    crate::with_joint_count!(file.joint.len(), compensate_model(options, beyond))
+}
+
+/// `calib compensate` of a model of `N` joints with joint maps or gravity compliance (the
+/// compliance a 6R arm's, refused for other counts): the controller's model, geometry, maps (zero
+/// without) and compliance (none without).
+fn compensate_model<const N: usize>(
+    options: &CompensateOptions,
+    (maps, compliance): (
+        Option<&crate::joint_maps::JointMaps>,
+        Option<&crate::compliance::FileCompliance>,
+    ),
+) -> anyhow::Result<Summary> {
+    let (nominal, actual, targets, settings) = inputs::<N>(options)?;
+    let model = controller_model(actual.robot, maps, compliance)?;
     let real = model.kinematics()?;
     let outcomes =
         compensate_targets_of(&nominal.robot, &real, &targets, &settings, options.branch)?;
