@@ -3,8 +3,9 @@
 //! command line.
 #![deny(missing_docs)]
 
-/// The joint count the tool is built for. The core is generic over it; the tool instantiates it
-/// here, in one place.
+/// The joint count of the models defined for 6R arms only: gravity compliance (the gains of
+/// joints 1 to 4), the paper's Table 2, the UR formats; and the default of the generic types.
+/// Every command takes 2 to 9 joints ([`dispatch::JOINT_COUNTS`]).
 pub const JOINTS: usize = 6;
 
 pub mod calibration;
