@@ -458,7 +458,7 @@ fn compensation_uses_the_maps(d: &std::path::Path) {
 /// of `baseline` miss them by more than `missed_by` mm on average.
 fn compensation_uses_the_model(d: &std::path::Path, params: &str, baseline: &str, missed_by: f64) {
     use common::{calib_in, ok};
-    use host_tools::reference::{self, RefModel};
+    use host_tools::reference::RefModel;
     use host_tools::tracker_data::{PoseRow, write_tracker_csv};
     let nominal_file = RobotFile::read(std::path::Path::new(ROBOT)).unwrap();
     let nominal = RefModel::from_file(&nominal_file, &[], &[0.0; 6], &[0.0; 6]);
@@ -504,16 +504,10 @@ fn compensation_uses_the_model(d: &std::path::Path, params: &str, baseline: &str
                 &out,
             ],
         ));
-        let mut reader = csv::Reader::from_path(d.join(&out)).unwrap();
-        reader
-            .records()
-            .enumerate()
-            .map(|(i, record)| {
-                let record = record.unwrap();
-                assert_eq!(&record[9], "ok", "{params} row {i}");
-                let q: [f64; 6] =
-                    std::array::from_fn(|j| record[j + 1].parse::<f64>().unwrap().to_radians());
-                let angles = maps.apply(&q);
+        common::compensation_misses::<6>(
+            &d.join(&out),
+            |q| {
+                let angles = maps.apply(q);
                 let mut reached = actual.forward(&angles);
                 if let Some(c) = &compliance {
                     let columns = host_tools::compliance::columns(
@@ -528,10 +522,10 @@ fn compensation_uses_the_model(d: &std::path::Path, params: &str, baseline: &str
                         row[3] += v[r];
                     }
                 }
-                let e = reference::pose_error(&nominal.forward(&rows[i].q), &reached);
-                (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt()
-            })
-            .collect()
+                reached
+            },
+            |i| nominal.forward(&rows[i].q),
+        )
     };
     let with = misses(params);
     let without = misses(baseline);

@@ -349,7 +349,7 @@ fn six_joint_models_refuse_a_seven_joint_robot_with_a_reason() {
 #[test]
 fn joint_maps_of_a_seven_joint_arm_are_exported_and_compensated() {
     use calib_core::controller::storage::{decode_model, model_block_len};
-    use host_tools::reference::{self, RefModel};
+    use host_tools::reference::RefModel;
     use host_tools::tracker_data::{PoseRow, write_tracker_csv};
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
@@ -462,20 +462,11 @@ fn joint_maps_of_a_seven_joint_arm_are_exported_and_compensated() {
             "--out",
             &out,
         ]));
-        let mut reader = csv::Reader::from_path(&out).unwrap();
-        reader
-            .records()
-            .enumerate()
-            .map(|(i, record)| {
-                let record = record.unwrap();
-                assert_eq!(&record[10], "ok", "{params} row {i}");
-                let q: [f64; 7] =
-                    std::array::from_fn(|j| record[j + 1].parse::<f64>().unwrap().to_radians());
-                let reached = actual.forward(&maps.apply(&q));
-                let e = reference::pose_error(&nominal.forward(&rows[i].q), &reached);
-                (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt()
-            })
-            .collect()
+        common::compensation_misses::<7>(
+            Path::new(&out),
+            |q| actual.forward(&maps.apply(q)),
+            |i| nominal.forward(&rows[i].q),
+        )
     };
     let with = misses(&at(d, "maps.toml"));
     let without = misses(ROBOT);

@@ -180,8 +180,8 @@ where
 /// (Hestenes): columns are rotated pairwise until mutually orthogonal; their norms are then the
 /// singular values, with high relative accuracy, and the accumulated rotations `V` (with
 /// `A V = U S`) hold the right singular vectors in the same column order. At most 64 sweeps, so it
-/// ends on any input. (nalgebra's SVD needs dimension arithmetic that a const generic `D` cannot
-/// express in the core's bounds.)
+/// ends on any input. (nalgebra's SVD needs dimension arithmetic, `DimMin` and `DimSub`, beyond
+/// the bounds the core's algorithms carry for `D`.)
 fn singular_values_and_vectors<T: Real, D: Dim>(
     a: &OMatrix<T, D, D>,
 ) -> (OVector<T, D>, OMatrix<T, D, D>)

@@ -4,7 +4,8 @@
 //! `v <- K (v + c1 r1 (pbest - x) + c2 r2 (gbest - x))`, `x <- x + v` (time step 1),
 //! `K = 2 / |2 - phi - sqrt(phi^2 - 4 phi)|`, `phi = c1 + c2 > 4`.
 //!
-//! The dimension `D` is a const generic. [`optimize`] takes the swarm size `P` as one too and
+//! The dimension `D` is a nalgebra dimension (`Const<24>` on a controller, `Dyn` on a host).
+//! [`optimize`] takes the swarm size `P` as a const generic and
 //! keeps the whole swarm on the stack (`3 P D + 2 P` scalars: 11.6 KiB for P = 20, D = 24 in
 //! f64, half in f32); [`optimize_in`] runs the same algorithm in memory the caller lends
 //! ([`SwarmMemory`]), for a swarm size chosen at run time. `r1, r2` are drawn per

@@ -36,7 +36,7 @@ pub enum KinematicsError {
     InvalidCompliance,
     /// The identification mask selects a different number of parameters than the vector holds.
     ParameterCount {
-        /// Number of parameters the packed vector holds (the const generic `D`).
+        /// Number of parameters the packed vector holds (the fixed dimension `D`).
         expected: u16,
         /// Number of parameters the mask selects.
         found: u16,
