@@ -3,7 +3,11 @@
 //! [`with_joint_count!`](crate::with_joint_count) maps the joint count to the core's for the
 //! counts in [`JOINT_COUNTS`], the one place that decides which are compiled; the parameter
 //! count is [`nalgebra::Dyn`] (one compiled solver for every count), limited per joint count by
-//! [`check_parameter_count`] ([`all_parameters`] to analyse, [`solvable_parameters`] to solve).
+//! [`solvable_set`] and [`analysable_set`] ([`solvable_parameters`] to solve, [`all_parameters`]
+//! to analyse).
+
+use calib_core::{ParameterMask, ParameterSet};
+use nalgebra::Dyn;
 
 /// The joint counts every command is compiled for.
 pub const JOINT_COUNTS: std::ops::RangeInclusive<usize> = 2..=9;
@@ -46,16 +50,33 @@ pub const fn solvable_parameters(joints: usize) -> usize {
     4 * joints + 6
 }
 
-/// Checks that `count` identified parameters are within `1..=limit` for a robot of `joints`
-/// joints (`limit` is [`all_parameters`] to analyse, [`solvable_parameters`] to solve): the
-/// solvers take any count at run time, but more than a robot's data can determine is refused
-/// here with a message that says the limit.
-pub fn check_parameter_count(joints: usize, count: usize, limit: usize) -> anyhow::Result<()> {
-    if (1..=limit).contains(&count) {
-        Ok(())
-    } else {
-        Err(anyhow::anyhow!(
-            "{count} identified parameters; calib supports 1 to {limit} for a robot of {joints} joints"
-        ))
+/// The parameters of `mask` as the solvers take them (the count at run time), refused with a
+/// message that says the limit beyond [`solvable_parameters`]`(N)`: more than a robot's data can
+/// determine.
+pub fn solvable_set<const N: usize>(
+    mask: &ParameterMask<N>,
+) -> anyhow::Result<ParameterSet<N, Dyn>> {
+    parameter_set(mask, solvable_parameters(N))
+}
+
+/// The parameters of `mask` as the identifiability analysis takes them, refused beyond
+/// [`all_parameters`]`(N)`.
+pub fn analysable_set<const N: usize>(
+    mask: &ParameterMask<N>,
+) -> anyhow::Result<ParameterSet<N, Dyn>> {
+    parameter_set(mask, all_parameters(N))
+}
+
+/// The set of `mask`'s 1 to `limit` parameters.
+fn parameter_set<const N: usize>(
+    mask: &ParameterMask<N>,
+    limit: usize,
+) -> anyhow::Result<ParameterSet<N, Dyn>> {
+    let count = mask.count();
+    if !(1..=limit).contains(&count) {
+        anyhow::bail!(
+            "{count} identified parameters; calib supports 1 to {limit} for a robot of {N} joints"
+        );
     }
+    Ok(ParameterSet::from_mask(mask)?)
 }

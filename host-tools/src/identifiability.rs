@@ -7,8 +7,8 @@ use crate::dataset::Dataset;
 use anyhow::bail;
 use calib_core::identify::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability, Status};
 use calib_core::identify::lm::LeastSquares;
-use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, ParameterSet, Problem};
-use nalgebra::{DVector, Dyn};
+use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, Problem};
+use nalgebra::DVector;
 use serde::Serialize;
 
 /// Scaled condition number above which a pose set is reported as ill-conditioned: the weakest
@@ -303,9 +303,8 @@ pub fn analyse<const N: usize>(
     mask: &ParameterMask<N>,
     k: f64,
 ) -> anyhow::Result<IdentifiabilityReport> {
-    let count = mask.count();
-    crate::dispatch::check_parameter_count(N, count, crate::dispatch::all_parameters(N))?;
-    let set = ParameterSet::<N, Dyn>::from_mask(mask)?;
+    let set = crate::dispatch::analysable_set(mask)?;
+    let count = set.len();
     if dataset.rows() < count {
         bail!(
             "{} poses give {} equations, fewer than the {count} identified parameters",

@@ -19,9 +19,8 @@ use anyhow::{Context, bail};
 use calib_core::identify::lm::{LeastSquares, LmSettings};
 use calib_core::{
     JointParameter, Kinematics, MdhJoint, Measurement, Parameter, ParameterErrors, ParameterMask,
-    ParameterSet, Problem, Robot,
+    Problem, Robot,
 };
-use nalgebra::Dyn;
 use rand::{RngExt, SeedableRng};
 use std::path::Path;
 
@@ -206,11 +205,6 @@ pub fn import(nominal: &Robot<f64, JOINTS>, calibration: &UrCalibration) -> anyh
             1.0,
         )?);
     }
-    crate::dispatch::check_parameter_count(
-        JOINTS,
-        mask.count(),
-        crate::dispatch::solvable_parameters(JOINTS),
-    )?;
     let errors = fit(nominal, &mask, &measurements)?;
     let imported = Kinematics::new(nominal, &errors)?;
     let plain = Kinematics::nominal(nominal)?;
@@ -240,13 +234,13 @@ pub fn import(nominal: &Robot<f64, JOINTS>, calibration: &UrCalibration) -> anyh
     })
 }
 
-/// Least squares of the `D` parameters of `mask` to `measurements` from the nominal robot.
+/// Least squares of the parameters of `mask` to `measurements` from the nominal robot.
 fn fit<const N: usize>(
     nominal: &Robot<f64, N>,
     mask: &ParameterMask<N>,
     measurements: &[Measurement<f64, N>],
 ) -> anyhow::Result<ParameterErrors<f64, N>> {
-    let set = ParameterSet::<N, Dyn>::from_mask(mask)?;
+    let set = crate::dispatch::solvable_set(mask)?;
     let problem = Problem::new(
         nominal,
         &ParameterErrors::zero(),

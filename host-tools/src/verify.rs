@@ -146,11 +146,6 @@ pub fn verify<const N: usize>(
         calibration.without_file_compliance(&calibration.model.robot, &zero)?,
         validation.without_file_compliance(&validation.model.robot, &zero)?,
     );
-    crate::dispatch::check_parameter_count(
-        N,
-        mask.count(),
-        crate::dispatch::solvable_parameters(N),
-    )?;
     run(&calibration, &validation, &mask, k)
 }
 
@@ -160,7 +155,7 @@ fn run<const N: usize>(
     mask: &ParameterMask<N>,
     k: f64,
 ) -> anyhow::Result<Verification> {
-    let set = ParameterSet::<N, Dyn>::from_mask(mask)?;
+    let set = crate::dispatch::solvable_set(mask)?;
     let parameters = set.len();
     let condition_number = crate::identifiability::analyse(calibration, mask, k)?.condition_number;
     let settings = LmSettings::default();

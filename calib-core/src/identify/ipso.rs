@@ -427,7 +427,8 @@ pub trait RandomPairs<T> {
 
     /// The next `r1.len()` pairs, one particle's: `(r1[j], r2[j])` is what [`RandomPairs::pair`]
     /// would give the `j`-th time (the default takes them so). A source that has the pairs
-    /// already drawn copies them, and the update then runs over whole arrays (vectorised on a PC).
+    /// already drawn lends them instead ([`RandomPairs::lend_particle`]), and a PC's update runs
+    /// over the whole arrays (vectorised).
     fn particle(&mut self, r1: &mut [T], r2: &mut [T]) {
         for (a, b) in r1.iter_mut().zip(r2.iter_mut()) {
             (*a, *b) = self.pair();

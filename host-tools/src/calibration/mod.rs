@@ -132,11 +132,6 @@ pub fn calibrate<const N: usize>(
     };
     let selection = select_parameters(&dataset, mask, config)?;
     let solved = |dataset: &Dataset<N>, validation: Option<&Dataset<N>>| {
-        crate::dispatch::check_parameter_count(
-            N,
-            selection.mask.count(),
-            crate::dispatch::solvable_parameters(N),
-        )?;
         solve(
             dataset,
             validation,
@@ -207,14 +202,7 @@ pub fn select_parameters<const N: usize>(
     mask: ParameterMask<N>,
     config: &CalibrationConfig,
 ) -> anyhow::Result<Selection<N>> {
-    let analysed = |mask: &ParameterMask<N>| {
-        crate::dispatch::check_parameter_count(
-            N,
-            mask.count(),
-            crate::dispatch::all_parameters(N),
-        )?;
-        analyse(dataset, mask, config.k)
-    };
+    let analysed = |mask: &ParameterMask<N>| analyse(dataset, mask, config.k);
     let (mut mask, reflector) = crate::identifiability::default_mask(dataset, mask, config.k)?;
     let mut initial = analysed(&mask)?;
     initial.reflector_on_last_axis = reflector;
@@ -260,7 +248,7 @@ pub fn select_parameters<const N: usize>(
     })
 }
 
-/// Identifies the `D` parameters of `selection` and evaluates the result.
+/// Identifies the parameters of `selection` and evaluates the result.
 fn solve<const N: usize>(
     dataset: &Dataset<N>,
     validation: Option<&Dataset<N>>,
@@ -268,7 +256,7 @@ fn solve<const N: usize>(
     selection: Selection<N>,
     mut frames: FramesReport,
 ) -> anyhow::Result<CalibrationResult<N>> {
-    let set = ParameterSet::<N, Dyn>::from_mask(&selection.mask)?;
+    let set = crate::dispatch::solvable_set(&selection.mask)?;
     let problem = Problem::new(
         &dataset.model.robot,
         &ParameterErrors::zero(),

@@ -257,8 +257,8 @@ impl Slots {
     }
 }
 
-/// Pairs `r1, r2` in the stream's order as two arrays, the form a particle's update copies
-/// ([`RandomPairs::particle`]).
+/// Pairs `r1, r2` in the stream's order as two arrays, the form a particle's update reads in
+/// place ([`RandomPairs::lend_particle`]).
 #[derive(Default)]
 struct Pairs {
     r1: Vec<f64>,
@@ -714,23 +714,6 @@ impl RandomPairs<f64> for TeamPairs<'_> {
         self.next += count;
         Some((r1, r2))
     }
-
-    fn particle(&mut self, r1: &mut [f64], r2: &mut [f64]) {
-        let queued = self.next..self.next + r1.len();
-        match (self.pairs.r1.get(queued.clone()), self.pairs.r2.get(queued)) {
-            // Whole arrays copied (vector moves): the update then loads them whole.
-            (Some(queued_r1), Some(queued_r2)) if r2.len() == r1.len() => {
-                r1.copy_from_slice(queued_r1);
-                r2.copy_from_slice(queued_r2);
-                self.next += r1.len();
-            }
-            _ => {
-                for (a, b) in r1.iter_mut().zip(r2.iter_mut()) {
-                    (*a, *b) = self.pair();
-                }
-            }
-        }
-    }
 }
 
 #[cfg(test)]
@@ -984,14 +967,15 @@ mod tests {
             // Ten announced: the eight left and two more drawn here.
             pairs.generation(10);
             taken.extend((0..10).map(|_| pairs.pair()));
-            // A particle's pairs at once: copied from those queued (24 announced), then
-            // taken one by one past them (the next job's, drawn ahead or here).
+            // A particle's pairs at once: lent in place from those queued (24 announced),
+            // then a particle's taken one by one past them (the next job's, drawn ahead or
+            // here).
             pairs.generation(24);
-            for _ in 0..2 {
-                let (mut r1, mut r2) = ([0.0; 24], [0.0; 24]);
-                pairs.particle(&mut r1, &mut r2);
-                taken.extend(r1.into_iter().zip(r2));
-            }
+            let (r1, r2) = pairs.lend_particle(24).expect("24 pairs queued");
+            taken.extend(r1.iter().copied().zip(r2.iter().copied()));
+            let (mut r1, mut r2) = ([0.0; 24], [0.0; 24]);
+            pairs.particle(&mut r1, &mut r2);
+            taken.extend(r1.into_iter().zip(r2));
             taken
         });
         assert_eq!(taken, expected);
