@@ -7,6 +7,7 @@
 // Set-up of fixed, valid inputs: a failure here is a bug in the benchmark itself.
 #![allow(clippy::unwrap_used)]
 
+use nalgebra::U6;
 use calib_core::Problem;
 use calib_core::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
 use calib_core::identify::lm::{LeastSquares, LmSettings};
@@ -20,7 +21,7 @@ use nalgebra::allocator::Allocator;
 use nalgebra::{DVector, DefaultAllocator, Dim, Dyn, OVector, SVector, U24};
 use std::hint::black_box;
 
-fn measurements<T: Real>() -> MeasurementSet<T, 6, 32> {
+fn measurements<T: Real>() -> MeasurementSet<T, U6, 32> {
     let truth = Kinematics::new(&er10l_c10::<T>(), &table2::<T>()).unwrap();
     let mut set = MeasurementSet::new();
     for i in 0..32 {
@@ -33,7 +34,7 @@ fn measurements<T: Real>() -> MeasurementSet<T, 6, 32> {
 
 fn paper_run<T: Real>(c: &mut Criterion, name: &str) {
     let robot = er10l_c10::<T>();
-    let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
+    let set = ParameterSet::<U6, U24>::default_for(&robot).unwrap();
     let data = measurements::<T>();
     let problem = Problem::new(
         &robot,
@@ -82,7 +83,7 @@ fn paper_run<T: Real>(c: &mut Criterion, name: &str) {
 /// in 256-bit vectors, and of 8 poses in AVX-512's 512-bit vectors).
 fn objective_lanes(c: &mut Criterion) {
     let robot = er10l_c10::<f64>();
-    let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
+    let set = ParameterSet::<U6, U24>::default_for(&robot).unwrap();
     let data = measurements::<f64>();
     let problem = Problem::new(
         &robot,
@@ -93,8 +94,8 @@ fn objective_lanes(c: &mut Criterion) {
     )
     .unwrap();
     let objective = Objective::new(&problem);
-    let lanes: Vec<PoseLanes<f64, 6>> = objective.lanes().collect();
-    let lanes8: Vec<PoseLanes<f64, 6, 8>> = objective.lanes().collect();
+    let lanes: Vec<PoseLanes<f64, U6>> = objective.lanes().collect();
+    let lanes8: Vec<PoseLanes<f64, U6, 8>> = objective.lanes().collect();
     let x = SVector::<f64, 24>::repeat(1e-3);
     c.bench_function("candidate_model_f64", |b| {
         b.iter(|| problem.kinematics(black_box(&x)))
@@ -103,7 +104,7 @@ fn objective_lanes(c: &mut Criterion) {
     let dynamic_problem = Problem::new(
         &robot,
         &ParameterErrors::zero(),
-        ParameterSet::<6, Dyn>::default_for(&robot).unwrap(),
+        ParameterSet::<U6, Dyn>::default_for(&robot).unwrap(),
         data.as_slice(),
         DEFAULT_K,
     )
@@ -120,17 +121,17 @@ fn objective_lanes(c: &mut Criterion) {
     {
         #[target_feature(enable = "avx2")]
         fn avx2(
-            o: &Objective<'_, f64, 6, U24>,
+            o: &Objective<'_, f64, U6, U24>,
             x: &SVector<f64, 24>,
-            l: &[PoseLanes<f64, 6>],
+            l: &[PoseLanes<f64, U6>],
         ) -> f64 {
             o.value_of_lanes(x, l)
         }
         #[target_feature(enable = "avx2,avx512f,avx512vl")]
         fn avx512<const L: usize, D: Dim>(
-            o: &Objective<'_, f64, 6, D>,
+            o: &Objective<'_, f64, U6, D>,
             x: &OVector<f64, D>,
-            l: &[PoseLanes<f64, 6, L>],
+            l: &[PoseLanes<f64, U6, L>],
         ) -> f64
         where
             DefaultAllocator: Allocator<D>,
@@ -165,7 +166,7 @@ fn objective_lanes(c: &mut Criterion) {
 /// sum of the coordinates), so the time is what the swarm adds to 40,020 objective evaluations.
 fn swarm_alone(c: &mut Criterion) {
     let robot = er10l_c10::<f64>();
-    let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
+    let set = ParameterSet::<U6, U24>::default_for(&robot).unwrap();
     let space = SearchSpace::paper(&set);
     let mut group = c.benchmark_group("paper_run");
     group.bench_function("ipso_20x24x2000_update_only_f64", |b| {

@@ -6,6 +6,7 @@
 // Set-up of fixed, valid inputs: a failure here is a bug in the benchmark itself.
 #![allow(clippy::unwrap_used)]
 
+use nalgebra::U6;
 use calib_core::kinematics::JointAngles;
 use calib_core::kinematics::pose_error::pose_error_jacobian;
 use calib_core::model::paper::er10l_c10 as er10l;
@@ -14,7 +15,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::U24;
 use std::hint::black_box;
 
-fn errors<T: Real>() -> ParameterErrors<T, 6> {
+fn errors<T: Real>() -> ParameterErrors<T, U6> {
     let mut e = ParameterErrors::zero();
     for (i, j) in e.joints.iter_mut().enumerate() {
         let s = i as f64 + 1.0;
@@ -49,7 +50,7 @@ fn benches(c: &mut Criterion) {
 
     let robot = er10l::<f64>();
     let kinematics = Kinematics::nominal(&robot).unwrap();
-    let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
+    let set = ParameterSet::<U6, U24>::default_for(&robot).unwrap();
     let q = [0.3, -0.7, 1.1, 2.0, -1.4, 0.6];
     let measured = Kinematics::new(&robot, &errors())
         .unwrap()

@@ -6,6 +6,7 @@
 //!
 //! `cargo run --release -p calib-core --example controller_compensation`
 
+use nalgebra::U6;
 use calib_core::controller::compensate::{CompensationSettings, compensate_joints};
 use calib_core::controller::storage::{self, FlashSlots, Slot, Source, StorageError};
 use calib_core::kinematics::pose_error::PoseError;
@@ -30,7 +31,7 @@ impl FlashSlots for Flash {
 fn main() -> Result<ExitCode, Box<dyn std::error::Error>> {
     // The model the controller plans with, and the identified one (a tenth of Table 2's errors,
     // the size a calibrated production robot corrects).
-    let nominal: Robot<f32, 6> = paper::er10l_c10();
+    let nominal: Robot<f32, U6> = paper::er10l_c10();
     let errors = paper::table2::<f32>();
     let mut identified = nominal;
     for (joint, e) in identified.joints.iter_mut().zip(&errors.joints) {
@@ -42,7 +43,7 @@ fn main() -> Result<ExitCode, Box<dyn std::error::Error>> {
     }
     // Commissioning: the block goes into the slot without the newest valid block.
     let mut flash = Flash([Vec::new(), Vec::new()]);
-    let mut buffer = [0u8; storage::block_len::<f32, 6>()];
+    let mut buffer = [0u8; storage::block_len::<f32>(6)];
     let (slot, sequence) = storage::store(&mut flash, &identified, &mut buffer)?;
     println!("stored the identified model in slot {slot:?}, sequence {sequence}");
 

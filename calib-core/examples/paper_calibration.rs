@@ -5,6 +5,7 @@
 //!
 //! `cargo run --release -p calib-core --example paper_calibration`
 
+use nalgebra::U6;
 use calib_core::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
 use calib_core::identify::lm::LmSettings;
 use calib_core::model::paper;
@@ -25,7 +26,7 @@ fn main() -> Result<ExitCode, Box<dyn std::error::Error>> {
             std::array::from_fn(|j| f64::from((i * 7 + j as u32 * 3) % 11) * 0.5 - 2.5);
         measurements.push(Measurement::from_pose(&q, &real.forward(&q)?)?);
     }
-    let set = ParameterSet::<6, U24>::default_for(&robot)?;
+    let set = ParameterSet::<U6, U24>::default_for(&robot)?;
     let problem = Problem::new(
         &robot,
         &ParameterErrors::zero(),

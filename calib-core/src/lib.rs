@@ -30,19 +30,20 @@
 //! use calib_core::identify::lm::LmSettings;
 //! use calib_core::model::paper;
 //! use calib_core::{Kinematics, LeastSquares, Measurement, ParameterErrors, ParameterSet, Problem};
+//! use nalgebra::{U24, U6};
 //!
 //! let robot = paper::er10l_c10::<f64>(); // nominal: the paper's Table 1 (mm, rad)
 //! let real = Kinematics::new(&robot, &paper::table2())?; // the robot as built
-//! let measurements: Vec<Measurement<f64, 6>> = (0..32)
+//! let measurements: Vec<Measurement<f64, U6>> = (0..32)
 //!     .map(|i| {
 //!         let q: [f64; 6] = core::array::from_fn(|j| ((i * 7 + j * 3) % 11) as f64 * 0.5 - 2.5);
 //!         let measured = real.forward(&q)?; // what the tracker measures
 //!         Ok::<_, Box<dyn core::error::Error>>(Measurement::from_pose(&q, &measured)?)
 //!     })
 //!     .collect::<Result<_, _>>()?;
-//! // The paper's 24 parameters; the count a type: `U24` fixed at compile time (a controller), or
-//! // `nalgebra::Dyn` for the count a robot file selects at run time (a host).
-//! let set = ParameterSet::<6, nalgebra::U24>::default_for(&robot)?;
+//! // The paper's 24 parameters of its 6 joints; both counts types: `U6` and `U24` fixed at compile
+//! // time (a controller), or `nalgebra::Dyn` for counts a robot file sets at run time (a host).
+//! let set = ParameterSet::<U6, U24>::default_for(&robot)?;
 //! let problem = Problem::new(&robot, &ParameterErrors::zero(), set, &measurements, 1e6)?;
 //! let start = problem.set().zeros(); // from the nominal model
 //! let fit = LeastSquares::new(&problem).solve(&start, &LmSettings::default())?;

@@ -1,6 +1,7 @@
 //! Property tests: random models, targets, measurements and garbage bytes never make the core
 //! panic; bad input comes back as an error (or, for pure math on garbage, a non-finite value).
 
+use nalgebra::U6;
 use calib_core::controller::compensate::{CompensationSettings, compensate_joints, predistort};
 use calib_core::controller::storage;
 use calib_core::identify::halton::{Scrambling, halton_point};
@@ -21,7 +22,7 @@ fn value() -> impl Strategy<Value = f64> {
     ]
 }
 
-fn robot() -> impl Strategy<Value = Robot<f64, 6>> {
+fn robot() -> impl Strategy<Value = Robot<f64, U6>> {
     prop::array::uniform6((value(), value(), value(), value(), value())).prop_map(|joints| {
         Robot::from_joints(joints.map(|(a, alpha, theta_offset, d, beta)| MdhJoint {
             a,
@@ -86,9 +87,9 @@ proptest! {
 
     #[test]
     fn storage_decode_never_panics(bytes in prop::collection::vec(any::<u8>(), 0..600)) {
-        let _ = storage::decode::<f64, 6>(&bytes);
-        let _ = storage::decode::<f32, 6>(&bytes);
-        let _ = storage::decode_model::<f32, 6, 64>(&bytes);
+        let _ = storage::decode::<f64, U6>(&bytes);
+        let _ = storage::decode::<f32, U6>(&bytes);
+        let _ = storage::decode_model::<f32, U6, 64>(&bytes);
     }
 
     #[test]
@@ -100,8 +101,8 @@ proptest! {
         bytes.extend_from_slice(&harmonics.to_le_bytes());
         bytes.extend_from_slice(&[0, 0]);
         bytes.extend_from_slice(&body);
-        let _ = storage::decode_model::<f32, 6, 64>(&bytes);
-        let _ = storage::decode_model::<f32, 6, 0>(&bytes);
+        let _ = storage::decode_model::<f32, U6, 64>(&bytes);
+        let _ = storage::decode_model::<f32, U6, 0>(&bytes);
     }
 
     #[test]
@@ -114,7 +115,7 @@ proptest! {
     ) {
         let rotation = Rotation3::new(Vector3::from(r)).into_inner();
         let robot = er10l_c10::<f64>();
-        let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
+        let set = ParameterSet::<U6, U24>::default_for(&robot).unwrap();
         let measured = Measurement::new(&q, Vector3::from(p), Some(rotation), w);
         if let Ok(m) = measured {
             let data = [m; 30];

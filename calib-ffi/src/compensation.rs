@@ -1,6 +1,7 @@
 //! Compensation: joint readings that put the identified robot on a target, and Cartesian
 //! pre-distortion for controllers that accept only Cartesian targets.
 
+use nalgebra::Const;
 use crate::access;
 use crate::model::{
     CALIB_JOINTS, CALIB_ROTATION_TOLERANCE_F32, CALIB_ROTATION_TOLERANCE_F64, CalibCompensated,
@@ -55,7 +56,7 @@ where
 
 fn outcome<T: Real>(
     result: Result<
-        calib_core::controller::compensate::Compensated<T, CALIB_JOINTS>,
+        calib_core::controller::compensate::Compensated<T, Const<CALIB_JOINTS>>,
         CompensationError,
     >,
     out: *mut CalibCompensated<T>,

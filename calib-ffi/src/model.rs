@@ -1,6 +1,7 @@
 //! The caller-owned memory of a robot and a model, sizes as compile-time constants, and the
 //! plain-data types of poses, settings and results.
 
+use nalgebra::Const;
 use calib_core::controller::compensate::CompensationSettings;
 use calib_core::controller::storage::{ControllerModel, model_block_len};
 use calib_core::kinematics::MappedKinematics;
@@ -155,13 +156,13 @@ pub type CalibCompensatedF64 = CalibCompensated<f64>;
 /// The nominal robot as held in a [`CalibRobotF32`]: the robot and its kinematics, prepared once
 /// when the block is decoded (the constant trigonometry of every call saved).
 pub(crate) struct NominalRobot<T: Real> {
-    pub(crate) robot: Robot<T, CALIB_JOINTS>,
-    pub(crate) kinematics: Kinematics<T, CALIB_JOINTS>,
+    pub(crate) robot: Robot<T, Const<CALIB_JOINTS>>,
+    pub(crate) kinematics: Kinematics<T, Const<CALIB_JOINTS>>,
 }
 
 impl<T: Real> NominalRobot<T> {
     /// Holds `robot` and prepares its kinematics, in place; error: an invalid robot.
-    pub(crate) fn set(&mut self, robot: &Robot<T, CALIB_JOINTS>) -> Result<(), crate::CalibStatus> {
+    pub(crate) fn set(&mut self, robot: &Robot<T, Const<CALIB_JOINTS>>) -> Result<(), crate::CalibStatus> {
         self.robot = *robot;
         self.kinematics =
             Kinematics::nominal(&self.robot).map_err(|_| crate::CalibStatus::InvalidModel)?;
@@ -172,8 +173,8 @@ impl<T: Real> NominalRobot<T> {
 /// The identified model as held in a [`CalibModelF32`]: the model and its geometry, prepared
 /// once when the block is decoded or loaded.
 pub(crate) struct IdentifiedModel<T: Real> {
-    pub(crate) model: ControllerModel<T, CALIB_JOINTS, CALIB_HARMONICS>,
-    pub(crate) geometry: Kinematics<T, CALIB_JOINTS>,
+    pub(crate) model: ControllerModel<T, Const<CALIB_JOINTS>, CALIB_HARMONICS>,
+    pub(crate) geometry: Kinematics<T, Const<CALIB_JOINTS>>,
 }
 
 impl<T: Real> IdentifiedModel<T> {
@@ -190,7 +191,7 @@ impl<T: Real> IdentifiedModel<T> {
     /// prepared parts.
     pub(crate) fn kinematics(
         &self,
-    ) -> MappedKinematics<'_, T, CALIB_JOINTS, CALIB_HARMONICS, &Kinematics<T, CALIB_JOINTS>> {
+    ) -> MappedKinematics<'_, T, Const<CALIB_JOINTS>, CALIB_HARMONICS, &Kinematics<T, Const<CALIB_JOINTS>>> {
         let compliance = &self.model.compliance;
         MappedKinematics {
             geometry: &self.geometry,
@@ -246,8 +247,8 @@ const _: () = assert!(fits::<CalibRobotF64, <CalibRobotF64 as Opaque>::Value>())
 const _: () = assert!(fits::<CalibModelF32, <CalibModelF32 as Opaque>::Value>());
 const _: () = assert!(fits::<CalibModelF64, <CalibModelF64 as Opaque>::Value>());
 const _: () = assert!(
-    CALIB_BLOCK_MAX_BYTES_F32 == model_block_len::<f32, CALIB_JOINTS>(CALIB_HARMONICS, true)
+    CALIB_BLOCK_MAX_BYTES_F32 == model_block_len::<f32>(CALIB_JOINTS, CALIB_HARMONICS, true)
 );
 const _: () = assert!(
-    CALIB_BLOCK_MAX_BYTES_F64 == model_block_len::<f64, CALIB_JOINTS>(CALIB_HARMONICS, true)
+    CALIB_BLOCK_MAX_BYTES_F64 == model_block_len::<f64>(CALIB_JOINTS, CALIB_HARMONICS, true)
 );

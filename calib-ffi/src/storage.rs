@@ -2,6 +2,7 @@
 //! model to the older slot through the caller's flash driver (the rule of
 //! `calib_core::controller::storage`: an interrupted write can only damage the older copy).
 
+use nalgebra::Const;
 use crate::access;
 use crate::model::{
     CALIB_JOINTS, CalibModelF32, CalibModelF64, CalibRobotF32, CalibRobotF64, IdentifiedModel,
@@ -141,7 +142,7 @@ unsafe fn decode_robot<T: Real, O: Opaque<Value = NominalRobot<T>>>(
     // SAFETY: the caller's contract (cleared first: on an error the robot is not filled).
     let value = unsafe { access::cleared(robot) }?;
     // SAFETY: the caller's contract.
-    let (decoded, _) = decode::<T, CALIB_JOINTS>(unsafe { access::bytes(block, len) }?)?;
+    let (decoded, _) = decode::<T, Const<CALIB_JOINTS>>(unsafe { access::bytes(block, len) }?)?;
     value.set(&decoded)?;
     // SAFETY: filled above.
     unsafe { access::mark_filled(robot) };

@@ -213,12 +213,12 @@ fn exported_block_is_byte_identical_to_the_core_and_round_trips() {
             calib_core::controller::storage::encode(&model.robot, 9, &mut expected).unwrap();
             assert_eq!(bytes, expected);
             assert_eq!(
-                calib_core::controller::storage::decode::<f64, 6>(&bytes).unwrap(),
+                calib_core::controller::storage::decode::<f64, U6>(&bytes).unwrap(),
                 (model.robot, 9)
             );
         } else {
             let (robot, sequence) =
-                calib_core::controller::storage::decode::<f32, 6>(&bytes).unwrap();
+                calib_core::controller::storage::decode::<f32, U6>(&bytes).unwrap();
             assert_eq!(sequence, 9);
             assert_eq!(robot, host_tools::export::to_f32(&model.robot));
         }

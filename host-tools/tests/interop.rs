@@ -173,7 +173,7 @@ fn seven_joint_robots_export_to_urdf_and_blocks() {
         ],
     ));
     let bytes = std::fs::read(&block).unwrap();
-    let (decoded, sequence) = calib_core::controller::storage::decode::<f32, 7>(&bytes).unwrap();
+    let (decoded, sequence) = calib_core::controller::storage::decode::<f32, U7>(&bytes).unwrap();
     let model: RobotModel<7> = RobotFile::read(&panda).unwrap().to_model(&panda).unwrap();
     assert_eq!(sequence, 3);
     assert_eq!(decoded, host_tools::export::to_f32(&model.robot));

@@ -154,7 +154,7 @@ fn tracker_data_calibrate_export_compensate_reaches_the_targets() {
         ],
     ));
     let block = std::fs::read(d.join("block.bin")).unwrap();
-    let (robot, _) = calib_core::controller::storage::decode::<f32, 6>(&block).unwrap();
+    let (robot, _) = calib_core::controller::storage::decode::<f32, U6>(&block).unwrap();
     assert_eq!(robot.base.xyz, [0.0; 3]);
     assert_eq!(robot.tool.xyz, [0.0; 3]);
 

@@ -9,6 +9,7 @@
 #![no_std]
 #![deny(missing_docs)]
 
+use nalgebra::U6;
 use calib_core::Problem;
 use calib_core::controller::compensate::{CompensationSettings, compensate_joints};
 use calib_core::identify::ipso::{self, Control, IpsoSettings, SearchSpace};
@@ -45,12 +46,12 @@ pub const TARGET_JOINTS: [[f32; 6]; TARGETS] = [
 ];
 
 /// The paper's ER10L-C10 in f32.
-pub fn robot() -> Robot<f32, 6> {
+pub fn robot() -> Robot<f32, U6> {
     paper::er10l_c10::<f32>()
 }
 
 /// The embedded measurements (32 poses), in a buffer sized for [`CAPACITY`].
-pub fn measurements() -> Result<heapless::Vec<Measurement<f32, 6>, CAPACITY>, Error> {
+pub fn measurements() -> Result<heapless::Vec<Measurement<f32, U6>, CAPACITY>, Error> {
     let mut out = heapless::Vec::new();
     for pose in &scenario::SCENARIO {
         let v = pose.map(f32::from_bits);
@@ -205,7 +206,7 @@ impl Outcome {
 }
 
 /// Table 3 statistics of `kinematics` on `measurements`.
-pub fn table(kinematics: &Kinematics<f32, 6>, measurements: &[Measurement<f32, 6>]) -> Table {
+pub fn table(kinematics: &Kinematics<f32, U6>, measurements: &[Measurement<f32, U6>]) -> Table {
     let mut stats = PoseStatistics::default();
     for m in measurements {
         stats.add(
@@ -225,7 +226,7 @@ pub fn table(kinematics: &Kinematics<f32, 6>, measurements: &[Measurement<f32, 6
 pub fn run(marks: &mut impl Marks) -> Result<Outcome, Error> {
     let robot = robot();
     let measurements = measurements()?;
-    let set = ParameterSet::<6, Const<D>>::default_for(&robot).map_err(|_| Error::Problem)?;
+    let set = ParameterSet::<U6, Const<D>>::default_for(&robot).map_err(|_| Error::Problem)?;
     let zero = ParameterErrors::zero();
     let k = DEFAULT_K as f32;
     let problem = Problem::new(&robot, &zero, set, &measurements, k).map_err(|_| Error::Problem)?;

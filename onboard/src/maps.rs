@@ -9,6 +9,7 @@
 //! `data/ur10-series-b-compliance.toml` and `host-tools/robots/ur10.toml` (the host test
 //! `tests/tests/onboard.rs` checks that they still are).
 
+use nalgebra::U6;
 use crate::{Error, Marks, Stage, TARGETS};
 use calib_core::Kinematics;
 use calib_core::controller::compensate::{CompensationSettings, compensate_joints};
@@ -83,9 +84,9 @@ pub fn compensate_with_maps(
     maps_block: &[u8],
     marks: &mut impl Marks,
 ) -> Result<MapsOutcome, Error> {
-    let (nominal_robot, _) = decode::<f32, 6>(nominal_block).map_err(|_| Error::Block)?;
+    let (nominal_robot, _) = decode::<f32, U6>(nominal_block).map_err(|_| Error::Block)?;
     // The model starts as the nominal one and is replaced in place by the block's.
-    let mut model = ControllerModel::<f32, 6, CAPACITY>::geometric(nominal_robot);
+    let mut model = ControllerModel::<f32, U6, CAPACITY>::geometric(nominal_robot);
     decode_model_into(maps_block, &mut model).map_err(|_| Error::Block)?;
     let nominal = Kinematics::nominal(&nominal_robot).map_err(|_| Error::Block)?;
     let actual = model.kinematics().map_err(|_| Error::Block)?;

@@ -5,6 +5,7 @@
 //! planned joint vectors. The firmware's `seven-joints` binary runs it and counts instructions;
 //! the host computes the same bits (`tests/tests/firmware_qemu.rs` compares them).
 
+use nalgebra::Const;
 use crate::{Error, Marks, Stage};
 use calib_core::controller::compensate::{CompensationSettings, compensate_joints};
 use calib_core::kinematics::pose_error::PoseError;
@@ -26,11 +27,11 @@ pub const TARGET_JOINTS: [[f32; JOINTS]; TARGETS] = [
 
 /// The KUKA LBR iiwa 14 R820 in f32: a = 0, alpha = -90, 90, 90, -90, -90, 90, 0 deg, d = 360,
 /// 0, 420, 0, 400, 0, 126 mm, limits +-170, +-120, +-170, +-120, +-170, +-120, +-175 deg.
-pub fn iiwa14() -> Robot<f32, JOINTS> {
+pub fn iiwa14() -> Robot<f32, Const<JOINTS>> {
     let alpha = [-90.0f32, 90.0, 90.0, -90.0, -90.0, 90.0, 0.0];
     let d = [360.0f32, 0.0, 420.0, 0.0, 400.0, 0.0, 126.0];
     let limit = [170.0f32, 120.0, 170.0, 120.0, 170.0, 120.0, 175.0];
-    let mut robot = Robot::from_joints(core::array::from_fn(|i| MdhJoint {
+    let mut robot = Robot::<f32, Const<JOINTS>>::from_joints(core::array::from_fn(|i| MdhJoint {
         a: 0.0,
         alpha: alpha.get(i).copied().unwrap_or(0.0).to_radians(),
         theta_offset: 0.0,
@@ -48,7 +49,7 @@ pub fn iiwa14() -> Robot<f32, JOINTS> {
 
 /// The actual robot's errors: per joint `da` and `dd` of +-0.2 to 0.5 mm and `dalpha`, `dtheta`
 /// of +-0.4 to 1.0 mrad (alternating signs), no base or tool error.
-pub fn errors() -> ParameterErrors<f32, JOINTS> {
+pub fn errors() -> ParameterErrors<f32, Const<JOINTS>> {
     let mut errors = ParameterErrors::zero();
     for (i, e) in errors.joints.iter_mut().enumerate() {
         let sign = if i % 2 == 0 { 1.0 } else { -1.0 };

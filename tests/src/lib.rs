@@ -69,7 +69,7 @@ pub fn table2() -> Vec<[f64; 5]> {
 }
 
 /// Table 2 as core parameter errors in scalar `T`.
-pub fn table2_errors<T: Real>() -> ParameterErrors<T, 6> {
+pub fn table2_errors<T: Real>() -> ParameterErrors<T, U6> {
     let mut errors = ParameterErrors::zero();
     for (e, t) in errors.joints.iter_mut().zip(table2()) {
         *e = JointErrors {

@@ -15,12 +15,12 @@ const CONFIGURATIONS: usize = 10_000;
 /// Largest position (mm) and rotation (rad) disagreement over random configurations.
 fn worst_disagreement<T: Real>(
     file: &RobotFile,
-    errors: &ParameterErrors<T, 6>,
+    errors: &ParameterErrors<T, U6>,
     reference: &RefModel,
     seed: u64,
 ) -> (f64, f64) {
     let model = file.to_model::<6>(Path::new("test")).unwrap();
-    let robot: Robot<T, 6> = convert(&model.robot);
+    let robot: Robot<T, U6> = convert(&model.robot);
     let kinematics = Kinematics::new(&robot, errors).unwrap();
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
     let (mut worst_p, mut worst_r) = (0.0f64, 0.0f64);
@@ -35,7 +35,7 @@ fn worst_disagreement<T: Real>(
     (worst_p, worst_r)
 }
 
-fn convert<T: Real>(robot: &Robot<f64, 6>) -> Robot<T, 6> {
+fn convert<T: Real>(robot: &Robot<f64, U6>) -> Robot<T, U6> {
     let mut out = Robot::from_joints(robot.joints.map(|j| calib_core::MdhJoint {
         a: T::of(j.a),
         alpha: T::of(j.alpha),

@@ -8,7 +8,7 @@ use host_tools::robot_file::RobotModel;
 use nalgebra::{Matrix3, Vector3};
 use std::path::Path;
 
-fn models() -> (Kinematics<f64, 6>, Kinematics<f64, 6>) {
+fn models() -> (Kinematics<f64, U6>, Kinematics<f64, U6>) {
     let model: RobotModel<6> = er10l_file().to_model(Path::new("er10l-c10.toml")).unwrap();
     (
         Kinematics::new(&model.robot, &ParameterErrors::zero()).unwrap(),

@@ -27,7 +27,7 @@ fn the_job_is_accurate_and_its_encoding_is_the_firmwares_expectation() {
     println!("{outcome:?}");
     // Against the truth (Table 2): 0.02 mm and 1e-4 rad tracker noise on 32 poses.
     let robot = paper::er10l_c10::<f64>();
-    let set = ParameterSet::<6, nalgebra::Const<D>>::default_for(&robot).unwrap();
+    let set = ParameterSet::<U6, nalgebra::Const<D>>::default_for(&robot).unwrap();
     let truth = set.pack(&paper::table2::<f64>());
     for (i, (got, want)) in outcome.errors.iter().zip(truth.iter()).enumerate() {
         let tolerance = if set.parameters()[i].is_angle() {
@@ -53,7 +53,7 @@ fn the_job_is_accurate_and_its_encoding_is_the_firmwares_expectation() {
     }
 
     // The f64 core on the same measurement bits reaches the same optimum.
-    let measurements: Vec<Measurement<f64, 6>> = calib_onboard::measurements()
+    let measurements: Vec<Measurement<f64, U6>> = calib_onboard::measurements()
         .unwrap()
         .iter()
         .map(|m| {
@@ -170,9 +170,9 @@ fn model_job_matches_the_f64_core(block: &[u8], file: &str, expected_file: &str,
     }
 
     // The f64 core with the block's values (f32 -> f64 is exact).
-    let (nominal32, _) = decode::<f32, 6>(NOMINAL_BLOCK).unwrap();
+    let (nominal32, _) = decode::<f32, U6>(NOMINAL_BLOCK).unwrap();
     let (model32, _) = decode_model::<f32, 6, 64>(block).unwrap();
-    let widen = |file_robot: &calib_core::Robot<f32, 6>| calib_core::Robot::<f64, 6> {
+    let widen = |file_robot: &calib_core::Robot<f32, U6>| calib_core::Robot::<f64, U6> {
         joints: file_robot.joints.map(|j| calib_core::MdhJoint {
             a: f64::from(j.a),
             alpha: f64::from(j.alpha),
@@ -200,7 +200,7 @@ fn model_job_matches_the_f64_core(block: &[u8], file: &str, expected_file: &str,
     let cos = std::array::from_fn(|j| {
         std::array::from_fn(|k| f64::from(model32.maps.cos_coefficients(j).unwrap()[k]))
     });
-    let model64: ControllerModel<f64, 6, 64> = ControllerModel {
+    let model64: ControllerModel<f64, U6, 64> = ControllerModel {
         robot: widen(&model32.robot),
         maps: calib_core::model::joint_maps::JointMaps::new(h, sin, cos).unwrap(),
         compliance: widen_compliance(&model32.compliance),
@@ -255,8 +255,8 @@ fn model_job_matches_the_f64_core(block: &[u8], file: &str, expected_file: &str,
 
 /// `c` in f64 (exact).
 fn widen_compliance(
-    c: &calib_core::model::compliance::Compliance<f32, 6>,
-) -> calib_core::model::compliance::Compliance<f64, 6> {
+    c: &calib_core::model::compliance::Compliance<f32, U6>,
+) -> calib_core::model::compliance::Compliance<f64, U6> {
     use calib_core::model::compliance::{Compliance, PointMass};
     let mass = |m: &PointMass<f32>| PointMass {
         mass_kg: f64::from(m.mass_kg),

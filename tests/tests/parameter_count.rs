@@ -16,7 +16,7 @@ fn bits(values: impl IntoIterator<Item = f64>) -> Vec<u64> {
 }
 
 /// The bundled measurements of the paper scenario; position-only when asked.
-fn paper_measurements(position_only: bool) -> Vec<Measurement<f64, 6>> {
+fn paper_measurements(position_only: bool) -> Vec<Measurement<f64, U6>> {
     let mut measurements = host_tools::dataset::Dataset::<6>::load(
         &calib_tests::repo("host-tools/robots/er10l-c10.toml"),
         &calib_tests::repo("host-tools/data/er10l-c10-sim32.csv"),
@@ -32,14 +32,14 @@ fn paper_measurements(position_only: bool) -> Vec<Measurement<f64, 6>> {
 }
 
 /// Everything a calibration reads from least squares and the analysis, as bits.
-fn results<D: Dim>(measurements: &[Measurement<f64, 6>], loss: Loss<f64>) -> Vec<Vec<u64>>
+fn results<D: Dim>(measurements: &[Measurement<f64, U6>], loss: Loss<f64>) -> Vec<Vec<u64>>
 where
     nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<D>
         + nalgebra::allocator::Allocator<D, D>
         + nalgebra::allocator::Allocator<nalgebra::U6, D>,
 {
     let robot = calib_core::model::paper::er10l_c10::<f64>();
-    let set = ParameterSet::<6, D>::default_for(&robot).expect("the paper's 24 parameters");
+    let set = ParameterSet::<U6, D>::default_for(&robot).expect("the paper's 24 parameters");
     let problem = Problem::new(
         &robot,
         &ParameterErrors::zero(),

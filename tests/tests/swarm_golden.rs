@@ -45,7 +45,7 @@ fn objective_matches_golden_values() {
     let robot = calib_core::model::paper::er10l_c10::<f64>();
     let truth = Kinematics::new(&robot, &table2_errors()).unwrap();
     let (_, rows) = read_csv("vectors/pose-error-er10l-c10.csv");
-    let measurements: Vec<Measurement<f64, 6>> = rows
+    let measurements: Vec<Measurement<f64, U6>> = rows
         .iter()
         .map(|row| {
             let q: [f64; 6] = std::array::from_fn(|i| row[i].parse::<f64>().unwrap().to_radians());
@@ -53,9 +53,9 @@ fn objective_matches_golden_values() {
         })
         .collect();
     // The count compiled (as on the controller) and at run time (as on a host): the same bits.
-    let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
+    let set = ParameterSet::<U6, U24>::default_for(&robot).unwrap();
     let at_table2 = set.pack(&table2_errors::<f64>());
-    let dynamic_set = ParameterSet::<6, Dyn>::default_for(&robot).unwrap();
+    let dynamic_set = ParameterSet::<U6, Dyn>::default_for(&robot).unwrap();
     let text =
         std::fs::read_to_string(calib_tests::data("vectors/objective-er10l-c10.txt")).unwrap();
     let mut checked = 0;

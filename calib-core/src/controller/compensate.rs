@@ -19,6 +19,7 @@
 //! pose the nominal model gives for the start joints), or a near-singular configuration
 //! (manipulability of the scaled Jacobian below a threshold).
 
+use crate::model::{JointCount, JointTable};
 use crate::KinematicsError;
 use crate::kinematics::pose_error::PoseError;
 use crate::kinematics::{Kinematics, MappedKinematics, Pose};
@@ -122,9 +123,9 @@ impl core::error::Error for CompensationError {
 
 /// A successful compensation.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Compensated<T: Real, const N: usize> {
+pub struct Compensated<T: Real, N: JointCount> {
     /// Joint readings to command, rad.
-    pub q: [T; N],
+    pub q: N::Table<T>,
     /// Predicted remaining position error of the actual robot, mm.
     pub residual_mm: T,
     /// Predicted remaining orientation error, rad.
@@ -139,13 +140,13 @@ fn finite<T: Real>(values: &[T]) -> bool {
 
 /// The actual robot the compensation drives: a geometric model, possibly with maps from joint
 /// readings to its kinematic angles.
-pub trait ActualRobot<T: Real, const N: usize> {
+pub trait ActualRobot<T: Real, N: JointCount> {
     /// The geometric model, evaluated at kinematic angles.
     fn geometry(&self) -> &Kinematics<T, N>;
     /// The kinematic angles of joint readings `q`, rad.
-    fn angles(&self, q: &[T; N]) -> [T; N];
+    fn angles(&self, q: &N::Table<T>) -> N::Table<T>;
     /// End pose (mm) for joint readings `q` (rad).
-    fn forward(&self, q: &[T; N]) -> Result<Pose<T>, KinematicsError>;
+    fn forward(&self, q: &N::Table<T>) -> Result<Pose<T>, KinematicsError>;
     /// The settings for solving the geometry alone: tighter where the readings step adds an error.
     fn geometry_settings(&self, settings: &CompensationSettings<T>) -> CompensationSettings<T>;
     /// The pose the geometry must reach at kinematic angles near `angles` for the whole model to
@@ -153,7 +154,7 @@ pub trait ActualRobot<T: Real, const N: usize> {
     fn geometric_target(
         &self,
         target: &Pose<T>,
-        _angles: &[T; N],
+        _angles: &N::Table<T>,
     ) -> Result<Pose<T>, KinematicsError> {
         Ok(*target)
     }
@@ -172,14 +173,14 @@ pub trait ActualRobot<T: Real, const N: usize> {
     ) -> Result<Compensated<T, N>, CompensationError>;
 }
 
-impl<T: Real, const N: usize> ActualRobot<T, N> for Kinematics<T, N> {
+impl<T: Real, N: JointCount> ActualRobot<T, N> for Kinematics<T, N> {
     fn geometry(&self) -> &Kinematics<T, N> {
         self
     }
-    fn angles(&self, q: &[T; N]) -> [T; N] {
+    fn angles(&self, q: &N::Table<T>) -> N::Table<T> {
         *q
     }
-    fn forward(&self, q: &[T; N]) -> Result<Pose<T>, KinematicsError> {
+    fn forward(&self, q: &N::Table<T>) -> Result<Pose<T>, KinematicsError> {
         Kinematics::forward(self, q)
     }
     fn geometry_settings(&self, settings: &CompensationSettings<T>) -> CompensationSettings<T> {
@@ -195,16 +196,16 @@ impl<T: Real, const N: usize> ActualRobot<T, N> for Kinematics<T, N> {
     }
 }
 
-impl<T: Real, const N: usize, const C: usize, G: Borrow<Kinematics<T, N>>> ActualRobot<T, N>
+impl<T: Real, N: JointCount, const C: usize, G: Borrow<Kinematics<T, N>>> ActualRobot<T, N>
     for MappedKinematics<'_, T, N, C, G>
 {
     fn geometry(&self) -> &Kinematics<T, N> {
         self.geometry.borrow()
     }
-    fn angles(&self, q: &[T; N]) -> [T; N] {
+    fn angles(&self, q: &N::Table<T>) -> N::Table<T> {
         self.maps.apply(q)
     }
-    fn forward(&self, q: &[T; N]) -> Result<Pose<T>, KinematicsError> {
+    fn forward(&self, q: &N::Table<T>) -> Result<Pose<T>, KinematicsError> {
         MappedKinematics::forward(self, q)
     }
     /// `target` with the compliance's deflection at `angles` taken off.
@@ -212,7 +213,7 @@ impl<T: Real, const N: usize, const C: usize, G: Borrow<Kinematics<T, N>>> Actua
     fn geometric_target(
         &self,
         target: &Pose<T>,
-        angles: &[T; N],
+        angles: &N::Table<T>,
     ) -> Result<Pose<T>, KinematicsError> {
         match self.compliance {
             None => Ok(*target),
@@ -274,12 +275,12 @@ impl<T: Real, const N: usize, const C: usize, G: Borrow<Kinematics<T, N>>> Actua
 /// controller's inverse kinematics of the target). `nominal` is the model the controller plans
 /// with: the correction bound applies to the difference between the pose it predicts for the
 /// result and for the start.
-pub fn compensate_joints<T: Real, const N: usize>(
+pub fn compensate_joints<T: Real, N: JointCount>(
     nominal: &Kinematics<T, N>,
     actual: &impl ActualRobot<T, N>,
-    limits: &[JointLimits<T>; N],
+    limits: &N::Table<JointLimits<T>>,
     target: &Pose<T>,
-    start: &[T; N],
+    start: &N::Table<T>,
     settings: &CompensationSettings<T>,
 ) -> Result<Compensated<T, N>, CompensationError> {
     compensate_joints_from(nominal, actual, limits, target, start, start, settings)
@@ -288,16 +289,16 @@ pub fn compensate_joints<T: Real, const N: usize>(
 /// [`compensate_joints`] with the iteration started at `initial` instead of `start` (a retry from
 /// a neighbouring point when the first run does not converge); the bounds still apply to the
 /// change from `start`, the controller's joints.
-pub fn compensate_joints_from<T: Real, const N: usize>(
+pub fn compensate_joints_from<T: Real, N: JointCount>(
     nominal: &Kinematics<T, N>,
     actual: &impl ActualRobot<T, N>,
-    limits: &[JointLimits<T>; N],
+    limits: &N::Table<JointLimits<T>>,
     target: &Pose<T>,
-    start: &[T; N],
-    initial: &[T; N],
+    start: &N::Table<T>,
+    initial: &N::Table<T>,
     settings: &CompensationSettings<T>,
 ) -> Result<Compensated<T, N>, CompensationError> {
-    if !finite(start) {
+    if !finite(start.as_slice()) {
         return Err(CompensationError::NonFinite);
     }
     let geometry_settings = actual.geometry_settings(settings);
@@ -319,12 +320,12 @@ pub fn compensate_joints_from<T: Real, const N: usize>(
     if solution
         .q
         .iter()
-        .zip(start)
+        .zip(start.iter())
         .any(|(q, s)| (*q - *s).abs() > settings.max_joint_correction_rad)
     {
         return Err(CompensationError::CorrectionTooLarge);
     }
-    for (j, (q, l)) in solution.q.iter().zip(limits).enumerate() {
+    for (j, (q, l)) in solution.q.iter().zip(limits.iter()).enumerate() {
         if !l.contains(*q) {
             return Err(CompensationError::JointLimit(crate::model::joint_number(j)));
         }
@@ -347,13 +348,13 @@ pub fn compensate_joints_from<T: Real, const N: usize>(
 /// Damped least-squares inverse kinematics of `model` for `target` from `start`, with
 /// Levenberg-Marquardt damping: a step that does not reduce the scaled pose error is rejected and
 /// the damping raised tenfold; an accepted step lowers it tenfold (not below `settings.damping`).
-pub fn solve_joints<T: Real, const N: usize>(
+pub fn solve_joints<T: Real, N: JointCount>(
     model: &Kinematics<T, N>,
     target: &Pose<T>,
-    start: &[T; N],
+    start: &N::Table<T>,
     settings: &CompensationSettings<T>,
 ) -> Result<Compensated<T, N>, CompensationError> {
-    if !finite(start)
+    if !finite(start.as_slice())
         || !finite(target.translation.vector.as_slice())
         || !finite(target.rotation.matrix().as_slice())
     {
@@ -392,11 +393,13 @@ pub fn solve_joints<T: Real, const N: usize>(
         }
         iterations += 1;
         // Scale position rows to the characteristic length so both halves are comparable.
-        let mut scaled: SMatrix<T, 6, N> = jacobian;
-        for mut row in scaled.rows_mut(0, 3).row_iter_mut() {
-            row /= length;
+        let mut scaled = jacobian;
+        for column in scaled.iter_mut() {
+            for v in column.iter_mut().take(3) {
+                *v /= length;
+            }
         }
-        let jjt = scaled * scaled.transpose();
+        let jjt = N::outer_product_sum(&scaled);
         // Manipulability sqrt(det(J J^T)) = product of the Cholesky factor's diagonal (no LU,
         // whose pivoting code has panicking bounds checks).
         let Some(factor) = jjt.cholesky() else {
@@ -414,7 +417,7 @@ pub fn solve_joints<T: Real, const N: usize>(
         let Some(cholesky) = damped.cholesky() else {
             return Err(CompensationError::NearSingular);
         };
-        let dq = scaled.transpose() * cholesky.solve(&scaled_error(&error));
+        let dq = N::transpose_times(&scaled, &cholesky.solve(&scaled_error(&error)));
         let mut candidate = q;
         for (qi, d) in candidate.iter_mut().zip(dq.iter()) {
             *qi += *d;
@@ -440,12 +443,12 @@ pub fn solve_joints<T: Real, const N: usize>(
 /// put the actual robot on `target`. Iterates `C <- C (+) (target (-) actual(nominal_ik(C)))`,
 /// with the nominal inverse kinematics solved from `start` by [`solve_joints`]. Returns the
 /// commanded pose and the joints the controller will use.
-pub fn predistort<T: Real, const N: usize>(
+pub fn predistort<T: Real, N: JointCount>(
     nominal: &Kinematics<T, N>,
     actual: &impl ActualRobot<T, N>,
-    limits: &[JointLimits<T>; N],
+    limits: &N::Table<JointLimits<T>>,
     target: &Pose<T>,
-    start: &[T; N],
+    start: &N::Table<T>,
     settings: &CompensationSettings<T>,
 ) -> Result<(Pose<T>, Compensated<T, N>), CompensationError> {
     // The joint-space solution is the fixed point: command the pose the nominal model gives it.
@@ -495,6 +498,7 @@ pub fn predistort<T: Real, const N: usize>(
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::U6;
     use super::*;
     use crate::model::paper::{er10l_c10, table2};
     use rand_core::{Rng, SeedableRng};
@@ -538,7 +542,7 @@ mod tests {
     /// [`run`] for any actual robot; `truth` evaluates the actual robot's pose independently of
     /// the solver.
     fn run_with<T: Real>(
-        actual: &impl ActualRobot<T, 6>,
+        actual: &impl ActualRobot<T, U6>,
         truth: impl Fn(&[T; 6]) -> Pose<T>,
         count: usize,
         predistortion: bool,
@@ -571,7 +575,7 @@ mod tests {
             if plan
                 .q
                 .iter()
-                .zip(&q_true)
+                .zip(q_true.iter())
                 .any(|(a, b)| (*a - *b).abs() > T::of(0.5))
             {
                 continue;
@@ -645,7 +649,7 @@ mod tests {
 
     /// Table 2's geometry with maps of 8 harmonics, up to about 1 mrad per joint (the UR10's are
     /// 0.15-0.33 mrad RMS).
-    fn mapped_maps<T: Real>() -> crate::model::joint_maps::JointMaps<T, 6, 8> {
+    fn mapped_maps<T: Real>() -> crate::model::joint_maps::JointMaps<T, U6, 8> {
         let mut sin = [[T::zero(); 8]; 6];
         let mut cos = [[T::zero(); 8]; 6];
         for j in 0..6 {
@@ -659,14 +663,14 @@ mod tests {
     }
 
     fn mapped<T: Real>(
-        maps: &crate::model::joint_maps::JointMaps<T, 6, 8>,
-    ) -> MappedKinematics<'_, T, 6, 8> {
+        maps: &crate::model::joint_maps::JointMaps<T, U6, 8>,
+    ) -> MappedKinematics<'_, T, U6, 8> {
         MappedKinematics::new(&er10l_c10(), &table2(), maps).unwrap()
     }
 
     /// The mapped robot's pose from the series summed with libm's sine and cosine of `h q` in
     /// f64, independently of the recurrence and the fixed point.
-    fn mapped_truth<T: Real>(model: &MappedKinematics<'_, T, 6, 8>, q: &[T; 6]) -> Pose<T> {
+    fn mapped_truth<T: Real>(model: &MappedKinematics<'_, T, U6, 8>, q: &[T; 6]) -> Pose<T> {
         let angles: [T; 6] = core::array::from_fn(|j| {
             let x = q[j].to_f64();
             let (a, b) = (
@@ -702,7 +706,7 @@ mod tests {
 
     /// UR10-like masses on Table 2's robot with gains of 3-12 urad/(N m) on joints 1-4: deflections
     /// of about 0.1-1 mm.
-    fn compliance<T: Real>() -> crate::model::compliance::Compliance<T, 6> {
+    fn compliance<T: Real>() -> crate::model::compliance::Compliance<T, U6> {
         use crate::model::compliance::{Compliance, PointMass};
         let mass = |m: f64, c: [f64; 3]| PointMass {
             mass_kg: T::of(m),
@@ -843,7 +847,7 @@ mod tests {
             ..settings()
         };
         match compensate_joints(&nominal, &actual, &unlimited, &target, &near, &wide) {
-            Ok(c) => assert!(c.q.iter().zip(&near).all(|(a, b)| (a - b).abs() <= 0.5)),
+            Ok(c) => assert!(c.q.iter().zip(near.iter()).all(|(a, b)| (a - b).abs() <= 0.5)),
             Err(e) => assert!(
                 matches!(
                     e,

@@ -12,6 +12,7 @@
 //! one from the first Halton seed that does. The work is bounded: at most `seeds` runs of at most
 //! `max_iterations` iterations each.
 
+use crate::model::{JointCount, JointTable};
 use crate::controller::compensate::{CompensationError, CompensationSettings, solve_joints};
 use crate::identify::halton::{Scrambling, halton_point};
 use crate::kinematics::{Kinematics, Pose};
@@ -55,9 +56,9 @@ impl<T: Real> Default for NumericalIkSettings<T> {
 /// A solution of [`numerical_inverse_kinematics`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct NumericalIk<T, const N: usize> {
+pub struct NumericalIk<T: Real, N: JointCount> {
     /// Joint readings, rad, within the limits.
-    pub q: [T; N],
+    pub q: N::Table<T>,
     /// The seed it came from: 0 the reference posture, k > 0 Halton point k.
     pub seed: u32,
     /// Remaining position error, mm.
@@ -114,27 +115,29 @@ fn into_limits<T: Real>(q: T, limits: &JointLimits<T>) -> Option<T> {
 
 /// The seed `index` (1-based Halton point) within the limits (one turn around zero where a joint
 /// is unlimited on a side).
-fn halton_seed<T: Real, const N: usize>(index: u32, limits: &[JointLimits<T>; N]) -> [T; N] {
-    let mut unit = [0.5f64; N];
-    halton_point(u64::from(index), Scrambling::None, &mut unit);
+fn halton_seed<T: Real, N: JointCount>(
+    index: u32,
+    limits: &N::Table<JointLimits<T>>,
+) -> N::Table<T> {
+    let joints = N::of(limits);
+    let mut unit = joints.table(0.5f64);
+    halton_point(u64::from(index), Scrambling::None, unit.as_mut_slice());
     let pi = core::f64::consts::PI;
-    core::array::from_fn(|j| {
-        let (lower, upper) = limits
-            .get(j)
-            .map_or((-pi, pi), |l| (l.lower.to_f64(), l.upper.to_f64()));
-        let (lower, upper) = (lower.max(-pi), upper.min(pi));
-        let u = unit.get(j).copied().unwrap_or(0.5);
-        T::of(lower + (upper - lower) * u)
-    })
+    let mut seed = joints.table(T::zero());
+    for ((q, l), u) in seed.iter_mut().zip(limits.iter()).zip(unit.iter()) {
+        let (lower, upper) = (l.lower.to_f64().max(-pi), l.upper.to_f64().min(pi));
+        *q = T::of(lower + (upper - lower) * u);
+    }
+    seed
 }
 
 /// Joint readings that put `model` on `target` (base frame, mm) within `limits`, from
 /// `reference` (rad) first, then from Halton seeds (see the module documentation).
-pub fn numerical_inverse_kinematics<T: Real, const N: usize>(
+pub fn numerical_inverse_kinematics<T: Real, N: JointCount>(
     model: &Kinematics<T, N>,
-    limits: &[JointLimits<T>; N],
+    limits: &N::Table<JointLimits<T>>,
     target: &Pose<T>,
-    reference: &[T; N],
+    reference: &N::Table<T>,
     settings: &NumericalIkSettings<T>,
 ) -> Result<NumericalIk<T, N>, NumericalIkError> {
     numerical_inverse_kinematics_from_seed(model, limits, target, reference, settings, 0)
@@ -143,11 +146,11 @@ pub fn numerical_inverse_kinematics<T: Real, const N: usize>(
 /// [`numerical_inverse_kinematics`] with the search begun at seed `first_seed` (0: the
 /// reference posture; `k >= 1`: the k-th Halton point): the next solution after one found at
 /// seed `k - 1` that did not serve (a compensation from it failed, say), in the same order.
-pub fn numerical_inverse_kinematics_from_seed<T: Real, const N: usize>(
+pub fn numerical_inverse_kinematics_from_seed<T: Real, N: JointCount>(
     model: &Kinematics<T, N>,
-    limits: &[JointLimits<T>; N],
+    limits: &N::Table<JointLimits<T>>,
     target: &Pose<T>,
-    reference: &[T; N],
+    reference: &N::Table<T>,
     settings: &NumericalIkSettings<T>,
     first_seed: u32,
 ) -> Result<NumericalIk<T, N>, NumericalIkError> {
@@ -162,7 +165,7 @@ pub fn numerical_inverse_kinematics_from_seed<T: Real, const N: usize>(
         let mut start = if seed == 0 {
             *reference
         } else {
-            halton_seed(seed, limits)
+            halton_seed::<T, N>(seed, limits)
         };
         // A solution outside the limits is clamped into them and solved again from there (the
         // other joints take over the motion the clamped ones cannot make), a few times.
@@ -176,7 +179,7 @@ pub fn numerical_inverse_kinematics_from_seed<T: Real, const N: usize>(
             let mut q = solution.q;
             let within = q
                 .iter_mut()
-                .zip(limits)
+                .zip(limits.iter())
                 .all(|(qj, l)| into_limits(*qj, l).map(|v| *qj = v).is_some());
             if within {
                 return Ok(NumericalIk {
@@ -186,7 +189,7 @@ pub fn numerical_inverse_kinematics_from_seed<T: Real, const N: usize>(
                     residual_rad: solution.residual_rad,
                 });
             }
-            for ((s, v), l) in start.iter_mut().zip(q).zip(limits) {
+            for ((s, v), l) in start.iter_mut().zip(q.iter()).zip(limits.iter()) {
                 *s = v.max(l.lower).min(l.upper);
             }
         }

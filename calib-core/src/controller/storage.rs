@@ -29,6 +29,7 @@
 //! newest valid slot, falls back to the other, then to the nominal model, and says which it used.
 //! Both work with either content ([`Stored`]: a [`Robot`] or a [`ControllerModel`]).
 
+use crate::model::{JointCount, JointTable};
 use crate::KinematicsError;
 use crate::kinematics::MappedKinematics;
 use crate::model::compliance::Compliance;
@@ -50,22 +51,22 @@ const HEADER_MAPS: usize = 16;
 /// Version 2's sections bit: the compliance section follows the maps.
 const SECTION_COMPLIANCE: u16 = 1;
 
-/// Bytes of a version 1 (geometry) block for scalar `T` and `N` joints.
-pub const fn block_len<T: Real, const N: usize>() -> usize {
-    HEADER + (7 * N + 12) * T::BYTES + 4
+/// Bytes of a version 1 (geometry) block for scalar `T` and `joints` joints.
+pub const fn block_len<T: Real>(joints: usize) -> usize {
+    HEADER + (7 * joints + 12) * T::BYTES + 4
 }
 
 /// Bytes of a version 2 block (geometry, maps of `harmonics` harmonics and, if `compliance`, the
-/// compliance section) for scalar `T` and `N` joints.
-pub const fn model_block_len<T: Real, const N: usize>(harmonics: usize, compliance: bool) -> usize {
-    let compliance_values = if compliance { 7 * N + 7 } else { 0 };
-    HEADER_MAPS + (7 * N + 12 + 2 * N * harmonics + compliance_values) * T::BYTES + 4
+/// compliance section) for scalar `T` and `joints` joints.
+pub const fn model_block_len<T: Real>(joints: usize, harmonics: usize, compliance: bool) -> usize {
+    let compliance_values = if compliance { 7 * joints + 7 } else { 0 };
+    HEADER_MAPS + (7 * joints + 12 + 2 * joints * harmonics + compliance_values) * T::BYTES + 4
 }
 
 /// What the controller compensates with: the identified geometry, each joint's angle-error map
 /// (`C` harmonics of room) and the gravity compliance.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ControllerModel<T: Real, const N: usize, const C: usize> {
+pub struct ControllerModel<T: Real, N: JointCount, const C: usize> {
     /// The geometry (nominal values with the identified errors applied, limits, frames).
     pub robot: Robot<T, N>,
     /// The angle-error maps (zero for a geometric calibration).
@@ -74,13 +75,14 @@ pub struct ControllerModel<T: Real, const N: usize, const C: usize> {
     pub compliance: Compliance<T, N>,
 }
 
-impl<T: Real, const N: usize, const C: usize> ControllerModel<T, N, C> {
+impl<T: Real, N: JointCount, const C: usize> ControllerModel<T, N, C> {
     /// A model without maps.
     pub fn geometric(robot: Robot<T, N>) -> Self {
+        let joints = robot.joint_count();
         Self {
             robot,
-            maps: JointMaps::zero(),
-            compliance: Compliance::none(),
+            maps: JointMaps::zeros_for(joints),
+            compliance: Compliance::none_for(joints),
         }
     }
 
@@ -89,13 +91,14 @@ impl<T: Real, const N: usize, const C: usize> ControllerModel<T, N, C> {
     pub fn set_geometric(&mut self, robot: &Robot<T, N>) {
         self.robot = *robot;
         self.maps.clear();
-        self.compliance = Compliance::none();
+        self.compliance = Compliance::none_for(robot.joint_count());
     }
 
     /// The model ready to evaluate and compensate with (borrowing the maps and compliance).
     /// Error: an invalid geometry or compliance.
     pub fn kinematics(&self) -> Result<MappedKinematics<'_, T, N, C>, KinematicsError> {
-        MappedKinematics::new(&self.robot, &ParameterErrors::zero(), &self.maps)?
+        let errors = ParameterErrors::zeros_for(self.robot.joint_count());
+        MappedKinematics::new(&self.robot, &errors, &self.maps)?
             .with_compliance(&self.compliance)
     }
 }
@@ -177,7 +180,7 @@ pub(crate) fn crc32(bytes: &[u8]) -> u32 {
 /// written. A model that [`decode`] would reject (a value not finite, such as an f64 value beyond
 /// the f32 range rounded to infinity) is refused with [`StorageError::InvalidModel`] and nothing is
 /// written.
-pub fn encode<T: Real, const N: usize>(
+pub fn encode<T: Real, N: JointCount>(
     robot: &Robot<T, N>,
     sequence: u32,
     out: &mut [u8],
@@ -188,7 +191,7 @@ pub fn encode<T: Real, const N: usize>(
 /// Writes `model` (geometry and maps) with `sequence` as a version 2 block into `out`, with the
 /// maps' used harmonics ([`model_block_len`] bytes); returns the number of bytes written. Refused
 /// as [`encode`] refuses.
-pub fn encode_model<T: Real, const N: usize, const C: usize>(
+pub fn encode_model<T: Real, N: JointCount, const C: usize>(
     model: &ControllerModel<T, N, C>,
     sequence: u32,
     out: &mut [u8],
@@ -207,7 +210,7 @@ pub fn encode_model<T: Real, const N: usize, const C: usize>(
         Some((stored, sections)),
         out,
         |writer| {
-            for j in 0..N {
+            for j in 0..model.robot.joints.len() {
                 let (Some(sin), Some(cos)) = (
                     model.maps.sin_coefficients(j),
                     model.maps.cos_coefficients(j),
@@ -230,7 +233,7 @@ pub fn encode_model<T: Real, const N: usize, const C: usize>(
 
 /// Header, geometry, what `write_maps` writes, CRC; version 2 when `harmonics` and sections are
 /// given.
-fn write_block<T: Real, const N: usize>(
+fn write_block<T: Real, N: JointCount>(
     robot: &Robot<T, N>,
     sequence: u32,
     harmonics: Option<(u16, u16)>,
@@ -239,14 +242,19 @@ fn write_block<T: Real, const N: usize>(
 ) -> Result<usize, StorageError> {
     robot.validate().map_err(StorageError::InvalidModel)?;
     let (len, version) = match harmonics {
-        None => (block_len::<T, N>(), VERSION),
+        None => (block_len::<T>(robot.joints.len()), VERSION),
         Some((h, sections)) => (
-            model_block_len::<T, N>(usize::from(h), sections & SECTION_COMPLIANCE != 0),
+            model_block_len::<T>(
+                robot.joints.len(),
+                usize::from(h),
+                sections & SECTION_COMPLIANCE != 0,
+            ),
             VERSION_MAPS,
         ),
     };
     let block = out.get_mut(..len).ok_or(StorageError::BufferTooSmall)?;
-    let joints = u8::try_from(N).map_err(|_| StorageError::WrongJointCount(u8::MAX))?;
+    let joints =
+        u8::try_from(robot.joints.len()).map_err(|_| StorageError::WrongJointCount(u8::MAX))?;
     let mut writer = Cursor {
         bytes: &mut *block,
         at: 0,
@@ -272,7 +280,8 @@ fn write_block<T: Real, const N: usize>(
 
 /// A checked block: its harmonics (0 for version 1), sections (0 for version 1), sequence number
 /// and the bytes of its values (between the header and the CRC).
-struct OpenBlock<'a> {
+struct OpenBlock<'a, N> {
+    joints: N,
     harmonics: u16,
     sections: u16,
     sequence: u32,
@@ -281,10 +290,10 @@ struct OpenBlock<'a> {
 
 /// Checks magic, version, scalar, joint count, length and CRC of the block at the start of
 /// `bytes`; version 2 only with room for its harmonics (`capacity`, `None`: version 1 only).
-fn open_block<T: Real, const N: usize>(
+fn open_block<T: Real, N: JointCount>(
     bytes: &[u8],
     capacity: Option<usize>,
-) -> Result<OpenBlock<'_>, StorageError> {
+) -> Result<OpenBlock<'_, N>, StorageError> {
     let u16_at = |at: usize| -> Option<u16> {
         Some(u16::from_le_bytes(bytes.get(at..at + 2)?.try_into().ok()?))
     };
@@ -303,12 +312,12 @@ fn open_block<T: Real, const N: usize>(
     if usize::from(scalar) != T::BYTES {
         return Err(StorageError::WrongScalar(scalar));
     }
-    let joints = bytes.get(7).copied().ok_or(too_small)?;
-    if usize::from(joints) != N {
-        return Err(StorageError::WrongJointCount(joints));
-    }
+    let stored_joints = bytes.get(7).copied().ok_or(too_small)?;
+    let joints = N::checked(usize::from(stored_joints))
+        .ok_or(StorageError::WrongJointCount(stored_joints))?;
+    let count = usize::from(stored_joints);
     let (harmonics, sections, header, len) = if version == VERSION {
-        (0, 0, HEADER, block_len::<T, N>())
+        (0, 0, HEADER, block_len::<T>(count))
     } else {
         let h = u16_at(12).ok_or(too_small)?;
         if capacity.is_none_or(|c| usize::from(h) > c) {
@@ -319,7 +328,7 @@ fn open_block<T: Real, const N: usize>(
             return Err(StorageError::UnknownSections(sections));
         }
         let compliance = sections & SECTION_COMPLIANCE != 0;
-        let len = model_block_len::<T, N>(usize::from(h), compliance);
+        let len = model_block_len::<T>(count, usize::from(h), compliance);
         (h, sections, HEADER_MAPS, len)
     };
     let body = len - 4;
@@ -329,6 +338,7 @@ fn open_block<T: Real, const N: usize>(
         return Err(StorageError::BadChecksum);
     }
     Ok(OpenBlock {
+        joints,
         harmonics,
         sections,
         sequence: u32_at(8).ok_or(too_small)?,
@@ -338,13 +348,13 @@ fn open_block<T: Real, const N: usize>(
 
 /// Reads a version 1 block: the robot and its sequence number. A version 2 block is
 /// [`StorageError::UnsupportedVersion`] here: read it with [`decode_model`].
-pub fn decode<T: Real, const N: usize>(bytes: &[u8]) -> Result<(Robot<T, N>, u32), StorageError> {
+pub fn decode<T: Real, N: JointCount>(bytes: &[u8]) -> Result<(Robot<T, N>, u32), StorageError> {
     let block = open_block::<T, N>(bytes, None)?;
     let mut reader = Cursor {
         bytes: block.values,
         at: 0,
     };
-    Ok((read_robot(&mut reader)?, block.sequence))
+    Ok((read_robot(block.joints, &mut reader)?, block.sequence))
 }
 
 /// Reads a block of either version: the model (zero maps from a version 1 block) and its sequence
@@ -352,10 +362,11 @@ pub fn decode<T: Real, const N: usize>(bytes: &[u8]) -> Result<(Robot<T, N>, u32
 /// [`StorageError::TooManyHarmonics`]; maps that [`JointMaps::new`] or compliance that
 /// [`Compliance::new`] refuses are [`StorageError::InvalidModel`]. On a controller prefer [`decode_model_into`] (no copies of
 /// the maps on the stack).
-pub fn decode_model<T: Real, const N: usize, const C: usize>(
+pub fn decode_model<T: Real, N: JointCount, const C: usize>(
     bytes: &[u8],
 ) -> Result<(ControllerModel<T, N, C>, u32), StorageError> {
-    let mut model = ControllerModel::geometric(zero_robot());
+    let joints = open_block::<T, N>(bytes, Some(C))?.joints;
+    let mut model = ControllerModel::geometric(zero_robot(joints));
     let sequence = decode_model_into(bytes, &mut model)?;
     Ok((model, sequence))
 }
@@ -363,7 +374,7 @@ pub fn decode_model<T: Real, const N: usize, const C: usize>(
 /// [`decode_model`] into `model`, in place; returns the sequence number. On an error `model` is
 /// unchanged unless the block passed its checksum and its maps or compliance were refused (then
 /// its maps are zero or its compliance none, and its geometry the block's).
-pub fn decode_model_into<T: Real, const N: usize, const C: usize>(
+pub fn decode_model_into<T: Real, N: JointCount, const C: usize>(
     bytes: &[u8],
     model: &mut ControllerModel<T, N, C>,
 ) -> Result<u32, StorageError> {
@@ -373,7 +384,7 @@ pub fn decode_model_into<T: Real, const N: usize, const C: usize>(
         bytes: block.values,
         at: 0,
     };
-    model.robot = read_robot(&mut reader)?;
+    model.robot = read_robot(block.joints, &mut reader)?;
     // Per joint: a_1..a_H, then b_1..b_H.
     let maps_at = reader.at;
     let value = |joint: usize, index: usize| -> Option<T> {
@@ -386,19 +397,20 @@ pub fn decode_model_into<T: Real, const N: usize, const C: usize>(
             Some((value(j, h - 1)?, value(j, harmonics + h - 1)?))
         })
         .map_err(StorageError::InvalidModel)?;
-    model.compliance = Compliance::none();
+    model.compliance = Compliance::none_for(block.joints);
     if block.sections & SECTION_COMPLIANCE != 0 {
-        reader.at = maps_at + 2 * N * harmonics * T::BYTES;
-        model.compliance = read_compliance(&mut reader)?;
+        reader.at = maps_at + 2 * block.joints.value() * harmonics * T::BYTES;
+        model.compliance = read_compliance(block.joints, &mut reader)?;
     }
     Ok(block.sequence)
 }
 
 /// The compliance section from `reader`'s position, validated.
-fn read_compliance<T: Real, const N: usize>(
+fn read_compliance<T: Real, N: JointCount>(
+    joints: N,
     reader: &mut Cursor<&[u8]>,
 ) -> Result<Compliance<T, N>, StorageError> {
-    let mut compliance = Compliance::none();
+    let mut compliance = Compliance::none_for(joints);
     for slot in compliance.values_mut() {
         *slot = reader.get().ok_or(StorageError::BufferTooSmall)?;
     }
@@ -407,23 +419,22 @@ fn read_compliance<T: Real, const N: usize>(
 }
 
 /// A robot of zeros, to be overwritten by a block's values.
-fn zero_robot<T: Real, const N: usize>() -> Robot<T, N> {
-    Robot::from_joints(
-        [MdhJoint {
-            a: T::zero(),
-            alpha: T::zero(),
-            theta_offset: T::zero(),
-            d: T::zero(),
-            beta: T::zero(),
-        }; N],
-    )
+fn zero_robot<T: Real, N: JointCount>(joints: N) -> Robot<T, N> {
+    Robot::from_joints(joints.table(MdhJoint {
+        a: T::zero(),
+        alpha: T::zero(),
+        theta_offset: T::zero(),
+        d: T::zero(),
+        beta: T::zero(),
+    }))
 }
 
 /// The geometry from the start of `reader`, validated.
-fn read_robot<T: Real, const N: usize>(
+fn read_robot<T: Real, N: JointCount>(
+    joints: N,
     reader: &mut Cursor<&[u8]>,
 ) -> Result<Robot<T, N>, StorageError> {
-    let mut robot = zero_robot();
+    let mut robot = zero_robot(joints);
     let mut ok = true;
     for_each_slot(&mut robot, |slot| match reader.get::<T>() {
         Some(v) => *slot = v,
@@ -447,7 +458,7 @@ pub trait Stored: Sized + Copy {
     fn decode_block(bytes: &[u8]) -> Result<(Self, u32), StorageError>;
 }
 
-impl<T: Real, const N: usize> Stored for Robot<T, N> {
+impl<T: Real, N: JointCount> Stored for Robot<T, N> {
     fn validate(&self) -> Result<(), StorageError> {
         Robot::validate(self).map_err(StorageError::InvalidModel)
     }
@@ -459,7 +470,7 @@ impl<T: Real, const N: usize> Stored for Robot<T, N> {
     }
 }
 
-impl<T: Real, const N: usize, const C: usize> Stored for ControllerModel<T, N, C> {
+impl<T: Real, N: JointCount, const C: usize> Stored for ControllerModel<T, N, C> {
     fn validate(&self) -> Result<(), StorageError> {
         self.robot.validate().map_err(StorageError::InvalidModel)?;
         self.compliance
@@ -475,14 +486,14 @@ impl<T: Real, const N: usize, const C: usize> Stored for ControllerModel<T, N, C
 }
 
 /// The model's values in block order.
-fn for_each_value<T: Real, const N: usize>(robot: &Robot<T, N>, mut f: impl FnMut(T)) {
+fn for_each_value<T: Real, N: JointCount>(robot: &Robot<T, N>, mut f: impl FnMut(T)) {
     let mut copy = *robot;
     for_each_slot(&mut copy, |slot| f(*slot));
 }
 
 /// The model's fields in block order, mutable.
-fn for_each_slot<T: Real, const N: usize>(robot: &mut Robot<T, N>, mut f: impl FnMut(&mut T)) {
-    for j in &mut robot.joints {
+fn for_each_slot<T: Real, N: JointCount>(robot: &mut Robot<T, N>, mut f: impl FnMut(&mut T)) {
+    for j in robot.joints.iter_mut() {
         for v in [
             &mut j.a,
             &mut j.alpha,
@@ -493,7 +504,7 @@ fn for_each_slot<T: Real, const N: usize>(robot: &mut Robot<T, N>, mut f: impl F
             f(v);
         }
     }
-    for l in &mut robot.limits {
+    for l in robot.limits.iter_mut() {
         f(&mut l.lower);
         f(&mut l.upper);
     }
@@ -622,7 +633,7 @@ pub fn load<M: Stored>(flash: &impl FlashSlots, nominal: &M) -> (M, Source) {
 /// slot, then the other, then `nominal`'s geometry without maps) and the same [`Source`]: no copy
 /// of the model is made on the stack (a controller with little RAM decodes each slot into its own
 /// model storage, and the chosen one a second time if the other was decoded last).
-pub fn load_model_into<T: Real, const N: usize, const C: usize>(
+pub fn load_model_into<T: Real, N: JointCount, const C: usize>(
     flash: &impl FlashSlots,
     nominal: &Robot<T, N>,
     model: &mut ControllerModel<T, N, C>,
@@ -672,6 +683,8 @@ pub fn store<M: Stored>(
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::U5;
+    use nalgebra::U6;
     use super::*;
     use crate::Kinematics;
     use crate::model::paper::{er10l_c10, table2};
@@ -713,7 +726,7 @@ mod tests {
     }
 
     /// The ER10L-C10 with Table 2 applied, as an identified model to store.
-    fn identified() -> Robot<f64, 6> {
+    fn identified() -> Robot<f64, U6> {
         let mut robot = er10l_c10::<f64>();
         for (j, e) in robot.joints.iter_mut().zip(table2::<f64>().joints) {
             j.a += e.da;
@@ -739,12 +752,12 @@ mod tests {
     #[test]
     fn round_trip_is_bit_exact_in_f64_and_f32() {
         let robot = identified();
-        let mut buffer = [0u8; block_len::<f64, 6>()];
-        assert_eq!(block_len::<f64, 6>(), 12 + 54 * 8 + 4);
+        let mut buffer = [0u8; block_len::<f64>(6)];
+        assert_eq!(block_len::<f64>(6), 12 + 54 * 8 + 4);
         assert_eq!(encode(&robot, 7, &mut buffer), Ok(448));
-        let (back, sequence) = decode::<f64, 6>(&buffer).unwrap();
+        let (back, sequence) = decode::<f64, U6>(&buffer).unwrap();
         assert_eq!(sequence, 7);
-        let bits = |r: &Robot<f64, 6>| {
+        let bits = |r: &Robot<f64, U6>| {
             let mut v = Vec::new();
             for_each_value(r, |x| v.push(x.to_bits()));
             v
@@ -754,35 +767,35 @@ mod tests {
         assert_eq!(buffer[6], 8);
 
         let robot32 = er10l_c10::<f32>();
-        let mut small = [0u8; block_len::<f32, 6>()];
+        let mut small = [0u8; block_len::<f32>(6)];
         encode(&robot32, 1, &mut small).unwrap();
-        assert_eq!(decode::<f32, 6>(&small).unwrap().0, robot32);
-        assert_eq!(decode::<f64, 6>(&buffer[..]).map(|r| r.1), Ok(7));
+        assert_eq!(decode::<f32, U6>(&small).unwrap().0, robot32);
+        assert_eq!(decode::<f64, U6>(&buffer[..]).map(|r| r.1), Ok(7));
         assert_eq!(
-            decode::<f32, 6>(&buffer[..]),
+            decode::<f32, U6>(&buffer[..]),
             Err(StorageError::WrongScalar(8))
         );
         assert_eq!(
-            decode::<f64, 5>(&buffer[..]),
+            decode::<f64, U5>(&buffer[..]),
             Err(StorageError::WrongJointCount(6))
         );
         assert_eq!(
             encode(&robot, 1, &mut [0u8; 100]),
             Err(StorageError::BufferTooSmall)
         );
-        assert_eq!(decode::<f64, 6>(&[0xFF; 448]), Err(StorageError::BadMagic));
+        assert_eq!(decode::<f64, U6>(&[0xFF; 448]), Err(StorageError::BadMagic));
     }
 
     #[test]
     fn every_single_bit_flip_is_detected() {
-        let mut buffer = [0u8; block_len::<f64, 6>()];
+        let mut buffer = [0u8; block_len::<f64>(6)];
         encode(&identified(), 3, &mut buffer).unwrap();
         for byte in 0..buffer.len() {
             for bit in 0..8 {
                 let mut damaged = buffer;
                 damaged[byte] ^= 1 << bit;
                 assert!(
-                    decode::<f64, 6>(&damaged).is_err(),
+                    decode::<f64, U6>(&damaged).is_err(),
                     "flip of bit {bit} in byte {byte} went unnoticed"
                 );
             }
@@ -795,8 +808,8 @@ mod tests {
         let first = identified();
         let mut second = first;
         second.joints[3].d += 0.25;
-        let len = block_len::<f64, 6>();
-        let mut buffer = [0u8; block_len::<f64, 6>()];
+        let len = block_len::<f64>(6);
+        let mut buffer = [0u8; block_len::<f64>(6)];
         for cut in 0..len {
             let mut flash = Flash::new(len);
             assert_eq!(store(&mut flash, &first, &mut buffer), Ok((Slot::A, 1)));
@@ -829,10 +842,10 @@ mod tests {
     #[test]
     fn empty_flash_gives_nominal_and_a_damaged_newest_block_falls_back() {
         let nominal = er10l_c10::<f64>();
-        let len = block_len::<f64, 6>();
+        let len = block_len::<f64>(6);
         let mut flash = Flash::new(len);
         assert_eq!(load(&flash, &nominal), (nominal, Source::Nominal));
-        let mut buffer = [0u8; block_len::<f64, 6>()];
+        let mut buffer = [0u8; block_len::<f64>(6)];
         store(&mut flash, &identified(), &mut buffer).unwrap();
         let mut newer_model = identified();
         newer_model.joints[5].d += 0.1;
@@ -851,7 +864,7 @@ mod tests {
         // Issue 13, defect 10: 1e300 mm rounded to f32 is +inf.
         let mut robot = er10l_c10::<f32>();
         robot.joints[1].a = 1e300f64 as f32;
-        let mut buffer = [0u8; block_len::<f32, 6>()];
+        let mut buffer = [0u8; block_len::<f32>(6)];
         assert!(matches!(
             encode(&robot, 1, &mut buffer),
             Err(StorageError::InvalidModel(_))
@@ -860,7 +873,7 @@ mod tests {
     }
 
     /// [`identified`] with maps of 40 harmonics on every joint (about 0.3 mrad RMS).
-    fn identified_with_maps<T: Real>() -> ControllerModel<T, 6, 64> {
+    fn identified_with_maps<T: Real>() -> ControllerModel<T, U6, 64> {
         let mut sin = [[T::zero(); 64]; 6];
         let mut cos = [[T::zero(); 64]; 6];
         for j in 0..6 {
@@ -872,7 +885,7 @@ mod tests {
         }
         let robot = identified();
         let mut cast = er10l_c10::<T>();
-        for (c, r) in cast.joints.iter_mut().zip(&robot.joints) {
+        for (c, r) in cast.joints.iter_mut().zip(robot.joints.iter()) {
             *c = MdhJoint {
                 a: T::of(r.a),
                 alpha: T::of(r.alpha),
@@ -889,7 +902,7 @@ mod tests {
     }
 
     /// [`identified_with_maps`] with UR10-like masses and 11 gains.
-    fn identified_with_compliance<T: Real>() -> ControllerModel<T, 6, 64> {
+    fn identified_with_compliance<T: Real>() -> ControllerModel<T, U6, 64> {
         let mass = |m: f64, c: [f64; 3]| crate::model::compliance::PointMass {
             mass_kg: T::of(m),
             centre_mm: c.map(T::of),
@@ -924,25 +937,25 @@ mod tests {
     #[test]
     fn a_block_with_compliance_round_trips_bit_exactly() {
         let model = identified_with_compliance::<f32>();
-        let len = model_block_len::<f32, 6>(40, true);
-        assert_eq!(len, model_block_len::<f32, 6>(40, false) + 49 * 4);
-        let mut buffer = [0u8; model_block_len::<f32, 6>(64, true)];
+        let len = model_block_len::<f32>(6, 40, true);
+        assert_eq!(len, model_block_len::<f32>(6, 40, false) + 49 * 4);
+        let mut buffer = [0u8; model_block_len::<f32>(6, 64, true)];
         assert_eq!(encode_model(&model, 9, &mut buffer), Ok(len));
         assert_eq!(&buffer[12..16], &[40, 0, 1, 0]);
-        assert_eq!(decode_model::<f32, 6, 64>(&buffer), Ok((model, 9)));
+        assert_eq!(decode_model::<f32, U6, 64>(&buffer), Ok((model, 9)));
         let model64 = identified_with_compliance::<f64>();
-        let mut wide = [0u8; model_block_len::<f64, 6>(64, true)];
+        let mut wide = [0u8; model_block_len::<f64>(6, 64, true)];
         encode_model(&model64, 10, &mut wide).unwrap();
-        assert_eq!(decode_model::<f64, 6, 64>(&wide), Ok((model64, 10)));
+        assert_eq!(decode_model::<f64, U6, 64>(&wide), Ok((model64, 10)));
         // Every bit flip is detected.
         let block = &buffer[..len];
         for byte in 0..len {
             for bit in 0..8 {
-                let mut damaged = [0u8; model_block_len::<f32, 6>(64, true)];
+                let mut damaged = [0u8; model_block_len::<f32>(6, 64, true)];
                 damaged[..len].copy_from_slice(block);
                 damaged[byte] ^= 1 << bit;
                 assert!(
-                    decode_model::<f32, 6, 64>(&damaged).is_err(),
+                    decode_model::<f32, U6, 64>(&damaged).is_err(),
                     "flip of bit {bit} in byte {byte} went unnoticed"
                 );
             }
@@ -953,7 +966,7 @@ mod tests {
         let crc = crc32(&future[..len - 4]);
         future[len - 4..len].copy_from_slice(&crc.to_le_bytes());
         assert_eq!(
-            decode_model::<f32, 6, 64>(&future),
+            decode_model::<f32, U6, 64>(&future),
             Err(StorageError::UnknownSections(3))
         );
         // A model without gains writes no compliance section (the block of the maps alone).
@@ -967,7 +980,7 @@ mod tests {
         .unwrap();
         assert_eq!(
             encode_model(&plain, 9, &mut buffer),
-            Ok(model_block_len::<f32, 6>(40, false))
+            Ok(model_block_len::<f32>(6, 40, false))
         );
     }
 
@@ -975,44 +988,44 @@ mod tests {
     fn a_block_with_maps_round_trips_bit_exactly_within_8_kib() {
         let model = identified_with_maps::<f32>();
         assert_eq!(
-            model_block_len::<f32, 6>(40, false),
+            model_block_len::<f32>(6, 40, false),
             16 + (54 + 480) * 4 + 4
         );
-        assert!(model_block_len::<f32, 6>(64, false) <= 8192);
-        let mut buffer = [0u8; model_block_len::<f32, 6>(64, false)];
+        assert!(model_block_len::<f32>(6, 64, false) <= 8192);
+        let mut buffer = [0u8; model_block_len::<f32>(6, 64, false)];
         assert_eq!(encode_model(&model, 5, &mut buffer), Ok(2156));
         assert_eq!(&buffer[4..6], &[2, 0]);
         assert_eq!(&buffer[12..14], &[40, 0]);
-        let (back, sequence) = decode_model::<f32, 6, 64>(&buffer).unwrap();
+        let (back, sequence) = decode_model::<f32, U6, 64>(&buffer).unwrap();
         assert_eq!((back, sequence), (model, 5));
         // A build with room for exactly 40 harmonics reads it too; one with 39 says why not.
-        let (narrow, _) = decode_model::<f32, 6, 40>(&buffer).unwrap();
+        let (narrow, _) = decode_model::<f32, U6, 40>(&buffer).unwrap();
         assert_eq!(narrow.maps.error(2, 0.7), model.maps.error(2, 0.7));
         assert_eq!(
-            decode_model::<f32, 6, 39>(&buffer),
+            decode_model::<f32, U6, 39>(&buffer),
             Err(StorageError::TooManyHarmonics(40))
         );
         // The geometry-only reader refuses it by version; the f64 reader by scalar.
         assert_eq!(
-            decode::<f32, 6>(&buffer),
+            decode::<f32, U6>(&buffer),
             Err(StorageError::UnsupportedVersion(2))
         );
         assert_eq!(
-            decode_model::<f64, 6, 64>(&buffer),
+            decode_model::<f64, U6, 64>(&buffer),
             Err(StorageError::WrongScalar(4))
         );
         let model64 = identified_with_maps::<f64>();
-        let mut wide = [0u8; model_block_len::<f64, 6>(64, false)];
+        let mut wide = [0u8; model_block_len::<f64>(6, 64, false)];
         let len = encode_model(&model64, 6, &mut wide).unwrap();
-        assert_eq!(len, model_block_len::<f64, 6>(40, false));
-        assert_eq!(decode_model::<f64, 6, 64>(&wide), Ok((model64, 6)));
+        assert_eq!(len, model_block_len::<f64>(6, 40, false));
+        assert_eq!(decode_model::<f64, U6, 64>(&wide), Ok((model64, 6)));
     }
 
     #[test]
     fn a_version_1_block_loads_as_a_model_without_maps() {
-        let mut buffer = [0u8; block_len::<f64, 6>()];
+        let mut buffer = [0u8; block_len::<f64>(6)];
         encode(&identified(), 4, &mut buffer).unwrap();
-        let (model, sequence) = decode_model::<f64, 6, 64>(&buffer).unwrap();
+        let (model, sequence) = decode_model::<f64, U6, 64>(&buffer).unwrap();
         assert_eq!(sequence, 4);
         assert_eq!(model.robot, identified());
         assert!(model.maps.is_zero());
@@ -1021,14 +1034,14 @@ mod tests {
 
     #[test]
     fn every_single_bit_flip_of_a_block_with_maps_is_detected() {
-        let mut buffer = [0u8; model_block_len::<f32, 6>(40, false)];
+        let mut buffer = [0u8; model_block_len::<f32>(6, 40, false)];
         encode_model(&identified_with_maps::<f32>(), 3, &mut buffer).unwrap();
         for byte in 0..buffer.len() {
             for bit in 0..8 {
                 let mut damaged = buffer;
                 damaged[byte] ^= 1 << bit;
                 assert!(
-                    decode_model::<f32, 6, 64>(&damaged).is_err(),
+                    decode_model::<f32, U6, 64>(&damaged).is_err(),
                     "flip of bit {bit} in byte {byte} went unnoticed"
                 );
             }
@@ -1037,13 +1050,13 @@ mod tests {
 
     #[test]
     fn an_interrupted_write_of_a_model_keeps_the_previous_one() {
-        let nominal = ControllerModel::<f32, 6, 64>::geometric(er10l_c10());
+        let nominal = ControllerModel::<f32, U6, 64>::geometric(er10l_c10());
         let first = identified_with_maps::<f32>();
         let mut second = first;
         second.robot.joints[2].d += 0.5;
-        let len = model_block_len::<f32, 6>(64, false);
-        let mut buffer = [0u8; model_block_len::<f32, 6>(64, false)];
-        for cut in (0..model_block_len::<f32, 6>(40, false)).step_by(7) {
+        let len = model_block_len::<f32>(6, 64, false);
+        let mut buffer = [0u8; model_block_len::<f32>(6, 64, false)];
+        for cut in (0..model_block_len::<f32>(6, 40, false)).step_by(7) {
             let mut flash = Flash::new(len);
             store(&mut flash, &first, &mut buffer).unwrap();
             flash.budget = Some(cut);
@@ -1061,15 +1074,15 @@ mod tests {
     #[test]
     fn loading_in_place_chooses_what_load_chooses() {
         let robot = er10l_c10::<f32>();
-        let nominal = ControllerModel::<f32, 6, 64>::geometric(robot);
+        let nominal = ControllerModel::<f32, U6, 64>::geometric(robot);
         let first = identified_with_maps::<f32>();
         let mut second = first;
         second.robot.joints[2].d += 0.5;
-        let len = model_block_len::<f32, 6>(64, false);
-        let mut buffer = [0u8; model_block_len::<f32, 6>(64, false)];
+        let len = model_block_len::<f32>(6, 64, false);
+        let mut buffer = [0u8; model_block_len::<f32>(6, 64, false)];
         let mut flash = Flash::new(len);
-        let mut model = ControllerModel::<f32, 6, 64>::geometric(er10l_c10());
-        let mut check = |flash: &Flash, expected: (ControllerModel<f32, 6, 64>, Source)| {
+        let mut model = ControllerModel::<f32, U6, 64>::geometric(er10l_c10());
+        let mut check = |flash: &Flash, expected: (ControllerModel<f32, U6, 64>, Source)| {
             assert_eq!(load(flash, &nominal), expected);
             // Start from a model unlike every candidate, so nothing passes by accident.
             model.robot.joints[0].a = 12345.0;

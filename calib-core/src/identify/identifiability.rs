@@ -319,6 +319,7 @@ where
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::U6;
     use super::*;
     use crate::model::paper::{er10l_c10, paper_measurements};
     use crate::model::parameters::{ParameterErrors, ParameterMask, ParameterSet};
@@ -328,9 +329,9 @@ mod tests {
     use std::string::{String, ToString};
     use std::vec::Vec;
 
-    fn analyse(position_only: bool) -> (Identifiability<f64, U24>, ParameterSet<6, U24>) {
+    fn analyse(position_only: bool) -> (Identifiability<f64, U24>, ParameterSet<U6, U24>) {
         let robot = er10l_c10::<f64>();
-        let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
+        let set = ParameterSet::<U6, U24>::default_for(&robot).unwrap();
         let mut data = paper_measurements::<f64>(1);
         let mut list: Vec<_> = data.as_slice().to_vec();
         if position_only {
@@ -353,7 +354,7 @@ mod tests {
     }
 
     fn names(
-        set: &ParameterSet<6, U24>,
+        set: &ParameterSet<U6, U24>,
         id: &Identifiability<f64, U24>,
         status: Status,
     ) -> Vec<String> {
@@ -430,7 +431,7 @@ mod tests {
         for kind in FrameParameter::ALL {
             mask.set(Parameter::Base(kind), true);
         }
-        let set = ParameterSet::<6, U30>::from_mask(&mask).unwrap();
+        let set = ParameterSet::<U6, U30>::from_mask(&mask).unwrap();
         let data = paper_measurements::<f64>(1);
         let problem =
             Problem::new(&robot, &ParameterErrors::zero(), set, data.as_slice(), 1e6).unwrap();

@@ -22,6 +22,7 @@
 //! Bounds: a coordinate that leaves `[lower, upper]` is set onto the bound and its velocity
 //! component to zero (an absorbing wall), so the swarm never evaluates outside the search box.
 
+use crate::model::JointCount;
 use crate::identify::halton::{self, MAX_DIMENSION, Scrambling};
 use crate::scalar::Real;
 use core::fmt;
@@ -134,7 +135,7 @@ where
 {
     /// The space of the parameters of `set` around zero errors: initial half range `angle` (rad)
     /// for angles and `length` (mm) for lengths, bounds `bound_factor` times that.
-    pub fn for_parameters<const N: usize>(
+    pub fn for_parameters<N: JointCount>(
         set: &crate::model::parameters::ParameterSet<N, D>,
         angle: T,
         length: T,
@@ -152,7 +153,7 @@ where
 
     /// [`SearchSpace::for_parameters`] with the paper's ranges (0.01 rad, 0.5 mm) and
     /// [`DEFAULT_BOUND_FACTOR`].
-    pub fn paper<const N: usize>(set: &crate::model::parameters::ParameterSet<N, D>) -> Self {
+    pub fn paper<N: JointCount>(set: &crate::model::parameters::ParameterSet<N, D>) -> Self {
         Self::for_parameters(
             set,
             T::of(PAPER_ANGLE_RANGE),

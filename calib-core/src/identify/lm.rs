@@ -13,6 +13,7 @@
 //! below `ftol`), or the iteration cap. The result carries `R` at the solution, from which the
 //! covariance `sigma^2 (J^T J)^-1 = sigma^2 R^-1 R^-T` and the standard errors follow.
 
+use crate::model::JointCount;
 use crate::identify::Problem;
 use crate::kinematics::pose_error::pose_error_jacobian;
 use crate::scalar::Real;
@@ -248,7 +249,7 @@ where
 
 /// Least squares over a [`Problem`]: its identified parameters over its measurements.
 #[derive(Clone, Copy, Debug)]
-pub struct LeastSquares<'p, T: Real, const N: usize, D: Dim>
+pub struct LeastSquares<'p, T: Real, N: JointCount, D: Dim>
 where
     DefaultAllocator: Allocator<D>,
 {
@@ -398,7 +399,7 @@ where
     }
 }
 
-impl<'p, T: Real, const N: usize, D: Dim> LeastSquares<'p, T, N, D>
+impl<'p, T: Real, N: JointCount, D: Dim> LeastSquares<'p, T, N, D>
 where
     DefaultAllocator: Allocator<D> + Allocator<D, D> + Allocator<nalgebra::U6, D>,
 {
@@ -791,7 +792,7 @@ mod tests {
     /// length (mm) and angle (rad) errors against Table 2 and the result.
     fn recover<T: Real>() -> (f64, f64, LmResult<T, U24>) {
         let robot = er10l_c10::<T>();
-        let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
+        let set = ParameterSet::<U6, U24>::default_for(&robot).unwrap();
         let data = paper_measurements::<T>(1);
         let problem = Problem::new(
             &robot,
@@ -844,7 +845,7 @@ mod tests {
         use crate::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
         use crate::identify::objective::Objective;
         let robot = er10l_c10::<f32>();
-        let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
+        let set = ParameterSet::<U6, U24>::default_for(&robot).unwrap();
         let data = paper_measurements::<f32>(1);
         let problem =
             Problem::new(&robot, &ParameterErrors::zero(), set, data.as_slice(), 1e6).unwrap();
@@ -962,7 +963,7 @@ mod tests {
     #[test]
     fn too_few_poses_and_unobservable_parameters_are_errors() {
         let robot = er10l_c10::<f64>();
-        let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
+        let set = ParameterSet::<U6, U24>::default_for(&robot).unwrap();
         let data = paper_measurements::<f64>(1);
         let three = &data.as_slice()[..3];
         let problem = Problem::new(&robot, &ParameterErrors::zero(), set, three, 1e6).unwrap();

@@ -14,6 +14,7 @@
 //! ER10L-C10's links. With `k = 1` the orientation term is a thousand times weaker and the
 //! swarm stalls near 0.3 mm (measured by an independent implementation of the method).
 
+use crate::model::{JointCount, JointTable};
 use crate::identify::Problem;
 use crate::kinematics::mdh::{GROUP, LANES, Lanes};
 use crate::kinematics::pose_error::PoseError;
@@ -69,7 +70,7 @@ impl core::error::Error for MeasurementError {
 
 /// One measured pose, prepared: the sine and cosine of its joint readings are computed once.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Measurement<T: Real, const N: usize> {
+pub struct Measurement<T: Real, N: JointCount> {
     /// Joint readings as sine and cosine.
     pub angles: JointAngles<T, N>,
     /// Measured position of the tool point, mm (measurement frame).
@@ -80,11 +81,11 @@ pub struct Measurement<T: Real, const N: usize> {
     pub weight: T,
 }
 
-impl<T: Real, const N: usize> Measurement<T, N> {
+impl<T: Real, N: JointCount> Measurement<T, N> {
     /// A measurement from joint readings `q` (rad), a position (mm), an optional rotation matrix
     /// and a weight (>= 0).
     pub fn new(
-        q: &[T; N],
+        q: &N::Table<T>,
         position: Vector3<T>,
         rotation: Option<Matrix3<T>>,
         weight: T,
@@ -139,7 +140,7 @@ impl<T: Real, const N: usize> Measurement<T, N> {
     }
 
     /// A measurement taken from a pose (position and rotation), weight 1.
-    pub fn from_pose(q: &[T; N], pose: &Pose<T>) -> Result<Self, MeasurementError> {
+    pub fn from_pose(q: &N::Table<T>, pose: &Pose<T>) -> Result<Self, MeasurementError> {
         Self::new(
             q,
             pose.translation.vector,
@@ -151,17 +152,17 @@ impl<T: Real, const N: usize> Measurement<T, N> {
 
 /// At most `M` measurements, stored inline.
 #[derive(Clone, Debug)]
-pub struct MeasurementSet<T: Real, const N: usize, const M: usize> {
+pub struct MeasurementSet<T: Real, N: JointCount, const M: usize> {
     items: heapless::Vec<Measurement<T, N>, M>,
 }
 
-impl<T: Real, const N: usize, const M: usize> Default for MeasurementSet<T, N, M> {
+impl<T: Real, N: JointCount, const M: usize> Default for MeasurementSet<T, N, M> {
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl<T: Real, const N: usize, const M: usize> MeasurementSet<T, N, M> {
+impl<T: Real, N: JointCount, const M: usize> MeasurementSet<T, N, M> {
     /// An empty set.
     pub const fn new() -> Self {
         Self {
@@ -195,9 +196,9 @@ impl<T: Real, const N: usize, const M: usize> MeasurementSet<T, N, M> {
 /// said otherwise. Unused lanes hold a pose of weight 0 (joints at zero, identity rotation), whose
 /// term is exactly zero.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PoseLanes<T: Real, const N: usize, const L: usize = LANES> {
-    cos: [Lanes<T, L>; N],
-    sin: [Lanes<T, L>; N],
+pub struct PoseLanes<T: Real, N: JointCount, const L: usize = LANES> {
+    cos: N::Table<Lanes<T, L>>,
+    sin: N::Table<Lanes<T, L>>,
     position: [Lanes<T, L>; 3],
     /// Measured rotation columns; the identity for position-only poses.
     rotation: [[Lanes<T, L>; 3]; 3],
@@ -206,10 +207,11 @@ pub struct PoseLanes<T: Real, const N: usize, const L: usize = LANES> {
     orientation: Lanes<T, L>,
 }
 
-impl<T: Real, const N: usize, const L: usize> PoseLanes<T, N, L> {
-    /// The first `L` measurements of `chunk` in lanes (more are ignored).
+impl<T: Real, N: JointCount, const L: usize> PoseLanes<T, N, L> {
+    /// The first `L` measurements of `chunk`, of a robot of `joints` joints, in lanes (more are
+    /// ignored).
     #[inline(always)]
-    pub fn gather(chunk: &[Measurement<T, N>]) -> Self {
+    pub fn gather(joints: N, chunk: &[Measurement<T, N>]) -> Self {
         let zero = Lanes::<T, L>::zeros();
         let one = Lanes::<T, L>::repeat(T::one());
         let mut rotation = [[zero; 3]; 3];
@@ -219,8 +221,8 @@ impl<T: Real, const N: usize, const L: usize> PoseLanes<T, N, L> {
             }
         }
         let mut poses = Self {
-            cos: [one; N],
-            sin: [zero; N],
+            cos: joints.table(one),
+            sin: joints.table(zero),
             position: [zero; 3],
             rotation,
             weight: zero,
@@ -236,7 +238,7 @@ impl<T: Real, const N: usize, const L: usize> PoseLanes<T, N, L> {
                 .cos
                 .iter_mut()
                 .zip(poses.sin.iter_mut())
-                .zip(m.angles.cos.iter().zip(&m.angles.sin))
+                .zip(m.angles.cos.iter().zip(m.angles.sin.iter()))
             {
                 set(c, *mc);
                 set(s, *ms);
@@ -261,14 +263,14 @@ impl<T: Real, const N: usize, const L: usize> PoseLanes<T, N, L> {
 /// Eq. (7) for the parameters of a [`ParameterSet`](crate::ParameterSet) over a set of measurements: the swarm's
 /// view of a [`Problem`].
 #[derive(Clone, Copy, Debug)]
-pub struct Objective<'p, T: Real, const N: usize, D: Dim>
+pub struct Objective<'p, T: Real, N: JointCount, D: Dim>
 where
     DefaultAllocator: Allocator<D>,
 {
     problem: &'p Problem<'p, T, N, D>,
 }
 
-impl<'p, T: Real, const N: usize, D: Dim> Objective<'p, T, N, D>
+impl<'p, T: Real, N: JointCount, D: Dim> Objective<'p, T, N, D>
 where
     DefaultAllocator: Allocator<D>,
 {
@@ -295,8 +297,9 @@ where
         if !x.iter().all(|v| v.finite()) {
             return T::of(f64::INFINITY);
         }
+        let joints = self.problem.joint_count();
         let lanes = self.problem.measurements().chunks(LANES);
-        self.sum_in_groups(x, lanes.map(PoseLanes::<T, N>::gather))
+        self.sum_in_groups(x, lanes.map(|chunk| PoseLanes::<T, N>::gather(joints, chunk)))
     }
 
     /// The measurements in lane layout, `L` poses per item in measurement order (the last one
@@ -307,7 +310,11 @@ where
     /// Zero lanes do not compile.
     pub fn lanes<const L: usize>(&self) -> impl Iterator<Item = PoseLanes<T, N, L>> + 'p {
         const { assert!(L > 0, "at least one lane") };
-        self.problem.measurements().chunks(L).map(PoseLanes::gather)
+        let joints = self.problem.joint_count();
+        self.problem
+            .measurements()
+            .chunks(L)
+            .map(move |chunk| PoseLanes::gather(joints, chunk))
     }
 
     /// Eq. (7) at `x` over measurements already in lane layout: `lanes` must be
@@ -373,7 +380,7 @@ where
 
 /// Eq. (7)'s term (orientation weight `k`) of each of the `L` poses of `poses` (0 in padding lanes).
 #[inline(always)]
-fn lane_terms<T: Real, const N: usize, const L: usize>(
+fn lane_terms<T: Real, N: JointCount, const L: usize>(
     k: T,
     kinematics: &Kinematics<T, N>,
     poses: &PoseLanes<T, N, L>,
@@ -381,14 +388,14 @@ fn lane_terms<T: Real, const N: usize, const L: usize>(
     let zero = Lanes::<T, L>::zeros();
     let frame = kinematics.forward_lanes(&poses.cos, &poses.sin);
     let mut dp2 = zero;
-    for (measured, predicted) in poses.position.iter().zip(&frame.origin) {
+    for (measured, predicted) in poses.position.iter().zip(frame.origin.iter()) {
         let d = measured - predicted;
         dp2 += d.component_mul(&d);
     }
     // Column by column, entry by entry (nested loops over arrays of 3 unroll; a flattened
     // iterator kept its bookkeeping: 15 instructions per entry on the controller).
     let mut chord2 = zero;
-    for (measured, predicted) in poses.rotation.iter().zip(&frame.columns) {
+    for (measured, predicted) in poses.rotation.iter().zip(frame.columns.iter()) {
         for (m, p) in measured.iter().zip(predicted) {
             let d = m - p;
             chord2 += d.component_mul(&d);
@@ -410,6 +417,7 @@ fn lane_terms<T: Real, const N: usize, const L: usize>(
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::U6;
     use super::*;
     use nalgebra::{SVector, U24};
     extern crate std;
@@ -422,7 +430,7 @@ mod tests {
     /// (mm), the worst angle error (rad) against Table 2, and the initial and final objective.
     fn paper_run<T: Real>() -> (f64, f64, f64, f64) {
         let robot = er10l_c10::<T>();
-        let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
+        let set = ParameterSet::<U6, U24>::default_for(&robot).unwrap();
         let data = paper_measurements::<T>(1);
         let problem = Problem::new(
             &robot,
@@ -449,8 +457,8 @@ mod tests {
     }
 
     /// `value_of_lanes` over lanes of `L` poses, collected once, gives `value` bit for bit.
-    fn check_lanes_of<const L: usize>(objective: &Objective<'_, f64, 6, U24>, poses: usize) {
-        let lanes: std::vec::Vec<PoseLanes<f64, 6, L>> = objective.lanes().collect();
+    fn check_lanes_of<const L: usize>(objective: &Objective<'_, f64, U6, U24>, poses: usize) {
+        let lanes: std::vec::Vec<PoseLanes<f64, U6, L>> = objective.lanes().collect();
         assert_eq!(lanes.len(), poses.div_ceil(L));
         for i in 0..5 {
             let x = SVector::<f64, 24>::from_fn(|j, _| 1e-3 * (i as f64 - 2.0) * (j as f64 - 11.0));
@@ -473,7 +481,7 @@ mod tests {
     #[test]
     fn lanes_collected_once_give_the_same_bits() {
         let robot = er10l_c10::<f64>();
-        let set = ParameterSet::<6, U24>::default_for(&robot).unwrap();
+        let set = ParameterSet::<U6, U24>::default_for(&robot).unwrap();
         for poses in [29, 17] {
             let mut data: std::vec::Vec<_> = paper_measurements::<f64>(1).as_slice().to_vec();
             data.truncate(poses);

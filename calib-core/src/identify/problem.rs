@@ -5,9 +5,10 @@
 //! [`Objective`]: crate::identify::objective::Objective
 //! [`LeastSquares`]: crate::identify::lm::LeastSquares
 
+use crate::model::{JointCount, JointTable};
 use crate::identify::objective::Measurement;
 use crate::kinematics::{Kinematics, PreparedRobot};
-use crate::model::KinematicsError;
+use crate::model::{KinematicsError, check_count};
 use crate::model::Robot;
 use crate::model::parameters::{ParameterErrors, ParameterSet};
 use crate::scalar::Real;
@@ -52,7 +53,7 @@ impl From<KinematicsError> for ProblemError {
 
 /// The data and model of one calibration, checked once.
 #[derive(Clone, Debug)]
-pub struct Problem<'a, T: Real, const N: usize, D: Dim>
+pub struct Problem<'a, T: Real, N: JointCount, D: Dim>
 where
     DefaultAllocator: Allocator<D>,
 {
@@ -63,7 +64,7 @@ where
     k: T,
 }
 
-impl<'a, T: Real, const N: usize, D: Dim> Problem<'a, T, N, D>
+impl<'a, T: Real, N: JointCount, D: Dim> Problem<'a, T, N, D>
 where
     DefaultAllocator: Allocator<D>,
 {
@@ -78,6 +79,12 @@ where
     ) -> Result<Self, ProblemError> {
         robot.validate()?;
         fixed.validate()?;
+        let joints = robot.joints.len();
+        check_count(joints, fixed.joints.len())?;
+        check_count(joints, set.joint_count().value())?;
+        for m in measurements {
+            check_count(joints, m.angles.cos.len())?;
+        }
         if !k.finite() || k < T::zero() {
             return Err(ProblemError::InvalidK);
         }
@@ -88,6 +95,11 @@ where
             measurements,
             k,
         })
+    }
+
+    /// The joint count.
+    pub fn joint_count(&self) -> N {
+        self.set.joint_count()
     }
 
     /// The identified parameters.

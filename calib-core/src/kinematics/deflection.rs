@@ -2,28 +2,29 @@
 //! the gravity moment of what it carries, the small turns it causes and their motion of the end
 //! frame (formulas in [`crate::model::compliance`]).
 
+use crate::model::{JointCount, JointTable};
 use crate::kinematics::{JointAngles, Kinematics, Pose};
 use crate::model::KinematicsError;
 use crate::model::compliance::{Compliance, PointMass};
 use crate::scalar::Real;
 use nalgebra::{Matrix3, Rotation3, Translation3, Vector3};
 
-impl<T: Real, const N: usize> Compliance<T, N> {
+impl<T: Real, N: JointCount> Compliance<T, N> {
     /// The end pose of `geometry` at kinematic angles `t` (rad) without and with the deflection,
     /// and the deflection. Error: a non-finite angle.
     pub fn deflect(
         &self,
         geometry: &Kinematics<T, N>,
-        t: &[T; N],
+        t: &N::Table<T>,
     ) -> Result<(Pose<T>, Deflection<T>), KinematicsError> {
         // The chain the Jacobians use: frame k's origin and z axis (`before_*[k]`, k < N), its
         // y axis (`y_axis[k - 1]`, k > 0), the flange (k = N); x = y x z.
         let chain = geometry.chain(&JointAngles::new(t)?);
         let base = geometry.base();
         let frame = |k: usize| -> (Matrix3<T>, Vector3<T>) {
-            match (chain.before_z.get(k), chain.before_origin.get(k)) {
+            match (chain.before_z.as_slice().get(k), chain.before_origin.as_slice().get(k)) {
                 (Some(z), Some(o)) => {
-                    let y = match k.checked_sub(1).and_then(|i| chain.y_axis.get(i)) {
+                    let y = match k.checked_sub(1).and_then(|i| chain.y_axis.as_slice().get(i)) {
                         Some(y) => *y,
                         None => base.rotation.matrix().column(1).into_owned(),
                     };
@@ -41,11 +42,11 @@ impl<T: Real, const N: usize> Compliance<T, N> {
         let (mut moment_arm, mut mass) = (Vector3::zeros(), T::zero());
         let mut deflection = Deflection::zero();
         // Link j's frame is frame j; joint j turns in frame j - 1.
-        let mut after = frame(N);
+        let mut after = frame(self.links().len());
         moment_arm.add_mass(&after, self.load());
         mass += self.load().mass_kg;
         let kilo = T::of(1e-3);
-        for (j, (link, gains)) in self.links().iter().zip(self.gains()).enumerate().rev() {
+        for (j, (link, gains)) in self.links().iter().zip(self.gains().iter()).enumerate().rev() {
             moment_arm.add_mass(&after, link);
             mass += link.mass_kg;
             after = frame(j);
@@ -65,7 +66,7 @@ impl<T: Real, const N: usize> Compliance<T, N> {
     pub fn forward(
         &self,
         geometry: &Kinematics<T, N>,
-        t: &[T; N],
+        t: &N::Table<T>,
     ) -> Result<Pose<T>, KinematicsError> {
         let (pose, deflection) = self.deflect(geometry, t)?;
         Ok(deflection.apply(&pose))
@@ -168,6 +169,7 @@ impl<T: Real> Deflection<T> {
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::{U2, U6};
     use super::*;
     use crate::model::compliance::tests::ur_like;
     use crate::model::paper::{er10l_c10, table2};
@@ -197,7 +199,7 @@ mod tests {
             centre_mm: [0.0; 3],
         };
         let k = 5.0;
-        let c = Compliance::new(
+        let c = Compliance::<f64, U2>::new(
             [0.0, 0.0, -9.81],
             links,
             PointMass::none(),
@@ -226,7 +228,7 @@ mod tests {
     fn no_gains_deflect_nothing_and_remove_undoes_apply() {
         let geometry = Kinematics::new(&er10l_c10(), &table2()).unwrap();
         let q = [0.3, -0.4, 0.5, 0.2, 0.9, -0.3];
-        let (pose, d) = Compliance::<f64, 6>::none().deflect(&geometry, &q).unwrap();
+        let (pose, d) = Compliance::<f64, U6>::none().deflect(&geometry, &q).unwrap();
         assert_eq!(d, Deflection::zero());
         assert_eq!(pose, geometry.forward(&q).unwrap());
         let (pose, d) = ur_like().deflect(&geometry, &q).unwrap();
@@ -250,7 +252,7 @@ mod tests {
         let q = [0.3, -0.4, 0.5, 0.2, 0.9, -0.3];
         let (_, d) = c.deflect(&geometry, &q).unwrap();
         let of = |v: f64| v as f32;
-        let c32 = Compliance::<f32, 6>::new(
+        let c32 = Compliance::<f32, U6>::new(
             c.gravity_mps2().map(of),
             c.links().map(|l| PointMass {
                 mass_kg: of(l.mass_kg),
@@ -263,7 +265,7 @@ mod tests {
             c.gains().map(|g| g.map(of)),
         )
         .unwrap();
-        let g32 = Kinematics::<f32, 6>::new(&er10l_c10(), &table2()).unwrap();
+        let g32 = Kinematics::<f32, U6>::new(&er10l_c10(), &table2()).unwrap();
         let (_, d32) = c32.deflect(&g32, &q.map(of)).unwrap();
         for r in 0..3 {
             assert!((f64::from(d32.translation[r]) - d.translation[r]).abs() < 1e-6);

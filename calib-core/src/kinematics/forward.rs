@@ -1,11 +1,12 @@
 //! Forward kinematics of the actual model: `T = T_base A_1 ... A_N T_tool` (paper eq. 2-3).
 
+use crate::model::{JointCount, JointTable};
 use crate::kinematics::mdh::{LaneFrame, Lanes, PreparedJoint};
 use crate::math::so3;
 use crate::math::trig;
 use crate::model::KinematicsError;
 use crate::model::parameters::{FrameErrors, ParameterErrors};
-use crate::model::{Robot, joint_number};
+use crate::model::{Robot, check_count, joint_number};
 use crate::scalar::Real;
 use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, Translation3, Vector3};
 
@@ -15,19 +16,20 @@ pub type Pose<T> = IsometryMatrix3<T>;
 /// Sine and cosine of N joint readings, computed once per measured pose (no trig afterwards).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct JointAngles<T, const N: usize> {
+pub struct JointAngles<T: Real, N: JointCount> {
     /// `cos q_i`.
-    pub cos: [T; N],
+    pub cos: N::Table<T>,
     /// `sin q_i`.
-    pub sin: [T; N],
+    pub sin: N::Table<T>,
 }
 
-impl<T: Real, const N: usize> JointAngles<T, N> {
+impl<T: Real, N: JointCount> JointAngles<T, N> {
     /// From joint readings `q` (rad); an error names the first non-finite reading.
-    pub fn new(q: &[T; N]) -> Result<Self, KinematicsError> {
+    pub fn new(q: &N::Table<T>) -> Result<Self, KinematicsError> {
+        let joints = N::of(q);
         let mut angles = Self {
-            cos: [T::one(); N],
-            sin: [T::zero(); N],
+            cos: joints.table(T::one()),
+            sin: joints.table(T::zero()),
         };
         for (j, ((qi, c), s)) in q
             .iter()
@@ -48,8 +50,8 @@ impl<T: Real, const N: usize> JointAngles<T, N> {
 
 /// The actual model (nominal + errors) prepared for evaluation: constant trigonometry done once.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Kinematics<T: Real, const N: usize> {
-    joints: [PreparedJoint<T>; N],
+pub struct Kinematics<T: Real, N: JointCount> {
+    joints: N::Table<PreparedJoint<T>>,
     base: Pose<T>,
     tool: Pose<T>,
     /// World axes of the base rotation errors `rx, ry, rz` (columns), relative to the parent.
@@ -88,13 +90,14 @@ fn frame_with_errors<T: Real>(nominal: &Pose<T>, errors: &FrameErrors<T>) -> (Po
 /// The nominal robot with its constant trigonometry done once, ready to produce the actual model
 /// for many candidate error vectors (the swarm and least squares evaluate thousands).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PreparedRobot<T: Real, const N: usize> {
-    joints: [NominalJoint<T>; N],
+pub struct PreparedRobot<T: Real, N: JointCount> {
+    joints: N::Table<NominalJoint<T>>,
     base: Pose<T>,
     tool: Pose<T>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 struct NominalJoint<T> {
     a: T,
     d: T,
@@ -104,21 +107,21 @@ struct NominalJoint<T> {
     offset: (T, T),
 }
 
-impl<T: Real, const N: usize> PreparedRobot<T, N> {
+impl<T: Real, N: JointCount> PreparedRobot<T, N> {
     /// Prepares a nominal robot (not validated: see [`Robot::validate`]).
     pub fn new(robot: &Robot<T, N>) -> Self {
         let cos_sin = |x: T| {
             let (s, c) = x.sin_cos_fast();
             (c, s)
         };
-        let mut joints = [NominalJoint {
+        let mut joints = robot.joint_count().table(NominalJoint {
             a: T::zero(),
             d: T::zero(),
             alpha: (T::one(), T::zero()),
             beta: (T::one(), T::zero()),
             offset: (T::one(), T::zero()),
-        }; N];
-        for (prepared, joint) in joints.iter_mut().zip(&robot.joints) {
+        });
+        for (prepared, joint) in joints.iter_mut().zip(robot.joints.iter()) {
             *prepared = NominalJoint {
                 a: joint.a,
                 d: joint.d,
@@ -140,16 +143,16 @@ impl<T: Real, const N: usize> PreparedRobot<T, N> {
     /// [`Kinematics::new`] checks them first.
     #[cfg_attr(not(target_arch = "arm"), inline(always))]
     pub fn actual(&self, errors: &ParameterErrors<T, N>) -> Kinematics<T, N> {
-        let mut joints = [PreparedJoint::from_trig(
+        let mut joints = N::of(&self.joints).table(PreparedJoint::from_trig(
             T::zero(),
             T::zero(),
             (T::one(), T::zero()),
             (T::one(), T::zero()),
             (T::one(), T::zero()),
-        ); N];
+        ));
         for (prepared, (n, e)) in joints
             .iter_mut()
-            .zip(self.joints.iter().zip(&errors.joints))
+            .zip(self.joints.iter().zip(errors.joints.iter()))
         {
             let with_error = |nominal: (T, T), error: T| {
                 if error == T::zero() {
@@ -181,24 +184,24 @@ impl<T: Real, const N: usize> PreparedRobot<T, N> {
 
 /// Every intermediate quantity of one forward kinematics, kept for the Jacobians.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct Chain<T: Real, const N: usize> {
+pub(crate) struct Chain<T: Real, N: JointCount> {
     /// Origin of the frame before joint i (`o_{i-1}`), world, mm.
-    pub before_origin: [Vector3<T>; N],
+    pub before_origin: N::Table<Vector3<T>>,
     /// z axis of the frame before joint i (`z_{i-1}`): the axis of `theta` and `d`.
-    pub before_z: [Vector3<T>; N],
+    pub before_z: N::Table<Vector3<T>>,
     /// x axis of `F_{i-1} Rz(theta_i)`: the axis of `a` and `alpha`.
-    pub x_axis: [Vector3<T>; N],
+    pub x_axis: N::Table<Vector3<T>>,
     /// Origin of the frame of joint i (`o_i`), world, mm.
-    pub origin: [Vector3<T>; N],
+    pub origin: N::Table<Vector3<T>>,
     /// y axis of the frame of joint i: the axis of `beta`.
-    pub y_axis: [Vector3<T>; N],
+    pub y_axis: N::Table<Vector3<T>>,
     /// Flange frame `T_base A_1 ... A_N`.
     pub flange: Pose<T>,
     /// End pose, flange * tool.
     pub end: Pose<T>,
 }
 
-impl<T: Real, const N: usize> Kinematics<T, N> {
+impl<T: Real, N: JointCount> Kinematics<T, N> {
     /// The actual model `robot + errors`; an error names the first non-finite value.
     pub fn new(
         robot: &Robot<T, N>,
@@ -206,12 +209,13 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
     ) -> Result<Self, KinematicsError> {
         robot.validate()?;
         errors.validate()?;
+        check_count(robot.joints.len(), errors.joints.len())?;
         Ok(PreparedRobot::new(robot).actual(errors))
     }
 
     /// The nominal model (all errors zero).
     pub fn nominal(robot: &Robot<T, N>) -> Result<Self, KinematicsError> {
-        Self::new(robot, &ParameterErrors::zero())
+        Self::new(robot, &ParameterErrors::zeros_for(robot.joint_count()))
     }
 
     /// The base frame of the actual model.
@@ -225,12 +229,19 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
     }
 
     /// The prepared joints, joint 1 first.
-    pub(crate) fn joints(&self) -> &[PreparedJoint<T>; N] {
+    pub(crate) fn joints(&self) -> &N::Table<PreparedJoint<T>> {
         &self.joints
     }
 
-    /// End pose (mm) for joint readings `q` (rad). Error: a non-finite reading.
-    pub fn forward(&self, q: &[T; N]) -> Result<Pose<T>, KinematicsError> {
+    /// The joint count.
+    pub fn joint_count(&self) -> N {
+        N::of(&self.joints)
+    }
+
+    /// End pose (mm) for joint readings `q` (rad). Error: a non-finite reading, or another
+    /// joint count than the model's.
+    pub fn forward(&self, q: &N::Table<T>) -> Result<Pose<T>, KinematicsError> {
+        check_count(self.joints.len(), q.len())?;
         Ok(self.forward_angles(&JointAngles::new(q)?))
     }
 
@@ -238,7 +249,7 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
     pub fn forward_angles(&self, angles: &JointAngles<T, N>) -> Pose<T> {
         let mut rotation = *self.base.rotation.matrix();
         let mut origin = self.base.translation.vector;
-        for ((joint, c), s) in self.joints.iter().zip(&angles.cos).zip(&angles.sin) {
+        for ((joint, c), s) in self.joints.iter().zip(angles.cos.iter()).zip(angles.sin.iter()) {
             let (ct, st) = joint.theta(*c, *s);
             joint.append(&mut rotation, &mut origin, ct, st);
         }
@@ -257,8 +268,8 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
     #[inline(always)] // into `Objective::value_of_lanes` and wherever that is inlined
     pub(crate) fn forward_lanes<const L: usize>(
         &self,
-        cos: &[Lanes<T, L>; N],
-        sin: &[Lanes<T, L>; N],
+        cos: &N::Table<Lanes<T, L>>,
+        sin: &N::Table<Lanes<T, L>>,
     ) -> LaneFrame<T, L> {
         let r = self.base.rotation.matrix();
         let t = &self.base.translation.vector;
@@ -268,7 +279,7 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
             columns: [column(0), column(1), column(2)],
             origin: [repeat(t.x), repeat(t.y), repeat(t.z)],
         };
-        for ((joint, c), s) in self.joints.iter().zip(cos).zip(sin) {
+        for ((joint, c), s) in self.joints.iter().zip(cos.iter()).zip(sin.iter()) {
             joint.append_lanes(&mut frame, c, s);
         }
         if !self.tool_is_identity {
@@ -283,7 +294,7 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
                 })
             };
             let offset = mix(tt.x, tt.y, tt.z);
-            for (o, d) in frame.origin.iter_mut().zip(&offset) {
+            for (o, d) in frame.origin.iter_mut().zip(offset.iter()) {
                 *o += d;
             }
             frame.columns = [0, 1, 2].map(|j| mix(rt[(0, j)], rt[(1, j)], rt[(2, j)]));
@@ -293,8 +304,8 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
 
     /// Forward kinematics keeping every joint's axes and origins (for the Jacobians).
     pub(crate) fn chain(&self, angles: &JointAngles<T, N>) -> Chain<T, N> {
-        let zero = [Vector3::zeros(); N];
-        let mut chain = Chain {
+        let zero: N::Table<Vector3<T>> = N::of(&self.joints).table(Vector3::zeros());
+        let mut chain: Chain<T, N> = Chain {
             before_origin: zero,
             before_z: zero,
             x_axis: zero,
@@ -312,7 +323,7 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
             .zip(chain.x_axis.iter_mut())
             .zip(chain.origin.iter_mut())
             .zip(chain.y_axis.iter_mut());
-        let inputs = self.joints.iter().zip(&angles.cos).zip(&angles.sin);
+        let inputs = self.joints.iter().zip(angles.cos.iter()).zip(angles.sin.iter());
         for (((((o_prev, z_prev), x_axis), o), y_axis), ((joint, c), s)) in per_joint.zip(inputs) {
             *o_prev = origin;
             *z_prev = rotation.column(2).into_owned();

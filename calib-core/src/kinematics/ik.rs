@@ -21,6 +21,7 @@ use crate::kinematics::{Kinematics, Pose};
 use crate::model::Robot;
 use crate::model::parameters::ParameterErrors;
 use crate::scalar::Real;
+use nalgebra::U6;
 use core::fmt;
 
 /// Why no inverse kinematics could be computed.
@@ -75,7 +76,7 @@ fn wrap<T: Real>(angle: T) -> T {
 /// All inverse kinematics solutions of `target` (base frame, tool included) for the nominal
 /// `robot`; `None` where a branch does not reach. Joint readings in rad, wrapped into (-pi, pi].
 pub fn inverse_kinematics<T: Real>(
-    robot: &Robot<T, 6>,
+    robot: &Robot<T, U6>,
     target: &Pose<T>,
 ) -> Result<[Option<[T; 6]>; BRANCHES], IkError> {
     solve(robot, target, Reach::Exact)
@@ -89,7 +90,7 @@ pub fn inverse_kinematics<T: Real>(
 /// differs by its errors, reaches it. Every branch that [`inverse_kinematics`] solves is solved
 /// the same.
 pub fn nearest_configurations<T: Real>(
-    robot: &Robot<T, 6>,
+    robot: &Robot<T, U6>,
     target: &Pose<T>,
 ) -> Result<[Option<[T; 6]>; BRANCHES], IkError> {
     solve(robot, target, Reach::NearestOnBoundary)
@@ -122,7 +123,7 @@ impl Reach {
 }
 
 fn solve<T: Real>(
-    robot: &Robot<T, 6>,
+    robot: &Robot<T, U6>,
     target: &Pose<T>,
     reach: Reach,
 ) -> Result<[Option<[T; 6]>; BRANCHES], IkError> {
@@ -219,8 +220,8 @@ fn solve<T: Real>(
 ///   projection on the plane is the end of the planar two-link chain `a2`, `a3`: theta2, theta3
 ///   (elbow), and `theta4 = theta234 - theta2 - theta3`.
 fn offset_wrist<T: Real>(
-    robot: &Robot<T, 6>,
-    kinematics: &Kinematics<T, 6>,
+    robot: &Robot<T, U6>,
+    kinematics: &Kinematics<T, U6>,
     flange: &Pose<T>,
     reach: Reach,
 ) -> [Option<[T; 6]>; BRANCHES] {
@@ -282,7 +283,7 @@ fn offset_wrist<T: Real>(
 
 /// `true` for the UR-type offset wrist (module docs): alpha = (90, 0, 0, 90, -90, 0) deg,
 /// a1 = a4 = a5 = a6 = 0, d2 = d3 = 0, every beta = 0 (within 1e-9).
-fn offset_wrist_family<T: Real>(robot: &Robot<T, 6>) -> bool {
+fn offset_wrist_family<T: Real>(robot: &Robot<T, U6>) -> bool {
     let tol = T::of(1e-9);
     let deg90 = T::frac_pi_2();
     let [j1, j2, j3, j4, j5, j6] = &robot.joints;
@@ -303,7 +304,7 @@ fn offset_wrist_family<T: Real>(robot: &Robot<T, 6>) -> bool {
 
 /// `true` for the supported family (see the module docs): alpha = (-90, 0, -90, 90, -90, 0) deg,
 /// d2 = d3 = d5 = 0, a4 = a5 = a6 = 0, every beta = 0 (within 1e-9).
-fn spherical_wrist_family<T: Real>(robot: &Robot<T, 6>) -> bool {
+fn spherical_wrist_family<T: Real>(robot: &Robot<T, U6>) -> bool {
     let tol = T::of(1e-9);
     let deg90 = T::frac_pi_2();
     let j = &robot.joints;
@@ -368,6 +369,7 @@ pub fn closest<T: Real>(
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::U6;
     use super::*;
     use crate::kinematics::pose_error::PoseError;
     use crate::model::paper::er10l_c10;
@@ -394,7 +396,7 @@ mod tests {
                 );
             }
             let best = closest(&solutions, &q).unwrap();
-            if best.iter().zip(&q).all(|(a, b)| wrap(a - b).abs() < 1e-8) {
+            if best.iter().zip(q.iter()).all(|(a, b)| wrap(a - b).abs() < 1e-8) {
                 found += 1;
             }
         }
@@ -404,7 +406,7 @@ mod tests {
     }
 
     /// The UR10's DH (UR's published values) with offsets on every joint and a base and tool.
-    fn ur10() -> Robot<f64, 6> {
+    fn ur10() -> Robot<f64, U6> {
         let joint = |a: f64, alpha: f64, d: f64, theta_offset: f64| crate::model::MdhJoint {
             a,
             alpha: alpha.to_radians(),
@@ -451,7 +453,7 @@ mod tests {
                 worst_rad = worst_rad.max(e.rotation.norm());
             }
             let best = closest(&solutions, &q).unwrap();
-            if best.iter().zip(&q).all(|(a, b)| wrap(a - b).abs() < 1e-7) {
+            if best.iter().zip(q.iter()).all(|(a, b)| wrap(a - b).abs() < 1e-7) {
                 found += 1;
             }
         }
@@ -489,7 +491,7 @@ mod tests {
             let reachable = kinematics.forward(&q).unwrap();
             let exact = inverse_kinematics(&robot, &reachable).unwrap();
             let nearest = nearest_configurations(&robot, &reachable).unwrap();
-            for (e, n) in exact.iter().zip(&nearest) {
+            for (e, n) in exact.iter().zip(nearest.iter()) {
                 assert!(e.is_none() || e == n, "{e:?} {n:?}");
             }
             q[2] = -robot.joints[2].theta_offset; // straight elbow
@@ -497,14 +499,14 @@ mod tests {
             let exact = inverse_kinematics(&robot, &beyond).unwrap();
             assert!(
                 closest(&exact, &q)
-                    .is_none_or(|s| s.iter().zip(&q).any(|(a, b)| wrap(a - b).abs() > 1e-3)),
+                    .is_none_or(|s| s.iter().zip(q.iter()).any(|(a, b)| wrap(a - b).abs() > 1e-3)),
                 "{q:?}"
             );
             let nearest = closest(&nearest_configurations(&robot, &beyond).unwrap(), &q).unwrap();
             let e = PoseError::between(&beyond, &kinematics.forward(&nearest).unwrap());
             let joints = nearest
                 .iter()
-                .zip(&q)
+                .zip(q.iter())
                 .fold(0.0f64, |m, (a, b)| m.max(wrap(a - b).abs()));
             worst = worst.max((e.position.norm() - 3.0).abs());
             assert!(joints < 1e-6, "{q:?} -> {nearest:?}");

@@ -4,14 +4,17 @@
 //! unit) and the angular velocity `omega` (rad per unit), both in the base (world) frame, stacked as
 //! the 6 rows `[v; omega]`. The end point is the origin of the tool frame.
 
+use crate::model::{JointCount, JointTable};
 use crate::kinematics::{JointAngles, Kinematics, Pose};
-use crate::model::KinematicsError;
+use crate::model::{KinematicsError, check_count};
 use crate::model::parameters::{FrameParameter, JointParameter, Parameter, ParameterSet};
 use crate::scalar::Real;
 use nalgebra::allocator::Allocator;
-use nalgebra::{DefaultAllocator, Dim, Matrix3, OMatrix, SMatrix, U6, Vector3, Vector6};
+use nalgebra::{DefaultAllocator, Dim, Matrix3, OMatrix, U6, Vector3, Vector6};
 
 /// `[v; omega]` of a rotation about `axis` through `pivot`, seen at the end point `end`.
+// One copy on a controller: the joint Jacobian's loop is unrolled there (flash is scarce).
+#[cfg_attr(target_arch = "arm", inline(never))]
 fn rotation_twist<T: Real>(axis: Vector3<T>, pivot: &Vector3<T>, end: &Vector3<T>) -> Vector6<T> {
     let v = axis.cross(&(end - pivot));
     Vector6::new(v.x, v.y, v.z, axis.x, axis.y, axis.z)
@@ -22,6 +25,10 @@ fn translation_twist<T: Real>(axis: Vector3<T>) -> Vector6<T> {
     Vector6::new(axis.x, axis.y, axis.z, T::zero(), T::zero(), T::zero())
 }
 
+/// The geometric Jacobian of an N-joint robot by columns: joint j's column `[v; omega]` (mm/rad,
+/// rad/rad) is entry j.
+pub type JointJacobian<T, N> = <N as JointCount>::Table<Vector6<T>>;
+
 fn axis_of<T: Real>(axes: &Matrix3<T>, kind: FrameParameter) -> Vector3<T> {
     match kind {
         FrameParameter::Tx | FrameParameter::Rx => axes.column(0).into_owned(),
@@ -30,18 +37,20 @@ fn axis_of<T: Real>(axes: &Matrix3<T>, kind: FrameParameter) -> Vector3<T> {
     }
 }
 
-impl<T: Real, const N: usize> Kinematics<T, N> {
-    /// End pose and geometric Jacobian (6 x N, rows `[v (mm/rad); omega (rad/rad)]`) for joint
-    /// readings `q` (rad). Error: a non-finite reading.
+impl<T: Real, N: JointCount> Kinematics<T, N> {
+    /// End pose and geometric Jacobian (its N columns `[v (mm/rad); omega (rad/rad)]`, one per
+    /// joint) for joint readings `q` (rad). Error: a non-finite reading, or another joint count
+    /// than the model's.
     pub fn geometric_jacobian(
         &self,
-        q: &[T; N],
-    ) -> Result<(Pose<T>, SMatrix<T, 6, N>), KinematicsError> {
+        q: &N::Table<T>,
+    ) -> Result<(Pose<T>, JointJacobian<T, N>), KinematicsError> {
+        check_count(self.joint_count().value(), q.len())?;
         let chain = self.chain(&JointAngles::new(q)?);
         let end = chain.end.translation.vector;
-        let mut jacobian = SMatrix::<T, 6, N>::zeros();
-        let joints = chain.before_z.iter().zip(&chain.before_origin);
-        for (mut column, (z, o)) in jacobian.column_iter_mut().zip(joints) {
+        let mut jacobian = self.joint_count().table(Vector6::zeros());
+        let joints = chain.before_z.iter().zip(chain.before_origin.iter());
+        for (column, (z, o)) in jacobian.as_mut_slice().iter_mut().zip(joints) {
             column.copy_from(&rotation_twist(*z, o, &end));
         }
         Ok((chain.end, jacobian))
@@ -66,11 +75,11 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
                     return zero;
                 };
                 let (Some(o_prev), Some(z_prev), Some(x), Some(o), Some(y)) = (
-                    chain.before_origin.get(j),
-                    chain.before_z.get(j),
-                    chain.x_axis.get(j),
-                    chain.origin.get(j),
-                    chain.y_axis.get(j),
+                    chain.before_origin.as_slice().get(j),
+                    chain.before_z.as_slice().get(j),
+                    chain.x_axis.as_slice().get(j),
+                    chain.origin.as_slice().get(j),
+                    chain.y_axis.as_slice().get(j),
                 ) else {
                     return zero;
                 };
@@ -103,6 +112,7 @@ impl<T: Real, const N: usize> Kinematics<T, N> {
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::U6;
     use super::*;
     use crate::kinematics::pose_error::{PoseError, pose_error_jacobian};
     use crate::model::Robot;
@@ -116,7 +126,7 @@ mod tests {
         [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
     ];
 
-    fn errors_with_frames() -> ParameterErrors<f64, 6> {
+    fn errors_with_frames() -> ParameterErrors<f64, U6> {
         let mut e = table2::<f64>();
         e.base.translation = [0.4, -0.2, 0.7];
         e.base.rotation = [0.003, -0.004, 0.002];
@@ -125,17 +135,17 @@ mod tests {
         e
     }
 
-    fn all_set() -> ParameterSet<6, U42> {
+    fn all_set() -> ParameterSet<U6, U42> {
         let mut mask = ParameterMask::empty();
-        for p in all_parameters::<6>() {
+        for p in all_parameters(U6) {
             mask.set(p, true);
         }
         ParameterSet::from_mask(&mask).unwrap()
     }
 
     fn pose_error_at(
-        robot: &Robot<f64, 6>,
-        errors: &ParameterErrors<f64, 6>,
+        robot: &Robot<f64, U6>,
+        errors: &ParameterErrors<f64, U6>,
         q: &[f64; 6],
         measured: &Pose<f64>,
     ) -> [f64; 6] {
@@ -213,8 +223,8 @@ mod tests {
                     &(tp.rotation.matrix() * tm.rotation.matrix().transpose()),
                 ) / (2.0 * h);
                 for r in 0..3 {
-                    assert!((v[r] - jacobian[(r, j)]).abs() < 1e-5 * (1.0 + v[r].abs()));
-                    assert!((w[r] - jacobian[(r + 3, j)]).abs() < 1e-8);
+                    assert!((v[r] - jacobian[j][r]).abs() < 1e-5 * (1.0 + v[r].abs()));
+                    assert!((w[r] - jacobian[j][r + 3]).abs() < 1e-8);
                 }
             }
         }

@@ -11,6 +11,7 @@
 //! less than that per radian: a relative error below 1e-3 of a Newton step, which changes its
 //! convergence rate, not the solution).
 
+use crate::model::{JointCount, JointTable};
 use crate::kinematics::{Kinematics, Pose};
 use crate::model::compliance::Compliance;
 use crate::model::joint_maps::JointMaps;
@@ -18,14 +19,14 @@ use crate::model::parameters::ParameterErrors;
 use crate::model::{KinematicsError, Robot};
 use crate::scalar::Real;
 use core::borrow::Borrow;
-use nalgebra::SMatrix;
+use crate::kinematics::jacobian::JointJacobian;
 
 /// Geometry and angle-error maps of the actual robot, `C` harmonics of capacity per joint. The
 /// maps are borrowed: a controller keeps one copy of their coefficients. The geometry is owned
 /// (`G` = [`Kinematics`], the default) or borrowed (`G` = `&Kinematics`: a controller that keeps
 /// the prepared geometry with the model's coefficients builds this per call without a copy).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MappedKinematics<'a, T: Real, const N: usize, const C: usize, G = Kinematics<T, N>> {
+pub struct MappedKinematics<'a, T: Real, N: JointCount, const C: usize, G = Kinematics<T, N>> {
     /// The geometric model, evaluated at the kinematic angles.
     pub geometry: G,
     /// The maps from readings to kinematic angles.
@@ -34,7 +35,7 @@ pub struct MappedKinematics<'a, T: Real, const N: usize, const C: usize, G = Kin
     pub compliance: Option<&'a Compliance<T, N>>,
 }
 
-impl<'a, T: Real, const N: usize, const C: usize> MappedKinematics<'a, T, N, C> {
+impl<'a, T: Real, N: JointCount, const C: usize> MappedKinematics<'a, T, N, C> {
     /// `robot + errors` with `maps`; an error names the first non-finite value.
     pub fn new(
         robot: &Robot<T, N>,
@@ -49,7 +50,7 @@ impl<'a, T: Real, const N: usize, const C: usize> MappedKinematics<'a, T, N, C> 
     }
 }
 
-impl<'a, T: Real, const N: usize, const C: usize, G: Borrow<Kinematics<T, N>>>
+impl<'a, T: Real, N: JointCount, const C: usize, G: Borrow<Kinematics<T, N>>>
     MappedKinematics<'a, T, N, C, G>
 {
     /// This model with `compliance` (kept only when a gain is set: a model without gains costs
@@ -66,7 +67,7 @@ impl<'a, T: Real, const N: usize, const C: usize, G: Borrow<Kinematics<T, N>>>
     }
 
     /// End pose (mm) for joint readings `q` (rad). Error: a non-finite reading.
-    pub fn forward(&self, q: &[T; N]) -> Result<Pose<T>, KinematicsError> {
+    pub fn forward(&self, q: &N::Table<T>) -> Result<Pose<T>, KinematicsError> {
         let t = self.maps.apply(q);
         match self.compliance {
             None => self.geometry.borrow().forward(&t),
@@ -74,23 +75,24 @@ impl<'a, T: Real, const N: usize, const C: usize, G: Borrow<Kinematics<T, N>>>
         }
     }
 
-    /// End pose and geometric Jacobian (6 x N, rows `[v (mm/rad); omega (rad/rad)]` per radian of
+    /// End pose and geometric Jacobian (N columns `[v (mm/rad); omega (rad/rad)]` per radian of
     /// each reading) for readings `q` (rad); with compliance the pose is deflected, the Jacobian
     /// is the mapped geometry's (see the module documentation).
     pub fn geometric_jacobian(
         &self,
-        q: &[T; N],
-    ) -> Result<(Pose<T>, SMatrix<T, 6, N>), KinematicsError> {
+        q: &N::Table<T>,
+    ) -> Result<(Pose<T>, JointJacobian<T, N>), KinematicsError> {
         let t = self.maps.apply(q);
         let (mut pose, mut jacobian) = self.geometry.borrow().geometric_jacobian(&t)?;
         if let Some(compliance) = self.compliance {
             pose = compliance.forward(self.geometry.borrow(), &t)?;
         }
-        for (j, mut column) in jacobian.column_iter_mut().enumerate() {
+        for (j, column) in jacobian.iter_mut().enumerate() {
             let slope = q
+                .as_slice()
                 .get(j)
                 .map_or(T::zero(), |v| self.maps.error_and_slope(j, *v).1);
-            column *= T::one() + slope;
+            *column *= T::one() + slope;
         }
         Ok((pose, jacobian))
     }
@@ -98,11 +100,12 @@ impl<'a, T: Real, const N: usize, const C: usize, G: Borrow<Kinematics<T, N>>>
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::U6;
     use super::*;
     use crate::model::paper::{er10l_c10, table2};
     extern crate std;
 
-    fn maps() -> JointMaps<f64, 6, 8> {
+    fn maps() -> JointMaps<f64, U6, 8> {
         let mut sin = [[0.0; 8]; 6];
         let mut cos = [[0.0; 8]; 6];
         for j in 0..6 {
@@ -114,7 +117,7 @@ mod tests {
         JointMaps::new(8, sin, cos).unwrap()
     }
 
-    fn model(maps: &JointMaps<f64, 6, 8>) -> MappedKinematics<'_, f64, 6, 8> {
+    fn model(maps: &JointMaps<f64, U6, 8>) -> MappedKinematics<'_, f64, U6, 8> {
         MappedKinematics::new(&er10l_c10(), &table2(), maps).unwrap()
     }
 
@@ -158,8 +161,8 @@ mod tests {
             let v = (p.translation.vector - n.translation.vector) / (2.0 * h);
             let w = crate::math::so3::log((p.rotation * n.rotation.inverse()).matrix()) / (2.0 * h);
             for r in 0..3 {
-                assert!((jacobian[(r, j)] - v[r]).abs() < 1e-5, "v {r} {j}");
-                assert!((jacobian[(r + 3, j)] - w[r]).abs() < 1e-8, "w {r} {j}");
+                assert!((jacobian[j][r] - v[r]).abs() < 1e-5, "v {r} {j}");
+                assert!((jacobian[j][r + 3] - w[r]).abs() < 1e-8, "w {r} {j}");
             }
         }
     }

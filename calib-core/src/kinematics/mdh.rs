@@ -65,6 +65,7 @@ fn combine_scalar<T: Real, const L: usize>(
 /// A joint of the actual model prepared for fast evaluation: the constant trigonometry of
 /// `alpha`, `beta` and `theta_offset` is computed once, so a pose needs only `sin q`, `cos q`.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct PreparedJoint<T: Real> {
     /// Link length `a`, mm.
     pub a: T,

@@ -2,6 +2,7 @@
 //! `dr = log(R_measured R_predicted^T)` (rad, rotation vector in the base frame, exact log map);
 //! and its Jacobian with respect to the identified parameters.
 
+use crate::model::JointCount;
 use crate::kinematics::{JointAngles, Kinematics, Pose};
 use crate::math::so3;
 use crate::model::KinematicsError;
@@ -34,7 +35,7 @@ impl<T: Real> PoseError<T> {
 /// Jacobian with respect to the `D` parameters of `set`: rows `[dp (mm); dr (rad)]` per unit
 /// parameter (mm or rad). The rotation rows use the exact derivative of the log map
 /// (`-Jr^-1(dr) * omega`), not only the small-angle form.
-pub fn pose_error_jacobian<T: Real, const N: usize, D: Dim>(
+pub fn pose_error_jacobian<T: Real, N: JointCount, D: Dim>(
     kinematics: &Kinematics<T, N>,
     set: &ParameterSet<N, D>,
     angles: &JointAngles<T, N>,
@@ -57,9 +58,9 @@ where
 }
 
 /// The pose error for joint readings `q` (rad); error on non-finite readings.
-pub fn pose_error<T: Real, const N: usize>(
+pub fn pose_error<T: Real, N: JointCount>(
     kinematics: &Kinematics<T, N>,
-    q: &[T; N],
+    q: &N::Table<T>,
     measured: &Pose<T>,
 ) -> Result<PoseError<T>, KinematicsError> {
     Ok(PoseError::between(measured, &kinematics.forward(q)?))

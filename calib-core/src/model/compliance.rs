@@ -25,6 +25,8 @@
 //! from the frames of the geometry there: one more forward pass (no trigonometry beyond the
 //! joints' sines and cosines) and about 40 multiplications per joint.
 
+use crate::model::{JointCount, JointTable, check_count};
+use nalgebra::Const;
 use crate::model::KinematicsError;
 use crate::scalar::Real;
 
@@ -73,11 +75,11 @@ impl<T: Real> PointMass<T> {
 
 /// The gravity-compliance model of an `N`-joint robot: gravity, masses and gains.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Compliance<T, const N: usize> {
+pub struct Compliance<T: Real, N: JointCount> {
     gravity_mps2: [T; 3],
-    links: [PointMass<T>; N],
+    links: N::Table<PointMass<T>>,
     load: PointMass<T>,
-    gains: [[T; 3]; N],
+    gains: N::Table<[T; 3]>,
 }
 
 /// Which gain of a joint: index into a joint's `[tilt x, tilt y, torsion]`.
@@ -87,15 +89,28 @@ pub const TILT_Y: usize = 1;
 /// See [`TILT_X`].
 pub const TORSION: usize = 2;
 
-impl<T: Real, const N: usize> Compliance<T, N> {
-    /// No compliance: every gain zero (the deflection is exactly zero).
+impl<T: Real, const N: usize> Compliance<T, Const<N>> {
+    /// No compliance: every gain zero (the deflection is exactly zero; a joint count fixed at
+    /// compile time, [`Compliance::none_for`] takes any).
     pub fn none() -> Self {
+        Self::none_for(Const)
+    }
+}
+
+impl<T: Real, N: JointCount> Compliance<T, N> {
+    /// No compliance of a robot of `joints` joints: every gain zero.
+    pub fn none_for(joints: N) -> Self {
         Self {
             gravity_mps2: [T::zero(); 3],
-            links: [PointMass::none(); N],
+            links: joints.table(PointMass::none()),
             load: PointMass::none(),
-            gains: [[T::zero(); 3]; N],
+            gains: joints.table([T::zero(); 3]),
         }
+    }
+
+    /// The joint count.
+    pub fn joint_count(&self) -> N {
+        N::of(&self.links)
     }
 
     /// The model: gravity in the robot's base frame (before the base transform, m/s^2; upright
@@ -106,10 +121,11 @@ impl<T: Real, const N: usize> Compliance<T, N> {
     /// [`MAX_GAIN_URAD_PER_NM`], or a gravity outside [`GRAVITY_RANGE_MPS2`] when a gain is set.
     pub fn new(
         gravity_mps2: [T; 3],
-        links: [PointMass<T>; N],
+        links: N::Table<PointMass<T>>,
         load: PointMass<T>,
-        gains: [[T; 3]; N],
+        gains: N::Table<[T; 3]>,
     ) -> Result<Self, KinematicsError> {
+        check_count(links.len(), gains.len()).map_err(|_| KinematicsError::InvalidCompliance)?;
         let model = Self {
             gravity_mps2,
             links,
@@ -126,11 +142,11 @@ impl<T: Real, const N: usize> Compliance<T, N> {
         // controller small code matters more than speed here.
         let limit = T::of(MAX_GAIN_URAD_PER_NM);
         let mut ok = self.load.valid();
-        for link in &self.links {
+        for link in self.links.iter() {
             ok &= link.valid();
         }
         let mut active = false;
-        for gain in self.gains.as_flattened() {
+        for gain in self.gains.as_slice().as_flattened() {
             ok &= gain.finite() && gain.abs() <= limit;
             active |= *gain != T::zero();
         }
@@ -160,7 +176,7 @@ impl<T: Real, const N: usize> Compliance<T, N> {
             .chain(
                 masses.flat_map(|m| core::iter::once(&mut m.mass_kg).chain(m.centre_mm.iter_mut())),
             )
-            .chain(self.gains.as_flattened_mut().iter_mut())
+            .chain(self.gains.as_mut_slice().as_flattened_mut().iter_mut())
     }
 
     /// Whether any gain is set (a model without gains deflects nothing).
@@ -174,7 +190,7 @@ impl<T: Real, const N: usize> Compliance<T, N> {
     }
 
     /// The links' masses, link 1 first.
-    pub fn links(&self) -> &[PointMass<T>; N] {
+    pub fn links(&self) -> &N::Table<PointMass<T>> {
         &self.links
     }
 
@@ -184,17 +200,18 @@ impl<T: Real, const N: usize> Compliance<T, N> {
     }
 
     /// Per joint `[tilt x, tilt y, torsion]`, urad per N m.
-    pub fn gains(&self) -> &[[T; 3]; N] {
+    pub fn gains(&self) -> &N::Table<[T; 3]> {
         &self.gains
     }
 }
 
 #[cfg(test)]
 pub(crate) mod tests {
+    use nalgebra::U6;
     use super::*;
     extern crate std;
 
-    pub(crate) fn ur_like() -> Compliance<f64, 6> {
+    pub(crate) fn ur_like() -> Compliance<f64, U6> {
         let link = |m: f64, c: [f64; 3]| PointMass {
             mass_kg: m,
             centre_mm: c,
@@ -229,7 +246,7 @@ pub(crate) mod tests {
         gains[1][2] = 1001.0;
         let refuse = |g: [f64; 3], l: [PointMass<f64>; 6], t: PointMass<f64>, k| {
             assert_eq!(
-                Compliance::new(g, l, t, k),
+                Compliance::<f64, U6>::new(g, l, t, k),
                 Err(KinematicsError::InvalidCompliance)
             );
         };
@@ -244,6 +261,6 @@ pub(crate) mod tests {
         load.centre_mm[1] = 6000.0;
         refuse(*good.gravity_mps2(), *good.links(), load, *good.gains());
         // Without gains, gravity does not matter.
-        assert!(Compliance::new([0.0; 3], *good.links(), *good.load(), [[0.0; 3]; 6]).is_ok());
+        assert!(Compliance::<f64, U6>::new([0.0; 3], *good.links(), *good.load(), [[0.0; 3]; 6]).is_ok());
     }
 }

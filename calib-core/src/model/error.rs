@@ -34,6 +34,14 @@ pub enum KinematicsError {
     /// The gravity-compliance model holds a value that is not finite or out of range (see
     /// `model::compliance`).
     InvalidCompliance,
+    /// A per-joint input holds another joint count than the robot (only a count known at run
+    /// time, `nalgebra::Dyn`, can differ).
+    JointCount {
+        /// The robot's joint count.
+        expected: u8,
+        /// The input's joint count.
+        found: u8,
+    },
     /// The identification mask selects a different number of parameters than the vector holds.
     ParameterCount {
         /// Number of parameters the packed vector holds (the fixed dimension `D`).
@@ -55,6 +63,10 @@ impl fmt::Display for KinematicsError {
             Self::InvalidJointMap { joint } => write!(
                 f,
                 "the angle-error map of joint {joint} is not finite, beyond 10 mrad per coefficient or too steep to invert (slope bound above 0.5)"
+            ),
+            Self::JointCount { expected, found } => write!(
+                f,
+                "{found} joint values given for a robot of {expected} joints"
             ),
             Self::TooManyHarmonics => {
                 f.write_str("the angle-error maps use more harmonics than this build holds")

@@ -28,9 +28,11 @@
 //! `L_j^(k+1) M_j` ([`JointMaps::readings`]). Identified UR10 maps have `M_j` near 1 mrad and
 //! `L_j` of a few hundredths: two iterations bring the reading within 1e-7 rad.
 
+use crate::model::{JointCount, JointTable};
 use crate::model::KinematicsError;
 use crate::model::joint_number;
 use crate::scalar::Real;
+use nalgebra::Const;
 
 /// Largest accepted slope bound `L_j` of a map (dimensionless): the fixed point of the inverse
 /// halves its error at least every iteration. Identified maps are below 0.1.
@@ -45,24 +47,37 @@ pub const MAX_FIXED_POINT_ITERATIONS: u32 = 24;
 
 /// The angle-error maps of `N` joints with room for `C` harmonics each.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct JointMaps<T, const N: usize, const C: usize> {
+pub struct JointMaps<T: Real, N: JointCount, const C: usize> {
     harmonics: u16,
-    sin: [[T; C]; N],
-    cos: [[T; C]; N],
-    amplitude_bound: [T; N],
-    slope_bound: [T; N],
+    sin: N::Table<[T; C]>,
+    cos: N::Table<[T; C]>,
+    amplitude_bound: N::Table<T>,
+    slope_bound: N::Table<T>,
 }
 
-impl<T: Real, const N: usize, const C: usize> JointMaps<T, N, C> {
-    /// Maps that are zero everywhere (a geometric model).
+impl<T: Real, const N: usize, const C: usize> JointMaps<T, Const<N>, C> {
+    /// Maps that are zero everywhere (a geometric model; a joint count fixed at compile time,
+    /// [`JointMaps::zeros_for`] takes any).
     pub fn zero() -> Self {
+        Self::zeros_for(Const)
+    }
+}
+
+impl<T: Real, N: JointCount, const C: usize> JointMaps<T, N, C> {
+    /// Maps of a robot of `joints` joints that are zero everywhere (a geometric model).
+    pub fn zeros_for(joints: N) -> Self {
         Self {
             harmonics: 0,
-            sin: [[T::zero(); C]; N],
-            cos: [[T::zero(); C]; N],
-            amplitude_bound: [T::zero(); N],
-            slope_bound: [T::zero(); N],
+            sin: joints.table([T::zero(); C]),
+            cos: joints.table([T::zero(); C]),
+            amplitude_bound: joints.table(T::zero()),
+            slope_bound: joints.table(T::zero()),
         }
+    }
+
+    /// The joint count.
+    pub fn joint_count(&self) -> N {
+        N::of(&self.amplitude_bound)
     }
 
     /// Sets the maps to zero everywhere in place ([`JointMaps::zero`] without a temporary: a
@@ -82,10 +97,11 @@ impl<T: Real, const N: usize, const C: usize> JointMaps<T, N, C> {
     /// [`MAX_SLOPE`], or when `harmonics > C`.
     pub fn new(
         harmonics: usize,
-        sin: [[T; C]; N],
-        cos: [[T; C]; N],
+        sin: N::Table<[T; C]>,
+        cos: N::Table<[T; C]>,
     ) -> Result<Self, KinematicsError> {
-        let mut maps = Self::zero();
+        crate::model::check_count(sin.len(), cos.len())?;
+        let mut maps = Self::zeros_for(N::of(&sin));
         maps.sin = sin;
         maps.cos = cos;
         maps.settle(harmonics)?;
@@ -101,14 +117,14 @@ impl<T: Real, const N: usize, const C: usize> JointMaps<T, N, C> {
         harmonics: usize,
         mut coefficient: impl FnMut(usize, usize) -> Option<(T, T)>,
     ) -> Result<(), KinematicsError> {
-        *self = Self::zero();
+        *self = Self::zeros_for(self.joint_count());
         if harmonics > C {
             return Err(KinematicsError::TooManyHarmonics);
         }
         for (j, (a, b)) in self.sin.iter_mut().zip(self.cos.iter_mut()).enumerate() {
             for (h, (a, b)) in a.iter_mut().zip(b.iter_mut()).take(harmonics).enumerate() {
                 let Some(pair) = coefficient(j, h + 1) else {
-                    *self = Self::zero();
+                    *self = Self::zeros_for(self.joint_count());
                     return Err(KinematicsError::InvalidJointMap {
                         joint: joint_number(j),
                     });
@@ -123,7 +139,7 @@ impl<T: Real, const N: usize, const C: usize> JointMaps<T, N, C> {
     fn settle(&mut self, harmonics: usize) -> Result<(), KinematicsError> {
         let result = self.check_and_bound(harmonics);
         if result.is_err() {
-            *self = Self::zero();
+            *self = Self::zeros_for(self.joint_count());
         }
         result
     }
@@ -134,8 +150,8 @@ impl<T: Real, const N: usize, const C: usize> JointMaps<T, N, C> {
             .filter(|_| harmonics <= C)
             .ok_or(KinematicsError::TooManyHarmonics)?;
         let limit = T::of(MAX_COEFFICIENT);
-        let joints = self.sin.iter().zip(&self.cos);
-        let bounds = self.amplitude_bound.iter_mut().zip(&mut self.slope_bound);
+        let joints = self.sin.iter().zip(self.cos.iter());
+        let bounds = self.amplitude_bound.iter_mut().zip(self.slope_bound.iter_mut());
         for (j, ((sin, cos), (amplitude_bound, slope_bound))) in joints.zip(bounds).enumerate() {
             let invalid = KinematicsError::InvalidJointMap {
                 joint: joint_number(j),
@@ -169,25 +185,24 @@ impl<T: Real, const N: usize, const C: usize> JointMaps<T, N, C> {
 
     /// Coefficients of `sin(h q)` of joint `joint` (0-based), `h = 1..C`, rad.
     pub fn sin_coefficients(&self, joint: usize) -> Option<&[T; C]> {
-        self.sin.get(joint)
+        self.sin.as_slice().get(joint)
     }
 
     /// Coefficients of `cos(h q)` of joint `joint` (0-based), `h = 1..C`, rad.
     pub fn cos_coefficients(&self, joint: usize) -> Option<&[T; C]> {
-        self.cos.get(joint)
+        self.cos.as_slice().get(joint)
     }
 
     /// `M_j`: no reading has a larger angle error on joint `joint` (0-based), rad.
     pub fn amplitude_bound(&self, joint: usize) -> T {
-        self.amplitude_bound
-            .get(joint)
+        self.amplitude_bound.as_slice().get(joint)
             .copied()
             .unwrap_or(T::zero())
     }
 
     /// `L_j`: the map of joint `joint` (0-based) changes at most this much per radian.
     pub fn slope_bound(&self, joint: usize) -> T {
-        self.slope_bound.get(joint).copied().unwrap_or(T::zero())
+        self.slope_bound.as_slice().get(joint).copied().unwrap_or(T::zero())
     }
 
     /// Whether every map is zero everywhere.
@@ -223,7 +238,7 @@ impl<T: Real, const N: usize, const C: usize> JointMaps<T, N, C> {
         init: A,
         mut step: impl FnMut(A, T, T, T, T, T) -> A,
     ) -> A {
-        let (Some(a), Some(b)) = (self.sin.get(joint), self.cos.get(joint)) else {
+        let (Some(a), Some(b)) = (self.sin.as_slice().get(joint), self.cos.as_slice().get(joint)) else {
             return init;
         };
         let used = self.harmonics().min(C);
@@ -242,7 +257,7 @@ impl<T: Real, const N: usize, const C: usize> JointMaps<T, N, C> {
     }
 
     /// The kinematic joint angles for readings `q`: `q_j + dq_j(q_j)`, rad.
-    pub fn apply(&self, q: &[T; N]) -> [T; N] {
+    pub fn apply(&self, q: &N::Table<T>) -> N::Table<T> {
         let mut out = *q;
         if self.harmonics == 0 {
             return out;
@@ -259,13 +274,13 @@ impl<T: Real, const N: usize, const C: usize> JointMaps<T, N, C> {
     /// most [`MAX_FIXED_POINT_ITERATIONS`].
     ///
     /// [`apply`]: Self::apply
-    pub fn readings(&self, angles: &[T; N], tolerance: T) -> ([T; N], u32) {
+    pub fn readings(&self, angles: &N::Table<T>, tolerance: T) -> (N::Table<T>, u32) {
         let mut out = *angles;
         let mut most = 0;
         if self.harmonics == 0 {
             return (out, 0);
         }
-        for (j, (q, t)) in out.iter_mut().zip(angles).enumerate() {
+        for (j, (q, t)) in out.iter_mut().zip(angles.iter()).enumerate() {
             let slope = self.slope_bound(j);
             let mut bound = slope * self.amplitude_bound(j);
             let mut iterations = 0;
@@ -283,10 +298,11 @@ impl<T: Real, const N: usize, const C: usize> JointMaps<T, N, C> {
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::{U1, U2};
     use super::*;
     extern crate std;
 
-    fn maps() -> JointMaps<f64, 2, 4> {
+    fn maps() -> JointMaps<f64, U2, 4> {
         let mut sin = [[0.0; 4]; 2];
         let mut cos = [[0.0; 4]; 2];
         sin[0] = [3e-4, 0.0, -1e-4, 0.0];
@@ -334,22 +350,22 @@ mod tests {
         let mut sin = [[0.0; 4]; 2];
         let cos = [[0.0; 4]; 2];
         sin[1][3] = 0.009; // L = 4 * 0.009, fine
-        assert!(JointMaps::<f64, 2, 4>::new(4, sin, cos).is_ok());
+        assert!(JointMaps::<f64, U2, 4>::new(4, sin, cos).is_ok());
         sin[1][3] = f64::NAN;
         assert_eq!(
-            JointMaps::<f64, 2, 4>::new(4, sin, cos),
+            JointMaps::<f64, U2, 4>::new(4, sin, cos),
             Err(KinematicsError::InvalidJointMap { joint: 2 })
         );
         sin[1][3] = 0.02;
-        assert!(JointMaps::<f64, 2, 4>::new(4, sin, cos).is_err());
+        assert!(JointMaps::<f64, U2, 4>::new(4, sin, cos).is_err());
         // Slope bound beyond 0.5: 64 harmonics of 0.009 rad would be far beyond it.
-        let big = JointMaps::<f64, 1, 64>::new(64, [[0.009; 64]], [[0.0; 64]]);
+        let big = JointMaps::<f64, U1, 64>::new(64, [[0.009; 64]], [[0.0; 64]]);
         assert_eq!(big, Err(KinematicsError::InvalidJointMap { joint: 1 }));
         // A coefficient beyond the harmonics used.
         sin[1][3] = 1e-4;
-        assert!(JointMaps::<f64, 2, 4>::new(3, sin, cos).is_err());
+        assert!(JointMaps::<f64, U2, 4>::new(3, sin, cos).is_err());
         assert_eq!(
-            JointMaps::<f64, 2, 4>::new(5, [[0.0; 4]; 2], cos),
+            JointMaps::<f64, U2, 4>::new(5, [[0.0; 4]; 2], cos),
             Err(KinematicsError::TooManyHarmonics)
         );
     }

@@ -5,11 +5,13 @@
 
 pub mod compliance;
 mod error;
+pub mod joint_count;
 pub mod joint_maps;
 pub mod paper;
 pub mod parameters;
 mod robot;
 
 pub use error::KinematicsError;
-pub(crate) use robot::joint_number;
+pub use joint_count::{JointCount, JointTable, JointVec, MAX_JOINTS, joint_count};
+pub(crate) use robot::{check_count, joint_number};
 pub use robot::{FramePose, JointLimits, MdhJoint, Robot};

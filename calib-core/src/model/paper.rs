@@ -5,6 +5,7 @@
 use crate::model::parameters::{JointErrors, ParameterErrors};
 use crate::model::{MdhJoint, Robot};
 use crate::scalar::Real;
+use nalgebra::U6;
 
 const DEG: f64 = core::f64::consts::PI / 180.0;
 
@@ -29,7 +30,7 @@ const TABLE2: [(f64, f64, f64, f64, f64); 6] = [
 ];
 
 /// The nominal ER10L-C10 of Table 1 (mm, rad): no joint limits, identity base and tool.
-pub fn er10l_c10<T: Real>() -> Robot<T, 6> {
+pub fn er10l_c10<T: Real>() -> Robot<T, U6> {
     Robot::from_joints(TABLE1.map(|(a, alpha, offset, d)| MdhJoint {
         a: T::of(a),
         alpha: T::of(alpha * DEG),
@@ -40,7 +41,7 @@ pub fn er10l_c10<T: Real>() -> Robot<T, 6> {
 }
 
 /// The parameter errors of Table 2 (mm, rad); base and tool errors zero.
-pub fn table2<T: Real>() -> ParameterErrors<T, 6> {
+pub fn table2<T: Real>() -> ParameterErrors<T, U6> {
     let mut errors = ParameterErrors::zero();
     errors.joints = TABLE2.map(|(da, dalpha, dtheta, dd, dbeta)| JointErrors {
         da: T::of(da),
@@ -54,7 +55,7 @@ pub fn table2<T: Real>() -> ParameterErrors<T, 6> {
 
 /// The ER10L-C10 on a tilted base with an offset probe, to exercise the frame terms in tests.
 #[cfg(test)]
-pub(crate) fn er10l_with_frames() -> Robot<f64, 6> {
+pub(crate) fn er10l_with_frames() -> Robot<f64, U6> {
     let mut robot = er10l_c10::<f64>();
     robot.base = crate::model::FramePose {
         xyz: [1500.0, -300.0, 250.0],
@@ -72,7 +73,7 @@ pub(crate) fn er10l_with_frames() -> Robot<f64, 6> {
 #[cfg(test)]
 pub(crate) fn paper_measurements<T: Real>(
     seed: u64,
-) -> crate::identify::objective::MeasurementSet<T, 6, 32> {
+) -> crate::identify::objective::MeasurementSet<T, U6, 32> {
     use crate::identify::objective::{Measurement, MeasurementSet};
     use rand_core::{Rng, SeedableRng};
     let truth = crate::Kinematics::new(&er10l_c10::<T>(), &table2::<T>()).unwrap();

@@ -16,6 +16,7 @@
 //! A [`ParameterSet`] keeps the parameters selected by a [`ParameterMask`] in this order; that is
 //! the order of the packed vector, of the Jacobian columns and of every report.
 
+use crate::model::{JointCount, JointTable};
 use crate::model::KinematicsError;
 use crate::model::Robot;
 use crate::scalar::Real;
@@ -193,24 +194,32 @@ pub struct FrameErrors<T> {
 /// All parameter errors of an N-joint robot: actual model = nominal + these.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct ParameterErrors<T, const N: usize> {
+pub struct ParameterErrors<T: Real, N: JointCount> {
     /// Per joint errors, joint 1 first.
-    pub joints: [JointErrors<T>; N],
+    pub joints: N::Table<JointErrors<T>>,
     /// Base frame errors.
     pub base: FrameErrors<T>,
     /// Tool frame errors.
     pub tool: FrameErrors<T>,
 }
 
-impl<T: Real, const N: usize> Default for ParameterErrors<T, N> {
+impl<T: Real, const N: usize> Default for ParameterErrors<T, Const<N>> {
     fn default() -> Self {
         Self::zero()
     }
 }
 
-impl<T: Real, const N: usize> ParameterErrors<T, N> {
-    /// All errors zero: the actual model equals the nominal one.
+impl<T: Real, const N: usize> ParameterErrors<T, Const<N>> {
+    /// All errors zero: the actual model equals the nominal one (a joint count fixed at compile
+    /// time; [`ParameterErrors::zeros_for`] takes any).
     pub fn zero() -> Self {
+        Self::zeros_for(Const)
+    }
+}
+
+impl<T: Real, N: JointCount> ParameterErrors<T, N> {
+    /// All errors of a robot of `joints` joints zero: the actual model equals the nominal one.
+    pub fn zeros_for(joints: N) -> Self {
         let joint = JointErrors {
             da: T::zero(),
             dalpha: T::zero(),
@@ -223,7 +232,7 @@ impl<T: Real, const N: usize> ParameterErrors<T, N> {
             rotation: [T::zero(); 3],
         };
         Self {
-            joints: [joint; N],
+            joints: joints.table(joint),
             base: frame,
             tool: frame,
         }
@@ -233,7 +242,7 @@ impl<T: Real, const N: usize> ParameterErrors<T, N> {
     pub fn get(&self, parameter: Parameter) -> Option<T> {
         match parameter {
             Parameter::Joint { joint, kind } => {
-                let e = self.joints.get(usize::from(joint).checked_sub(1)?)?;
+                let e = self.joints.as_slice().get(usize::from(joint).checked_sub(1)?)?;
                 Some(match kind {
                     JointParameter::A => e.da,
                     JointParameter::D => e.dd,
@@ -255,7 +264,7 @@ impl<T: Real, const N: usize> ParameterErrors<T, N> {
             Parameter::Joint { joint, kind } => {
                 let Some(e) = usize::from(joint)
                     .checked_sub(1)
-                    .and_then(|j| self.joints.get_mut(j))
+                    .and_then(|j| self.joints.as_mut_slice().get_mut(j))
                 else {
                     return false;
                 };
@@ -276,7 +285,7 @@ impl<T: Real, const N: usize> ParameterErrors<T, N> {
 
     /// Checks that every error is finite.
     pub fn validate(&self) -> Result<(), KinematicsError> {
-        for parameter in all_parameters::<N>() {
+        for parameter in all_parameters(N::of(&self.joints)) {
             if !self.get(parameter).is_some_and(Real::finite) {
                 return Err(KinematicsError::NonFiniteError(parameter));
             }
@@ -315,10 +324,12 @@ fn frame_slot<T>(frame: &mut FrameErrors<T>, kind: FrameParameter) -> &mut T {
     }
 }
 
-/// All `5 N + 12` parameters of an N-joint robot in canonical order (see the module docs).
-pub fn all_parameters<const N: usize>() -> impl Iterator<Item = Parameter> {
-    let joints = JointParameter::ALL.into_iter().flat_map(|kind| {
-        (1..=N).map(move |j| Parameter::Joint {
+/// All `5 N + 12` parameters of a robot of `joints` joints in canonical order (see the module
+/// docs).
+pub fn all_parameters<N: JointCount>(joints: N) -> impl Iterator<Item = Parameter> {
+    let count = joints.value();
+    let joints = JointParameter::ALL.into_iter().flat_map(move |kind| {
+        (1..=count).map(move |j| Parameter::Joint {
             joint: crate::model::joint_number(j - 1),
             kind,
         })
@@ -331,8 +342,8 @@ pub fn all_parameters<const N: usize>() -> impl Iterator<Item = Parameter> {
 /// Which parameters are identified: one bit per parameter.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct ParameterMask<const N: usize> {
-    joints: [u8; N],
+pub struct ParameterMask<N: JointCount> {
+    joints: N::Table<u8>,
     base: u8,
     tool: u8,
 }
@@ -344,14 +355,31 @@ pub struct ParameterMask<const N: usize> {
 /// the chain almost alike).
 pub const PARALLEL_AXES_TOLERANCE: f64 = 1e-2;
 
-impl<const N: usize> ParameterMask<N> {
-    /// Nothing identified.
+impl<const N: usize> ParameterMask<Const<N>> {
+    /// Nothing identified (a joint count fixed at compile time; [`ParameterMask::empty_for`]
+    /// takes any).
     pub const fn empty() -> Self {
         Self {
             joints: [0; N],
             base: 0,
             tool: 0,
         }
+    }
+}
+
+impl<N: JointCount> ParameterMask<N> {
+    /// Nothing identified of a robot of `joints` joints.
+    pub fn empty_for(joints: N) -> Self {
+        Self {
+            joints: joints.table(0),
+            base: 0,
+            tool: 0,
+        }
+    }
+
+    /// The joint count.
+    pub fn joint_count(&self) -> N {
+        N::of(&self.joints)
     }
 
     /// The default rule (docs/ARCHITECTURE.md): for joint i identify `a, alpha, theta`, and `d` unless the
@@ -360,10 +388,11 @@ impl<const N: usize> ParameterMask<N> {
     /// case `beta` replaces `d` (Hayati's fix for parallel axes). Base and tool are not identified.
     /// For the ER10L-C10 this gives the paper's 24 parameters.
     pub fn default_for<T: Real>(robot: &Robot<T, N>) -> Self {
-        let mut mask = Self::empty();
+        let mut mask = Self::empty_for(robot.joint_count());
         let tolerance = T::of(PARALLEL_AXES_TOLERANCE);
-        for (j, (bits, joint)) in mask.joints.iter_mut().zip(&robot.joints).enumerate() {
-            let parallel_to_next = joint.alpha.abs() < tolerance && j + 1 < N;
+        let count = robot.joints.len();
+        for (j, (bits, joint)) in mask.joints.iter_mut().zip(robot.joints.iter()).enumerate() {
+            let parallel_to_next = joint.alpha.abs() < tolerance && j + 1 < count;
             let fourth = if parallel_to_next {
                 JointParameter::Beta
             } else {
@@ -382,7 +411,7 @@ impl<const N: usize> ParameterMask<N> {
         match parameter {
             Parameter::Joint { joint, kind } => usize::from(joint)
                 .checked_sub(1)
-                .and_then(|j| self.joints.get(j))
+                .and_then(|j| self.joints.as_slice().get(j))
                 .is_some_and(|bits| bits & kind.bit() != 0),
             Parameter::Base(k) => self.base & k.bit() != 0,
             Parameter::Tool(k) => self.tool & k.bit() != 0,
@@ -395,7 +424,7 @@ impl<const N: usize> ParameterMask<N> {
             Parameter::Joint { joint, kind } => {
                 match usize::from(joint)
                     .checked_sub(1)
-                    .and_then(|j| self.joints.get_mut(j))
+                    .and_then(|j| self.joints.as_mut_slice().get_mut(j))
                 {
                     Some(bits) => (bits, kind.bit()),
                     None => return false,
@@ -414,7 +443,7 @@ impl<const N: usize> ParameterMask<N> {
 
     /// Selected parameters in canonical order.
     pub fn iter(&self) -> impl Iterator<Item = Parameter> + '_ {
-        all_parameters::<N>().filter(|p| self.contains(*p))
+        all_parameters(self.joint_count()).filter(|p| self.contains(*p))
     }
 
     /// Number of selected parameters.
@@ -430,15 +459,16 @@ impl<const N: usize> ParameterMask<N> {
 /// code, fixed at compile time, no heap), [`nalgebra::Dyn`] on a host that learns the count from
 /// a robot file at run time (one compiled solver for every count; the vectors on the heap).
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct ParameterSet<const N: usize, D: Dim>
+pub struct ParameterSet<N: JointCount, D: Dim>
 where
     DefaultAllocator: Allocator<D>,
 {
     parameters: OVector<Parameter, D>,
+    joints: N,
 }
 
 /// A fixed-size set (`Const<D>`) is `Copy`, as the controller's code expects.
-impl<const N: usize, D: Dim> Copy for ParameterSet<N, D>
+impl<N: JointCount, D: Dim> Copy for ParameterSet<N, D>
 where
     DefaultAllocator: Allocator<D>,
     OVector<Parameter, D>: Copy,
@@ -446,7 +476,7 @@ where
 }
 
 #[cfg(feature = "defmt")]
-impl<const N: usize, D: Dim> defmt::Format for ParameterSet<N, D>
+impl<N: JointCount, D: Dim> defmt::Format for ParameterSet<N, D>
 where
     DefaultAllocator: Allocator<D>,
 {
@@ -455,7 +485,7 @@ where
     }
 }
 
-impl<const N: usize, D: Dim> ParameterSet<N, D>
+impl<N: JointCount, D: Dim> ParameterSet<N, D>
 where
     DefaultAllocator: Allocator<D>,
 {
@@ -489,7 +519,10 @@ where
         for (slot, parameter) in parameters.as_mut_slice().iter_mut().zip(mask.iter()) {
             *slot = parameter;
         }
-        Ok(Self { parameters })
+        Ok(Self {
+            parameters,
+            joints: mask.joint_count(),
+        })
     }
 
     /// The parameters in packed order.
@@ -517,9 +550,14 @@ where
         OVector::<T, D>::zeros_generic(self.dim(), U1)
     }
 
+    /// The joint count of the robot the set belongs to.
+    pub fn joint_count(&self) -> N {
+        self.joints
+    }
+
     /// The mask that selects this set.
     pub fn mask(&self) -> ParameterMask<N> {
-        let mut mask = ParameterMask::empty();
+        let mut mask = ParameterMask::empty_for(self.joints);
         for p in self.parameters() {
             mask.set(*p, true);
         }
@@ -552,7 +590,7 @@ where
 
     /// The errors with the packed values set and every other error zero.
     pub fn unpack<T: Real>(&self, x: &OVector<T, D>) -> ParameterErrors<T, N> {
-        let mut errors = ParameterErrors::zero();
+        let mut errors = ParameterErrors::zeros_for(self.joints);
         self.unpack_into(x, &mut errors);
         errors
     }
@@ -594,6 +632,7 @@ where
 
 #[cfg(test)]
 mod tests {
+    use nalgebra::U6;
     use super::*;
     use crate::model::paper::{er10l_c10 as er10l, table2};
     use nalgebra::{U23, U24};
@@ -604,7 +643,7 @@ mod tests {
     #[test]
     fn largest_differences_split_lengths_and_angles_and_keep_nan() {
         let set =
-            ParameterSet::<6, U24>::default_for(&crate::model::paper::er10l_c10::<f64>()).unwrap();
+            ParameterSet::<U6, U24>::default_for(&crate::model::paper::er10l_c10::<f64>()).unwrap();
         let truth = set.pack(&crate::model::paper::table2::<f64>());
         let mut found = truth;
         found[0] += 0.25; // da1, mm
@@ -628,7 +667,7 @@ mod tests {
 
     #[test]
     fn names_round_trip_for_all_parameters() {
-        let all: Vec<_> = all_parameters::<6>().collect();
+        let all: Vec<_> = all_parameters(U6).collect();
         assert_eq!(all.len(), 5 * 6 + 12);
         for p in &all {
             assert_eq!(Parameter::from_name(&p.to_string(), 6), Some(*p));
@@ -644,7 +683,7 @@ mod tests {
     #[test]
     fn pack_and_unpack_round_trip_table2() {
         let mask = ParameterMask::default_for(&er10l::<f64>());
-        let set = ParameterSet::<6, U24>::from_mask(&mask).unwrap();
+        let set = ParameterSet::<U6, U24>::from_mask(&mask).unwrap();
         let errors = table2::<f64>();
         let x = set.pack(&errors);
         // Packed order: da1 first, dd1 at index 6, dbeta2 at 17, dtheta6 last.
@@ -666,7 +705,7 @@ mod tests {
     fn wrong_parameter_count_is_an_error() {
         let mask = ParameterMask::default_for(&er10l::<f64>());
         assert_eq!(
-            ParameterSet::<6, U23>::from_mask(&mask),
+            ParameterSet::<U6, U23>::from_mask(&mask),
             Err(KinematicsError::ParameterCount {
                 expected: 23,
                 found: 24

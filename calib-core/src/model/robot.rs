@@ -1,6 +1,7 @@
 //! The nominal robot: N joints of Hayati MDH parameters, joint limits, base and tool frames.
 
 use crate::model::KinematicsError;
+use crate::model::joint_count::{JointCount, JointTable};
 use crate::model::parameters::{FrameParameter, JointParameter, Parameter};
 use crate::scalar::Real;
 use core::cmp::Ordering;
@@ -83,31 +84,38 @@ impl<T: Real> FramePose<T> {
 /// The nominal model of an N-joint serial robot.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Robot<T, const N: usize> {
+pub struct Robot<T: Real, N: JointCount> {
     /// Nominal MDH parameters, joint 1 first.
-    pub joints: [MdhJoint<T>; N],
+    pub joints: N::Table<MdhJoint<T>>,
     /// Joint limits, rad, joint 1 first.
-    pub limits: [JointLimits<T>; N],
+    pub limits: N::Table<JointLimits<T>>,
     /// Base frame: pose of the frame of joint 1 in the measurement (world) frame.
     pub base: FramePose<T>,
     /// Tool frame: pose of the measured point or probe in the flange frame of joint N.
     pub tool: FramePose<T>,
 }
 
-impl<T: Real, const N: usize> Robot<T, N> {
+impl<T: Real, N: JointCount> Robot<T, N> {
     /// A robot with the given joints, no joint limits, and identity base and tool frames.
-    pub fn from_joints(joints: [MdhJoint<T>; N]) -> Self {
+    pub fn from_joints(joints: N::Table<MdhJoint<T>>) -> Self {
         Self {
+            limits: N::of(&joints).table(JointLimits::unlimited()),
             joints,
-            limits: [JointLimits::unlimited(); N],
             base: FramePose::identity(),
             tool: FramePose::identity(),
         }
     }
 
+    /// The joint count.
+    pub fn joint_count(&self) -> N {
+        N::of(&self.joints)
+    }
+
     /// Checks that every nominal value is finite and every limit pair is ordered.
     pub fn validate(&self) -> Result<(), KinematicsError> {
-        for (j, (joint, limits)) in self.joints.iter().zip(&self.limits).enumerate() {
+        let limits = self.limits.as_slice();
+        check_count(self.joints.as_slice().len(), limits.len())?;
+        for (j, (joint, limits)) in self.joints.as_slice().iter().zip(limits).enumerate() {
             let number = joint_number(j);
             let values = [
                 (JointParameter::A, joint.a),
@@ -148,6 +156,19 @@ fn check_frame<T: Real>(
         }
     }
     Ok(())
+}
+
+/// `Ok` when an input of `found` joint values fits a robot of `expected` joints (always, for a
+/// count fixed at compile time).
+#[inline(always)]
+pub(crate) fn check_count(expected: usize, found: usize) -> Result<(), KinematicsError> {
+    if expected == found {
+        return Ok(());
+    }
+    Err(KinematicsError::JointCount {
+        expected: u8::try_from(expected).unwrap_or(u8::MAX),
+        found: u8::try_from(found).unwrap_or(u8::MAX),
+    })
 }
 
 /// 1-based joint number of the 0-based index `j`, saturating at 255 (no robot has that many joints).

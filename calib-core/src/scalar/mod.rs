@@ -8,8 +8,21 @@ mod sin_cos_f32;
 
 use nalgebra::RealField;
 
+/// What the controller's logs can print: `defmt::Format` with the `defmt` feature, anything
+/// without it.
+#[cfg(feature = "defmt")]
+pub trait Loggable: defmt::Format {}
+#[cfg(feature = "defmt")]
+impl<X: defmt::Format> Loggable for X {}
+/// What the controller's logs can print: `defmt::Format` with the `defmt` feature, anything
+/// without it.
+#[cfg(not(feature = "defmt"))]
+pub trait Loggable {}
+#[cfg(not(feature = "defmt"))]
+impl<X> Loggable for X {}
+
 /// A floating-point scalar usable by the core (`f32` or `f64`).
-pub trait Real: RealField + Copy {
+pub trait Real: RealField + Copy + Loggable {
     /// Sine and cosine of `self` (radians) in one call, from `libm`.
     fn sin_cos_libm(self) -> (Self, Self);
     /// Sine and cosine of `self` (radians) as the core computes them: `libm` for `f64`, the

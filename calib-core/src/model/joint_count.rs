@@ -1,0 +1,250 @@
+//! The joint count as a nalgebra dimension, like the parameter count.
+//!
+//! A controller knows its robot when it is built: its joint count is `Const<N>` and every
+//! per-joint table is a plain array `[X; N]` (sizes, and so the code, fixed at compile time). A
+//! host learns the count from a robot file at run time: its count is [`nalgebra::Dyn`] and its
+//! tables are [`JointVec`]s, inline arrays of capacity [`MAX_JOINTS`] with a run-time length, so
+//! that the host compiles every algorithm once and still never touches the heap inside an
+//! objective evaluation.
+
+use crate::scalar::Loggable;
+use core::fmt::Debug;
+use crate::scalar::Real;
+use nalgebra::{Const, Dim, Dyn, Matrix6, SMatrix, Vector6};
+
+/// The most joints a run-time joint count ([`Dyn`]) holds.
+pub const MAX_JOINTS: usize = 9;
+
+/// What a per-joint table holds: plain copyable values (that the controller's logs can print).
+pub trait Element: Copy + PartialEq + Debug + Loggable {}
+impl<X: Copy + PartialEq + Debug + Loggable> Element for X {}
+
+/// A table of one value per joint, joint 1 first: `[X; N]` for `Const<N>`, [`JointVec`] for
+/// [`Dyn`].
+pub trait JointTable<X: Element>:
+    Element + core::ops::Index<usize, Output = X> + core::ops::IndexMut<usize>
+{
+    /// The values, joint 1 first.
+    fn as_slice(&self) -> &[X];
+    /// The values, joint 1 first, to change.
+    fn as_mut_slice(&mut self) -> &mut [X];
+
+    /// The values, joint 1 first (as a slice's `iter`; an array's own method where the count
+    /// is fixed).
+    #[inline(always)]
+    fn iter(&self) -> core::slice::Iter<'_, X> {
+        self.as_slice().iter()
+    }
+
+    /// The values, joint 1 first, to change (as a slice's `iter_mut`).
+    #[inline(always)]
+    fn iter_mut(&mut self) -> core::slice::IterMut<'_, X> {
+        self.as_mut_slice().iter_mut()
+    }
+
+    /// The joint count.
+    #[inline(always)]
+    fn len(&self) -> usize {
+        self.as_slice().len()
+    }
+
+    /// `true` for a table of no joint.
+    #[inline(always)]
+    fn is_empty(&self) -> bool {
+        self.as_slice().is_empty()
+    }
+
+    /// Sets every joint's value to `value`.
+    #[inline(always)]
+    fn fill(&mut self, value: X) {
+        self.as_mut_slice().fill(value);
+    }
+}
+
+impl<X: Element, const N: usize> JointTable<X> for [X; N] {
+    #[inline(always)]
+    fn as_slice(&self) -> &[X] {
+        self
+    }
+    #[inline(always)]
+    fn as_mut_slice(&mut self) -> &mut [X] {
+        self
+    }
+}
+
+/// The joint count of a robot: `Const<N>` (a controller) or [`Dyn`] (a host, at most
+/// [`MAX_JOINTS`]).
+pub trait JointCount: Dim + Copy + PartialEq + Debug {
+    /// A table of one `X` per joint.
+    type Table<X: Element>: JointTable<X>;
+
+    /// A table with every joint's value `fill`.
+    fn table<X: Element>(self, fill: X) -> Self::Table<X>;
+
+    /// The count of a table's joints.
+    fn of<X: Element>(table: &Self::Table<X>) -> Self;
+
+    /// `J J^T` (6 x 6) of a 6 x N matrix `J` given by its columns: nalgebra's product of the
+    /// fixed-size matrix for `Const<N>`, and for [`Dyn`] the same sums in the same order (each
+    /// entry the first column's product, then each next one added), so both give the same bits.
+    fn outer_product_sum<T: Real>(columns: &Self::Table<Vector6<T>>) -> Matrix6<T>;
+
+    /// `J^T y` (one value per joint) of a 6 x N matrix `J` given by its columns, summed as
+    /// nalgebra's fixed-size product sums.
+    fn transpose_times<T: Real>(columns: &Self::Table<Vector6<T>>, y: &Vector6<T>)
+    -> Self::Table<T>;
+
+    /// The count `joints` as this type: `None` unless it is `N` (`Const<N>`) or within
+    /// `1..=`[`MAX_JOINTS`] ([`Dyn`]).
+    fn checked(joints: usize) -> Option<Self>;
+}
+
+impl<const N: usize> JointCount for Const<N> {
+    type Table<X: Element> = [X; N];
+
+    #[inline(always)]
+    fn table<X: Element>(self, fill: X) -> [X; N] {
+        [fill; N]
+    }
+
+    #[inline(always)]
+    fn of<X: Element>(_: &[X; N]) -> Self {
+        Const
+    }
+
+    #[inline(always)]
+    fn checked(joints: usize) -> Option<Self> {
+        (joints == N).then_some(Const)
+    }
+
+    #[inline(always)]
+    fn outer_product_sum<T: Real>(columns: &[Vector6<T>; N]) -> Matrix6<T> {
+        let j = SMatrix::<T, 6, N>::from_columns(columns);
+        j * j.transpose()
+    }
+
+    #[inline(always)]
+    fn transpose_times<T: Real>(columns: &[Vector6<T>; N], y: &Vector6<T>) -> [T; N] {
+        let j = SMatrix::<T, 6, N>::from_columns(columns);
+        (j.transpose() * y).into()
+    }
+}
+
+impl JointCount for Dyn {
+    type Table<X: Element> = JointVec<X>;
+
+    /// A table of `self.0` joints, at most [`MAX_JOINTS`] (a larger count is cut to it: check
+    /// counts with [`joint_count`] where they enter).
+    fn table<X: Element>(self, fill: X) -> JointVec<X> {
+        JointVec {
+            values: [fill; MAX_JOINTS],
+            len: self.0.min(MAX_JOINTS) as u8,
+        }
+    }
+
+    fn of<X: Element>(table: &JointVec<X>) -> Self {
+        Dyn(table.as_slice().len())
+    }
+
+    fn checked(joints: usize) -> Option<Self> {
+        joint_count(joints)
+    }
+
+    fn outer_product_sum<T: Real>(columns: &JointVec<Vector6<T>>) -> Matrix6<T> {
+        let mut sum = Matrix6::<T>::zeros();
+        let Some((first, rest)) = columns.as_slice().split_first() else {
+            return sum;
+        };
+        for (mut out, scale) in sum.column_iter_mut().zip(first.iter()) {
+            out.copy_from(&(first * *scale));
+        }
+        for column in rest {
+            for (mut out, scale) in sum.column_iter_mut().zip(column.iter()) {
+                out += column * *scale;
+            }
+        }
+        sum
+    }
+
+    fn transpose_times<T: Real>(columns: &JointVec<Vector6<T>>, y: &Vector6<T>) -> JointVec<T> {
+        let mut out = Self::of(columns).table(T::zero());
+        for (value, column) in out.iter_mut().zip(columns.iter()) {
+            let mut terms = column.iter().zip(y.iter());
+            if let Some((c, v)) = terms.next() {
+                *value = terms.fold(*c * *v, |sum, (c, v)| sum + *c * *v);
+            }
+        }
+        out
+    }
+}
+
+/// The run-time joint count `joints`, or `None` beyond [`MAX_JOINTS`] or for no joint.
+pub fn joint_count(joints: usize) -> Option<Dyn> {
+    (1..=MAX_JOINTS).contains(&joints).then_some(Dyn(joints))
+}
+
+/// One value per joint of a robot whose joint count is known at run time: an inline array of
+/// [`MAX_JOINTS`] values and a length (no heap, `Copy`).
+#[derive(Clone, Copy)]
+pub struct JointVec<X> {
+    values: [X; MAX_JOINTS],
+    len: u8,
+}
+
+impl<X: Element> JointVec<X> {
+    /// The table of `values`, or `None` for more than [`MAX_JOINTS`] of them.
+    pub fn from_slice(values: &[X]) -> Option<Self> {
+        let first = *values.first()?;
+        let mut table = Dyn(values.len()).table(first);
+        if table.as_slice().len() != values.len() {
+            return None;
+        }
+        table.as_mut_slice().copy_from_slice(values);
+        Some(table)
+    }
+}
+
+impl<X: Element> JointTable<X> for JointVec<X> {
+    #[inline(always)]
+    fn as_slice(&self) -> &[X] {
+        self.values.get(..usize::from(self.len)).unwrap_or(&[])
+    }
+    #[inline(always)]
+    fn as_mut_slice(&mut self) -> &mut [X] {
+        self.values
+            .get_mut(..usize::from(self.len))
+            .unwrap_or(&mut [])
+    }
+}
+
+impl<X: Element> PartialEq for JointVec<X> {
+    fn eq(&self, other: &Self) -> bool {
+        self.as_slice() == other.as_slice()
+    }
+}
+
+impl<X: Element> Debug for JointVec<X> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        self.as_slice().fmt(f)
+    }
+}
+
+#[cfg(feature = "defmt")]
+impl<X: Element> defmt::Format for JointVec<X> {
+    fn format(&self, f: defmt::Formatter) {
+        defmt::write!(f, "{=[?]}", self.as_slice());
+    }
+}
+
+impl<X: Element> core::ops::Index<usize> for JointVec<X> {
+    type Output = X;
+    fn index(&self, j: usize) -> &X {
+        &self.as_slice()[j]
+    }
+}
+
+impl<X: Element> core::ops::IndexMut<usize> for JointVec<X> {
+    fn index_mut(&mut self, j: usize) -> &mut X {
+        &mut self.as_mut_slice()[j]
+    }
+}
