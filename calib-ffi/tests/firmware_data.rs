@@ -31,7 +31,7 @@ const TARGET_JOINTS: [[f32; 6]; 4] = [
 fn export(file: &str, scalar: BlockScalar, sequence: u32) -> Vec<u8> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(file);
     let robot_file = RobotFile::read(&path).unwrap();
-    let model: RobotModel<6> = robot_file.to_model(&path).unwrap();
+    let model: RobotModel = robot_file.to_model(&path).unwrap();
     let maps = robot_file.joint_maps(&path).unwrap();
     let compliance = robot_file.gravity_compliance(&path).unwrap();
     parameter_block(

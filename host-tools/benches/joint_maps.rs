@@ -45,7 +45,7 @@ fn joint_maps(c: &mut Criterion) {
         group.bench_function(format!("calibrate_{name}_series_b_{poses}_poses"), |b| {
             b.iter(|| {
                 // As `calib calibrate --validate` runs: the file read, the poses drawn.
-                let all = Dataset::<6>::load_with(robot, data, &profile).unwrap();
+                let all = Dataset::load_with(robot, data, &profile).unwrap();
                 let n = all.measurements.len();
                 let (calibration, _) = split(&all, (n - poses) as f64 / n as f64, 0).unwrap();
                 calibrate(calibration, None, &config).unwrap()

@@ -32,10 +32,10 @@ fn paper_run(c: &mut Criterion) {
         env!("CARGO_MANIFEST_DIR"),
         "/robots/er10l-c10.toml"
     ));
-    let measurements = Dataset::<6>::load(robot_file, path).unwrap().measurements;
+    let measurements = Dataset::load(robot_file, path).unwrap().measurements;
     let robot = calib_core::model::paper::er10l_c10::<f64>();
     // The count at run time, as `calibrate` has it.
-    let set = ParameterSet::<6, Dyn>::default_for(&robot).unwrap();
+    let set = ParameterSet::<U6, Dyn>::default_for(&robot).unwrap();
     let problem = Problem::new(
         &robot,
         &ParameterErrors::zero(),
@@ -94,7 +94,7 @@ fn paper_run(c: &mut Criterion) {
     group.sample_size(20);
     group.bench_function("calibrate_ipso_library", |b| {
         b.iter(|| {
-            let dataset = Dataset::<6>::load(robot_file, path).unwrap();
+            let dataset = Dataset::load(robot_file, path).unwrap();
             calibrate(dataset, None, &config).unwrap()
         })
     });
@@ -140,7 +140,7 @@ fn calibrate_runs(c: &mut Criterion) {
         ..SimulationConfig::default()
     }
     .in_realistic_cell();
-    simulate::simulate::<6>(&RobotFile::read(robot).unwrap(), robot, &config)
+    simulate::simulate(&RobotFile::read(robot).unwrap(), robot, &config)
         .unwrap()
         .write(&data, &dir.path().join("cell100-truth.toml"), robot)
         .unwrap();
@@ -156,7 +156,7 @@ fn calibrate_runs(c: &mut Criterion) {
     .unwrap();
     // As `calib calibrate` runs: the files read, then the calibration with the default settings.
     let run = |robot: &Path, data: &Path, profile: &DataProfile| {
-        let dataset = Dataset::<6>::load_with(robot, data, profile).unwrap();
+        let dataset = Dataset::load_with(robot, data, profile).unwrap();
         calibrate(dataset, None, &CalibrationConfig::default()).unwrap()
     };
     let mut group = c.benchmark_group("calibrate");

@@ -8,6 +8,7 @@
 
 use calib_core::model::paper;
 use calib_core::{FramePose, Kinematics};
+use nalgebra::Dyn;
 use host_tools::calibration::{CalibrationConfig, calibrate};
 use host_tools::dataset::Dataset;
 use host_tools::robot_file::RobotFile;
@@ -18,13 +19,13 @@ use std::path::Path;
 use std::process::ExitCode;
 
 /// `count` poses of the real robot seen by the tracker, with 0.02 mm noise per axis.
-fn measure(real: &Kinematics<f64, 6>, count: usize, seed: u64) -> anyhow::Result<Vec<Record>> {
+fn measure(real: &Kinematics<f64, Dyn>, count: usize, seed: u64) -> anyhow::Result<Vec<Record>> {
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
     let joint = Uniform::new(-2.5f64, 2.5)?;
     let noise = Normal::new(0.0, 0.02)?;
     (0..count)
         .map(|i| {
-            let q: [f64; 6] = std::array::from_fn(|_| joint.sample(&mut rng));
+            let q = calib_core::model::JointVec::<f64>::from_fn(6, |_| joint.sample(&mut rng));
             let p = real.forward(&q)?.translation.vector;
             Ok(Record {
                 line: i as u64 + 1,
@@ -43,7 +44,7 @@ fn main() -> anyhow::Result<ExitCode> {
     let path = Path::new("er10l-c10.toml");
     let robot = RobotFile::parse(host_tools::robot_file::ER10L_C10_TOML, path)?;
     // The real robot: Table 2's errors, seen from the tracker, with the reflector on the flange.
-    let mut as_built = robot.to_model::<6>(path)?.robot;
+    let mut as_built = robot.to_model(path)?.robot;
     as_built.base = FramePose {
         xyz: [2500.0, -1500.0, 600.0],
         rpy: [5f64.to_radians(), (-3f64).to_radians(), 140f64.to_radians()],
@@ -52,8 +53,12 @@ fn main() -> anyhow::Result<ExitCode> {
         xyz: [0.0, 60.0, 137.4773],
         rpy: [0.0; 3],
     };
-    let real = Kinematics::new(&as_built, &paper::table2())?;
-    let calibration = Dataset::<6>::from_records(robot.clone(), measure(&real, 42, 2)?, false)?;
+    // Table 2 holds the paper's 6 joints as a count fixed at compile time; the host's is `Dyn`.
+    let table2 = paper::table2()
+        .recount()
+        .ok_or_else(|| anyhow::anyhow!("the paper's robot has 6 joints"))?;
+    let real = Kinematics::new(&as_built, &table2)?;
+    let calibration = Dataset::from_records(robot.clone(), measure(&real, 42, 2)?, false)?;
     let validation = Dataset::from_records(robot, measure(&real, 18, 3)?, false)?;
 
     let result = calibrate(calibration, Some(validation), &CalibrationConfig::default())?;

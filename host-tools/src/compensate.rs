@@ -8,6 +8,8 @@
 //! identified robot is solved from the nominal (or nearest) configuration, under the same bounds.
 //! The output's `start` column says which way each row went.
 
+use nalgebra::Dyn;
+use calib_core::model::JointVec;
 use crate::tracker_data::TrackerData;
 use anyhow::Context;
 use calib_core::controller::compensate::{
@@ -27,7 +29,7 @@ use nalgebra::{Rotation3, Translation3};
 
 /// The outcome for one target of an `N`-joint robot.
 #[derive(Clone, Debug, PartialEq)]
-pub struct TargetOutcome<const N: usize> {
+pub struct TargetOutcome {
     /// The target's id.
     pub id: String,
     /// Where the start joints came from: `given`, `closed form, branch B` (with `nearest
@@ -35,7 +37,7 @@ pub struct TargetOutcome<const N: usize> {
     /// reach on that branch) or `numerical, seed S` (empty when none was found).
     pub start: String,
     /// The compensated joints (rad) and predicted residuals, or why the target was refused.
-    pub result: Result<Compensated<f64, N>, String>,
+    pub result: Result<Compensated<f64, Dyn>, String>,
 }
 
 /// Counts of a compensation run.
@@ -49,7 +51,7 @@ pub struct Summary {
 
 impl Summary {
     /// The counts of `outcomes`.
-    pub fn of<const N: usize>(outcomes: &[TargetOutcome<N>]) -> Self {
+    pub fn of(outcomes: &[TargetOutcome]) -> Self {
         let ok = outcomes.iter().filter(|o| o.result.is_ok()).count();
         Self {
             ok,
@@ -62,26 +64,26 @@ impl Summary {
 /// has `q1_deg..qN_deg`, are the start): `nominal` is the model the controller plans with,
 /// `actual` the identified robot. `branch` (0-7) picks the closed-form inverse kinematics
 /// solution for targets without joints. One outcome per target, in file order.
-pub fn compensate_targets<const N: usize>(
-    nominal: &Robot<f64, N>,
-    actual: &Robot<f64, N>,
+pub fn compensate_targets(
+    nominal: &Robot<f64, Dyn>,
+    actual: &Robot<f64, Dyn>,
     targets: &TrackerData,
     settings: &CompensationSettings<f64>,
     branch: usize,
-) -> anyhow::Result<Vec<TargetOutcome<N>>> {
+) -> anyhow::Result<Vec<TargetOutcome>> {
     let real = Kinematics::nominal(actual).context("identified robot")?;
     compensate_targets_of(nominal, &real, targets, settings, branch)
 }
 
 /// [`compensate_targets`] for any actual robot: the geometry alone ([`Kinematics`]) or with
 /// angle-error maps ([`calib_core::kinematics::MappedKinematics`]).
-pub fn compensate_targets_of<const N: usize>(
-    nominal: &Robot<f64, N>,
-    real: &impl ActualRobot<f64, N>,
+pub fn compensate_targets_of(
+    nominal: &Robot<f64, Dyn>,
+    real: &impl ActualRobot<f64, Dyn>,
     targets: &TrackerData,
     settings: &CompensationSettings<f64>,
     branch: usize,
-) -> anyhow::Result<Vec<TargetOutcome<N>>> {
+) -> anyhow::Result<Vec<TargetOutcome>> {
     let planned = Kinematics::nominal(nominal).context("nominal robot")?;
     let outcomes = targets
         .records
@@ -123,21 +125,21 @@ pub const NUMERICAL_STARTS: usize = 8;
 /// limits (each limit taken within one turn of zero), up to [`NUMERICAL_STARTS`] solutions in
 /// seed order. Returns the outcome and where the start came from (empty when none was found).
 #[allow(clippy::too_many_arguments)]
-fn compensate_record<const N: usize>(
-    nominal: &Robot<f64, N>,
-    planned: &Kinematics<f64, N>,
-    real: &impl ActualRobot<f64, N>,
+fn compensate_record(
+    nominal: &Robot<f64, Dyn>,
+    planned: &Kinematics<f64, Dyn>,
+    real: &impl ActualRobot<f64, Dyn>,
     target: &Pose,
     record: &crate::tracker_data::Record,
     joints_in_file: usize,
     branch: usize,
     settings: &CompensationSettings<f64>,
-) -> (Result<Compensated<f64, N>, String>, String) {
-    let from = |start: &[f64; N]| {
+) -> (Result<Compensated<f64, Dyn>, String>, String) {
+    let from = |start: &JointVec<f64>| {
         compensate_target(planned, real, &nominal.limits, target, start, settings)
     };
-    if joints_in_file == N {
-        let q = std::array::from_fn(|i| record.q.get(i).copied().unwrap_or(0.0));
+    if joints_in_file == nominal.joints.len() {
+        let q = JointVec::from_fn(joints_in_file, |i| record.q.get(i).copied().unwrap_or(0.0));
         return (from(&q), "given".into());
     }
     match closed_form(nominal, planned, target, branch) {
@@ -175,7 +177,7 @@ fn compensate_record<const N: usize>(
         .limits
         .map(|l| 0.5 * (l.lower.max(-pi) + l.upper.min(pi)));
     // The first failure: its error, method and start.
-    let mut first: Option<(String, String, [f64; N])> = None;
+    let mut first: Option<(String, String, JointVec<f64>)> = None;
     let mut not_found = None;
     let mut seed = 0;
     for _ in 0..NUMERICAL_STARTS {
@@ -225,11 +227,11 @@ fn compensate_record<const N: usize>(
 }
 
 /// A closed-form start and how it was found.
-enum ClosedForm<const N: usize> {
+enum ClosedForm {
     /// The nominal robot reaches the target there.
-    Exact([f64; N], String),
+    Exact(JointVec<f64>, String),
     /// The target is beyond the nominal workspace on the branch: its nearest configuration.
-    Nearest([f64; N], String),
+    Nearest(JointVec<f64>, String),
 }
 
 /// The fallback where a compensation from the controller's nominal joints fails or there are
@@ -240,15 +242,15 @@ enum ClosedForm<const N: usize> {
 /// bounds still hold: the correction is the nominal pose at the result against the target, and,
 /// with `planned_reference`, no joint moves from `reference` by more than the joint bound.
 /// Returns the result and how it was found.
-fn on_identified_robot<const N: usize>(
-    planned: &Kinematics<f64, N>,
-    real: &impl ActualRobot<f64, N>,
-    limits: &[calib_core::JointLimits<f64>; N],
+fn on_identified_robot(
+    planned: &Kinematics<f64, Dyn>,
+    real: &impl ActualRobot<f64, Dyn>,
+    limits: &JointVec<calib_core::JointLimits<f64>>,
     target: &Pose,
-    reference: &[f64; N],
+    reference: &JointVec<f64>,
     planned_reference: bool,
     settings: &CompensationSettings<f64>,
-) -> Result<(Compensated<f64, N>, String), String> {
+) -> Result<(Compensated<f64, Dyn>, String), String> {
     let unbounded = CompensationSettings {
         max_correction_mm: f64::INFINITY,
         max_correction_rad: f64::INFINITY,
@@ -310,7 +312,7 @@ struct Needed {
 
 impl Needed {
     /// The change from pose `from` to pose `to`, and joints `q` against `reference`.
-    fn between<const N: usize>(from: &Pose, to: &Pose, q: &[f64; N], reference: &[f64; N]) -> Self {
+    fn between(from: &Pose, to: &Pose, q: &JointVec<f64>, reference: &JointVec<f64>) -> Self {
         let (joint, joint_change_rad) = q
             .iter()
             .zip(reference)
@@ -351,25 +353,25 @@ impl Needed {
 /// nearest configuration on the workspace boundary
 /// ([`calib_core::kinematics::ik::nearest_configurations`]): the method says how far it is from
 /// the target, and the compensation finds out whether the actual robot reaches it.
-fn closed_form<const N: usize>(
-    nominal: &Robot<f64, N>,
-    planned: &Kinematics<f64, N>,
+fn closed_form(
+    nominal: &Robot<f64, Dyn>,
+    planned: &Kinematics<f64, Dyn>,
     target: &Pose,
     branch: usize,
-) -> Option<Result<ClosedForm<N>, String>> {
+) -> Option<Result<ClosedForm, String>> {
     // Only 6-joint robots have one: the same robot as a Robot<f64, 6>.
-    let six = Robot::<f64, 6> {
-        joints: nominal.joints.as_slice().try_into().ok()?,
-        limits: nominal.limits.as_slice().try_into().ok()?,
+    let six = Robot::<f64, nalgebra::U6> {
+        joints: <[_; 6]>::try_from(&nominal.joints[..]).ok()?,
+        limits: <[_; 6]>::try_from(&nominal.limits[..]).ok()?,
         base: nominal.base,
         tool: nominal.tool,
     };
-    let on_branch = |solutions: [Option<[f64; 6]>; BRANCHES]| -> Option<[f64; N]> {
+    let on_branch = |solutions: [Option<[f64; 6]>; BRANCHES]| -> Option<JointVec<f64>> {
         solutions
             .get(branch)
             .copied()
             .flatten()
-            .and_then(|q| q.as_slice().try_into().ok())
+            .and_then(|q| JointVec::from_slice(&q))
     };
     match inverse_kinematics(&six, target) {
         Ok(solutions) => {
@@ -417,14 +419,14 @@ pub const RETRY_SPREAD_RAD: f64 = 0.02;
 /// from [`RETRIES`] points near `start` (the bounds always apply to the change from `start`).
 /// A refusal says why; for a correction beyond the bounds, how large it is and which flag raises
 /// the bound.
-pub fn compensate_target<const N: usize>(
-    planned: &Kinematics<f64, N>,
-    real: &impl ActualRobot<f64, N>,
-    limits: &[calib_core::JointLimits<f64>; N],
+pub fn compensate_target(
+    planned: &Kinematics<f64, Dyn>,
+    real: &impl ActualRobot<f64, Dyn>,
+    limits: &JointVec<calib_core::JointLimits<f64>>,
     target: &Pose,
-    start: &[f64; N],
+    start: &JointVec<f64>,
     settings: &CompensationSettings<f64>,
-) -> Result<Compensated<f64, N>, String> {
+) -> Result<Compensated<f64, Dyn>, String> {
     let first = match compensate_joints_from(planned, real, limits, target, start, start, settings)
     {
         Ok(c) => return Ok(c),
@@ -444,7 +446,7 @@ pub fn compensate_target<const N: usize>(
     };
     for retry in 0..=RETRIES {
         // Retry 0: the start itself with the longer cap; then fixed spread directions.
-        let initial: [f64; N] = std::array::from_fn(|j| {
+        let initial = JointVec::<f64>::from_fn(start.len(), |j| {
             let direction = ((retry * 7 + j * 3) % 5) as f64 / 2.0 - 1.0;
             start[j] + RETRY_SPREAD_RAD * direction * retry as f64 / RETRIES as f64
         });
@@ -464,11 +466,11 @@ pub fn compensate_target<const N: usize>(
 
 /// The refusal of a correction beyond the bounds: the correction the actual robot needs, the
 /// bounds, and the flags that raise them.
-fn needed_correction<const N: usize>(
-    planned: &Kinematics<f64, N>,
-    real: &impl ActualRobot<f64, N>,
+fn needed_correction(
+    planned: &Kinematics<f64, Dyn>,
+    real: &impl ActualRobot<f64, Dyn>,
     target: &Pose,
-    start: &[f64; N],
+    start: &JointVec<f64>,
     longer: &CompensationSettings<f64>,
     settings: &CompensationSettings<f64>,
 ) -> String {
@@ -489,12 +491,12 @@ fn needed_correction<const N: usize>(
     )
 }
 
-/// The outcomes as CSV: `id, q1_deg..qN_deg, residual_mm, residual_deg, status, start` (`ok` or
+/// The outcomes of a robot of `joints` joints as CSV: `id, q1_deg..qN_deg, residual_mm, residual_deg, status, start` (`ok` or
 /// the error; a refused target leaves the joints and residuals empty).
-pub fn to_csv<const N: usize>(outcomes: &[TargetOutcome<N>]) -> anyhow::Result<Vec<u8>> {
+pub fn to_csv(outcomes: &[TargetOutcome], joints: usize) -> anyhow::Result<Vec<u8>> {
     let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header = vec!["id".to_string()];
-    header.extend((1..=N).map(|i| format!("q{i}_deg")));
+    header.extend((1..=joints).map(|i| format!("q{i}_deg")));
     header.extend(["residual_mm", "residual_deg", "status", "start"].map(String::from));
     writer.write_record(&header)?;
     for outcome in outcomes {
@@ -507,7 +509,7 @@ pub fn to_csv<const N: usize>(outcomes: &[TargetOutcome<N>]) -> anyhow::Result<V
                 row.push("ok".into());
             }
             Err(e) => {
-                row.extend(std::iter::repeat_n(String::new(), N + 2));
+                row.extend(std::iter::repeat_n(String::new(), joints + 2));
                 row.push(e.clone());
             }
         }

@@ -15,6 +15,8 @@
 //! component vanishes in every pose (on a UR, joint 2's tilt about the vertical axis) is not
 //! identified and stays zero.
 
+use calib_core::model::{JointCount, JointVec};
+use nalgebra::Dyn;
 use crate::JOINTS;
 use calib_core::{Kinematics, ParameterErrors, Robot};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -225,36 +227,45 @@ pub struct FileCompliance {
     pub gains: [f64; GAIN_COUNT],
 }
 
+/// `Ok` for a robot of [`JOINTS`] joints, the one the gravity model describes.
+fn check_joints(joints: usize) -> anyhow::Result<()> {
+    if joints != JOINTS {
+        anyhow::bail!(
+            "gravity compliance is modelled for {JOINTS}-joint robots; this robot has {joints} joints"
+        );
+    }
+    Ok(())
+}
+
 impl FileCompliance {
-    /// The core's model, in scalar `T`.
-    /// The core's model for a robot of `N` joints: refused unless `N` is [`JOINTS`] (the gains
-    /// are those of a 6R arm's joints 1 to 4).
-    pub fn to_core<T: calib_core::Real, const N: usize>(
+    /// The core's model, in scalar `T`, for a robot of `joints` joints: refused unless it has
+    /// [`JOINTS`] (the gains are those of a 6R arm's joints 1 to 4).
+    pub fn to_core<T: calib_core::Real>(
         &self,
-    ) -> anyhow::Result<calib_core::model::compliance::Compliance<T, N>> {
-        self.gravity.to_core(&self.gains)
+        joints: usize,
+    ) -> anyhow::Result<calib_core::model::compliance::Compliance<T, Dyn>> {
+        self.gravity.to_core(&self.gains, joints)
     }
 }
 
 impl Gravity {
     /// The core's model of these masses with `gains` (urad/(N m), in the order of [`GAINS`]), in
     /// scalar `T`: what the controller evaluates (`calib_core::model::compliance`), for a robot
-    /// of `N` joints; refused unless `N` is [`JOINTS`].
-    pub fn to_core<T: calib_core::Real, const N: usize>(
+    /// of `joints` joints; refused unless it has [`JOINTS`].
+    pub fn to_core<T: calib_core::Real>(
         &self,
         gains: &[f64; GAIN_COUNT],
-    ) -> anyhow::Result<calib_core::model::compliance::Compliance<T, N>> {
-        if N != JOINTS {
-            anyhow::bail!(
-                "gravity compliance is modelled for {JOINTS}-joint robots; this robot has {N} joints"
-            );
-        }
+        joints: usize,
+    ) -> anyhow::Result<calib_core::model::compliance::Compliance<T, Dyn>> {
+        check_joints(joints)?;
         use calib_core::model::compliance::{Compliance, PointMass, TILT_X, TILT_Y, TORSION};
         let mass = |(m, c): &(f64, Vector3<f64>)| PointMass {
             mass_kg: T::of(*m),
             centre_mm: [T::of(c.x), T::of(c.y), T::of(c.z)],
         };
-        let mut per_joint = [[T::zero(); 3]; N];
+        let count = calib_core::model::joint_count(joints)
+            .ok_or_else(|| anyhow::anyhow!("{joints} joints are too many"))?;
+        let mut per_joint = count.table([T::zero(); 3]);
         for (gain, value) in GAINS.iter().zip(gains) {
             let (j, axis) = match gain {
                 Gain::TiltX(j) => (j, TILT_X),
@@ -266,9 +277,13 @@ impl Gravity {
             }
         }
         let none = (0.0, Vector3::zeros());
+        let mut links = count.table(PointMass::none());
+        for (j, link) in links.iter_mut().enumerate() {
+            *link = mass(self.links.get(j).unwrap_or(&none));
+        }
         Ok(Compliance::new(
             [self.gravity.x, self.gravity.y, self.gravity.z].map(T::of),
-            std::array::from_fn(|j| mass(self.links.get(j).unwrap_or(&none))),
+            links,
             mass(&self.tool),
             per_joint,
         )?)
@@ -279,17 +294,13 @@ impl Gravity {
 /// urad/(N m) at kinematic joint angles `q` (rad), for the model `robot + errors` (in whatever
 /// frames it is given: gravity is turned by its base rotation). Error: a robot of other than
 /// [`JOINTS`] joints (the gravity model has one mass per joint of a 6-joint robot).
-pub fn columns<const N: usize>(
+pub fn columns(
     gravity: &Gravity,
-    robot: &Robot<f64, N>,
-    errors: &ParameterErrors<f64, N>,
-    q: &[f64; N],
+    robot: &Robot<f64, Dyn>,
+    errors: &ParameterErrors<f64, Dyn>,
+    q: &JointVec<f64>,
 ) -> anyhow::Result<[[f64; 6]; GAIN_COUNT]> {
-    if N != JOINTS {
-        anyhow::bail!(
-            "gravity compliance is modelled for {JOINTS}-joint robots; this robot has {N} joints"
-        );
-    }
+    check_joints(robot.joints.len())?;
     let kinematics = Kinematics::new(robot, errors)?;
     let base = kinematics.base();
     let mut frame = Isometry3::from_parts(
@@ -304,7 +315,7 @@ pub fn columns<const N: usize>(
     };
     // frames[j]: the frame joint j + 1 turns in; frames[N]: the flange.
     let mut frames = vec![frame];
-    for ((joint, e), qj) in robot.joints.iter().zip(&errors.joints).zip(q) {
+    for ((joint, e), qj) in robot.joints.iter().zip(&errors.joints).zip(q.iter()) {
         frame *= turn(&Vector3::z_axis(), qj + joint.theta_offset + e.dtheta)
             * Isometry3::translation(joint.a + e.da, 0.0, joint.d + e.dd)
             * turn(&Vector3::x_axis(), joint.alpha + e.dalpha)
@@ -320,7 +331,7 @@ pub fn columns<const N: usize>(
         .map(|((m, c), f)| (*m, (f * Point3::from(*c)).coords))
         .chain(std::iter::once((
             gravity.tool.0,
-            (frames[N] * Point3::from(gravity.tool.1)).coords,
+            (frames[robot.joints.len()] * Point3::from(gravity.tool.1)).coords,
         )))
         .collect();
     let mut out = [[0.0; 6]; GAIN_COUNT];
@@ -368,7 +379,7 @@ mod tests {
     #[test]
     fn the_core_deflects_as_the_identification_models() {
         use rand::{RngExt, SeedableRng};
-        let model = crate::robot_file::RobotModel::<JOINTS>::load(std::path::Path::new(concat!(
+        let model = crate::robot_file::RobotModel::load(std::path::Path::new(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/robots/ur10.toml"
         )))
@@ -384,16 +395,16 @@ mod tests {
             xyz: [10.0, -5.0, 120.0],
             rpy: [0.0; 3],
         };
-        let mut errors = ParameterErrors::zero();
+        let mut errors = ParameterErrors::zeros_for(robot.joint_count());
         errors.joints[1].da = 0.7;
         errors.joints[2].dtheta = 1e-3;
         let gains = [4.0, -3.0, 2.5, 1.5, 0.0, 3.0, -2.0, 1.0, 6.0, 4.0, -5.0];
-        let core = gravity.to_core::<f64, JOINTS>(&gains).unwrap();
+        let core = gravity.to_core::<f64>(&gains, JOINTS).unwrap();
         let kinematics = Kinematics::new(&robot, &errors).unwrap();
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(14);
         let (mut worst_v, mut worst_w, mut largest) = (0.0f64, 0.0f64, 0.0f64);
         for _ in 0..1000 {
-            let q: [f64; JOINTS] = std::array::from_fn(|_| rng.random_range(-3.1..3.1));
+            let q = JointVec::<f64>::from_fn(JOINTS, |_| rng.random_range(-3.1..3.1));
             let expected = displacement(&columns(&gravity, &robot, &errors, &q).unwrap(), &gains);
             let (_, d) = core.deflect(&kinematics, &q).unwrap();
             let v = Vector3::new(expected[0], expected[1], expected[2]);
@@ -415,7 +426,7 @@ mod tests {
     #[test]
     fn a_horizontal_arm_sags_by_the_closed_form() {
         // The UR10 (DH base frame, z up) at zero: the upper arm lies along -x.
-        let robot = crate::robot_file::RobotModel::<JOINTS>::load(std::path::Path::new(concat!(
+        let robot = crate::robot_file::RobotModel::load(std::path::Path::new(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/robots/ur10.toml"
         )))
@@ -430,8 +441,9 @@ mod tests {
             tool: (0.0, Vector3::zeros()),
         };
         // Upper arm horizontal (q2 = 0), forearm along it (q3 = 0).
-        let q = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
-        let c = columns(&gravity, &robot, &ParameterErrors::zero(), &q).unwrap();
+        let q = JointVec::<f64>::from_fn(JOINTS, |_| 0.0);
+        let errors = ParameterErrors::zeros_for(robot.joint_count());
+        let c = columns(&gravity, &robot, &errors, &q).unwrap();
         // Moment about joint 2: 10 kg * 9.81 * 0.612 m = 60.04 N m about the horizontal axis.
         let torsion = c[2];
         let w = Vector3::new(torsion[3], torsion[4], torsion[5]).norm();

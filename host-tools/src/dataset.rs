@@ -2,6 +2,8 @@
 //! the core's units and types (mm, rad, [`Measurement`]), read from files or built in memory;
 //! and the held-out split used for validation.
 
+use calib_core::model::JointVec;
+use nalgebra::Dyn;
 use crate::JOINTS;
 use crate::profile::DataProfile;
 use crate::robot_file::{RobotFile, RobotModel};
@@ -16,18 +18,18 @@ use std::path::{Path, PathBuf};
 ///
 /// `N` is the robot's joint count (the robot file's; 6 unless said).
 #[derive(Clone)]
-pub struct Dataset<const N: usize = JOINTS> {
+pub struct Dataset {
     /// The robot file as read.
     pub file: RobotFile,
     /// The robot in core units, with its identification mask.
-    pub model: RobotModel<N>,
+    pub model: RobotModel,
     /// The data file as read.
     pub data: TrackerData,
     /// One core measurement per data row.
-    pub measurements: Vec<Measurement<f64, N>>,
+    pub measurements: Vec<Measurement<f64, Dyn>>,
 }
 
-impl<const N: usize> Dataset<N> {
+impl Dataset {
     /// A dataset from poses held in memory (joints in rad, positions in mm, rotations as
     /// matrices); `base_frame` says the positions are already in the robot's base frame. The same
     /// checks as for files apply; lines in messages are the 1-based index of the pose.
@@ -74,18 +76,19 @@ impl<const N: usize> Dataset<N> {
 
     /// Checks the data against the robot and converts them for the core.
     fn from_parts(file: RobotFile, robot: &Path, data_file: TrackerData) -> anyhow::Result<Self> {
-        let model: RobotModel<N> = file.to_model(robot)?;
-        if N != JOINTS && file.compliance.is_some() {
+        let model: RobotModel = file.to_model(robot)?;
+        let joints = model.robot.joints.len();
+        if joints != JOINTS && file.compliance.is_some() {
             bail!(
-                "{}: gravity compliance is modelled for {JOINTS}-joint robots; this robot has {N} joints: remove [compliance]",
+                "{}: gravity compliance is modelled for {JOINTS}-joint robots; this robot has {joints} joints: remove [compliance]",
                 robot.display()
             );
         }
         let data = data_file.path.clone();
         let data = data.as_path();
-        if data_file.joints != N {
+        if data_file.joints != joints {
             bail!(
-                "{}:{}: has {} joint columns, the robot {} has {N} joints",
+                "{}:{}: has {} joint columns, the robot {} has {joints} joints",
                 data.display(),
                 data_file.header_line,
                 data_file.joints,
@@ -100,7 +103,7 @@ impl<const N: usize> Dataset<N> {
         }
         let mut measurements = Vec::with_capacity(data_file.records.len());
         for r in &data_file.records {
-            let q: [f64; N] = std::array::from_fn(|i| r.q[i]);
+            let q = JointVec::<f64>::from_fn(r.q.len(), |i| r.q[i]);
             for (i, (qi, limits)) in q.iter().zip(&model.robot.limits).enumerate() {
                 if !limits.contains(*qi) {
                     bail!(
@@ -140,7 +143,7 @@ impl<const N: usize> Dataset<N> {
     pub fn with_maps(&self, maps: &crate::joint_maps::JointMaps) -> anyhow::Result<Self> {
         let mut out = self.clone();
         for (m, r) in out.measurements.iter_mut().zip(&self.data.records) {
-            let q: [f64; N] = std::array::from_fn(|j| r.q[j]);
+            let q = JointVec::<f64>::from_fn(r.q.len(), |j| r.q[j]);
             *m = Measurement::new(
                 &maps.apply(&q),
                 Vector3::from(r.position),
@@ -158,15 +161,15 @@ impl<const N: usize> Dataset<N> {
     /// evaluated at the kinematic angles (the readings with the maps).
     pub fn without_compliance(
         &self,
-        robot: &calib_core::Robot<f64, N>,
-        errors: &calib_core::ParameterErrors<f64, N>,
+        robot: &calib_core::Robot<f64, Dyn>,
+        errors: &calib_core::ParameterErrors<f64, Dyn>,
         maps: Option<&crate::joint_maps::JointMaps>,
         gravity: &crate::compliance::Gravity,
         gains: &[f64; crate::compliance::GAIN_COUNT],
     ) -> anyhow::Result<Self> {
         let mut out = self.clone();
         for (m, r) in out.measurements.iter_mut().zip(&self.data.records) {
-            let q: [f64; N] = std::array::from_fn(|j| r.q.get(j).copied().unwrap_or(0.0));
+            let q = JointVec::<f64>::from_fn(r.q.len(), |j| r.q.get(j).copied().unwrap_or(0.0));
             let angles = maps.map_or(q, |maps| maps.apply(&q));
             let columns = crate::compliance::columns(gravity, robot, errors, &angles)?;
             let d = crate::compliance::displacement(&columns, gains);
@@ -187,8 +190,8 @@ impl<const N: usize> Dataset<N> {
     /// times its relative change).
     pub fn without_file_compliance(
         &self,
-        robot: &calib_core::Robot<f64, N>,
-        errors: &calib_core::ParameterErrors<f64, N>,
+        robot: &calib_core::Robot<f64, Dyn>,
+        errors: &calib_core::ParameterErrors<f64, Dyn>,
     ) -> anyhow::Result<Self> {
         let Some(compliance) = self.file.gravity_compliance(&self.model.path)? else {
             return Ok(self.clone());
@@ -315,11 +318,11 @@ impl<const N: usize> Dataset<N> {
 
 /// Splits `inputs` into calibration and validation poses: `fraction` of the poses, chosen at
 /// random with `seed` (deterministic), are held out.
-pub fn split<const N: usize>(
-    dataset: &Dataset<N>,
+pub fn split(
+    dataset: &Dataset,
     fraction: f64,
     seed: u64,
-) -> anyhow::Result<(Dataset<N>, Dataset<N>)> {
+) -> anyhow::Result<(Dataset, Dataset)> {
     if !(fraction > 0.0 && fraction < 1.0) {
         anyhow::bail!("--validate must be a fraction between 0 and 1, got {fraction}");
     }

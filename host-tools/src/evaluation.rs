@@ -31,14 +31,14 @@ pub struct Evaluation {
 /// statistics), or on all poses (then the statistics include
 /// them, which flatters the model). With only the base fitted, an identified file's probe stays
 /// the tool (`probe_kept`).
-pub fn evaluate<const N: usize>(
-    dataset: &Dataset<N>,
+pub fn evaluate(
+    dataset: &Dataset,
     frames: Frames,
     fit_poses: Option<usize>,
     seed: u64,
 ) -> anyhow::Result<Evaluation> {
     let k = calib_core::identify::objective::DEFAULT_K;
-    let zero = calib_core::ParameterErrors::zero();
+    let zero = calib_core::ParameterErrors::zeros_for(dataset.model.robot.joint_count());
     let n = dataset.measurements.len();
     let with_probe;
     let dataset = match dataset.with_identified_probe(frames)? {

@@ -5,6 +5,7 @@
 //! robot file (TOML) or JSON; the geometry as a URDF or a UR kinematics YAML; and the f64 -> f32
 //! model cast the controller's single-precision core needs.
 
+use nalgebra::Dyn;
 use crate::JOINTS;
 use crate::compliance::FileCompliance;
 use crate::joint_maps::{JointMaps, MAX_FILE_HARMONICS};
@@ -43,8 +44,8 @@ pub enum BlockScalar {
 /// With maps or compliance the block is version 2 with the maps' harmonics (and the compliance
 /// section); a controller reads it when built with room for at least as many harmonics (the
 /// reference firmware: 64).
-pub fn parameter_block<const N: usize>(
-    robot: &calib_core::Robot<f64, N>,
+pub fn parameter_block(
+    robot: &calib_core::Robot<f64, Dyn>,
     maps: Option<&JointMaps>,
     compliance: Option<&FileCompliance>,
     scalar: BlockScalar,
@@ -62,19 +63,19 @@ pub fn parameter_block<const N: usize>(
 }
 
 /// The version 1 parameter block of `robot` (geometry, limits, frames) of any joint count.
-pub fn geometry_block<const N: usize>(
-    robot: &calib_core::Robot<f64, N>,
+pub fn geometry_block(
+    robot: &calib_core::Robot<f64, Dyn>,
     scalar: BlockScalar,
     sequence: u32,
 ) -> anyhow::Result<Vec<u8>> {
     Ok(match scalar {
         BlockScalar::F64 => {
-            let mut buffer = vec![0u8; storage::block_len::<f64, N>()];
+            let mut buffer = vec![0u8; storage::block_len::<f64>(robot.joints.len())];
             storage::encode(robot, sequence, &mut buffer)?;
             buffer
         }
         BlockScalar::F32 => {
-            let mut buffer = vec![0u8; storage::block_len::<f32, N>()];
+            let mut buffer = vec![0u8; storage::block_len::<f32>(robot.joints.len())];
             storage::encode(&to_f32(robot), sequence, &mut buffer)?;
             buffer
         }
@@ -83,30 +84,35 @@ pub fn geometry_block<const N: usize>(
 
 /// The controller's model in scalar `T`: `robot`, the maps (zero without) and the compliance
 /// (none without).
-pub fn controller_model<T: calib_core::Real, const N: usize>(
-    robot: calib_core::Robot<T, N>,
+pub fn controller_model<T: calib_core::Real>(
+    robot: calib_core::Robot<T, Dyn>,
     maps: Option<&JointMaps>,
     compliance: Option<&FileCompliance>,
-) -> anyhow::Result<ControllerModel<T, N, MAX_FILE_HARMONICS>> {
+) -> anyhow::Result<ControllerModel<T, Dyn, MAX_FILE_HARMONICS>> {
+    let joints = robot.joints.len();
     let mut model = ControllerModel::geometric(robot);
     if let Some(maps) = maps {
-        model.maps = maps.to_core::<T, N, MAX_FILE_HARMONICS>()?;
+        model.maps = maps.to_core::<T, MAX_FILE_HARMONICS>()?;
     }
     if let Some(compliance) = compliance {
-        model.compliance = compliance.to_core::<T, N>()?;
+        model.compliance = compliance.to_core::<T>(joints)?;
     }
     Ok(model)
 }
 
 /// A version 2 block of `model`.
-fn model_block<T: calib_core::Real, const N: usize>(
-    model: ControllerModel<T, N, MAX_FILE_HARMONICS>,
+fn model_block<T: calib_core::Real>(
+    model: ControllerModel<T, Dyn, MAX_FILE_HARMONICS>,
     sequence: u32,
 ) -> anyhow::Result<Vec<u8>> {
     let mut buffer =
         vec![
             0u8;
-            storage::model_block_len::<T, N>(model.maps.harmonics(), model.compliance.is_active())
+            storage::model_block_len::<T>(
+                model.robot.joints.len(),
+                model.maps.harmonics(),
+                model.compliance.is_active()
+            )
         ];
     storage::encode_model(&model, sequence, &mut buffer)?;
     Ok(buffer)
@@ -117,9 +123,9 @@ fn model_block<T: calib_core::Real, const N: usize>(
 /// exported as its geometry alone, also for the UR YAML). The block carries the joint maps of any
 /// joint count and the gravity compliance of a 6-joint robot; the UR kinematics file is for
 /// 6-joint robots.
-pub fn export<const N: usize>(
+pub fn export(
     file: &RobotFile,
-    model: &RobotModel<N>,
+    model: &RobotModel,
     format: ExportFormat,
     scalar: BlockScalar,
     sequence: u32,
@@ -151,9 +157,10 @@ pub fn export<const N: usize>(
             sequence,
         )?,
         ExportFormat::UrKinematicsYaml => {
-            if N != JOINTS {
+            let joints = model.robot.joints.len();
+            if joints != JOINTS {
                 anyhow::bail!(
-                    "{source}: a UR kinematics file describes a {JOINTS}-joint UR robot; this one has {N} joints"
+                    "{source}: a UR kinematics file describes a {JOINTS}-joint UR robot; this one has {joints} joints"
                 );
             }
             geometry("a UR kinematics file")?;
@@ -171,9 +178,9 @@ pub fn export<const N: usize>(
 
 /// The formats of the geometry alone, for any joint count: the version 1 block, TOML, JSON and
 /// a URDF (the UR kinematics file describes a 6-joint UR robot: other counts are refused).
-fn geometry_formats<const N: usize>(
+fn geometry_formats(
     file: &RobotFile,
-    model: &RobotModel<N>,
+    model: &RobotModel,
     format: ExportFormat,
     scalar: BlockScalar,
     sequence: u32,
@@ -186,13 +193,14 @@ fn geometry_formats<const N: usize>(
         ExportFormat::Json => serde_json::to_vec_pretty(file)?,
         ExportFormat::Urdf => crate::urdf::urdf(&model.robot, urdf, &source)?.into_bytes(),
         ExportFormat::UrKinematicsYaml => anyhow::bail!(
-            "{source}: a UR kinematics file describes a {JOINTS}-joint UR robot; this one has {N} joints"
+            "{source}: a UR kinematics file describes a {JOINTS}-joint UR robot; this one has {} joints",
+            model.robot.joints.len()
         ),
     })
 }
 
 /// The model rounded to single precision (limits stay infinite where they are).
-pub fn to_f32<const N: usize>(robot: &calib_core::Robot<f64, N>) -> calib_core::Robot<f32, N> {
+pub fn to_f32(robot: &calib_core::Robot<f64, Dyn>) -> calib_core::Robot<f32, Dyn> {
     let f = |v: f64| v as f32;
     calib_core::Robot {
         joints: robot.joints.map(|j| calib_core::MdhJoint {

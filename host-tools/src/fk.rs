@@ -1,5 +1,6 @@
 //! `calib fk`: the end pose of a robot model for given joint readings.
 
+use calib_core::model::JointVec;
 use crate::robot_file::RobotModel;
 use anyhow::{Context, bail};
 use calib_core::math::so3;
@@ -48,18 +49,19 @@ impl FkOutput {
 }
 
 /// Forward kinematics of the nominal model in `model` for joint readings in degrees.
-pub fn forward_deg<const N: usize>(
-    model: &RobotModel<N>,
+pub fn forward_deg(
+    model: &RobotModel,
     joints_deg: &[f64],
 ) -> anyhow::Result<FkOutput> {
-    if joints_deg.len() != N {
+    let joints = model.robot.joints.len();
+    if joints_deg.len() != joints {
         bail!(
-            "--joints-deg has {} values, the robot {} has {N} joints",
+            "--joints-deg has {} values, the robot {} has {joints} joints",
             joints_deg.len(),
             model.name
         );
     }
-    let mut q = [0.0; N];
+    let mut q = JointVec::<f64>::from_fn(joints, |_| 0.0);
     for (i, (qi, deg)) in q.iter_mut().zip(joints_deg).enumerate() {
         if !deg.is_finite() {
             bail!("--joints-deg: q{} = {deg} is not a finite number", i + 1);
@@ -86,19 +88,19 @@ pub fn forward_deg<const N: usize>(
 /// [`forward_deg`] of a model with gravity compliance: the end pose moved by the displacement of
 /// `gains` (urad/(N m)) under `gravity` ([`crate::compliance`]) at the same joint angles (degrees;
 /// the kinematic angles when the model has joint maps).
-pub fn forward_deg_compliant<const N: usize>(
-    model: &RobotModel<N>,
+pub fn forward_deg_compliant(
+    model: &RobotModel,
     joints_deg: &[f64],
     gravity: &crate::compliance::Gravity,
     gains: &[f64; crate::compliance::GAIN_COUNT],
 ) -> anyhow::Result<FkOutput> {
     forward_deg(model, joints_deg)?;
-    let q: [f64; N] = std::array::from_fn(|j| joints_deg[j].to_radians());
+    let q = JointVec::<f64>::from_fn(joints_deg.len(), |j| joints_deg[j].to_radians());
     let mut pose = Kinematics::nominal(&model.robot)?.forward(&q)?;
     let columns = crate::compliance::columns(
         gravity,
         &model.robot,
-        &calib_core::ParameterErrors::zero(),
+        &calib_core::ParameterErrors::zeros_for(model.robot.joint_count()),
         &q,
     )?;
     let d = crate::compliance::displacement(&columns, gains);

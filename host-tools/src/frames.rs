@@ -10,6 +10,7 @@
 //! `R_j t = R_base^T (m_j - p_base) - p_j`. For 6-DoF data the tool rotation is then the
 //! rotation nearest to the mean of `(R_base R_j)^T R_measured,j`.
 
+use nalgebra::Dyn;
 use crate::robot_file::{FrameEntry, RobotFile};
 use anyhow::Context;
 use calib_core::identify::objective::Measurement;
@@ -146,9 +147,9 @@ pub fn nearest_rotation(m: &Matrix3<f64>) -> Option<Rotation3<f64>> {
 
 /// Registers the nominal robot (frames ignored: base and tool are identity) onto measurements
 /// in the tracker's frame. With `identify_tool == false` the robot's own tool is kept.
-pub fn register<const N: usize>(
-    robot: &Robot<f64, N>,
-    measurements: &[Measurement<f64, N>],
+pub fn register(
+    robot: &Robot<f64, Dyn>,
+    measurements: &[Measurement<f64, Dyn>],
     identify_tool: bool,
 ) -> Result<Registration, RegistrationError> {
     let mut bare = *robot;
@@ -227,9 +228,9 @@ fn tool_point_determined(flanges: &[calib_core::Pose<f64>]) -> bool {
 
 /// The tool rotation on the flange for 6-DoF data: the rotation nearest to the mean of
 /// `(R_base R_j)^T R_measured,j` (identity for position-only data).
-fn tool_rotation<const N: usize>(
+fn tool_rotation(
     flanges: &[calib_core::Pose<f64>],
-    measurements: &[Measurement<f64, N>],
+    measurements: &[Measurement<f64, Dyn>],
     base_rotation: &Rotation3<f64>,
 ) -> Rotation3<f64> {
     let mut sum = Matrix3::zeros();
@@ -297,14 +298,14 @@ pub fn with_registration(file: &RobotFile, registration: &Registration, tool: bo
 /// joint N after its rotation (`da6, dd6, dalpha6, dbeta6, dtheta6` are a constant transform on
 /// the flange, like the tool). `full_pose`: the tool's rotations are identified too (6-DoF data).
 /// Returns the mask and the joint parameters removed.
-pub fn mask_with_frames<const N: usize>(
-    mask: &ParameterMask<N>,
+pub fn mask_with_frames(
+    mask: &ParameterMask<Dyn>,
     frames: Frames,
     full_pose: bool,
-) -> (ParameterMask<N>, Vec<Parameter>) {
+) -> (ParameterMask<Dyn>, Vec<Parameter>) {
     let mut out = *mask;
     let mut removed = Vec::new();
-    let mut remove = |out: &mut ParameterMask<N>, p: Parameter| {
+    let mut remove = |out: &mut ParameterMask<Dyn>, p: Parameter| {
         if out.contains(p) {
             out.set(p, false);
             removed.push(p);
@@ -326,7 +327,7 @@ pub fn mask_with_frames<const N: usize>(
             remove(
                 &mut out,
                 Parameter::Joint {
-                    joint: N as u8,
+                    joint: u8::try_from(mask.joint_count().0).unwrap_or(u8::MAX),
                     kind,
                 },
             );
@@ -362,7 +363,7 @@ mod tests {
     #[test]
     fn implausible_measured_frames_are_blamed_on_the_data_not_the_robot_file() {
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-        let dataset = crate::dataset::Dataset::<6>::load(
+        let dataset = crate::dataset::Dataset::load(
             &root.join("robots/er10l-c10.toml"),
             &root.join("data/er10l-c10-sim32.csv"),
         )
@@ -422,11 +423,11 @@ pub struct FramesReport {
 /// The model of `file`, whose frames were `how` (registered or fitted) from the data of
 /// `inputs`: frames beyond the plausible ranges of a robot file are blamed on the data, not on the
 /// robot file (which holds the nominal frames).
-fn measured_model<const N: usize>(
+fn measured_model(
     file: &RobotFile,
-    inputs: &crate::dataset::Dataset<N>,
+    inputs: &crate::dataset::Dataset,
     how: &str,
-) -> anyhow::Result<crate::robot_file::RobotModel<N>> {
+) -> anyhow::Result<crate::robot_file::RobotModel> {
     file.to_model(&inputs.model.path).map_err(|e| match e {
         crate::robot_file::RobotFileError::Invalid { message, .. } => anyhow::anyhow!(
             "{}: the tracker and tool frames {how} from these data are not physically plausible ({message}). \
@@ -444,12 +445,12 @@ fn measured_model<const N: usize>(
 /// the robot of `inputs` (and of `others`, e.g. validation poses in the same tracker frame) by the
 /// nominal geometry with the fitted frames. Returns the report and the mask of identified
 /// parameters with the frames.
-pub fn prepare<const N: usize>(
+pub fn prepare(
     frames: Frames,
-    inputs: &mut crate::dataset::Dataset<N>,
-    others: &mut [&mut crate::dataset::Dataset<N>],
+    inputs: &mut crate::dataset::Dataset,
+    others: &mut [&mut crate::dataset::Dataset],
     k: f64,
-) -> anyhow::Result<(FramesReport, ParameterMask<N>)> {
+) -> anyhow::Result<(FramesReport, ParameterMask<Dyn>)> {
     let full_pose = inputs.measurements.iter().all(|m| m.rotation.is_some());
     let (mask, removed) = mask_with_frames(&inputs.model.mask, frames, full_pose);
     if frames == Frames::None {
@@ -482,7 +483,7 @@ pub fn prepare<const N: usize>(
         );
     }
     let registered = with_registration(&inputs.file, &registration, frames.tool());
-    let mut frame_mask = ParameterMask::<N>::empty();
+    let mut frame_mask = ParameterMask::empty_for(mask.joint_count());
     for p in mask.iter() {
         if matches!(p, Parameter::Base(_) | Parameter::Tool(_)) {
             frame_mask.set(p, true);
@@ -532,8 +533,8 @@ pub fn prepare<const N: usize>(
 /// them within [`MAX_REGISTRATION_RMS_MM`]. Otherwise the error says what the data look like: in a
 /// tracker's frame (the registration fits), in other units (their spread is about 1000 times the
 /// model's), or wrong in another way.
-pub fn check_base_frame<const N: usize>(
-    dataset: &crate::dataset::Dataset<N>,
+pub fn check_base_frame(
+    dataset: &crate::dataset::Dataset,
 ) -> anyhow::Result<()> {
     let kinematics = Kinematics::nominal(&dataset.model.robot)?;
     let rms = crate::statistics::table3(&kinematics, dataset)
@@ -595,15 +596,15 @@ fn spread(points: &[Vector3<f64>]) -> f64 {
 }
 
 /// Least-squares fit of the frame parameters in `mask` alone (nominal geometry).
-fn fit_frames<const N: usize>(
-    inputs: &crate::dataset::Dataset<N>,
-    mask: &ParameterMask<N>,
+fn fit_frames(
+    inputs: &crate::dataset::Dataset,
+    mask: &ParameterMask<Dyn>,
     k: f64,
-) -> anyhow::Result<calib_core::ParameterErrors<f64, N>> {
-    let set = calib_core::ParameterSet::<N, nalgebra::Dyn>::from_mask(mask)?;
+) -> anyhow::Result<calib_core::ParameterErrors<f64, Dyn>> {
+    let set = calib_core::ParameterSet::<Dyn, nalgebra::Dyn>::from_mask(mask)?;
     let problem = calib_core::Problem::new(
         &inputs.model.robot,
-        &calib_core::ParameterErrors::zero(),
+        &calib_core::ParameterErrors::zeros_for(inputs.model.robot.joint_count()),
         set,
         &inputs.measurements,
         k,

@@ -3,6 +3,7 @@
 //! are confounded with (the core's [`Identifiability`]), and the least determined direction of an
 //! ill-conditioned pose set.
 
+use nalgebra::Dyn;
 use crate::dataset::Dataset;
 use anyhow::bail;
 use calib_core::identify::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability, Status};
@@ -73,11 +74,11 @@ impl ReflectorOnAxis {
 /// reflector moved onto the axis finds redundant are left out (on the Barrett WAM `dalpha6` and
 /// `dtheta6`, which then act like `dd6` and `da6`). The one rule `calibrate`, `check` and
 /// `verify` share; the analysis itself is private, so no caller can find it and not apply it.
-pub fn default_mask<const N: usize>(
-    dataset: &Dataset<N>,
-    mut mask: ParameterMask<N>,
+pub fn default_mask(
+    dataset: &Dataset,
+    mut mask: ParameterMask<Dyn>,
     k: f64,
-) -> anyhow::Result<(ParameterMask<N>, Option<ReflectorOnAxis>)> {
+) -> anyhow::Result<(ParameterMask<Dyn>, Option<ReflectorOnAxis>)> {
     let reflector = reflector_on_last_axis(dataset, &mask, k)?;
     for u in reflector.iter().flat_map(|r| &r.not_identified) {
         mask.set(u.parameter, false);
@@ -96,12 +97,12 @@ pub fn default_mask<const N: usize>(
 /// twist and zero of joint 6 left out; a subset of the poses may keep the twist instead).
 /// `None`: 6-DoF data (orientations tell them apart), no such parameter, or the reflector
 /// farther from the axis.
-fn reflector_on_last_axis<const N: usize>(
-    dataset: &Dataset<N>,
-    mask: &ParameterMask<N>,
+fn reflector_on_last_axis(
+    dataset: &Dataset,
+    mask: &ParameterMask<Dyn>,
     k: f64,
 ) -> anyhow::Result<Option<ReflectorOnAxis>> {
-    if N == 0 || dataset.measurements.iter().any(|m| m.rotation.is_some()) {
+    if dataset.measurements.iter().any(|m| m.rotation.is_some()) {
         return Ok(None);
     }
     let robot = &dataset.model.robot;
@@ -112,7 +113,7 @@ fn reflector_on_last_axis<const N: usize>(
     // The reflector at three turns of the last joint (within any limits of +-120 deg or more):
     // the centre of their circle is on the axis, its radius the distance from the axis.
     let turns = [-2.0, 0.0, 2.0].map(|third: f64| third * std::f64::consts::FRAC_PI_3);
-    let mut q = [0.0; N];
+    let mut q = calib_core::model::JointVec::<f64>::from_fn(robot.joints.len(), |_| 0.0);
     let mut points = Vec::with_capacity(3);
     for turn in turns {
         if let Some(last) = q.last_mut() {
@@ -284,8 +285,8 @@ impl IdentifiabilityReport {
 
 /// The identifiability of the robot's identified parameters on `dataset`, with the frames
 /// identified as a calibration would (`frames`: `None` chooses from the data), at the nominal model.
-pub fn check<const N: usize>(
-    mut dataset: Dataset<N>,
+pub fn check(
+    mut dataset: Dataset,
     frames: Option<crate::frames::Frames>,
     k: f64,
 ) -> anyhow::Result<IdentifiabilityReport> {
@@ -298,9 +299,9 @@ pub fn check<const N: usize>(
 }
 
 /// The identifiability of the parameters selected by `mask` at the nominal model.
-pub fn analyse<const N: usize>(
-    dataset: &Dataset<N>,
-    mask: &ParameterMask<N>,
+pub fn analyse(
+    dataset: &Dataset,
+    mask: &ParameterMask<Dyn>,
     k: f64,
 ) -> anyhow::Result<IdentifiabilityReport> {
     let set = crate::dispatch::analysable_set(mask)?;
@@ -314,7 +315,7 @@ pub fn analyse<const N: usize>(
     }
     let problem = Problem::new(
         &dataset.model.robot,
-        &ParameterErrors::zero(),
+        &ParameterErrors::zeros_for(dataset.model.robot.joint_count()),
         set,
         &dataset.measurements,
         k,

@@ -6,6 +6,7 @@
 //! or inverted quaternions miss them by more. The check names the conventions under which the
 //! data would agree.
 
+use nalgebra::Dyn;
 use crate::dataset::Dataset;
 use crate::profile::EulerConvention;
 use crate::tracker_data::OrientationColumns;
@@ -92,7 +93,7 @@ fn median_disagreement_deg(flanges: &[Rotation3<f64>], rotations: &[Option<Matri
 
 /// Checks the orientations of `dataset` (read with the Euler convention `euler` when they are
 /// angle columns) against the nominal model; an error names the conventions that would agree.
-pub fn check<const N: usize>(dataset: &Dataset<N>, euler: &EulerConvention) -> anyhow::Result<()> {
+pub fn check(dataset: &Dataset, euler: &EulerConvention) -> anyhow::Result<()> {
     let rotations: Vec<Option<Matrix3<f64>>> =
         dataset.data.records.iter().map(|r| r.rotation).collect();
     if rotations.iter().filter(|r| r.is_some()).count() < 3 {
@@ -101,7 +102,7 @@ pub fn check<const N: usize>(dataset: &Dataset<N>, euler: &EulerConvention) -> a
     let mut bare = dataset.model.robot;
     bare.base = calib_core::FramePose::identity();
     bare.tool = calib_core::FramePose::identity();
-    let kinematics = Kinematics::<f64, N>::nominal(&bare)?;
+    let kinematics = Kinematics::<f64, Dyn>::nominal(&bare)?;
     let flanges: Vec<Rotation3<f64>> = dataset
         .measurements
         .iter()

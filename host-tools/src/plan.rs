@@ -22,6 +22,8 @@
 //! compliance, temperature) make the measured error larger, which `calibrate` flags when it
 //! compares the verification poses with the prediction ([`PlanCheck`]).
 
+use calib_core::model::JointVec;
+use nalgebra::Dyn;
 use crate::dataset::Dataset;
 use crate::frames::Frames;
 use crate::identifiability::analyse;
@@ -335,18 +337,18 @@ struct Information {
 /// The information of configurations `q` (rad) of the robot in `file` measured as `measure`:
 /// the frames identified as `calibrate` does on tracker data (`base+tool`), the robot file's
 /// identification set, less what the configurations cannot determine.
-fn information<const N: usize>(
+fn information(
     file: &RobotFile,
     robot_path: &std::path::Path,
     q: &[Vec<f64>],
     measure: Measure,
     k: f64,
 ) -> anyhow::Result<Information> {
-    let model = file.to_model::<N>(robot_path)?;
+    let model = file.to_model(robot_path)?;
     let nominal = Kinematics::nominal(&model.robot)?;
     let mut records = Vec::with_capacity(q.len());
     for (i, q) in q.iter().enumerate() {
-        let angles: [f64; N] = std::array::from_fn(|j| q.get(j).copied().unwrap_or(0.0));
+        let angles = JointVec::<f64>::from_fn(q.len(), |j| q.get(j).copied().unwrap_or(0.0));
         let pose = nominal
             .forward(&angles)
             .with_context(|| format!("candidate {}", i + 1))?;
@@ -361,7 +363,7 @@ fn information<const N: usize>(
         });
     }
     // In a tracker's frame (here the base frame itself), as the measured file will be.
-    let mut dataset = Dataset::<N>::from_records(file.clone(), records, false)?;
+    let mut dataset = Dataset::from_records(file.clone(), records, false)?;
     let frames = Frames::chosen(None, &dataset.data);
     let (_, mask) = crate::frames::prepare(frames, &mut dataset, &mut [], k)?;
     let (mut mask, _) = crate::identifiability::default_mask(&dataset, mask, k)?;
@@ -386,19 +388,19 @@ fn information<const N: usize>(
 
 /// The rows of one pose: the change of the measured position (mm) and, for `pose`, orientation
 /// (rad, times `sqrt(k)`) per mm or rad of each parameter, one parameter at a time.
-fn pose_rows<const N: usize>(
-    kinematics: &Kinematics<f64, N>,
+fn pose_rows(
+    kinematics: &Kinematics<f64, Dyn>,
     parameters: &[Parameter],
-    angles: &JointAngles<f64, N>,
+    angles: &JointAngles<f64, Dyn>,
     measure: Measure,
     k: f64,
 ) -> anyhow::Result<DMatrix<f64>> {
     let rows = measure.rows();
     let mut out = DMatrix::zeros(rows, parameters.len());
     for (j, p) in parameters.iter().enumerate() {
-        let mut one = ParameterMask::<N>::empty();
+        let mut one = ParameterMask::empty_for(kinematics.joint_count());
         one.set(*p, true);
-        let set = ParameterSet::<N, nalgebra::U1>::from_mask(&one)?;
+        let set = ParameterSet::<Dyn, nalgebra::U1>::from_mask(&one)?;
         let (_, twist) = kinematics.parameter_jacobian(&set, angles);
         for i in 0..rows {
             let scale = if i < 3 { 1.0 } else { k.sqrt() };
@@ -434,10 +436,10 @@ pub fn plan(
         );
     }
     let q: Vec<Vec<f64>> = candidates.iter().map(|(_, q)| q.clone()).collect();
-    let info = crate::with_joint_count!(
-        joints,
+    let info = {
+        crate::dispatch::joint_count(joints)?;
         information(file, robot_path, &q, settings.measure, settings.k)
-    )?;
+    }?;
     let parameters = info.parameters.len();
     let rows = settings.measure.rows();
     if settings.poses * rows <= parameters {
@@ -848,10 +850,10 @@ pub fn leverages(
     measure: Measure,
     k: f64,
 ) -> anyhow::Result<Vec<f64>> {
-    let info = crate::with_joint_count!(
-        file.joint.len(),
+    let info = {
+        crate::dispatch::joint_count(file.joint.len())?;
         information(file, robot_path, q, measure, k)
-    )?;
+    }?;
     let stacked = stack(info.rows.iter(), info.parameters.len());
     let Some(inverse) = (stacked.transpose() * &stacked)
         .cholesky()
@@ -876,25 +878,26 @@ pub fn generate(
     count: usize,
     box_mm: Option<[f64; 6]>,
 ) -> anyhow::Result<Vec<(String, Vec<f64>)>> {
-    crate::with_joint_count!(
-        file.joint.len(),
+    {
+        crate::dispatch::joint_count(file.joint.len())?;
         generate_joints(file, robot_path, count, box_mm)
-    )
+    }
 }
 
-fn generate_joints<const N: usize>(
+fn generate_joints(
     file: &RobotFile,
     robot_path: &std::path::Path,
     count: usize,
     box_mm: Option<[f64; 6]>,
 ) -> anyhow::Result<Vec<(String, Vec<f64>)>> {
-    if N > calib_core::identify::halton::MAX_DIMENSION {
+    let robot: Robot<f64, Dyn> = file.to_model(robot_path)?.robot;
+    let joints = robot.joints.len();
+    if joints > calib_core::identify::halton::MAX_DIMENSION {
         bail!(
             "--generate handles up to {} joints",
             calib_core::identify::halton::MAX_DIMENSION
         );
     }
-    let robot: Robot<f64, N> = file.to_model::<N>(robot_path)?.robot;
     let kinematics = Kinematics::nominal(&robot)?;
     let bounds: Vec<(f64, f64)> = robot
         .limits
@@ -902,7 +905,7 @@ fn generate_joints<const N: usize>(
         .map(|l| (l.lower.max(-PI), l.upper.min(PI)))
         .collect();
     let mut out = Vec::with_capacity(count);
-    let mut point = [0.0; N];
+    let mut point = vec![0.0; joints];
     for index in 1..=(count as u64).saturating_mul(100) {
         if out.len() == count {
             break;
@@ -912,8 +915,7 @@ fn generate_joints<const N: usize>(
             calib_core::identify::halton::Scrambling::None,
             &mut point,
         );
-        let q: [f64; N] =
-            std::array::from_fn(|j| bounds[j].0 + point[j] * (bounds[j].1 - bounds[j].0));
+        let q = JointVec::<f64>::from_fn(bounds.len(), |j| bounds[j].0 + point[j] * (bounds[j].1 - bounds[j].0));
         if let Some(b) = box_mm {
             let p = kinematics.forward(&q)?.translation.vector;
             let inside = (0..3).all(|a| (b[2 * a]..=b[2 * a + 1]).contains(&p[a]));

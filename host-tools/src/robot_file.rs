@@ -22,6 +22,8 @@
 //! `[[joint]]`; reading converts it exactly into our joints and frames ([`craig`]), and
 //! files written back (identified robots) are in our convention.
 
+use nalgebra::{Dim, Dyn};
+use calib_core::model::JointCount;
 use calib_core::{
     FramePose, JointLimits, JointParameter, MdhJoint, Parameter, ParameterErrors, ParameterMask,
     Robot,
@@ -212,15 +214,15 @@ pub struct CalibrationSection {
 
 /// A robot file checked and converted to the core's units (mm, rad).
 #[derive(Clone, Debug, PartialEq)]
-pub struct RobotModel<const N: usize> {
+pub struct RobotModel {
     /// Human-readable robot name.
     pub name: String,
     /// The file it came from.
     pub path: PathBuf,
     /// Nominal model in mm and rad.
-    pub robot: Robot<f64, N>,
+    pub robot: Robot<f64, Dyn>,
     /// Identification mask: the file's `identify` lists, or the default rule.
-    pub mask: ParameterMask<N>,
+    pub mask: ParameterMask<Dyn>,
 }
 
 impl RobotFile {
@@ -286,26 +288,29 @@ impl RobotFile {
         Ok(file)
     }
 
-    /// Checks the content and converts it for a robot of `N` joints.
-    pub fn to_model<const N: usize>(&self, path: &Path) -> Result<RobotModel<N>, RobotFileError> {
+    /// The joint count, checked against what the tool handles ([`crate::dispatch::JOINT_COUNTS`]).
+    pub fn joint_count(&self, path: &Path) -> Result<Dyn, RobotFileError> {
+        crate::dispatch::joint_count(self.joint.len()).map_err(|e| RobotFileError::Invalid {
+            path: path.to_owned(),
+            message: e.to_string(),
+        })
+    }
+
+    /// Checks the content and converts it to the core's model (mm, rad).
+    pub fn to_model(&self, path: &Path) -> Result<RobotModel, RobotFileError> {
         let invalid = |message: String| RobotFileError::Invalid {
             path: path.to_owned(),
             message,
         };
-        if self.joint.len() != N {
-            return Err(invalid(format!(
-                "has {} [[joint]] tables, expected {N} (this tool handles {N}-joint robots)",
-                self.joint.len()
-            )));
-        }
-        let mut joints = [MdhJoint {
+        let count = self.joint_count(path)?;
+        let mut joints = count.table(MdhJoint {
             a: 0.0,
             alpha: 0.0,
             theta_offset: 0.0,
             d: 0.0,
             beta: 0.0,
-        }; N];
-        let mut limits = [JointLimits::<f64>::unlimited(); N];
+        });
+        let mut limits = count.table(JointLimits::<f64>::unlimited());
         for (i, (entry, (joint, limit))) in self
             .joint
             .iter()
@@ -322,7 +327,7 @@ impl RobotFile {
         };
         robot.validate().map_err(|e| invalid(e.to_string()))?;
         if let Some(maps) = &self.joint_maps {
-            maps.to_maps(N).map_err(invalid)?;
+            maps.to_maps(count.value()).map_err(invalid)?;
         }
         if let Some(dynamics) = &self.dynamics {
             dynamics.to_gravity().map_err(invalid)?;
@@ -345,7 +350,7 @@ impl RobotFile {
     }
 
     /// The identification mask: the default rule, replaced per joint by its `identify` list.
-    fn mask<const N: usize>(&self, robot: &Robot<f64, N>) -> Result<ParameterMask<N>, String> {
+    fn mask(&self, robot: &Robot<f64, Dyn>) -> Result<ParameterMask<Dyn>, String> {
         let mut mask = ParameterMask::default_for(robot);
         for (i, entry) in self.joint.iter().enumerate() {
             let Some(names) = &entry.identify else {
@@ -531,7 +536,7 @@ impl RobotFile {
     }
 }
 
-impl<const N: usize> RobotModel<N> {
+impl RobotModel {
     /// Reads, checks and converts the robot file at `path`.
     pub fn load(path: &Path) -> Result<Self, RobotFileError> {
         RobotFile::read(path)?.to_model(path)
@@ -540,20 +545,12 @@ impl<const N: usize> RobotModel<N> {
 
 impl RobotFile {
     /// The errors of the `[calibration]` section for an N-joint robot (zero when absent).
-    pub fn calibration_errors<const N: usize>(
+    pub fn calibration_errors(
         &self,
         path: &Path,
-    ) -> Result<ParameterErrors<f64, N>, RobotFileError> {
-        let mut errors = ParameterErrors::zero();
-        if self.joint.len() != N {
-            return Err(RobotFileError::Invalid {
-                path: path.to_owned(),
-                message: format!(
-                    "has {} [[joint]] tables, expected {N} (the robot calibrated has {N} joints)",
-                    self.joint.len()
-                ),
-            });
-        }
+    ) -> Result<ParameterErrors<f64, Dyn>, RobotFileError> {
+        let count = self.joint_count(path)?;
+        let mut errors = ParameterErrors::zeros_for(count);
         let Some(section) = &self.calibration else {
             return Ok(errors);
         };
@@ -562,7 +559,7 @@ impl RobotFile {
                 path: path.to_owned(),
                 message,
             };
-            let parameter = Parameter::from_name(name, N).ok_or_else(|| {
+            let parameter = Parameter::from_name(name, count.value()).ok_or_else(|| {
                 invalid(format!(
                     "[calibration.errors]: unknown parameter \"{name}\""
                 ))
@@ -586,9 +583,9 @@ impl RobotFile {
     /// The file of the actual robot `nominal + errors`: every joint value, base and tool replaced
     /// by the actual one, and a `[calibration]` section listing the errors (all errors of the
     /// `listed` parameters, in canonical order) and their standard errors.
-    pub fn with_errors<const N: usize>(
+    pub fn with_errors(
         &self,
-        errors: &ParameterErrors<f64, N>,
+        errors: &ParameterErrors<f64, Dyn>,
         listed: impl IntoIterator<Item = Parameter>,
         std_errors: &[(Parameter, f64)],
         method: &str,

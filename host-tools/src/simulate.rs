@@ -6,6 +6,7 @@
 //! the actual pose. Taken literally that moves the tool by about 100 mm, which no geometric
 //! calibration can remove, so it is an option here (`--joint-noise-rad`), 0 by default.
 
+use nalgebra::Dyn;
 use crate::JOINTS;
 use crate::robot_file::FrameEntry;
 use crate::robot_file::{RobotFile, RobotModel};
@@ -121,11 +122,11 @@ impl SimulationConfig {
 /// The outcome of a simulation: the measured poses, the true errors and the true robot.
 ///
 /// `N` is the robot's joint count.
-pub struct Simulated<const N: usize = JOINTS> {
+pub struct Simulated {
     /// The poses, as they are written.
     pub rows: Vec<PoseRow>,
     /// The true parameter errors.
-    pub errors: ParameterErrors<f64, N>,
+    pub errors: ParameterErrors<f64, Dyn>,
     /// The true robot (with its tracker frame and tool) and a `[calibration]` section of the errors.
     pub truth: RobotFile,
     /// `true` when the poses are in the tracker's frame.
@@ -136,7 +137,7 @@ pub struct Simulated<const N: usize = JOINTS> {
     pub truth_comment: String,
 }
 
-impl<const N: usize> Simulated<N> {
+impl Simulated {
     /// The poses as in-memory records (for [`crate::dataset::Dataset::from_records`]).
     pub fn records(&self) -> Vec<Record> {
         self.rows
@@ -173,11 +174,11 @@ impl<const N: usize> Simulated<N> {
 }
 
 /// Simulates measurements of the robot of `file` (read from `path`, which names it in comments).
-pub fn simulate<const N: usize>(
+pub fn simulate(
     file: &RobotFile,
     path: &Path,
     config: &SimulationConfig,
-) -> anyhow::Result<Simulated<N>> {
+) -> anyhow::Result<Simulated> {
     config.check()?;
     let mut file = file.clone();
     if let Some(tracker) = &config.tracker {
@@ -187,7 +188,7 @@ pub fn simulate<const N: usize>(
         let rpy_deg = file.tool.as_ref().map_or([0.0; 3], |t| t.rpy_deg);
         file.tool = Some(FrameEntry { xyz_mm, rpy_deg });
     }
-    let model: RobotModel<N> = file.to_model(path)?;
+    let model: RobotModel = file.to_model(path)?;
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(config.seed);
     let errors = true_errors(config, &model, &mut rng)?;
     let truth = Kinematics::new(&model.robot, &errors).context("true model")?;
@@ -199,7 +200,7 @@ pub fn simulate<const N: usize>(
             config.random_length_mm, config.random_angle_rad
         ),
     };
-    let listed: Vec<_> = all_parameters::<N>()
+    let listed: Vec<_> = all_parameters(model.robot.joint_count())
         .filter(|p| model.mask.contains(*p) || errors.get(*p) != Some(0.0))
         .collect();
     let robot = path.display().to_string();
@@ -216,28 +217,29 @@ pub fn simulate<const N: usize>(
 }
 
 /// Table 2, or uniform random errors of the identified parameters.
-fn true_errors<const N: usize>(
+fn true_errors(
     config: &SimulationConfig,
-    model: &RobotModel<N>,
+    model: &RobotModel,
     rng: &mut Xoshiro256PlusPlus,
-) -> anyhow::Result<ParameterErrors<f64, N>> {
+) -> anyhow::Result<ParameterErrors<f64, Dyn>> {
     Ok(match config.errors {
         TrueErrors::Table2 => {
-            if N != JOINTS {
+            let joints = model.robot.joints.len();
+            if joints != JOINTS {
                 anyhow::bail!(
-                    "Table 2 of the paper holds the errors of a {JOINTS}-joint robot; this robot has {N} joints: use --errors random"
+                    "Table 2 of the paper holds the errors of a {JOINTS}-joint robot; this robot has {joints} joints: use --errors random"
                 );
             }
-            // Every parameter of the paper's robot, by name (the same joints: N is 6).
+            // Every parameter of the paper's robot, by name (the same joints: 6).
             let table2 = paper::table2::<f64>();
-            let mut e = ParameterErrors::zero();
-            for p in calib_core::model::parameters::all_parameters::<JOINTS>() {
+            let mut e = ParameterErrors::zeros_for(model.robot.joint_count());
+            for p in calib_core::model::parameters::all_parameters(table2.joint_count()) {
                 e.set(p, table2.get(p).unwrap_or(0.0));
             }
             e
         }
         TrueErrors::Random => {
-            let mut e = ParameterErrors::zero();
+            let mut e = ParameterErrors::zeros_for(model.robot.joint_count());
             for p in model.mask.iter() {
                 let half = if p.is_angle() {
                     config.random_angle_rad
@@ -252,17 +254,17 @@ fn true_errors<const N: usize>(
 }
 
 /// The measured poses: commanded joints, the true pose (joint noise added), tracker noise.
-fn measure<const N: usize>(
+fn measure(
     config: &SimulationConfig,
-    model: &RobotModel<N>,
-    truth: &Kinematics<f64, N>,
+    model: &RobotModel,
+    truth: &Kinematics<f64, Dyn>,
     rng: &mut Xoshiro256PlusPlus,
 ) -> anyhow::Result<Vec<PoseRow>> {
     let mut rows = Vec::with_capacity(config.poses);
     let position_noise = Normal::new(0.0, config.position_sigma_mm)?;
     let orientation_noise = Normal::new(0.0, config.orientation_sigma_rad)?;
     for i in 0..config.poses {
-        let mut q = [0.0; N];
+        let mut q = calib_core::model::JointVec::<f64>::from_fn(model.robot.joints.len(), |_| 0.0);
         for (qi, limits) in q.iter_mut().zip(&model.robot.limits) {
             let (lo, hi) =
                 if config.within_limits && limits.lower.is_finite() && limits.upper.is_finite() {

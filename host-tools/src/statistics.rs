@@ -2,6 +2,7 @@
 //! deviation, maximum and RMS of the absolute position error in mm and of the orientation error
 //! per axis in deg), and the per-pose errors behind them.
 
+use nalgebra::Dyn;
 use crate::dataset::Dataset;
 use calib_core::Kinematics;
 use calib_core::identify::statistics::{PoseStatistics, Summary};
@@ -71,9 +72,9 @@ impl Table3 {
 }
 
 /// Table 3 statistics of `kinematics` on `dataset`, and `|dp|` per pose (mm).
-pub fn table3<const N: usize>(
-    kinematics: &Kinematics<f64, N>,
-    dataset: &Dataset<N>,
+pub fn table3(
+    kinematics: &Kinematics<f64, Dyn>,
+    dataset: &Dataset,
 ) -> (Table3, Vec<f64>) {
     let mut stats = PoseStatistics::default();
     let mut per_pose = Vec::with_capacity(dataset.measurements.len());
@@ -87,9 +88,9 @@ pub fn table3<const N: usize>(
 
 /// `|dr_x|, |dr_y|, |dr_z|` (deg) of `kinematics` for every pose of `dataset` that has an
 /// orientation, in file order.
-pub fn orientation_per_pose<const N: usize>(
-    kinematics: &Kinematics<f64, N>,
-    dataset: &Dataset<N>,
+pub fn orientation_per_pose(
+    kinematics: &Kinematics<f64, Dyn>,
+    dataset: &Dataset,
 ) -> Vec<[f64; 3]> {
     dataset
         .measurements
@@ -103,7 +104,7 @@ pub fn orientation_per_pose<const N: usize>(
 }
 
 /// Table 3 statistics of the dataset's own robot (nominal or identified) on its measurements.
-pub fn evaluate<const N: usize>(dataset: &Dataset<N>) -> anyhow::Result<Table3> {
+pub fn evaluate(dataset: &Dataset) -> anyhow::Result<Table3> {
     let kinematics = Kinematics::nominal(&dataset.model.robot)?;
     Ok(table3(&kinematics, dataset).0)
 }

@@ -14,6 +14,8 @@
 //! configurations (full poses), then checked on [`CHECK_POSES`] others; an import that does not
 //! reproduce them to [`POSITION_TOLERANCE_MM`] and [`ROTATION_TOLERANCE_RAD`] is refused.
 
+use calib_core::model::JointVec;
+use nalgebra::Dyn;
 use crate::JOINTS;
 use anyhow::{Context, bail};
 use calib_core::identify::lm::{LeastSquares, LmSettings};
@@ -131,7 +133,13 @@ impl UrCalibration {
 
     /// The calibrated classic DH robot: `nominal` (classic DH: every `beta` zero) plus the
     /// deltas, in mm and rad (with its base and tool).
-    pub fn classic_dh(&self, nominal: &Robot<f64, JOINTS>) -> anyhow::Result<Robot<f64, JOINTS>> {
+    pub fn classic_dh(&self, nominal: &Robot<f64, Dyn>) -> anyhow::Result<Robot<f64, Dyn>> {
+        if nominal.joints.len() != JOINTS {
+            bail!(
+                "a UR calibration describes a {JOINTS}-joint UR robot; the nominal robot has {} joints",
+                nominal.joints.len()
+            );
+        }
         if let Some(j) = nominal.joints.iter().position(|j| j.beta != 0.0) {
             bail!(
                 "the nominal robot file must be in classic DH, as UR publishes it (beta = 0), but joint {} has beta {} deg",
@@ -157,9 +165,9 @@ impl UrCalibration {
 #[derive(Clone, Debug)]
 pub struct Import {
     /// The errors (mm, rad) of the nominal file's default identification set.
-    pub errors: ParameterErrors<f64, JOINTS>,
+    pub errors: ParameterErrors<f64, Dyn>,
     /// The parameters that carry them.
-    pub mask: ParameterMask<JOINTS>,
+    pub mask: ParameterMask<Dyn>,
     /// Largest position difference from the calibrated classic DH on the check poses, mm.
     pub max_position_mm: f64,
     /// Largest rotation difference, rad.
@@ -170,7 +178,7 @@ pub struct Import {
 }
 
 /// Converts `calibration` on the `nominal` robot into Hayati errors (module documentation).
-pub fn import(nominal: &Robot<f64, JOINTS>, calibration: &UrCalibration) -> anyhow::Result<Import> {
+pub fn import(nominal: &Robot<f64, Dyn>, calibration: &UrCalibration) -> anyhow::Result<Import> {
     let classic = calibration.classic_dh(nominal)?;
     let dh = Kinematics::nominal(&classic)?;
     let mut mask = ParameterMask::default_for(nominal);
@@ -193,7 +201,7 @@ pub fn import(nominal: &Robot<f64, JOINTS>, calibration: &UrCalibration) -> anyh
     }
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(16);
     let mut configuration =
-        || -> [f64; JOINTS] { std::array::from_fn(|_| rng.random_range(-3.1..3.1)) };
+        || -> JointVec<f64> { JointVec::from_fn(JOINTS, |_| rng.random_range(-3.1..3.1)) };
     let mut measurements = Vec::with_capacity(FIT_POSES);
     for _ in 0..FIT_POSES {
         let q = configuration();
@@ -235,15 +243,15 @@ pub fn import(nominal: &Robot<f64, JOINTS>, calibration: &UrCalibration) -> anyh
 }
 
 /// Least squares of the parameters of `mask` to `measurements` from the nominal robot.
-fn fit<const N: usize>(
-    nominal: &Robot<f64, N>,
-    mask: &ParameterMask<N>,
-    measurements: &[Measurement<f64, N>],
-) -> anyhow::Result<ParameterErrors<f64, N>> {
+fn fit(
+    nominal: &Robot<f64, Dyn>,
+    mask: &ParameterMask<Dyn>,
+    measurements: &[Measurement<f64, Dyn>],
+) -> anyhow::Result<ParameterErrors<f64, Dyn>> {
     let set = crate::dispatch::solvable_set(mask)?;
     let problem = Problem::new(
         nominal,
-        &ParameterErrors::zero(),
+        &ParameterErrors::zeros_for(nominal.joint_count()),
         set,
         measurements,
         calib_core::identify::objective::DEFAULT_K,

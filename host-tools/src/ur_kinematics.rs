@@ -14,6 +14,7 @@
 //! zero is refused, with the remedy. The controller's tool (`[tool]`) is the TCP set on the
 //! robot's controller, not part of this file; the export writes it into a comment.
 
+use nalgebra::Dyn;
 use crate::JOINTS;
 use crate::urdf::{Origin, frame};
 use calib_core::{MdhJoint, Robot};
@@ -48,17 +49,18 @@ fn x_part(joint: &MdhJoint<f64>) -> IsometryMatrix3<f64> {
 
 /// The six segments (mm), or why the model has no UR form (a robot of other than six joints
 /// is no UR).
-pub fn segments<const N: usize>(
-    robot: &Robot<f64, N>,
+pub fn segments(
+    robot: &Robot<f64, Dyn>,
 ) -> anyhow::Result<Vec<IsometryMatrix3<f64>>> {
     let (Some(last), Some(first)) = (robot.joints.last(), robot.joints.first()) else {
         anyhow::bail!(
             "a UR kinematics file describes a {JOINTS}-joint UR robot; this one has none"
         );
     };
-    if N != JOINTS {
+    if robot.joints.len() != JOINTS {
         anyhow::bail!(
-            "a UR kinematics file describes a {JOINTS}-joint UR robot; this one has {N} joints"
+            "a UR kinematics file describes a {JOINTS}-joint UR robot; this one has {} joints",
+            robot.joints.len()
         );
     }
     if last.a != 0.0 || last.alpha != 0.0 || last.beta != 0.0 {
@@ -80,7 +82,7 @@ pub fn segments<const N: usize>(
 }
 
 /// The YAML of `robot` (`source` names the file in a comment).
-pub fn yaml<const N: usize>(robot: &Robot<f64, N>, source: &str) -> anyhow::Result<String> {
+pub fn yaml(robot: &Robot<f64, Dyn>, source: &str) -> anyhow::Result<String> {
     // Positional notation with every digit (Rust's f64 Display round-trips and never writes an
     // exponent, which YAML 1.1 readers such as PyYAML, used by xacro, would take for a string).
     let mut body = String::from("kinematics:\n");

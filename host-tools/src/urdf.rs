@@ -15,6 +15,7 @@
 //! ([`UrdfSettings::geometry_only`]). The measurement setup (`[measurement]`: tracker, probe) is
 //! never exported: the URDF is the controller's model, base and tool as in `[base]` and `[tool]`.
 
+use nalgebra::Dyn;
 use crate::JOINTS;
 use calib_core::{FramePose, MdhJoint, Robot};
 use nalgebra::{IsometryMatrix3, Rotation3, Translation3, Vector3};
@@ -68,7 +69,7 @@ pub fn frame(pose: &FramePose<f64>) -> IsometryMatrix3<f64> {
 
 /// The origins of the chain: joint 1 (`T_base`), joints 2..N (`F_1..F_(N-1)`), the flange
 /// (`F_N`) and the tool (`T_tool`), N + 2 transforms in mm.
-pub fn chain<const N: usize>(robot: &Robot<f64, N>) -> Vec<IsometryMatrix3<f64>> {
+pub fn chain(robot: &Robot<f64, Dyn>) -> Vec<IsometryMatrix3<f64>> {
     let mut out = vec![frame(&robot.base)];
     out.extend(robot.joints.iter().map(fixed_part));
     out.push(frame(&robot.tool));
@@ -164,12 +165,13 @@ impl UrdfSettings {
 
 /// The URDF (or, with `joints_only`, the `<joint>` elements) of `robot`; `source` names the file
 /// in a comment.
-pub fn urdf<const N: usize>(
-    robot: &Robot<f64, N>,
+pub fn urdf(
+    robot: &Robot<f64, Dyn>,
     settings: &UrdfSettings,
     source: &str,
 ) -> anyhow::Result<String> {
-    settings.check(N)?;
+    let n = robot.joints.len();
+    settings.check(n)?;
     let origins: Vec<Origin> = chain(robot).iter().map(Origin::of).collect();
     let mut joints = String::new();
     let parents = std::iter::once(&settings.base_link).chain(&settings.links);
@@ -199,14 +201,14 @@ pub fn urdf<const N: usize>(
         ));
     }
     let [flange_joint, tool_joint] = settings.fixed_joints();
-    let last = &settings.links[N - 1];
+    let last = &settings.links[n - 1];
     for (name, parent, child, origin) in [
-        (flange_joint, last, &settings.flange, &origins[N]),
+        (flange_joint, last, &settings.flange, &origins[n]),
         (
             tool_joint,
             &settings.flange,
             &settings.tool,
-            &origins[N + 1],
+            &origins[n + 1],
         ),
     ] {
         joints.push_str(&format!(

@@ -5,6 +5,7 @@
 //! All three fit the same parameters from the same start (zero errors on the robot with its
 //! frames registered and fitted, as `calib calibrate` prepares it) by least squares.
 
+use calib_core::model::JointVec;
 use crate::dataset::Dataset;
 use crate::frames::Frames;
 use anyhow::Context;
@@ -130,9 +131,9 @@ impl Verification {
 /// Calibrates the poses of `calibration` by least squares with the f32 core, the f64 core and
 /// the reference optimiser (frames prepared as a calibration does; `frames`: `None` chooses from
 /// the data) and compares the three, also on the held-out `validation` poses.
-pub fn verify<const N: usize>(
-    mut calibration: Dataset<N>,
-    mut validation: Dataset<N>,
+pub fn verify(
+    mut calibration: Dataset,
+    mut validation: Dataset,
     frames: Option<Frames>,
     k: f64,
 ) -> anyhow::Result<Verification> {
@@ -141,7 +142,7 @@ pub fn verify<const N: usize>(
     let (mask, _) = crate::identifiability::default_mask(&calibration, mask, k)?;
     // A robot file's gravity compliance is held fixed and taken off the measured poses at the
     // registered frames: all three fit the same geometry to the same poses.
-    let zero = ParameterErrors::zero();
+    let zero = ParameterErrors::zeros_for(mask.joint_count());
     let (calibration, validation) = (
         calibration.without_file_compliance(&calibration.model.robot, &zero)?,
         validation.without_file_compliance(&validation.model.robot, &zero)?,
@@ -149,10 +150,10 @@ pub fn verify<const N: usize>(
     run(&calibration, &validation, &mask, k)
 }
 
-fn run<const N: usize>(
-    calibration: &Dataset<N>,
-    validation: &Dataset<N>,
-    mask: &ParameterMask<N>,
+fn run(
+    calibration: &Dataset,
+    validation: &Dataset,
+    mask: &ParameterMask<Dyn>,
     k: f64,
 ) -> anyhow::Result<Verification> {
     let set = crate::dispatch::solvable_set(mask)?;
@@ -162,7 +163,7 @@ fn run<const N: usize>(
     // f64 core.
     let problem = Problem::new(
         &calibration.model.robot,
-        &ParameterErrors::zero(),
+        &ParameterErrors::zeros_for(calibration.model.robot.joint_count()),
         set.clone(),
         &calibration.measurements,
         k,
@@ -229,9 +230,9 @@ fn run<const N: usize>(
 }
 
 /// The least-squares solution of the f32 core (the controller's), from zero errors.
-fn solve_f32<const N: usize>(
-    calibration: &Dataset<N>,
-    set: ParameterSet<N, Dyn>,
+fn solve_f32(
+    calibration: &Dataset,
+    set: ParameterSet<Dyn, Dyn>,
     k: f64,
 ) -> anyhow::Result<DVector<f32>> {
     let robot32 = crate::export::to_f32(&calibration.model.robot);
@@ -242,7 +243,7 @@ fn solve_f32<const N: usize>(
         .iter()
         .zip(&seen.records)
         .map(|(m, r)| {
-            let q: [f32; N] = std::array::from_fn(|i| r.q.get(i).copied().unwrap_or(0.0) as f32);
+            let q = JointVec::<f32>::from_fn(r.q.len(), |i| r.q.get(i).copied().unwrap_or(0.0) as f32);
             Measurement::new(
                 &q,
                 m.position.map(|v| v as f32),
@@ -254,7 +255,7 @@ fn solve_f32<const N: usize>(
         .collect::<anyhow::Result<Vec<_>>>()?;
     let problem32 = Problem::new(
         &robot32,
-        &ParameterErrors::zero(),
+        &ParameterErrors::zeros_for(robot32.joint_count()),
         set,
         &measurements32,
         k as f32,

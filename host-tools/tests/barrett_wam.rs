@@ -30,7 +30,7 @@ const PROFILE: &str = concat!(
 );
 
 /// `calib calibrate --robot ROBOT --data GRID --profile PROFILE` plus `args`, with the defaults.
-fn calibrate(args: &[&str]) -> Calibration<7> {
+fn calibrate(args: &[&str]) -> Calibration {
     let all = [
         &[
             "--robot",
@@ -44,7 +44,7 @@ fn calibrate(args: &[&str]) -> Calibration<7> {
         args,
     ]
     .concat();
-    calibrate::calibrate::<7>(&parse::<CalibrateOptions>(&all)).unwrap()
+    calibrate::calibrate(&parse::<CalibrateOptions>(&all)).unwrap()
 }
 
 /// Mean, RMS and largest |difference| of a data file: the error of the robot as delivered (the
@@ -213,7 +213,7 @@ fn check_and_re_registration_through_the_command_line() {
     let identified = dir.path().join("wam-identified.toml");
     std::fs::write(&identified, &c.robot_toml).unwrap();
     let identified = identified.to_str().unwrap();
-    let again = calibrate::calibrate::<7>(&parse::<CalibrateOptions>(&[
+    let again = calibrate::calibrate(&parse::<CalibrateOptions>(&[
         "--robot",
         identified,
         "--data",

@@ -101,7 +101,7 @@ fn paper_scenario_is_recovered_and_every_output_is_written() {
 
     // The identified robot file is a robot file: its pose equals the true robot's pose.
     let identified = RobotFile::read(&out).unwrap();
-    let errors = identified.calibration_errors::<6>(&out).unwrap();
+    let errors = identified.calibration_errors(&out).unwrap();
     assert!((errors.joints[1].dbeta - -0.0028).abs() < 1e-9);
     let fk = |robot: &str| -> Vec<f64> {
         let out = ok(&calib(&[

@@ -179,11 +179,11 @@ fn exported_block_is_byte_identical_to_the_core_and_round_trips() {
     for (scalar, len) in [
         (
             "f64",
-            calib_core::controller::storage::block_len::<f64, 6>(),
+            calib_core::controller::storage::block_len::<f64>(6),
         ),
         (
             "f32",
-            calib_core::controller::storage::block_len::<f32, 6>(),
+            calib_core::controller::storage::block_len::<f32>(6),
         ),
     ] {
         let out = dir.path().join(format!("params-{scalar}.bin"));
@@ -207,18 +207,18 @@ fn exported_block_is_byte_identical_to_the_core_and_round_trips() {
         );
         let bytes = std::fs::read(&out).unwrap();
         assert_eq!(bytes.len(), len);
-        let model: RobotModel<6> = RobotModel::load(Path::new(ACTUAL)).unwrap();
+        let model: RobotModel = RobotModel::load(Path::new(ACTUAL)).unwrap();
         if scalar == "f64" {
             let mut expected = vec![0u8; len];
             calib_core::controller::storage::encode(&model.robot, 9, &mut expected).unwrap();
             assert_eq!(bytes, expected);
             assert_eq!(
-                calib_core::controller::storage::decode::<f64, U6>(&bytes).unwrap(),
+                calib_core::controller::storage::decode::<f64, nalgebra::Dyn>(&bytes).unwrap(),
                 (model.robot, 9)
             );
         } else {
             let (robot, sequence) =
-                calib_core::controller::storage::decode::<f32, U6>(&bytes).unwrap();
+                calib_core::controller::storage::decode::<f32, nalgebra::Dyn>(&bytes).unwrap();
             assert_eq!(sequence, 9);
             assert_eq!(robot, host_tools::export::to_f32(&model.robot));
         }
@@ -421,7 +421,7 @@ fn ur_targets_reached(conf: &str, set: &str) {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let nominal: RobotModel<6> = RobotFile::read(Path::new(ur10))
+    let nominal: RobotModel = RobotFile::read(Path::new(ur10))
         .unwrap()
         .to_model(Path::new(ur10))
         .unwrap();
@@ -434,11 +434,16 @@ fn ur_targets_reached(conf: &str, set: &str) {
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(15);
     let mut groups: Vec<(String, Vec<[[f64; 4]; 4]>)> = Vec::new();
     for _ in 0..1000 {
-        let q: [f64; 6] = std::array::from_fn(|_| rng.random_range(-3.1..3.1));
+        let q = calib_core::model::JointVec::<f64>::from_fn(6, |_| rng.random_range(-3.1..3.1));
         let m = actual.forward(&q);
         push_to_group(
             &mut groups,
-            nearest_branch(&nominal.robot, &m, &q).to_string(),
+            nearest_branch(
+                &nominal.robot.recount().unwrap(),
+                &m,
+                &<[f64; 6]>::try_from(&q[..]).unwrap(),
+            )
+            .to_string(),
             m,
         );
     }
@@ -531,7 +536,7 @@ fn targets_without_joints_on_a_robot_without_closed_form_start_from_numerical_ik
     let actual_path = d.join("offset-shoulder-actual.toml");
     std::fs::write(&nominal_path, &nominal_text).unwrap();
     std::fs::write(&actual_path, &actual_text).unwrap();
-    let nominal: RobotModel<6> = RobotFile::read(&nominal_path)
+    let nominal: RobotModel = RobotFile::read(&nominal_path)
         .unwrap()
         .to_model(&nominal_path)
         .unwrap();
@@ -545,7 +550,7 @@ fn targets_without_joints_on_a_robot_without_closed_form_start_from_numerical_ik
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(16);
     let poses: Vec<[[f64; 4]; 4]> = (0..300)
         .map(|_| {
-            let q: [f64; 6] = std::array::from_fn(|_| rng.random_range(-3.1..3.1));
+            let q = calib_core::model::JointVec::<f64>::from_fn(6, |_| rng.random_range(-3.1..3.1));
             let m = planned.forward(&q).unwrap().to_homogeneous();
             std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
         })
@@ -588,7 +593,7 @@ fn a_seven_joint_arm_is_compensated_from_numerical_inverse_kinematics() {
     assert_ne!(actual_text, text);
     let actual_path = d.join("panda-actual.toml");
     std::fs::write(&actual_path, &actual_text).unwrap();
-    let nominal: RobotModel<7> = RobotFile::read(Path::new(panda))
+    let nominal: RobotModel = RobotFile::read(Path::new(panda))
         .unwrap()
         .to_model(Path::new(panda))
         .unwrap();
@@ -607,7 +612,10 @@ fn a_seven_joint_arm_is_compensated_from_numerical_inverse_kinematics() {
     let poses: Vec<[[f64; 4]; 4]> = joints
         .iter()
         .map(|q| {
-            let m = planned.forward(q).unwrap().to_homogeneous();
+            let m = planned
+                .forward(&calib_core::model::JointVec::from_slice(q).unwrap())
+                .unwrap()
+                .to_homogeneous();
             std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
         })
         .collect();
@@ -702,9 +710,13 @@ fn every_shipped_robot_is_compensated_without_joints() {
         let actual =
             RefModel::from_file(&RobotFile::read(&truth).unwrap(), &[], &[0.0; 6], &[0.0; 6]);
         let closed_form = file
-            .to_model::<6>(robot)
+            .to_model(robot)
             .ok()
-            .filter(|m| nearest_configurations(&m.robot, &calib_core::Pose::identity()).is_ok());
+            .filter(|m| {
+                m.robot.recount::<nalgebra::U6>().is_some_and(|six| {
+                    nearest_configurations(&six, &calib_core::Pose::identity()).is_ok()
+                })
+            });
         let mut groups: Vec<(String, Vec<[[f64; 4]; 4]>)> = Vec::new();
         let mut reader = csv::ReaderBuilder::new()
             .comment(Some(b'#'))
@@ -724,7 +736,7 @@ fn every_shipped_robot_is_compensated_without_joints() {
             let m = actual.forward(&q);
             let branch = closed_form.as_ref().map_or(String::new(), |model| {
                 let q6: [f64; 6] = q.as_slice().try_into().unwrap();
-                nearest_branch(&model.robot, &m, &q6).to_string()
+                nearest_branch(&model.robot.recount().unwrap(), &m, &q6).to_string()
             });
             push_to_group(&mut groups, branch, m);
         }
@@ -752,7 +764,7 @@ fn every_shipped_robot_is_compensated_without_joints() {
 
 /// The branch (0-7) of `robot`'s nominal configuration nearest to `q` for the homogeneous pose
 /// `m` (a target beyond the nominal workspace: of the nearest boundary configuration).
-fn nearest_branch(robot: &calib_core::Robot<f64, 6>, m: &[[f64; 4]; 4], q: &[f64; 6]) -> usize {
+fn nearest_branch(robot: &calib_core::Robot<f64, nalgebra::U6>, m: &[[f64; 4]; 4], q: &[f64; 6]) -> usize {
     use calib_core::kinematics::ik::{closest, nearest_configurations};
     let pose = calib_core::Pose::from_parts(
         nalgebra::Translation3::new(m[0][3], m[1][3], m[2][3]),

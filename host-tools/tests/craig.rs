@@ -50,7 +50,7 @@ fn craig(row: (f64, f64, f64), theta: f64) -> Matrix4<f64> {
 /// kinematics from `expected` over `samples` random joint vectors within the joint limits (and
 /// one turn).
 fn worst_difference(
-    model: &RobotModel<7>,
+    model: &RobotModel,
     samples: usize,
     expected: impl Fn(&[f64; 7]) -> Matrix4<f64>,
 ) -> (f64, f64) {
@@ -58,13 +58,13 @@ fn worst_difference(
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(7);
     let (mut position, mut rotation) = (0.0f64, 0.0f64);
     for _ in 0..samples {
-        let q: [f64; 7] = std::array::from_fn(|j| {
+        let q = calib_core::model::JointVec::<f64>::from_fn(7, |j| {
             let limits = model.robot.limits[j];
             let bound = |v: f64| v.clamp(-std::f64::consts::PI, std::f64::consts::PI);
             rng.random_range(bound(limits.lower)..bound(limits.upper))
         });
         let ours = kinematics.forward(&q).unwrap().to_homogeneous();
-        let theirs = expected(&q);
+        let theirs = expected(&<[f64; 7]>::try_from(&q[..]).unwrap());
         let d = ours - theirs;
         position = position.max(d.fixed_view::<3, 1>(0, 3).norm());
         rotation = rotation.max(d.fixed_view::<3, 3>(0, 0).amax());
@@ -72,7 +72,7 @@ fn worst_difference(
     (position, rotation)
 }
 
-fn read7(relative: &str) -> RobotModel<7> {
+fn read7(relative: &str) -> RobotModel {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(relative);
     RobotFile::read(&path).unwrap().to_model(&path).unwrap()
 }
@@ -106,7 +106,7 @@ fn franka_panda_from_its_published_craig_table_to_1e_9_mm() {
     // The published zero posture: flange at x = 88 mm, z = 333 + 316 + 384 - 107 = 926 mm.
     let zero = Kinematics::nominal(&model.robot)
         .unwrap()
-        .forward(&[0.0; 7])
+        .forward(&calib_core::model::JointVec::from_fn(7, |_| 0.0))
         .unwrap();
     let p = zero.translation.vector;
     assert!((p - Vector3::new(88.0, 0.0, 926.0)).norm() < 1e-9, "{p}");
@@ -168,7 +168,7 @@ theta_deg = 25.0
     let path = Path::new("craig-test.toml");
     let file = RobotFile::parse(text, path).unwrap();
     assert!(file.craig_joint.is_empty() && file.craig_flange.is_none());
-    let model: RobotModel<7> = file.to_model(path).unwrap();
+    let model: RobotModel = file.to_model(path).unwrap();
     let rows: [(f64, f64, f64, f64); 7] = [
         (30.0, 50.0, 300.0, 10.0),
         (-90.0, 20.0, 5.0, -5.0),
@@ -201,7 +201,7 @@ fn seven_joint_robots_stand_straight_at_zero() {
     let iiwa = read7("robots/kuka-iiwa14.toml");
     let p = Kinematics::nominal(&iiwa.robot)
         .unwrap()
-        .forward(&[0.0; 7])
+        .forward(&calib_core::model::JointVec::from_fn(7, |_| 0.0))
         .unwrap()
         .translation
         .vector;
@@ -210,7 +210,7 @@ fn seven_joint_robots_stand_straight_at_zero() {
     let wam = read7("robots/barrett-wam.toml");
     let p = Kinematics::nominal(&wam.robot)
         .unwrap()
-        .forward(&[0.0; 7])
+        .forward(&calib_core::model::JointVec::from_fn(7, |_| 0.0))
         .unwrap()
         .translation
         .vector;

@@ -35,7 +35,7 @@ fn simulate(
     }
     .in_realistic_cell();
     let robot = RobotFile::read(Path::new(ROBOT)).unwrap();
-    simulate::simulate::<6>(&robot, Path::new(ROBOT), &config)
+    simulate::simulate(&robot, Path::new(ROBOT), &config)
         .unwrap()
         .write(&data, &truth, Path::new(ROBOT))
         .unwrap();
@@ -65,7 +65,7 @@ fn frames_and_geometry_reach_the_reference_optimum() {
             "--holdout",
             holdout.to_str().unwrap(),
         ]);
-        let c = calibrate::calibrate::<6>(&options).unwrap();
+        let c = calibrate::calibrate(&options).unwrap();
         let frames = &c.result.frames;
         assert_eq!(frames.identified, host_tools::frames::Frames::BaseTool);
         // The nominal robot registered onto the data: a few mm (Table 2), not metres.
@@ -88,7 +88,7 @@ fn frames_and_geometry_reach_the_reference_optimum() {
         let names = c.result.names();
         let cal = TrackerData::read(&data).unwrap();
         let fit = lm::fit(&truth_file, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
-        let mut errors = calib_core::ParameterErrors::<f64, 6>::zero();
+        let mut errors = calib_core::ParameterErrors::<f64, nalgebra::Dyn>::zeros_for(nalgebra::Dyn(6));
         for (n, v) in &fit.errors {
             errors.set(calib_core::Parameter::from_name(n, 6).unwrap(), *v);
         }

@@ -170,7 +170,7 @@ proptest! {
         values in proptest::collection::vec(prop_oneof![any::<f64>(), -1e3f64..1e3], 36),
         joints in 0usize..8,
     ) {
-        let _ = RobotFile::parse(&text, Path::new("r.toml")).map(|f| f.to_model::<6>(Path::new("r.toml")));
+        let _ = RobotFile::parse(&text, Path::new("r.toml")).map(|f| f.to_model(Path::new("r.toml")));
         let mut toml = String::from("name = \"fuzz\"\n");
         for j in 0..joints {
             let v = |i: usize| values[(j * 5 + i) % values.len()];
@@ -182,7 +182,7 @@ proptest! {
             ));
         }
         if let Ok(file) = RobotFile::parse(&toml, Path::new("r.toml"))
-            && let Ok(model) = file.to_model::<6>(Path::new("r.toml"))
+            && let Ok(model) = file.to_model(Path::new("r.toml"))
         {
             prop_assert!(model.robot.validate().is_ok());
         }

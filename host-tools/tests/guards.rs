@@ -129,10 +129,16 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
     use std::path::Path;
 
     let file = RobotFile::parse(ER10L_C10_TOML, Path::new("er10l.toml")).unwrap();
-    let nominal = file.to_model::<6>(Path::new("er10l.toml")).unwrap().robot;
+    let nominal = file.to_model(Path::new("er10l.toml")).unwrap().robot;
     let truth = file
-        .with_errors(&calib_core::model::paper::table2::<f64>(), [], &[], "", "")
-        .to_model::<6>(Path::new("truth.toml"))
+        .with_errors(
+            &calib_core::model::paper::table2::<f64>().recount().unwrap(),
+            [],
+            &[],
+            "",
+            "",
+        )
+        .to_model(Path::new("truth.toml"))
         .unwrap()
         .robot;
     let planned = Kinematics::nominal(&nominal).unwrap();
@@ -141,9 +147,9 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
     let mut by_branch: Vec<Vec<Record>> = vec![Vec::new(); 8];
     let mut count = 0;
     while count < 2000 {
-        let q: [f64; 6] = std::array::from_fn(|_| rng.random_range(-3.1..3.1));
+        let q = calib_core::model::JointVec::<f64>::from_fn(6, |_| rng.random_range(-3.1..3.1));
         let (pose, jacobian) = planned.geometric_jacobian(&q).unwrap();
-        let mut scaled = jacobian;
+        let mut scaled = nalgebra::Matrix6xX::from_columns(&jacobian);
         for mut row in scaled.rows_mut(0, 3).row_iter_mut() {
             row /= 1000.0;
         }
@@ -151,7 +157,8 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
         if smallest < SMALLEST_SINGULAR_VALUE {
             continue;
         }
-        let solutions = inverse_kinematics(&nominal, &pose).unwrap();
+        let six = nominal.recount::<nalgebra::U6>().unwrap();
+        let solutions = inverse_kinematics(&six, &pose).unwrap();
         let Some(branch) = solutions
             .iter()
             .position(|s| s.is_some_and(|s| s.iter().zip(&q).all(|(a, b)| (a - b).abs() < 1e-6)))

@@ -35,7 +35,7 @@ fn defect_11_limits_with_three_values_are_refused() {
     );
     let path = Path::new("robot.toml");
     let error = RobotFile::parse(&text, path)
-        .and_then(|file| file.to_model::<6>(path))
+        .and_then(|file| file.to_model(path))
         .unwrap_err()
         .to_string();
     assert!(

@@ -4,6 +4,7 @@
 
 mod common;
 
+use nalgebra::Dyn;
 use calib_core::{Kinematics, Robot};
 use common::{UR10, calib_in, ok};
 use host_tools::robot_file::{RobotFile, RobotModel};
@@ -17,9 +18,9 @@ const SERIES_B: &str = concat!(
     "/../onboard/data/ur10-series-b-compliance.toml"
 );
 
-fn model(path: &Path) -> Robot<f64, 6> {
+fn model(path: &Path) -> Robot<f64, Dyn> {
     let file = RobotFile::read(path).unwrap();
-    let model: RobotModel<6> = file.to_model(path).unwrap();
+    let model: RobotModel = file.to_model(path).unwrap();
     model.robot
 }
 
@@ -48,15 +49,15 @@ fn everything_in_use(dir: &Path) -> std::path::PathBuf {
 
 /// Largest position (mm) and rotation (rad) difference over 1000 random configurations (within
 /// the joint limits and +-3.1 rad) between our forward kinematics of `robot` and `other(q)`.
-fn largest_difference<const N: usize>(
-    robot: &Robot<f64, N>,
-    mut other: impl FnMut(&[f64; N]) -> IsometryMatrix3<f64>,
+fn largest_difference(
+    robot: &Robot<f64, Dyn>,
+    mut other: impl FnMut(&[f64]) -> IsometryMatrix3<f64>,
 ) -> (f64, f64) {
     let ours = Kinematics::nominal(robot).unwrap();
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(16);
     let (mut position, mut rotation) = (0.0f64, 0.0f64);
     for _ in 0..1000 {
-        let q: [f64; N] = std::array::from_fn(|j| {
+        let q = calib_core::model::JointVec::<f64>::from_fn(robot.joints.len(), |j| {
             let l = robot.limits[j];
             rng.random_range(l.lower.max(-3.1)..l.upper.min(3.1))
         });
@@ -71,9 +72,9 @@ fn largest_difference<const N: usize>(
 }
 
 /// The URDF's tool0 through the `k` crate (its URDF reader and kinematics), in mm.
-fn through_k<const N: usize>(urdf: &Path) -> impl FnMut(&[f64; N]) -> IsometryMatrix3<f64> {
+fn through_k(urdf: &Path, joints: usize) -> impl FnMut(&[f64]) -> IsometryMatrix3<f64> {
     let chain = k::Chain::<f64>::from_urdf_file(urdf).unwrap();
-    assert_eq!(chain.dof(), N);
+    assert_eq!(chain.dof(), joints);
     move |q| {
         chain.set_joint_positions(q).unwrap();
         chain.update_transforms();
@@ -117,7 +118,7 @@ fn the_urdf_reproduces_our_forward_kinematics() {
         ]
         .concat();
         ok(&calib_in(d, &args));
-        let (position, rotation) = largest_difference(&model(robot), through_k(&d.join("r.urdf")));
+        let (position, rotation) = largest_difference(&model(robot), through_k(&d.join("r.urdf"), 6));
         println!(
             "{}: URDF through k, largest difference {position:.3e} mm, {rotation:.3e} rad",
             robot.display()
@@ -148,9 +149,9 @@ fn seven_joint_robots_export_to_urdf_and_blocks() {
             "r.urdf",
         ];
         ok(&calib_in(d, &args));
-        let model: RobotModel<7> = RobotFile::read(&robot).unwrap().to_model(&robot).unwrap();
+        let model: RobotModel = RobotFile::read(&robot).unwrap().to_model(&robot).unwrap();
         let (position, rotation) =
-            largest_difference(&model.robot, through_k::<7>(&d.join("r.urdf")));
+            largest_difference(&model.robot, through_k(&d.join("r.urdf"), 7));
         println!(
             "{file}: URDF through k, largest difference {position:.3e} mm, {rotation:.3e} rad"
         );
@@ -173,8 +174,8 @@ fn seven_joint_robots_export_to_urdf_and_blocks() {
         ],
     ));
     let bytes = std::fs::read(&block).unwrap();
-    let (decoded, sequence) = calib_core::controller::storage::decode::<f32, U7>(&bytes).unwrap();
-    let model: RobotModel<7> = RobotFile::read(&panda).unwrap().to_model(&panda).unwrap();
+    let (decoded, sequence) = calib_core::controller::storage::decode::<f32, Dyn>(&bytes).unwrap();
+    let model: RobotModel = RobotFile::read(&panda).unwrap().to_model(&panda).unwrap();
     assert_eq!(sequence, 3);
     assert_eq!(decoded, host_tools::export::to_f32(&model.robot));
     let out = calib_in(
@@ -286,7 +287,7 @@ fn the_ur_kinematics_yaml_reproduces_our_forward_kinematics() {
         assert!(text.contains("  hash: calib_"));
         let mut flange_model = model(Path::new(robot));
         flange_model.tool = calib_core::FramePose::identity();
-        let compose = |q: &[f64; 6]| {
+        let compose = |q: &[f64]| {
             segments
                 .iter()
                 .zip(q)
@@ -382,7 +383,7 @@ fn read_segments(text: &str) -> Vec<IsometryMatrix3<f64>> {
 /// The classic DH forward kinematics of a UR calibration, computed here: the nominal file's
 /// values plus the `calibration.conf` deltas (read with a minimal parser of its own),
 /// `T = prod Rz(q_i + theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)`, mm.
-fn classic_dh(robot: &Robot<f64, 6>, conf: &Path) -> impl Fn(&[f64; 6]) -> IsometryMatrix3<f64> {
+fn classic_dh(robot: &Robot<f64, Dyn>, conf: &Path) -> impl Fn(&[f64]) -> IsometryMatrix3<f64> {
     let text = std::fs::read_to_string(conf).unwrap();
     let deltas = |key: &str| -> Vec<f64> {
         let line = text

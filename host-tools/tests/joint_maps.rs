@@ -122,7 +122,7 @@ fn calibrated(
         "--model",
         model,
     ];
-    calibrate::calibrate::<6>(&parse::<CalibrateOptions>(&args))
+    calibrate::calibrate(&parse::<CalibrateOptions>(&args))
 }
 
 /// The mean of the runs' (geometric, with maps) held-out means, each run better with the maps.
@@ -388,7 +388,7 @@ fn exported_blocks_hold_the_maps(d: &std::path::Path) {
     use common::{calib_in, ok};
     let file = RobotFile::read(&d.join("maps.toml")).unwrap();
     let maps = file.joint_maps(&d.join("maps.toml")).unwrap().unwrap();
-    let model: RobotModel<6> = file.to_model(&d.join("maps.toml")).unwrap();
+    let model: RobotModel = file.to_model(&d.join("maps.toml")).unwrap();
     let readings: Vec<f64> = (0..200).map(|i| -6.2 + 0.062 * f64::from(i)).collect();
     for (scalar, tolerance) in [("f64", 1e-15), ("f32", 2e-9)] {
         let name = format!("maps-{scalar}.bin");
@@ -411,9 +411,9 @@ fn exported_blocks_hold_the_maps(d: &std::path::Path) {
         if scalar == "f64" {
             assert_eq!(
                 bytes.len(),
-                model_block_len::<f64, 6>(maps.harmonics, false)
+                model_block_len::<f64>(6, maps.harmonics, false)
             );
-            let (block, _) = decode_model::<f64, 6, 64>(&bytes).unwrap();
+            let (block, _) = decode_model::<f64, nalgebra::Dyn, 64>(&bytes).unwrap();
             assert_eq!(block.robot, model.robot);
             for j in 0..6 {
                 for q in &readings {
@@ -423,10 +423,10 @@ fn exported_blocks_hold_the_maps(d: &std::path::Path) {
         } else {
             assert_eq!(
                 bytes.len(),
-                model_block_len::<f32, 6>(maps.harmonics, false)
+                model_block_len::<f32>(6, maps.harmonics, false)
             );
             assert!(bytes.len() <= 8192, "{} bytes", bytes.len());
-            let (block, _) = decode_model::<f32, 6, 64>(&bytes).unwrap();
+            let (block, _) = decode_model::<f32, nalgebra::Dyn, 64>(&bytes).unwrap();
             assert_eq!(block.robot, host_tools::export::to_f32(&model.robot));
             for j in 0..6 {
                 for q in &readings {
@@ -465,7 +465,7 @@ fn compensation_uses_the_model(d: &std::path::Path, params: &str, baseline: &str
     let file = RobotFile::read(&d.join(params)).unwrap();
     let maps = file.joint_maps(&d.join(params)).unwrap().unwrap();
     let actual = RefModel::from_file(&file, &[], &[0.0; 6], &[0.0; 6]);
-    let model: RobotModel<6> = file.to_model(&d.join(params)).unwrap();
+    let model: RobotModel = file.to_model(&d.join(params)).unwrap();
     let compliance = file.gravity_compliance(&d.join(params)).unwrap();
     let mut rows = Vec::new();
     for i in 0..30 {
@@ -504,8 +504,9 @@ fn compensation_uses_the_model(d: &std::path::Path, params: &str, baseline: &str
                 &out,
             ],
         ));
-        common::compensation_misses::<6>(
+        common::compensation_misses(
             &d.join(&out),
+            6,
             |q| {
                 let angles = maps.apply(q);
                 let mut reached = actual.forward(&angles);
@@ -513,7 +514,7 @@ fn compensation_uses_the_model(d: &std::path::Path, params: &str, baseline: &str
                     let columns = host_tools::compliance::columns(
                         &c.gravity,
                         &model.robot,
-                        &calib_core::ParameterErrors::zero(),
+                        &calib_core::ParameterErrors::zeros_for(model.robot.joint_count()),
                         &angles,
                     )
                     .unwrap();
@@ -790,7 +791,7 @@ fn a_file_with_compliance_is_applied_or_refused_never_ignored() {
     let mask = |path: &std::path::Path| {
         RobotFile::read(path)
             .unwrap()
-            .to_model::<6>(path)
+            .to_model(path)
             .unwrap()
             .mask
     };
@@ -830,9 +831,9 @@ fn a_file_with_compliance_is_applied_or_refused_never_ignored() {
         ],
     ));
     let bytes = std::fs::read(d.join("b.bin")).unwrap();
-    assert_eq!(bytes.len(), model_block_len::<f64, 6>(maps.harmonics, true));
-    let (block, _) = decode_model::<f64, 6, 64>(&bytes).unwrap();
-    assert_eq!(block.compliance, c.to_core::<f64, 6>().unwrap());
+    assert_eq!(bytes.len(), model_block_len::<f64>(6, maps.harmonics, true));
+    let (block, _) = decode_model::<f64, nalgebra::Dyn, 64>(&bytes).unwrap();
+    assert_eq!(block.compliance, c.to_core::<f64>(6).unwrap());
     assert!(block.compliance.is_active());
     // compensate applies it: the robot with maps and compliance reaches the targets.
     compensation_uses_the_model(d, "c.toml", "no-c.toml", 0.1);
@@ -853,14 +854,17 @@ fn a_file_with_compliance_is_applied_or_refused_never_ignored() {
         nalgebra::Vector3::from_fn(|i, _| json["position_mm"][i].as_f64().unwrap())
     };
     let moved = fk("c.toml") - fk("no-c.toml");
-    let model: RobotModel<6> = file.to_model(&d.join("c.toml")).unwrap();
-    let q: [f64; 6] = [-100.0f64, -60.0, 30.0, -100.0, -50.0, 10.0].map(f64::to_radians);
+    let model: RobotModel = file.to_model(&d.join("c.toml")).unwrap();
+    let q = calib_core::model::JointVec::from_slice(
+        &[-100.0f64, -60.0, 30.0, -100.0, -50.0, 10.0].map(f64::to_radians),
+    )
+    .unwrap();
     let gravity = file.dynamics.as_ref().unwrap().to_gravity().unwrap();
     let gains = file.compliance.as_ref().unwrap().to_gains().unwrap();
     let columns = host_tools::compliance::columns(
         &gravity,
         &model.robot,
-        &calib_core::ParameterErrors::zero(),
+        &calib_core::ParameterErrors::zeros_for(model.robot.joint_count()),
         &maps.apply(&q),
     )
     .unwrap();
@@ -944,7 +948,7 @@ fn a_series_a_model_with_compliance_carries_over_to_series_b() {
     let fraction = ((SERIES_B_POSES - 30) as f64 / SERIES_B_POSES as f64).to_string();
     for frames in ["base+tool", "base"] {
         let evaluated = evaluate(DATA_B, "30", "0", frames);
-        let registered = calibrate::calibrate::<6>(&parse::<CalibrateOptions>(&[
+        let registered = calibrate::calibrate(&parse::<CalibrateOptions>(&[
             "--robot",
             d.join("a.toml").to_str().unwrap(),
             "--data",

@@ -39,7 +39,7 @@ fn calibrate(data: &Path, truth: &Path, args: &[&str]) -> Calibration {
         truth.to_str().unwrap(),
     ];
     all.extend_from_slice(args);
-    calibrate::calibrate::<6>(&parse::<CalibrateOptions>(&all)).unwrap()
+    calibrate::calibrate(&parse::<CalibrateOptions>(&all)).unwrap()
 }
 
 /// Writes the identified robot file and returns it parsed.
@@ -79,7 +79,7 @@ fn tracker_noise_scenario_matches_the_reference_and_the_statistics() {
         let fit = lm::fit(&nominal, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
         let reference_file = nominal.with_errors(
             &{
-                let mut e = calib_core::ParameterErrors::<f64, 6>::zero();
+                let mut e = calib_core::ParameterErrors::<f64, nalgebra::Dyn>::zeros_for(nalgebra::Dyn(6));
                 for (n, v) in &fit.errors {
                     e.set(calib_core::Parameter::from_name(n, 6).unwrap(), *v);
                 }
@@ -316,7 +316,7 @@ fn position_only_data_of_a_point_on_the_last_axis() {
         "--truth",
         truth.to_str().unwrap(),
     ];
-    let c = calibrate::calibrate::<6>(&parse::<CalibrateOptions>(&all)).unwrap();
+    let c = calibrate::calibrate(&parse::<CalibrateOptions>(&all)).unwrap();
     assert!(c.report().dropped.is_empty());
     assert_eq!(c.result.parameters.len(), 20);
     let sigma = c.result.least_squares.as_ref().unwrap().sigma_mm;
@@ -351,7 +351,7 @@ fn full_poses_determine_all_24_parameters() {
 fn too_few_poses_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     let (data, _) = simulate(dir.path(), "d", &["--poses", "3"]);
-    let e = calibrate::calibrate::<6>(&parse::<CalibrateOptions>(&[
+    let e = calibrate::calibrate(&parse::<CalibrateOptions>(&[
         "--robot",
         ROBOT,
         "--data",

@@ -3,6 +3,7 @@
 //! joints within the limits), each solution checked independently by forward kinematics against
 //! its target and against the joint limits.
 
+use calib_core::model::JointVec;
 use calib_core::Kinematics;
 use calib_core::controller::numerical_ik::{NumericalIkSettings, numerical_inverse_kinematics};
 use calib_core::kinematics::pose_error::PoseError;
@@ -15,17 +16,17 @@ fn reach(file: &str) -> (usize, usize, u32) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("robots")
         .join(file);
-    let model: RobotModel<7> = RobotFile::read(&path).unwrap().to_model(&path).unwrap();
+    let model: RobotModel = RobotFile::read(&path).unwrap().to_model(&path).unwrap();
     let kinematics = Kinematics::nominal(&model.robot).unwrap();
     let limits = model.robot.limits;
     // The documented reference posture: the middle of each joint's range.
-    let reference: [f64; 7] = std::array::from_fn(|j| 0.5 * (limits[j].lower + limits[j].upper));
+    let reference = calib_core::model::JointVec::<f64>::from_fn(7, |j| 0.5 * (limits[j].lower + limits[j].upper));
     let settings = NumericalIkSettings::default();
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(15);
     let (mut reached, mut refused, mut most_seeds) = (0, 0, 0);
     for _ in 0..1000 {
-        let q: [f64; 7] =
-            std::array::from_fn(|j| rng.random_range(limits[j].lower..limits[j].upper));
+        let q = calib_core::model::JointVec::<f64>::from_fn(7,
+            |j| rng.random_range(limits[j].lower..limits[j].upper));
         let target = kinematics.forward(&q).unwrap();
         match numerical_inverse_kinematics(&kinematics, &limits, &target, &reference, &settings) {
             Ok(solution) => {
@@ -60,13 +61,13 @@ fn reach(file: &str) -> (usize, usize, u32) {
 #[test]
 fn the_reference_posture_wins_and_an_unreachable_target_is_an_error() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/kuka-iiwa14.toml");
-    let model: RobotModel<7> = RobotFile::read(&path).unwrap().to_model(&path).unwrap();
+    let model: RobotModel = RobotFile::read(&path).unwrap().to_model(&path).unwrap();
     let kinematics = Kinematics::nominal(&model.robot).unwrap();
     let settings = NumericalIkSettings::default();
-    let reference = [0.3, 0.5, -0.2, -1.2, 0.4, 0.9, 0.1];
+    let reference = JointVec::from_slice(&[0.3, 0.5, -0.2, -1.2, 0.4, 0.9, 0.1]).unwrap();
     // A target a little away from the reference's pose: solved from the reference (seed 0),
     // and the minimum-norm steps stay near it.
-    let near = [0.32, 0.48, -0.18, -1.25, 0.42, 0.87, 0.12];
+    let near = JointVec::from_slice(&[0.32, 0.48, -0.18, -1.25, 0.42, 0.87, 0.12]).unwrap();
     let target = kinematics.forward(&near).unwrap();
     let solution = numerical_inverse_kinematics(
         &kinematics,

@@ -47,14 +47,14 @@ const POSITION: &str = concat!(
 const NOISE_MM: f64 = 0.2956;
 const NOISE_DEG: f64 = 0.0369;
 
-fn load(data: &str) -> Dataset<6> {
+fn load(data: &str) -> Dataset {
     let profile = DataProfile::load(Some(Path::new(PROFILE))).unwrap();
-    Dataset::<6>::load_with(Path::new(ROBOT), Path::new(data), &profile).unwrap()
+    Dataset::load_with(Path::new(ROBOT), Path::new(data), &profile).unwrap()
 }
 
 /// Calibrates the poses of `fit` (least squares, the tool's defaults otherwise) and returns the
 /// mean held-out position error on `validation`, mm.
-fn held_out_mean(fit: &Dataset<6>, validation: &Dataset<6>) -> f64 {
+fn held_out_mean(fit: &Dataset, validation: &Dataset) -> f64 {
     let config = CalibrationConfig {
         method: Method::Lm,
         ..CalibrationConfig::default()
@@ -64,8 +64,8 @@ fn held_out_mean(fit: &Dataset<6>, validation: &Dataset<6>) -> f64 {
 
 /// [`held_out_mean`] with `config`.
 fn held_out_mean_with(
-    fit: &Dataset<6>,
-    validation: &Dataset<6>,
+    fit: &Dataset,
+    validation: &Dataset,
     config: &CalibrationConfig,
 ) -> f64 {
     let result = calibration::calibrate(fit.clone(), Some(validation.clone()), config).unwrap();
@@ -73,7 +73,7 @@ fn held_out_mean_with(
 }
 
 /// The poses of `dataset` at `indices`, in the dataset's order.
-fn subset(dataset: &Dataset<6>, indices: &[usize]) -> Dataset<6> {
+fn subset(dataset: &Dataset, indices: &[usize]) -> Dataset {
     dataset.partition(indices).1
 }
 
@@ -89,7 +89,7 @@ struct Split {
 /// Split `seed` of `dataset`: 60 % pool, 40 % validation. Plans of 12, 30 and 50 poses (cores
 /// as [`core`], 15 verification poses) from the pool's joint values; random sets of 12 and 50
 /// pool poses.
-fn split(dataset: &Dataset<6>, seed: u64) -> Split {
+fn split(dataset: &Dataset, seed: u64) -> Split {
     let (pool, validation) = host_tools::dataset::split(dataset, 0.4, seed).unwrap();
     let candidates: Vec<(String, Vec<f64>)> = pool
         .data
@@ -287,7 +287,7 @@ fn plan_measure_calibrate_end_to_end() {
             "--method",
             "lm",
         ]);
-        calibrate_cli::calibrate::<6>(&options)
+        calibrate_cli::calibrate(&options)
     };
     let unfilled = calibrate(&plan_csv).map(|_| ()).unwrap_err().to_string();
     assert!(unfilled.contains("not been measured"), "{unfilled}");
@@ -387,7 +387,7 @@ fn plan_measure_calibrate_end_to_end() {
         "--validate",
         "0.2",
     ]);
-    let both = calibrate_cli::calibrate::<6>(&options)
+    let both = calibrate_cli::calibrate(&options)
         .map(|_| ())
         .unwrap_err()
         .to_string();
@@ -396,7 +396,7 @@ fn plan_measure_calibrate_end_to_end() {
 
 /// The largest gap between the readings of `poses` in each joint, as a fraction of the joint's
 /// range over `all` (its ends count as readings of the range), averaged over the joints.
-fn coverage_gap(all: &Dataset<6>, poses: &[usize]) -> f64 {
+fn coverage_gap(all: &Dataset, poses: &[usize]) -> f64 {
     let mut total = 0.0;
     for j in 0..6 {
         let readings: Vec<f64> = all.data.records.iter().map(|r| r.q[j]).collect();
@@ -422,7 +422,7 @@ fn coverage_gap(all: &Dataset<6>, poses: &[usize]) -> f64 {
 #[test]
 fn series_b_plan_for_joint_maps() {
     let profile = DataProfile::load(Some(Path::new(POSITION))).unwrap();
-    let dataset = Dataset::<6>::load_with(Path::new(ROBOT), Path::new(SERIES_B), &profile).unwrap();
+    let dataset = Dataset::load_with(Path::new(ROBOT), Path::new(SERIES_B), &profile).unwrap();
     let config = CalibrationConfig {
         method: Method::Lm,
         model: ErrorModel::JointMaps,

@@ -41,11 +41,12 @@ const CONFIGURATIONS: [[f64; 6]; 5] = [
 ];
 
 /// Base-frame targets (CSV, position and quaternion) at [`CONFIGURATIONS`] of the nominal model.
-fn targets(nominal: &Kinematics<f64, 6>) -> (String, Vec<calib_core::Pose<f64>>) {
+fn targets(nominal: &Kinematics<f64, nalgebra::Dyn>) -> (String, Vec<calib_core::Pose<f64>>) {
     let mut csv = String::from("id,x_mm,y_mm,z_mm,qw,qx,qy,qz\n");
     let mut poses = Vec::new();
     for (i, q) in CONFIGURATIONS.iter().enumerate() {
-        let pose = nominal.forward(&q.map(f64::to_radians)).unwrap();
+        let q = calib_core::model::JointVec::from_slice(&q.map(f64::to_radians)).unwrap();
+        let pose = nominal.forward(&q).unwrap();
         let t = pose.translation.vector;
         let r = nalgebra::UnitQuaternion::from_rotation_matrix(&pose.rotation);
         csv.push_str(&format!(
@@ -154,7 +155,7 @@ fn tracker_data_calibrate_export_compensate_reaches_the_targets() {
         ],
     ));
     let block = std::fs::read(d.join("block.bin")).unwrap();
-    let (robot, _) = calib_core::controller::storage::decode::<f32, U6>(&block).unwrap();
+    let (robot, _) = calib_core::controller::storage::decode::<f32, nalgebra::Dyn>(&block).unwrap();
     assert_eq!(robot.base.xyz, [0.0; 3]);
     assert_eq!(robot.tool.xyz, [0.0; 3]);
 
@@ -194,7 +195,7 @@ fn tracker_data_calibrate_export_compensate_reaches_the_targets() {
     // Compensate base-frame targets with the identified model.
     let nominal_file = RobotFile::read(&d.join("robot.toml")).unwrap();
     let nominal =
-        Kinematics::nominal(&nominal_file.to_model::<6>(Path::new(ROBOT)).unwrap().robot).unwrap();
+        Kinematics::nominal(&nominal_file.to_model(Path::new(ROBOT)).unwrap().robot).unwrap();
     let (csv, poses) = targets(&nominal);
     std::fs::write(d.join("targets.csv"), csv).unwrap();
     let text = ok(&calib_in(
@@ -217,18 +218,20 @@ fn tracker_data_calibrate_export_compensate_reaches_the_targets() {
     let mut truth = RobotFile::read(&d.join("truth.toml")).unwrap();
     (truth.base, truth.tool) = (None, None);
     let actual =
-        Kinematics::nominal(&truth.to_model::<6>(Path::new("truth.toml")).unwrap().robot).unwrap();
+        Kinematics::nominal(&truth.to_model(Path::new("truth.toml")).unwrap().robot).unwrap();
     let rows = std::fs::read_to_string(d.join("compensated.csv")).unwrap();
     let (mut worst, mut uncompensated) = (0.0f64, 0.0f64);
     for ((line, target), q_nominal) in rows.lines().skip(1).zip(&poses).zip(CONFIGURATIONS) {
         let fields: Vec<&str> = line.split(',').collect();
-        let q: [f64; 6] =
-            std::array::from_fn(|i| fields[1 + i].parse::<f64>().unwrap().to_radians());
-        let miss = |q: &[f64; 6]| {
+        let q = calib_core::model::JointVec::<f64>::from_fn(6,
+            |i| fields[1 + i].parse::<f64>().unwrap().to_radians());
+        let miss = |q: &calib_core::model::JointVec<f64>| {
             (actual.forward(q).unwrap().translation.vector - target.translation.vector).norm()
         };
         worst = worst.max(miss(&q));
-        uncompensated = uncompensated.max(miss(&q_nominal.map(f64::to_radians)));
+        let q_nominal =
+            calib_core::model::JointVec::from_slice(&q_nominal.map(f64::to_radians)).unwrap();
+        uncompensated = uncompensated.max(miss(&q_nominal));
     }
     assert!(uncompensated > 1.0, "uncompensated miss {uncompensated} mm");
     assert!(worst < 0.05, "worst target missed by {worst} mm");

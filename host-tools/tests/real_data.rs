@@ -29,7 +29,7 @@ fn calibrate(data: &str, profile: &str, args: &[&str]) -> Calibration {
         args,
     ]
     .concat();
-    calibrate::calibrate::<6>(&parse::<CalibrateOptions>(&all)).unwrap()
+    calibrate::calibrate(&parse::<CalibrateOptions>(&all)).unwrap()
 }
 
 /// 50 random poses of the 1495 calibrate (`--validate 0.9666` holds out 1445), 5 seeds.
@@ -205,7 +205,7 @@ fn a_poor_registration_is_reported() {
     let er10l = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
     let error = |profile: &str| {
         let all = ["--robot", er10l, "--data", DATA, "--profile", profile];
-        calibrate::calibrate::<6>(&parse::<CalibrateOptions>(&all))
+        calibrate::calibrate(&parse::<CalibrateOptions>(&all))
             .err()
             .unwrap()
             .to_string()
@@ -253,7 +253,7 @@ fn series_b_model_re_registered_on_series_d() {
         "--validate",
         held,
     ];
-    let registered = calibrate::calibrate::<6>(&parse::<CalibrateOptions>(&all)).unwrap();
+    let registered = calibrate::calibrate(&parse::<CalibrateOptions>(&all)).unwrap();
     assert_eq!(registered.result.calibration.poses, 30);
     let v = registered.result.validation.as_ref().unwrap();
     assert_eq!(v.poses, 602);
@@ -330,7 +330,7 @@ fn a_wrong_euler_convention_is_refused_and_the_right_one_named() {
             "--profile",
             wrong.to_str().unwrap(),
         ];
-        let err = calibrate::calibrate::<6>(&parse::<CalibrateOptions>(&all))
+        let err = calibrate::calibrate(&parse::<CalibrateOptions>(&all))
             .err()
             .unwrap()
             .to_string();

@@ -200,13 +200,13 @@ fn every_command_on_a_simulated_seven_joint_robot() {
         (predicted.translation.vector - Vector3::new(measured[0], measured[1], measured[2])).norm();
     println!("fk of the identified file in the measurement setup against the data: {miss:.2e} mm");
     assert!(miss < 1e-6, "{miss}");
-    let q: [f64; 7] = std::array::from_fn(|i| joints[i].parse::<f64>().unwrap().to_radians());
+    let q = calib_core::model::JointVec::<f64>::from_fn(7, |i| joints[i].parse::<f64>().unwrap().to_radians());
 
     // compensate: targets the nominal robot reaches at the simulated joints; the identified
     // robot is put on them.
     let nominal = RobotFile::read(Path::new(ROBOT))
         .unwrap()
-        .to_model::<7>(Path::new(ROBOT))
+        .to_model(Path::new(ROBOT))
         .unwrap()
         .robot;
     let target = calib_core::Kinematics::nominal(&nominal)
@@ -367,7 +367,7 @@ fn joint_maps_of_a_seven_joint_arm_are_exported_and_compensated() {
     let file = RobotFile::read(&params).unwrap();
     let maps = file.joint_maps(&params).unwrap().unwrap();
     assert_eq!(maps.joints(), 7);
-    let model: host_tools::robot_file::RobotModel<7> = file.to_model(&params).unwrap();
+    let model: host_tools::robot_file::RobotModel = file.to_model(&params).unwrap();
 
     // The block: the same robot and maps.
     let block = at(d, "maps.bin");
@@ -383,8 +383,8 @@ fn joint_maps_of_a_seven_joint_arm_are_exported_and_compensated() {
         &block,
     ]));
     let bytes = std::fs::read(&block).unwrap();
-    assert_eq!(bytes.len(), model_block_len::<f64, 7>(2, false));
-    let (decoded, _) = decode_model::<f64, 7, 64>(&bytes).unwrap();
+    assert_eq!(bytes.len(), model_block_len::<f64>(7, 2, false));
+    let (decoded, _) = decode_model::<f64, nalgebra::Dyn, 64>(&bytes).unwrap();
     assert_eq!(decoded.robot, model.robot);
     let mut worst = 0.0f64;
     for j in 0..7 {
@@ -407,7 +407,7 @@ fn joint_maps_of_a_seven_joint_arm_are_exported_and_compensated() {
         "--json",
     ]));
     let json: serde_json::Value = serde_json::from_str(&out).unwrap();
-    let q: [f64; 7] = q_deg.map(f64::to_radians);
+    let q = calib_core::model::JointVec::from_slice(&q_deg.map(f64::to_radians)).unwrap();
     let expected = RefModel::from_file(&file, &[], &[0.0; 6], &[0.0; 6]).forward(&maps.apply(&q));
     for (axis, row) in expected.iter().take(3).enumerate() {
         let got = json["position_mm"][axis].as_f64().unwrap();
@@ -462,8 +462,9 @@ fn joint_maps_of_a_seven_joint_arm_are_exported_and_compensated() {
             "--out",
             &out,
         ]));
-        common::compensation_misses::<7>(
+        common::compensation_misses(
             Path::new(&out),
+            7,
             |q| actual.forward(&maps.apply(q)),
             |i| nominal.forward(&rows[i].q),
         )

@@ -3,6 +3,7 @@
 //! `CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test onboard`), and it is checked here
 //! against the true errors of the simulation and against the f64 core on the same data.
 
+use nalgebra::U6;
 use calib_core::Problem;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
 use calib_core::identify::objective::{DEFAULT_K, Measurement};
@@ -155,7 +156,7 @@ fn model_job_matches_the_f64_core(block: &[u8], file: &str, expected_file: &str,
     ] {
         let path = Path::new(dir).join(file);
         let robot_file = RobotFile::read(&path).unwrap();
-        let model: RobotModel<6> = robot_file.to_model(&path).unwrap();
+        let model: RobotModel = robot_file.to_model(&path).unwrap();
         let maps = robot_file.joint_maps(&path).unwrap();
         let compliance = robot_file.gravity_compliance(&path).unwrap();
         let exported = parameter_block(
@@ -171,7 +172,7 @@ fn model_job_matches_the_f64_core(block: &[u8], file: &str, expected_file: &str,
 
     // The f64 core with the block's values (f32 -> f64 is exact).
     let (nominal32, _) = decode::<f32, U6>(NOMINAL_BLOCK).unwrap();
-    let (model32, _) = decode_model::<f32, 6, 64>(block).unwrap();
+    let (model32, _) = decode_model::<f32, U6, 64>(block).unwrap();
     let widen = |file_robot: &calib_core::Robot<f32, U6>| calib_core::Robot::<f64, U6> {
         joints: file_robot.joints.map(|j| calib_core::MdhJoint {
             a: f64::from(j.a),

@@ -1,5 +1,5 @@
-//! The parameter count as a type: the controller compiles it (`U24`), a host takes it at run time
-//! (`Dyn`), and both must give the same bits. The swarm's side is checked in host-tools
+//! The joint and parameter counts as types: the controller compiles them (`U6`, `U24`), a host
+//! takes them at run time (`Dyn`, `Dyn`), and both must give the same bits. The swarm's side is checked in host-tools
 //! (`swarm_team::team_evaluates_bit_for_bit`) and against the golden objective
 //! (`swarm_golden`); here least squares (plain and robust), its covariance and standard errors,
 //! and the identifiability analysis on the bundled paper scenario (32 simulated 6-DoF poses of
@@ -8,16 +8,17 @@
 use calib_core::identify::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability};
 use calib_core::identify::lm::{LeastSquares, LmSettings, Loss};
 use calib_core::identify::objective::{DEFAULT_K, Measurement};
+use calib_core::model::JointCount;
 use calib_core::{ParameterErrors, ParameterSet, Problem};
-use nalgebra::{Dim, Dyn, U24};
+use nalgebra::{Dim, Dyn, U6, U24};
 
 fn bits(values: impl IntoIterator<Item = f64>) -> Vec<u64> {
     values.into_iter().map(f64::to_bits).collect()
 }
 
 /// The bundled measurements of the paper scenario; position-only when asked.
-fn paper_measurements(position_only: bool) -> Vec<Measurement<f64, U6>> {
-    let mut measurements = host_tools::dataset::Dataset::<6>::load(
+fn paper_measurements(position_only: bool) -> Vec<Measurement<f64, Dyn>> {
+    let mut measurements = host_tools::dataset::Dataset::load(
         &calib_tests::repo("host-tools/robots/er10l-c10.toml"),
         &calib_tests::repo("host-tools/data/er10l-c10-sim32.csv"),
     )
@@ -31,18 +32,27 @@ fn paper_measurements(position_only: bool) -> Vec<Measurement<f64, U6>> {
     measurements
 }
 
-/// Everything a calibration reads from least squares and the analysis, as bits.
-fn results<D: Dim>(measurements: &[Measurement<f64, U6>], loss: Loss<f64>) -> Vec<Vec<u64>>
+/// Everything a calibration reads from least squares and the analysis, as bits, with the joint
+/// count `N` and the parameter count `D`.
+fn results<N: JointCount, D: Dim>(
+    measurements: &[Measurement<f64, Dyn>],
+    loss: Loss<f64>,
+) -> Vec<Vec<u64>>
 where
     nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<D>
         + nalgebra::allocator::Allocator<D, D>
         + nalgebra::allocator::Allocator<nalgebra::U6, D>,
 {
-    let robot = calib_core::model::paper::er10l_c10::<f64>();
-    let set = ParameterSet::<U6, D>::default_for(&robot).expect("the paper's 24 parameters");
+    let robot = calib_core::model::paper::er10l_c10::<f64>()
+        .recount::<N>()
+        .unwrap();
+    let measurements: Vec<Measurement<f64, N>> =
+        measurements.iter().map(|m| m.recount().unwrap()).collect();
+    let measurements = &measurements[..];
+    let set = ParameterSet::<N, D>::default_for(&robot).expect("the paper's 24 parameters");
     let problem = Problem::new(
         &robot,
-        &ParameterErrors::zero(),
+        &ParameterErrors::zeros_for(robot.joint_count()),
         set,
         measurements,
         DEFAULT_K,
@@ -95,12 +105,12 @@ where
 }
 
 #[test]
-fn least_squares_and_identifiability_give_the_same_bits_for_a_compiled_and_a_run_time_count() {
+fn least_squares_and_identifiability_give_the_same_bits_for_compiled_and_run_time_counts() {
     for position_only in [false, true] {
         let measurements = paper_measurements(position_only);
         for loss in [Loss::L2, Loss::Cauchy(0.05)] {
-            let fixed = results::<U24>(&measurements, loss);
-            let dynamic = results::<Dyn>(&measurements, loss);
+            let fixed = results::<U6, U24>(&measurements, loss);
+            let dynamic = results::<Dyn, Dyn>(&measurements, loss);
             // Not a trivial comparison: 24 singular values; with 6-DoF data a fit that moved
             // and a full R; position-only, the refusal.
             assert_eq!(fixed[0].len(), 24);

@@ -12,7 +12,7 @@ fn six_joints() -> String {
 
 fn error_of(text: &str) -> String {
     let path = Path::new("robots/bad.toml");
-    match RobotFile::parse(text, path).and_then(|f| f.to_model::<6>(path)) {
+    match RobotFile::parse(text, path).and_then(|f| f.to_model(path)) {
         Ok(_) => panic!("accepted a bad robot file:\n{text}"),
         Err(e) => e.to_string(),
     }
@@ -21,7 +21,7 @@ fn error_of(text: &str) -> String {
 #[test]
 fn a_good_file_parses_and_defaults_apply() {
     let path = Path::new("robots/ok.toml");
-    let model: RobotModel<6> = RobotFile::parse(&six_joints(), path)
+    let model: RobotModel = RobotFile::parse(&six_joints(), path)
         .unwrap()
         .to_model(path)
         .unwrap();
@@ -103,7 +103,7 @@ fn unknown_identify_name_is_an_error() {
 fn identify_list_overrides_the_default_rule() {
     let text = six_joints().replacen("d_mm = 0.0\n", "d_mm = 0.0\nidentify = [\"theta\"]\n", 1);
     let path = Path::new("x.toml");
-    let model: RobotModel<6> = RobotFile::parse(&text, path)
+    let model: RobotModel = RobotFile::parse(&text, path)
         .unwrap()
         .to_model(path)
         .unwrap();
@@ -118,7 +118,7 @@ fn identify_list_overrides_the_default_rule() {
 
 #[test]
 fn missing_file_is_named() {
-    let e = RobotModel::<6>::load(Path::new("no/such/robot.toml"))
+    let e = RobotModel::load(Path::new("no/such/robot.toml"))
         .unwrap_err()
         .to_string();
     assert!(

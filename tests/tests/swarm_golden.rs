@@ -1,6 +1,7 @@
 //! The Halton generator and the eq. (7) objective against the golden vectors of the independent
 //! numpy implementation.
 
+use nalgebra::U6;
 use calib_core::Problem;
 use calib_core::identify::halton::{self, Scrambling};
 use calib_core::identify::objective::{Measurement, Objective};
@@ -52,10 +53,13 @@ fn objective_matches_golden_values() {
             Measurement::from_pose(&q, &truth.forward(&q).unwrap()).unwrap()
         })
         .collect();
-    // The count compiled (as on the controller) and at run time (as on a host): the same bits.
+    // The counts compiled (as on the controller) and at run time (as on a host): the same bits.
     let set = ParameterSet::<U6, U24>::default_for(&robot).unwrap();
     let at_table2 = set.pack(&table2_errors::<f64>());
-    let dynamic_set = ParameterSet::<U6, Dyn>::default_for(&robot).unwrap();
+    let dynamic_robot = robot.recount::<Dyn>().unwrap();
+    let dynamic_measurements: Vec<Measurement<f64, Dyn>> =
+        measurements.iter().map(|m| m.recount().unwrap()).collect();
+    let dynamic_set = ParameterSet::<Dyn, Dyn>::default_for(&dynamic_robot).unwrap();
     let text =
         std::fs::read_to_string(calib_tests::data("vectors/objective-er10l-c10.txt")).unwrap();
     let mut checked = 0;
@@ -80,10 +84,10 @@ fn objective_matches_golden_values() {
         let objective = Objective::new(&problem);
         let value = objective.value(&x);
         let dynamic_problem = Problem::new(
-            &robot,
-            &calib_core::ParameterErrors::zero(),
+            &dynamic_robot,
+            &calib_core::ParameterErrors::zeros_for(dynamic_robot.joint_count()),
             dynamic_set.clone(),
-            &measurements,
+            &dynamic_measurements,
             k,
         )
         .unwrap();

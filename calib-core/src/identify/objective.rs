@@ -139,6 +139,21 @@ impl<T: Real, N: JointCount> Measurement<T, N> {
         }
     }
 
+    /// The same measurement with the joint count as the type `M`: `None` when `M` cannot hold
+    /// it.
+    pub fn recount<M: JointCount>(&self) -> Option<Measurement<T, M>> {
+        use crate::model::joint_count::recount;
+        Some(Measurement {
+            angles: JointAngles {
+                cos: recount::<_, N, M>(&self.angles.cos)?,
+                sin: recount::<_, N, M>(&self.angles.sin)?,
+            },
+            position: self.position,
+            rotation: self.rotation,
+            weight: self.weight,
+        })
+    }
+
     /// A measurement taken from a pose (position and rotation), weight 1.
     pub fn from_pose(q: &N::Table<T>, pose: &Pose<T>) -> Result<Self, MeasurementError> {
         Self::new(

@@ -7,6 +7,7 @@
 //! that the host compiles every algorithm once and still never touches the heap inside an
 //! objective evaluation.
 
+use crate::model::KinematicsError;
 use crate::scalar::Loggable;
 use core::fmt::Debug;
 use crate::scalar::Real;
@@ -178,6 +179,18 @@ impl JointCount for Dyn {
     }
 }
 
+/// `table` as a table of the joint count type `M` (the same values): `None` when `M` cannot
+/// hold its count (another fixed count, more than [`MAX_JOINTS`] for [`Dyn`], or no joint).
+/// Converts between a controller's fixed count and a host's run-time one.
+pub fn recount<X: Element, N: JointCount, M: JointCount>(
+    table: &N::Table<X>,
+) -> Option<M::Table<X>> {
+    let values = table.as_slice();
+    let mut out = M::checked(values.len())?.table(*values.first()?);
+    out.as_mut_slice().copy_from_slice(values);
+    Some(out)
+}
+
 /// The run-time joint count `joints`, or `None` beyond [`MAX_JOINTS`] or for no joint.
 pub fn joint_count(joints: usize) -> Option<Dyn> {
     (1..=MAX_JOINTS).contains(&joints).then_some(Dyn(joints))
@@ -191,7 +204,28 @@ pub struct JointVec<X> {
     len: u8,
 }
 
+impl<X: Element + Default> JointVec<X> {
+    /// The table of `joints` values `f(0), f(1), ...` (at most [`MAX_JOINTS`]: check counts with
+    /// [`joint_count`] where they enter).
+    pub fn from_fn(joints: usize, mut f: impl FnMut(usize) -> X) -> Self {
+        let mut table = Dyn(joints).table(X::default());
+        for (j, value) in table.as_mut_slice().iter_mut().enumerate() {
+            *value = f(j);
+        }
+        table
+    }
+}
+
 impl<X: Element> JointVec<X> {
+    /// The values mapped by `f`, joint by joint (`f` also maps the unused slots' copies of a
+    /// value, so it should not count its calls).
+    pub fn map<Y: Element>(&self, f: impl FnMut(X) -> Y) -> JointVec<Y> {
+        JointVec {
+            values: self.values.map(f),
+            len: self.len,
+        }
+    }
+
     /// The table of `values`, or `None` for more than [`MAX_JOINTS`] of them.
     pub fn from_slice(values: &[X]) -> Option<Self> {
         let first = *values.first()?;
@@ -217,6 +251,47 @@ impl<X: Element> JointTable<X> for JointVec<X> {
     }
 }
 
+impl<X: Element> TryFrom<&[X]> for JointVec<X> {
+    type Error = KinematicsError;
+
+    /// The table of `values`; an error for none or more than [`MAX_JOINTS`].
+    fn try_from(values: &[X]) -> Result<Self, KinematicsError> {
+        Self::from_slice(values).ok_or(KinematicsError::JointCount {
+            expected: MAX_JOINTS as u8,
+            found: u8::try_from(values.len()).unwrap_or(u8::MAX),
+        })
+    }
+}
+
+impl<X: Element> core::ops::Deref for JointVec<X> {
+    type Target = [X];
+    fn deref(&self) -> &[X] {
+        self.as_slice()
+    }
+}
+
+impl<X: Element> core::ops::DerefMut for JointVec<X> {
+    fn deref_mut(&mut self) -> &mut [X] {
+        self.as_mut_slice()
+    }
+}
+
+impl<'a, X: Element> IntoIterator for &'a JointVec<X> {
+    type Item = &'a X;
+    type IntoIter = core::slice::Iter<'a, X>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.as_slice().iter()
+    }
+}
+
+impl<'a, X: Element> IntoIterator for &'a mut JointVec<X> {
+    type Item = &'a mut X;
+    type IntoIter = core::slice::IterMut<'a, X>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.as_mut_slice().iter_mut()
+    }
+}
+
 impl<X: Element> PartialEq for JointVec<X> {
     fn eq(&self, other: &Self) -> bool {
         self.as_slice() == other.as_slice()
@@ -236,15 +311,15 @@ impl<X: Element> defmt::Format for JointVec<X> {
     }
 }
 
-impl<X: Element> core::ops::Index<usize> for JointVec<X> {
-    type Output = X;
-    fn index(&self, j: usize) -> &X {
-        &self.as_slice()[j]
+impl<X: Element, I: core::slice::SliceIndex<[X]>> core::ops::Index<I> for JointVec<X> {
+    type Output = I::Output;
+    fn index(&self, index: I) -> &I::Output {
+        &self.as_slice()[index]
     }
 }
 
-impl<X: Element> core::ops::IndexMut<usize> for JointVec<X> {
-    fn index_mut(&mut self, j: usize) -> &mut X {
-        &mut self.as_mut_slice()[j]
+impl<X: Element, I: core::slice::SliceIndex<[X]>> core::ops::IndexMut<I> for JointVec<X> {
+    fn index_mut(&mut self, index: I) -> &mut I::Output {
+        &mut self.as_mut_slice()[index]
     }
 }

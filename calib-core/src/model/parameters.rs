@@ -238,6 +238,20 @@ impl<T: Real, N: JointCount> ParameterErrors<T, N> {
         }
     }
 
+    /// The joint count.
+    pub fn joint_count(&self) -> N {
+        N::of(&self.joints)
+    }
+
+    /// The same errors with the joint count as the type `M`: `None` when `M` cannot hold it.
+    pub fn recount<M: JointCount>(&self) -> Option<ParameterErrors<T, M>> {
+        Some(ParameterErrors {
+            joints: crate::model::joint_count::recount::<_, N, M>(&self.joints)?,
+            base: self.base,
+            tool: self.tool,
+        })
+    }
+
     /// The error of one parameter (mm or rad); `None` for a joint number outside `1..=N`.
     pub fn get(&self, parameter: Parameter) -> Option<T> {
         match parameter {

@@ -1,7 +1,7 @@
 //! The nominal robot: N joints of Hayati MDH parameters, joint limits, base and tool frames.
 
 use crate::model::KinematicsError;
-use crate::model::joint_count::{JointCount, JointTable};
+use crate::model::joint_count::{JointCount, JointTable, recount};
 use crate::model::parameters::{FrameParameter, JointParameter, Parameter};
 use crate::scalar::Real;
 use core::cmp::Ordering;
@@ -109,6 +109,17 @@ impl<T: Real, N: JointCount> Robot<T, N> {
     /// The joint count.
     pub fn joint_count(&self) -> N {
         N::of(&self.joints)
+    }
+
+    /// The same robot with the joint count as the type `M` (`Dyn` for a controller's robot on a
+    /// host, `Const<N>` back): `None` when `M` cannot hold its count.
+    pub fn recount<M: JointCount>(&self) -> Option<Robot<T, M>> {
+        Some(Robot {
+            joints: recount::<_, N, M>(&self.joints)?,
+            limits: recount::<_, N, M>(&self.limits)?,
+            base: self.base,
+            tool: self.tool,
+        })
     }
 
     /// Checks that every nominal value is finite and every limit pair is ordered.

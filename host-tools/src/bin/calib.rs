@@ -1,5 +1,6 @@
 //! `calib`: robot geometric calibration from laser-tracker data.
 
+use calib_core::model::JointVec;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use host_tools::cli::calibrate::{self, CalibrateOptions};
@@ -175,10 +176,10 @@ fn print_json_or_text<T: serde::Serialize>(
 /// their joint maps; gravity compliance for 6-joint robots).
 fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::Result<()> {
     let file = host_tools::robot_file::RobotFile::read(robot)?;
-    let (name, pose) = host_tools::with_joint_count!(
-        file.joint.len(),
+    let (name, pose) = {
+        host_tools::dispatch::joint_count(file.joint.len())?;
         forward_kinematics_n(&file, robot, joints_deg)
-    )?;
+    }?;
     if json {
         print_line!(
             "{}",
@@ -192,16 +193,16 @@ fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::R
 }
 
 /// An `N`-joint robot file at `joints_deg`, with its joint maps and gravity compliance.
-fn forward_kinematics_n<const N: usize>(
+fn forward_kinematics_n(
     file: &host_tools::robot_file::RobotFile,
     robot: &Path,
     joints_deg: &[f64],
 ) -> anyhow::Result<(String, fk::FkOutput)> {
-    let model: RobotModel<N> = file.to_model(robot)?;
+    let model: RobotModel = file.to_model(robot)?;
     // Joint maps are part of the model: the kinematics sees each reading with its angle error.
     let joints_deg: Vec<f64> = match file.joint_maps(robot)? {
-        Some(maps) if joints_deg.len() == N => {
-            let q: [f64; N] = std::array::from_fn(|j| joints_deg[j].to_radians());
+        Some(maps) if joints_deg.len() == model.robot.joints.len() => {
+            let q = JointVec::<f64>::from_fn(joints_deg.len(), |j| joints_deg[j].to_radians());
             maps.apply(&q).iter().map(|q| q.to_degrees()).collect()
         }
         _ => joints_deg.to_vec(),

@@ -46,9 +46,9 @@ impl CrossValidation {
 
 /// Cross-validates the least-squares identification of `set` on `dataset`; `None` with fewer
 /// than 3 poses.
-pub fn cross_validate<const N: usize>(
-    dataset: &Dataset<N>,
-    set: &ParameterSet<N, Dyn>,
+pub fn cross_validate(
+    dataset: &Dataset,
+    set: &ParameterSet<Dyn, Dyn>,
     config: &CalibrationConfig,
 ) -> Option<CrossValidation> {
     let n = dataset.measurements.len();
@@ -71,7 +71,7 @@ pub fn cross_validate<const N: usize>(
         let (training, predicted) = dataset.partition(&held);
         let problem = Problem::new(
             &training.model.robot,
-            &ParameterErrors::zero(),
+            &ParameterErrors::zeros_for(training.model.robot.joint_count()),
             set.clone(),
             &training.measurements,
             config.k,

@@ -4,6 +4,8 @@
 //! robot file and the report are those of the model with the maps. The geometric calibration's
 //! statistics stay in the report for comparison.
 
+use calib_core::model::JointVec;
+use nalgebra::Dyn;
 use super::ErrorModel;
 use super::{CalibrationConfig, CalibrationResult, Stage};
 use crate::JOINTS;
@@ -117,10 +119,10 @@ pub struct MapsCrossValidation {
 /// folds of [`super::cross_validation::cross_validate`] over `dataset`'s poses: identified from
 /// each fold's complement within `poses` (`kept[i]` is the dataset index of `poses[i]`; the
 /// outliers left out of `poses` are predicted but never train). `None` when a fold fails.
-fn maps_cross_validation<const N: usize>(
-    dataset: &Dataset<N>,
+fn maps_cross_validation(
+    dataset: &Dataset,
     kept: &[usize],
-    problem: &joint_maps::MapsProblem<'_, N>,
+    problem: &joint_maps::MapsProblem<'_>,
     harmonics: usize,
 ) -> Option<(usize, f64)> {
     let (poses, gravity) = (problem.poses, problem.gravity);
@@ -139,7 +141,7 @@ fn maps_cross_validation<const N: usize>(
     for fold in 0..folds {
         let held: std::collections::BTreeSet<usize> =
             order.iter().skip(fold).step_by(folds).copied().collect();
-        let training: Vec<Pose<N>> = kept
+        let training: Vec<Pose> = kept
             .iter()
             .zip(poses)
             .filter(|(i, _)| !held.contains(i))
@@ -153,7 +155,7 @@ fn maps_cross_validation<const N: usize>(
         let model = Kinematics::new(robot, &found.errors).ok()?;
         for i in &held {
             let record = dataset.data.records.get(*i)?;
-            let q: [f64; N] = std::array::from_fn(|j| record.q.get(j).copied().unwrap_or(0.0));
+            let q = JointVec::<f64>::from_fn(record.q.len(), |j| record.q.get(j).copied().unwrap_or(0.0));
             let angles = found.maps.apply(&q);
             let mut predicted = model.forward(&angles).ok()?.translation.vector;
             if let (Some(gravity), Some(c)) = (gravity, &found.compliance) {
@@ -173,7 +175,7 @@ fn maps_cross_validation<const N: usize>(
 /// The weight of orientation rows in the maps, mm per rad: the ratio of the geometric fit's RMS
 /// position residual to its RMS orientation residual, so that both kinds of row carry the noise
 /// level of the position rows; 0 for position-only data.
-fn orientation_scale<const N: usize>(dataset: &Dataset<N>, geometric: &Kinematics<f64, N>) -> f64 {
+fn orientation_scale(dataset: &Dataset, geometric: &Kinematics<f64, Dyn>) -> f64 {
     let (mut position, mut rotation) = (0.0, 0.0);
     for m in &dataset.measurements {
         let Some(measured) = m.rotation else {
@@ -193,8 +195,8 @@ fn orientation_scale<const N: usize>(dataset: &Dataset<N>, geometric: &Kinematic
 
 /// Refuses a robot file that already has joint maps as the start of a joint-maps calibration:
 /// its maps would be applied to the data and new ones identified on top.
-pub fn check_robot_file<const N: usize>(
-    dataset: &Dataset<N>,
+pub fn check_robot_file(
+    dataset: &Dataset,
     config: &CalibrationConfig,
 ) -> anyhow::Result<()> {
     gravity(dataset, config)?;
@@ -210,17 +212,18 @@ pub fn check_robot_file<const N: usize>(
 
 /// The masses of the robot file for `--model joint-maps+compliance` (`None` for the other models);
 /// an error says what the file lacks.
-fn gravity<const N: usize>(
-    dataset: &Dataset<N>,
+fn gravity(
+    dataset: &Dataset,
     config: &CalibrationConfig,
 ) -> anyhow::Result<Option<Gravity>> {
     if config.model != ErrorModel::JointMapsCompliance {
         return Ok(None);
     }
-    if N != JOINTS {
+    let joints = dataset.model.robot.joints.len();
+    if joints != JOINTS {
         anyhow::bail!(
             "--model joint-maps+compliance: gravity compliance is modelled for {JOINTS}-joint robots (the torsion and \
-             tilt gains of joints 1 to 4 of a 6R arm); this robot has {N} joints: calibrate with --model joint-maps"
+             tilt gains of joints 1 to 4 of a 6R arm); this robot has {joints} joints: calibrate with --model joint-maps"
         );
     }
     let Some(dynamics) = &dataset.file.dynamics else {
@@ -240,11 +243,11 @@ fn gravity<const N: usize>(
 /// `dataset` as the model with maps and compliance sees it: the maps added to the readings, the
 /// compliance's displacement taken off the measured poses (so that the geometry's error on it is
 /// the whole model's error).
-pub fn model_view<const N: usize>(
-    dataset: &Dataset<N>,
-    found: &joint_maps::MapIdentification<N>,
+pub fn model_view(
+    dataset: &Dataset,
+    found: &joint_maps::MapIdentification,
     gravity: Option<&Gravity>,
-) -> anyhow::Result<Dataset<N>> {
+) -> anyhow::Result<Dataset> {
     let mapped = dataset.with_maps(&found.maps)?;
     match (gravity, &found.compliance) {
         (Some(gravity), Some(c)) => mapped.without_compliance(
@@ -260,12 +263,12 @@ pub fn model_view<const N: usize>(
 
 /// Adds the joint maps to the geometric calibration `result` of `dataset` (prepared: frames
 /// fitted), validated on `validation`.
-pub fn add_joint_maps<const N: usize>(
-    mut result: CalibrationResult<N>,
-    dataset: &Dataset<N>,
-    validation: Option<&Dataset<N>>,
+pub fn add_joint_maps(
+    mut result: CalibrationResult,
+    dataset: &Dataset,
+    validation: Option<&Dataset>,
     config: &CalibrationConfig,
-) -> anyhow::Result<CalibrationResult<N>> {
+) -> anyhow::Result<CalibrationResult> {
     check_robot_file(dataset, config)?;
     let geometric = Kinematics::new(&dataset.model.robot, &result.errors)?;
     let residuals: Vec<f64> = dataset
@@ -287,7 +290,7 @@ pub fn add_joint_maps<const N: usize>(
         }
         kept.push(i);
         poses.push(Pose {
-            q: std::array::from_fn(|j| r.q[j]),
+            q: JointVec::from_fn(r.q.len(), |j| r.q[j]),
             position: Vector3::from(r.position),
             rotation: r.rotation,
         });
@@ -317,13 +320,13 @@ pub fn add_joint_maps<const N: usize>(
                 >= (1.0 - CROSS_VALIDATION_MARGIN) * geometric.calibrated_mean_mm,
         })
     });
-    let ranges: [[f64; 2]; N] = std::array::from_fn(|j| {
+    let ranges: Vec<[f64; 2]> = (0..dataset.model.robot.joints.len()).map(|j| {
         poses
             .iter()
             .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], p| {
                 [lo.min(p.q[j]), hi.max(p.q[j])]
             })
-    });
+    }).collect();
     let kept_at_zero = cross_validation.is_some_and(|c| c.kept_at_zero);
     let geometric_calibration = result.calibration;
     let geometric_validation = result.validation;
@@ -341,7 +344,7 @@ pub fn add_joint_maps<const N: usize>(
             &ranges,
         )?;
     }
-    let joints = (0..N)
+    let joints = (0..ranges.len())
         .map(|j| {
             let values: Vec<f64> = poses.iter().map(|p| found.maps.error(j, p.q[j])).collect();
             let rms =
@@ -359,7 +362,7 @@ pub fn add_joint_maps<const N: usize>(
         })
         .collect();
     let turn = (360.0 / CURVE_STEP_DEG) as usize;
-    let curves = (0..N)
+    let curves = (0..ranges.len())
         .map(|j| {
             let q_deg: Vec<f64> = (0..=turn)
                 .map(|i| i as f64 * CURVE_STEP_DEG - 180.0)
@@ -404,15 +407,15 @@ pub fn add_joint_maps<const N: usize>(
 /// `result` (the geometric calibration) replaced by the model with the maps `found`: statistics,
 /// parameters and the identified robot file with its `[joint_maps]`, the maps identified on
 /// readings within `ranges`.
-fn with_maps<const N: usize>(
-    mut result: CalibrationResult<N>,
-    dataset: &Dataset<N>,
-    validation: Option<&Dataset<N>>,
+fn with_maps(
+    mut result: CalibrationResult,
+    dataset: &Dataset,
+    validation: Option<&Dataset>,
     config: &CalibrationConfig,
     parameters: &[calib_core::Parameter],
-    (found, gravity): (&joint_maps::MapIdentification<N>, Option<&Gravity>),
-    ranges: &[[f64; 2]; N],
-) -> anyhow::Result<CalibrationResult<N>> {
+    (found, gravity): (&joint_maps::MapIdentification, Option<&Gravity>),
+    ranges: &[[f64; 2]],
+) -> anyhow::Result<CalibrationResult> {
     // The statistics of the model with the maps (and the compliance).
     let actual = Kinematics::new(&dataset.model.robot, &found.errors)?;
     let mapped = model_view(dataset, found, gravity)?;
@@ -445,7 +448,7 @@ fn with_maps<const N: usize>(
     );
     let section = JointMapsSection::new(&found.maps, ranges);
     // Never write a file that its own reader refuses.
-    section.to_maps(N).map_err(|problem| {
+    section.to_maps(dataset.model.robot.joints.len()).map_err(|problem| {
         anyhow::anyhow!(
             "the identified joint maps are not plausible ({problem}); nothing was written. The poses may not move \
              that joint enough, or hold an outlier: calibrate with --model geometric, or measure more varied poses"

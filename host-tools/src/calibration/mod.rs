@@ -64,7 +64,6 @@ pub use result::{
     Parameters, PerPose, PoseReport, Report, Settings, Stage, SwarmSummary, lm_stop, swarm_stop,
 };
 
-use crate::JOINTS;
 use crate::dataset::Dataset;
 use crate::frames::{Frames, FramesReport};
 use crate::identifiability::{IdentifiabilityReport, analyse};
@@ -84,11 +83,11 @@ const COMPLIANCE_ROUNDS: usize = 2;
 
 /// Calibrates `dataset` (its robot's identification mask plus the frames of `config`), validating
 /// on `validation` when given (poses in the same tracker frame, not used to identify).
-pub fn calibrate<const N: usize>(
-    mut dataset: Dataset<N>,
-    mut validation: Option<Dataset<N>>,
+pub fn calibrate(
+    mut dataset: Dataset,
+    mut validation: Option<Dataset>,
     config: &CalibrationConfig,
-) -> anyhow::Result<CalibrationResult<N>> {
+) -> anyhow::Result<CalibrationResult> {
     config.check()?;
     if config.model.maps() {
         maps::check_robot_file(&dataset, config)?;
@@ -112,7 +111,7 @@ pub fn calibrate<const N: usize>(
         None => false,
     };
     let (frames_report, mask) = {
-        let mut others: Vec<&mut Dataset<N>> = validation.iter_mut().collect();
+        let mut others: Vec<&mut Dataset> = validation.iter_mut().collect();
         crate::frames::prepare(frames, &mut dataset, &mut others, config.k)?
     };
     let mask = match config.identify {
@@ -123,7 +122,7 @@ pub fn calibrate<const N: usize>(
                     "--identify frames re-registers the frames of a measurement setup: the data must be in a tracker's frame (--frames base or base+tool), not in the base frame"
                 );
             }
-            let mut only_frames = ParameterMask::<N>::empty();
+            let mut only_frames = ParameterMask::empty_for(mask.joint_count());
             for p in mask.iter() {
                 only_frames.set(p, matches!(p, Parameter::Base(_) | Parameter::Tool(_)));
             }
@@ -131,7 +130,7 @@ pub fn calibrate<const N: usize>(
         }
     };
     let selection = select_parameters(&dataset, mask, config)?;
-    let solved = |dataset: &Dataset<N>, validation: Option<&Dataset<N>>| {
+    let solved = |dataset: &Dataset, validation: Option<&Dataset>| {
         solve(
             dataset,
             validation,
@@ -145,7 +144,7 @@ pub fn calibrate<const N: usize>(
         // the frames) is fitted to the measured poses with its deflection taken off, evaluated at
         // the registered frames, then again at the first fit's errors (the deflection depends on
         // the geometry only through its small change).
-        let mut errors = ParameterErrors::zero();
+        let mut errors = ParameterErrors::zeros_for(dataset.model.robot.joint_count());
         let mut result = None;
         for _ in 0..COMPLIANCE_ROUNDS {
             let calibration = dataset.without_file_compliance(&dataset.model.robot, &errors)?;
@@ -184,9 +183,9 @@ pub fn calibrate<const N: usize>(
 
 /// The parameters to identify and why.
 #[derive(Clone, Debug)]
-pub struct Selection<const N: usize = JOINTS> {
+pub struct Selection {
     /// The identified parameters.
-    pub mask: ParameterMask<N>,
+    pub mask: ParameterMask<Dyn>,
     /// The analysis of the parameters asked for (with the condition number reached after
     /// dropping, when parameters were dropped).
     pub identifiability: IdentifiabilityReport,
@@ -197,12 +196,12 @@ pub struct Selection<const N: usize = JOINTS> {
 /// Checks that the data determine the parameters of `mask`: refuses what they cannot determine,
 /// or with `auto_mask` drops it; then, unless `keep_ill_conditioned`, drops while the pose set is
 /// ill-conditioned the parameter with the largest share of the least determined direction.
-pub fn select_parameters<const N: usize>(
-    dataset: &Dataset<N>,
-    mask: ParameterMask<N>,
+pub fn select_parameters(
+    dataset: &Dataset,
+    mask: ParameterMask<Dyn>,
     config: &CalibrationConfig,
-) -> anyhow::Result<Selection<N>> {
-    let analysed = |mask: &ParameterMask<N>| analyse(dataset, mask, config.k);
+) -> anyhow::Result<Selection> {
+    let analysed = |mask: &ParameterMask<Dyn>| analyse(dataset, mask, config.k);
     let (mut mask, reflector) = crate::identifiability::default_mask(dataset, mask, config.k)?;
     let mut initial = analysed(&mask)?;
     initial.reflector_on_last_axis = reflector;
@@ -249,17 +248,17 @@ pub fn select_parameters<const N: usize>(
 }
 
 /// Identifies the parameters of `selection` and evaluates the result.
-fn solve<const N: usize>(
-    dataset: &Dataset<N>,
-    validation: Option<&Dataset<N>>,
+fn solve(
+    dataset: &Dataset,
+    validation: Option<&Dataset>,
     config: &CalibrationConfig,
-    selection: Selection<N>,
+    selection: Selection,
     mut frames: FramesReport,
-) -> anyhow::Result<CalibrationResult<N>> {
+) -> anyhow::Result<CalibrationResult> {
     let set = crate::dispatch::solvable_set(&selection.mask)?;
     let problem = Problem::new(
         &dataset.model.robot,
-        &ParameterErrors::zero(),
+        &ParameterErrors::zeros_for(dataset.model.robot.joint_count()),
         set,
         &dataset.measurements,
         config.k,
@@ -338,8 +337,8 @@ fn solve<const N: usize>(
 }
 
 /// The identified values of `set` with their standard errors, when least squares gave them.
-fn identified_parameters<const N: usize>(
-    set: &ParameterSet<N, Dyn>,
+fn identified_parameters(
+    set: &ParameterSet<Dyn, Dyn>,
     best: &DVector<f64>,
     standard_errors: Option<&DVector<f64>>,
 ) -> Vec<IdentifiedParameter> {
@@ -359,11 +358,11 @@ fn identified_parameters<const N: usize>(
 /// file given plus the identified joint errors, with the controller's base and tool (those of the
 /// robot file given); frames identified from tracker data are the measurement setup and go to
 /// its `[measurement]` section and the report, never into `[base]` and `[tool]`.
-pub(crate) fn identified_robot<const N: usize>(
-    dataset: &Dataset<N>,
+pub(crate) fn identified_robot(
+    dataset: &Dataset,
     config: &CalibrationConfig,
     parameters: &[IdentifiedParameter],
-    errors: &ParameterErrors<f64, N>,
+    errors: &ParameterErrors<f64, Dyn>,
     frames: &mut FramesReport,
 ) -> crate::robot_file::RobotFile {
     let std_errors: Vec<(Parameter, f64)> = parameters
@@ -437,10 +436,10 @@ struct SwarmRun {
     best_cost: f64,
 }
 
-fn run_swarm<const N: usize>(
+fn run_swarm(
     config: &CalibrationConfig,
-    objective: &Objective<'_, f64, N, Dyn>,
-    set: &ParameterSet<N, Dyn>,
+    objective: &Objective<'_, f64, Dyn, Dyn>,
+    set: &ParameterSet<Dyn, Dyn>,
 ) -> anyhow::Result<SwarmRun> {
     let swarm = &config.swarm;
     let space = SearchSpace::for_parameters(
@@ -519,11 +518,11 @@ struct Fit {
     outliers: Vec<Outlier>,
 }
 
-fn least_squares<const N: usize>(
+fn least_squares(
     config: &CalibrationConfig,
-    least_squares: &LeastSquares<'_, f64, N, Dyn>,
+    least_squares: &LeastSquares<'_, f64, Dyn, Dyn>,
     start: &DVector<f64>,
-    dataset: &Dataset<N>,
+    dataset: &Dataset,
 ) -> anyhow::Result<Fit> {
     let set = least_squares.problem().set();
     let settings = LmSettings {
@@ -626,8 +625,8 @@ impl RobustScale {
 /// and the orientation residuals of the poses separately, `median + OUTLIER_DEVIATIONS * 1.4826 *
 /// MAD` (median absolute deviation), so that orientation counted in millimetres never makes clean
 /// poses outliers.
-pub fn robust_scale<const N: usize>(
-    least_squares: &LeastSquares<'_, f64, N, Dyn>,
+pub fn robust_scale(
+    least_squares: &LeastSquares<'_, f64, Dyn, Dyn>,
     start: &DVector<f64>,
     settings: &LmSettings<f64>,
     k: f64,
@@ -680,7 +679,7 @@ pub(crate) fn median(v: &mut [f64]) -> f64 {
 }
 
 /// A least-squares error in the user's terms (parameter names, not indices).
-fn lm_error<const N: usize>(error: LmError, set: &ParameterSet<N, Dyn>) -> anyhow::Error {
+fn lm_error(error: LmError, set: &ParameterSet<Dyn, Dyn>) -> anyhow::Error {
     match error {
         LmError::UnobservableParameter(i) => {
             let name = set
@@ -698,10 +697,10 @@ fn lm_error<const N: usize>(error: LmError, set: &ParameterSet<N, Dyn>) -> anyho
 
 /// Table 3 before and after on the calibration and validation poses, per-pose errors, and the
 /// calibration poses' report rows.
-fn evaluate<const N: usize>(
-    dataset: &Dataset<N>,
-    validation: Option<&Dataset<N>>,
-    errors: &ParameterErrors<f64, N>,
+fn evaluate(
+    dataset: &Dataset,
+    validation: Option<&Dataset>,
+    errors: &ParameterErrors<f64, Dyn>,
     fit: Option<&Fit>,
 ) -> anyhow::Result<(Stage, Option<Stage>, PerPose, Vec<PoseReport>)> {
     use crate::statistics::{orientation_per_pose, table3};

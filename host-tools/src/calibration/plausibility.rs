@@ -31,7 +31,7 @@ data profile, the joint order or signs against the robot file, the frames (--fra
 determine the parameters (`calib check`). If the result is right, --accept-implausible writes it.";
 
 /// The problems of `result`, each naming the value and its bound; empty when it is plausible.
-pub fn check<const N: usize>(result: &CalibrationResult<N>) -> Vec<String> {
+pub fn check(result: &CalibrationResult) -> Vec<String> {
     let mut problems = Vec::new();
     let robot = &result.identified_robot;
     for p in &result.parameters {

@@ -1,7 +1,7 @@
 //! The typed result of a calibration, and its JSON report (a serde rendering of the result).
 
+use nalgebra::Dyn;
 use super::config::CalibrationConfig;
-use crate::JOINTS;
 use crate::frames::FramesReport;
 use crate::identifiability::IdentifiabilityReport;
 use crate::report::{TruthRow, unit_of};
@@ -141,7 +141,7 @@ pub struct PerPose {
 #[derive(Clone, Debug)]
 ///
 /// `N` is the robot's joint count.
-pub struct CalibrationResult<const N: usize = JOINTS> {
+pub struct CalibrationResult {
     /// The robot's name.
     pub robot: String,
     /// Where the robot came from (a file, or `<memory>`).
@@ -153,7 +153,7 @@ pub struct CalibrationResult<const N: usize = JOINTS> {
     /// The identified parameters, in canonical order.
     pub parameters: Vec<IdentifiedParameter>,
     /// All errors (identified ones set, others zero), mm and rad.
-    pub errors: ParameterErrors<f64, N>,
+    pub errors: ParameterErrors<f64, Dyn>,
     /// The objective before and after.
     pub objective: ObjectiveValues,
     /// The swarm stage, when it ran.
@@ -193,7 +193,7 @@ pub struct CalibrationResult<const N: usize = JOINTS> {
     pub plan_check: Option<crate::plan::PlanCheck>,
 }
 
-impl<const N: usize> CalibrationResult<N> {
+impl CalibrationResult {
     /// The identified parameter called `name` (such as `da2` or `base_tx`).
     pub fn parameter(&self, name: &str) -> Option<&IdentifiedParameter> {
         self.parameters

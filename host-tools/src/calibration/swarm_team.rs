@@ -91,21 +91,21 @@ impl Vectors {
 }
 
 /// Eq. (7) of an objective with its measurements collected once in lane layout.
-pub struct LaneObjective<'o, 'p, const N: usize> {
-    objective: &'o Objective<'p, f64, N, Dyn>,
-    lanes: Vec<PoseLanes<f64, N>>,
+pub struct LaneObjective<'o, 'p> {
+    objective: &'o Objective<'p, f64, Dyn, Dyn>,
+    lanes: Vec<PoseLanes<f64, Dyn>>,
     vectors: Vectors,
 }
 
-impl<'o, 'p, const N: usize> LaneObjective<'o, 'p, N> {
+impl<'o, 'p> LaneObjective<'o, 'p> {
     /// Collects the measurements of `objective` in lanes; evaluates with
     /// [`Vectors::preferred`].
-    pub fn new(objective: &'o Objective<'p, f64, N, Dyn>) -> Self {
+    pub fn new(objective: &'o Objective<'p, f64, Dyn, Dyn>) -> Self {
         Self::with_vectors(objective, Vectors::preferred())
     }
 
     /// The same with the given vectors, or the widest this CPU has if it lacks them.
-    pub fn with_vectors(objective: &'o Objective<'p, f64, N, Dyn>, vectors: Vectors) -> Self {
+    pub fn with_vectors(objective: &'o Objective<'p, f64, Dyn, Dyn>, vectors: Vectors) -> Self {
         let widest = Vectors::detected();
         Self {
             objective,
@@ -137,10 +137,10 @@ impl<'o, 'p, const N: usize> LaneObjective<'o, 'p, N> {
 /// evaluation is).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn value_avx2<const N: usize>(
-    objective: &Objective<'_, f64, N, Dyn>,
+fn value_avx2(
+    objective: &Objective<'_, f64, Dyn, Dyn>,
     x: &DVector<f64>,
-    lanes: &[PoseLanes<f64, N>],
+    lanes: &[PoseLanes<f64, Dyn>],
 ) -> f64 {
     objective.value_of_lanes(x, lanes)
 }
@@ -148,10 +148,10 @@ fn value_avx2<const N: usize>(
 /// [`Objective::value_of_lanes`] compiled for AVX2 with AVX-512F/VL's 32 registers.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,avx512f,avx512vl")]
-fn value_avx512<const N: usize>(
-    objective: &Objective<'_, f64, N, Dyn>,
+fn value_avx512(
+    objective: &Objective<'_, f64, Dyn, Dyn>,
     x: &DVector<f64>,
-    lanes: &[PoseLanes<f64, N>],
+    lanes: &[PoseLanes<f64, Dyn>],
 ) -> f64 {
     objective.value_of_lanes(x, lanes)
 }
@@ -318,8 +318,8 @@ impl Drop for StopOnDrop<'_> {
 }
 
 /// The particles' costs on several threads, the caller one of them; see the module docs.
-pub struct SwarmTeam<'t, 'o, 'p, const N: usize> {
-    objective: &'t LaneObjective<'o, 'p, N>,
+pub struct SwarmTeam<'t, 'o, 'p> {
+    objective: &'t LaneObjective<'o, 'p>,
     shared: &'t Shared,
     members: usize,
     /// The current generation was started by [`CostFunction::position_ready`], which has
@@ -330,17 +330,17 @@ pub struct SwarmTeam<'t, 'o, 'p, const N: usize> {
     particle: DVector<f64>,
 }
 
-impl<'o, 'p, const N: usize> SwarmTeam<'_, 'o, 'p, N> {
+impl<'o, 'p> SwarmTeam<'_, 'o, 'p> {
     /// Runs `swarm` with a team of `threads` (at least 1; the caller and `threads - 1` helpers,
     /// fewer if the system cannot start them) evaluating `objective`, and the pairs `r1, r2` of
     /// the stream of `seed` ([`RandomStream`]) drawn ahead by a helper while the caller updates;
     /// the helpers end when `swarm` returns. `swarm` gets the team as the cost function and its
     /// pairs for [`ipso::optimize_drawing`] (or [`SwarmTeam::optimize`]).
     pub fn run<R>(
-        objective: &LaneObjective<'o, 'p, N>,
+        objective: &LaneObjective<'o, 'p>,
         threads: usize,
         seed: u64,
-        swarm: impl FnOnce(&mut SwarmTeam<'_, 'o, 'p, N>, &mut TeamPairs<'_>) -> R,
+        swarm: impl FnOnce(&mut SwarmTeam<'_, 'o, 'p>, &mut TeamPairs<'_>) -> R,
     ) -> R {
         let wanted = threads.max(1);
         let shared = Shared {
@@ -423,9 +423,9 @@ impl<'o, 'p, const N: usize> SwarmTeam<'_, 'o, 'p, N> {
 /// SSE2 (a scratch criterion bench; 1.52 before the pairs were taken a particle at a time).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,avx512f,avx512vl")]
-fn optimize_avx512<const N: usize>(
+fn optimize_avx512(
     memory: SwarmMemory<'_, f64, Dyn>,
-    team: &mut SwarmTeam<'_, '_, '_, N>,
+    team: &mut SwarmTeam<'_, '_, '_>,
     pairs: &mut TeamPairs<'_>,
     space: &SearchSpace<f64, Dyn>,
     settings: &IpsoSettings<f64>,
@@ -434,7 +434,7 @@ fn optimize_avx512<const N: usize>(
     ipso::optimize_drawing(memory, team, pairs, space, settings, observer)
 }
 
-fn helper<const N: usize>(objective: &LaneObjective<'_, '_, N>, shared: &Shared) {
+fn helper(objective: &LaneObjective<'_, '_>, shared: &Shared) {
     let mut seen = 0;
     // The particle evaluated, sized once (no allocation in a generation).
     let mut particle = DVector::zeros(0);
@@ -466,8 +466,8 @@ fn split(particles: usize, blocks: usize) -> (usize, usize) {
 
 /// Evaluates published particles, a block at a time, until no block is left to take; waits for
 /// each particle of a block taken until it is published.
-fn take_particles<const N: usize>(
-    objective: &LaneObjective<'_, '_, N>,
+fn take_particles(
+    objective: &LaneObjective<'_, '_>,
     shared: &Shared,
     particle: &mut DVector<f64>,
 ) {
@@ -510,7 +510,7 @@ fn take_particles<const N: usize>(
     }
 }
 
-impl<const N: usize> SwarmTeam<'_, '_, '_, N> {
+impl SwarmTeam<'_, '_, '_> {
     /// Starts a generation: nothing published, nothing evaluated, every block free. The members
     /// are done with the previous generation (the caller waited for all of its particles); one
     /// that claims a block of the new generation before it sees the count waits for its
@@ -561,7 +561,7 @@ impl<const N: usize> SwarmTeam<'_, '_, '_, N> {
     }
 }
 
-impl<const N: usize> CostFunction<f64, Dyn> for SwarmTeam<'_, '_, '_, N> {
+impl CostFunction<f64, Dyn> for SwarmTeam<'_, '_, '_> {
     fn cost(&mut self, x: &DVector<f64>) -> f64 {
         self.objective.value(x)
     }
@@ -722,12 +722,12 @@ mod tests {
     use calib_core::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
     use calib_core::identify::objective::{DEFAULT_K, Measurement};
     use calib_core::{ParameterErrors, ParameterSet, Problem};
-    use nalgebra::{SVector, U24};
+    use nalgebra::{SVector, U6, U24};
 
     /// The bundled paper scenario (32 simulated poses of the ER10L-C10), as `calibrate` reads it.
-    fn paper_measurements() -> Vec<Measurement<f64, 6>> {
+    fn paper_measurements() -> Vec<Measurement<f64, Dyn>> {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-        crate::dataset::Dataset::<6>::load(
+        crate::dataset::Dataset::load(
             &dir.join("robots/er10l-c10.toml"),
             &dir.join("data/er10l-c10-sim32.csv"),
         )
@@ -736,29 +736,31 @@ mod tests {
     }
 
     /// `check` of the paper's objective (its 24 parameters) on the bundled measurements.
-    /// The objective with the count at run time (`Dyn`, as `calibrate` has it) and, as the
-    /// controller compiles it, fixed (`U24`).
+    /// The objective with the joint and parameter counts at run time (`Dyn`, as `calibrate` has
+    /// them) and, as the controller compiles it, fixed (`U6`, `U24`).
     fn with_paper_objective(
-        check: impl FnOnce(&Objective<'_, f64, 6, Dyn>, &Objective<'_, f64, 6, U24>),
+        check: impl FnOnce(&Objective<'_, f64, Dyn, Dyn>, &Objective<'_, f64, U6, U24>),
     ) {
         let robot = calib_core::model::paper::er10l_c10::<f64>();
         let measurements = paper_measurements();
-        let problem = |set| {
-            Problem::new(
-                &robot,
-                &ParameterErrors::zero(),
-                set,
-                &measurements,
-                DEFAULT_K,
-            )
-            .expect("valid problem")
-        };
-        let dynamic = problem(ParameterSet::<6, Dyn>::default_for(&robot).expect("paper set"));
+        let fixed_measurements: Vec<Measurement<f64, U6>> = measurements
+            .iter()
+            .map(|m| m.recount().expect("6 joints"))
+            .collect();
+        let dynamic_robot = robot.recount::<Dyn>().expect("6 joints");
+        let dynamic = Problem::new(
+            &dynamic_robot,
+            &ParameterErrors::zeros_for(dynamic_robot.joint_count()),
+            ParameterSet::<Dyn, Dyn>::default_for(&dynamic_robot).expect("paper set"),
+            &measurements,
+            DEFAULT_K,
+        )
+        .expect("valid problem");
         let fixed = Problem::new(
             &robot,
             &ParameterErrors::zero(),
-            ParameterSet::<6, U24>::default_for(&robot).expect("paper set"),
-            &measurements,
+            ParameterSet::<U6, U24>::default_for(&robot).expect("paper set"),
+            &fixed_measurements,
             DEFAULT_K,
         )
         .expect("valid problem");
@@ -790,8 +792,8 @@ mod tests {
     }
 
     fn team_evaluates_bit_for_bit_on(
-        objective: &Objective<'_, f64, 6, Dyn>,
-        fixed: &Objective<'_, f64, 6, U24>,
+        objective: &Objective<'_, f64, Dyn, Dyn>,
+        fixed: &Objective<'_, f64, U6, U24>,
     ) {
         let space = SearchSpace::paper(objective.problem().set());
         let fixed_space = SearchSpace::paper(fixed.problem().set());
@@ -888,7 +890,7 @@ mod tests {
     /// The swarm of `particles` on a team, as `calibrate` runs it.
     fn swarm_of(
         particles: usize,
-        team: &mut SwarmTeam<'_, '_, '_, 6>,
+        team: &mut SwarmTeam<'_, '_, '_>,
         pairs: &mut TeamPairs<'_>,
         space: &SearchSpace<f64, Dyn>,
         settings: &IpsoSettings<f64>,
@@ -947,7 +949,7 @@ mod tests {
         with_paper_objective(|objective, _| team_pairs_follow_the_stream_on(objective));
     }
 
-    fn team_pairs_follow_the_stream_on(objective: &Objective<'_, f64, 6, Dyn>) {
+    fn team_pairs_follow_the_stream_on(objective: &Objective<'_, f64, Dyn, Dyn>) {
         let lanes = LaneObjective::new(objective);
         let mut expected = vec![(0.0, 0.0); 4 * 24 + 7];
         RandomStream::new(5).fill(&mut expected);

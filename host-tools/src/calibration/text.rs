@@ -10,7 +10,7 @@ fn condition(c: Option<f64>) -> String {
     c.map_or_else(|| "infinite".to_string(), |c| format!("{c:.3e}"))
 }
 
-impl<const N: usize> CalibrationResult<N> {
+impl CalibrationResult {
     /// The text `calib calibrate` prints; `truth` adds the comparison with known errors.
     pub fn text(&self, truth: Option<&[TruthRow]>) -> String {
         let mut text = self.run_text();

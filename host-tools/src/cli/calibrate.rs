@@ -1,7 +1,6 @@
 //! `calib calibrate`: the command over [`crate::calibration`]: read the robot and data files,
 //! calibrate, render the text, the JSON report and the identified robot file, write them.
 
-use crate::JOINTS;
 use crate::calibration::{
     self, CalibrationConfig, CalibrationResult, ErrorModel, HoldOut, Identify, LossChoice, Method,
     Report, ScramblingChoice, SwarmConfig,
@@ -185,9 +184,9 @@ impl CalibrateOptions {
 
 /// A calibration run by the command: the typed result and what is rendered from it (`N`: the
 /// robot's joint count).
-pub struct Calibration<const N: usize = JOINTS> {
+pub struct Calibration {
     /// The typed result.
-    pub result: CalibrationResult<N>,
+    pub result: CalibrationResult,
     /// How the validation poses were chosen.
     pub hold_out: HoldOut,
     /// The comparison with `--truth`, when given.
@@ -202,14 +201,17 @@ pub struct Calibration<const N: usize = JOINTS> {
 /// [`JOINT_COUNTS`](crate::dispatch::JOINT_COUNTS)), writes the
 /// files asked for (all or none), and returns the text to print, with the files written.
 pub fn calibrate_and_write(options: &CalibrateOptions) -> anyhow::Result<String> {
-    crate::with_joint_count!(options.input.joints()?, calibrate_and_write_joints(options))
+    {
+        crate::dispatch::joint_count(options.input.joints()?)?;
+        calibrate_and_write_joints(options)
+    }
 }
 
 /// [`calibrate_and_write`] for an `N`-joint robot.
-fn calibrate_and_write_joints<const N: usize>(
+fn calibrate_and_write_joints(
     options: &CalibrateOptions,
 ) -> anyhow::Result<String> {
-    let calibration = calibrate::<N>(options)?;
+    let calibration = calibrate(options)?;
     // The files first: a closed or full standard output must not lose them.
     let written = write_outputs(&calibration, &options.outputs())?;
     let mut text = calibration.text;
@@ -221,7 +223,7 @@ fn calibrate_and_write_joints<const N: usize>(
 
 /// Runs `calib calibrate` for an `N`-joint robot without writing anything: reads the files,
 /// calibrates, renders.
-pub fn calibrate<const N: usize>(options: &CalibrateOptions) -> anyhow::Result<Calibration<N>> {
+pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
     let config = options.config();
     config.check()?; // bad settings are reported before any file is read
     let (profile, all) = options.input.load()?;
@@ -254,7 +256,7 @@ pub fn calibrate<const N: usize>(options: &CalibrateOptions) -> anyhow::Result<C
         (Some(_), Some(_)) => bail!("use either --validate or --holdout, not both"),
         (Some(path), None) => (
             all,
-            Some(Dataset::<N>::load_with(
+            Some(Dataset::load_with(
                 &options.input.robot,
                 path,
                 &profile,
@@ -272,11 +274,11 @@ pub fn calibrate<const N: usize>(options: &CalibrateOptions) -> anyhow::Result<C
 
 /// `result` of a measured plan's fitted poses `fitted` with the check of its verification poses
 /// against the plan's prediction (when the file kept the plan's prediction line).
-fn with_plan_check<const N: usize>(
-    mut result: CalibrationResult<N>,
-    fitted: &Dataset<N>,
+fn with_plan_check(
+    mut result: CalibrationResult,
+    fitted: &Dataset,
     config: &crate::calibration::CalibrationConfig,
-) -> CalibrationResult<N> {
+) -> CalibrationResult {
     let (Some(predicted), Some(validation)) = (fitted.data.planned, &result.validation) else {
         return result;
     };
@@ -302,11 +304,11 @@ fn with_plan_check<const N: usize>(
     result
 }
 
-impl<const N: usize> Calibration<N> {
+impl Calibration {
     /// Renders `result`: the text, the identified robot file and, with the robot file of the true
     /// errors at `truth`, the comparison with them.
     pub fn new(
-        result: CalibrationResult<N>,
+        result: CalibrationResult,
         hold_out: HoldOut,
         truth: Option<&std::path::Path>,
     ) -> anyhow::Result<Self> {
@@ -338,11 +340,11 @@ impl<const N: usize> Calibration<N> {
 }
 
 /// The identified errors against the true errors of the robot file at `path`.
-fn truth_rows<const N: usize>(
-    result: &CalibrationResult<N>,
+fn truth_rows(
+    result: &CalibrationResult,
     path: &std::path::Path,
 ) -> anyhow::Result<Vec<TruthRow>> {
-    let truth = RobotFile::read(path)?.calibration_errors::<N>(path)?;
+    let truth = RobotFile::read(path)?.calibration_errors(path)?;
     Ok(result
         .parameters
         .iter()
@@ -399,8 +401,8 @@ impl CalibrateOptions {
 
 /// Writes the outputs of a calibration that were asked for, all together or none (see
 /// [`Outputs`]); returns the files written.
-pub fn write_outputs<const N: usize>(
-    calibration: &Calibration<N>,
+pub fn write_outputs(
+    calibration: &Calibration,
     paths: &OutputPaths,
 ) -> anyhow::Result<Vec<PathBuf>> {
     let inputs: Vec<(&str, &std::path::Path)> = paths

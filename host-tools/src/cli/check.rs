@@ -23,13 +23,16 @@ pub struct CheckOptions {
 
 /// `calib check`: the identifiability analysis of a robot file's parameters on a data file.
 pub fn check(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
-    crate::with_joint_count!(options.input.joints()?, check_joints(options))
+    {
+        crate::dispatch::joint_count(options.input.joints()?)?;
+        check_joints(options)
+    }
 }
 
 /// `calib check` for an `N`-joint robot.
-fn check_joints<const N: usize>(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
+fn check_joints(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
     // Joint maps and gravity compliance of the file are held fixed: the analysis is that of the
     // geometric parameters at the kinematic angles (the readings with the maps).
-    let (_, dataset) = options.input.load::<N>()?;
+    let (_, dataset) = options.input.load()?;
     crate::identifiability::check(dataset, options.frames, options.k)
 }

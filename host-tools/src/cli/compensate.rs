@@ -72,33 +72,39 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
     let maps = params.joint_maps(&options.params)?;
     let compliance = params.gravity_compliance(&options.params)?;
     if maps.is_none() && compliance.is_none() {
-        return crate::with_joint_count!(file.joint.len(), compensate_geometric(options));
+        return {
+        crate::dispatch::joint_count(file.joint.len())?;
+        compensate_geometric(options)
+    };
     }
     let beyond = (maps.as_ref(), compliance.as_ref());
-    crate::with_joint_count!(file.joint.len(), compensate_model(options, beyond))
+    {
+        crate::dispatch::joint_count(file.joint.len())?;
+        compensate_model(options, beyond)
+    }
 }
 
 /// `calib compensate` of a model of `N` joints with joint maps or gravity compliance (the
 /// compliance a 6R arm's, refused for other counts): the controller's model, geometry, maps (zero
 /// without) and compliance (none without).
-fn compensate_model<const N: usize>(
+fn compensate_model(
     options: &CompensateOptions,
     (maps, compliance): (
         Option<&crate::joint_maps::JointMaps>,
         Option<&crate::compliance::FileCompliance>,
     ),
 ) -> anyhow::Result<Summary> {
-    let (nominal, actual, targets, settings) = inputs::<N>(options)?;
+    let (nominal, actual, targets, settings) = inputs(options)?;
     let model = controller_model(actual.robot, maps, compliance)?;
     let real = model.kinematics()?;
     let outcomes =
         compensate_targets_of(&nominal.robot, &real, &targets, &settings, options.branch)?;
-    finish(options, &outcomes)
+    finish(options, &outcomes, nominal.robot.joints.len())
 }
 
 /// `calib compensate` of a geometric model of `N` joints.
-fn compensate_geometric<const N: usize>(options: &CompensateOptions) -> anyhow::Result<Summary> {
-    let (nominal, actual, targets, settings) = inputs::<N>(options)?;
+fn compensate_geometric(options: &CompensateOptions) -> anyhow::Result<Summary> {
+    let (nominal, actual, targets, settings) = inputs(options)?;
     let outcomes = compensate_targets(
         &nominal.robot,
         &actual.robot,
@@ -106,20 +112,20 @@ fn compensate_geometric<const N: usize>(options: &CompensateOptions) -> anyhow::
         &settings,
         options.branch,
     )?;
-    finish(options, &outcomes)
+    finish(options, &outcomes, nominal.robot.joints.len())
 }
 
 /// The nominal and identified robots, the targets and the settings, checked.
-fn inputs<const N: usize>(
+fn inputs(
     options: &CompensateOptions,
 ) -> anyhow::Result<(
-    RobotModel<N>,
-    RobotModel<N>,
+    RobotModel,
+    RobotModel,
     TrackerData,
     CompensationSettings<f64>,
 )> {
-    let nominal: RobotModel<N> = RobotModel::load(&options.robot)?;
-    let actual: RobotModel<N> = RobotModel::load(&options.params)?;
+    let nominal: RobotModel = RobotModel::load(&options.robot)?;
+    let actual: RobotModel = RobotModel::load(&options.params)?;
     let targets = TrackerData::read_targets(&options.targets)?;
     if targets.rows_without_orientation() {
         bail!(
@@ -127,9 +133,10 @@ fn inputs<const N: usize>(
             options.targets.display()
         );
     }
-    if targets.joints != 0 && targets.joints != N {
+    let joints = nominal.robot.joints.len();
+    if targets.joints != 0 && targets.joints != joints {
         bail!(
-            "{}: has {} joint columns; give all of q1_deg..q{N}_deg as start values, or none",
+            "{}: has {} joint columns; give all of q1_deg..q{joints}_deg as start values, or none",
             options.targets.display(),
             targets.joints
         );
@@ -159,16 +166,17 @@ fn inputs<const N: usize>(
 }
 
 /// Writes the outcomes (all or nothing) and counts them.
-fn finish<const N: usize>(
+fn finish(
     options: &CompensateOptions,
-    outcomes: &[crate::compensate::TargetOutcome<N>],
+    outcomes: &[crate::compensate::TargetOutcome],
+    joints: usize,
 ) -> anyhow::Result<Summary> {
     let mut outputs = Outputs::new(&[
         ("--robot", &options.robot),
         ("--params", &options.params),
         ("--targets", &options.targets),
     ]);
-    outputs.stage("--out", &options.out, &to_csv(outcomes)?)?;
+    outputs.stage("--out", &options.out, &to_csv(outcomes, joints)?)?;
     outputs.commit()?;
     Ok(Summary::of(outcomes))
 }

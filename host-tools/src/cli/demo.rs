@@ -36,7 +36,7 @@ fn simulate_into(
     data: &Path,
     truth: &Path,
 ) -> anyhow::Result<()> {
-    simulate::simulate::<6>(&robot.0, &robot.1, config)?.write(data, truth, &robot.1)
+    simulate::simulate(&robot.0, &robot.1, config)?.write(data, truth, &robot.1)
 }
 
 /// Calibrates `data` (validating on `holdout`), renders against `truth`, writes the identified
@@ -49,7 +49,7 @@ fn calibrate_into(
     config: &CalibrationConfig,
     dir: &Path,
 ) -> anyhow::Result<(String, Vec<PathBuf>)> {
-    let dataset = Dataset::<6>::load(robot, data)?;
+    let dataset = Dataset::load(robot, data)?;
     let validation = holdout.map(|h| Dataset::load(robot, h)).transpose()?;
     let result = calibration::calibrate(dataset, validation, config)?;
     let hold_out = HoldOut {

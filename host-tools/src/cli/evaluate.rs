@@ -30,12 +30,15 @@ pub struct EvaluateOptions {
 
 /// Runs `calib evaluate`.
 pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
-    crate::with_joint_count!(options.input.joints()?, evaluate_joints(options))
+    {
+        crate::dispatch::joint_count(options.input.joints()?)?;
+        evaluate_joints(options)
+    }
 }
 
 /// `calib evaluate` for an `N`-joint robot.
-fn evaluate_joints<const N: usize>(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
-    let (_, dataset) = options.input.load::<N>()?;
+fn evaluate_joints(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
+    let (_, dataset) = options.input.load()?;
     let frames = Frames::chosen(options.fit_frames, &dataset.data);
     crate::evaluation::evaluate(&dataset, frames, options.fit_poses, options.seed)
 }

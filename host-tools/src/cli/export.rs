@@ -55,19 +55,22 @@ pub struct ExportOptions {
 pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
     let file = RobotFile::read(&options.params)?;
     let urdf = urdf_settings(options, &file);
-    let bytes = crate::with_joint_count!(file.joint.len(), export_n(options, &file, &urdf))?;
+    let bytes = {
+        crate::dispatch::joint_count(file.joint.len())?;
+        export_n(options, &file, &urdf)
+    }?;
     let mut outputs = Outputs::new(&[("--params", &options.params)]);
     outputs.stage("--out", &options.out, &bytes)?;
     outputs.commit()?;
     Ok(bytes.len())
 }
 
-fn export_n<const N: usize>(
+fn export_n(
     options: &ExportOptions,
     file: &RobotFile,
     urdf: &crate::urdf::UrdfSettings,
 ) -> anyhow::Result<Vec<u8>> {
-    let model: RobotModel<N> = file.to_model(&options.params)?;
+    let model: RobotModel = file.to_model(&options.params)?;
     crate::export::export(
         file,
         &model,

@@ -1,7 +1,6 @@
 //! `calib import-ur-calibration`: a UR controller's factory calibration (`calibration.conf`) as
 //! our robot file ([`crate::ur_calibration`]).
 
-use crate::JOINTS;
 use crate::files::Outputs;
 use crate::robot_file::{RobotFile, RobotModel};
 use crate::ur_calibration::{Import, UrCalibration};
@@ -25,7 +24,7 @@ pub struct ImportUrOptions {
 /// Runs `calib import-ur-calibration`; returns the import and the text to print.
 pub fn import(options: &ImportUrOptions) -> anyhow::Result<(Import, String)> {
     let file = RobotFile::read(&options.robot)?;
-    let model: RobotModel<JOINTS> = file.to_model(&options.robot)?;
+    let model: RobotModel = file.to_model(&options.robot)?;
     let calibration = UrCalibration::read(&options.calibration)?;
     let import = crate::ur_calibration::import(&model.robot, &calibration)?;
     let listed: Vec<_> = import.mask.iter().collect();

@@ -38,9 +38,9 @@ pub struct InputFiles {
 impl InputFiles {
     /// The data profile, then both files read and checked through it, and the orientations
     /// checked against the robot ([`crate::orientation_check`]).
-    pub fn load<const N: usize>(&self) -> anyhow::Result<(DataProfile, Dataset<N>)> {
+    pub fn load(&self) -> anyhow::Result<(DataProfile, Dataset)> {
         let profile = DataProfile::load(self.profile.as_deref())?;
-        let inputs = Dataset::<N>::load_with(&self.robot, &self.data, &profile)?;
+        let inputs = Dataset::load_with(&self.robot, &self.data, &profile)?;
         crate::orientation_check::check(&inputs, &profile.euler)?;
         Ok((profile, inputs))
     }

@@ -126,16 +126,19 @@ pub fn simulate(options: &Simulation) -> anyhow::Result<usize> {
     let file = RobotFile::read(&options.robot)?;
     file.refuse_compliance(&options.robot, "calib simulate")?;
     file.refuse_joint_maps(&options.robot, "calib simulate")?;
-    crate::with_joint_count!(file.joint.len(), simulate_joints(&file, options, &config))
+    {
+        crate::dispatch::joint_count(file.joint.len())?;
+        simulate_joints(&file, options, &config)
+    }
 }
 
 /// `calib simulate` for an `N`-joint robot.
-fn simulate_joints<const N: usize>(
+fn simulate_joints(
     file: &RobotFile,
     options: &Simulation,
     config: &SimulationConfig,
 ) -> anyhow::Result<usize> {
-    let simulated: Simulated<N> = crate::simulate::simulate(file, &options.robot, config)?;
+    let simulated: Simulated = crate::simulate::simulate(file, &options.robot, config)?;
     simulated.write(&options.out, &options.truth_out, &options.robot)?;
     Ok(simulated.rows.len())
 }

@@ -29,12 +29,15 @@ pub struct VerifyOptions {
 
 /// Runs `calib verify`: reads the files, holds out `--validate` of the poses, verifies.
 pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
-    crate::with_joint_count!(options.input.joints()?, verify_joints(options))
+    {
+        crate::dispatch::joint_count(options.input.joints()?)?;
+        verify_joints(options)
+    }
 }
 
 /// `calib verify` for an `N`-joint robot.
-fn verify_joints<const N: usize>(options: &VerifyOptions) -> anyhow::Result<Verification> {
-    let (_, all) = options.input.load::<N>()?;
+fn verify_joints(options: &VerifyOptions) -> anyhow::Result<Verification> {
+    let (_, all) = options.input.load()?;
     let (calibration, validation) =
         crate::dataset::split(&all, options.validate, options.validate_seed)?;
     crate::verify::verify(calibration, validation, options.frames, options.k)

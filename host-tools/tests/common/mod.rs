@@ -61,12 +61,13 @@ pub fn parse<T: clap::Args>(args: &[&str]) -> T {
     <Wrap<T> as clap::Parser>::parse_from(args.iter().copied()).inner
 }
 
-/// Per row of a `calib compensate` output `out` of a robot of `N` joints (every row `ok`), the
-/// position miss (mm) of the real robot at the joints commanded: `reached(q)` is its pose at the
-/// joints `q` (rad), `target(i)` the target of row `i` (reference kinematics, 4x4).
-pub fn compensation_misses<const N: usize>(
+/// Per row of a `calib compensate` output `out` of a robot of `joints` joints (every row `ok`),
+/// the position miss (mm) of the real robot at the joints commanded: `reached(q)` is its pose at
+/// the joints `q` (rad), `target(i)` the target of row `i` (reference kinematics, 4x4).
+pub fn compensation_misses(
     out: &Path,
-    reached: impl Fn(&[f64; N]) -> host_tools::reference::Mat4,
+    joints: usize,
+    reached: impl Fn(&calib_core::model::JointVec<f64>) -> host_tools::reference::Mat4,
     target: impl Fn(usize) -> host_tools::reference::Mat4,
 ) -> Vec<f64> {
     let mut reader = csv::Reader::from_path(out).unwrap();
@@ -76,9 +77,10 @@ pub fn compensation_misses<const N: usize>(
         .map(|(i, record)| {
             let record = record.unwrap();
             // id, q1..qN, residual, iterations, status.
-            assert_eq!(&record[N + 3], "ok", "{} row {i}", out.display());
-            let q: [f64; N] =
-                std::array::from_fn(|j| record[j + 1].parse::<f64>().unwrap().to_radians());
+            assert_eq!(&record[joints + 3], "ok", "{} row {i}", out.display());
+            let q = calib_core::model::JointVec::<f64>::from_fn(joints, |j| {
+                record[j + 1].parse::<f64>().unwrap().to_radians()
+            });
             let e = host_tools::reference::pose_error(&target(i), &reached(&q));
             (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt()
         })
