@@ -19,7 +19,7 @@
 //! pose the nominal model gives for the start joints), or a near-singular configuration
 //! (manipulability of the scaled Jacobian below a threshold).
 
-use crate::model::{JointCount, JointTable};
+use crate::model::{JacobianColumns, JointCount, JointTable};
 use crate::KinematicsError;
 use crate::kinematics::pose_error::PoseError;
 use crate::kinematics::{Kinematics, MappedKinematics, Pose};
@@ -394,12 +394,8 @@ pub fn solve_joints<T: Real, N: JointCount>(
         iterations += 1;
         // Scale position rows to the characteristic length so both halves are comparable.
         let mut scaled = jacobian;
-        for column in scaled.iter_mut() {
-            for v in column.iter_mut().take(3) {
-                *v /= length;
-            }
-        }
-        let jjt = N::outer_product_sum(&scaled);
+        scaled.divide_position_rows(length);
+        let jjt = scaled.outer_product_sum();
         // Manipulability sqrt(det(J J^T)) = product of the Cholesky factor's diagonal (no LU,
         // whose pivoting code has panicking bounds checks).
         let Some(factor) = jjt.cholesky() else {
@@ -417,7 +413,8 @@ pub fn solve_joints<T: Real, N: JointCount>(
         let Some(cholesky) = damped.cholesky() else {
             return Err(CompensationError::NearSingular);
         };
-        let dq = N::transpose_times(&scaled, &cholesky.solve(&scaled_error(&error)));
+        let mut dq = q;
+        scaled.transpose_times(&cholesky.solve(&scaled_error(&error)), dq.as_mut_slice());
         let mut candidate = q;
         for (qi, d) in candidate.iter_mut().zip(dq.iter()) {
             *qi += *d;

@@ -290,6 +290,7 @@ struct OpenBlock<'a, N> {
 
 /// Checks magic, version, scalar, joint count, length and CRC of the block at the start of
 /// `bytes`; version 2 only with room for its harmonics (`capacity`, `None`: version 1 only).
+#[inline(always)]
 fn open_block<T: Real, N: JointCount>(
     bytes: &[u8],
     capacity: Option<usize>,
@@ -315,7 +316,8 @@ fn open_block<T: Real, N: JointCount>(
     let stored_joints = bytes.get(7).copied().ok_or(too_small)?;
     let joints = N::checked(usize::from(stored_joints))
         .ok_or(StorageError::WrongJointCount(stored_joints))?;
-    let count = usize::from(stored_joints);
+    // The count as the type has it: a constant where it is fixed (so are the lengths below).
+    let count = joints.value();
     let (harmonics, sections, header, len) = if version == VERSION {
         (0, 0, HEADER, block_len::<T>(count))
     } else {
@@ -365,9 +367,9 @@ pub fn decode<T: Real, N: JointCount>(bytes: &[u8]) -> Result<(Robot<T, N>, u32)
 pub fn decode_model<T: Real, N: JointCount, const C: usize>(
     bytes: &[u8],
 ) -> Result<(ControllerModel<T, N, C>, u32), StorageError> {
-    let joints = open_block::<T, N>(bytes, Some(C))?.joints;
-    let mut model = ControllerModel::geometric(zero_robot(joints));
-    let sequence = decode_model_into(bytes, &mut model)?;
+    let block = open_block::<T, N>(bytes, Some(C))?;
+    let mut model = ControllerModel::geometric(zero_robot(block.joints));
+    let sequence = read_model(&block, &mut model)?;
     Ok((model, sequence))
 }
 
@@ -378,7 +380,16 @@ pub fn decode_model_into<T: Real, N: JointCount, const C: usize>(
     bytes: &[u8],
     model: &mut ControllerModel<T, N, C>,
 ) -> Result<u32, StorageError> {
-    let block = open_block::<T, N>(bytes, Some(C))?;
+    read_model(&open_block::<T, N>(bytes, Some(C))?, model)
+}
+
+/// The model of an opened block into `model`, in place; its sequence number. Inlined: on a
+/// controller it is [`decode_model_into`]'s body.
+#[inline(always)]
+fn read_model<T: Real, N: JointCount, const C: usize>(
+    block: &OpenBlock<'_, N>,
+    model: &mut ControllerModel<T, N, C>,
+) -> Result<u32, StorageError> {
     let harmonics = usize::from(block.harmonics);
     let mut reader = Cursor {
         bytes: block.values,
@@ -393,7 +404,7 @@ pub fn decode_model_into<T: Real, N: JointCount, const C: usize>(
     };
     model
         .maps
-        .set(harmonics, |j, h| {
+        .set(block.joints, harmonics, |j, h| {
             Some((value(j, h - 1)?, value(j, harmonics + h - 1)?))
         })
         .map_err(StorageError::InvalidModel)?;

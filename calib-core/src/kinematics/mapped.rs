@@ -20,6 +20,7 @@ use crate::model::{KinematicsError, Robot};
 use crate::scalar::Real;
 use core::borrow::Borrow;
 use crate::kinematics::jacobian::JointJacobian;
+use crate::model::JacobianColumns;
 
 /// Geometry and angle-error maps of the actual robot, `C` harmonics of capacity per joint. The
 /// maps are borrowed: a controller keeps one copy of their coefficients. The geometry is owned
@@ -87,12 +88,9 @@ impl<'a, T: Real, N: JointCount, const C: usize, G: Borrow<Kinematics<T, N>>>
         if let Some(compliance) = self.compliance {
             pose = compliance.forward(self.geometry.borrow(), &t)?;
         }
-        for (j, column) in jacobian.iter_mut().enumerate() {
-            let slope = q
-                .as_slice()
-                .get(j)
-                .map_or(T::zero(), |v| self.maps.error_and_slope(j, *v).1);
-            *column *= T::one() + slope;
+        for (j, reading) in q.iter().enumerate() {
+            let slope = self.maps.error_and_slope(j, *reading).1;
+            jacobian.scale_column(j, T::one() + slope);
         }
         Ok((pose, jacobian))
     }
@@ -161,8 +159,8 @@ mod tests {
             let v = (p.translation.vector - n.translation.vector) / (2.0 * h);
             let w = crate::math::so3::log((p.rotation * n.rotation.inverse()).matrix()) / (2.0 * h);
             for r in 0..3 {
-                assert!((jacobian[j][r] - v[r]).abs() < 1e-5, "v {r} {j}");
-                assert!((jacobian[j][r + 3] - w[r]).abs() < 1e-8, "w {r} {j}");
+                assert!((jacobian[(r, j)] - v[r]).abs() < 1e-5, "v {r} {j}");
+                assert!((jacobian[(r + 3, j)] - w[r]).abs() < 1e-8, "w {r} {j}");
             }
         }
     }

@@ -85,15 +85,13 @@ pub trait JointCount: Dim + Copy + PartialEq + Debug {
     /// The count of a table's joints.
     fn of<X: Element>(table: &Self::Table<X>) -> Self;
 
-    /// `J J^T` (6 x 6) of a 6 x N matrix `J` given by its columns: nalgebra's product of the
-    /// fixed-size matrix for `Const<N>`, and for [`Dyn`] the same sums in the same order (each
-    /// entry the first column's product, then each next one added), so both give the same bits.
-    fn outer_product_sum<T: Real>(columns: &Self::Table<Vector6<T>>) -> Matrix6<T>;
+    /// The geometric Jacobian of a robot of this joint count (6 x N: `[v; omega]` per joint):
+    /// nalgebra's `SMatrix<T, 6, N>` for `Const<N>` (the controller's code as it was written
+    /// for fixed sizes), a [`JointVec`] of columns for [`Dyn`].
+    type Jacobian<T: Real>: JacobianColumns<T>;
 
-    /// `J^T y` (one value per joint) of a 6 x N matrix `J` given by its columns, summed as
-    /// nalgebra's fixed-size product sums.
-    fn transpose_times<T: Real>(columns: &Self::Table<Vector6<T>>, y: &Vector6<T>)
-    -> Self::Table<T>;
+    /// A Jacobian of zeros of this many joints.
+    fn jacobian<T: Real>(self) -> Self::Jacobian<T>;
 
     /// The count `joints` as this type: `None` unless it is `N` (`Const<N>`) or within
     /// `1..=`[`MAX_JOINTS`] ([`Dyn`]).
@@ -118,16 +116,11 @@ impl<const N: usize> JointCount for Const<N> {
         (joints == N).then_some(Const)
     }
 
-    #[inline(always)]
-    fn outer_product_sum<T: Real>(columns: &[Vector6<T>; N]) -> Matrix6<T> {
-        let j = SMatrix::<T, 6, N>::from_columns(columns);
-        j * j.transpose()
-    }
+    type Jacobian<T: Real> = SMatrix<T, 6, N>;
 
     #[inline(always)]
-    fn transpose_times<T: Real>(columns: &[Vector6<T>; N], y: &Vector6<T>) -> [T; N] {
-        let j = SMatrix::<T, 6, N>::from_columns(columns);
-        (j.transpose() * y).into()
+    fn jacobian<T: Real>(self) -> SMatrix<T, 6, N> {
+        SMatrix::zeros()
     }
 }
 
@@ -151,9 +144,95 @@ impl JointCount for Dyn {
         joint_count(joints)
     }
 
-    fn outer_product_sum<T: Real>(columns: &JointVec<Vector6<T>>) -> Matrix6<T> {
+    type Jacobian<T: Real> = JointVec<Vector6<T>>;
+
+    fn jacobian<T: Real>(self) -> JointVec<Vector6<T>> {
+        self.table(Vector6::zeros())
+    }
+}
+
+/// The columns of a geometric Jacobian (6 x N, `[v; omega]` per joint) and the products the
+/// compensation's damped least squares needs, with the same bits for a fixed and a run-time
+/// joint count: the run-time count sums in the order of nalgebra's fixed-size products (each
+/// entry the first column's product, then each next one added).
+pub trait JacobianColumns<T: Real>: Copy + Debug + PartialEq {
+    /// Column `j` (0-based joint), zeros beyond the last joint.
+    fn column(&self, j: usize) -> Vector6<T>;
+    /// Sets column `j` to `column(j)` for every joint.
+    fn fill_columns(&mut self, column: impl FnMut(usize) -> Vector6<T>);
+    /// Multiplies column `j` by `factor`.
+    fn scale_column(&mut self, j: usize, factor: T);
+    /// Divides the position rows (the first three) by `length`.
+    fn divide_position_rows(&mut self, length: T);
+    /// `J J^T`, 6 x 6.
+    fn outer_product_sum(&self) -> Matrix6<T>;
+    /// `J^T y` into `out`, one value per joint.
+    fn transpose_times(&self, y: &Vector6<T>, out: &mut [T]);
+}
+
+impl<T: Real, const N: usize> JacobianColumns<T> for SMatrix<T, 6, N> {
+    #[inline(always)]
+    fn column(&self, j: usize) -> Vector6<T> {
+        if j < N {
+            self.column(j).into_owned()
+        } else {
+            Vector6::zeros()
+        }
+    }
+    #[inline(always)]
+    fn fill_columns(&mut self, mut column: impl FnMut(usize) -> Vector6<T>) {
+        for (j, mut c) in self.column_iter_mut().enumerate() {
+            c.copy_from(&column(j));
+        }
+    }
+    #[inline(always)]
+    fn scale_column(&mut self, j: usize, factor: T) {
+        if let Some(mut c) = self.column_iter_mut().nth(j) {
+            c *= factor;
+        }
+    }
+    #[inline(always)]
+    fn divide_position_rows(&mut self, length: T) {
+        for mut row in self.rows_mut(0, 3).row_iter_mut() {
+            row /= length;
+        }
+    }
+    #[inline(always)]
+    fn outer_product_sum(&self) -> Matrix6<T> {
+        self * self.transpose()
+    }
+    #[inline(always)]
+    fn transpose_times(&self, y: &Vector6<T>, out: &mut [T]) {
+        for (o, v) in out.iter_mut().zip((self.transpose() * y).iter()) {
+            *o = *v;
+        }
+    }
+}
+
+impl<T: Real> JacobianColumns<T> for JointVec<Vector6<T>> {
+    fn column(&self, j: usize) -> Vector6<T> {
+        self.as_slice().get(j).copied().unwrap_or_else(Vector6::zeros)
+    }
+    fn fill_columns(&mut self, mut column: impl FnMut(usize) -> Vector6<T>) {
+        for (j, c) in self.as_mut_slice().iter_mut().enumerate() {
+            *c = column(j);
+        }
+    }
+    fn scale_column(&mut self, j: usize, factor: T) {
+        if let Some(c) = self.as_mut_slice().get_mut(j) {
+            *c *= factor;
+        }
+    }
+    fn divide_position_rows(&mut self, length: T) {
+        for column in self.as_mut_slice() {
+            for v in column.iter_mut().take(3) {
+                *v /= length;
+            }
+        }
+    }
+    fn outer_product_sum(&self) -> Matrix6<T> {
         let mut sum = Matrix6::<T>::zeros();
-        let Some((first, rest)) = columns.as_slice().split_first() else {
+        let Some((first, rest)) = self.as_slice().split_first() else {
             return sum;
         };
         for (mut out, scale) in sum.column_iter_mut().zip(first.iter()) {
@@ -166,16 +245,13 @@ impl JointCount for Dyn {
         }
         sum
     }
-
-    fn transpose_times<T: Real>(columns: &JointVec<Vector6<T>>, y: &Vector6<T>) -> JointVec<T> {
-        let mut out = Self::of(columns).table(T::zero());
-        for (value, column) in out.iter_mut().zip(columns.iter()) {
+    fn transpose_times(&self, y: &Vector6<T>, out: &mut [T]) {
+        for (value, column) in out.iter_mut().zip(self.as_slice()) {
             let mut terms = column.iter().zip(y.iter());
             if let Some((c, v)) = terms.next() {
                 *value = terms.fold(*c * *v, |sum, (c, v)| sum + *c * *v);
             }
         }
-        out
     }
 }
 

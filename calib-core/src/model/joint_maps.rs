@@ -108,16 +108,19 @@ impl<T: Real, N: JointCount, const C: usize> JointMaps<T, N, C> {
         Ok(maps)
     }
 
-    /// Sets the maps in place (no copy of the coefficient arrays, for a controller's stack):
-    /// `coefficient(j, h)` gives `(a_jh, b_jh)` for joint `j` (0-based) and harmonic `h`
+    /// Sets the maps of a robot of `joints` joints in place (no copy of the coefficient arrays,
+    /// for a controller's stack): `coefficient(j, h)` gives `(a_jh, b_jh)` for joint `j` (0-based) and harmonic `h`
     /// (1-based) up to `harmonics`, or `None` to stop. Refused as [`new`](Self::new) refuses,
     /// and then the maps are zero.
+    // Inlined on a controller into the block reader, its one caller there (less flash).
+    #[cfg_attr(target_arch = "arm", inline(always))]
     pub fn set(
         &mut self,
+        joints: N,
         harmonics: usize,
         mut coefficient: impl FnMut(usize, usize) -> Option<(T, T)>,
     ) -> Result<(), KinematicsError> {
-        *self = Self::zeros_for(self.joint_count());
+        *self = Self::zeros_for(joints);
         if harmonics > C {
             return Err(KinematicsError::TooManyHarmonics);
         }
@@ -136,6 +139,7 @@ impl<T: Real, N: JointCount, const C: usize> JointMaps<T, N, C> {
     }
 
     /// Checks the coefficients and computes the bounds; zero maps on refusal.
+    #[cfg_attr(target_arch = "arm", inline(always))]
     fn settle(&mut self, harmonics: usize) -> Result<(), KinematicsError> {
         let result = self.check_and_bound(harmonics);
         if result.is_err() {
@@ -144,6 +148,7 @@ impl<T: Real, N: JointCount, const C: usize> JointMaps<T, N, C> {
         result
     }
 
+    #[cfg_attr(target_arch = "arm", inline(always))]
     fn check_and_bound(&mut self, harmonics: usize) -> Result<(), KinematicsError> {
         self.harmonics = u16::try_from(harmonics)
             .ok()

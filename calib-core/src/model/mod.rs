@@ -12,6 +12,6 @@ pub mod parameters;
 mod robot;
 
 pub use error::KinematicsError;
-pub use joint_count::{JointCount, JointTable, JointVec, MAX_JOINTS, joint_count};
+pub use joint_count::{JacobianColumns, JointCount, JointTable, JointVec, MAX_JOINTS, joint_count};
 pub(crate) use robot::{check_count, joint_number};
 pub use robot::{FramePose, JointLimits, MdhJoint, Robot};
