@@ -7,7 +7,6 @@
 // Set-up of fixed, valid inputs: a failure here is a bug in the benchmark itself.
 #![allow(clippy::unwrap_used)]
 
-use nalgebra::U6;
 use calib_core::Problem;
 use calib_core::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
 use calib_core::identify::lm::{LeastSquares, LmSettings};
@@ -17,6 +16,7 @@ use calib_core::identify::objective::{
 use calib_core::model::paper::{er10l_c10, table2};
 use calib_core::{Kinematics, ParameterErrors, ParameterSet, Real};
 use criterion::{Criterion, criterion_group, criterion_main};
+use nalgebra::U6;
 use nalgebra::allocator::Allocator;
 use nalgebra::{DVector, DefaultAllocator, Dim, Dyn, OVector, SVector, U24};
 use std::hint::black_box;

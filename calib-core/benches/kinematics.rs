@@ -6,12 +6,12 @@
 // Set-up of fixed, valid inputs: a failure here is a bug in the benchmark itself.
 #![allow(clippy::unwrap_used)]
 
-use nalgebra::U6;
 use calib_core::kinematics::JointAngles;
 use calib_core::kinematics::pose_error::pose_error_jacobian;
 use calib_core::model::paper::er10l_c10 as er10l;
 use calib_core::{Kinematics, ParameterErrors, ParameterSet, Real};
 use criterion::{Criterion, criterion_group, criterion_main};
+use nalgebra::U6;
 use nalgebra::U24;
 use std::hint::black_box;
 

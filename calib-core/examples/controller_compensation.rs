@@ -6,12 +6,12 @@
 //!
 //! `cargo run --release -p calib-core --example controller_compensation`
 
-use nalgebra::U6;
 use calib_core::controller::compensate::{CompensationSettings, compensate_joints};
 use calib_core::controller::storage::{self, FlashSlots, Slot, Source, StorageError};
 use calib_core::kinematics::pose_error::PoseError;
 use calib_core::model::paper;
 use calib_core::{Kinematics, Robot};
+use nalgebra::U6;
 use std::process::ExitCode;
 
 /// Two flash slots in RAM (on a controller: two flash sectors behind its driver).

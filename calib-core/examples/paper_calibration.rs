@@ -5,13 +5,13 @@
 //!
 //! `cargo run --release -p calib-core --example paper_calibration`
 
-use nalgebra::U6;
 use calib_core::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
 use calib_core::identify::lm::LmSettings;
 use calib_core::model::paper;
 use calib_core::{
     Kinematics, LeastSquares, Measurement, Objective, ParameterErrors, ParameterSet, Problem,
 };
+use nalgebra::U6;
 use nalgebra::U24;
 use std::process::ExitCode;
 

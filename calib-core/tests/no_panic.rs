@@ -1,7 +1,6 @@
 //! Property tests: random models, targets, measurements and garbage bytes never make the core
 //! panic; bad input comes back as an error (or, for pure math on garbage, a non-finite value).
 
-use nalgebra::U6;
 use calib_core::controller::compensate::{CompensationSettings, compensate_joints, predistort};
 use calib_core::controller::storage;
 use calib_core::identify::halton::{Scrambling, halton_point};
@@ -10,6 +9,7 @@ use calib_core::identify::objective::{Measurement, Objective};
 use calib_core::math::so3;
 use calib_core::model::paper::{er10l_c10, table2};
 use calib_core::{Kinematics, MdhJoint, ParameterErrors, ParameterSet, Pose, Problem, Robot};
+use nalgebra::U6;
 use nalgebra::{Matrix3, Rotation3, SVector, Translation3, U24, Vector3};
 use proptest::prelude::*;
 

@@ -1,7 +1,6 @@
 //! Compensation: joint readings that put the identified robot on a target, and Cartesian
 //! pre-distortion for controllers that accept only Cartesian targets.
 
-use nalgebra::Const;
 use crate::access;
 use crate::model::{
     CALIB_JOINTS, CALIB_ROTATION_TOLERANCE_F32, CALIB_ROTATION_TOLERANCE_F64, CalibCompensated,
@@ -14,6 +13,7 @@ use calib_core::Real;
 use calib_core::controller::compensate::{
     CompensationError, CompensationSettings, compensate_joints, predistort,
 };
+use nalgebra::Const;
 
 /// The arguments every compensation reads.
 struct Inputs<'a, T: Real> {

@@ -1,11 +1,11 @@
 //! The caller-owned memory of a robot and a model, sizes as compile-time constants, and the
 //! plain-data types of poses, settings and results.
 
-use nalgebra::Const;
 use calib_core::controller::compensate::CompensationSettings;
 use calib_core::controller::storage::{ControllerModel, model_block_len};
 use calib_core::kinematics::MappedKinematics;
 use calib_core::{Kinematics, Real, Robot};
+use nalgebra::Const;
 
 /// Joint count of this build (the blocks it reads must have it).
 pub const CALIB_JOINTS: usize = 6;
@@ -162,7 +162,10 @@ pub(crate) struct NominalRobot<T: Real> {
 
 impl<T: Real> NominalRobot<T> {
     /// Holds `robot` and prepares its kinematics, in place; error: an invalid robot.
-    pub(crate) fn set(&mut self, robot: &Robot<T, Const<CALIB_JOINTS>>) -> Result<(), crate::CalibStatus> {
+    pub(crate) fn set(
+        &mut self,
+        robot: &Robot<T, Const<CALIB_JOINTS>>,
+    ) -> Result<(), crate::CalibStatus> {
         self.robot = *robot;
         self.kinematics =
             Kinematics::nominal(&self.robot).map_err(|_| crate::CalibStatus::InvalidModel)?;
@@ -191,7 +194,13 @@ impl<T: Real> IdentifiedModel<T> {
     /// prepared parts.
     pub(crate) fn kinematics(
         &self,
-    ) -> MappedKinematics<'_, T, Const<CALIB_JOINTS>, CALIB_HARMONICS, &Kinematics<T, Const<CALIB_JOINTS>>> {
+    ) -> MappedKinematics<
+        '_,
+        T,
+        Const<CALIB_JOINTS>,
+        CALIB_HARMONICS,
+        &Kinematics<T, Const<CALIB_JOINTS>>,
+    > {
         let compliance = &self.model.compliance;
         MappedKinematics {
             geometry: &self.geometry,

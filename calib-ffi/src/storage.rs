@@ -2,7 +2,6 @@
 //! model to the older slot through the caller's flash driver (the rule of
 //! `calib_core::controller::storage`: an interrupted write can only damage the older copy).
 
-use nalgebra::Const;
 use crate::access;
 use crate::model::{
     CALIB_JOINTS, CalibModelF32, CalibModelF64, CalibRobotF32, CalibRobotF64, IdentifiedModel,
@@ -14,6 +13,7 @@ use calib_core::controller::storage::{
     FlashSlots, Slot, Source, StorageError, decode, decode_model_into, load_model_into, store,
 };
 use core::ffi::c_void;
+use nalgebra::Const;
 
 /// A parameter slot, or the nominal model when no slot holds a valid block.
 #[repr(C)]

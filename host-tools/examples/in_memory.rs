@@ -8,11 +8,11 @@
 
 use calib_core::model::paper;
 use calib_core::{FramePose, Kinematics};
-use nalgebra::Dyn;
 use host_tools::calibration::{CalibrationConfig, calibrate};
 use host_tools::dataset::Dataset;
 use host_tools::robot_file::RobotFile;
 use host_tools::tracker_data::Record;
+use nalgebra::Dyn;
 use rand_core::SeedableRng;
 use rand_distr::{Distribution, Normal, Uniform};
 use std::path::Path;

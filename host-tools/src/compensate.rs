@@ -8,8 +8,6 @@
 //! identified robot is solved from the nominal (or nearest) configuration, under the same bounds.
 //! The output's `start` column says which way each row went.
 
-use nalgebra::Dyn;
-use calib_core::model::JointVec;
 use crate::tracker_data::TrackerData;
 use anyhow::Context;
 use calib_core::controller::compensate::{
@@ -21,7 +19,9 @@ use calib_core::controller::numerical_ik::{
 };
 use calib_core::kinematics::ik::{BRANCHES, IkError, inverse_kinematics, nearest_configurations};
 use calib_core::kinematics::pose_error::PoseError;
+use calib_core::model::JointVec;
 use calib_core::{Kinematics, Robot};
+use nalgebra::Dyn;
 
 /// A target pose in the base frame (mm).
 type Pose = calib_core::Pose<f64>;

@@ -15,10 +15,10 @@
 //! component vanishes in every pose (on a UR, joint 2's tilt about the vertical axis) is not
 //! identified and stays zero.
 
-use calib_core::model::{JointCount, JointVec};
-use nalgebra::Dyn;
 use crate::JOINTS;
+use calib_core::model::{JointCount, JointVec};
 use calib_core::{Kinematics, ParameterErrors, Robot};
+use nalgebra::Dyn;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 

@@ -2,14 +2,14 @@
 //! the core's units and types (mm, rad, [`Measurement`]), read from files or built in memory;
 //! and the held-out split used for validation.
 
-use calib_core::model::JointVec;
-use nalgebra::Dyn;
 use crate::JOINTS;
 use crate::profile::DataProfile;
 use crate::robot_file::{RobotFile, RobotModel};
 use crate::tracker_data::{OrientationColumns, Record, TrackerData};
 use anyhow::{Context, bail};
 use calib_core::identify::objective::Measurement;
+use calib_core::model::JointVec;
+use nalgebra::Dyn;
 use nalgebra::Vector3;
 use rand_core::{Rng, SeedableRng};
 use std::path::{Path, PathBuf};
@@ -318,11 +318,7 @@ impl Dataset {
 
 /// Splits `inputs` into calibration and validation poses: `fraction` of the poses, chosen at
 /// random with `seed` (deterministic), are held out.
-pub fn split(
-    dataset: &Dataset,
-    fraction: f64,
-    seed: u64,
-) -> anyhow::Result<(Dataset, Dataset)> {
+pub fn split(dataset: &Dataset, fraction: f64, seed: u64) -> anyhow::Result<(Dataset, Dataset)> {
     if !(fraction > 0.0 && fraction < 1.0) {
         anyhow::bail!("--validate must be a fraction between 0 and 1, got {fraction}");
     }

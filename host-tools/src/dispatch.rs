@@ -43,17 +43,13 @@ pub const fn solvable_parameters(joints: usize) -> usize {
 /// The parameters of `mask` as the solvers take them (the count at run time), refused with a
 /// message that says the limit beyond [`solvable_parameters`]`(N)`: more than a robot's data can
 /// determine.
-pub fn solvable_set(
-    mask: &ParameterMask<Dyn>,
-) -> anyhow::Result<ParameterSet<Dyn, Dyn>> {
+pub fn solvable_set(mask: &ParameterMask<Dyn>) -> anyhow::Result<ParameterSet<Dyn, Dyn>> {
     parameter_set(mask, solvable_parameters(mask.joint_count().value()))
 }
 
 /// The parameters of `mask` as the identifiability analysis takes them, refused beyond
 /// [`all_parameters`]`(N)`.
-pub fn analysable_set(
-    mask: &ParameterMask<Dyn>,
-) -> anyhow::Result<ParameterSet<Dyn, Dyn>> {
+pub fn analysable_set(mask: &ParameterMask<Dyn>) -> anyhow::Result<ParameterSet<Dyn, Dyn>> {
     parameter_set(mask, all_parameters(mask.joint_count().value()))
 }
 

@@ -5,12 +5,12 @@
 //! robot file (TOML) or JSON; the geometry as a URDF or a UR kinematics YAML; and the f64 -> f32
 //! model cast the controller's single-precision core needs.
 
-use nalgebra::Dyn;
 use crate::JOINTS;
 use crate::compliance::FileCompliance;
 use crate::joint_maps::{JointMaps, MAX_FILE_HARMONICS};
 use crate::robot_file::{RobotFile, RobotModel};
 use calib_core::controller::storage::{self, ControllerModel};
+use nalgebra::Dyn;
 
 /// Formats of `calib export`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -105,15 +105,14 @@ fn model_block<T: calib_core::Real>(
     model: ControllerModel<T, Dyn, MAX_FILE_HARMONICS>,
     sequence: u32,
 ) -> anyhow::Result<Vec<u8>> {
-    let mut buffer =
-        vec![
-            0u8;
-            storage::model_block_len::<T>(
-                model.robot.joints.len(),
-                model.maps.harmonics(),
-                model.compliance.is_active()
-            )
-        ];
+    let mut buffer = vec![
+        0u8;
+        storage::model_block_len::<T>(
+            model.robot.joints.len(),
+            model.maps.harmonics(),
+            model.compliance.is_active()
+        )
+    ];
     storage::encode_model(&model, sequence, &mut buffer)?;
     Ok(buffer)
 }

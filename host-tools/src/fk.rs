@@ -1,9 +1,9 @@
 //! `calib fk`: the end pose of a robot model for given joint readings.
 
-use calib_core::model::JointVec;
 use crate::robot_file::RobotModel;
 use anyhow::{Context, bail};
 use calib_core::math::so3;
+use calib_core::model::JointVec;
 use calib_core::{Kinematics, Pose};
 use nalgebra::{Rotation3, UnitQuaternion};
 use serde::Serialize;
@@ -49,10 +49,7 @@ impl FkOutput {
 }
 
 /// Forward kinematics of the nominal model in `model` for joint readings in degrees.
-pub fn forward_deg(
-    model: &RobotModel,
-    joints_deg: &[f64],
-) -> anyhow::Result<FkOutput> {
+pub fn forward_deg(model: &RobotModel, joints_deg: &[f64]) -> anyhow::Result<FkOutput> {
     let joints = model.robot.joints.len();
     if joints_deg.len() != joints {
         bail!(

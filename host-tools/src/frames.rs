@@ -10,11 +10,11 @@
 //! `R_j t = R_base^T (m_j - p_base) - p_j`. For 6-DoF data the tool rotation is then the
 //! rotation nearest to the mean of `(R_base R_j)^T R_measured,j`.
 
-use nalgebra::Dyn;
 use crate::robot_file::{FrameEntry, RobotFile};
 use anyhow::Context;
 use calib_core::identify::objective::Measurement;
 use calib_core::{FrameParameter, JointParameter, Kinematics, Parameter, ParameterMask, Robot};
+use nalgebra::Dyn;
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use serde::Serialize;
 
@@ -533,9 +533,7 @@ pub fn prepare(
 /// them within [`MAX_REGISTRATION_RMS_MM`]. Otherwise the error says what the data look like: in a
 /// tracker's frame (the registration fits), in other units (their spread is about 1000 times the
 /// model's), or wrong in another way.
-pub fn check_base_frame(
-    dataset: &crate::dataset::Dataset,
-) -> anyhow::Result<()> {
+pub fn check_base_frame(dataset: &crate::dataset::Dataset) -> anyhow::Result<()> {
     let kinematics = Kinematics::nominal(&dataset.model.robot)?;
     let rms = crate::statistics::table3(&kinematics, dataset)
         .0

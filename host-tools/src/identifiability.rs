@@ -3,13 +3,13 @@
 //! are confounded with (the core's [`Identifiability`]), and the least determined direction of an
 //! ill-conditioned pose set.
 
-use nalgebra::Dyn;
 use crate::dataset::Dataset;
 use anyhow::bail;
 use calib_core::identify::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability, Status};
 use calib_core::identify::lm::LeastSquares;
 use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, Problem};
 use nalgebra::DVector;
+use nalgebra::Dyn;
 use serde::Serialize;
 
 /// Scaled condition number above which a pose set is reported as ill-conditioned: the weakest

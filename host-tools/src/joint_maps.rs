@@ -19,12 +19,12 @@
 //! When the evidence does not support a map (too few poses, a narrow joint range), its amplitude
 //! goes to zero and the map with it.
 
-use nalgebra::Dyn;
-use calib_core::model::{JointCount, JointVec};
 use crate::compliance::{GAIN_COUNT, Gravity};
 use calib_core::model::joint_maps::JointMaps as CoreMaps;
 use calib_core::model::parameters::all_parameters;
+use calib_core::model::{JointCount, JointVec};
 use calib_core::{JointAngles, Kinematics, Parameter, ParameterErrors, ParameterMask, Real, Robot};
+use nalgebra::Dyn;
 use nalgebra::{DMatrix, DVector, Vector3};
 use serde::{Deserialize, Serialize};
 
@@ -470,10 +470,7 @@ pub fn identify_best(
 /// weighted by `orientation_scale_mm` (mm per rad; 0 ignores them); with `gravity`, the
 /// compliance gains too (flat prior, like the geometry). Errors: too few poses, a non-finite
 /// value, a singular problem.
-pub fn identify(
-    problem: &MapsProblem<'_>,
-    harmonics: usize,
-) -> anyhow::Result<MapIdentification> {
+pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> anyhow::Result<MapIdentification> {
     let MapsProblem {
         robot,
         start,
@@ -535,8 +532,10 @@ pub fn identify(
         // solved for the total coefficients, whose prior is centred on zero).
         let mut design = DMatrix::<f64>::zeros(rows, unknowns);
         let mut residual = DVector::<f64>::zeros(rows);
-        let current: DVector<f64> =
-            DVector::from_iterator(joints * per_joint, maps.coefficients.iter().flatten().copied());
+        let current: DVector<f64> = DVector::from_iterator(
+            joints * per_joint,
+            maps.coefficients.iter().flatten().copied(),
+        );
         for (i, pose) in poses.iter().enumerate() {
             let q = maps.apply(&pose.q);
             let angles = JointAngles::new(&q)?;
@@ -627,14 +626,14 @@ pub fn identify(
     };
     let coefficient_sd = (0..joints)
         .map(|j| {
-        (0..per_joint)
-            .map(|k| {
-                solved.variance[geometry + j * per_joint + k]
-                    .max(0.0)
-                    .sqrt()
-            })
-            .collect()
-    })
+            (0..per_joint)
+                .map(|k| {
+                    solved.variance[geometry + j * per_joint + k]
+                        .max(0.0)
+                        .sqrt()
+                })
+                .collect()
+        })
         .collect();
     let parameter_sd = (0..geometry)
         .map(|i| solved.variance[i].max(0.0).sqrt())

@@ -6,11 +6,11 @@
 //! or inverted quaternions miss them by more. The check names the conventions under which the
 //! data would agree.
 
-use nalgebra::Dyn;
 use crate::dataset::Dataset;
 use crate::profile::EulerConvention;
 use crate::tracker_data::OrientationColumns;
 use calib_core::Kinematics;
+use nalgebra::Dyn;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 
 /// Median disagreement (deg) of the relative rotation angles beyond which the orientations are

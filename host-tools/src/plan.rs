@@ -22,16 +22,16 @@
 //! compliance, temperature) make the measured error larger, which `calibrate` flags when it
 //! compares the verification poses with the prediction ([`PlanCheck`]).
 
-use calib_core::model::JointVec;
-use nalgebra::Dyn;
 use crate::dataset::Dataset;
 use crate::frames::Frames;
 use crate::identifiability::analyse;
 use crate::robot_file::RobotFile;
 use crate::tracker_data::{PlannedVerification, Record, Role};
 use anyhow::{Context, bail};
+use calib_core::model::JointVec;
 use calib_core::{JointAngles, Kinematics, Parameter, ParameterMask, ParameterSet, Robot};
 use nalgebra::DMatrix;
+use nalgebra::Dyn;
 use serde::Serialize;
 use std::f64::consts::PI;
 
@@ -436,10 +436,8 @@ pub fn plan(
         );
     }
     let q: Vec<Vec<f64>> = candidates.iter().map(|(_, q)| q.clone()).collect();
-    let info = {
-        crate::dispatch::joint_count(joints)?;
-        information(file, robot_path, &q, settings.measure, settings.k)
-    }?;
+    crate::dispatch::joint_count(joints)?;
+    let info = information(file, robot_path, &q, settings.measure, settings.k)?;
     let parameters = info.parameters.len();
     let rows = settings.measure.rows();
     if settings.poses * rows <= parameters {
@@ -850,10 +848,8 @@ pub fn leverages(
     measure: Measure,
     k: f64,
 ) -> anyhow::Result<Vec<f64>> {
-    let info = {
-        crate::dispatch::joint_count(file.joint.len())?;
-        information(file, robot_path, q, measure, k)
-    }?;
+    crate::dispatch::joint_count(file.joint.len())?;
+    let info = information(file, robot_path, q, measure, k)?;
     let stacked = stack(info.rows.iter(), info.parameters.len());
     let Some(inverse) = (stacked.transpose() * &stacked)
         .cholesky()
@@ -878,10 +874,8 @@ pub fn generate(
     count: usize,
     box_mm: Option<[f64; 6]>,
 ) -> anyhow::Result<Vec<(String, Vec<f64>)>> {
-    {
-        crate::dispatch::joint_count(file.joint.len())?;
-        generate_joints(file, robot_path, count, box_mm)
-    }
+    crate::dispatch::joint_count(file.joint.len())?;
+    generate_joints(file, robot_path, count, box_mm)
 }
 
 fn generate_joints(
@@ -915,7 +909,9 @@ fn generate_joints(
             calib_core::identify::halton::Scrambling::None,
             &mut point,
         );
-        let q = JointVec::<f64>::from_fn(bounds.len(), |j| bounds[j].0 + point[j] * (bounds[j].1 - bounds[j].0));
+        let q = JointVec::<f64>::from_fn(bounds.len(), |j| {
+            bounds[j].0 + point[j] * (bounds[j].1 - bounds[j].0)
+        });
         if let Some(b) = box_mm {
             let p = kinematics.forward(&q)?.translation.vector;
             let inside = (0..3).all(|a| (b[2 * a]..=b[2 * a + 1]).contains(&p[a]));

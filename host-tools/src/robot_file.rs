@@ -22,12 +22,12 @@
 //! `[[joint]]`; reading converts it exactly into our joints and frames ([`craig`]), and
 //! files written back (identified robots) are in our convention.
 
-use nalgebra::{Dim, Dyn};
 use calib_core::model::JointCount;
 use calib_core::{
     FramePose, JointLimits, JointParameter, MdhJoint, Parameter, ParameterErrors, ParameterMask,
     Robot,
 };
+use nalgebra::{Dim, Dyn};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -290,9 +290,35 @@ impl RobotFile {
 
     /// The joint count, checked against what the tool handles ([`crate::dispatch::JOINT_COUNTS`]).
     pub fn joint_count(&self, path: &Path) -> Result<Dyn, RobotFileError> {
-        crate::dispatch::joint_count(self.joint.len()).map_err(|e| RobotFileError::Invalid {
+        let joints = self.joint.len();
+        crate::dispatch::joint_count(joints).map_err(|_| RobotFileError::Invalid {
             path: path.to_owned(),
-            message: e.to_string(),
+            message: format!(
+                "has {joints} [[joint]] tables; calib handles robots of {} to {} joints",
+                crate::dispatch::JOINT_COUNTS.start(),
+                crate::dispatch::JOINT_COUNTS.end()
+            ),
+        })
+    }
+
+    /// `Ok` when the file describes a robot of `joints` joints, the robot it goes with (`robot`
+    /// names it in the error, e.g. "the robot calibrated"): the joint count is each file's own,
+    /// so two files used together are checked against each other.
+    pub fn expect_joints(
+        &self,
+        path: &Path,
+        joints: usize,
+        robot: &str,
+    ) -> Result<(), RobotFileError> {
+        if self.joint.len() == joints {
+            return Ok(());
+        }
+        Err(RobotFileError::Invalid {
+            path: path.to_owned(),
+            message: format!(
+                "has {} [[joint]] tables, expected {joints} ({robot} has {joints} joints)",
+                self.joint.len()
+            ),
         })
     }
 

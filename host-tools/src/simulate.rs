@@ -6,7 +6,6 @@
 //! the actual pose. Taken literally that moves the tool by about 100 mm, which no geometric
 //! calibration can remove, so it is an option here (`--joint-noise-rad`), 0 by default.
 
-use nalgebra::Dyn;
 use crate::JOINTS;
 use crate::robot_file::FrameEntry;
 use crate::robot_file::{RobotFile, RobotModel};
@@ -15,6 +14,7 @@ use anyhow::{Context, bail};
 use calib_core::model::paper;
 use calib_core::model::parameters::all_parameters;
 use calib_core::{Kinematics, ParameterErrors};
+use nalgebra::Dyn;
 use rand::RngExt;
 use rand_core::SeedableRng;
 use rand_distr::{Distribution, Normal, Uniform};

@@ -2,10 +2,10 @@
 //! deviation, maximum and RMS of the absolute position error in mm and of the orientation error
 //! per axis in deg), and the per-pose errors behind them.
 
-use nalgebra::Dyn;
 use crate::dataset::Dataset;
 use calib_core::Kinematics;
 use calib_core::identify::statistics::{PoseStatistics, Summary};
+use nalgebra::Dyn;
 use serde::Serialize;
 
 /// Mean, sample standard deviation and maximum of one quantity.
@@ -72,10 +72,7 @@ impl Table3 {
 }
 
 /// Table 3 statistics of `kinematics` on `dataset`, and `|dp|` per pose (mm).
-pub fn table3(
-    kinematics: &Kinematics<f64, Dyn>,
-    dataset: &Dataset,
-) -> (Table3, Vec<f64>) {
+pub fn table3(kinematics: &Kinematics<f64, Dyn>, dataset: &Dataset) -> (Table3, Vec<f64>) {
     let mut stats = PoseStatistics::default();
     let mut per_pose = Vec::with_capacity(dataset.measurements.len());
     for m in &dataset.measurements {
@@ -88,10 +85,7 @@ pub fn table3(
 
 /// `|dr_x|, |dr_y|, |dr_z|` (deg) of `kinematics` for every pose of `dataset` that has an
 /// orientation, in file order.
-pub fn orientation_per_pose(
-    kinematics: &Kinematics<f64, Dyn>,
-    dataset: &Dataset,
-) -> Vec<[f64; 3]> {
+pub fn orientation_per_pose(kinematics: &Kinematics<f64, Dyn>, dataset: &Dataset) -> Vec<[f64; 3]> {
     dataset
         .measurements
         .iter()

@@ -14,15 +14,15 @@
 //! configurations (full poses), then checked on [`CHECK_POSES`] others; an import that does not
 //! reproduce them to [`POSITION_TOLERANCE_MM`] and [`ROTATION_TOLERANCE_RAD`] is refused.
 
-use calib_core::model::JointVec;
-use nalgebra::Dyn;
 use crate::JOINTS;
 use anyhow::{Context, bail};
 use calib_core::identify::lm::{LeastSquares, LmSettings};
+use calib_core::model::JointVec;
 use calib_core::{
     JointParameter, Kinematics, MdhJoint, Measurement, Parameter, ParameterErrors, ParameterMask,
     Problem, Robot,
 };
+use nalgebra::Dyn;
 use rand::{RngExt, SeedableRng};
 use std::path::Path;
 

@@ -14,10 +14,10 @@
 //! zero is refused, with the remedy. The controller's tool (`[tool]`) is the TCP set on the
 //! robot's controller, not part of this file; the export writes it into a comment.
 
-use nalgebra::Dyn;
 use crate::JOINTS;
 use crate::urdf::{Origin, frame};
 use calib_core::{MdhJoint, Robot};
+use nalgebra::Dyn;
 use nalgebra::{IsometryMatrix3, Rotation3, Translation3, Vector3};
 
 /// The segment names of the UR description, joint 1 first.
@@ -49,9 +49,7 @@ fn x_part(joint: &MdhJoint<f64>) -> IsometryMatrix3<f64> {
 
 /// The six segments (mm), or why the model has no UR form (a robot of other than six joints
 /// is no UR).
-pub fn segments(
-    robot: &Robot<f64, Dyn>,
-) -> anyhow::Result<Vec<IsometryMatrix3<f64>>> {
+pub fn segments(robot: &Robot<f64, Dyn>) -> anyhow::Result<Vec<IsometryMatrix3<f64>>> {
     let (Some(last), Some(first)) = (robot.joints.last(), robot.joints.first()) else {
         anyhow::bail!(
             "a UR kinematics file describes a {JOINTS}-joint UR robot; this one has none"

@@ -15,9 +15,9 @@
 //! ([`UrdfSettings::geometry_only`]). The measurement setup (`[measurement]`: tracker, probe) is
 //! never exported: the URDF is the controller's model, base and tool as in `[base]` and `[tool]`.
 
-use nalgebra::Dyn;
 use crate::JOINTS;
 use calib_core::{FramePose, MdhJoint, Robot};
+use nalgebra::Dyn;
 use nalgebra::{IsometryMatrix3, Rotation3, Translation3, Vector3};
 
 /// A joint origin as a URDF says it: translation in metres, roll-pitch-yaw in radians.

@@ -5,13 +5,13 @@
 //! All three fit the same parameters from the same start (zero errors on the robot with its
 //! frames registered and fitted, as `calib calibrate` prepares it) by least squares.
 
-use calib_core::model::JointVec;
 use crate::dataset::Dataset;
 use crate::frames::Frames;
 use anyhow::Context;
 use calib_core::Problem;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
 use calib_core::identify::objective::Measurement;
+use calib_core::model::JointVec;
 use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, ParameterSet};
 use nalgebra::{DVector, Dyn};
 use serde::Serialize;
@@ -243,7 +243,8 @@ fn solve_f32(
         .iter()
         .zip(&seen.records)
         .map(|(m, r)| {
-            let q = JointVec::<f32>::from_fn(r.q.len(), |i| r.q.get(i).copied().unwrap_or(0.0) as f32);
+            let q =
+                JointVec::<f32>::from_fn(r.q.len(), |i| r.q.get(i).copied().unwrap_or(0.0) as f32);
             Measurement::new(
                 &q,
                 m.position.map(|v| v as f32),

@@ -177,14 +177,8 @@ fn default_bounds_refuse_large_corrections() {
 fn exported_block_is_byte_identical_to_the_core_and_round_trips() {
     let dir = tempfile::tempdir().unwrap();
     for (scalar, len) in [
-        (
-            "f64",
-            calib_core::controller::storage::block_len::<f64>(6),
-        ),
-        (
-            "f32",
-            calib_core::controller::storage::block_len::<f32>(6),
-        ),
+        ("f64", calib_core::controller::storage::block_len::<f64>(6)),
+        ("f32", calib_core::controller::storage::block_len::<f32>(6)),
     ] {
         let out = dir.path().join(format!("params-{scalar}.bin"));
         let result = calib(&[
@@ -709,14 +703,11 @@ fn every_shipped_robot_is_compensated_without_joints() {
         let file = RobotFile::read(robot).unwrap();
         let actual =
             RefModel::from_file(&RobotFile::read(&truth).unwrap(), &[], &[0.0; 6], &[0.0; 6]);
-        let closed_form = file
-            .to_model(robot)
-            .ok()
-            .filter(|m| {
-                m.robot.recount::<nalgebra::U6>().is_some_and(|six| {
-                    nearest_configurations(&six, &calib_core::Pose::identity()).is_ok()
-                })
-            });
+        let closed_form = file.to_model(robot).ok().filter(|m| {
+            m.robot.recount::<nalgebra::U6>().is_some_and(|six| {
+                nearest_configurations(&six, &calib_core::Pose::identity()).is_ok()
+            })
+        });
         let mut groups: Vec<(String, Vec<[[f64; 4]; 4]>)> = Vec::new();
         let mut reader = csv::ReaderBuilder::new()
             .comment(Some(b'#'))
@@ -764,7 +755,11 @@ fn every_shipped_robot_is_compensated_without_joints() {
 
 /// The branch (0-7) of `robot`'s nominal configuration nearest to `q` for the homogeneous pose
 /// `m` (a target beyond the nominal workspace: of the nearest boundary configuration).
-fn nearest_branch(robot: &calib_core::Robot<f64, nalgebra::U6>, m: &[[f64; 4]; 4], q: &[f64; 6]) -> usize {
+fn nearest_branch(
+    robot: &calib_core::Robot<f64, nalgebra::U6>,
+    m: &[[f64; 4]; 4],
+    q: &[f64; 6],
+) -> usize {
     use calib_core::kinematics::ik::{closest, nearest_configurations};
     let pose = calib_core::Pose::from_parts(
         nalgebra::Translation3::new(m[0][3], m[1][3], m[2][3]),

@@ -88,7 +88,8 @@ fn frames_and_geometry_reach_the_reference_optimum() {
         let names = c.result.names();
         let cal = TrackerData::read(&data).unwrap();
         let fit = lm::fit(&truth_file, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
-        let mut errors = calib_core::ParameterErrors::<f64, nalgebra::Dyn>::zeros_for(nalgebra::Dyn(6));
+        let mut errors =
+            calib_core::ParameterErrors::<f64, nalgebra::Dyn>::zeros_for(nalgebra::Dyn(6));
         for (n, v) in &fit.errors {
             errors.set(calib_core::Parameter::from_name(n, 6).unwrap(), *v);
         }

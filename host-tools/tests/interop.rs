@@ -4,10 +4,10 @@
 
 mod common;
 
-use nalgebra::Dyn;
 use calib_core::{Kinematics, Robot};
 use common::{UR10, calib_in, ok};
 use host_tools::robot_file::{RobotFile, RobotModel};
+use nalgebra::Dyn;
 use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, Translation3, Vector3};
 use rand::{RngExt, SeedableRng};
 use std::path::Path;
@@ -118,7 +118,8 @@ fn the_urdf_reproduces_our_forward_kinematics() {
         ]
         .concat();
         ok(&calib_in(d, &args));
-        let (position, rotation) = largest_difference(&model(robot), through_k(&d.join("r.urdf"), 6));
+        let (position, rotation) =
+            largest_difference(&model(robot), through_k(&d.join("r.urdf"), 6));
         println!(
             "{}: URDF through k, largest difference {position:.3e} mm, {rotation:.3e} rad",
             robot.display()

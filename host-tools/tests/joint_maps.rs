@@ -788,13 +788,7 @@ fn a_file_with_compliance_is_applied_or_refused_never_ignored() {
     };
     // The identified file (parallel axes now 0.01-0.09 deg off) keeps the nominal file's
     // identification set: beta, not d, for the parallel joints 2 and 3.
-    let mask = |path: &std::path::Path| {
-        RobotFile::read(path)
-            .unwrap()
-            .to_model(path)
-            .unwrap()
-            .mask
-    };
+    let mask = |path: &std::path::Path| RobotFile::read(path).unwrap().to_model(path).unwrap().mask;
     assert_eq!(mask(&d.join("c.toml")), mask(std::path::Path::new(ROBOT)));
     let nominal = verified(ROBOT);
     let (with, without) = (verified("c.toml"), verified("no-c.toml"));

@@ -79,7 +79,8 @@ fn tracker_noise_scenario_matches_the_reference_and_the_statistics() {
         let fit = lm::fit(&nominal, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
         let reference_file = nominal.with_errors(
             &{
-                let mut e = calib_core::ParameterErrors::<f64, nalgebra::Dyn>::zeros_for(nalgebra::Dyn(6));
+                let mut e =
+                    calib_core::ParameterErrors::<f64, nalgebra::Dyn>::zeros_for(nalgebra::Dyn(6));
                 for (n, v) in &fit.errors {
                     e.set(calib_core::Parameter::from_name(n, 6).unwrap(), *v);
                 }

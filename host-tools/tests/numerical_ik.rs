@@ -3,10 +3,10 @@
 //! joints within the limits), each solution checked independently by forward kinematics against
 //! its target and against the joint limits.
 
-use calib_core::model::JointVec;
 use calib_core::Kinematics;
 use calib_core::controller::numerical_ik::{NumericalIkSettings, numerical_inverse_kinematics};
 use calib_core::kinematics::pose_error::PoseError;
+use calib_core::model::JointVec;
 use host_tools::robot_file::{RobotFile, RobotModel};
 use rand::{RngExt, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -20,13 +20,16 @@ fn reach(file: &str) -> (usize, usize, u32) {
     let kinematics = Kinematics::nominal(&model.robot).unwrap();
     let limits = model.robot.limits;
     // The documented reference posture: the middle of each joint's range.
-    let reference = calib_core::model::JointVec::<f64>::from_fn(7, |j| 0.5 * (limits[j].lower + limits[j].upper));
+    let reference = calib_core::model::JointVec::<f64>::from_fn(7, |j| {
+        0.5 * (limits[j].lower + limits[j].upper)
+    });
     let settings = NumericalIkSettings::default();
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(15);
     let (mut reached, mut refused, mut most_seeds) = (0, 0, 0);
     for _ in 0..1000 {
-        let q = calib_core::model::JointVec::<f64>::from_fn(7,
-            |j| rng.random_range(limits[j].lower..limits[j].upper));
+        let q = calib_core::model::JointVec::<f64>::from_fn(7, |j| {
+            rng.random_range(limits[j].lower..limits[j].upper)
+        });
         let target = kinematics.forward(&q).unwrap();
         match numerical_inverse_kinematics(&kinematics, &limits, &target, &reference, &settings) {
             Ok(solution) => {

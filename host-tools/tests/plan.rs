@@ -63,11 +63,7 @@ fn held_out_mean(fit: &Dataset, validation: &Dataset) -> f64 {
 }
 
 /// [`held_out_mean`] with `config`.
-fn held_out_mean_with(
-    fit: &Dataset,
-    validation: &Dataset,
-    config: &CalibrationConfig,
-) -> f64 {
+fn held_out_mean_with(fit: &Dataset, validation: &Dataset, config: &CalibrationConfig) -> f64 {
     let result = calibration::calibrate(fit.clone(), Some(validation.clone()), config).unwrap();
     result.validation.unwrap().after.position_mm.mean
 }

@@ -223,8 +223,9 @@ fn tracker_data_calibrate_export_compensate_reaches_the_targets() {
     let (mut worst, mut uncompensated) = (0.0f64, 0.0f64);
     for ((line, target), q_nominal) in rows.lines().skip(1).zip(&poses).zip(CONFIGURATIONS) {
         let fields: Vec<&str> = line.split(',').collect();
-        let q = calib_core::model::JointVec::<f64>::from_fn(6,
-            |i| fields[1 + i].parse::<f64>().unwrap().to_radians());
+        let q = calib_core::model::JointVec::<f64>::from_fn(6, |i| {
+            fields[1 + i].parse::<f64>().unwrap().to_radians()
+        });
         let miss = |q: &calib_core::model::JointVec<f64>| {
             (actual.forward(q).unwrap().translation.vector - target.translation.vector).norm()
         };

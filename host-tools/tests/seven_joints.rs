@@ -200,7 +200,9 @@ fn every_command_on_a_simulated_seven_joint_robot() {
         (predicted.translation.vector - Vector3::new(measured[0], measured[1], measured[2])).norm();
     println!("fk of the identified file in the measurement setup against the data: {miss:.2e} mm");
     assert!(miss < 1e-6, "{miss}");
-    let q = calib_core::model::JointVec::<f64>::from_fn(7, |i| joints[i].parse::<f64>().unwrap().to_radians());
+    let q = calib_core::model::JointVec::<f64>::from_fn(7, |i| {
+        joints[i].parse::<f64>().unwrap().to_radians()
+    });
 
     // compensate: targets the nominal robot reaches at the simulated joints; the identified
     // robot is put on them.

@@ -9,7 +9,6 @@
 #![no_std]
 #![deny(missing_docs)]
 
-use nalgebra::U6;
 use calib_core::Problem;
 use calib_core::controller::compensate::{CompensationSettings, compensate_joints};
 use calib_core::identify::ipso::{self, Control, IpsoSettings, SearchSpace};
@@ -18,6 +17,7 @@ use calib_core::identify::objective::{DEFAULT_K, Measurement, Objective};
 use calib_core::identify::statistics::PoseStatistics;
 use calib_core::model::paper;
 use calib_core::{Kinematics, ParameterErrors, ParameterSet, Robot};
+use nalgebra::U6;
 use nalgebra::{Const, Matrix3, SVector, Vector3};
 
 pub mod maps;

@@ -9,11 +9,11 @@
 //! `data/ur10-series-b-compliance.toml` and `host-tools/robots/ur10.toml` (the host test
 //! `tests/tests/onboard.rs` checks that they still are).
 
-use nalgebra::U6;
 use crate::{Error, Marks, Stage, TARGETS};
 use calib_core::Kinematics;
 use calib_core::controller::compensate::{CompensationSettings, compensate_joints};
 use calib_core::controller::storage::{ControllerModel, decode, decode_model_into};
+use nalgebra::U6;
 
 /// The UR10's nominal model, version 1 block (f32).
 pub const NOMINAL_BLOCK: &[u8] = include_bytes!("../data/ur10-nominal.calb");

@@ -5,12 +5,12 @@
 //! planned joint vectors. The firmware's `seven-joints` binary runs it and counts instructions;
 //! the host computes the same bits (`tests/tests/firmware_qemu.rs` compares them).
 
-use nalgebra::Const;
 use crate::{Error, Marks, Stage};
 use calib_core::controller::compensate::{CompensationSettings, compensate_joints};
 use calib_core::kinematics::pose_error::PoseError;
 use calib_core::{JointErrors, JointLimits, MdhJoint};
 use calib_core::{Kinematics, ParameterErrors, Robot};
+use nalgebra::Const;
 
 /// Joints of the robot.
 pub const JOINTS: usize = 7;

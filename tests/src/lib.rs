@@ -1,10 +1,10 @@
 //! Shared helpers of the cross-crate tests: test data paths, the paper's tables, seeded random
 //! joint configurations, and small comparisons.
 
-use nalgebra::U6;
 use calib_core::{JointErrors, ParameterErrors, Pose, Real};
 use host_tools::reference::Mat4;
 use host_tools::robot_file::RobotFile;
+use nalgebra::U6;
 use rand_core::Rng;
 use std::path::PathBuf;
 

@@ -1,11 +1,11 @@
 //! The core's forward kinematics against the independent f64 reference on 10,000 random joint
 //! configurations of the ER10L-C10 with Table 2 errors applied, in f64 and in f32.
 
-use nalgebra::U6;
 use calib_core::{FramePose, Kinematics, ParameterErrors, Real, Robot};
 use calib_tests::{distance, er10l_file, table2, table2_errors, uniform};
 use host_tools::reference::RefModel;
 use host_tools::robot_file::{FrameEntry, RobotFile, RobotModel};
+use nalgebra::U6;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 use std::f64::consts::PI;
@@ -101,8 +101,7 @@ fn f64_core_agrees_with_reference_with_base_and_tool_frames() {
 
 #[test]
 fn nominal_model_file_loads_with_table1_values() {
-    let model =
-        RobotModel::load(&calib_tests::repo("host-tools/robots/er10l-c10.toml")).unwrap();
+    let model = RobotModel::load(&calib_tests::repo("host-tools/robots/er10l-c10.toml")).unwrap();
     assert_eq!(model.name, "Efort ER10L-C10");
     assert_eq!(model.robot.joints[1].a, 780.0);
     assert_eq!(model.robot.joints[1].theta_offset, -PI / 2.0);
@@ -112,8 +111,7 @@ fn nominal_model_file_loads_with_table1_values() {
 
 #[test]
 fn core_paper_tables_equal_the_robot_file_and_table2_csv() {
-    let model =
-        RobotModel::load(&calib_tests::repo("host-tools/robots/er10l-c10.toml")).unwrap();
+    let model = RobotModel::load(&calib_tests::repo("host-tools/robots/er10l-c10.toml")).unwrap();
     assert_eq!(
         calib_core::model::paper::er10l_c10::<f64>().recount(),
         Some(model.robot)

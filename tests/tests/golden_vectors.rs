@@ -1,11 +1,11 @@
 //! The core against the golden vectors of an independent numpy implementation
 //! (tests/data/vectors, with their README: how and by what they were computed).
 
-use nalgebra::U6;
 use calib_core::kinematics::pose_error::pose_error;
 use calib_core::{Kinematics, ParameterErrors, Pose};
 use calib_tests::{er10l_file, read_csv, table2_errors};
 use host_tools::robot_file::RobotModel;
+use nalgebra::U6;
 use nalgebra::{Matrix3, Vector3};
 use std::path::Path;
 

@@ -3,7 +3,6 @@
 //! `CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test onboard`), and it is checked here
 //! against the true errors of the simulation and against the f64 core on the same data.
 
-use nalgebra::U6;
 use calib_core::Problem;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
 use calib_core::identify::objective::{DEFAULT_K, Measurement};
@@ -11,6 +10,7 @@ use calib_core::model::paper;
 use calib_core::{ParameterErrors, ParameterSet};
 use calib_onboard::{D, EXPECTED, NoMarks, run};
 use nalgebra::SVector;
+use nalgebra::U6;
 
 #[test]
 fn the_job_is_accurate_and_its_encoding_is_the_firmwares_expectation() {

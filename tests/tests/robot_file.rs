@@ -51,9 +51,27 @@ fn missing_field_is_named() {
 
 #[test]
 fn wrong_joint_count_is_an_error() {
-    let text = format!("name = \"x\"\n{}", GOOD_JOINT.repeat(5));
-    let e = error_of(&text);
-    assert!(e.contains("has 5 [[joint]] tables, expected 6"), "{e}");
+    // The joint count is the file's (a run-time count): 5 joints are a robot of 5 joints, with
+    // 4 parameters per joint by the default rule (a, alpha, theta, and d or beta).
+    let path = Path::new("robots/five.toml");
+    let five = format!("name = \"x\"\n{}", GOOD_JOINT.repeat(5));
+    let model = RobotFile::parse(&five, path)
+        .unwrap()
+        .to_model(path)
+        .unwrap();
+    assert_eq!(model.robot.joints.len(), 5);
+    assert_eq!(model.mask.count(), 20);
+    // Beyond what the tool handles: refused, naming the count and the range.
+    for joints in [1, 10] {
+        let text = format!("name = \"x\"\n{}", GOOD_JOINT.repeat(joints));
+        let e = error_of(&text);
+        assert!(
+            e.contains(&format!(
+                "has {joints} [[joint]] tables; calib handles robots of 2 to 9 joints"
+            )),
+            "{e}"
+        );
+    }
 }
 
 #[test]

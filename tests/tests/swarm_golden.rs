@@ -1,12 +1,12 @@
 //! The Halton generator and the eq. (7) objective against the golden vectors of the independent
 //! numpy implementation.
 
-use nalgebra::U6;
 use calib_core::Problem;
 use calib_core::identify::halton::{self, Scrambling};
 use calib_core::identify::objective::{Measurement, Objective};
 use calib_core::{Kinematics, ParameterSet};
 use calib_tests::{read_csv, table2_errors};
+use nalgebra::U6;
 use nalgebra::{DVector, Dyn, SVector, U24};
 
 #[test]

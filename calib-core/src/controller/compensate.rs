@@ -19,11 +19,11 @@
 //! pose the nominal model gives for the start joints), or a near-singular configuration
 //! (manipulability of the scaled Jacobian below a threshold).
 
-use crate::model::{JacobianColumns, JointCount, JointTable};
 use crate::KinematicsError;
 use crate::kinematics::pose_error::PoseError;
 use crate::kinematics::{Kinematics, MappedKinematics, Pose};
 use crate::model::JointLimits;
+use crate::model::{JacobianColumns, JointCount, JointTable};
 use crate::scalar::Real;
 use core::borrow::Borrow;
 use core::fmt;
@@ -495,9 +495,9 @@ pub fn predistort<T: Real, N: JointCount>(
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::U6;
     use super::*;
     use crate::model::paper::{er10l_c10, table2};
+    use nalgebra::U6;
     use rand_core::{Rng, SeedableRng};
     extern crate std;
 
@@ -844,7 +844,11 @@ mod tests {
             ..settings()
         };
         match compensate_joints(&nominal, &actual, &unlimited, &target, &near, &wide) {
-            Ok(c) => assert!(c.q.iter().zip(near.iter()).all(|(a, b)| (a - b).abs() <= 0.5)),
+            Ok(c) => assert!(
+                c.q.iter()
+                    .zip(near.iter())
+                    .all(|(a, b)| (a - b).abs() <= 0.5)
+            ),
             Err(e) => assert!(
                 matches!(
                     e,

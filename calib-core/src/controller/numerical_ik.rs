@@ -12,11 +12,11 @@
 //! one from the first Halton seed that does. The work is bounded: at most `seeds` runs of at most
 //! `max_iterations` iterations each.
 
-use crate::model::{JointCount, JointTable};
 use crate::controller::compensate::{CompensationError, CompensationSettings, solve_joints};
 use crate::identify::halton::{Scrambling, halton_point};
 use crate::kinematics::{Kinematics, Pose};
 use crate::model::JointLimits;
+use crate::model::{JointCount, JointTable};
 use crate::scalar::Real;
 use core::fmt;
 

@@ -29,12 +29,12 @@
 //! newest valid slot, falls back to the other, then to the nominal model, and says which it used.
 //! Both work with either content ([`Stored`]: a [`Robot`] or a [`ControllerModel`]).
 
-use crate::model::{JointCount, JointTable};
 use crate::KinematicsError;
 use crate::kinematics::MappedKinematics;
 use crate::model::compliance::Compliance;
 use crate::model::joint_maps::JointMaps;
 use crate::model::parameters::ParameterErrors;
+use crate::model::{JointCount, JointTable};
 use crate::model::{MdhJoint, Robot};
 use crate::scalar::Real;
 use core::fmt;
@@ -98,8 +98,7 @@ impl<T: Real, N: JointCount, const C: usize> ControllerModel<T, N, C> {
     /// Error: an invalid geometry or compliance.
     pub fn kinematics(&self) -> Result<MappedKinematics<'_, T, N, C>, KinematicsError> {
         let errors = ParameterErrors::zeros_for(self.robot.joint_count());
-        MappedKinematics::new(&self.robot, &errors, &self.maps)?
-            .with_compliance(&self.compliance)
+        MappedKinematics::new(&self.robot, &errors, &self.maps)?.with_compliance(&self.compliance)
     }
 }
 
@@ -694,11 +693,11 @@ pub fn store<M: Stored>(
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::U5;
-    use nalgebra::U6;
     use super::*;
     use crate::Kinematics;
     use crate::model::paper::{er10l_c10, table2};
+    use nalgebra::U5;
+    use nalgebra::U6;
     extern crate std;
     use std::vec;
     use std::vec::Vec;

@@ -319,11 +319,11 @@ where
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::U6;
     use super::*;
     use crate::model::paper::{er10l_c10, paper_measurements};
     use crate::model::parameters::{ParameterErrors, ParameterMask, ParameterSet};
     use crate::{LeastSquares, Problem};
+    use nalgebra::U6;
     use nalgebra::{U24, U30};
     extern crate std;
     use std::string::{String, ToString};

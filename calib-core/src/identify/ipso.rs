@@ -22,8 +22,8 @@
 //! Bounds: a coordinate that leaves `[lower, upper]` is set onto the bound and its velocity
 //! component to zero (an absorbing wall), so the swarm never evaluates outside the search box.
 
-use crate::model::JointCount;
 use crate::identify::halton::{self, MAX_DIMENSION, Scrambling};
+use crate::model::JointCount;
 use crate::scalar::Real;
 use core::fmt;
 use nalgebra::allocator::Allocator;

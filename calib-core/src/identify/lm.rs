@@ -13,9 +13,9 @@
 //! below `ftol`), or the iteration cap. The result carries `R` at the solution, from which the
 //! covariance `sigma^2 (J^T J)^-1 = sigma^2 R^-1 R^-T` and the standard errors follow.
 
-use crate::model::JointCount;
 use crate::identify::Problem;
 use crate::kinematics::pose_error::pose_error_jacobian;
+use crate::model::JointCount;
 use crate::scalar::Real;
 use core::fmt;
 use nalgebra::allocator::Allocator;

@@ -14,12 +14,12 @@
 //! ER10L-C10's links. With `k = 1` the orientation term is a thousand times weaker and the
 //! swarm stalls near 0.3 mm (measured by an independent implementation of the method).
 
-use crate::model::{JointCount, JointTable};
 use crate::identify::Problem;
 use crate::kinematics::mdh::{GROUP, LANES, Lanes};
 use crate::kinematics::pose_error::PoseError;
 use crate::kinematics::{JointAngles, Kinematics};
 use crate::math::so3;
+use crate::model::{JointCount, JointTable};
 use crate::scalar::Real;
 use crate::{KinematicsError, Pose};
 use core::borrow::Borrow;
@@ -314,7 +314,10 @@ where
         }
         let joints = self.problem.joint_count();
         let lanes = self.problem.measurements().chunks(LANES);
-        self.sum_in_groups(x, lanes.map(|chunk| PoseLanes::<T, N>::gather(joints, chunk)))
+        self.sum_in_groups(
+            x,
+            lanes.map(|chunk| PoseLanes::<T, N>::gather(joints, chunk)),
+        )
     }
 
     /// The measurements in lane layout, `L` poses per item in measurement order (the last one
@@ -432,8 +435,8 @@ fn lane_terms<T: Real, N: JointCount, const L: usize>(
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::U6;
     use super::*;
+    use nalgebra::U6;
     use nalgebra::{SVector, U24};
     extern crate std;
     use crate::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};

@@ -5,12 +5,12 @@
 //! [`Objective`]: crate::identify::objective::Objective
 //! [`LeastSquares`]: crate::identify::lm::LeastSquares
 
-use crate::model::{JointCount, JointTable};
 use crate::identify::objective::Measurement;
 use crate::kinematics::{Kinematics, PreparedRobot};
-use crate::model::{KinematicsError, check_count};
 use crate::model::Robot;
 use crate::model::parameters::{ParameterErrors, ParameterSet};
+use crate::model::{JointCount, JointTable};
+use crate::model::{KinematicsError, check_count};
 use crate::scalar::Real;
 use core::fmt;
 use nalgebra::allocator::Allocator;

@@ -2,10 +2,10 @@
 //! the gravity moment of what it carries, the small turns it causes and their motion of the end
 //! frame (formulas in [`crate::model::compliance`]).
 
-use crate::model::{JointCount, JointTable};
 use crate::kinematics::{JointAngles, Kinematics, Pose};
 use crate::model::KinematicsError;
 use crate::model::compliance::{Compliance, PointMass};
+use crate::model::{JointCount, JointTable};
 use crate::scalar::Real;
 use nalgebra::{Matrix3, Rotation3, Translation3, Vector3};
 
@@ -22,9 +22,15 @@ impl<T: Real, N: JointCount> Compliance<T, N> {
         let chain = geometry.chain(&JointAngles::new(t)?);
         let base = geometry.base();
         let frame = |k: usize| -> (Matrix3<T>, Vector3<T>) {
-            match (chain.before_z.as_slice().get(k), chain.before_origin.as_slice().get(k)) {
+            match (
+                chain.before_z.as_slice().get(k),
+                chain.before_origin.as_slice().get(k),
+            ) {
                 (Some(z), Some(o)) => {
-                    let y = match k.checked_sub(1).and_then(|i| chain.y_axis.as_slice().get(i)) {
+                    let y = match k
+                        .checked_sub(1)
+                        .and_then(|i| chain.y_axis.as_slice().get(i))
+                    {
                         Some(y) => *y,
                         None => base.rotation.matrix().column(1).into_owned(),
                     };
@@ -46,7 +52,13 @@ impl<T: Real, N: JointCount> Compliance<T, N> {
         moment_arm.add_mass(&after, self.load());
         mass += self.load().mass_kg;
         let kilo = T::of(1e-3);
-        for (j, (link, gains)) in self.links().iter().zip(self.gains().iter()).enumerate().rev() {
+        for (j, (link, gains)) in self
+            .links()
+            .iter()
+            .zip(self.gains().iter())
+            .enumerate()
+            .rev()
+        {
             moment_arm.add_mass(&after, link);
             mass += link.mass_kg;
             after = frame(j);
@@ -169,10 +181,10 @@ impl<T: Real> Deflection<T> {
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::{U2, U6};
     use super::*;
     use crate::model::compliance::tests::ur_like;
     use crate::model::paper::{er10l_c10, table2};
+    use nalgebra::{U2, U6};
     extern crate std;
 
     /// A point mass on a horizontal arm: the torsion of the joint carrying it turns the end by
@@ -228,7 +240,9 @@ mod tests {
     fn no_gains_deflect_nothing_and_remove_undoes_apply() {
         let geometry = Kinematics::new(&er10l_c10(), &table2()).unwrap();
         let q = [0.3, -0.4, 0.5, 0.2, 0.9, -0.3];
-        let (pose, d) = Compliance::<f64, U6>::none().deflect(&geometry, &q).unwrap();
+        let (pose, d) = Compliance::<f64, U6>::none()
+            .deflect(&geometry, &q)
+            .unwrap();
         assert_eq!(d, Deflection::zero());
         assert_eq!(pose, geometry.forward(&q).unwrap());
         let (pose, d) = ur_like().deflect(&geometry, &q).unwrap();

@@ -1,11 +1,11 @@
 //! Forward kinematics of the actual model: `T = T_base A_1 ... A_N T_tool` (paper eq. 2-3).
 
-use crate::model::{JointCount, JointTable};
 use crate::kinematics::mdh::{LaneFrame, Lanes, PreparedJoint};
 use crate::math::so3;
 use crate::math::trig;
 use crate::model::KinematicsError;
 use crate::model::parameters::{FrameErrors, ParameterErrors};
+use crate::model::{JointCount, JointTable};
 use crate::model::{Robot, check_count, joint_number};
 use crate::scalar::Real;
 use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, Translation3, Vector3};
@@ -249,7 +249,12 @@ impl<T: Real, N: JointCount> Kinematics<T, N> {
     pub fn forward_angles(&self, angles: &JointAngles<T, N>) -> Pose<T> {
         let mut rotation = *self.base.rotation.matrix();
         let mut origin = self.base.translation.vector;
-        for ((joint, c), s) in self.joints.iter().zip(angles.cos.iter()).zip(angles.sin.iter()) {
+        for ((joint, c), s) in self
+            .joints
+            .iter()
+            .zip(angles.cos.iter())
+            .zip(angles.sin.iter())
+        {
             let (ct, st) = joint.theta(*c, *s);
             joint.append(&mut rotation, &mut origin, ct, st);
         }
@@ -323,7 +328,11 @@ impl<T: Real, N: JointCount> Kinematics<T, N> {
             .zip(chain.x_axis.iter_mut())
             .zip(chain.origin.iter_mut())
             .zip(chain.y_axis.iter_mut());
-        let inputs = self.joints.iter().zip(angles.cos.iter()).zip(angles.sin.iter());
+        let inputs = self
+            .joints
+            .iter()
+            .zip(angles.cos.iter())
+            .zip(angles.sin.iter());
         for (((((o_prev, z_prev), x_axis), o), y_axis), ((joint, c), s)) in per_joint.zip(inputs) {
             *o_prev = origin;
             *z_prev = rotation.column(2).into_owned();

@@ -21,8 +21,8 @@ use crate::kinematics::{Kinematics, Pose};
 use crate::model::Robot;
 use crate::model::parameters::ParameterErrors;
 use crate::scalar::Real;
-use nalgebra::U6;
 use core::fmt;
+use nalgebra::U6;
 
 /// Why no inverse kinematics could be computed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -369,10 +369,10 @@ pub fn closest<T: Real>(
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::U6;
     use super::*;
     use crate::kinematics::pose_error::PoseError;
     use crate::model::paper::er10l_c10;
+    use nalgebra::U6;
     use rand_core::{Rng, SeedableRng};
 
     #[test]
@@ -396,7 +396,11 @@ mod tests {
                 );
             }
             let best = closest(&solutions, &q).unwrap();
-            if best.iter().zip(q.iter()).all(|(a, b)| wrap(a - b).abs() < 1e-8) {
+            if best
+                .iter()
+                .zip(q.iter())
+                .all(|(a, b)| wrap(a - b).abs() < 1e-8)
+            {
                 found += 1;
             }
         }
@@ -453,7 +457,11 @@ mod tests {
                 worst_rad = worst_rad.max(e.rotation.norm());
             }
             let best = closest(&solutions, &q).unwrap();
-            if best.iter().zip(q.iter()).all(|(a, b)| wrap(a - b).abs() < 1e-7) {
+            if best
+                .iter()
+                .zip(q.iter())
+                .all(|(a, b)| wrap(a - b).abs() < 1e-7)
+            {
                 found += 1;
             }
         }
@@ -498,8 +506,11 @@ mod tests {
             let beyond = longer.forward(&q).unwrap();
             let exact = inverse_kinematics(&robot, &beyond).unwrap();
             assert!(
-                closest(&exact, &q)
-                    .is_none_or(|s| s.iter().zip(q.iter()).any(|(a, b)| wrap(a - b).abs() > 1e-3)),
+                closest(&exact, &q).is_none_or(|s| s.iter().zip(q.iter()).any(|(a, b)| wrap(
+                    a - b
+                )
+                .abs()
+                    > 1e-3)),
                 "{q:?}"
             );
             let nearest = closest(&nearest_configurations(&robot, &beyond).unwrap(), &q).unwrap();

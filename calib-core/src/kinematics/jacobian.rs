@@ -4,10 +4,10 @@
 //! unit) and the angular velocity `omega` (rad per unit), both in the base (world) frame, stacked as
 //! the 6 rows `[v; omega]`. The end point is the origin of the tool frame.
 
-use crate::model::{JacobianColumns, JointCount, JointTable};
 use crate::kinematics::{JointAngles, Kinematics, Pose};
-use crate::model::{KinematicsError, check_count};
 use crate::model::parameters::{FrameParameter, JointParameter, Parameter, ParameterSet};
+use crate::model::{JacobianColumns, JointCount, JointTable};
+use crate::model::{KinematicsError, check_count};
 use crate::scalar::Real;
 use nalgebra::allocator::Allocator;
 use nalgebra::{DefaultAllocator, Dim, Matrix3, OMatrix, U6, Vector3, Vector6};
@@ -114,12 +114,12 @@ impl<T: Real, N: JointCount> Kinematics<T, N> {
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::U6;
     use super::*;
     use crate::kinematics::pose_error::{PoseError, pose_error_jacobian};
     use crate::model::Robot;
     use crate::model::paper::{er10l_with_frames, table2};
     use crate::model::parameters::{ParameterErrors, ParameterMask, all_parameters};
+    use nalgebra::U6;
     use nalgebra::U42;
 
     const Q: [[f64; 6]; 3] = [

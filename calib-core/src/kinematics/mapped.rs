@@ -11,16 +11,16 @@
 //! less than that per radian: a relative error below 1e-3 of a Newton step, which changes its
 //! convergence rate, not the solution).
 
-use crate::model::{JointCount, JointTable};
+use crate::kinematics::jacobian::JointJacobian;
 use crate::kinematics::{Kinematics, Pose};
+use crate::model::JacobianColumns;
 use crate::model::compliance::Compliance;
 use crate::model::joint_maps::JointMaps;
 use crate::model::parameters::ParameterErrors;
+use crate::model::{JointCount, JointTable};
 use crate::model::{KinematicsError, Robot};
 use crate::scalar::Real;
 use core::borrow::Borrow;
-use crate::kinematics::jacobian::JointJacobian;
-use crate::model::JacobianColumns;
 
 /// Geometry and angle-error maps of the actual robot, `C` harmonics of capacity per joint. The
 /// maps are borrowed: a controller keeps one copy of their coefficients. The geometry is owned
@@ -98,9 +98,9 @@ impl<'a, T: Real, N: JointCount, const C: usize, G: Borrow<Kinematics<T, N>>>
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::U6;
     use super::*;
     use crate::model::paper::{er10l_c10, table2};
+    use nalgebra::U6;
     extern crate std;
 
     fn maps() -> JointMaps<f64, U6, 8> {

@@ -2,9 +2,9 @@
 //! `dr = log(R_measured R_predicted^T)` (rad, rotation vector in the base frame, exact log map);
 //! and its Jacobian with respect to the identified parameters.
 
-use crate::model::JointCount;
 use crate::kinematics::{JointAngles, Kinematics, Pose};
 use crate::math::so3;
+use crate::model::JointCount;
 use crate::model::KinematicsError;
 use crate::model::parameters::ParameterSet;
 use crate::scalar::Real;

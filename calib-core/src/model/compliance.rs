@@ -25,10 +25,10 @@
 //! from the frames of the geometry there: one more forward pass (no trigonometry beyond the
 //! joints' sines and cosines) and about 40 multiplications per joint.
 
-use crate::model::{JointCount, JointTable, check_count};
-use nalgebra::Const;
 use crate::model::KinematicsError;
+use crate::model::{JointCount, JointTable, check_count};
 use crate::scalar::Real;
+use nalgebra::Const;
 
 /// Largest accepted mass of a link or load, kg.
 pub const MAX_MASS_KG: f64 = 1000.0;
@@ -207,8 +207,8 @@ impl<T: Real, N: JointCount> Compliance<T, N> {
 
 #[cfg(test)]
 pub(crate) mod tests {
-    use nalgebra::U6;
     use super::*;
+    use nalgebra::U6;
     extern crate std;
 
     pub(crate) fn ur_like() -> Compliance<f64, U6> {
@@ -261,6 +261,9 @@ pub(crate) mod tests {
         load.centre_mm[1] = 6000.0;
         refuse(*good.gravity_mps2(), *good.links(), load, *good.gains());
         // Without gains, gravity does not matter.
-        assert!(Compliance::<f64, U6>::new([0.0; 3], *good.links(), *good.load(), [[0.0; 3]; 6]).is_ok());
+        assert!(
+            Compliance::<f64, U6>::new([0.0; 3], *good.links(), *good.load(), [[0.0; 3]; 6])
+                .is_ok()
+        );
     }
 }

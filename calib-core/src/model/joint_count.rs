@@ -9,8 +9,8 @@
 
 use crate::model::KinematicsError;
 use crate::scalar::Loggable;
-use core::fmt::Debug;
 use crate::scalar::Real;
+use core::fmt::Debug;
 use nalgebra::{Const, Dim, Dyn, Matrix6, SMatrix, Vector6};
 
 /// The most joints a run-time joint count ([`Dyn`]) holds.
@@ -211,7 +211,10 @@ impl<T: Real, const N: usize> JacobianColumns<T> for SMatrix<T, 6, N> {
 
 impl<T: Real> JacobianColumns<T> for JointVec<Vector6<T>> {
     fn column(&self, j: usize) -> Vector6<T> {
-        self.as_slice().get(j).copied().unwrap_or_else(Vector6::zeros)
+        self.as_slice()
+            .get(j)
+            .copied()
+            .unwrap_or_else(Vector6::zeros)
     }
     fn fill_columns(&mut self, mut column: impl FnMut(usize) -> Vector6<T>) {
         for (j, c) in self.as_mut_slice().iter_mut().enumerate() {

@@ -28,9 +28,9 @@
 //! `L_j^(k+1) M_j` ([`JointMaps::readings`]). Identified UR10 maps have `M_j` near 1 mrad and
 //! `L_j` of a few hundredths: two iterations bring the reading within 1e-7 rad.
 
-use crate::model::{JointCount, JointTable};
 use crate::model::KinematicsError;
 use crate::model::joint_number;
+use crate::model::{JointCount, JointTable};
 use crate::scalar::Real;
 use nalgebra::Const;
 
@@ -156,7 +156,10 @@ impl<T: Real, N: JointCount, const C: usize> JointMaps<T, N, C> {
             .ok_or(KinematicsError::TooManyHarmonics)?;
         let limit = T::of(MAX_COEFFICIENT);
         let joints = self.sin.iter().zip(self.cos.iter());
-        let bounds = self.amplitude_bound.iter_mut().zip(self.slope_bound.iter_mut());
+        let bounds = self
+            .amplitude_bound
+            .iter_mut()
+            .zip(self.slope_bound.iter_mut());
         for (j, ((sin, cos), (amplitude_bound, slope_bound))) in joints.zip(bounds).enumerate() {
             let invalid = KinematicsError::InvalidJointMap {
                 joint: joint_number(j),
@@ -200,14 +203,20 @@ impl<T: Real, N: JointCount, const C: usize> JointMaps<T, N, C> {
 
     /// `M_j`: no reading has a larger angle error on joint `joint` (0-based), rad.
     pub fn amplitude_bound(&self, joint: usize) -> T {
-        self.amplitude_bound.as_slice().get(joint)
+        self.amplitude_bound
+            .as_slice()
+            .get(joint)
             .copied()
             .unwrap_or(T::zero())
     }
 
     /// `L_j`: the map of joint `joint` (0-based) changes at most this much per radian.
     pub fn slope_bound(&self, joint: usize) -> T {
-        self.slope_bound.as_slice().get(joint).copied().unwrap_or(T::zero())
+        self.slope_bound
+            .as_slice()
+            .get(joint)
+            .copied()
+            .unwrap_or(T::zero())
     }
 
     /// Whether every map is zero everywhere.
@@ -243,7 +252,10 @@ impl<T: Real, N: JointCount, const C: usize> JointMaps<T, N, C> {
         init: A,
         mut step: impl FnMut(A, T, T, T, T, T) -> A,
     ) -> A {
-        let (Some(a), Some(b)) = (self.sin.as_slice().get(joint), self.cos.as_slice().get(joint)) else {
+        let (Some(a), Some(b)) = (
+            self.sin.as_slice().get(joint),
+            self.cos.as_slice().get(joint),
+        ) else {
             return init;
         };
         let used = self.harmonics().min(C);
@@ -303,8 +315,8 @@ impl<T: Real, N: JointCount, const C: usize> JointMaps<T, N, C> {
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::{U1, U2};
     use super::*;
+    use nalgebra::{U1, U2};
     extern crate std;
 
     fn maps() -> JointMaps<f64, U2, 4> {

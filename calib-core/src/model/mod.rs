@@ -13,5 +13,5 @@ mod robot;
 
 pub use error::KinematicsError;
 pub use joint_count::{JacobianColumns, JointCount, JointTable, JointVec, MAX_JOINTS, joint_count};
-pub(crate) use robot::{check_count, joint_number};
 pub use robot::{FramePose, JointLimits, MdhJoint, Robot};
+pub(crate) use robot::{check_count, joint_number};

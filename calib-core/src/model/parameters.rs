@@ -16,9 +16,9 @@
 //! A [`ParameterSet`] keeps the parameters selected by a [`ParameterMask`] in this order; that is
 //! the order of the packed vector, of the Jacobian columns and of every report.
 
-use crate::model::{JointCount, JointTable};
 use crate::model::KinematicsError;
 use crate::model::Robot;
+use crate::model::{JointCount, JointTable};
 use crate::scalar::Real;
 use core::fmt;
 use nalgebra::allocator::Allocator;
@@ -256,7 +256,10 @@ impl<T: Real, N: JointCount> ParameterErrors<T, N> {
     pub fn get(&self, parameter: Parameter) -> Option<T> {
         match parameter {
             Parameter::Joint { joint, kind } => {
-                let e = self.joints.as_slice().get(usize::from(joint).checked_sub(1)?)?;
+                let e = self
+                    .joints
+                    .as_slice()
+                    .get(usize::from(joint).checked_sub(1)?)?;
                 Some(match kind {
                     JointParameter::A => e.da,
                     JointParameter::D => e.dd,
@@ -646,9 +649,9 @@ where
 
 #[cfg(test)]
 mod tests {
-    use nalgebra::U6;
     use super::*;
     use crate::model::paper::{er10l_c10 as er10l, table2};
+    use nalgebra::U6;
     use nalgebra::{U23, U24};
     extern crate std;
     use std::string::ToString;

@@ -1,7 +1,7 @@
 //! `calib`: robot geometric calibration from laser-tracker data.
 
-use calib_core::model::JointVec;
 use anyhow::Context;
+use calib_core::model::JointVec;
 use clap::{Parser, Subcommand};
 use host_tools::cli::calibrate::{self, CalibrateOptions};
 use host_tools::cli::check::{self, CheckOptions};
@@ -176,10 +176,8 @@ fn print_json_or_text<T: serde::Serialize>(
 /// their joint maps; gravity compliance for 6-joint robots).
 fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::Result<()> {
     let file = host_tools::robot_file::RobotFile::read(robot)?;
-    let (name, pose) = {
-        host_tools::dispatch::joint_count(file.joint.len())?;
-        forward_kinematics_n(&file, robot, joints_deg)
-    }?;
+    host_tools::dispatch::joint_count(file.joint.len())?;
+    let (name, pose) = forward_kinematics_n(&file, robot, joints_deg)?;
     if json {
         print_line!(
             "{}",

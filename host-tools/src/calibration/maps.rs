@@ -4,8 +4,6 @@
 //! robot file and the report are those of the model with the maps. The geometric calibration's
 //! statistics stay in the report for comparison.
 
-use calib_core::model::JointVec;
-use nalgebra::Dyn;
 use super::ErrorModel;
 use super::{CalibrationConfig, CalibrationResult, Stage};
 use crate::JOINTS;
@@ -14,6 +12,8 @@ use crate::dataset::Dataset;
 use crate::joint_maps::{self, JointMapsSection, NEGLIGIBLE_AMPLITUDE_RAD, Pose};
 use crate::statistics::table3;
 use calib_core::Kinematics;
+use calib_core::model::JointVec;
+use nalgebra::Dyn;
 use nalgebra::Vector3;
 use serde::Serialize;
 
@@ -155,7 +155,9 @@ fn maps_cross_validation(
         let model = Kinematics::new(robot, &found.errors).ok()?;
         for i in &held {
             let record = dataset.data.records.get(*i)?;
-            let q = JointVec::<f64>::from_fn(record.q.len(), |j| record.q.get(j).copied().unwrap_or(0.0));
+            let q = JointVec::<f64>::from_fn(record.q.len(), |j| {
+                record.q.get(j).copied().unwrap_or(0.0)
+            });
             let angles = found.maps.apply(&q);
             let mut predicted = model.forward(&angles).ok()?.translation.vector;
             if let (Some(gravity), Some(c)) = (gravity, &found.compliance) {
@@ -195,10 +197,7 @@ fn orientation_scale(dataset: &Dataset, geometric: &Kinematics<f64, Dyn>) -> f64
 
 /// Refuses a robot file that already has joint maps as the start of a joint-maps calibration:
 /// its maps would be applied to the data and new ones identified on top.
-pub fn check_robot_file(
-    dataset: &Dataset,
-    config: &CalibrationConfig,
-) -> anyhow::Result<()> {
+pub fn check_robot_file(dataset: &Dataset, config: &CalibrationConfig) -> anyhow::Result<()> {
     gravity(dataset, config)?;
     if dataset.file.joint_maps.is_some() || dataset.file.compliance.is_some() {
         anyhow::bail!(
@@ -212,10 +211,7 @@ pub fn check_robot_file(
 
 /// The masses of the robot file for `--model joint-maps+compliance` (`None` for the other models);
 /// an error says what the file lacks.
-fn gravity(
-    dataset: &Dataset,
-    config: &CalibrationConfig,
-) -> anyhow::Result<Option<Gravity>> {
+fn gravity(dataset: &Dataset, config: &CalibrationConfig) -> anyhow::Result<Option<Gravity>> {
     if config.model != ErrorModel::JointMapsCompliance {
         return Ok(None);
     }
@@ -320,13 +316,15 @@ pub fn add_joint_maps(
                 >= (1.0 - CROSS_VALIDATION_MARGIN) * geometric.calibrated_mean_mm,
         })
     });
-    let ranges: Vec<[f64; 2]> = (0..dataset.model.robot.joints.len()).map(|j| {
-        poses
-            .iter()
-            .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], p| {
-                [lo.min(p.q[j]), hi.max(p.q[j])]
-            })
-    }).collect();
+    let ranges: Vec<[f64; 2]> = (0..dataset.model.robot.joints.len())
+        .map(|j| {
+            poses
+                .iter()
+                .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], p| {
+                    [lo.min(p.q[j]), hi.max(p.q[j])]
+                })
+        })
+        .collect();
     let kept_at_zero = cross_validation.is_some_and(|c| c.kept_at_zero);
     let geometric_calibration = result.calibration;
     let geometric_validation = result.validation;

@@ -13,17 +13,20 @@
 //! use host_tools::robot_file::RobotFile;
 //! use host_tools::tracker_data::Record;
 //! use calib_core::Kinematics;
+//! use calib_core::model::JointVec;
 //! use calib_core::model::paper;
 //! use std::path::Path;
 //!
 //! // The nominal ER10L-C10, and the same robot with the paper's Table 2 errors as "the real one".
 //! let robot = RobotFile::parse(host_tools::robot_file::ER10L_C10_TOML, Path::new("er10l-c10.toml"))?;
-//! let nominal = robot.to_model::<6>(Path::new("er10l-c10.toml"))?.robot;
-//! let real = Kinematics::new(&nominal, &paper::table2::<f64>())?;
+//! // The file's robot has its joint count at run time (`nalgebra::Dyn`), as the host has it.
+//! let nominal = robot.to_model(Path::new("er10l-c10.toml"))?.robot;
+//! let table2 = paper::table2::<f64>().recount().expect("6 joints");
+//! let real = Kinematics::new(&nominal, &table2)?;
 //! // 32 measured poses (joints in rad, positions in mm), in the robot's base frame.
 //! let records: Vec<Record> = (0..32)
 //!     .map(|i| {
-//!         let q: [f64; 6] = std::array::from_fn(|j| ((i * 7 + j * 3) % 11) as f64 * 0.5 - 2.5);
+//!         let q = JointVec::<f64>::from_fn(6, |j| ((i * 7 + j * 3) % 11) as f64 * 0.5 - 2.5);
 //!         let pose = real.forward(&q).unwrap();
 //!         Record {
 //!             line: i as u64 + 1,
@@ -36,7 +39,7 @@
 //!         }
 //!     })
 //!     .collect();
-//! let dataset = Dataset::<6>::from_records(robot, records, true)?;
+//! let dataset = Dataset::from_records(robot, records, true)?;
 //! let config = CalibrationConfig { method: Method::Lm, ..CalibrationConfig::default() };
 //! let result = calibrate(dataset, None, &config)?;
 //! // Least squares recovers Table 2 from exact data: da2 = 0.2565 mm.

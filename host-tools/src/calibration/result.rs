@@ -1,6 +1,5 @@
 //! The typed result of a calibration, and its JSON report (a serde rendering of the result).
 
-use nalgebra::Dyn;
 use super::config::CalibrationConfig;
 use crate::frames::FramesReport;
 use crate::identifiability::IdentifiabilityReport;
@@ -10,6 +9,7 @@ use crate::statistics::Table3;
 use calib_core::identify::ipso::StopReason;
 use calib_core::identify::lm::LmStop;
 use calib_core::{Parameter, ParameterErrors};
+use nalgebra::Dyn;
 use serde::Serialize;
 use serde::ser::SerializeMap;
 use std::path::PathBuf;

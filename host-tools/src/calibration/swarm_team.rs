@@ -466,11 +466,7 @@ fn split(particles: usize, blocks: usize) -> (usize, usize) {
 
 /// Evaluates published particles, a block at a time, until no block is left to take; waits for
 /// each particle of a block taken until it is published.
-fn take_particles(
-    objective: &LaneObjective<'_, '_>,
-    shared: &Shared,
-    particle: &mut DVector<f64>,
-) {
+fn take_particles(objective: &LaneObjective<'_, '_>, shared: &Shared, particle: &mut DVector<f64>) {
     let Some(slots) = shared.slots.get() else {
         return;
     };

@@ -201,16 +201,12 @@ pub struct Calibration {
 /// [`JOINT_COUNTS`](crate::dispatch::JOINT_COUNTS)), writes the
 /// files asked for (all or none), and returns the text to print, with the files written.
 pub fn calibrate_and_write(options: &CalibrateOptions) -> anyhow::Result<String> {
-    {
-        crate::dispatch::joint_count(options.input.joints()?)?;
-        calibrate_and_write_joints(options)
-    }
+    crate::dispatch::joint_count(options.input.joints()?)?;
+    calibrate_and_write_joints(options)
 }
 
 /// [`calibrate_and_write`] for an `N`-joint robot.
-fn calibrate_and_write_joints(
-    options: &CalibrateOptions,
-) -> anyhow::Result<String> {
+fn calibrate_and_write_joints(options: &CalibrateOptions) -> anyhow::Result<String> {
     let calibration = calibrate(options)?;
     // The files first: a closed or full standard output must not lose them.
     let written = write_outputs(&calibration, &options.outputs())?;
@@ -256,11 +252,7 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
         (Some(_), Some(_)) => bail!("use either --validate or --holdout, not both"),
         (Some(path), None) => (
             all,
-            Some(Dataset::load_with(
-                &options.input.robot,
-                path,
-                &profile,
-            )?),
+            Some(Dataset::load_with(&options.input.robot, path, &profile)?),
         ),
         (None, Some(fraction)) => {
             let (calibration, held) = crate::dataset::split(&all, fraction, options.validate_seed)?;
@@ -340,11 +332,10 @@ impl Calibration {
 }
 
 /// The identified errors against the true errors of the robot file at `path`.
-fn truth_rows(
-    result: &CalibrationResult,
-    path: &std::path::Path,
-) -> anyhow::Result<Vec<TruthRow>> {
-    let truth = RobotFile::read(path)?.calibration_errors(path)?;
+fn truth_rows(result: &CalibrationResult, path: &std::path::Path) -> anyhow::Result<Vec<TruthRow>> {
+    let file = RobotFile::read(path)?;
+    file.expect_joints(path, result.errors.joints.len(), "the robot calibrated")?;
+    let truth = file.calibration_errors(path)?;
     Ok(result
         .parameters
         .iter()

@@ -23,10 +23,8 @@ pub struct CheckOptions {
 
 /// `calib check`: the identifiability analysis of a robot file's parameters on a data file.
 pub fn check(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
-    {
-        crate::dispatch::joint_count(options.input.joints()?)?;
-        check_joints(options)
-    }
+    crate::dispatch::joint_count(options.input.joints()?)?;
+    check_joints(options)
 }
 
 /// `calib check` for an `N`-joint robot.

@@ -69,19 +69,18 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
         );
     }
     let params = RobotFile::read(&options.params)?;
+    params.expect_joints(
+        &options.params,
+        file.joint.len(),
+        "the nominal robot of --robot",
+    )?;
     let maps = params.joint_maps(&options.params)?;
     let compliance = params.gravity_compliance(&options.params)?;
+    crate::dispatch::joint_count(file.joint.len())?;
     if maps.is_none() && compliance.is_none() {
-        return {
-        crate::dispatch::joint_count(file.joint.len())?;
-        compensate_geometric(options)
-    };
+        return compensate_geometric(options);
     }
-    let beyond = (maps.as_ref(), compliance.as_ref());
-    {
-        crate::dispatch::joint_count(file.joint.len())?;
-        compensate_model(options, beyond)
-    }
+    compensate_model(options, (maps.as_ref(), compliance.as_ref()))
 }
 
 /// `calib compensate` of a model of `N` joints with joint maps or gravity compliance (the

@@ -30,10 +30,8 @@ pub struct EvaluateOptions {
 
 /// Runs `calib evaluate`.
 pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
-    {
-        crate::dispatch::joint_count(options.input.joints()?)?;
-        evaluate_joints(options)
-    }
+    crate::dispatch::joint_count(options.input.joints()?)?;
+    evaluate_joints(options)
 }
 
 /// `calib evaluate` for an `N`-joint robot.

@@ -55,10 +55,8 @@ pub struct ExportOptions {
 pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
     let file = RobotFile::read(&options.params)?;
     let urdf = urdf_settings(options, &file);
-    let bytes = {
-        crate::dispatch::joint_count(file.joint.len())?;
-        export_n(options, &file, &urdf)
-    }?;
+    crate::dispatch::joint_count(file.joint.len())?;
+    let bytes = export_n(options, &file, &urdf)?;
     let mut outputs = Outputs::new(&[("--params", &options.params)]);
     outputs.stage("--out", &options.out, &bytes)?;
     outputs.commit()?;

@@ -126,10 +126,8 @@ pub fn simulate(options: &Simulation) -> anyhow::Result<usize> {
     let file = RobotFile::read(&options.robot)?;
     file.refuse_compliance(&options.robot, "calib simulate")?;
     file.refuse_joint_maps(&options.robot, "calib simulate")?;
-    {
-        crate::dispatch::joint_count(file.joint.len())?;
-        simulate_joints(&file, options, &config)
-    }
+    crate::dispatch::joint_count(file.joint.len())?;
+    simulate_joints(&file, options, &config)
 }
 
 /// `calib simulate` for an `N`-joint robot.

@@ -29,10 +29,8 @@ pub struct VerifyOptions {
 
 /// Runs `calib verify`: reads the files, holds out `--validate` of the poses, verifies.
 pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
-    {
-        crate::dispatch::joint_count(options.input.joints()?)?;
-        verify_joints(options)
-    }
+    crate::dispatch::joint_count(options.input.joints()?)?;
+    verify_joints(options)
 }
 
 /// `calib verify` for an `N`-joint robot.
