@@ -278,7 +278,8 @@ fn compensate_with_model(counter: &mut Counter, slot: &[u8], expected: &[u8], wh
 fn maps_micro_benchmarks() {
     use calib_core::controller::storage::{ControllerModel, decode_model_into};
     use calib_onboard::maps::{CAPACITY, TARGET_JOINTS};
-    let mut model = ControllerModel::<f32, nalgebra::U6, CAPACITY>::geometric(calib_onboard::robot());
+    let mut model =
+        ControllerModel::<f32, nalgebra::U6, CAPACITY>::geometric(calib_onboard::robot());
     let t = ticks();
     let decoded = decode_model_into(black_box(&MAPS_SLOT[..]), &mut model);
     let spent = ticks() - t;

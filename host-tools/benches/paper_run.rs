@@ -32,13 +32,13 @@ fn paper_run(c: &mut Criterion) {
         env!("CARGO_MANIFEST_DIR"),
         "/robots/er10l-c10.toml"
     ));
-    let measurements = Dataset::load(robot_file, path).unwrap().measurements;
-    let robot = calib_core::model::paper::er10l_c10::<f64>();
-    // The count at run time, as `calibrate` has it.
-    let set = ParameterSet::<U6, Dyn>::default_for(&robot).unwrap();
+    let dataset = Dataset::load(robot_file, path).unwrap();
+    let (measurements, robot) = (dataset.measurements, dataset.model.robot);
+    // The counts at run time, as `calibrate` has them.
+    let set = ParameterSet::<Dyn, Dyn>::default_for(&robot).unwrap();
     let problem = Problem::new(
         &robot,
-        &ParameterErrors::zero(),
+        &ParameterErrors::zeros_for(robot.joint_count()),
         set,
         &measurements,
         DEFAULT_K,

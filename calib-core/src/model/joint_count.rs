@@ -22,9 +22,7 @@ impl<X: Copy + PartialEq + Debug + Loggable> Element for X {}
 
 /// A table of one value per joint, joint 1 first: `[X; N]` for `Const<N>`, [`JointVec`] for
 /// [`Dyn`].
-pub trait JointTable<X: Element>:
-    Element + core::ops::Index<usize, Output = X> + core::ops::IndexMut<usize>
-{
+pub trait JointTable<X: Element>: Element {
     /// The values, joint 1 first.
     fn as_slice(&self) -> &[X];
     /// The values, joint 1 first, to change.
@@ -387,18 +385,5 @@ impl<X: Element> Debug for JointVec<X> {
 impl<X: Element> defmt::Format for JointVec<X> {
     fn format(&self, f: defmt::Formatter) {
         defmt::write!(f, "{=[?]}", self.as_slice());
-    }
-}
-
-impl<X: Element, I: core::slice::SliceIndex<[X]>> core::ops::Index<I> for JointVec<X> {
-    type Output = I::Output;
-    fn index(&self, index: I) -> &I::Output {
-        &self.as_slice()[index]
-    }
-}
-
-impl<X: Element, I: core::slice::SliceIndex<[X]>> core::ops::IndexMut<I> for JointVec<X> {
-    fn index_mut(&mut self, index: I) -> &mut I::Output {
-        &mut self.as_mut_slice()[index]
     }
 }
