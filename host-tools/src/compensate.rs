@@ -27,7 +27,7 @@ use nalgebra::Dyn;
 type Pose = calib_core::Pose<f64>;
 use nalgebra::{Rotation3, Translation3};
 
-/// The outcome for one target of an `N`-joint robot.
+/// The outcome for one target.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TargetOutcome {
     /// The target's id.

@@ -117,7 +117,7 @@ fn model_block<T: calib_core::Real>(
     Ok(buffer)
 }
 
-/// `file` (an identified robot file of `N` joints) in `format`; `scalar` and `sequence` for the
+/// `file` (an identified robot file of any joint count) in `format`; `scalar` and `sequence` for the
 /// block, `urdf` for the URDF (names; whether a file with joint maps or compliance may be
 /// exported as its geometry alone, also for the UR YAML). The block carries the joint maps of any
 /// joint count and the gravity compliance of a 6-joint robot; the UR kinematics file is for

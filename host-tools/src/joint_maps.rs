@@ -992,7 +992,7 @@ mod tests {
         );
     }
 
-    /// Simulates 400 poses of the robot `(text, name)` of `N` joints with geometric errors,
+    /// Simulates 400 poses of the robot `(text, name)` (any joint count) with geometric errors,
     /// 5-harmonic maps on every joint but the last and, when given, compliance `gains`
     /// (urad/(N m), a 6-joint robot with masses), 0.01 mm noise; identifies and checks the
     /// recovery.

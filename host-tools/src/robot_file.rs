@@ -570,7 +570,7 @@ impl RobotModel {
 }
 
 impl RobotFile {
-    /// The errors of the `[calibration]` section for an N-joint robot (zero when absent).
+    /// The errors of the `[calibration]` section for the file's robot (zero when absent); [`RobotFile::expect_joints`] checks it against another robot's.
     pub fn calibration_errors(
         &self,
         path: &Path,

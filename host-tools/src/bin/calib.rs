@@ -190,7 +190,7 @@ fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::R
     Ok(())
 }
 
-/// An `N`-joint robot file at `joints_deg`, with its joint maps and gravity compliance.
+/// A robot file at `joints_deg` (one value per joint), with its joint maps and gravity compliance.
 fn forward_kinematics_n(
     file: &host_tools::robot_file::RobotFile,
     robot: &Path,

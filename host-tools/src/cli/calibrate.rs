@@ -205,7 +205,7 @@ pub fn calibrate_and_write(options: &CalibrateOptions) -> anyhow::Result<String>
     calibrate_and_write_joints(options)
 }
 
-/// [`calibrate_and_write`] for an `N`-joint robot.
+/// [`calibrate_and_write`] once the joint count is known to be one the tool handles.
 fn calibrate_and_write_joints(options: &CalibrateOptions) -> anyhow::Result<String> {
     let calibration = calibrate(options)?;
     // The files first: a closed or full standard output must not lose them.
@@ -217,7 +217,7 @@ fn calibrate_and_write_joints(options: &CalibrateOptions) -> anyhow::Result<Stri
     Ok(text)
 }
 
-/// Runs `calib calibrate` for an `N`-joint robot without writing anything: reads the files,
+/// Runs `calib calibrate` without writing anything: reads the files,
 /// calibrates, renders.
 pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
     let config = options.config();

@@ -27,7 +27,7 @@ pub fn check(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
     check_joints(options)
 }
 
-/// `calib check` for an `N`-joint robot.
+/// `calib check` once the joint count is known to be one the tool handles.
 fn check_joints(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
     // Joint maps and gravity compliance of the file are held fixed: the analysis is that of the
     // geometric parameters at the kinematic angles (the readings with the maps).

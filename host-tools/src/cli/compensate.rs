@@ -83,7 +83,7 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
     compensate_model(options, (maps.as_ref(), compliance.as_ref()))
 }
 
-/// `calib compensate` of a model of `N` joints with joint maps or gravity compliance (the
+/// `calib compensate` of a model with joint maps or gravity compliance (the
 /// compliance a 6R arm's, refused for other counts): the controller's model, geometry, maps (zero
 /// without) and compliance (none without).
 fn compensate_model(
@@ -101,7 +101,7 @@ fn compensate_model(
     finish(options, &outcomes, nominal.robot.joints.len())
 }
 
-/// `calib compensate` of a geometric model of `N` joints.
+/// `calib compensate` of a geometric model.
 fn compensate_geometric(options: &CompensateOptions) -> anyhow::Result<Summary> {
     let (nominal, actual, targets, settings) = inputs(options)?;
     let outcomes = compensate_targets(

@@ -34,7 +34,7 @@ pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
     evaluate_joints(options)
 }
 
-/// `calib evaluate` for an `N`-joint robot.
+/// `calib evaluate` once the joint count is known to be one the tool handles.
 fn evaluate_joints(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
     let (_, dataset) = options.input.load()?;
     let frames = Frames::chosen(options.fit_frames, &dataset.data);

@@ -130,7 +130,7 @@ pub fn simulate(options: &Simulation) -> anyhow::Result<usize> {
     simulate_joints(&file, options, &config)
 }
 
-/// `calib simulate` for an `N`-joint robot.
+/// `calib simulate` once the joint count is known to be one the tool handles.
 fn simulate_joints(
     file: &RobotFile,
     options: &Simulation,

@@ -33,7 +33,7 @@ pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
     verify_joints(options)
 }
 
-/// `calib verify` for an `N`-joint robot.
+/// `calib verify` once the joint count is known to be one the tool handles.
 fn verify_joints(options: &VerifyOptions) -> anyhow::Result<Verification> {
     let (_, all) = options.input.load()?;
     let (calibration, validation) =
