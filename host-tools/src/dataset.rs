@@ -226,24 +226,15 @@ impl Dataset {
         data
     }
 
-    /// With only the base fitted (`frames` base), an identified file's probe or reflector
-    /// (`[measurement] flange_tool`, identified with the model) stays the tool: the same probe in
-    /// a new session needs only the tracker's position re-fitted. The dataset with the file in
-    /// its measurement setup (`RobotFile::in_measurement_setup`), or `None` when there is
-    /// nothing to keep.
-    pub fn with_identified_probe(
-        &self,
-        frames: crate::frames::Frames,
-    ) -> anyhow::Result<Option<Self>> {
-        if frames != crate::frames::Frames::Base || self.identified_probe().is_none() {
-            return Ok(None);
-        }
+    /// The dataset with its file in its measurement setup (`RobotFile::in_measurement_setup`:
+    /// the identified probe or reflector as the tool), the identification mask kept.
+    pub fn in_measurement_setup(&self) -> anyhow::Result<Self> {
         let mut kept = self.clone();
         kept.file = self.file.in_measurement_setup();
         let mask = kept.model.mask;
         kept.model = kept.file.to_model(&self.model.path)?;
         kept.model.mask = mask;
-        Ok(Some(kept))
+        Ok(kept)
     }
 
     /// The probe or reflector identified with the file's model (`[measurement] flange_tool`).

@@ -41,7 +41,7 @@ pub fn evaluate(
     let zero = calib_core::ParameterErrors::zeros_for(dataset.model.robot.joint_count());
     let n = dataset.measurements.len();
     let with_probe;
-    let dataset = match dataset.with_identified_probe(frames)? {
+    let dataset = match crate::frames::with_identified_probe(dataset, frames)? {
         Some(kept) => {
             with_probe = kept;
             &with_probe

@@ -18,6 +18,22 @@ use nalgebra::Dyn;
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use serde::Serialize;
 
+/// With only the base fitted (`frames` base), an identified file's probe or reflector
+/// (`[measurement] flange_tool`, identified with the model) stays the tool: the same probe in a
+/// new session needs only the tracker's position re-fitted. `dataset` in its measurement setup
+/// ([`Dataset::in_measurement_setup`]), or `None` when there is nothing to keep.
+///
+/// [`Dataset::in_measurement_setup`]: crate::dataset::Dataset::in_measurement_setup
+pub fn with_identified_probe(
+    dataset: &crate::dataset::Dataset,
+    frames: Frames,
+) -> anyhow::Result<Option<crate::dataset::Dataset>> {
+    if frames != Frames::Base || dataset.identified_probe().is_none() {
+        return Ok(None);
+    }
+    dataset.in_measurement_setup().map(Some)
+}
+
 /// Which frames a calibration identifies.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
 pub enum Frames {

@@ -101,11 +101,11 @@ pub fn calibrate(
     // records the probe in its measurement setup.
     let given = dataset.file.clone();
     let probe = dataset.identified_probe().cloned();
-    let probe_kept = match dataset.with_identified_probe(frames)? {
+    let probe_kept = match crate::frames::with_identified_probe(&dataset, frames)? {
         Some(kept) => {
             dataset = kept;
             if let Some(v) = validation.as_mut()
-                && let Some(kept) = v.with_identified_probe(frames)?
+                && let Some(kept) = crate::frames::with_identified_probe(v, frames)?
             {
                 *v = kept;
             }
