@@ -875,15 +875,6 @@ pub fn generate(
     box_mm: Option<[f64; 6]>,
 ) -> anyhow::Result<Vec<(String, Vec<f64>)>> {
     crate::dispatch::joint_count(file.joint.len())?;
-    generate_joints(file, robot_path, count, box_mm)
-}
-
-fn generate_joints(
-    file: &RobotFile,
-    robot_path: &std::path::Path,
-    count: usize,
-    box_mm: Option<[f64; 6]>,
-) -> anyhow::Result<Vec<(String, Vec<f64>)>> {
     let robot: Robot<f64, Dyn> = file.to_model(robot_path)?.robot;
     let joints = robot.joints.len();
     if joints > calib_core::identify::halton::MAX_DIMENSION {

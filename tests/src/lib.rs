@@ -172,3 +172,17 @@ pub fn run_firmware_script_with(script: &str, args: &[&str]) -> (String, bool) {
     println!("{log}\n{}", String::from_utf8_lossy(&output.stderr));
     (log, output.status.success())
 }
+
+/// The integer that follows `prefix` in a firmware's log (the first occurrence; spaces after the
+/// prefix skipped). Panics, printing the log, when there is none.
+pub fn number_after(log: &str, prefix: &str) -> u64 {
+    log.split(prefix)
+        .nth(1)
+        .and_then(|rest| {
+            rest.trim_start()
+                .split(|c: char| !c.is_ascii_digit())
+                .next()
+        })
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no number after {prefix:?} in the log:\n{log}"))
+}

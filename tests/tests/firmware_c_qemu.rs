@@ -9,19 +9,6 @@
 // A test's helpers may panic: a failure is the test's result.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-/// The integer that follows `prefix` in `log` (the first occurrence).
-fn number_after(log: &str, prefix: &str) -> u64 {
-    log.split(prefix)
-        .nth(1)
-        .and_then(|rest| {
-            rest.trim_start()
-                .split(|c: char| !c.is_ascii_digit())
-                .next()
-        })
-        .and_then(|n| n.parse().ok())
-        .unwrap_or_else(|| panic!("no number after {prefix:?} in the log:\n{log}"))
-}
-
 /// Bytes per output section (`.text`, `.rodata`, `.ARM.exidx`, `.data`, `.bss`) of the input
 /// sections that come from the Rust static library (`libcalib_ffi.a`: the calib-ffi crate, the
 /// core, nalgebra, libm and Rust's compiler builtins), read from a GNU ld map file.
@@ -91,9 +78,10 @@ fn c_firmware_compensates_in_qemu_bit_identically_within_its_budgets() {
         .split("== calib-firmware-c\n")
         .next()
         .unwrap_or_default();
-    let counted = number_after(compensation, "counter check (300000 instructions):");
+    let counted = calib_tests::number_after(compensation, "counter check (300000 instructions):");
     assert!(counted.abs_diff(300_000) <= 40, "counter: {counted}");
-    let slowest = number_after(compensation, "geometric compensation slowest instructions:");
+    let slowest =
+        calib_tests::number_after(compensation, "geometric compensation slowest instructions:");
     assert!(
         slowest <= 30_000,
         "one compensation: {slowest} > 30,000 instructions"
@@ -105,7 +93,7 @@ fn c_firmware_compensates_in_qemu_bit_identically_within_its_budgets() {
         "peak stack of a compensation with maps and compliance (bytes):",
     ]
     .iter()
-    .map(|label| number_after(compensation, label))
+    .map(|label| calib_tests::number_after(compensation, label))
     .max()
     .unwrap_or(0);
 

@@ -37,7 +37,7 @@ fn firmware_calibrates_in_qemu_bit_identically() {
         assert!(log.contains(&line), "{line}\n{log}");
     }
     // The instruction counter is calibrated against a loop of known length.
-    let counted = number_after(&log, "100000 x (nop, subs, bne) counted as ");
+    let counted = calib_tests::number_after(&log, "100000 x (nop, subs, bne) counted as ");
     assert!(counted.abs_diff(300_000) <= 40, "{counted}");
     // The controller budgets (issue 7). Instruction counts under `-icount` are deterministic, so
     // these are exact measurements, not timings.
@@ -77,10 +77,11 @@ fn firmware_calibrates_in_qemu_bit_identically() {
         ),
     ];
     for (prefix, budget, what) in budgets {
-        let measured = number_after(&log, prefix);
+        let measured = calib_tests::number_after(&log, prefix);
         assert!(measured <= budget, "{what}: {measured} > {budget}");
     }
-    let ram = number_after(&log, "static RAM (data + bss): ") + number_after(&log, "peak stack ");
+    let ram = calib_tests::number_after(&log, "static RAM (data + bss): ")
+        + calib_tests::number_after(&log, "peak stack ");
     assert!(ram <= 24 * 1024, "RAM {ram} bytes > 24 KiB");
 }
 
@@ -111,18 +112,9 @@ fn seven_joint_compensation_runs_in_qemu() {
     for (before, after) in host.uncompensated_mm.iter().zip(&host.residual_mm) {
         assert!(*before > 0.5 && *after <= 1e-2, "{before} {after}");
     }
-    let slowest = number_after(&log, "slowest 7-joint ");
-    let flash = number_after(&log, "flash (vector table + text + rodata): ");
+    let slowest = calib_tests::number_after(&log, "slowest 7-joint ");
+    let flash = calib_tests::number_after(&log, "flash (vector table + text + rodata): ");
     println!("7-joint compensation: slowest {slowest} instructions, flash {flash} bytes");
     assert!(slowest <= 30_000, "{slowest}");
     assert!(flash <= 64 * 1024, "{flash}");
-}
-
-/// The integer that follows `prefix` in the firmware's log.
-fn number_after(log: &str, prefix: &str) -> u64 {
-    log.split(prefix)
-        .nth(1)
-        .and_then(|rest| rest.split(|c: char| !c.is_ascii_digit()).next())
-        .and_then(|n| n.parse().ok())
-        .unwrap_or_else(|| panic!("no number after {prefix:?} in the log:\n{log}"))
 }

@@ -177,7 +177,7 @@ fn print_json_or_text<T: serde::Serialize>(
 fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::Result<()> {
     let file = host_tools::robot_file::RobotFile::read(robot)?;
     host_tools::dispatch::joint_count(file.joint.len())?;
-    let (name, pose) = forward_kinematics_n(&file, robot, joints_deg)?;
+    let (name, pose) = pose_of_file(&file, robot, joints_deg)?;
     if json {
         print_line!(
             "{}",
@@ -191,7 +191,7 @@ fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::R
 }
 
 /// A robot file at `joints_deg` (one value per joint), with its joint maps and gravity compliance.
-fn forward_kinematics_n(
+fn pose_of_file(
     file: &host_tools::robot_file::RobotFile,
     robot: &Path,
     joints_deg: &[f64],

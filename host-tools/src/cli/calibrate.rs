@@ -202,11 +202,6 @@ pub struct Calibration {
 /// files asked for (all or none), and returns the text to print, with the files written.
 pub fn calibrate_and_write(options: &CalibrateOptions) -> anyhow::Result<String> {
     crate::dispatch::joint_count(options.input.joints()?)?;
-    calibrate_and_write_joints(options)
-}
-
-/// [`calibrate_and_write`] once the joint count is known to be one the tool handles.
-fn calibrate_and_write_joints(options: &CalibrateOptions) -> anyhow::Result<String> {
     let calibration = calibrate(options)?;
     // The files first: a closed or full standard output must not lose them.
     let written = write_outputs(&calibration, &options.outputs())?;

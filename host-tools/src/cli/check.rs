@@ -24,11 +24,6 @@ pub struct CheckOptions {
 /// `calib check`: the identifiability analysis of a robot file's parameters on a data file.
 pub fn check(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
     crate::dispatch::joint_count(options.input.joints()?)?;
-    check_joints(options)
-}
-
-/// `calib check` once the joint count is known to be one the tool handles.
-fn check_joints(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
     // Joint maps and gravity compliance of the file are held fixed: the analysis is that of the
     // geometric parameters at the kinematic angles (the readings with the maps).
     let (_, dataset) = options.input.load()?;

@@ -31,11 +31,6 @@ pub struct EvaluateOptions {
 /// Runs `calib evaluate`.
 pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
     crate::dispatch::joint_count(options.input.joints()?)?;
-    evaluate_joints(options)
-}
-
-/// `calib evaluate` once the joint count is known to be one the tool handles.
-fn evaluate_joints(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
     let (_, dataset) = options.input.load()?;
     let frames = Frames::chosen(options.fit_frames, &dataset.data);
     crate::evaluation::evaluate(&dataset, frames, options.fit_poses, options.seed)

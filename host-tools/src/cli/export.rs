@@ -56,14 +56,15 @@ pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
     let file = RobotFile::read(&options.params)?;
     let urdf = urdf_settings(options, &file);
     crate::dispatch::joint_count(file.joint.len())?;
-    let bytes = export_n(options, &file, &urdf)?;
+    let bytes = exported(options, &file, &urdf)?;
     let mut outputs = Outputs::new(&[("--params", &options.params)]);
     outputs.stage("--out", &options.out, &bytes)?;
     outputs.commit()?;
     Ok(bytes.len())
 }
 
-fn export_n(
+/// The bytes `calib export` writes for `file`.
+fn exported(
     options: &ExportOptions,
     file: &RobotFile,
     urdf: &crate::urdf::UrdfSettings,

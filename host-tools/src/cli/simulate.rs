@@ -127,16 +127,7 @@ pub fn simulate(options: &Simulation) -> anyhow::Result<usize> {
     file.refuse_compliance(&options.robot, "calib simulate")?;
     file.refuse_joint_maps(&options.robot, "calib simulate")?;
     crate::dispatch::joint_count(file.joint.len())?;
-    simulate_joints(&file, options, &config)
-}
-
-/// `calib simulate` once the joint count is known to be one the tool handles.
-fn simulate_joints(
-    file: &RobotFile,
-    options: &Simulation,
-    config: &SimulationConfig,
-) -> anyhow::Result<usize> {
-    let simulated: Simulated = crate::simulate::simulate(file, &options.robot, config)?;
+    let simulated: Simulated = crate::simulate::simulate(&file, &options.robot, &config)?;
     simulated.write(&options.out, &options.truth_out, &options.robot)?;
     Ok(simulated.rows.len())
 }

@@ -30,11 +30,6 @@ pub struct VerifyOptions {
 /// Runs `calib verify`: reads the files, holds out `--validate` of the poses, verifies.
 pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
     crate::dispatch::joint_count(options.input.joints()?)?;
-    verify_joints(options)
-}
-
-/// `calib verify` once the joint count is known to be one the tool handles.
-fn verify_joints(options: &VerifyOptions) -> anyhow::Result<Verification> {
     let (_, all) = options.input.load()?;
     let (calibration, validation) =
         crate::dataset::split(&all, options.validate, options.validate_seed)?;
