@@ -11,7 +11,6 @@ use host_tools::cli::print;
 use host_tools::cli::simulate::{self, Simulation};
 use host_tools::fk;
 use host_tools::robot_file::RobotModel;
-use host_tools::{print_line, print_text};
 use std::path::{Path, PathBuf};
 
 /// Robot geometric calibration and pose compensation. Lengths in mm, angles in degrees in files
@@ -103,42 +102,50 @@ fn run(command: Command) -> anyhow::Result<()> {
         } => forward_kinematics(&robot, &joints_deg, json)?,
         Command::Simulate(settings) => {
             let poses = simulate::simulate(&settings)?;
-            print_line!(
+            host_tools::cli::print_line(format_args!(
                 "wrote {} poses to {} and the true robot to {}",
                 poses,
                 settings.out.display(),
                 settings.truth_out.display()
-            );
+            ))?;
         }
         Command::Compensate(options) => {
             let summary = host_tools::cli::compensate::compensate(&options)?;
-            print_line!(
+            host_tools::cli::print_line(format_args!(
                 "compensated {} of {} targets ({} refused, see the status column); wrote {}",
                 summary.ok,
                 summary.ok + summary.failed,
                 summary.failed,
                 options.out.display()
-            );
+            ))?;
         }
         Command::Export(options) => {
             let bytes = host_tools::cli::export::export(&options)?;
-            print_line!("wrote {} bytes to {}", bytes, options.out.display());
+            host_tools::cli::print_line(format_args!(
+                "wrote {} bytes to {}",
+                bytes,
+                options.out.display()
+            ))?;
         }
         Command::Report(options) => {
             let bytes = host_tools::cli::report::report(&options)?;
-            print_line!("wrote {} bytes to {}", bytes, options.html.display());
+            host_tools::cli::print_line(format_args!(
+                "wrote {} bytes to {}",
+                bytes,
+                options.html.display()
+            ))?;
         }
         Command::ImportUrCalibration(options) => {
             let (_, text) = host_tools::cli::import_ur::import(&options)?;
-            print_text!("{text}");
+            host_tools::cli::print_text(format_args!("{text}"))?;
         }
         Command::Evaluate(options) => evaluate(&options)?,
         Command::Plan(options) => {
             let plan = host_tools::cli::plan::plan(&options)?;
-            print_text!("{}", plan.text());
-            print_line!("wrote {}", options.out.display());
+            host_tools::cli::print_text(format_args!("{}", plan.text()))?;
+            host_tools::cli::print_line(format_args!("wrote {}", options.out.display()))?;
             if let Some(path) = &options.report {
-                print_line!("wrote {}", path.display());
+                host_tools::cli::print_line(format_args!("wrote {}", path.display()))?;
             }
         }
         Command::Check(options) => {
@@ -165,9 +172,9 @@ fn print_json_or_text<T: serde::Serialize>(
     text: impl FnOnce() -> String,
 ) -> anyhow::Result<()> {
     if json {
-        print_line!("{}", serde_json::to_string_pretty(value)?);
+        host_tools::cli::print_line(format_args!("{}", serde_json::to_string_pretty(value)?))?;
     } else {
-        print_text!("{}", text());
+        host_tools::cli::print_text(format_args!("{}", text()))?;
     }
     Ok(())
 }
@@ -179,13 +186,13 @@ fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::R
     host_tools::dispatch::joint_count(file.joint.len())?;
     let (name, pose) = pose_of_file(&file, robot, joints_deg)?;
     if json {
-        print_line!(
+        host_tools::cli::print_line(format_args!(
             "{}",
             serde_json::to_string(&pose).context("serialising the pose")?
-        );
+        ))?;
     } else {
-        print_line!("robot: {} ({})", name, robot.display());
-        print_text!("{}", pose.to_text());
+        host_tools::cli::print_line(format_args!("robot: {} ({})", name, robot.display()))?;
+        host_tools::cli::print_text(format_args!("{}", pose.to_text()))?;
     }
     Ok(())
 }

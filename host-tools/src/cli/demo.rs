@@ -98,10 +98,10 @@ pub fn demo(options: &DemoOptions) -> anyhow::Result<()> {
     };
     let (text, mut written) =
         calibrate_into(&robot_path, &data, None, Some(&truth), &config, &paper)?;
-    crate::print_line!(
+    crate::cli::print_line(format_args!(
         "== 1. The paper's experiment: ER10L-C10 with Table 2 errors, 32 exact 6-DoF poses, IPSO ==\n"
-    );
-    crate::print_text!("{text}");
+    ))?;
+    crate::cli::print_text(format_args!("{text}"))?;
 
     // 2. A realistic cell.
     let cell = dir.join("cell");
@@ -134,16 +134,16 @@ pub fn demo(options: &DemoOptions) -> anyhow::Result<()> {
     };
     let (text, cell_written) =
         calibrate_into(&robot_path, &data, Some(&holdout), None, &config, &cell)?;
-    crate::print_line!(
+    crate::cli::print_line(format_args!(
         "\n== 2. A realistic cell: tracker 3 m away, reflector 150 mm off the flange, 0.02 mm noise, \
          42 poses + 18 held out, frames identified, IPSO then least squares ==\n"
-    );
-    crate::print_text!("{text}");
+    ))?;
+    crate::cli::print_text(format_args!("{text}"))?;
     written.extend(cell_written);
-    crate::print_line!(
+    crate::cli::print_line(format_args!(
         "\nwrote {} files into {} (data, truth, identified robots, reports, plots)",
         written.len() + 7,
         dir.display()
-    );
+    ))?;
     Ok(())
 }

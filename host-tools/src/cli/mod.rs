@@ -62,15 +62,15 @@ pub fn print(text: &str) -> anyhow::Result<()> {
     }
 }
 
-/// `println!` that never panics on a closed or full standard output (see [`cli::print`](crate::cli::print())); returns
-/// from the calling function with the error of a full one.
-#[macro_export]
-macro_rules! print_line {
-    ($($arg:tt)*) => { $crate::cli::print(&format!("{}\n", format_args!($($arg)*)))? };
+/// A line (`text` and a newline) to standard output, as [`print`](crate::cli::print()): never a
+/// panic on a closed or full output, an error for a full one. `print_line(format_args!(...))?`
+/// where `println!` would be.
+pub fn print_line(text: std::fmt::Arguments<'_>) -> anyhow::Result<()> {
+    print(&format!("{text}\n"))
 }
 
-/// `print!` that never panics on a closed or full standard output (see [`cli::print`](crate::cli::print())).
-#[macro_export]
-macro_rules! print_text {
-    ($($arg:tt)*) => { $crate::cli::print(&format!($($arg)*))? };
+/// `text` to standard output, as [`print`](crate::cli::print()). `print_text(format_args!(...))?`
+/// where `print!` would be.
+pub fn print_text(text: std::fmt::Arguments<'_>) -> anyhow::Result<()> {
+    print(&text.to_string())
 }
