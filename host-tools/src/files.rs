@@ -19,6 +19,15 @@
 //! ends. The next run that writes into one of those directories finds the journal of the ended
 //! process and completes its commit (every temporary is complete before the journal is written),
 //! so the outputs of one run always stand together.
+//!
+//! Nothing but the outputs asked for is touched, whatever else is in their directories: a
+//! temporary is created new (exclusively: never opened through a file or symbolic link planted at
+//! its name, which is skipped for the next name), with the permissions of the file it replaces,
+//! so a private file stays private while staged; a journal is followed only when it is a regular
+//! file of the user running, every temporary it names is one of that run's (its name, beside its
+//! target, a regular file of the user) and every copy it names is one of its own names in an
+//! output's directory. Anything else is left alone with a note: a planted journal can move or
+//! delete no file.
 
 use anyhow::{Context, bail};
 use std::io::Write;
@@ -80,6 +89,17 @@ fn exit_removing_temporaries() -> ! {
         let _ = std::fs::remove_file(path.with_extension("tmp.png"));
     }
     std::process::exit(INTERRUPTED_STATUS)
+}
+
+/// [`create_new`] and [`track`] under the lock of the list of temporaries: an interruption that
+/// removes the temporaries either sees this one or ends the process before it exists.
+fn create_tracked(path: &Path, mode: Option<u32>) -> std::io::Result<std::fs::File> {
+    let mut list = TEMPORARIES
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let file = create_new(path, mode)?;
+    list.push(path.to_path_buf());
+    Ok(file)
 }
 
 fn track(path: &Path) {
@@ -144,6 +164,58 @@ struct Journal {
     journals: Vec<PathBuf>,
 }
 
+impl Journal {
+    /// Whether this is a journal that process `pid` could have written: every temporary is
+    /// named as that process names them (`.<target>.calib-<pid>-<n>.tmp`) and lies beside its
+    /// target, and every copy of the journal is named as the process names it and lies in the
+    /// directory of an output. A planted journal that names any other file is refused whole,
+    /// so completing a commit can only put a run's own temporaries in place of their targets.
+    fn is_of(&self, pid: u32) -> bool {
+        let outputs_ok = self.outputs.iter().all(|(temporary, target)| {
+            let (Some(name), Some(dir)) = (target.file_name(), target.parent()) else {
+                return false;
+            };
+            let prefix = format!(".{}.calib-{pid}-", name.to_string_lossy());
+            temporary.parent() == Some(dir)
+                && temporary
+                    .file_name()
+                    .and_then(|n| n.to_str())
+                    .and_then(|n| n.strip_prefix(&prefix))
+                    .and_then(|n| n.strip_suffix(".tmp"))
+                    .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+        });
+        let name = journal_name(pid);
+        let journals_ok = self.journals.iter().all(|copy| {
+            copy.file_name().is_some_and(|n| n == name.as_str())
+                && self
+                    .outputs
+                    .iter()
+                    .any(|(_, target)| target.parent() == copy.parent())
+        });
+        !self.outputs.is_empty() && outputs_ok && journals_ok
+    }
+}
+
+/// Whether `path` is a regular file (not a symbolic link) owned by the user this process runs
+/// as: what a run of ours leaves. Where the owner cannot be known, a regular file is enough.
+fn ours(path: &Path) -> bool {
+    let Ok(meta) = std::fs::symlink_metadata(path) else {
+        return false;
+    };
+    if !meta.file_type().is_file() {
+        return false;
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        // The owner of /proc/self is the user this process runs as (Linux).
+        if let Ok(me) = std::fs::metadata("/proc/self") {
+            return meta.uid() == me.uid();
+        }
+    }
+    true
+}
+
 /// The journal name of process `pid`.
 fn journal_name(pid: u32) -> String {
     format!(".calib-commit-{pid}.journal")
@@ -178,7 +250,15 @@ fn write_journals(staged: &[Staged]) -> anyhow::Result<Vec<PathBuf>> {
         let partial = path.with_extension("journal.tmp");
         track(&partial);
         let written = (|| -> std::io::Result<()> {
-            let mut file = std::fs::File::create(&partial)?;
+            // Created new, never through a link planted at its name (that is removed: the name is
+            // this live process's own).
+            let mut file = match create_new(&partial, Some(0o600)) {
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    std::fs::remove_file(&partial)?;
+                    create_new(&partial, Some(0o600))?
+                }
+                other => other?,
+            };
             file.write_all(text.as_bytes())?;
             file.sync_all()?;
             std::fs::rename(&partial, path)
@@ -226,16 +306,22 @@ fn complete_interrupted_commits(dir: &Path) {
             let _ = std::fs::remove_file(entry.path());
             continue;
         }
-        let journal: Option<Journal> = std::fs::read(entry.path())
-            .ok()
+        let journal: Option<Journal> = ours(&entry.path())
+            .then(|| std::fs::read(entry.path()).ok())
+            .flatten()
             .and_then(|bytes| serde_json::from_slice(&bytes).ok());
-        let Some(journal) = journal else {
-            // Not ours or unreadable: leave it.
+        let Some(journal) = journal.filter(|j| j.is_of(pid)) else {
+            // Not one of ours (another user's, a planted or damaged file): leave it, touch
+            // nothing it names.
+            eprintln!(
+                "note: left {} alone: it is not the commit journal of an earlier run of calib",
+                entry.path().display()
+            );
             continue;
         };
         let mut completed = Vec::new();
         for (temporary, target) in &journal.outputs {
-            if temporary.exists() && std::fs::rename(temporary, target).is_ok() {
+            if ours(temporary) && std::fs::rename(temporary, target).is_ok() {
                 completed.push(target.display().to_string());
             }
         }
@@ -250,6 +336,26 @@ fn complete_interrupted_commits(dir: &Path) {
             let _ = std::fs::remove_file(copy);
         }
     }
+}
+
+/// Names tried for one output's temporary file before giving up (the others taken by files of
+/// other runs or planted there).
+const MAX_TEMPORARY_TRIES: usize = 64;
+
+/// Creates `path` as a new file for writing, failing with `AlreadyExists` when anything (a file,
+/// a directory, a symbolic link, even a dangling one) has that name; with `mode` (Unix
+/// permissions) when given.
+fn create_new(path: &Path, mode: Option<u32>) -> std::io::Result<std::fs::File> {
+    let mut options = std::fs::OpenOptions::new();
+    options.write(true).create_new(true);
+    #[cfg(unix)]
+    if let Some(mode) = mode {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.mode(mode);
+    }
+    #[cfg(not(unix))]
+    let _ = mode;
+    options.open(path)
 }
 
 /// One staged output: its temporary file and where it goes.
@@ -286,29 +392,31 @@ impl Outputs {
 
     /// Stages `bytes` for `path`, asked for by `name` (such as `--out`).
     pub fn stage(&mut self, name: &str, path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-        self.stage_with(name, path, |temporary| {
-            let mut file = std::fs::File::create(temporary)?;
-            file.write_all(bytes)?;
-            file.sync_all()?;
-            Ok(())
+        uninterrupted(|| {
+            self.stage_now(name, path, |_, mut file| {
+                file.write_all(bytes)?;
+                file.sync_all()?;
+                Ok(())
+            })
         })
     }
 
-    /// Stages the file that `write` writes at the temporary path it is given.
+    /// Stages the file that `write` writes at the temporary path it is given (the file exists,
+    /// empty, created by this process: `write` may truncate and fill it).
     pub fn stage_with(
         &mut self,
         name: &str,
         path: &Path,
         write: impl FnOnce(&Path) -> anyhow::Result<()>,
     ) -> anyhow::Result<()> {
-        uninterrupted(|| self.stage_now(name, path, write))
+        uninterrupted(|| self.stage_now(name, path, |temporary, _| write(temporary)))
     }
 
     fn stage_now(
         &mut self,
         name: &str,
         path: &Path,
-        write: impl FnOnce(&Path) -> anyhow::Result<()>,
+        write: impl FnOnce(&Path, std::fs::File) -> anyhow::Result<()>,
     ) -> anyhow::Result<()> {
         let (target, permissions) = self.checked_target(name, path)?;
         let dir = match target.parent() {
@@ -323,13 +431,40 @@ impl Outputs {
             .unwrap_or_default();
         complete_interrupted_commits(&dir);
         remove_stale_temporaries(&dir, &file_name);
-        let temporary = dir.join(format!(
-            ".{file_name}.calib-{}-{}.tmp",
-            std::process::id(),
-            self.staged.len()
-        ));
-        track(&temporary);
-        if let Err(e) = write(&temporary) {
+        // A new file, created by this process with the permissions of the file it replaces (a
+        // private target stays private while staged), never opened through a link planted at its
+        // name: a name taken by anything is skipped for the next.
+        #[cfg(unix)]
+        let mode = {
+            use std::os::unix::fs::PermissionsExt;
+            // The owner may write it while staging (restored exactly at the commit).
+            permissions.as_ref().map(|p| (p.mode() & 0o7777) | 0o600)
+        };
+        #[cfg(not(unix))]
+        let mode = None;
+        let mut created = None;
+        for n in self.staged.len()..self.staged.len() + MAX_TEMPORARY_TRIES {
+            let temporary = dir.join(format!(".{file_name}.calib-{}-{n}.tmp", std::process::id()));
+            match create_tracked(&temporary, mode) {
+                Ok(file) => {
+                    created = Some((temporary, file));
+                    break;
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+                Err(e) => {
+                    return Err(anyhow::Error::new(e)
+                        .context(format!("writing {} ({name})", path.display())));
+                }
+            }
+        }
+        let Some((temporary, file)) = created else {
+            bail!(
+                "writing {} ({name}): {MAX_TEMPORARY_TRIES} names for its temporary file are taken in {}; remove the files named .{file_name}.calib-*.tmp there",
+                path.display(),
+                dir.display()
+            );
+        };
+        if let Err(e) = write(&temporary, file) {
             let _ = std::fs::remove_file(&temporary);
             untrack(&temporary);
             return Err(e.context(format!("writing {} ({name})", path.display())));
@@ -502,10 +637,21 @@ mod tests {
             child.wait().unwrap();
             pid
         };
+        let (ours, theirs) = (
+            format!(".calib-{}-", std::process::id()),
+            format!(".calib-{ended}-"),
+        );
         for d in [dir.path().to_path_buf(), dir.path().join("sub")] {
-            let text = read(&d.join(&journal)).replace(&journal, &journal_name(ended));
+            let text = read(&d.join(&journal))
+                .replace(&journal, &journal_name(ended))
+                .replace(&ours, &theirs);
             std::fs::remove_file(d.join(&journal)).unwrap();
             std::fs::write(d.join(journal_name(ended)), text).unwrap();
+            for name in leftovers(&d) {
+                if name.contains(&ours) {
+                    std::fs::rename(d.join(&name), d.join(name.replace(&ours, &theirs))).unwrap();
+                }
+            }
         }
         write_atomic(&dir.path().join("sub/z.txt"), b"z").unwrap();
         assert_eq!((read(&x), read(&y)), ("new x".into(), "new y".into()));
@@ -516,6 +662,106 @@ mod tests {
         );
         let sub = dir.path().join("sub");
         assert!(leftovers(&sub).is_empty(), "{:?}", leftovers(&sub));
+    }
+
+    /// The pid of a process that has ended.
+    fn ended_process() -> u32 {
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let pid = child.id();
+        child.wait().unwrap();
+        pid
+    }
+
+    /// A journal planted in an output directory (issue 39, N1) that names files elsewhere moves
+    /// and deletes nothing: the next run leaves it, and every file it names, alone.
+    #[test]
+    fn a_planted_journal_moves_and_deletes_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let elsewhere = tempfile::tempdir().unwrap();
+        let (evil, passwd, delete_me) = (
+            dir.path().join("evil.txt"),
+            elsewhere.path().join("passwd"),
+            elsewhere.path().join("delete_me"),
+        );
+        std::fs::write(&evil, "evil").unwrap();
+        std::fs::write(&passwd, "root").unwrap();
+        std::fs::write(&delete_me, "keep").unwrap();
+        let pid = ended_process();
+        // The attack of the report, and one that follows our naming but crosses directories.
+        let crossing = dir.path().join(format!(".passwd.calib-{pid}-0.tmp"));
+        std::fs::write(&crossing, "evil").unwrap();
+        for (k, outputs) in [
+            vec![(evil.clone(), passwd.clone())],
+            vec![(crossing.clone(), passwd.clone())],
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let journal = Journal {
+                outputs,
+                journals: vec![delete_me.clone()],
+            };
+            let planted = dir.path().join(journal_name(pid));
+            std::fs::write(&planted, serde_json::to_string(&journal).unwrap()).unwrap();
+            write_atomic(&dir.path().join("x.json"), b"x").unwrap();
+            assert_eq!(read(&passwd), "root", "attack {k}");
+            assert_eq!(read(&delete_me), "keep", "attack {k}");
+            assert_eq!(read(&evil), "evil", "attack {k}");
+            assert!(
+                planted.exists(),
+                "attack {k}: the planted journal is left for its owner"
+            );
+            std::fs::remove_file(&planted).unwrap();
+        }
+        assert_eq!(read(&dir.path().join("x.json")), "x");
+    }
+
+    /// Symbolic links planted at the names of a run's temporaries (issue 39, N2) are never
+    /// written through: the run takes other names, the links' targets stay as they were.
+    #[cfg(unix)]
+    #[test]
+    fn links_planted_at_temporary_names_are_not_followed() {
+        let dir = tempfile::tempdir().unwrap();
+        let victim = dir.path().join("victim");
+        std::fs::write(&victim, "safe").unwrap();
+        let pid = std::process::id();
+        for name in [
+            format!(".x2.json.calib-{pid}-0.tmp"),
+            format!(".y.json.calib-{pid}-1.tmp"),
+            format!("{}.tmp", journal_name(pid)),
+        ] {
+            std::os::unix::fs::symlink(&victim, dir.path().join(name)).unwrap();
+        }
+        let mut outputs = Outputs::default();
+        outputs
+            .stage("--out", &dir.path().join("x2.json"), b"x2")
+            .unwrap();
+        outputs
+            .stage("--report", &dir.path().join("y.json"), b"y")
+            .unwrap();
+        outputs.commit().unwrap();
+        assert_eq!(read(&victim), "safe");
+        assert_eq!(read(&dir.path().join("x2.json")), "x2");
+        assert_eq!(read(&dir.path().join("y.json")), "y");
+    }
+
+    /// A private target stays private while its replacement is staged (issue 39, N2) and after.
+    #[cfg(unix)]
+    #[test]
+    fn the_staged_copy_of_a_private_file_is_private() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("secret.toml");
+        std::fs::write(&target, "old").unwrap();
+        std::fs::set_permissions(&target, std::fs::Permissions::from_mode(0o600)).unwrap();
+        let mut outputs = Outputs::default();
+        outputs.stage("--out", &target, b"new").unwrap();
+        let staged = leftovers(dir.path());
+        assert_eq!(staged.len(), 1, "{staged:?}");
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode(&dir.path().join(&staged[0])), 0o600);
+        outputs.commit().unwrap();
+        assert_eq!((read(&target), mode(&target)), ("new".into(), 0o600));
     }
 
     #[test]
