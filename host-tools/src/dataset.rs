@@ -293,12 +293,10 @@ impl Dataset {
                 *c = true;
             }
         }
-        for ((record, m), taken_here) in self.data.records.iter().zip(&self.measurements).zip(chosen) {
-            let side = if taken_here {
-                &mut taken
-            } else {
-                &mut kept
-            };
+        for ((record, m), taken_here) in
+            self.data.records.iter().zip(&self.measurements).zip(chosen)
+        {
+            let side = if taken_here { &mut taken } else { &mut kept };
             side.data.records.push(record.clone());
             side.measurements.push(*m);
         }

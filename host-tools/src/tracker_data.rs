@@ -36,6 +36,10 @@ fn read_text(path: &Path) -> Result<String, DataError> {
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+/// Largest magnitude of an Euler angle of a measured orientation, rad (two turns: tracker
+/// software writes one turn at most).
+pub const MAX_EULER_ANGLE_RAD: f64 = 4.0 * std::f64::consts::PI;
+
 /// Largest measured coordinate accepted, mm: 100 m, beyond any laser tracker's range.
 pub const MAX_POSITION_MM: f64 = 100_000.0;
 
@@ -591,7 +595,16 @@ impl Layout {
                     record.position[k] = value * scale
                 }
                 Column::Quaternion(k) => quaternion[k] = value,
-                Column::Angle(k, scale) => angle[k] = value * scale,
+                Column::Angle(k, scale) => {
+                    // A measured orientation's Euler angle: within two turns either way.
+                    if (value * scale).abs() > MAX_EULER_ANGLE_RAD {
+                        return Err(at(format!(
+                            "{field} is {:e} deg, beyond the +-720 deg of an Euler angle; check the value and the column's unit",
+                            (value * scale).to_degrees()
+                        )));
+                    }
+                    angle[k] = value * scale
+                }
                 Column::Weight => {
                     if !(0.0..=MAX_WEIGHT).contains(&value) {
                         return Err(at(format!(

@@ -412,3 +412,20 @@ fn defect_8_positions_in_the_wrong_unit_are_refused_with_the_likely_cause() {
         );
     }
 }
+
+/// Issue 39, N5: an Euler angle beyond two turns (`1e300`) is refused, naming the line and the
+/// column, instead of turning the measured orientation into noise; one turn and a half is read.
+#[test]
+fn n5_an_euler_angle_out_of_range_is_refused_with_its_line() {
+    let head = "id,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,x_mm,y_mm,z_mm,rx_deg,ry_deg,rz_deg\n";
+    let row = |rx: &str| format!("p1,0,0,0,0,0,0,1000,0,500,{rx},0,0\n");
+    let error = TrackerData::parse(&format!("{head}{}", row("1e300")), Path::new("data.csv"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("data.csv:2") && error.contains("rx_deg") && error.contains("720 deg"),
+        "{error}"
+    );
+    let read = TrackerData::parse(&format!("{head}{}", row("540")), Path::new("data.csv")).unwrap();
+    assert!(read.records[0].rotation.is_some());
+}
