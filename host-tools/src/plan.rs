@@ -426,7 +426,9 @@ pub fn plan(
             q.len()
         );
     }
-    let wanted = settings.poses + settings.verify;
+    // Saturating: counts beyond any file (`--poses 18446744073709551615`) are refused below,
+    // not an overflow.
+    let wanted = settings.poses.saturating_add(settings.verify);
     if candidates.len() < wanted {
         bail!(
             "{} candidates cannot give {} fitted and {} verification poses; give more candidates (--generate N or a longer --candidates file) or ask for fewer poses",
@@ -440,11 +442,11 @@ pub fn plan(
     let info = information(file, robot_path, &q, settings.measure, settings.k)?;
     let parameters = info.parameters.len();
     let rows = settings.measure.rows();
-    if settings.poses * rows <= parameters {
+    if settings.poses.saturating_mul(rows) <= parameters {
         bail!(
             "{} poses give {} equations for {parameters} identified parameters: a fit needs more equations than parameters (to estimate its own noise); plan at least {} poses",
             settings.poses,
-            settings.poses * rows,
+            settings.poses.saturating_mul(rows),
             parameters / rows + 1
         );
     }

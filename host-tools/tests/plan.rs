@@ -579,3 +579,48 @@ fn leverages_sum_to_the_parameter_count() {
         );
     }
 }
+
+/// Issue 39, N8 and N17: counts beyond any candidate file are refused with the reason instead of
+/// overflowing (a panic), and a `--core` above `--poses` is refused instead of cut to it.
+#[test]
+fn huge_counts_and_a_core_above_the_poses_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("plan.csv");
+    let out = out.to_str().unwrap();
+    let plan = |extra: &[&str]| {
+        let mut args = vec![
+            "plan",
+            "--robot",
+            ROBOT,
+            "--generate",
+            "100",
+            "--measure",
+            "position",
+            "--noise-mm",
+            "0.02",
+            "--out",
+            out,
+        ];
+        args.extend_from_slice(extra);
+        common::calib(&args)
+    };
+    let huge = "18446744073709551615";
+    for (extra, expected) in [
+        (vec!["--poses", huge], format!("cannot give {huge} fitted")),
+        (
+            vec!["--poses", "30", "--verify", huge],
+            format!("30 fitted and {huge} verification"),
+        ),
+        (
+            vec!["--poses", "30", "--core", "31"],
+            "--core 31 is more than --poses 30".to_string(),
+        ),
+    ] {
+        let result = plan(&extra);
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert_eq!(result.status.code(), Some(1), "{extra:?}: {stderr}");
+        assert!(stderr.contains(&expected), "{extra:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+        assert!(!Path::new(out).exists());
+    }
+}

@@ -179,10 +179,11 @@ pub fn plan(options: &PlanOptions) -> anyhow::Result<Plan> {
     let (noise_mm, noise_deg) = options.noise()?;
     let settings = PlanSettings {
         poses: options.poses,
+        // The default fits in the poses asked for; a --core given is taken as given (more than
+        // --poses is refused, not cut).
         core: options
             .core
-            .unwrap_or(plan::DEFAULT_CORE)
-            .min(options.poses),
+            .unwrap_or(plan::DEFAULT_CORE.min(options.poses)),
         verify: options.verify,
         min_distance_deg: options.min_distance_deg,
         measure: options.measure,
