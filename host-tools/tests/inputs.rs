@@ -429,3 +429,40 @@ fn n5_an_euler_angle_out_of_range_is_refused_with_its_line() {
     let read = TrackerData::parse(&format!("{head}{}", row("540")), Path::new("data.csv")).unwrap();
     assert!(read.records[0].rotation.is_some());
 }
+
+/// Issue 39, N19: a `--truth` file whose joint table holds inf is refused, naming the file and
+/// the value, instead of being read for its errors alone.
+#[test]
+fn n19_a_truth_file_with_an_infinite_joint_value_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/data/er10l-c10-sim32-truth.toml"
+    ))
+    .unwrap();
+    let start = text.find("a_mm =").unwrap();
+    let end = start + text[start..].find('\n').unwrap();
+    let path = dir.path().join("truth.toml");
+    std::fs::write(
+        &path,
+        format!("{}a_mm = inf{}", &text[..start], &text[end..]),
+    )
+    .unwrap();
+    let out = calib(&[
+        "calibrate",
+        "--robot",
+        ROBOT,
+        "--data",
+        DATA,
+        "--method",
+        "lm",
+        "--truth",
+        path.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("a_mm = inf is not a finite number"),
+        "{stderr}"
+    );
+}

@@ -330,6 +330,9 @@ impl Calibration {
 fn truth_rows(result: &CalibrationResult, path: &std::path::Path) -> anyhow::Result<Vec<TruthRow>> {
     let file = RobotFile::read(path)?;
     file.expect_joints(path, result.errors.joints.len(), "the robot calibrated")?;
+    // The whole file checked as a robot file (finite joint values, ordered limits), not only the
+    // errors read from it (issue 39, N19: inf and NaN in its joints were accepted).
+    file.to_model(path)?;
     let truth = file.calibration_errors(path)?;
     Ok(result
         .parameters
