@@ -484,6 +484,17 @@ impl Outputs {
         name: &str,
         path: &Path,
     ) -> anyhow::Result<(PathBuf, Option<std::fs::Permissions>)> {
+        // `dir/` names a directory: never written as a file called `dir` (issue 39, N19).
+        if path
+            .as_os_str()
+            .to_string_lossy()
+            .ends_with(std::path::is_separator)
+        {
+            bail!(
+                "{name} {}: ends with a path separator, so it names a directory; give the path of a file",
+                path.display()
+            );
+        }
         let target = resolved(path);
         let is_link = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
         if is_link && std::fs::metadata(path).is_err() {

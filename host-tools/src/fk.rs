@@ -63,6 +63,15 @@ pub fn forward_deg(model: &RobotModel, joints_deg: &[f64]) -> anyhow::Result<FkO
         if !deg.is_finite() {
             bail!("--joints-deg: q{} = {deg} is not a finite number", i + 1);
         }
+        // As in tracker data: beyond ten turns a reading is a unit or typing error (and its
+        // sine and cosine no longer mean anything).
+        if deg.abs() > crate::tracker_data::MAX_JOINT_DEG {
+            bail!(
+                "--joints-deg: q{} = {deg:e} deg is beyond ten turns ({} deg); give the joint readings in degrees",
+                i + 1,
+                crate::tracker_data::MAX_JOINT_DEG
+            );
+        }
         *qi = deg.to_radians();
     }
     for (i, (qi, limits)) in q.iter().zip(&model.robot.limits).enumerate() {

@@ -442,3 +442,27 @@ fn n5_an_euler_angle_out_of_range_is_refused_with_its_line() {
     let read = TrackerData::parse(&format!("{head}{}", row("540")), Path::new("data.csv")).unwrap();
     assert!(read.records[0].rotation.is_some());
 }
+
+/// Issue 39, N19: `fk` with a joint reading beyond ten turns (`1e308` deg) is refused with the
+/// joint, not turned into a pose; an output path ending with a separator (`dir/`) is refused
+/// instead of written as a file named `dir`, and nothing is created.
+#[test]
+fn n19_huge_fk_readings_and_a_directory_as_output_are_refused() {
+    let out = calib(&["fk", "--robot", ROBOT, "--joints-deg", "0,1e308,0,0,0,0"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("q2 = 1e308 deg is beyond ten turns"),
+        "{stderr}"
+    );
+    assert!(out.stdout.is_empty());
+    let dir = tempfile::tempdir().unwrap();
+    let target = format!("{}/new/", dir.path().display());
+    let out = calib(&[
+        "export", "--params", ROBOT, "--format", "toml", "--out", &target,
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("names a directory"), "{stderr}");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}
