@@ -91,8 +91,9 @@ fn exit_removing_temporaries() -> ! {
     std::process::exit(INTERRUPTED_STATUS)
 }
 
-/// [`create_new`] and [`track`] under the lock of the list of temporaries: an interruption that
-/// removes the temporaries either sees this one or ends the process before it exists.
+/// [`create_new`], and the file added to the list of temporaries, under that list's lock: an
+/// interruption that removes the temporaries either sees this one or ends the process before it
+/// exists.
 fn create_tracked(path: &Path, mode: Option<u32>) -> std::io::Result<std::fs::File> {
     let mut list = TEMPORARIES
         .lock()
@@ -100,13 +101,6 @@ fn create_tracked(path: &Path, mode: Option<u32>) -> std::io::Result<std::fs::Fi
     let file = create_new(path, mode)?;
     list.push(path.to_path_buf());
     Ok(file)
-}
-
-fn track(path: &Path) {
-    TEMPORARIES
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
-        .push(path.to_path_buf());
 }
 
 fn untrack(path: &Path) {
@@ -248,14 +242,13 @@ fn write_journals(staged: &[Staged]) -> anyhow::Result<Vec<PathBuf>> {
     };
     for path in &journal.journals {
         let partial = path.with_extension("journal.tmp");
-        track(&partial);
         let written = (|| -> std::io::Result<()> {
-            // Created new, never through a link planted at its name (that is removed: the name is
-            // this live process's own).
-            let mut file = match create_new(&partial, Some(0o600)) {
+            // Created new and tracked as a run's temporaries are, never through a link planted at
+            // its name (that is removed: the name is this live process's own).
+            let mut file = match create_tracked(&partial, Some(0o600)) {
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
                     std::fs::remove_file(&partial)?;
-                    create_new(&partial, Some(0o600))?
+                    create_tracked(&partial, Some(0o600))?
                 }
                 other => other?,
             };

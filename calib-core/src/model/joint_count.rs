@@ -7,7 +7,6 @@
 //! that the host compiles every algorithm once and still never touches the heap inside an
 //! objective evaluation.
 
-use crate::model::KinematicsError;
 use crate::scalar::Loggable;
 use crate::scalar::Real;
 use core::fmt::Debug;
@@ -325,18 +324,6 @@ impl<X: Element> JointTable<X> for JointVec<X> {
         self.values
             .get_mut(..usize::from(self.len))
             .unwrap_or(&mut [])
-    }
-}
-
-impl<X: Element> TryFrom<&[X]> for JointVec<X> {
-    type Error = KinematicsError;
-
-    /// The table of `values`; an error for none or more than [`MAX_JOINTS`].
-    fn try_from(values: &[X]) -> Result<Self, KinematicsError> {
-        Self::from_slice(values).ok_or(KinematicsError::JointCount {
-            expected: MAX_JOINTS as u8,
-            found: u8::try_from(values.len()).unwrap_or(u8::MAX),
-        })
     }
 }
 
