@@ -14,8 +14,8 @@
 )]
 
 use calib_ffi::*;
-use host_tools::export::{BlockScalar, parameter_block};
-use host_tools::robot_file::{RobotFile, RobotModel};
+use host_tools::formats::export::{BlockScalar, parameter_block};
+use host_tools::io::robot_file::{RobotFile, RobotModel};
 use std::fmt::Write as _;
 use std::path::Path;
 

@@ -11,8 +11,8 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use host_tools::calibration::{CalibrationConfig, ErrorModel, Method, calibrate};
-use host_tools::dataset::{Dataset, split};
-use host_tools::profile::DataProfile;
+use host_tools::io::profile::DataProfile;
+use host_tools::measurement::dataset::{Dataset, split};
 use std::path::Path;
 
 fn joint_maps(c: &mut Criterion) {

@@ -18,8 +18,8 @@ use calib_core::identify::ipso::{self, IpsoSettings, SearchSpace, Silent};
 use calib_core::identify::objective::{DEFAULT_K, Objective};
 use calib_core::{ParameterErrors, ParameterSet};
 use criterion::{Criterion, criterion_group, criterion_main};
-use host_tools::calibration::swarm_team::{LaneObjective, SwarmTeam};
-use host_tools::dataset::Dataset;
+use host_tools::measurement::dataset::Dataset;
+use host_tools::runtime::swarm_team::{LaneObjective, SwarmTeam};
 use nalgebra::{DVector, Dyn};
 use std::path::Path;
 
@@ -121,10 +121,10 @@ fn paper_run(c: &mut Criterion) {
 
 fn calibrate_runs(c: &mut Criterion) {
     use host_tools::calibration::{CalibrationConfig, calibrate};
-    use host_tools::dataset::Dataset;
-    use host_tools::profile::DataProfile;
-    use host_tools::robot_file::RobotFile;
-    use host_tools::simulate::{self, SimulationConfig};
+    use host_tools::io::profile::DataProfile;
+    use host_tools::io::robot_file::RobotFile;
+    use host_tools::measurement::dataset::Dataset;
+    use host_tools::measurement::simulate::{self, SimulationConfig};
     use std::path::Path;
     let dir = tempfile::tempdir().unwrap();
     let robot = Path::new(concat!(

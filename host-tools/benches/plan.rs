@@ -8,19 +8,19 @@
 #![allow(clippy::unwrap_used)]
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use host_tools::plan::{self, Measure, PlanModel, PlanSettings};
-use host_tools::robot_file::RobotFile;
+use host_tools::io::robot_file::RobotFile;
+use host_tools::planning::{self, Measure, PlanModel, PlanSettings};
 use std::path::Path;
 
 fn plan_from_1000_candidates(c: &mut Criterion) {
     let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml"));
     let file = RobotFile::read(path).unwrap();
-    let candidates = plan::generate(&file, path, 1000, None).unwrap();
+    let candidates = planning::generate(&file, path, 1000, None).unwrap();
     let settings = PlanSettings {
         poses: 30,
-        core: plan::DEFAULT_CORE,
-        verify: plan::DEFAULT_VERIFY,
-        min_distance_deg: plan::DEFAULT_MIN_DISTANCE_DEG,
+        core: planning::DEFAULT_CORE,
+        verify: planning::DEFAULT_VERIFY,
+        min_distance_deg: planning::DEFAULT_MIN_DISTANCE_DEG,
         measure: Measure::Pose,
         model: PlanModel::Geometric,
         noise_mm: 0.3,
@@ -29,7 +29,7 @@ fn plan_from_1000_candidates(c: &mut Criterion) {
         seed: 1,
     };
     c.bench_function("plan_1000_candidates_30_poses", |b| {
-        b.iter(|| plan::plan(&file, path, &candidates, &settings).unwrap())
+        b.iter(|| planning::plan(&file, path, &candidates, &settings).unwrap())
     });
 }
 

@@ -9,9 +9,9 @@
 use calib_core::model::paper;
 use calib_core::{FramePose, Kinematics};
 use host_tools::calibration::{CalibrationConfig, calibrate};
-use host_tools::dataset::Dataset;
-use host_tools::robot_file::RobotFile;
-use host_tools::tracker_data::Record;
+use host_tools::io::robot_file::RobotFile;
+use host_tools::io::tracker_data::Record;
+use host_tools::measurement::dataset::Dataset;
 use nalgebra::Dyn;
 use rand_core::SeedableRng;
 use rand_distr::{Distribution, Normal, Uniform};
@@ -42,7 +42,7 @@ fn measure(real: &Kinematics<f64, Dyn>, count: usize, seed: u64) -> anyhow::Resu
 
 fn main() -> anyhow::Result<ExitCode> {
     let path = Path::new("er10l-c10.toml");
-    let robot = RobotFile::parse(host_tools::robot_file::ER10L_C10_TOML, path)?;
+    let robot = RobotFile::parse(host_tools::io::robot_file::ER10L_C10_TOML, path)?;
     // The real robot: Table 2's errors, seen from the tracker, with the reflector on the flange.
     let mut as_built = robot.to_model(path)?.robot;
     as_built.base = FramePose {

@@ -1,39 +1,41 @@
-//! host-tools: everything around the core that needs `std`: robot and tracker files, the
-//! independent float64 reference, simulation, calibration runs, reports, plots and the `calib`
-//! command line.
+//! host-tools: everything around the core that needs `std`, the library under the `calib`
+//! command line. Its folders follow the data through a calibration:
+//!
+//! - [`model`]: the actual robot beyond the core's geometry (joint maps, compliance) and the joint
+//!   and parameter counts every robot is checked against;
+//! - [`io`]: files in and out: robot files, tracker data read through a data profile, and the
+//!   outputs every command stages and replaces all together;
+//! - [`measurement`]: a dataset (a robot and its measured poses), the frames that register the
+//!   tracker and the probe, error statistics, the orientation-convention check, simulated data;
+//! - [`formats`]: exports for controllers and other tools, and the UR factory-calibration import;
+//! - [`analysis`]: identifiability, evaluation on new poses, comparison with a known truth, and
+//!   verification against the independent float64 reference ([`reference`](mod@reference));
+//! - [`planning`]: which poses to measure (D-optimal design, tour, predicted accuracy, plan check);
+//! - [`runtime`]: the threads and SIMD lanes that make the identification fast;
+//! - [`calibration`]: the pipeline of stages, from a dataset and a configuration to a typed
+//!   result (frames, selection, solve, joint maps, cross-validation, plausibility);
+//! - [`report`]: the text and HTML reports and their plots;
+//! - [`kinematics`]: an identified robot put to use off line: forward kinematics, compensation;
+//! - [`cli`]: the `calib` commands, thin layers over the above.
+//!
+//! A folder uses only folders listed before it; `.ci/check-module-cycles` fails on a cycle
+//! between folders or between the files of one folder.
 #![deny(missing_docs)]
 
 /// The joint count of the models defined for 6R arms only: gravity compliance (the gains of
 /// joints 1 to 4), the paper's Table 2, the UR formats; and the default of the generic types.
-/// Every command takes 2 to 9 joints ([`dispatch::JOINT_COUNTS`]).
+/// Every command takes 2 to 9 joints ([`model::counts::JOINT_COUNTS`]).
 pub const JOINTS: usize = 6;
 
+pub mod analysis;
 pub mod calibration;
 pub mod cli;
-pub mod columns;
-pub mod compensate;
-pub mod compliance;
-pub mod dataset;
-pub mod dispatch;
-pub mod evaluation;
-pub mod export;
-pub mod files;
-pub mod fk;
-pub mod frames;
-pub mod html_report;
-pub mod identifiability;
-pub mod joint_maps;
-pub mod orientation_check;
-pub mod plan;
-pub mod plots;
-pub mod profile;
+pub mod formats;
+pub mod io;
+pub mod kinematics;
+pub mod measurement;
+pub mod model;
+pub mod planning;
 pub mod reference;
 pub mod report;
-pub mod robot_file;
-pub mod simulate;
-pub mod statistics;
-pub mod tracker_data;
-pub mod ur_calibration;
-pub mod ur_kinematics;
-pub mod urdf;
-pub mod verify;
+pub mod runtime;

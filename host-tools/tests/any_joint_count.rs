@@ -276,7 +276,7 @@ fn compensate_and_export(dir: &Path, joints: usize, robot: &str, identified: &st
 
 #[test]
 fn every_joint_count_from_two_to_nine_is_identified_exactly() {
-    for joints in host_tools::dispatch::JOINT_COUNTS {
+    for joints in host_tools::model::counts::JOINT_COUNTS {
         identify(joints);
     }
 }

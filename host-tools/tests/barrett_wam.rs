@@ -13,7 +13,7 @@ use common::{calib, ok, parse};
 
 use host_tools::calibration::Identify;
 use host_tools::cli::calibrate::{self, CalibrateOptions, Calibration};
-use host_tools::frames::Frames;
+use host_tools::measurement::frames::Frames;
 
 const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/barrett-wam.toml");
 const GRID: &str = concat!(

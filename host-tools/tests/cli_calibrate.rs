@@ -4,7 +4,7 @@
 mod common;
 use common::{ROBOT, calib, ok};
 
-use host_tools::robot_file::RobotFile;
+use host_tools::io::robot_file::RobotFile;
 use serde_json::Value;
 use std::path::Path;
 

@@ -3,9 +3,9 @@
 mod common;
 use common::{ROBOT, calib};
 
+use host_tools::io::robot_file::{RobotFile, RobotModel};
+use host_tools::io::tracker_data::{PoseRow, write_tracker_csv};
 use host_tools::reference::{self, RefModel};
-use host_tools::robot_file::{RobotFile, RobotModel};
-use host_tools::tracker_data::{PoseRow, write_tracker_csv};
 use std::path::Path;
 
 const ACTUAL: &str = concat!(
@@ -214,7 +214,7 @@ fn exported_block_is_byte_identical_to_the_core_and_round_trips() {
             let (robot, sequence) =
                 calib_core::controller::storage::decode::<f32, nalgebra::Dyn>(&bytes).unwrap();
             assert_eq!(sequence, 9);
-            assert_eq!(robot, host_tools::export::to_f32(&model.robot));
+            assert_eq!(robot, host_tools::formats::export::to_f32(&model.robot));
         }
     }
     for format in ["toml", "json"] {

@@ -3,8 +3,8 @@
 mod common;
 use common::{ROBOT, calib};
 
+use host_tools::io::robot_file::RobotFile;
 use host_tools::reference::{self, RefModel};
-use host_tools::robot_file::RobotFile;
 use std::path::Path;
 
 #[test]

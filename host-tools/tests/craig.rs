@@ -4,7 +4,7 @@
 //! read and stand straight at their zero posture; a file mixing conventions is refused.
 
 use calib_core::Kinematics;
-use host_tools::robot_file::{RobotFile, RobotModel};
+use host_tools::io::robot_file::{RobotFile, RobotModel};
 use nalgebra::{Matrix4, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;

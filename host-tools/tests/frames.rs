@@ -8,10 +8,10 @@ mod common;
 use common::{ROBOT, parse};
 
 use host_tools::cli::calibrate::{self, CalibrateOptions};
+use host_tools::io::robot_file::RobotFile;
+use host_tools::io::tracker_data::TrackerData;
+use host_tools::measurement::simulate::{self, SimulationConfig};
 use host_tools::reference::lm;
-use host_tools::robot_file::RobotFile;
-use host_tools::simulate::{self, SimulationConfig};
-use host_tools::tracker_data::TrackerData;
 use std::path::{Path, PathBuf};
 
 /// Simulates `poses` poses in the tracker frame; returns (data, truth file).
@@ -67,7 +67,10 @@ fn frames_and_geometry_reach_the_reference_optimum() {
         ]);
         let c = calibrate::calibrate(&options).unwrap();
         let frames = &c.result.frames;
-        assert_eq!(frames.identified, host_tools::frames::Frames::BaseTool);
+        assert_eq!(
+            frames.identified,
+            host_tools::measurement::frames::Frames::BaseTool
+        );
         // The nominal robot registered onto the data: a few mm (Table 2), not metres.
         assert!(frames.registration_rms_mm < 20.0 && frames.registration_rms_mm > 1.0);
         let identified_path = dir.path().join(format!("identified{seed}.toml"));

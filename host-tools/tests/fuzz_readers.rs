@@ -7,9 +7,9 @@
 //! `PROPTEST_CASES=1300000 cargo test -p host-tools --test fuzz_readers -- --test-threads=1` (the test
 //! profile keeps overflow checks, which found `q0_deg` underflowing a joint index).
 
-use host_tools::profile::DataProfile;
-use host_tools::robot_file::RobotFile;
-use host_tools::tracker_data::TrackerData;
+use host_tools::io::profile::DataProfile;
+use host_tools::io::robot_file::RobotFile;
+use host_tools::io::tracker_data::TrackerData;
 use proptest::prelude::*;
 use std::path::Path;
 

@@ -122,9 +122,9 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
     use calib_core::Kinematics;
     use calib_core::controller::compensate::CompensationSettings;
     use calib_core::kinematics::ik::inverse_kinematics;
-    use host_tools::compensate::compensate_targets;
-    use host_tools::robot_file::{ER10L_C10_TOML, RobotFile};
-    use host_tools::tracker_data::{OrientationColumns, Record, TrackerData};
+    use host_tools::io::robot_file::{ER10L_C10_TOML, RobotFile};
+    use host_tools::io::tracker_data::{OrientationColumns, Record, TrackerData};
+    use host_tools::kinematics::compensate::compensate_targets;
     use rand::{RngExt, SeedableRng};
     use std::path::Path;
 

@@ -49,7 +49,7 @@ fn the_html_report_holds_everything_and_nothing_external() {
         .select(&Selector::parse("h2[id]").unwrap())
         .map(|e| e.value().attr("id").unwrap().to_string())
         .collect();
-    assert_eq!(sections, host_tools::html_report::SECTIONS);
+    assert_eq!(sections, host_tools::report::html::SECTIONS);
     // Table 3: calibration and validation, nominal and identified, position and 3 axes.
     let cells = select(&page, "td");
     for stage in ["calibration", "validation"] {

@@ -3,8 +3,8 @@
 
 mod common;
 use common::{ROBOT, calib};
-use host_tools::robot_file::{ER10L_C10_TOML, RobotFile};
-use host_tools::tracker_data::TrackerData;
+use host_tools::io::robot_file::{ER10L_C10_TOML, RobotFile};
+use host_tools::io::tracker_data::TrackerData;
 use std::path::Path;
 
 const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/er10l-c10-sim32.csv");

@@ -6,7 +6,7 @@ mod common;
 
 use calib_core::{Kinematics, Robot};
 use common::{UR10, calib_in, ok};
-use host_tools::robot_file::{RobotFile, RobotModel};
+use host_tools::io::robot_file::{RobotFile, RobotModel};
 use nalgebra::Dyn;
 use nalgebra::{IsometryMatrix3, Matrix3, Rotation3, Translation3, Vector3};
 use rand::{RngExt, SeedableRng};
@@ -178,7 +178,7 @@ fn seven_joint_robots_export_to_urdf_and_blocks() {
     let (decoded, sequence) = calib_core::controller::storage::decode::<f32, Dyn>(&bytes).unwrap();
     let model: RobotModel = RobotFile::read(&panda).unwrap().to_model(&panda).unwrap();
     assert_eq!(sequence, 3);
-    assert_eq!(decoded, host_tools::export::to_f32(&model.robot));
+    assert_eq!(decoded, host_tools::formats::export::to_f32(&model.robot));
     let out = calib_in(
         d,
         &[

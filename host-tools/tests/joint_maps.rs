@@ -5,7 +5,7 @@
 mod common;
 use common::parse;
 use host_tools::cli::calibrate::{self, CalibrateOptions};
-use host_tools::robot_file::{RobotFile, RobotModel};
+use host_tools::io::robot_file::{RobotFile, RobotModel};
 
 const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml");
 const DATA_B: &str = concat!(
@@ -427,7 +427,10 @@ fn exported_blocks_hold_the_maps(d: &std::path::Path) {
             );
             assert!(bytes.len() <= 8192, "{} bytes", bytes.len());
             let (block, _) = decode_model::<f32, nalgebra::Dyn, 64>(&bytes).unwrap();
-            assert_eq!(block.robot, host_tools::export::to_f32(&model.robot));
+            assert_eq!(
+                block.robot,
+                host_tools::formats::export::to_f32(&model.robot)
+            );
             for j in 0..6 {
                 for q in &readings {
                     let core = f64::from(block.maps.error(j, *q as f32));
@@ -458,8 +461,8 @@ fn compensation_uses_the_maps(d: &std::path::Path) {
 /// of `baseline` miss them by more than `missed_by` mm on average.
 fn compensation_uses_the_model(d: &std::path::Path, params: &str, baseline: &str, missed_by: f64) {
     use common::{calib_in, ok};
+    use host_tools::io::tracker_data::{PoseRow, write_tracker_csv};
     use host_tools::reference::RefModel;
-    use host_tools::tracker_data::{PoseRow, write_tracker_csv};
     let nominal_file = RobotFile::read(std::path::Path::new(ROBOT)).unwrap();
     let nominal = RefModel::from_file(&nominal_file, &[], &[0.0; 6], &[0.0; 6]);
     let file = RobotFile::read(&d.join(params)).unwrap();
@@ -511,14 +514,14 @@ fn compensation_uses_the_model(d: &std::path::Path, params: &str, baseline: &str
                 let angles = maps.apply(q);
                 let mut reached = actual.forward(&angles);
                 if let Some(c) = &compliance {
-                    let columns = host_tools::compliance::columns(
+                    let columns = host_tools::model::compliance::columns(
                         &c.gravity,
                         &model.robot,
                         &calib_core::ParameterErrors::zeros_for(model.robot.joint_count()),
                         &angles,
                     )
                     .unwrap();
-                    let v = host_tools::compliance::displacement(&columns, &c.gains);
+                    let v = host_tools::model::compliance::displacement(&columns, &c.gains);
                     for (r, row) in reached.iter_mut().take(3).enumerate() {
                         row[3] += v[r];
                     }
@@ -558,7 +561,7 @@ fn a_map_the_poses_do_not_determine_is_kept_at_zero() {
     // The file written is one its reader accepts, and the maps fit A's poses far better than the
     // geometry alone.
     let file =
-        host_tools::robot_file::RobotFile::parse(&c.robot_toml, std::path::Path::new("a.toml"))
+        host_tools::io::robot_file::RobotFile::parse(&c.robot_toml, std::path::Path::new("a.toml"))
             .unwrap();
     assert!(
         file.joint_maps(std::path::Path::new("a.toml"))
@@ -855,14 +858,14 @@ fn a_file_with_compliance_is_applied_or_refused_never_ignored() {
     .unwrap();
     let gravity = file.dynamics.as_ref().unwrap().to_gravity().unwrap();
     let gains = file.compliance.as_ref().unwrap().to_gains().unwrap();
-    let columns = host_tools::compliance::columns(
+    let columns = host_tools::model::compliance::columns(
         &gravity,
         &model.robot,
         &calib_core::ParameterErrors::zeros_for(model.robot.joint_count()),
         &maps.apply(&q),
     )
     .unwrap();
-    let d6 = host_tools::compliance::displacement(&columns, &gains);
+    let d6 = host_tools::model::compliance::displacement(&columns, &gains);
     let expected = nalgebra::Vector3::new(d6[0], d6[1], d6[2]);
     println!("fk moved by compliance: {moved} (expected {expected})");
     assert!(expected.norm() > 1e-3, "{expected}");

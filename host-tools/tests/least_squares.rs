@@ -8,9 +8,9 @@ use common::{ROBOT, parse};
 use host_tools::cli::calibrate::{self, CalibrateOptions, Calibration};
 use host_tools::cli::check::{self, CheckOptions};
 use host_tools::cli::simulate::{self, Simulation};
+use host_tools::io::robot_file::RobotFile;
+use host_tools::io::tracker_data::TrackerData;
 use host_tools::reference::lm;
-use host_tools::robot_file::RobotFile;
-use host_tools::tracker_data::TrackerData;
 use std::path::{Path, PathBuf};
 
 fn simulate(dir: &Path, name: &str, args: &[&str]) -> (PathBuf, PathBuf) {

@@ -7,7 +7,7 @@ use calib_core::Kinematics;
 use calib_core::controller::numerical_ik::{NumericalIkSettings, numerical_inverse_kinematics};
 use calib_core::kinematics::pose_error::PoseError;
 use calib_core::model::JointVec;
-use host_tools::robot_file::{RobotFile, RobotModel};
+use host_tools::io::robot_file::{RobotFile, RobotModel};
 use rand::{RngExt, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use std::path::Path;

@@ -9,10 +9,10 @@ use common::parse;
 use host_tools::calibration::{self, CalibrationConfig, ErrorModel, Method};
 use host_tools::cli::calibrate::{self as calibrate_cli, CalibrateOptions};
 use host_tools::cli::plan::{self as plan_cli, PlanOptions};
-use host_tools::dataset::Dataset;
-use host_tools::plan::{self, Measure, PlanModel, PlanSettings};
-use host_tools::profile::DataProfile;
-use host_tools::tracker_data::{Role, TrackerData};
+use host_tools::io::profile::DataProfile;
+use host_tools::io::tracker_data::{Role, TrackerData};
+use host_tools::measurement::dataset::Dataset;
+use host_tools::planning::{self, Measure, PlanModel, PlanSettings};
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -86,7 +86,7 @@ struct Split {
 /// as [`core`], 15 verification poses) from the pool's joint values; random sets of 12 and 50
 /// pool poses.
 fn split(dataset: &Dataset, seed: u64) -> Split {
-    let (pool, validation) = host_tools::dataset::split(dataset, 0.4, seed).unwrap();
+    let (pool, validation) = host_tools::measurement::dataset::split(dataset, 0.4, seed).unwrap();
     let candidates: Vec<(String, Vec<f64>)> = pool
         .data
         .records
@@ -100,8 +100,8 @@ fn split(dataset: &Dataset, seed: u64) -> Split {
         let settings = PlanSettings {
             poses,
             core: core(poses),
-            verify: plan::DEFAULT_VERIFY,
-            min_distance_deg: plan::DEFAULT_MIN_DISTANCE_DEG,
+            verify: planning::DEFAULT_VERIFY,
+            min_distance_deg: planning::DEFAULT_MIN_DISTANCE_DEG,
             measure: Measure::Pose,
             model: PlanModel::Geometric,
             noise_mm: NOISE_MM,
@@ -109,7 +109,7 @@ fn split(dataset: &Dataset, seed: u64) -> Split {
             k: calib_core::identify::objective::DEFAULT_K,
             seed,
         };
-        let p = plan::plan(&file, Path::new(ROBOT), &candidates, &settings).unwrap();
+        let p = planning::plan(&file, Path::new(ROBOT), &candidates, &settings).unwrap();
         let of = |role: Role| -> Vec<usize> { p.of_role(role).map(|q| q.candidate).collect() };
         let mut fitted = of(Role::Core);
         fitted.extend(of(Role::Fill));
@@ -121,7 +121,7 @@ fn split(dataset: &Dataset, seed: u64) -> Split {
         let v = p.prediction.verification.unwrap();
         verification.push((v.mean_mm, (v.low_mm, v.high_mm), measured));
     }
-    let order = host_tools::dataset::shuffled(pool.measurements.len(), seed + 1000);
+    let order = host_tools::measurement::dataset::shuffled(pool.measurements.len(), seed + 1000);
     let random = [12, 50].map(|n| {
         let mut indices = order[..n].to_vec();
         indices.sort_unstable();
@@ -141,7 +141,7 @@ fn split(dataset: &Dataset, seed: u64) -> Split {
 fn core(poses: usize) -> usize {
     match poses {
         30 => 30,
-        n => n.min(plan::DEFAULT_CORE),
+        n => n.min(planning::DEFAULT_CORE),
     }
 }
 
@@ -348,7 +348,7 @@ fn plan_measure_calibrate_end_to_end() {
         &["--noise-mm", "0.02", "--noise-deg", "0.002"],
         &optimistic_csv,
     );
-    let same = |p: &plan::Plan| p.poses.iter().map(|q| q.candidate).collect::<Vec<_>>();
+    let same = |p: &planning::Plan| p.poses.iter().map(|q| q.candidate).collect::<Vec<_>>();
     assert_eq!(
         same(&optimistic),
         same(&p),
@@ -431,7 +431,8 @@ fn series_b_plan_for_joint_maps() {
     println!("split  plan-maps      plan-geometry  random");
     let mut sums = [[0.0; 2]; 3];
     for seed in 0..5 {
-        let (pool, validation) = host_tools::dataset::split(&dataset, 0.4, seed).unwrap();
+        let (pool, validation) =
+            host_tools::measurement::dataset::split(&dataset, 0.4, seed).unwrap();
         let candidates: Vec<(String, Vec<f64>)> = (pool.data.records.iter())
             .map(|r| (r.id.clone(), r.q.clone()))
             .collect();
@@ -439,9 +440,9 @@ fn series_b_plan_for_joint_maps() {
         for model in [PlanModel::JointMaps, PlanModel::Geometric] {
             let settings = PlanSettings {
                 poses: 50,
-                core: plan::DEFAULT_CORE,
-                verify: plan::DEFAULT_VERIFY,
-                min_distance_deg: plan::DEFAULT_MIN_DISTANCE_DEG,
+                core: planning::DEFAULT_CORE,
+                verify: planning::DEFAULT_VERIFY,
+                min_distance_deg: planning::DEFAULT_MIN_DISTANCE_DEG,
                 measure: Measure::Position,
                 model,
                 noise_mm: NOISE_MM,
@@ -449,7 +450,7 @@ fn series_b_plan_for_joint_maps() {
                 k: calib_core::identify::objective::DEFAULT_K,
                 seed,
             };
-            let p = plan::plan(&pool.file, Path::new(ROBOT), &candidates, &settings).unwrap();
+            let p = planning::plan(&pool.file, Path::new(ROBOT), &candidates, &settings).unwrap();
             let mut fitted: Vec<usize> = (p.poses.iter())
                 .filter(|q| q.role != Role::Verify)
                 .map(|q| q.candidate)
@@ -460,7 +461,8 @@ fn series_b_plan_for_joint_maps() {
                 coverage_gap(&pool, &fitted),
             ));
         }
-        let order = host_tools::dataset::shuffled(pool.measurements.len(), seed + 1000);
+        let order =
+            host_tools::measurement::dataset::shuffled(pool.measurements.len(), seed + 1000);
         let mut random = order[..50].to_vec();
         random.sort_unstable();
         row.push((
@@ -569,7 +571,7 @@ fn leverages_sum_to_the_parameter_count() {
         .collect();
     for (measure, parameters) in [(Measure::Pose, 30.0), (Measure::Position, 25.0)] {
         let k = calib_core::identify::objective::DEFAULT_K;
-        let h = plan::leverages(&dataset.file, Path::new(ROBOT), &q, measure, k).unwrap();
+        let h = planning::leverages(&dataset.file, Path::new(ROBOT), &q, measure, k).unwrap();
         let sum: f64 = h.iter().sum();
         println!("{measure:?}: 40 poses, leverages sum to {sum:.12}");
         assert!((sum - parameters).abs() < 1e-9, "{sum}");

@@ -7,7 +7,7 @@
 mod common;
 use calib_core::Kinematics;
 use common::{ROBOT, calib_in, ok};
-use host_tools::robot_file::{ER10L_C10_TOML, RobotFile};
+use host_tools::io::robot_file::{ER10L_C10_TOML, RobotFile};
 use std::path::Path;
 
 /// The ER10L-C10 with the parameters that tracker-frame data cannot tell from the frames left

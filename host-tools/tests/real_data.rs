@@ -6,7 +6,7 @@ mod common;
 use common::parse;
 
 use host_tools::cli::calibrate::{self, CalibrateOptions, Calibration};
-use host_tools::frames::Frames;
+use host_tools::measurement::frames::Frames;
 use std::path::Path;
 
 const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml");
@@ -234,7 +234,7 @@ const SERIES_D: &str = concat!(
 #[test]
 fn series_b_model_re_registered_on_series_d() {
     use host_tools::cli::evaluate::{self, EvaluateOptions};
-    use host_tools::robot_file::RobotFile;
+    use host_tools::io::robot_file::RobotFile;
     let dir = tempfile::tempdir().unwrap();
     let b_model = dir.path().join("b50.toml");
     let b = calibrate(DATA, FULL_POSE, &["--validate", "0.9666"]);

@@ -7,7 +7,7 @@
 mod common;
 use common::{calib, ok};
 
-use host_tools::robot_file::RobotFile;
+use host_tools::io::robot_file::RobotFile;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use std::path::Path;
 
@@ -186,7 +186,7 @@ fn every_command_on_a_simulated_seven_joint_robot() {
         Translation3::new(p[0], p[1], p[2]),
         UnitQuaternion::from_quaternion(Quaternion::new(w[0], w[1], w[2], w[3])),
     );
-    let frame = |f: &host_tools::robot_file::FrameEntry| {
+    let frame = |f: &host_tools::io::robot_file::FrameEntry| {
         let [r, p, y] = f.rpy_deg.map(f64::to_radians);
         Isometry3::from_parts(
             Translation3::from(Vector3::from(f.xyz_mm)),
@@ -351,8 +351,8 @@ fn six_joint_models_refuse_a_seven_joint_robot_with_a_reason() {
 #[test]
 fn joint_maps_of_a_seven_joint_arm_are_exported_and_compensated() {
     use calib_core::controller::storage::{decode_model, model_block_len};
+    use host_tools::io::tracker_data::{PoseRow, write_tracker_csv};
     use host_tools::reference::RefModel;
-    use host_tools::tracker_data::{PoseRow, write_tracker_csv};
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let mut text = std::fs::read_to_string(ROBOT).unwrap();
@@ -369,7 +369,7 @@ fn joint_maps_of_a_seven_joint_arm_are_exported_and_compensated() {
     let file = RobotFile::read(&params).unwrap();
     let maps = file.joint_maps(&params).unwrap().unwrap();
     assert_eq!(maps.joints(), 7);
-    let model: host_tools::robot_file::RobotModel = file.to_model(&params).unwrap();
+    let model: host_tools::io::robot_file::RobotModel = file.to_model(&params).unwrap();
 
     // The block: the same robot and maps.
     let block = at(d, "maps.bin");

@@ -3,8 +3,8 @@
 
 use calib_core::{FramePose, Kinematics, ParameterErrors, Real, Robot};
 use calib_tests::{distance, er10l_file, table2, table2_errors, uniform};
+use host_tools::io::robot_file::{FrameEntry, RobotFile, RobotModel};
 use host_tools::reference::RefModel;
-use host_tools::robot_file::{FrameEntry, RobotFile, RobotModel};
 use nalgebra::U6;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;

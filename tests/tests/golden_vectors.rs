@@ -4,7 +4,7 @@
 use calib_core::kinematics::pose_error::pose_error;
 use calib_core::{Kinematics, ParameterErrors, Pose};
 use calib_tests::{er10l_file, read_csv, table2_errors};
-use host_tools::robot_file::RobotModel;
+use host_tools::io::robot_file::RobotModel;
 use nalgebra::U6;
 use nalgebra::{Matrix3, Vector3};
 use std::path::Path;

@@ -57,7 +57,7 @@ fn allocations<R>(f: impl FnOnce() -> R) -> (usize, R) {
 
 #[test]
 fn an_objective_evaluation_and_a_swarm_generation_allocate_nothing_with_run_time_counts() {
-    let dataset = host_tools::dataset::Dataset::load(
+    let dataset = host_tools::measurement::dataset::Dataset::load(
         &calib_tests::repo("host-tools/robots/er10l-c10.toml"),
         &calib_tests::repo("host-tools/data/er10l-c10-sim32.csv"),
     )

@@ -131,8 +131,8 @@ fn model_job_matches_the_f64_core(block: &[u8], file: &str, expected_file: &str,
     use calib_core::controller::storage::{ControllerModel, decode, decode_model};
     use calib_core::kinematics::pose_error::PoseError;
     use calib_onboard::maps::{self, NOMINAL_BLOCK, TARGET_JOINTS};
-    use host_tools::export::{BlockScalar, parameter_block};
-    use host_tools::robot_file::{RobotFile, RobotModel};
+    use host_tools::formats::export::{BlockScalar, parameter_block};
+    use host_tools::io::robot_file::{RobotFile, RobotModel};
     use std::path::Path;
 
     let outcome = maps::compensate_with_maps(NOMINAL_BLOCK, block, &mut NoMarks).unwrap();

@@ -18,7 +18,7 @@ fn bits(values: impl IntoIterator<Item = f64>) -> Vec<u64> {
 
 /// The bundled measurements of the paper scenario; position-only when asked.
 fn paper_measurements(position_only: bool) -> Vec<Measurement<f64, Dyn>> {
-    let mut measurements = host_tools::dataset::Dataset::load(
+    let mut measurements = host_tools::measurement::dataset::Dataset::load(
         &calib_tests::repo("host-tools/robots/er10l-c10.toml"),
         &calib_tests::repo("host-tools/data/er10l-c10-sim32.csv"),
     )

@@ -1,6 +1,6 @@
 //! Bad robot files are errors that name the file, the field and, for syntax, the line.
 
-use host_tools::robot_file::{RobotFile, RobotModel};
+use host_tools::io::robot_file::{RobotFile, RobotModel};
 use std::path::Path;
 
 const GOOD_JOINT: &str =

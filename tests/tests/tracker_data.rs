@@ -1,7 +1,7 @@
 //! Tracker CSV: units, orientation forms, comments, and errors with file, line and column.
 
-use host_tools::profile::DataProfile;
-use host_tools::tracker_data::{OrientationColumns, TrackerData};
+use host_tools::io::profile::DataProfile;
+use host_tools::io::tracker_data::{OrientationColumns, TrackerData};
 use std::path::Path;
 
 fn parse(text: &str) -> Result<TrackerData, String> {

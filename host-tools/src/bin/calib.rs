@@ -9,8 +9,8 @@ use host_tools::cli::compensate::CompensateOptions;
 use host_tools::cli::export::ExportOptions;
 use host_tools::cli::print;
 use host_tools::cli::simulate::{self, Simulation};
-use host_tools::fk;
-use host_tools::robot_file::RobotModel;
+use host_tools::io::robot_file::RobotModel;
+use host_tools::kinematics::fk;
 use std::path::{Path, PathBuf};
 
 /// Robot geometric calibration and pose compensation. Lengths in mm, angles in degrees in files
@@ -76,7 +76,7 @@ enum Command {
 /// backtrace (even under `RUST_BACKTRACE=1`), and exit status 1.
 fn main() -> std::process::ExitCode {
     let command = Cli::parse().command;
-    match host_tools::files::clean_up_on_interrupt().and_then(|()| run(command)) {
+    match host_tools::io::outputs::clean_up_on_interrupt().and_then(|()| run(command)) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(error) => {
             let mut message = format!("Error: {error}\n");
@@ -182,8 +182,8 @@ fn print_json_or_text<T: serde::Serialize>(
 /// `calib fk`: the end pose of a robot file for joint readings in degrees (2 to 9 joints, with
 /// their joint maps; gravity compliance for 6-joint robots).
 fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::Result<()> {
-    let file = host_tools::robot_file::RobotFile::read(robot)?;
-    host_tools::dispatch::joint_count(file.joint.len())?;
+    let file = host_tools::io::robot_file::RobotFile::read(robot)?;
+    host_tools::model::counts::joint_count(file.joint.len())?;
     let (name, pose) = pose_of_file(&file, robot, joints_deg)?;
     if json {
         host_tools::cli::print_line(format_args!(
@@ -199,7 +199,7 @@ fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::R
 
 /// A robot file at `joints_deg` (one value per joint), with its joint maps and gravity compliance.
 fn pose_of_file(
-    file: &host_tools::robot_file::RobotFile,
+    file: &host_tools::io::robot_file::RobotFile,
     robot: &Path,
     joints_deg: &[f64],
 ) -> anyhow::Result<(String, fk::FkOutput)> {

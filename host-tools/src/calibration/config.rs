@@ -1,6 +1,6 @@
 //! The settings of a calibration, with the paper's values as defaults.
 
-use crate::frames::Frames;
+use crate::measurement::frames::Frames;
 use anyhow::bail;
 use calib_core::identify::halton::Scrambling;
 use calib_core::identify::ipso;
@@ -159,12 +159,12 @@ pub enum ErrorModel {
     #[serde(rename = "geometric")]
     Geometric,
     /// The geometry and each joint's angle-error map, identified jointly with an
-    /// evidence-tuned prior ([`crate::joint_maps`]).
+    /// evidence-tuned prior ([`crate::model::joint_maps`]).
     #[value(name = "joint-maps")]
     #[serde(rename = "joint-maps")]
     JointMaps,
     /// The joint maps and gravity compliance (torsion of joints 2-4, bearing tilt of joints
-    /// 1-4; [`crate::compliance`]) from the robot file's `[dynamics]` masses.
+    /// 1-4; [`crate::model::compliance`]) from the robot file's `[dynamics]` masses.
     #[value(name = "joint-maps+compliance")]
     #[serde(rename = "joint-maps+compliance")]
     JointMapsCompliance,

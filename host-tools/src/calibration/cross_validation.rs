@@ -5,7 +5,7 @@
 //! model's is flagged: its calibration is likely to make the robot less accurate.
 
 use super::CalibrationConfig;
-use crate::dataset::Dataset;
+use crate::measurement::dataset::Dataset;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
 use calib_core::{Kinematics, ParameterErrors, ParameterSet, Problem};
 use nalgebra::Dyn;
@@ -57,7 +57,7 @@ pub fn cross_validate(
     }
     let folds = if n <= LEAVE_ONE_OUT_UP_TO { n } else { FOLDS };
     // Poses shuffled with a fixed seed, then dealt into the folds.
-    let order = crate::dataset::shuffled(n, 0);
+    let order = crate::measurement::dataset::shuffled(n, 0);
     let nominal = Kinematics::nominal(&dataset.model.robot).ok()?;
     let settings = LmSettings {
         max_iterations: config.lm_iterations,
@@ -86,8 +86,8 @@ pub fn cross_validate(
             .x;
         let model = Kinematics::new(&training.model.robot, &set.unpack(&x)).ok()?;
         Some((
-            crate::statistics::table3(&model, &predicted).1,
-            crate::statistics::table3(&nominal, &predicted).1,
+            crate::measurement::statistics::table3(&model, &predicted).1,
+            crate::measurement::statistics::table3(&nominal, &predicted).1,
         ))
     };
     let (mut nominal_errors, mut errors, mut failed) = (Vec::new(), Vec::new(), 0);
@@ -131,7 +131,7 @@ fn on_all_cores<R: Send>(count: usize, work: impl Fn(usize) -> R + Sync) -> Vec<
     };
     let done: Vec<(usize, R)> = std::thread::scope(|scope| {
         let helpers: Vec<_> = (1..threads)
-            .filter_map(|_| super::helper_threads::spawn(scope, "calib-folds", take))
+            .filter_map(|_| crate::runtime::helper_threads::spawn(scope, "calib-folds", take))
             .collect();
         let mut all = take();
         for helper in helpers {

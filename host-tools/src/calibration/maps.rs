@@ -1,16 +1,16 @@
 //! The joint-maps stage of a calibration (`--model joint-maps`): after the geometric
 //! calibration, the geometry is identified again jointly with each joint's angle-error map
-//! ([`crate::joint_maps`]) on the same calibration poses, and the statistics, the identified
+//! ([`crate::model::joint_maps`]) on the same calibration poses, and the statistics, the identified
 //! robot file and the report are those of the model with the maps. The geometric calibration's
 //! statistics stay in the report for comparison.
 
 use super::ErrorModel;
 use super::{CalibrationConfig, CalibrationResult, Stage};
 use crate::JOINTS;
-use crate::compliance::{self, Gravity};
-use crate::dataset::Dataset;
-use crate::joint_maps::{self, JointMapsSection, NEGLIGIBLE_AMPLITUDE_RAD, Pose};
-use crate::statistics::table3;
+use crate::measurement::dataset::Dataset;
+use crate::measurement::statistics::table3;
+use crate::model::compliance::{self, Gravity};
+use crate::model::joint_maps::{self, JointMapsSection, NEGLIGIBLE_AMPLITUDE_RAD, Pose};
 use calib_core::Kinematics;
 use calib_core::model::JointVec;
 use nalgebra::Dyn;
@@ -135,7 +135,7 @@ fn maps_cross_validation(
     } else {
         super::cross_validation::FOLDS
     };
-    let order = crate::dataset::shuffled(n, 0);
+    let order = crate::measurement::dataset::shuffled(n, 0);
     let robot = &dataset.model.robot;
     let mut errors = Vec::with_capacity(n);
     for fold in 0..folds {
@@ -423,7 +423,8 @@ fn with_maps(
         pose.after_mm = *after;
     }
     result.per_pose.after = after_poses;
-    result.per_pose.orientation_after = crate::statistics::orientation_per_pose(&actual, &mapped);
+    result.per_pose.orientation_after =
+        crate::measurement::statistics::orientation_per_pose(&actual, &mapped);
     if let (Some(v), Some(stage)) = (validation, result.validation.as_mut()) {
         let (after, per_pose) = table3(&actual, &model_view(v, found, gravity)?);
         stage.after = after;
@@ -454,7 +455,7 @@ fn with_maps(
     })?;
     file.joint_maps = Some(section);
     if let Some(c) = &found.compliance {
-        let section = crate::compliance::ComplianceSection::new(&c.gains);
+        let section = crate::model::compliance::ComplianceSection::new(&c.gains);
         section.to_gains().map_err(|problem| {
             anyhow::anyhow!(
                 "the identified gravity compliance is not plausible ({problem}); nothing was written. The poses may \

@@ -2,23 +2,23 @@
 //! [`CalibrationConfig`] in, a typed [`CalibrationResult`] out. No file is read or written here;
 //! the `calib calibrate` command is a thin layer over [`calibrate`].
 //!
-//! The stages: the frames are registered and fitted ([`crate::frames::prepare`]); the
+//! The stages: the frames are registered and fitted ([`crate::measurement::frames::prepare`]); the
 //! identifiability of the parameters is checked and, with `auto_mask`, what the data cannot
 //! determine is dropped ([`select_parameters`]); the swarm and/or least squares identify the
 //! errors; Table 3 is evaluated on the calibration and the held-out poses.
 //!
 //! ```
 //! use host_tools::calibration::{CalibrationConfig, Method, calibrate};
-//! use host_tools::dataset::Dataset;
-//! use host_tools::robot_file::RobotFile;
-//! use host_tools::tracker_data::Record;
+//! use host_tools::measurement::dataset::Dataset;
+//! use host_tools::io::robot_file::RobotFile;
+//! use host_tools::io::tracker_data::Record;
 //! use calib_core::Kinematics;
 //! use calib_core::model::JointVec;
 //! use calib_core::model::paper;
 //! use std::path::Path;
 //!
 //! // The nominal ER10L-C10, and the same robot with the paper's Table 2 errors as "the real one".
-//! let robot = RobotFile::parse(host_tools::robot_file::ER10L_C10_TOML, Path::new("er10l-c10.toml"))?;
+//! let robot = RobotFile::parse(host_tools::io::robot_file::ER10L_C10_TOML, Path::new("er10l-c10.toml"))?;
 //! // The file's robot has its joint count at run time (`nalgebra::Dyn`), as the host has it.
 //! let nominal = robot.to_model(Path::new("er10l-c10.toml"))?.robot;
 //! let table2 = paper::table2::<f64>().recount().expect("6 joints");
@@ -51,12 +51,9 @@
 
 mod config;
 pub mod cross_validation;
-mod helper_threads;
 pub mod maps;
 pub mod plausibility;
 mod result;
-pub mod swarm_team;
-mod text;
 
 pub use config::{
     CalibrationConfig, ErrorModel, Identify, LossChoice, Method, SWARM_SIZES, ScramblingChoice,
@@ -67,9 +64,10 @@ pub use result::{
     Parameters, PerPose, PoseReport, Report, Settings, Stage, SwarmSummary, lm_stop, swarm_stop,
 };
 
-use crate::dataset::Dataset;
-use crate::frames::{Frames, FramesReport};
-use crate::identifiability::{IdentifiabilityReport, analyse};
+use crate::analysis::identifiability::{IdentifiabilityReport, analyse};
+use crate::measurement::dataset::Dataset;
+use crate::measurement::frames::{Frames, FramesReport};
+use crate::runtime::swarm_team::{LaneObjective, SwarmTeam};
 use anyhow::bail;
 use calib_core::identify::ipso::{self, Control, IpsoSettings, SearchSpace};
 use calib_core::identify::lm::{LeastSquares, LmError, LmResult, LmSettings};
@@ -78,7 +76,6 @@ use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, Paramete
 use nalgebra::{DVector, Dyn};
 use std::io::IsTerminal;
 use std::time::Instant;
-use swarm_team::{LaneObjective, SwarmTeam};
 
 /// Fits of the geometry with a robot file's gravity compliance taken off the measurements, each
 /// at the previous fit's geometry (see [`calibrate`]).
@@ -101,11 +98,11 @@ pub fn calibrate(
     // records the probe in its measurement setup.
     let given = dataset.file.clone();
     let probe = dataset.identified_probe().cloned();
-    let probe_kept = match crate::frames::with_identified_probe(&dataset, frames)? {
+    let probe_kept = match crate::measurement::frames::with_identified_probe(&dataset, frames)? {
         Some(kept) => {
             dataset = kept;
             if let Some(v) = validation.as_mut()
-                && let Some(kept) = crate::frames::with_identified_probe(v, frames)?
+                && let Some(kept) = crate::measurement::frames::with_identified_probe(v, frames)?
             {
                 *v = kept;
             }
@@ -115,7 +112,7 @@ pub fn calibrate(
     };
     let (frames_report, mask) = {
         let mut others: Vec<&mut Dataset> = validation.iter_mut().collect();
-        crate::frames::prepare(frames, &mut dataset, &mut others, config.k)?
+        crate::measurement::frames::prepare(frames, &mut dataset, &mut others, config.k)?
     };
     let mask = match config.identify {
         Identify::Geometry => mask,
@@ -205,7 +202,8 @@ pub fn select_parameters(
     config: &CalibrationConfig,
 ) -> anyhow::Result<Selection> {
     let analysed = |mask: &ParameterMask<Dyn>| analyse(dataset, mask, config.k);
-    let (mut mask, reflector) = crate::identifiability::default_mask(dataset, mask, config.k)?;
+    let (mut mask, reflector) =
+        crate::analysis::identifiability::default_mask(dataset, mask, config.k)?;
     let mut initial = analysed(&mask)?;
     initial.reflector_on_last_axis = reflector;
     let mut identifiability = initial.clone();
@@ -258,7 +256,7 @@ fn solve(
     selection: Selection,
     mut frames: FramesReport,
 ) -> anyhow::Result<CalibrationResult> {
-    let set = crate::dispatch::solvable_set(&selection.mask)?;
+    let set = crate::model::counts::solvable_set(&selection.mask)?;
     let problem = Problem::new(
         &dataset.model.robot,
         &ParameterErrors::zeros_for(dataset.model.robot.joint_count()),
@@ -367,7 +365,7 @@ pub(crate) fn identified_robot(
     parameters: &[IdentifiedParameter],
     errors: &ParameterErrors<f64, Dyn>,
     frames: &mut FramesReport,
-) -> crate::robot_file::RobotFile {
+) -> crate::io::robot_file::RobotFile {
     let std_errors: Vec<(Parameter, f64)> = parameters
         .iter()
         .filter_map(|p| p.std_error.map(|s| (p.parameter, s)))
@@ -412,7 +410,7 @@ pub(crate) fn identified_robot(
         frames
             .base
             .clone()
-            .map(|tracker_base| crate::robot_file::MeasurementSection {
+            .map(|tracker_base| crate::io::robot_file::MeasurementSection {
                 frames: frames.identified.name().to_string(),
                 tracker_base,
                 flange_tool: frames.tool.clone(),
@@ -706,7 +704,7 @@ fn evaluate(
     errors: &ParameterErrors<f64, Dyn>,
     fit: Option<&Fit>,
 ) -> anyhow::Result<(Stage, Option<Stage>, PerPose, Vec<PoseReport>)> {
-    use crate::statistics::{orientation_per_pose, table3};
+    use crate::measurement::statistics::{orientation_per_pose, table3};
     let nominal = Kinematics::nominal(&dataset.model.robot)?;
     let actual = Kinematics::new(&dataset.model.robot, errors)?;
     let (before, before_poses) = table3(&nominal, dataset);

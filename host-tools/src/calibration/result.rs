@@ -1,11 +1,11 @@
 //! The typed result of a calibration, and its JSON report (a serde rendering of the result).
 
 use super::config::CalibrationConfig;
-use crate::frames::FramesReport;
-use crate::identifiability::IdentifiabilityReport;
-use crate::report::{TruthRow, unit_of};
-use crate::robot_file::RobotFile;
-use crate::statistics::Table3;
+use crate::analysis::identifiability::IdentifiabilityReport;
+use crate::analysis::truth::{TruthRow, unit_of};
+use crate::io::robot_file::RobotFile;
+use crate::measurement::frames::FramesReport;
+use crate::measurement::statistics::Table3;
 use calib_core::identify::ipso::StopReason;
 use calib_core::identify::lm::LmStop;
 use calib_core::{Parameter, ParameterErrors};
@@ -190,7 +190,7 @@ pub struct CalibrationResult {
     pub joint_maps: Option<super::maps::JointMapsReport>,
     /// The measured verification poses of a plan against its prediction (`calib plan`), set by
     /// `calibrate` when the data file is a measured plan.
-    pub plan_check: Option<crate::plan::PlanCheck>,
+    pub plan_check: Option<crate::planning::PlanCheck>,
 }
 
 impl CalibrationResult {
@@ -353,7 +353,7 @@ pub struct Report<'a> {
     pub joint_maps: Option<&'a super::maps::JointMapsReport>,
     /// The plan's verification poses against its prediction, for a measured plan.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub plan_check: Option<&'a crate::plan::PlanCheck>,
+    pub plan_check: Option<&'a crate::planning::PlanCheck>,
     /// The frames identified with the geometry and their values.
     pub frames: &'a FramesReport,
     /// Poses whose residual exceeds the robust loss scale (empty for l2).

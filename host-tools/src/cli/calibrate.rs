@@ -1,18 +1,18 @@
 //! `calib calibrate`: the command over [`crate::calibration`]: read the robot and data files,
 //! calibrate, render the text, the JSON report and the identified robot file, write them.
 
+use crate::analysis::truth::TruthRow;
 use crate::calibration::{
     self, CalibrationConfig, CalibrationResult, ErrorModel, HoldOut, Identify, LossChoice, Method,
     Report, ScramblingChoice, SwarmConfig,
 };
 use crate::cli::InputFiles;
-use crate::dataset::Dataset;
-use crate::files::Outputs;
-use crate::frames::Frames;
-use crate::plan::Measure;
-use crate::report::TruthRow;
-use crate::robot_file::RobotFile;
-use crate::tracker_data::Role;
+use crate::io::outputs::Outputs;
+use crate::io::robot_file::RobotFile;
+use crate::io::tracker_data::Role;
+use crate::measurement::dataset::Dataset;
+use crate::measurement::frames::Frames;
+use crate::planning::Measure;
 use anyhow::bail;
 use calib_core::identify::ipso;
 use std::path::PathBuf;
@@ -198,10 +198,10 @@ pub struct Calibration {
 }
 
 /// Runs `calib calibrate` as the command does: calibrates (the robot file's joint count one of
-/// [`JOINT_COUNTS`](crate::dispatch::JOINT_COUNTS)), writes the
+/// [`JOINT_COUNTS`](crate::model::counts::JOINT_COUNTS)), writes the
 /// files asked for (all or none), and returns the text to print, with the files written.
 pub fn calibrate_and_write(options: &CalibrateOptions) -> anyhow::Result<String> {
-    crate::dispatch::joint_count(options.input.joints()?)?;
+    crate::model::counts::joint_count(options.input.joints()?)?;
     let calibration = calibrate(options)?;
     // The files first: a closed or full standard output must not lose them.
     let written = write_outputs(&calibration, &options.outputs())?;
@@ -250,7 +250,8 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
             Some(Dataset::load_with(&options.input.robot, path, &profile)?),
         ),
         (None, Some(fraction)) => {
-            let (calibration, held) = crate::dataset::split(&all, fraction, options.validate_seed)?;
+            let (calibration, held) =
+                crate::measurement::dataset::split(&all, fraction, options.validate_seed)?;
             (calibration, Some(held))
         }
         (None, None) => (all, None),
@@ -278,7 +279,7 @@ fn with_plan_check(
         .zip(&result.poses)
         .map(|(r, p)| (r.id.clone(), r.q.clone(), p.after_mm))
         .collect();
-    result.plan_check = Some(crate::plan::check_plan(
+    result.plan_check = Some(crate::planning::check_plan(
         predicted,
         validation.after.position_mm.mean,
         validation.poses,
@@ -409,7 +410,7 @@ pub fn write_outputs(
     }
     if let Some(path) = &paths.html {
         let report = serde_json::to_value(calibration.report())?;
-        let page = crate::html_report::render(&report, &crate::html_report::Rendering::now())?;
+        let page = crate::report::html::render(&report, &crate::report::html::Rendering::now())?;
         outputs.stage("--html", path, page.as_bytes())?;
     }
     if let Some(dir) = &paths.plot {
@@ -419,10 +420,10 @@ pub fn write_outputs(
             .swarm
             .as_ref()
             .map_or(&[][..], |s| s.history.as_slice());
-        crate::plots::stage_plots(
+        crate::report::plots::stage_plots(
             &mut outputs,
             dir,
-            &crate::plots::PlotData {
+            &crate::report::plots::PlotData {
                 history,
                 title: "absolute position error per calibration pose",
                 before: &per_pose.before,

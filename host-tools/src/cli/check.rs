@@ -1,7 +1,7 @@
 //! `calib check`: the identifiability of the identified parameters from a data set, without
 //! calibrating.
 
-use crate::identifiability::IdentifiabilityReport;
+use crate::analysis::identifiability::IdentifiabilityReport;
 
 /// Options of `calib check`.
 #[derive(Clone, Debug, clap::Args)]
@@ -12,7 +12,7 @@ pub struct CheckOptions {
     /// Frames identified with the geometry (as for calibrate; default base+tool unless the data
     /// say `# frame: base`).
     #[arg(long, value_enum)]
-    pub frames: Option<crate::frames::Frames>,
+    pub frames: Option<crate::measurement::frames::Frames>,
     /// Orientation weight k, mm^2/rad^2 (as for calibrate).
     #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K)]
     pub k: f64,
@@ -23,9 +23,9 @@ pub struct CheckOptions {
 
 /// `calib check`: the identifiability analysis of a robot file's parameters on a data file.
 pub fn check(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
-    crate::dispatch::joint_count(options.input.joints()?)?;
+    crate::model::counts::joint_count(options.input.joints()?)?;
     // Joint maps and gravity compliance of the file are held fixed: the analysis is that of the
     // geometric parameters at the kinematic angles (the readings with the maps).
     let (_, dataset) = options.input.load()?;
-    crate::identifiability::check(dataset, options.frames, options.k)
+    crate::analysis::identifiability::check(dataset, options.frames, options.k)
 }

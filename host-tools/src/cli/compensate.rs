@@ -1,12 +1,12 @@
 //! `calib compensate`: read the nominal and identified robots and the targets, compensate
-//! ([`crate::compensate`]), write one CSV row per target.
+//! ([`crate::kinematics::compensate`]), write one CSV row per target.
 
-use crate::compensate::{Summary, compensate_targets, compensate_targets_of, to_csv};
-use crate::export::controller_model;
-use crate::files::Outputs;
-use crate::robot_file::RobotFile;
-use crate::robot_file::RobotModel;
-use crate::tracker_data::TrackerData;
+use crate::formats::export::controller_model;
+use crate::io::outputs::Outputs;
+use crate::io::robot_file::RobotFile;
+use crate::io::robot_file::RobotModel;
+use crate::io::tracker_data::TrackerData;
+use crate::kinematics::compensate::{Summary, compensate_targets, compensate_targets_of, to_csv};
 use anyhow::bail;
 use calib_core::controller::compensate::CompensationSettings;
 use std::path::PathBuf;
@@ -76,7 +76,7 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
     )?;
     let maps = params.joint_maps(&options.params)?;
     let compliance = params.gravity_compliance(&options.params)?;
-    crate::dispatch::joint_count(file.joint.len())?;
+    crate::model::counts::joint_count(file.joint.len())?;
     if maps.is_none() && compliance.is_none() {
         return compensate_geometric(options);
     }
@@ -89,8 +89,8 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
 fn compensate_model(
     options: &CompensateOptions,
     (maps, compliance): (
-        Option<&crate::joint_maps::JointMaps>,
-        Option<&crate::compliance::FileCompliance>,
+        Option<&crate::model::joint_maps::JointMaps>,
+        Option<&crate::model::compliance::FileCompliance>,
     ),
 ) -> anyhow::Result<Summary> {
     let (nominal, actual, targets, settings) = inputs(options)?;
@@ -167,7 +167,7 @@ fn inputs(
 /// Writes the outcomes (all or nothing) and counts them.
 fn finish(
     options: &CompensateOptions,
-    outcomes: &[crate::compensate::TargetOutcome],
+    outcomes: &[crate::kinematics::compensate::TargetOutcome],
     joints: usize,
 ) -> anyhow::Result<Summary> {
     let mut outputs = Outputs::new(&[

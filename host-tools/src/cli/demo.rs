@@ -12,9 +12,9 @@
 
 use crate::calibration::{self, CalibrationConfig, HoldOut, Method};
 use crate::cli::calibrate::{Calibration, OutputPaths, write_outputs};
-use crate::dataset::Dataset;
-use crate::robot_file::{ER10L_C10_TOML, RobotFile};
-use crate::simulate::{self, SimulationConfig};
+use crate::io::robot_file::{ER10L_C10_TOML, RobotFile};
+use crate::measurement::dataset::Dataset;
+use crate::measurement::simulate::{self, SimulationConfig};
 use anyhow::Context;
 use std::path::{Path, PathBuf};
 
@@ -79,7 +79,7 @@ pub fn demo(options: &DemoOptions) -> anyhow::Result<()> {
     let dir = &options.out;
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let robot_path = dir.join("er10l-c10.toml");
-    crate::files::write_atomic(&robot_path, ER10L_C10_TOML.as_bytes())?;
+    crate::io::outputs::write_atomic(&robot_path, ER10L_C10_TOML.as_bytes())?;
     let robot = (
         RobotFile::parse(ER10L_C10_TOML, &robot_path)?,
         robot_path.clone(),

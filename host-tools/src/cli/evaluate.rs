@@ -1,8 +1,8 @@
 //! `calib evaluate`: the paper's Table 3 statistics of any robot model on any data, the frames of
-//! tracker data fitted first ([`crate::evaluation`]).
+//! tracker data fitted first ([`crate::analysis::evaluation`]).
 
-use crate::evaluation::Evaluation;
-use crate::frames::Frames;
+use crate::analysis::evaluation::Evaluation;
+use crate::measurement::frames::Frames;
 
 /// Options of `calib evaluate`.
 #[derive(Clone, Debug, clap::Args)]
@@ -30,10 +30,10 @@ pub struct EvaluateOptions {
 
 /// Runs `calib evaluate`.
 pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
-    crate::dispatch::joint_count(options.input.joints()?)?;
+    crate::model::counts::joint_count(options.input.joints()?)?;
     let (_, dataset) = options.input.load()?;
     let frames = Frames::chosen(options.fit_frames, &dataset.data);
-    crate::evaluation::evaluate(&dataset, frames, options.fit_poses, options.seed)
+    crate::analysis::evaluation::evaluate(&dataset, frames, options.fit_poses, options.seed)
 }
 
 impl Evaluation {
@@ -53,7 +53,10 @@ impl Evaluation {
                 );
             }
         }
-        text.push_str(&crate::report::table3_single_text(title, &self.table));
+        text.push_str(&crate::report::tables::table3_single_text(
+            title,
+            &self.table,
+        ));
         text
     }
 }

@@ -1,9 +1,9 @@
 //! `calib export`: an identified robot file as the controller's parameter block, TOML, JSON, a
 //! URDF or a UR kinematics YAML.
 
-use crate::export::{BlockScalar, ExportFormat};
-use crate::files::Outputs;
-use crate::robot_file::{RobotFile, RobotModel};
+use crate::formats::export::{BlockScalar, ExportFormat};
+use crate::io::outputs::Outputs;
+use crate::io::robot_file::{RobotFile, RobotModel};
 use std::path::PathBuf;
 
 /// Options of `calib export`.
@@ -55,7 +55,7 @@ pub struct ExportOptions {
 pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
     let file = RobotFile::read(&options.params)?;
     let urdf = urdf_settings(options, &file);
-    crate::dispatch::joint_count(file.joint.len())?;
+    crate::model::counts::joint_count(file.joint.len())?;
     let bytes = exported(options, &file, &urdf)?;
     let mut outputs = Outputs::new(&[("--params", &options.params)]);
     outputs.stage("--out", &options.out, &bytes)?;
@@ -67,10 +67,10 @@ pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
 fn exported(
     options: &ExportOptions,
     file: &RobotFile,
-    urdf: &crate::urdf::UrdfSettings,
+    urdf: &crate::formats::urdf::UrdfSettings,
 ) -> anyhow::Result<Vec<u8>> {
     let model: RobotModel = file.to_model(&options.params)?;
-    crate::export::export(
+    crate::formats::export::export(
         file,
         &model,
         options.format,
@@ -81,8 +81,8 @@ fn exported(
 }
 
 /// The URDF names of the options (defaults for the file's joint count).
-fn urdf_settings(options: &ExportOptions, file: &RobotFile) -> crate::urdf::UrdfSettings {
-    let mut urdf = crate::urdf::UrdfSettings::named_for(&file.name, file.joint.len());
+fn urdf_settings(options: &ExportOptions, file: &RobotFile) -> crate::formats::urdf::UrdfSettings {
+    let mut urdf = crate::formats::urdf::UrdfSettings::named_for(&file.name, file.joint.len());
     if let Some(names) = &options.link_names {
         urdf.links.clone_from(names);
     }

@@ -1,9 +1,9 @@
 //! `calib import-ur-calibration`: a UR controller's factory calibration (`calibration.conf`) as
-//! our robot file ([`crate::ur_calibration`]).
+//! our robot file ([`crate::formats::ur_calibration`]).
 
-use crate::files::Outputs;
-use crate::robot_file::{RobotFile, RobotModel};
-use crate::ur_calibration::{Import, UrCalibration};
+use crate::formats::ur_calibration::{Import, UrCalibration};
+use crate::io::outputs::Outputs;
+use crate::io::robot_file::{RobotFile, RobotModel};
 use std::path::PathBuf;
 
 /// Options of `calib import-ur-calibration`.
@@ -26,7 +26,7 @@ pub fn import(options: &ImportUrOptions) -> anyhow::Result<(Import, String)> {
     let file = RobotFile::read(&options.robot)?;
     let model: RobotModel = file.to_model(&options.robot)?;
     let calibration = UrCalibration::read(&options.calibration)?;
-    let import = crate::ur_calibration::import(&model.robot, &calibration)?;
+    let import = crate::formats::ur_calibration::import(&model.robot, &calibration)?;
     let listed: Vec<_> = import.mask.iter().collect();
     let mut out = file.with_errors(
         &import.errors,
@@ -43,7 +43,7 @@ pub fn import(options: &ImportUrOptions) -> anyhow::Result<(Import, String)> {
         options.calibration.display(),
         import.max_position_mm,
         import.max_rotation_rad,
-        crate::ur_calibration::CHECK_POSES
+        crate::formats::ur_calibration::CHECK_POSES
     ));
     let mut outputs = Outputs::new(&[
         ("--robot", &options.robot),

@@ -13,8 +13,8 @@ pub mod report;
 pub mod simulate;
 pub mod verify;
 
-use crate::dataset::Dataset;
-use crate::profile::DataProfile;
+use crate::io::profile::DataProfile;
+use crate::measurement::dataset::Dataset;
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -37,17 +37,19 @@ pub struct InputFiles {
 
 impl InputFiles {
     /// The data profile, then both files read and checked through it, and the orientations
-    /// checked against the robot ([`crate::orientation_check`]).
+    /// checked against the robot ([`crate::measurement::orientation_check`]).
     pub fn load(&self) -> anyhow::Result<(DataProfile, Dataset)> {
         let profile = DataProfile::load(self.profile.as_deref())?;
         let inputs = Dataset::load_with(&self.robot, &self.data, &profile)?;
-        crate::orientation_check::check(&inputs, &profile.euler)?;
+        crate::measurement::orientation_check::check(&inputs, &profile.euler)?;
         Ok((profile, inputs))
     }
 
     /// The robot file's joint count (the file is read and checked again by [`Self::load`]).
     pub fn joints(&self) -> anyhow::Result<usize> {
-        Ok(crate::robot_file::RobotFile::read(&self.robot)?.joint.len())
+        Ok(crate::io::robot_file::RobotFile::read(&self.robot)?
+            .joint
+            .len())
     }
 }
 

@@ -1,12 +1,12 @@
 //! `calib plan`: choose the poses to measure from candidate joint configurations, predict the
 //! accuracy they give, and write the plan as a tracker CSV without measurements
-//! ([`crate::plan`]).
+//! ([`crate::planning`]).
 
-use crate::files::Outputs;
-use crate::plan::{self, Measure, Plan, PlanModel, PlanSettings};
-use crate::profile::DataProfile;
-use crate::robot_file::RobotFile;
-use crate::tracker_data::TrackerData;
+use crate::io::outputs::Outputs;
+use crate::io::profile::DataProfile;
+use crate::io::robot_file::RobotFile;
+use crate::io::tracker_data::TrackerData;
+use crate::planning::{self, Measure, Plan, PlanModel, PlanSettings};
 use anyhow::{Context, bail};
 use std::path::PathBuf;
 
@@ -46,10 +46,10 @@ pub struct PlanOptions {
     #[arg(long, value_name = "N")]
     pub core: Option<usize>,
     /// Verification poses, measured and kept out of the fit.
-    #[arg(long, value_name = "N", default_value_t = plan::DEFAULT_VERIFY)]
+    #[arg(long, value_name = "N", default_value_t = planning::DEFAULT_VERIFY)]
     pub verify: usize,
     /// No two plan poses closer than this in joint space (Euclidean over the joints), deg.
-    #[arg(long, value_name = "DEG", default_value_t = plan::DEFAULT_MIN_DISTANCE_DEG)]
+    #[arg(long, value_name = "DEG", default_value_t = planning::DEFAULT_MIN_DISTANCE_DEG)]
     pub min_distance_deg: f64,
     /// What the tracker measures: a reflector's position, or a 6-DoF probe's pose.
     #[arg(long, value_enum)]
@@ -165,7 +165,7 @@ pub fn plan(options: &PlanOptions) -> anyhow::Result<Plan> {
             if count > MAX_CANDIDATES {
                 bail!("--generate {count}: at most {MAX_CANDIDATES} candidates");
             }
-            plan::generate(&file, &options.robot, count, box_mm)?
+            planning::generate(&file, &options.robot, count, box_mm)?
         }
         (None, None) => bail!("give the candidates: --candidates FILE or --generate N"),
     };
@@ -183,7 +183,7 @@ pub fn plan(options: &PlanOptions) -> anyhow::Result<Plan> {
         // --poses is refused, not cut).
         core: options
             .core
-            .unwrap_or(plan::DEFAULT_CORE.min(options.poses)),
+            .unwrap_or(planning::DEFAULT_CORE.min(options.poses)),
         verify: options.verify,
         min_distance_deg: options.min_distance_deg,
         measure: options.measure,
@@ -193,11 +193,11 @@ pub fn plan(options: &PlanOptions) -> anyhow::Result<Plan> {
         k: options.k,
         seed: options.seed,
     };
-    let mut plan = plan::plan(&file, &options.robot, &candidates, &settings)?;
+    let mut plan = planning::plan(&file, &options.robot, &candidates, &settings)?;
     // Too few core poses to determine the parameters alone: make the core large enough.
     let needed = plan.parameters.len().div_ceil(rows);
     if options.core.is_none() && settings.core < needed && needed <= options.poses {
-        plan = plan::plan(
+        plan = planning::plan(
             &file,
             &options.robot,
             &candidates,

@@ -1,7 +1,7 @@
 //! `calib report`: a calibration's JSON report (`calibrate --report`) rendered again, as the
-//! self-contained HTML page of `calibrate --html` ([`crate::html_report`]).
+//! self-contained HTML page of `calibrate --html` ([`crate::report::html`]).
 
-use crate::files::Outputs;
+use crate::io::outputs::Outputs;
 use anyhow::Context;
 use std::path::PathBuf;
 
@@ -32,7 +32,7 @@ pub fn report(options: &ReportOptions) -> anyhow::Result<usize> {
             options.from.display()
         );
     }
-    let page = crate::html_report::render(&report, &crate::html_report::Rendering::now())?;
+    let page = crate::report::html::render(&report, &crate::report::html::Rendering::now())?;
     let mut outputs = Outputs::new(&[("--from", &options.from)]);
     outputs.stage("--html", &options.html, page.as_bytes())?;
     outputs.commit()?;

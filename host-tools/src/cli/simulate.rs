@@ -1,7 +1,7 @@
-//! `calib simulate`: the options of a simulation ([`crate::simulate`]) and the files it writes.
+//! `calib simulate`: the options of a simulation ([`crate::measurement::simulate`]) and the files it writes.
 
-use crate::robot_file::{FrameEntry, RobotFile};
-use crate::simulate::{Simulated, SimulationConfig, TrueErrors};
+use crate::io::robot_file::{FrameEntry, RobotFile};
+use crate::measurement::simulate::{Simulated, SimulationConfig, TrueErrors};
 use anyhow::bail;
 use std::path::PathBuf;
 
@@ -119,15 +119,16 @@ impl Simulation {
 
 /// Runs `calib simulate`: simulates, then writes the tracker CSV to `--out` and the true robot to
 /// `--truth-out` (nothing unless both are ready; each atomically).
-/// Robots of any joint count in [`JOINT_COUNTS`](crate::dispatch::JOINT_COUNTS); returns the
+/// Robots of any joint count in [`JOINT_COUNTS`](crate::model::counts::JOINT_COUNTS); returns the
 /// number of poses written.
 pub fn simulate(options: &Simulation) -> anyhow::Result<usize> {
     let config = options.config()?;
     let file = RobotFile::read(&options.robot)?;
     file.refuse_compliance(&options.robot, "calib simulate")?;
     file.refuse_joint_maps(&options.robot, "calib simulate")?;
-    crate::dispatch::joint_count(file.joint.len())?;
-    let simulated: Simulated = crate::simulate::simulate(&file, &options.robot, &config)?;
+    crate::model::counts::joint_count(file.joint.len())?;
+    let simulated: Simulated =
+        crate::measurement::simulate::simulate(&file, &options.robot, &config)?;
     simulated.write(&options.out, &options.truth_out, &options.robot)?;
     Ok(simulated.rows.len())
 }

@@ -1,7 +1,7 @@
 //! `calib verify`: the same calibration by the f32 core, the f64 core and the reference
-//! optimiser ([`crate::verify`]); exits non-zero past the documented tolerances.
+//! optimiser ([`crate::analysis::verify`]); exits non-zero past the documented tolerances.
 
-use crate::verify::Verification;
+use crate::analysis::verify::Verification;
 
 /// Options of `calib verify`.
 #[derive(Clone, Debug, clap::Args)]
@@ -12,7 +12,7 @@ pub struct VerifyOptions {
     /// Frames identified with the geometry (default base+tool unless the data say
     /// `# frame: base`).
     #[arg(long, value_enum)]
-    pub frames: Option<crate::frames::Frames>,
+    pub frames: Option<crate::measurement::frames::Frames>,
     /// Fraction of the poses held out for the validation error.
     #[arg(long, default_value_t = 0.3)]
     pub validate: f64,
@@ -29,9 +29,9 @@ pub struct VerifyOptions {
 
 /// Runs `calib verify`: reads the files, holds out `--validate` of the poses, verifies.
 pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
-    crate::dispatch::joint_count(options.input.joints()?)?;
+    crate::model::counts::joint_count(options.input.joints()?)?;
     let (_, all) = options.input.load()?;
     let (calibration, validation) =
-        crate::dataset::split(&all, options.validate, options.validate_seed)?;
-    crate::verify::verify(calibration, validation, options.frames, options.k)
+        crate::measurement::dataset::split(&all, options.validate, options.validate_seed)?;
+    crate::analysis::verify::verify(calibration, validation, options.frames, options.k)
 }

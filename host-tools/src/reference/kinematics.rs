@@ -4,7 +4,7 @@
 //! with `std` trigonometry, no nalgebra and no call into `calib-core`, so that agreement between
 //! the two means something. Slow on purpose: clarity over speed.
 
-use crate::robot_file::RobotFile;
+use crate::io::robot_file::RobotFile;
 
 /// A homogeneous transform, row-major: `m[row][col]`.
 pub type Mat4 = [[f64; 4]; 4];
@@ -131,7 +131,7 @@ impl RefModel {
                 }
             })
             .collect();
-        let frame_of = |entry: &Option<crate::robot_file::FrameEntry>, errors| match entry {
+        let frame_of = |entry: &Option<crate::io::robot_file::FrameEntry>, errors| match entry {
             Some(f) => frame(f.xyz_mm, f.rpy_deg.map(f64::to_radians), errors),
             None => frame([0.0; 3], [0.0; 3], errors),
         };

@@ -4,8 +4,8 @@
 //! [`super::kinematics`] and a central-difference Jacobian. No calib-core code is involved.
 
 use super::kinematics::{Mat4, RefModel, pose_error};
-use crate::robot_file::RobotFile;
-use crate::tracker_data::TrackerData;
+use crate::io::robot_file::RobotFile;
+use crate::io::tracker_data::TrackerData;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra034::{DMatrix, DVector, Dyn, Owned};
 

@@ -1,0 +1,387 @@
+//! The identifiability of the identified parameters on a dataset, in report form: rank,
+//! scaled condition number, observability, the parameters the data cannot determine and what they
+//! are confounded with (the core's [`Identifiability`]), and the least determined direction of an
+//! ill-conditioned pose set.
+
+use crate::measurement::dataset::Dataset;
+use anyhow::bail;
+use calib_core::identify::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability, Status};
+use calib_core::identify::lm::LeastSquares;
+use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, Problem};
+use nalgebra::DVector;
+use nalgebra::Dyn;
+use serde::Serialize;
+
+/// Scaled condition number above which a pose set is reported as ill-conditioned: the weakest
+/// parameter combination is then determined more than 1000 times worse than the best one, so
+/// noise and unmodelled errors leak into it amplified.
+pub const ILL_CONDITIONED: f64 = 1000.0;
+
+/// Serialises `(parameter, value)` pairs as `[name, value]`.
+fn named_pairs<S: serde::Serializer>(pairs: &[(Parameter, f64)], s: S) -> Result<S::Ok, S::Error> {
+    s.collect_seq(pairs.iter().map(|(p, v)| (p.to_string(), *v)))
+}
+
+/// Serialises a parameter as its name.
+fn named<S: serde::Serializer>(parameter: &Parameter, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_str(parameter)
+}
+
+/// A reflector closer than this to the last joint's axis (mm) is "on the last axis": the last
+/// joint turns it on a circle too small to tell the previous joint's parameters apart (see
+/// [`default_mask`]). Reflectors in a nest on the flange's centre sit a few millimetres
+/// off the axis (the Barrett WAM data: 3.0 mm); a reflector meant to sense the last joint is
+/// mounted tens of millimetres off it.
+pub const REFLECTOR_ON_AXIS_MM: f64 = 10.0;
+
+/// A reflector on (or near) the last joint's axis, and what it leaves undetermined.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ReflectorOnAxis {
+    /// Distance of the reflector from the last joint's axis, mm (of the model with its frames
+    /// fitted).
+    pub distance_mm: f64,
+    /// The parameters not identified, each with the parameters it acts like when the reflector
+    /// is on the axis (as in [`Undetermined`]).
+    pub not_identified: Vec<Undetermined>,
+}
+
+impl ReflectorOnAxis {
+    /// One line for people.
+    pub fn text(&self) -> String {
+        let names: Vec<String> = self
+            .not_identified
+            .iter()
+            .map(|u| {
+                let with: Vec<String> = u.with.iter().map(|(p, _)| p.to_string()).collect();
+                if with.is_empty() {
+                    format!("{} (does not move it)", u.parameter)
+                } else {
+                    format!("{} (acts like {})", u.parameter, with.join(", "))
+                }
+            })
+            .collect();
+        format!(
+            "reflector {:.1} mm from the last joint's axis (below {REFLECTOR_ON_AXIS_MM} mm): the last joint barely moves it, so position data cannot tell apart what moves it alike; not identified (kept nominal): {}\n",
+            self.distance_mm,
+            names.join(", ")
+        )
+    }
+}
+
+/// The default identification set on `dataset`: `mask` less what a reflector on the last joint's
+/// axis leaves undetermined, and that finding. With position-only data and the reflector within
+/// [`REFLECTOR_ON_AXIS_MM`] of that axis, the parameters that the analysis at the model with the
+/// reflector moved onto the axis finds redundant are left out (on the Barrett WAM `dalpha6` and
+/// `dtheta6`, which then act like `dd6` and `da6`). The one rule `calibrate`, `check` and
+/// `verify` share; the analysis itself is private, so no caller can find it and not apply it.
+pub fn default_mask(
+    dataset: &Dataset,
+    mut mask: ParameterMask<Dyn>,
+    k: f64,
+) -> anyhow::Result<(ParameterMask<Dyn>, Option<ReflectorOnAxis>)> {
+    let reflector = reflector_on_last_axis(dataset, &mask, k)?;
+    for u in reflector.iter().flat_map(|r| &r.not_identified) {
+        mask.set(u.parameter, false);
+    }
+    Ok((mask, reflector))
+}
+
+/// Position-only data of a reflector on (or within [`REFLECTOR_ON_AXIS_MM`] of) the last joint's
+/// axis: the last joint does not move it, so parameters of the joints before it that move it
+/// alike cannot be told apart (on a Barrett WAM or any arm whose second-last joint has a 90 deg
+/// twist and no offset, the twist `dalpha6` moves it along the axis like `dd6`, the joint zero
+/// `dtheta6` across it like `da6`; only their combinations are determined, and noise decides the
+/// split). Which: the parameters of `mask` that the analysis at the model with the reflector
+/// moved onto the axis finds redundant: the core's pivoting keeps the parameter of each group
+/// the poses determine best, as `--auto-mask` does (on the WAM's grid `da6` and `dd6`, the
+/// twist and zero of joint 6 left out; a subset of the poses may keep the twist instead).
+/// `None`: 6-DoF data (orientations tell them apart), no such parameter, or the reflector
+/// farther from the axis.
+fn reflector_on_last_axis(
+    dataset: &Dataset,
+    mask: &ParameterMask<Dyn>,
+    k: f64,
+) -> anyhow::Result<Option<ReflectorOnAxis>> {
+    if dataset.measurements.iter().any(|m| m.rotation.is_some()) {
+        return Ok(None);
+    }
+    let robot = &dataset.model.robot;
+    let with_tool = Kinematics::nominal(robot)?;
+    let mut flange = *robot;
+    flange.tool = calib_core::FramePose::identity();
+    let flange = Kinematics::nominal(&flange)?;
+    // The reflector at three turns of the last joint (within any limits of +-120 deg or more):
+    // the centre of their circle is on the axis, its radius the distance from the axis.
+    let turns = [-2.0, 0.0, 2.0].map(|third: f64| third * std::f64::consts::FRAC_PI_3);
+    let mut q = calib_core::model::JointVec::<f64>::from_fn(robot.joints.len(), |_| 0.0);
+    let mut points = Vec::with_capacity(3);
+    for turn in turns {
+        if let Some(last) = q.last_mut() {
+            *last = turn;
+        }
+        points.push(with_tool.forward(&q)?.translation.vector);
+    }
+    let centre = points.iter().sum::<nalgebra::Vector3<f64>>() / 3.0;
+    let distance_mm = points.first().map_or(0.0, |p| (p - centre).norm());
+    if distance_mm >= REFLECTOR_ON_AXIS_MM {
+        return Ok(None);
+    }
+    if let Some(last) = q.last_mut() {
+        *last = 0.0;
+    }
+    let on_axis = flange.forward(&q)?.inverse_transform_point(&centre.into());
+    let mut projected = dataset.clone();
+    projected.model.robot.tool.xyz = [on_axis.x, on_axis.y, on_axis.z];
+    let analysis = analyse(&projected, mask, k)?;
+    if analysis.undetermined.is_empty() {
+        return Ok(None);
+    }
+    Ok(Some(ReflectorOnAxis {
+        distance_mm,
+        not_identified: analysis.undetermined,
+    }))
+}
+
+/// A parameter the data do not determine.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Undetermined {
+    /// The parameter (its name in JSON).
+    #[serde(rename = "name", serialize_with = "named")]
+    pub parameter: Parameter,
+    /// `not identifiable` (changes no residual) or `redundant`.
+    pub status: &'static str,
+    /// For a redundant one: the determined parameters it is confounded with, and the coefficient
+    /// in scaled units (its column equals the sum of coefficient times their columns).
+    #[serde(serialize_with = "named_pairs")]
+    pub with: Vec<(Parameter, f64)>,
+}
+
+/// The identifiability analysis in report form.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct IdentifiabilityReport {
+    /// Number of identified parameters analysed.
+    pub parameters: usize,
+    /// Numerical rank of the scaled Jacobian.
+    pub rank: usize,
+    /// Condition number of the scaled Jacobian (null when rank-deficient).
+    pub condition_number: Option<f64>,
+    /// Observability index O1 (Borm and Menq) of the pose set, scaled Jacobian.
+    pub observability_index: f64,
+    /// Singular values of the scaled Jacobian, largest first.
+    pub singular_values: Vec<f64>,
+    /// Parameters the data cannot determine, in pivot order.
+    pub undetermined: Vec<Undetermined>,
+    /// The least determined direction: the right singular vector of the smallest singular value
+    /// of the scaled Jacobian, as (parameter, component) for components of magnitude >= 0.2,
+    /// largest first. These are the parameters an ill-conditioned pose set leaves uncertain.
+    #[serde(serialize_with = "named_pairs")]
+    pub weakest_direction: Vec<(Parameter, f64)>,
+    /// `true` when the condition number exceeds [`ILL_CONDITIONED`] (or the rank is deficient).
+    pub ill_conditioned: bool,
+    /// With `--auto-mask`: the condition number after dropping parameters.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub condition_number_after_drop: Option<f64>,
+    /// The analysed parameter names, in order.
+    #[serde(skip)]
+    pub names: Vec<Parameter>,
+    /// A reflector on the last joint's axis and the parameters it leaves out of the
+    /// identification (before this analysis).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reflector_on_last_axis: Option<ReflectorOnAxis>,
+}
+
+impl IdentifiabilityReport {
+    /// The parameters to drop so that the rest are determined.
+    pub fn to_drop(&self) -> Vec<Parameter> {
+        self.undetermined.iter().map(|u| u.parameter).collect()
+    }
+
+    /// A sentence naming what the data cannot determine.
+    pub fn problem(&self) -> String {
+        self.undetermined
+            .iter()
+            .map(|u| {
+                if u.with.is_empty() {
+                    format!("{} ({})", u.parameter, u.status)
+                } else {
+                    let with: Vec<String> = u.with.iter().map(|(p, _)| p.to_string()).collect();
+                    format!("{} (redundant with {})", u.parameter, with.join(", "))
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("; ")
+    }
+
+    /// The warning for an ill-conditioned pose set: the condition number and the parameters of
+    /// the weakest direction.
+    pub fn ill_conditioned_text(&self) -> String {
+        let weakest: Vec<String> = self
+            .weakest_direction
+            .iter()
+            .map(|(n, v)| format!("{v:+.2} {n}"))
+            .collect();
+        format!(
+            "WARNING: the pose set is ill-conditioned (scaled condition number {}, above {ILL_CONDITIONED}): \
+             the data barely determine the combination {}; its identified values follow the noise and unmodelled \
+             errors. Add poses with other joint configurations (e.g. both wrist flips, both elbows), or drop those \
+             parameters (identify = [...] in the robot file)\n",
+            self.condition_number
+                .map_or_else(|| "infinite".to_string(), |c| format!("{c:.3e}")),
+            weakest.join(" ")
+        )
+    }
+
+    /// Fixed-width text for people.
+    pub fn text(&self) -> String {
+        let mut out = format!(
+            "identifiability of {} parameters: rank {}{}\n",
+            self.parameters,
+            self.rank,
+            match self.condition_number {
+                Some(c) => format!(", scaled condition number {c:.3}"),
+                None => ", rank-deficient".to_string(),
+            }
+        );
+        out.push_str(&format!(
+            "observability index O1: {:.4e}\n",
+            self.observability_index
+        ));
+        if self.ill_conditioned && self.rank == self.parameters {
+            out.push_str(&self.ill_conditioned_text());
+        }
+        let values: Vec<String> = self
+            .singular_values
+            .iter()
+            .map(|s| format!("{s:.3e}"))
+            .collect();
+        out.push_str(&format!("scaled singular values: {}\n", values.join(" ")));
+        if let Some(reflector) = &self.reflector_on_last_axis {
+            out.push_str(&reflector.text());
+        }
+        if self.undetermined.is_empty() {
+            out.push_str("every parameter is determined by the data\n");
+        }
+        for u in &self.undetermined {
+            if u.with.is_empty() {
+                out.push_str(&format!(
+                    "  {:<10} {}: it changes no residual\n",
+                    u.parameter.to_string(),
+                    u.status
+                ));
+            } else {
+                let with: Vec<String> =
+                    u.with.iter().map(|(n, c)| format!("{c:+.4} {n}")).collect();
+                out.push_str(&format!(
+                    "  {:<10} {}: acts like {} (scaled units); only their combination is determined\n",
+                    u.parameter.to_string(),
+                    u.status,
+                    with.join(" ")
+                ));
+            }
+        }
+        out
+    }
+}
+
+/// The identifiability of the robot's identified parameters on `dataset`, with the frames
+/// identified as a calibration would (`frames`: `None` chooses from the data), at the nominal model.
+pub fn check(
+    mut dataset: Dataset,
+    frames: Option<crate::measurement::frames::Frames>,
+    k: f64,
+) -> anyhow::Result<IdentifiabilityReport> {
+    let frames = crate::measurement::frames::Frames::chosen(frames, &dataset.data);
+    let (_, mask) = crate::measurement::frames::prepare(frames, &mut dataset, &mut [], k)?;
+    let (mask, reflector) = default_mask(&dataset, mask, k)?;
+    let mut report = analyse(&dataset, &mask, k)?;
+    report.reflector_on_last_axis = reflector;
+    Ok(report)
+}
+
+/// The identifiability of the parameters selected by `mask` at the nominal model.
+pub fn analyse(
+    dataset: &Dataset,
+    mask: &ParameterMask<Dyn>,
+    k: f64,
+) -> anyhow::Result<IdentifiabilityReport> {
+    let set = crate::model::counts::analysable_set(mask)?;
+    let count = set.len();
+    if dataset.rows() < count {
+        bail!(
+            "{} poses give {} equations, fewer than the {count} identified parameters",
+            dataset.measurements.len(),
+            dataset.rows()
+        );
+    }
+    let problem = Problem::new(
+        &dataset.model.robot,
+        &ParameterErrors::zeros_for(dataset.model.robot.joint_count()),
+        set,
+        &dataset.measurements,
+        k,
+    )?;
+    let set = problem.set();
+    let least_squares = LeastSquares::new(&problem);
+    let r = least_squares.jacobian_factor(&set.zeros());
+    let id = Identifiability::from_factor(&r, dataset.measurements.len(), DEFAULT_RANK_TOLERANCE);
+    let names = set.parameters().to_vec();
+    let mut undetermined = Vec::new();
+    for index in id.pivots.iter().skip(id.rank) {
+        let (Some(parameter), Some(status)) = (names.get(*index), id.status.get(*index)) else {
+            continue;
+        };
+        let with = id
+            .combination(*index, 1e-6)
+            .map(|c| {
+                c.iter()
+                    .zip(&names)
+                    .filter(|(v, _)| **v != 0.0)
+                    .map(|(v, p)| (*p, *v))
+                    .collect()
+            })
+            .unwrap_or_default();
+        undetermined.push(Undetermined {
+            parameter: *parameter,
+            status: match status {
+                Status::NotIdentifiable => "not identifiable",
+                _ => "redundant",
+            },
+            with: if status == &Status::NotIdentifiable {
+                Vec::new()
+            } else {
+                with
+            },
+        });
+    }
+    let weakest_direction = weakest_direction(&id.weakest_direction, &names);
+    let ill_conditioned =
+        !(id.condition_number.is_finite() && id.condition_number <= ILL_CONDITIONED);
+    Ok(IdentifiabilityReport {
+        weakest_direction,
+        ill_conditioned,
+        condition_number_after_drop: None,
+        parameters: count,
+        rank: id.rank,
+        condition_number: id
+            .condition_number
+            .is_finite()
+            .then_some(id.condition_number),
+        observability_index: id.observability,
+        singular_values: id.singular_values.iter().copied().collect(),
+        undetermined,
+        names,
+        reflector_on_last_axis: None,
+    })
+}
+
+/// The components of the core's least determined direction of magnitude >= 0.2, largest first.
+fn weakest_direction(direction: &DVector<f64>, names: &[Parameter]) -> Vec<(Parameter, f64)> {
+    let mut out: Vec<(Parameter, f64)> = direction
+        .iter()
+        .zip(names)
+        .filter(|(v, _)| v.abs() >= 0.2)
+        .map(|(v, p)| (*p, *v))
+        .collect();
+    out.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+    out
+}

@@ -1,0 +1,8 @@
+//! What a model and a dataset say beyond the fit: the identifiability of the parameters, the
+//! evaluation of a model on new poses, the comparison against a known truth, and the verification
+//! of the core's calibration against the independent float64 reference.
+
+pub mod evaluation;
+pub mod identifiability;
+pub mod truth;
+pub mod verify;

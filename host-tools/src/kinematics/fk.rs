@@ -1,0 +1,116 @@
+//! `calib fk`: the end pose of a robot model for given joint readings.
+
+use crate::io::robot_file::RobotModel;
+use anyhow::{Context, bail};
+use calib_core::math::so3;
+use calib_core::model::JointVec;
+use calib_core::{Kinematics, Pose};
+use nalgebra::{Rotation3, UnitQuaternion};
+use serde::Serialize;
+
+/// The end pose as printed by `calib fk --json`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FkOutput {
+    /// Tool point position `[x, y, z]`, mm.
+    pub position_mm: [f64; 3],
+    /// Orientation as a unit quaternion `[w, x, y, z]` with `w >= 0`.
+    pub quaternion_wxyz: [f64; 4],
+    /// Orientation as a rotation vector `[rx, ry, rz]`, rad.
+    pub rotation_vector_rad: [f64; 3],
+}
+
+impl FkOutput {
+    /// Describes a pose of the core.
+    pub fn from_pose(pose: &Pose<f64>) -> Self {
+        let rotation = Rotation3::from_matrix_unchecked(*pose.rotation.matrix());
+        let q = UnitQuaternion::from_rotation_matrix(&rotation);
+        let sign = if q.w < 0.0 { -1.0 } else { 1.0 };
+        // `+ 0.0` turns a negative zero into zero, so output never shows "-0".
+        let p = pose.translation.vector;
+        let r = so3::log(pose.rotation.matrix());
+        Self {
+            position_mm: [p.x, p.y, p.z].map(|v| v + 0.0),
+            quaternion_wxyz: [q.w, q.i, q.j, q.k].map(|v| sign * v + 0.0),
+            rotation_vector_rad: [r.x, r.y, r.z].map(|v| v + 0.0),
+        }
+    }
+
+    /// Fixed-width text for people.
+    pub fn to_text(&self) -> String {
+        let [x, y, z] = self.position_mm;
+        let [qw, qx, qy, qz] = self.quaternion_wxyz;
+        let [rx, ry, rz] = self.rotation_vector_rad;
+        format!(
+            "position (mm)          x {x:>14.6}  y {y:>14.6}  z {z:>14.6}\n\
+             quaternion (w, x, y, z)  {qw:>12.9} {qx:>12.9} {qy:>12.9} {qz:>12.9}\n\
+             rotation vector (rad)  x {rx:>14.9}  y {ry:>14.9}  z {rz:>14.9}\n"
+        )
+    }
+}
+
+/// Forward kinematics of the nominal model in `model` for joint readings in degrees.
+pub fn forward_deg(model: &RobotModel, joints_deg: &[f64]) -> anyhow::Result<FkOutput> {
+    let joints = model.robot.joints.len();
+    if joints_deg.len() != joints {
+        bail!(
+            "--joints-deg has {} values, the robot {} has {joints} joints",
+            joints_deg.len(),
+            model.name
+        );
+    }
+    let mut q = JointVec::<f64>::from_fn(joints, |_| 0.0);
+    for (i, (qi, deg)) in q.iter_mut().zip(joints_deg).enumerate() {
+        if !deg.is_finite() {
+            bail!("--joints-deg: q{} = {deg} is not a finite number", i + 1);
+        }
+        // As in tracker data: beyond ten turns a reading is a unit or typing error (and its
+        // sine and cosine no longer mean anything).
+        if deg.abs() > crate::io::tracker_data::MAX_JOINT_DEG {
+            bail!(
+                "--joints-deg: q{} = {deg:e} deg is beyond ten turns ({} deg); give the joint readings in degrees",
+                i + 1,
+                crate::io::tracker_data::MAX_JOINT_DEG
+            );
+        }
+        *qi = deg.to_radians();
+    }
+    for (i, (qi, limits)) in q.iter().zip(&model.robot.limits).enumerate() {
+        if !limits.contains(*qi) {
+            bail!(
+                "--joints-deg: q{} = {} deg is outside the joint limits [{}, {}] deg of {}",
+                i + 1,
+                qi.to_degrees(),
+                limits.lower.to_degrees(),
+                limits.upper.to_degrees(),
+                model.path.display()
+            );
+        }
+    }
+    let kinematics = Kinematics::nominal(&model.robot)
+        .with_context(|| format!("robot file {}", model.path.display()))?;
+    Ok(FkOutput::from_pose(&kinematics.forward(&q)?))
+}
+
+/// [`forward_deg`] of a model with gravity compliance: the end pose moved by the displacement of
+/// `gains` (urad/(N m)) under `gravity` ([`crate::model::compliance`]) at the same joint angles (degrees;
+/// the kinematic angles when the model has joint maps).
+pub fn forward_deg_compliant(
+    model: &RobotModel,
+    joints_deg: &[f64],
+    gravity: &crate::model::compliance::Gravity,
+    gains: &[f64; crate::model::compliance::GAIN_COUNT],
+) -> anyhow::Result<FkOutput> {
+    forward_deg(model, joints_deg)?;
+    let q = JointVec::<f64>::from_fn(joints_deg.len(), |j| joints_deg[j].to_radians());
+    let mut pose = Kinematics::nominal(&model.robot)?.forward(&q)?;
+    let columns = crate::model::compliance::columns(
+        gravity,
+        &model.robot,
+        &calib_core::ParameterErrors::zeros_for(model.robot.joint_count()),
+        &q,
+    )?;
+    let d = crate::model::compliance::displacement(&columns, gains);
+    pose.translation.vector += nalgebra::Vector3::new(d[0], d[1], d[2]);
+    pose.rotation = Rotation3::new(nalgebra::Vector3::new(d[3], d[4], d[5])) * pose.rotation;
+    Ok(FkOutput::from_pose(&pose))
+}

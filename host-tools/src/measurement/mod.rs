@@ -1,0 +1,9 @@
+//! The measured poses and the set-up that measured them: a dataset (a robot and its tracker
+//! records), the frames that register the tracker and the probe, the error statistics of a model
+//! on a dataset, the check of the data's orientation convention, and simulated measurements.
+
+pub mod dataset;
+pub mod frames;
+pub mod orientation_check;
+pub mod simulate;
+pub mod statistics;

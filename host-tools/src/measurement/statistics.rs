@@ -1,0 +1,104 @@
+//! The paper's Table 3 statistics of a model on a dataset, typed (mean, sample standard
+//! deviation, maximum and RMS of the absolute position error in mm and of the orientation error
+//! per axis in deg), and the per-pose errors behind them.
+
+use crate::measurement::dataset::Dataset;
+use calib_core::Kinematics;
+use calib_core::identify::statistics::{PoseStatistics, Summary};
+use nalgebra::Dyn;
+use serde::Serialize;
+
+/// Mean, sample standard deviation and maximum of one quantity.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Stat {
+    /// Mean.
+    pub mean: f64,
+    /// Sample standard deviation (n - 1).
+    pub std: f64,
+    /// Maximum.
+    pub max: f64,
+    /// Root mean square.
+    pub rms: f64,
+}
+
+impl Stat {
+    fn from_summary(s: &Summary<f64>, scale: f64) -> Self {
+        Self {
+            mean: s.mean * scale,
+            std: s.std() * scale,
+            max: s.max * scale,
+            rms: {
+                // sum x^2 / n = mean^2 + (n - 1) / n * std^2
+                let n = f64::from(s.count.max(1));
+                (s.mean * s.mean + s.std() * s.std() * (n - 1.0) / n).sqrt() * scale
+            },
+        }
+    }
+}
+
+/// Per-axis orientation statistics, degrees.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct AxisStats {
+    /// `|dr_x|`, deg.
+    pub x: Stat,
+    /// `|dr_y|`, deg.
+    pub y: Stat,
+    /// `|dr_z|`, deg.
+    pub z: Stat,
+}
+
+/// Table 3 statistics of one model on one data set.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Table3 {
+    /// Number of poses.
+    pub poses: u32,
+    /// Absolute position error `|dp|`, mm.
+    pub position_mm: Stat,
+    /// Orientation error per axis, deg (`null` for position-only data).
+    pub orientation_deg: Option<AxisStats>,
+}
+
+impl Table3 {
+    /// From the core's accumulated statistics.
+    pub fn from_statistics(s: &PoseStatistics<f64>) -> Self {
+        let deg = 180.0 / std::f64::consts::PI;
+        let [x, y, z] = s.orientation.map(|o| Stat::from_summary(&o, deg));
+        Self {
+            poses: s.position.count,
+            position_mm: Stat::from_summary(&s.position, 1.0),
+            orientation_deg: (s.with_orientation > 0).then_some(AxisStats { x, y, z }),
+        }
+    }
+}
+
+/// Table 3 statistics of `kinematics` on `dataset`, and `|dp|` per pose (mm).
+pub fn table3(kinematics: &Kinematics<f64, Dyn>, dataset: &Dataset) -> (Table3, Vec<f64>) {
+    let mut stats = PoseStatistics::default();
+    let mut per_pose = Vec::with_capacity(dataset.measurements.len());
+    for m in &dataset.measurements {
+        let error = m.error_of(&kinematics.forward_angles(&m.angles));
+        stats.add(&error, m.rotation.is_some());
+        per_pose.push(error.position.norm());
+    }
+    (Table3::from_statistics(&stats), per_pose)
+}
+
+/// `|dr_x|, |dr_y|, |dr_z|` (deg) of `kinematics` for every pose of `dataset` that has an
+/// orientation, in file order.
+pub fn orientation_per_pose(kinematics: &Kinematics<f64, Dyn>, dataset: &Dataset) -> Vec<[f64; 3]> {
+    dataset
+        .measurements
+        .iter()
+        .filter(|m| m.rotation.is_some())
+        .map(|m| {
+            let e = m.error_of(&kinematics.forward_angles(&m.angles));
+            [0, 1, 2].map(|i| e.rotation[i].abs().to_degrees())
+        })
+        .collect()
+}
+
+/// Table 3 statistics of the dataset's own robot (nominal or identified) on its measurements.
+pub fn evaluate(dataset: &Dataset) -> anyhow::Result<Table3> {
+    let kinematics = Kinematics::nominal(&dataset.model.robot)?;
+    Ok(table3(&kinematics, dataset).0)
+}

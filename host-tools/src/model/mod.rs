@@ -1,0 +1,7 @@
+//! The actual robot as the host models it, beyond the core's geometry: joint maps (each joint's
+//! reading corrected by a smooth function of itself), compliance (deflection under gravity and
+//! payload), and the joint and parameter counts every command checks a robot against.
+
+pub mod compliance;
+pub mod counts;
+pub mod joint_maps;

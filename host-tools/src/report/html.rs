@@ -1,0 +1,489 @@
+//! The calibration report as one self-contained HTML file (issue 16): for the people who pay for
+//! a calibration and archive it. Inline SVG plots and an inline stylesheet (with a print
+//! layout); no script, no external reference of any kind.
+//!
+//! It is rendered from the JSON report (`calib calibrate --report`, [`crate::calibration::Report`])
+//! as a [`serde_json::Value`], so `calib calibrate --html` and `calib report --from report.json
+//! --html` give the same page. A section whose data the report lacks (no swarm, no validation,
+//! position-only data) is left out, and the summary says so.
+
+use serde_json::Value;
+use std::fmt::Write as _;
+
+/// What the report is about, beyond the JSON: when and by which software it was rendered.
+#[derive(Clone, Debug)]
+pub struct Rendering {
+    /// The time of rendering, RFC 3339 (UTC).
+    pub date: String,
+    /// `calib` and its version.
+    pub software: String,
+}
+
+impl Rendering {
+    /// Now, by this build of `calib`.
+    pub fn now() -> Self {
+        Self {
+            date: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
+            software: format!("calib {}", env!("CARGO_PKG_VERSION")),
+        }
+    }
+}
+
+/// The section identifiers of the page, in order (each an `<h2 id>`); tests and readers rely on
+/// them.
+pub const SECTIONS: [&str; 10] = [
+    "summary",
+    "table3",
+    "parameters",
+    "identifiability",
+    "plots",
+    "poses",
+    "outliers",
+    "frames",
+    "settings",
+    "software",
+];
+
+/// Text escaped for HTML.
+fn esc(text: &str) -> String {
+    text.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// A number of the report with `digits` decimals, or "-" when absent.
+fn num(value: &Value, digits: usize) -> String {
+    value
+        .as_f64()
+        .map_or_else(|| "-".to_string(), |v| format!("{v:.digits$}"))
+}
+
+/// A scalar of the report as text ("-" when absent).
+fn text(value: &Value) -> String {
+    match value {
+        Value::Null => "-".to_string(),
+        Value::String(s) => esc(s),
+        Value::Array(a) if a.is_empty() => "none".to_string(),
+        Value::Array(a) => a.iter().map(text).collect::<Vec<_>>().join(", "),
+        other => esc(&other.to_string()),
+    }
+}
+
+/// The numbers of an array of the report.
+fn numbers(value: &Value) -> Vec<f64> {
+    value
+        .as_array()
+        .map(|a| a.iter().filter_map(Value::as_f64).collect())
+        .unwrap_or_default()
+}
+
+/// The page for `report` (the JSON report of a calibration).
+pub fn render(report: &Value, rendering: &Rendering) -> anyhow::Result<String> {
+    let mut page = String::new();
+    let robot = text(&report["robot"]);
+    let data = text(&report["data"]);
+    writeln!(
+        page,
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>Calibration report: {robot}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n<h1>Robot calibration report</h1>"
+    )?;
+    summary(&mut page, report, rendering, &robot, &data)?;
+    table3(&mut page, report)?;
+    parameters(&mut page, report)?;
+    identifiability(&mut page, report)?;
+    plots(&mut page, report)?;
+    poses(&mut page, report)?;
+    outliers(&mut page, report)?;
+    frames(&mut page, report)?;
+    settings(&mut page, report)?;
+    writeln!(
+        page,
+        "<h2 id=\"software\">Software</h2>\n<p>{} (robot geometric calibration toolkit); rendered {}.</p>\n</body>\n</html>",
+        esc(&rendering.software),
+        esc(&rendering.date)
+    )?;
+    Ok(page)
+}
+
+/// The stylesheet: readable on screen and on paper.
+const STYLE: &str = "body{font-family:sans-serif;max-width:60em;margin:2em auto;padding:0 1em;color:#111}\
+h1{border-bottom:2px solid #333}h2{margin-top:2em;border-bottom:1px solid #999}\
+table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #bbb;padding:0.2em 0.6em;text-align:right}\
+th{background:#eee}td:first-child,th:first-child,td[colspan]{text-align:left}\
+.note{color:#555}.bad{color:#a00;font-weight:bold}figure{margin:1em 0}svg{max-width:100%;height:auto}\
+@media print{body{max-width:none;margin:0}h2{break-after:avoid}figure,table{break-inside:avoid}.poses{font-size:8pt}}";
+
+fn summary(
+    page: &mut String,
+    report: &Value,
+    rendering: &Rendering,
+    robot: &str,
+    data: &str,
+) -> anyhow::Result<()> {
+    let stage = |name: &str| -> String {
+        let s = &report[name];
+        if s.is_null() {
+            return format!("<tr><td>{name} poses</td><td colspan=\"3\">none held out</td></tr>");
+        }
+        format!(
+            "<tr><td>{name} poses</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            text(&s["poses"]),
+            num(&s["before"]["position_mm"]["mean"], 4),
+            num(&s["after"]["position_mm"]["mean"], 4)
+        )
+    };
+    writeln!(
+        page,
+        "<h2 id=\"summary\">Summary</h2>\n<table>\n<tr><td>robot</td><td colspan=\"3\">{robot}</td></tr>\n\
+         <tr><td>data</td><td colspan=\"3\">{data}</td></tr>\n<tr><td>date</td><td colspan=\"3\">{}</td></tr>\n\
+         <tr><td>method</td><td colspan=\"3\">{} ({}; stopped: {}; {} s)</td></tr>\n\
+         <tr><th>mean position error</th><th>poses</th><th>nominal, mm</th><th>identified, mm</th></tr>\n{}\n{}\n</table>",
+        esc(&rendering.date),
+        text(&report["method"]),
+        text(&report["settings"]["model"]),
+        text(&report["stop"]),
+        num(&report["seconds"], 3),
+        stage("calibration"),
+        stage("validation"),
+    )?;
+    let implausible = numbers_or_texts(&report["implausible"]);
+    if !implausible.is_empty() {
+        writeln!(
+            page,
+            "<p class=\"bad\">Not plausible (written only because it was accepted): {}</p>",
+            implausible.join("; ")
+        )?;
+    }
+    if report["validation"].is_null() {
+        page.push_str("<p class=\"note\">No poses were held out: the errors on the calibration poses flatter the model.</p>\n");
+    }
+    Ok(())
+}
+
+/// The texts of an array of strings.
+fn numbers_or_texts(value: &Value) -> Vec<String> {
+    value
+        .as_array()
+        .map(|a| a.iter().map(text).collect())
+        .unwrap_or_default()
+}
+
+fn table3(page: &mut String, report: &Value) -> anyhow::Result<()> {
+    page.push_str("<h2 id=\"table3\">Table 3: errors before and after calibration</h2>\n");
+    for name in ["calibration", "validation"] {
+        let s = &report[name];
+        if s.is_null() {
+            continue;
+        }
+        writeln!(
+            page,
+            "<h3>{name} poses ({})</h3>\n<table>\n<tr><th>quantity</th><th>model</th><th>mean</th><th>std</th><th>max</th><th>RMS</th></tr>",
+            text(&s["poses"])
+        )?;
+        let mut quantities = vec![("position |dp|, mm", "/position_mm".to_string())];
+        for axis in ["x", "y", "z"] {
+            quantities.push((
+                match axis {
+                    "x" => "orientation |dr_x|, deg",
+                    "y" => "orientation |dr_y|, deg",
+                    _ => "orientation |dr_z|, deg",
+                },
+                format!("/orientation_deg/{axis}"),
+            ));
+        }
+        for (label, pointer) in quantities {
+            for model in ["before", "after"] {
+                let row = &s[model].pointer(&pointer).cloned().unwrap_or(Value::Null);
+                if row.is_null() {
+                    continue;
+                }
+                writeln!(
+                    page,
+                    "<tr><td>{label}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                    if model == "before" {
+                        "nominal"
+                    } else {
+                        "identified"
+                    },
+                    num(&row["mean"], 4),
+                    num(&row["std"], 4),
+                    num(&row["max"], 4),
+                    num(&row["rms"], 4)
+                )?;
+            }
+        }
+        page.push_str("</table>\n");
+    }
+    Ok(())
+}
+
+fn parameters(page: &mut String, report: &Value) -> anyhow::Result<()> {
+    page.push_str("<h2 id=\"parameters\">Identified parameters</h2>\n<p class=\"note\">Errors added to the nominal model, with their standard errors from least squares (1 sigma).</p>\n<table>\n<tr><th>parameter</th><th>error</th><th>standard error</th><th>unit</th></tr>\n");
+    if let Some(map) = report["parameters"].as_object() {
+        for (name, p) in map {
+            let angle = p["unit"].as_str() == Some("rad");
+            let shown = |v: &Value| -> String {
+                v.as_f64().map_or_else(
+                    || "-".to_string(),
+                    |v| {
+                        if angle {
+                            format!("{:.5}", v.to_degrees())
+                        } else {
+                            format!("{v:.4}")
+                        }
+                    },
+                )
+            };
+            writeln!(
+                page,
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                esc(name),
+                shown(&p["value"]),
+                shown(&p["std_error"]),
+                if angle { "deg" } else { "mm" }
+            )?;
+        }
+    }
+    page.push_str("</table>\n");
+    Ok(())
+}
+
+fn identifiability(page: &mut String, report: &Value) -> anyhow::Result<()> {
+    let i = &report["identifiability"];
+    let weakest = i["weakest_direction"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .map(|e| format!("{} {}", num(&e[1], 2), text(&e[0])))
+                .collect::<Vec<_>>()
+                .join(", ")
+        })
+        .unwrap_or_default();
+    writeln!(
+        page,
+        "<h2 id=\"identifiability\">Identifiability</h2>\n<table>\n\
+         <tr><td>parameters asked for</td><td>{}</td></tr>\n<tr><td>rank</td><td>{}</td></tr>\n\
+         <tr><td>scaled condition number</td><td>{}</td></tr>\n<tr><td>observability index O1</td><td>{}</td></tr>\n\
+         <tr><td>ill-conditioned</td><td>{}</td></tr>\n<tr><td>undetermined</td><td>{}</td></tr>\n\
+         <tr><td>least determined direction</td><td>{weakest}</td></tr>\n<tr><td>dropped (in order)</td><td>{}</td></tr>\n</table>",
+        text(&i["parameters"]),
+        text(&i["rank"]),
+        num(&i["condition_number"], 1),
+        num(&i["observability_index"], 5),
+        text(&i["ill_conditioned"]),
+        text(&i["undetermined"]),
+        text(&report["dropped"]),
+    )?;
+    if let Some(reflector) = i["reflector_on_last_axis"].as_object() {
+        let left_out: Vec<String> = reflector
+            .get("not_identified")
+            .and_then(Value::as_array)
+            .map(|a| {
+                a.iter()
+                    .map(|u| {
+                        let with: Vec<String> = u["with"]
+                            .as_array()
+                            .map(|w| w.iter().map(|p| text(&p[0])).collect())
+                            .unwrap_or_default();
+                        if with.is_empty() {
+                            format!("{} (does not move it)", text(&u["name"]))
+                        } else {
+                            format!("{} (acts like {})", text(&u["name"]), with.join(", "))
+                        }
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        writeln!(
+            page,
+            "<p>Reflector {} mm from the last joint's axis: the last joint barely moves it, so position data \
+             cannot tell apart what moves it alike. Not identified (kept nominal): {}.</p>",
+            num(reflector.get("distance_mm").unwrap_or(&Value::Null), 1),
+            left_out.join(", ")
+        )?;
+    }
+    if report["dropped"].as_array().is_some_and(|d| !d.is_empty()) {
+        page.push_str(
+            "<p>Why dropped: first the parameters the data cannot determine (rank deficiency, \
+             with --auto-mask), then, while the pose set is ill-conditioned (scaled condition number \
+             above 1000), the parameter with the largest share of the least determined direction.</p>\n",
+        );
+    }
+    if let Some(cv) = report["cross_validation"].as_object() {
+        writeln!(
+            page,
+            "<p>Cross-validation ({} folds of the calibration poses): mean error {} mm predicted by the calibration, {} mm by the nominal model.</p>",
+            text(&cv["folds"].clone()),
+            num(&cv["calibrated_mean_mm"].clone(), 4),
+            num(&cv["nominal_mean_mm"].clone(), 4)
+        )?;
+    }
+    Ok(())
+}
+
+fn plots(page: &mut String, report: &Value) -> anyhow::Result<()> {
+    let per_pose = &report["per_pose"];
+    let axes = |v: &Value| -> Vec<[f64; 3]> {
+        v.as_array()
+            .map(|a| {
+                a.iter()
+                    .map(|e| {
+                        let n = numbers(e);
+                        [0, 1, 2].map(|i| n.get(i).copied().unwrap_or(0.0))
+                    })
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    let history: Vec<(u32, f64)> = report["convergence"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .filter_map(|e| Some((u32::try_from(e[0].as_u64()?).ok()?, e[1].as_f64()?)))
+                .collect()
+        })
+        .unwrap_or_default();
+    let (before, after) = (numbers(&per_pose["before"]), numbers(&per_pose["after"]));
+    let (orientation_before, orientation_after) = (
+        axes(&per_pose["orientation_before"]),
+        axes(&per_pose["orientation_after"]),
+    );
+    let (validation_before, validation_after) = (
+        numbers(&per_pose["validation_before"]),
+        numbers(&per_pose["validation_after"]),
+    );
+    let data = crate::report::plots::PlotData {
+        history: &history,
+        title: "absolute position error per calibration pose",
+        before: &before,
+        after: &after,
+        orientation_before: &orientation_before,
+        orientation_after: &orientation_after,
+        validation_before: &validation_before,
+        validation_after: &validation_after,
+        joint_maps: &[],
+    };
+    page.push_str("<h2 id=\"plots\">Plots</h2>\n");
+    for (name, caption, svg) in crate::report::plots::svg_plots(&data)? {
+        writeln!(
+            page,
+            "<figure id=\"plot-{name}\">\n{}\n<figcaption>{caption}</figcaption>\n</figure>",
+            strip_xml_declaration(&svg)
+        )?;
+    }
+    Ok(())
+}
+
+/// An SVG document as an element to inline (without its XML declaration).
+fn strip_xml_declaration(svg: &str) -> &str {
+    match svg.find("<svg") {
+        Some(start) => &svg[start..],
+        None => svg,
+    }
+}
+
+fn poses(page: &mut String, report: &Value) -> anyhow::Result<()> {
+    page.push_str("<h2 id=\"poses\">Calibration poses</h2>\n<table class=\"poses\">\n<tr><th>id</th><th>line</th><th>nominal |dp|, mm</th><th>identified |dp|, mm</th><th>robust weight</th></tr>\n");
+    for p in report["poses"].as_array().map_or(&[][..], Vec::as_slice) {
+        writeln!(
+            page,
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            text(&p["id"]),
+            text(&p["line"]),
+            num(&p["before_mm"], 4),
+            num(&p["after_mm"], 4),
+            num(&p["robust_weight"], 3)
+        )?;
+    }
+    page.push_str("</table>\n");
+    Ok(())
+}
+
+fn outliers(page: &mut String, report: &Value) -> anyhow::Result<()> {
+    page.push_str("<h2 id=\"outliers\">Flagged poses</h2>\n");
+    let list = report["outliers"].as_array().map_or(&[][..], Vec::as_slice);
+    if list.is_empty() {
+        page.push_str("<p>No pose was flagged as an outlier.</p>\n");
+        return Ok(());
+    }
+    page.push_str(
+        "<table>\n<tr><th>id</th><th>line</th><th>residual, mm</th><th>weight</th></tr>\n",
+    );
+    for o in list {
+        writeln!(
+            page,
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            text(&o["id"]),
+            text(&o["line"]),
+            num(&o["residual_mm"], 4),
+            num(&o["weight"], 3)
+        )?;
+    }
+    page.push_str("</table>\n");
+    Ok(())
+}
+
+fn frames(page: &mut String, report: &Value) -> anyhow::Result<()> {
+    let f = &report["frames"];
+    writeln!(
+        page,
+        "<h2 id=\"frames\">Frames of the measurement setup</h2>\n<table>\n<tr><td>identified</td><td>{}</td></tr>\n\
+         <tr><td>registration RMS / max, mm</td><td>{} / {}</td></tr>\n<tr><td>redundant with the frames (not identified)</td><td>{}</td></tr>",
+        text(&f["identified"]),
+        num(&f["registration_rms_mm"], 4),
+        num(&f["registration_max_mm"], 4),
+        text(&f["redundant_with_frames"]),
+    )?;
+    for name in ["base", "tool"] {
+        let frame = &f[name];
+        if frame.is_null() {
+            continue;
+        }
+        let list = |v: &Value, digits: usize| {
+            v.as_array()
+                .map(|a| {
+                    a.iter()
+                        .map(|x| num(x, digits))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                })
+                .unwrap_or_default()
+        };
+        writeln!(
+            page,
+            "<tr><td>{name}: xyz mm; rpy deg</td><td>{}; {}</td></tr>",
+            list(&frame["xyz_mm"], 3),
+            list(&frame["rpy_deg"], 5)
+        )?;
+    }
+    page.push_str("</table>\n");
+    Ok(())
+}
+
+fn settings(page: &mut String, report: &Value) -> anyhow::Result<()> {
+    page.push_str("<h2 id=\"settings\">Settings</h2>\n<table>\n");
+    let mut rows = Vec::new();
+    flatten("", &report["settings"], &mut rows);
+    for (key, value) in rows {
+        writeln!(page, "<tr><td>{}</td><td>{value}</td></tr>", esc(&key))?;
+    }
+    page.push_str("</table>\n");
+    Ok(())
+}
+
+/// `value` as `(dotted key, text)` rows.
+fn flatten(prefix: &str, value: &Value, rows: &mut Vec<(String, String)>) {
+    match value {
+        Value::Object(map) => {
+            for (key, v) in map {
+                let key = if prefix.is_empty() {
+                    key.clone()
+                } else {
+                    format!("{prefix}.{key}")
+                };
+                flatten(&key, v, rows);
+            }
+        }
+        other => rows.push((prefix.to_string(), text(other))),
+    }
+}

@@ -1,0 +1,458 @@
+//! Plots of a calibration (SVG and PNG): the convergence curve of the swarm (paper Fig. 2), the
+//! absolute position error of every pose before and after calibration (paper Fig. 3 / Fig. 7),
+//! the orientation error per axis, and a histogram of the validation errors.
+//! Text is drawn with the bundled DejaVu Sans font, so PNGs need no system fonts.
+
+use anyhow::anyhow;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::Path;
+use std::sync::Once;
+
+const FONT: &str = "sans-serif";
+const SIZE: (u32, u32) = (900, 560);
+
+fn register_font() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        // The bundled font is valid; if registering ever failed, text would be missing, not wrong.
+        let _ = plotters::style::register_font(FONT, FontStyle::Normal, dejavu::sans::regular());
+    });
+}
+
+/// Draws the convergence curve: best objective (log scale) against generation.
+fn convergence<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    history: &[(u32, f64)],
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    area.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    let last = history.last().map_or(1, |h| h.0).max(1);
+    let positive: Vec<f64> = history
+        .iter()
+        .map(|h| h.1)
+        .filter(|v| *v > 0.0 && v.is_finite())
+        .collect();
+    let lo = positive
+        .iter()
+        .copied()
+        .fold(f64::INFINITY, f64::min)
+        .max(1e-300);
+    let hi = positive.iter().copied().fold(0.0, f64::max).max(lo * 10.0);
+    let mut chart = ChartBuilder::on(area)
+        .caption("IPSO convergence (eq. 7)", (FONT, 24))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(80)
+        .build_cartesian_2d(0u32..last, (lo / 2.0..hi * 2.0).log_scale())
+        .map_err(|e| anyhow!("{e}"))?;
+    chart
+        .configure_mesh()
+        .x_desc("generation")
+        .y_desc("best objective f")
+        .label_style((FONT, 14))
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()
+        .map_err(|e| anyhow!("{e}"))?;
+    chart
+        .draw_series(LineSeries::new(
+            history
+                .iter()
+                .filter(|h| h.1 > 0.0 && h.1.is_finite())
+                .map(|h| (h.0, h.1)),
+            BLUE.stroke_width(2),
+        ))
+        .map_err(|e| anyhow!("{e}"))?;
+    area.present().map_err(|e| anyhow!("{e}"))?;
+    Ok(())
+}
+
+/// Draws values per pose, before (red) and after (blue).
+fn per_pose<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    title: &str,
+    y_desc: &str,
+    before: &[f64],
+    after: &[f64],
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let n = before.len().max(after.len()).max(1);
+    let hi = before
+        .iter()
+        .chain(after)
+        .copied()
+        .fold(0.0, f64::max)
+        .max(1e-9)
+        * 1.1;
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, (FONT, 20))
+        .margin(10)
+        .x_label_area_size(40)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.5f64..n as f64 + 0.5, 0.0..hi)
+        .map_err(|e| anyhow!("{e}"))?;
+    chart
+        .configure_mesh()
+        .x_desc("pose")
+        .y_desc(y_desc)
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .label_style((FONT, 14))
+        .draw()
+        .map_err(|e| anyhow!("{e}"))?;
+    let series = [
+        (before, RED, "before calibration"),
+        (after, BLUE, "after calibration"),
+    ];
+    for (values, color, label) in series {
+        let points: Vec<(f64, f64)> = values
+            .iter()
+            .enumerate()
+            .map(|(i, v)| ((i + 1) as f64, *v))
+            .collect();
+        chart
+            .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))
+            .map_err(|e| anyhow!("{e}"))?
+            .label(label)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
+        chart
+            .draw_series(points.iter().map(|p| Circle::new(*p, 3, color.filled())))
+            .map_err(|e| anyhow!("{e}"))?;
+    }
+    chart
+        .configure_series_labels()
+        .label_font((FONT, 14))
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| anyhow!("{e}"))?;
+    Ok(())
+}
+
+/// Draws the absolute position error per pose before and after.
+fn position_errors<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    plots: &PlotData<'_>,
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    area.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    per_pose(
+        area,
+        plots.title,
+        "absolute position error |dp| (mm)",
+        plots.before,
+        plots.after,
+    )?;
+    area.present().map_err(|e| anyhow!("{e}"))?;
+    Ok(())
+}
+
+/// Draws the orientation error per axis (three panels) before and after.
+fn orientation_errors<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    before: &[[f64; 3]],
+    after: &[[f64; 3]],
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    area.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    for (axis, panel) in area.split_evenly((3, 1)).iter().enumerate() {
+        let pick = |v: &[[f64; 3]]| -> Vec<f64> { v.iter().map(|e| e[axis]).collect() };
+        let name = ["x", "y", "z"][axis];
+        per_pose(
+            panel,
+            &format!("orientation error about {name} per calibration pose"),
+            &format!("|dr_{name}| (deg)"),
+            &pick(before),
+            &pick(after),
+        )?;
+    }
+    area.present().map_err(|e| anyhow!("{e}"))?;
+    Ok(())
+}
+
+/// Draws a histogram of the validation position errors before and after.
+fn histogram<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    before: &[f64],
+    after: &[f64],
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    area.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    const BINS: usize = 25;
+    let panels = area.split_evenly((2, 1));
+    for (panel, (values, color, label)) in panels.iter().zip([
+        (after, BLUE, "after calibration"),
+        (before, RED, "before calibration (nominal geometry)"),
+    ]) {
+        let hi = values.iter().copied().fold(0.0, f64::max).max(1e-9) * 1.0001;
+        let width = hi / BINS as f64;
+        let mut counts = [0u32; BINS];
+        for v in values {
+            let bin = ((v / width) as usize).min(BINS - 1);
+            if let Some(c) = counts.get_mut(bin) {
+                *c += 1;
+            }
+        }
+        let top = counts.iter().copied().max().unwrap_or(1).max(1);
+        let mut chart = ChartBuilder::on(panel)
+            .caption(
+                format!(
+                    "validation poses, {label}: |dp| histogram ({} poses)",
+                    values.len()
+                ),
+                (FONT, 18),
+            )
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..hi, 0u32..top + top / 10 + 1)
+            .map_err(|e| anyhow!("{e}"))?;
+        chart
+            .configure_mesh()
+            .x_desc("absolute position error |dp| (mm)")
+            .y_desc("poses")
+            .label_style((FONT, 14))
+            .draw()
+            .map_err(|e| anyhow!("{e}"))?;
+        chart
+            .draw_series(counts.iter().enumerate().map(|(i, c)| {
+                let x0 = i as f64 * width;
+                Rectangle::new([(x0, 0), (x0 + width, *c)], color.mix(0.7).filled())
+            }))
+            .map_err(|e| anyhow!("{e}"))?;
+    }
+    area.present().map_err(|e| anyhow!("{e}"))?;
+    Ok(())
+}
+
+/// Draws each joint's identified angle-error map (posterior mean, mrad) over one turn with its
+/// 95 % band (+-2 posterior standard deviations) and the calibration readings as ticks: outside
+/// them the map is extrapolated (and the band widens to the prior).
+fn joint_maps<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    curves: &[crate::calibration::maps::MapCurve],
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    area.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    let panels = area.split_evenly((3, 2));
+    for (panel, curve) in panels.iter().zip(curves) {
+        let extent = curve
+            .mean_mrad
+            .iter()
+            .zip(&curve.sd_mrad)
+            .map(|(m, s)| m.abs() + 2.0 * s)
+            .fold(0.0, f64::max)
+            .max(0.05)
+            * 1.1;
+        let mut chart = ChartBuilder::on(panel)
+            .caption(
+                format!("joint {}: angle error (mean, 95 % band)", curve.joint),
+                (FONT, 16),
+            )
+            .margin(8)
+            .x_label_area_size(35)
+            .y_label_area_size(55)
+            .build_cartesian_2d(-180.0..180.0, -extent..extent)
+            .map_err(|e| anyhow!("{e}"))?;
+        chart
+            .configure_mesh()
+            .x_desc("joint reading (deg)")
+            .y_desc("dq (mrad)")
+            .max_light_lines(1)
+            .label_style((FONT, 12))
+            .draw()
+            .map_err(|e| anyhow!("{e}"))?;
+        let band: Vec<(f64, f64)> = curve
+            .q_deg
+            .iter()
+            .zip(curve.mean_mrad.iter().zip(&curve.sd_mrad))
+            .map(|(q, (m, s))| (*q, m + 2.0 * s))
+            .chain(
+                curve
+                    .q_deg
+                    .iter()
+                    .zip(curve.mean_mrad.iter().zip(&curve.sd_mrad))
+                    .rev()
+                    .map(|(q, (m, s))| (*q, m - 2.0 * s)),
+            )
+            .collect();
+        chart
+            .draw_series(std::iter::once(Polygon::new(band, BLUE.mix(0.2).filled())))
+            .map_err(|e| anyhow!("{e}"))?;
+        chart
+            .draw_series(LineSeries::new(
+                curve
+                    .q_deg
+                    .iter()
+                    .copied()
+                    .zip(curve.mean_mrad.iter().copied()),
+                BLUE.stroke_width(2),
+            ))
+            .map_err(|e| anyhow!("{e}"))?;
+        // The calibration readings, wrapped into one turn, as ticks at the bottom.
+        let tick = extent * 0.08;
+        chart
+            .draw_series(curve.readings_deg.iter().map(|q| {
+                let q = (q + 180.0).rem_euclid(360.0) - 180.0;
+                PathElement::new(vec![(q, -extent), (q, -extent + tick)], RED)
+            }))
+            .map_err(|e| anyhow!("{e}"))?;
+    }
+    area.present().map_err(|e| anyhow!("{e}"))?;
+    Ok(())
+}
+
+/// What to plot for one calibration.
+pub struct PlotData<'a> {
+    /// Swarm convergence `(generation, best objective)`; empty without the swarm.
+    pub history: &'a [(u32, f64)],
+    /// Title of the position error plot.
+    pub title: &'a str,
+    /// `|dp|` per calibration pose before and after, mm.
+    pub before: &'a [f64],
+    /// After calibration.
+    pub after: &'a [f64],
+    /// `|dr_x|, |dr_y|, |dr_z|` per calibration pose before and after, deg (empty for
+    /// position-only data).
+    pub orientation_before: &'a [[f64; 3]],
+    /// After calibration.
+    pub orientation_after: &'a [[f64; 3]],
+    /// `|dp|` per validation pose before and after, mm (empty without validation).
+    pub validation_before: &'a [f64],
+    /// After calibration.
+    pub validation_after: &'a [f64],
+    /// The identified joint maps (empty for a geometric calibration).
+    pub joint_maps: &'a [crate::calibration::maps::MapCurve],
+}
+
+/// Stages into `dir` (see [`crate::io::outputs::Outputs`]), each as SVG and PNG: `convergence` (with
+/// the swarm), `position-error`, `orientation-error` (with orientation data) and
+/// `validation-histogram` (with validation poses) and `joint-maps` (with joint maps). Nothing is replaced until the outputs are
+/// committed.
+pub fn stage_plots(
+    outputs: &mut crate::io::outputs::Outputs,
+    dir: &Path,
+    plots: &PlotData<'_>,
+) -> anyhow::Result<()> {
+    register_font();
+    // The bitmap backend picks its format from the extension: draw to "<temporary>.png".
+    macro_rules! both {
+        ($name:literal, $size:expr, |$area:ident| $draw:expr) => {{
+            outputs.stage_with("--plot", &dir.join(concat!($name, ".svg")), |t| {
+                let $area = SVGBackend::new(t, $size).into_drawing_area();
+                $draw?;
+                $area.present()?;
+                Ok(())
+            })?;
+            outputs.stage_with("--plot", &dir.join(concat!($name, ".png")), |t| {
+                let png = t.with_extension("tmp.png");
+                let drawn = (|| -> anyhow::Result<()> {
+                    let $area = BitMapBackend::new(&png, $size).into_drawing_area();
+                    $draw?;
+                    $area.present()?;
+                    Ok(())
+                })();
+                if let Err(e) = drawn.and_then(|()| Ok(std::fs::rename(&png, t)?)) {
+                    let _ = std::fs::remove_file(&png);
+                    return Err(e);
+                }
+                Ok(())
+            })?;
+        }};
+    }
+    if !plots.history.is_empty() {
+        both!("convergence", SIZE, |area| convergence(
+            &area,
+            plots.history
+        ));
+    }
+    both!("position-error", SIZE, |area| position_errors(&area, plots));
+    if !plots.orientation_after.is_empty() {
+        both!("orientation-error", (SIZE.0, SIZE.1 * 2), |area| {
+            orientation_errors(&area, plots.orientation_before, plots.orientation_after)
+        });
+    }
+    if !plots.joint_maps.is_empty() {
+        both!("joint-maps", (SIZE.0, SIZE.1 * 2), |area| joint_maps(
+            &area,
+            plots.joint_maps
+        ));
+    }
+    if !plots.validation_after.is_empty() {
+        both!("validation-histogram", SIZE, |area| histogram(
+            &area,
+            plots.validation_before,
+            plots.validation_after
+        ));
+    }
+    Ok(())
+}
+
+/// The plots of [`stage_plots`] as SVG text, for a self-contained page
+/// ([`crate::report::html`]): `(name, caption, svg)` for each plot the data allow.
+pub fn svg_plots(
+    plots: &PlotData<'_>,
+) -> anyhow::Result<Vec<(&'static str, &'static str, String)>> {
+    register_font();
+    let mut out = Vec::new();
+    let mut draw = |name: &'static str,
+                    caption: &'static str,
+                    size: (u32, u32),
+                    f: &dyn Fn(&DrawingArea<SVGBackend<'_>, Shift>) -> anyhow::Result<()>|
+     -> anyhow::Result<()> {
+        let mut svg = String::new();
+        {
+            let area = SVGBackend::with_string(&mut svg, size).into_drawing_area();
+            f(&area)?;
+            area.present().map_err(|e| anyhow!("{e}"))?;
+        }
+        out.push((name, caption, svg));
+        Ok(())
+    };
+    if !plots.before.is_empty() {
+        draw(
+            "position-error",
+            "Absolute position error of every calibration pose, nominal and identified model.",
+            SIZE,
+            &|area| position_errors(area, plots),
+        )?;
+    }
+    if !plots.orientation_after.is_empty() {
+        draw(
+            "orientation-error",
+            "Orientation error per axis of every calibration pose.",
+            (SIZE.0, SIZE.1 * 2),
+            &|area| orientation_errors(area, plots.orientation_before, plots.orientation_after),
+        )?;
+    }
+    if !plots.history.is_empty() {
+        draw(
+            "convergence",
+            "Convergence of the particle swarm: best objective per generation.",
+            SIZE,
+            &|area| convergence(area, plots.history),
+        )?;
+    }
+    if !plots.validation_after.is_empty() {
+        draw(
+            "validation-histogram",
+            "Position errors of the held-out validation poses, nominal and identified model.",
+            SIZE,
+            &|area| histogram(area, plots.validation_before, plots.validation_after),
+        )?;
+    }
+    Ok(out)
+}
