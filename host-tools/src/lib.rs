@@ -9,7 +9,7 @@
 //!   tracker and the probe, error statistics, the orientation-convention check, simulated data;
 //! - [`formats`]: exports for controllers and other tools, and the UR factory-calibration import;
 //! - [`analysis`]: identifiability, evaluation on new poses, comparison with a known truth, and
-//!   verification against the independent float64 reference ([`reference`](mod@reference));
+//!   verification against the independent float64 reference ([`analysis::reference`], on the crate `calib_reference`);
 //! - [`planning`]: which poses to measure (D-optimal design, tour, predicted accuracy, plan check);
 //! - [`runtime`]: the threads and SIMD lanes that make the identification fast;
 //! - [`calibration`]: the pipeline of stages, from a dataset and a configuration to a typed
@@ -36,6 +36,5 @@ pub mod kinematics;
 pub mod measurement;
 pub mod model;
 pub mod planning;
-pub mod reference;
 pub mod report;
 pub mod runtime;

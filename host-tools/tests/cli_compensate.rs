@@ -3,9 +3,9 @@
 mod common;
 use common::{ROBOT, calib};
 
+use host_tools::analysis::reference::{self, RefModel};
 use host_tools::io::robot_file::{RobotFile, RobotModel};
 use host_tools::io::tracker_data::{PoseRow, write_tracker_csv};
-use host_tools::reference::{self, RefModel};
 use std::path::Path;
 
 const ACTUAL: &str = concat!(
@@ -16,13 +16,13 @@ const ACTUAL: &str = concat!(
 #[test]
 fn compensated_joints_put_the_actual_robot_on_the_targets() {
     let dir = tempfile::tempdir().unwrap();
-    let nominal = RefModel::from_file(
+    let nominal = reference::model(
         &RobotFile::read(Path::new(ROBOT)).unwrap(),
         &[],
         &[0.0; 6],
         &[0.0; 6],
     );
-    let actual = RefModel::from_file(
+    let actual = reference::model(
         &RobotFile::read(Path::new(ACTUAL)).unwrap(),
         &[],
         &[0.0; 6],
@@ -137,7 +137,7 @@ fn compensated_joints_put_the_actual_robot_on_the_targets() {
 #[test]
 fn default_bounds_refuse_large_corrections() {
     let dir = tempfile::tempdir().unwrap();
-    let nominal = RefModel::from_file(
+    let nominal = reference::model(
         &RobotFile::read(Path::new(ROBOT)).unwrap(),
         &[],
         &[0.0; 6],
@@ -245,13 +245,13 @@ fn exported_block_is_byte_identical_to_the_core_and_round_trips() {
 #[test]
 fn targets_without_joints_start_from_the_closed_form_inverse_kinematics() {
     let dir = tempfile::tempdir().unwrap();
-    let nominal = RefModel::from_file(
+    let nominal = reference::model(
         &RobotFile::read(Path::new(ROBOT)).unwrap(),
         &[],
         &[0.0; 6],
         &[0.0; 6],
     );
-    let actual = RefModel::from_file(
+    let actual = reference::model(
         &RobotFile::read(Path::new(ACTUAL)).unwrap(),
         &[],
         &[0.0; 6],
@@ -419,7 +419,7 @@ fn ur_targets_reached(conf: &str, set: &str) {
         .unwrap()
         .to_model(Path::new(ur10))
         .unwrap();
-    let actual = RefModel::from_file(
+    let actual = reference::model(
         &RobotFile::read(&actual_path).unwrap(),
         &[],
         &[0.0; 6],
@@ -535,7 +535,7 @@ fn targets_without_joints_on_a_robot_without_closed_form_start_from_numerical_ik
         .to_model(&nominal_path)
         .unwrap();
     let planned = Kinematics::nominal(&nominal.robot).unwrap();
-    let actual = RefModel::from_file(
+    let actual = reference::model(
         &RobotFile::read(&actual_path).unwrap(),
         &[],
         &[0.0; 6],
@@ -592,7 +592,7 @@ fn a_seven_joint_arm_is_compensated_from_numerical_inverse_kinematics() {
         .to_model(Path::new(panda))
         .unwrap();
     let planned = Kinematics::nominal(&nominal.robot).unwrap();
-    let actual = RefModel::from_file(
+    let actual = reference::model(
         &RobotFile::read(&actual_path).unwrap(),
         &[],
         &[0.0; 6],
@@ -701,8 +701,7 @@ fn every_shipped_robot_is_compensated_without_joints() {
             String::from_utf8_lossy(&out.stderr)
         );
         let file = RobotFile::read(robot).unwrap();
-        let actual =
-            RefModel::from_file(&RobotFile::read(&truth).unwrap(), &[], &[0.0; 6], &[0.0; 6]);
+        let actual = reference::model(&RobotFile::read(&truth).unwrap(), &[], &[0.0; 6], &[0.0; 6]);
         let closed_form = file.to_model(robot).ok().filter(|m| {
             m.robot.recount::<nalgebra::U6>().is_some_and(|six| {
                 nearest_configurations(&six, &calib_core::Pose::identity()).is_ok()

@@ -3,14 +3,14 @@
 mod common;
 use common::{ROBOT, calib};
 
+use host_tools::analysis::reference;
 use host_tools::io::robot_file::RobotFile;
-use host_tools::reference::{self, RefModel};
 use std::path::Path;
 
 #[test]
 fn fk_json_matches_the_reference() {
     let file = RobotFile::read(Path::new(ROBOT)).unwrap();
-    let model = RefModel::from_file(&file, &[], &[0.0; 6], &[0.0; 6]);
+    let model = reference::model(&file, &[], &[0.0; 6], &[0.0; 6]);
     for joints in [
         "0,0,0,0,0,0",
         "10,-35.5,120,-170,45,90",

@@ -7,11 +7,11 @@
 mod common;
 use common::{ROBOT, parse};
 
+use host_tools::analysis::reference;
 use host_tools::cli::calibrate::{self, CalibrateOptions};
 use host_tools::io::robot_file::RobotFile;
 use host_tools::io::tracker_data::TrackerData;
 use host_tools::measurement::simulate::{self, SimulationConfig};
-use host_tools::reference::lm;
 use std::path::{Path, PathBuf};
 
 /// Simulates `poses` poses in the tracker frame; returns (data, truth file).
@@ -90,7 +90,7 @@ fn frames_and_geometry_reach_the_reference_optimum() {
         let truth_file = RobotFile::read(&truth).unwrap();
         let names = c.result.names();
         let cal = TrackerData::read(&data).unwrap();
-        let fit = lm::fit(&truth_file, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
+        let fit = reference::fit(&truth_file, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
         let mut errors =
             calib_core::ParameterErrors::<f64, nalgebra::Dyn>::zeros_for(nalgebra::Dyn(6));
         for (n, v) in &fit.errors {
@@ -99,9 +99,9 @@ fn frames_and_geometry_reach_the_reference_optimum() {
         let reference =
             truth_file.with_errors(&errors, std::iter::empty(), &[], "reference", ROBOT);
         let held = TrackerData::read(&holdout).unwrap();
-        let rms_core = lm::rms_position_error(&identified, &held);
-        let rms_reference = lm::rms_position_error(&reference, &held);
-        let rms_truth = lm::rms_position_error(&truth_file, &held);
+        let rms_core = reference::rms_position_error(&identified, &held);
+        let rms_reference = reference::rms_position_error(&reference, &held);
+        let rms_truth = reference::rms_position_error(&truth_file, &held);
         let v = c.result.validation.as_ref().unwrap();
         println!(
             "{}: held-out RMS core {rms_core:.5} mm, reference from the truth {rms_reference:.5} mm, truth {rms_truth:.5} mm; \

@@ -461,13 +461,13 @@ fn compensation_uses_the_maps(d: &std::path::Path) {
 /// of `baseline` miss them by more than `missed_by` mm on average.
 fn compensation_uses_the_model(d: &std::path::Path, params: &str, baseline: &str, missed_by: f64) {
     use common::{calib_in, ok};
+    use host_tools::analysis::reference;
     use host_tools::io::tracker_data::{PoseRow, write_tracker_csv};
-    use host_tools::reference::RefModel;
     let nominal_file = RobotFile::read(std::path::Path::new(ROBOT)).unwrap();
-    let nominal = RefModel::from_file(&nominal_file, &[], &[0.0; 6], &[0.0; 6]);
+    let nominal = reference::model(&nominal_file, &[], &[0.0; 6], &[0.0; 6]);
     let file = RobotFile::read(&d.join(params)).unwrap();
     let maps = file.joint_maps(&d.join(params)).unwrap().unwrap();
-    let actual = RefModel::from_file(&file, &[], &[0.0; 6], &[0.0; 6]);
+    let actual = reference::model(&file, &[], &[0.0; 6], &[0.0; 6]);
     let model: RobotModel = file.to_model(&d.join(params)).unwrap();
     let compliance = file.gravity_compliance(&d.join(params)).unwrap();
     let mut rows = Vec::new();

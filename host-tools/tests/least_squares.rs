@@ -5,12 +5,12 @@
 mod common;
 use common::{ROBOT, parse};
 
+use host_tools::analysis::reference;
 use host_tools::cli::calibrate::{self, CalibrateOptions, Calibration};
 use host_tools::cli::check::{self, CheckOptions};
 use host_tools::cli::simulate::{self, Simulation};
 use host_tools::io::robot_file::RobotFile;
 use host_tools::io::tracker_data::TrackerData;
-use host_tools::reference::lm;
 use std::path::{Path, PathBuf};
 
 fn simulate(dir: &Path, name: &str, args: &[&str]) -> (PathBuf, PathBuf) {
@@ -76,7 +76,7 @@ fn tracker_noise_scenario_matches_the_reference_and_the_statistics() {
         let names = c.result.names();
         let nominal = RobotFile::read(Path::new(ROBOT)).unwrap();
         let cal = TrackerData::read(&data).unwrap();
-        let fit = lm::fit(&nominal, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
+        let fit = reference::fit(&nominal, &names, &cal, 1e6, &vec![0.0; names.len()]).unwrap();
         let reference_file = nominal.with_errors(
             &{
                 let mut e =
@@ -92,9 +92,10 @@ fn tracker_noise_scenario_matches_the_reference_and_the_statistics() {
             ROBOT,
         );
         let held = TrackerData::read(&holdout).unwrap();
-        let rms_core = lm::rms_position_error(&identified(&c, dir.path(), "core.toml"), &held);
-        let rms_reference = lm::rms_position_error(&reference_file, &held);
-        let rms_truth = lm::rms_position_error(&RobotFile::read(&truth).unwrap(), &held);
+        let rms_core =
+            reference::rms_position_error(&identified(&c, dir.path(), "core.toml"), &held);
+        let rms_reference = reference::rms_position_error(&reference_file, &held);
+        let rms_truth = reference::rms_position_error(&RobotFile::read(&truth).unwrap(), &held);
         let lm = c.result.least_squares.as_ref().unwrap();
         println!(
             "seed {seed}: held-out RMS core {rms_core:.5} mm, reference {rms_reference:.5} mm, truth {rms_truth:.5} mm \
@@ -153,7 +154,7 @@ fn lm_from_nominal_reaches_the_reference_cost() {
     let c = calibrate(&data, &truth, &["--method", "lm"]);
     assert_eq!(c.report().generations, 0);
     let names = c.result.names();
-    let fit = lm::fit(
+    let fit = reference::fit(
         &RobotFile::read(Path::new(ROBOT)).unwrap(),
         &names,
         &TrackerData::read(&data).unwrap(),

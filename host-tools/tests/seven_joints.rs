@@ -351,8 +351,8 @@ fn six_joint_models_refuse_a_seven_joint_robot_with_a_reason() {
 #[test]
 fn joint_maps_of_a_seven_joint_arm_are_exported_and_compensated() {
     use calib_core::controller::storage::{decode_model, model_block_len};
+    use host_tools::analysis::reference;
     use host_tools::io::tracker_data::{PoseRow, write_tracker_csv};
-    use host_tools::reference::RefModel;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let mut text = std::fs::read_to_string(ROBOT).unwrap();
@@ -410,7 +410,7 @@ fn joint_maps_of_a_seven_joint_arm_are_exported_and_compensated() {
     ]));
     let json: serde_json::Value = serde_json::from_str(&out).unwrap();
     let q = calib_core::model::JointVec::from_slice(&q_deg.map(f64::to_radians)).unwrap();
-    let expected = RefModel::from_file(&file, &[], &[0.0; 6], &[0.0; 6]).forward(&maps.apply(&q));
+    let expected = reference::model(&file, &[], &[0.0; 6], &[0.0; 6]).forward(&maps.apply(&q));
     for (axis, row) in expected.iter().take(3).enumerate() {
         let got = json["position_mm"][axis].as_f64().unwrap();
         assert!(
@@ -421,13 +421,13 @@ fn joint_maps_of_a_seven_joint_arm_are_exported_and_compensated() {
     }
 
     // Compensation with the maps.
-    let nominal = RefModel::from_file(
+    let nominal = reference::model(
         &RobotFile::read(Path::new(ROBOT)).unwrap(),
         &[],
         &[0.0; 6],
         &[0.0; 6],
     );
-    let actual = RefModel::from_file(&file, &[], &[0.0; 6], &[0.0; 6]);
+    let actual = reference::model(&file, &[], &[0.0; 6], &[0.0; 6]);
     let rows: Vec<PoseRow> = (0..30)
         .map(|i| {
             let t = f64::from(i);

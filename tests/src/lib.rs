@@ -2,8 +2,8 @@
 //! joint configurations, and small comparisons.
 
 use calib_core::{JointErrors, ParameterErrors, Pose, Real};
+use host_tools::analysis::reference::Mat4;
 use host_tools::io::robot_file::RobotFile;
-use host_tools::reference::Mat4;
 use nalgebra::U6;
 use rand_core::Rng;
 use std::path::PathBuf;

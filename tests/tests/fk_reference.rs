@@ -3,8 +3,8 @@
 
 use calib_core::{FramePose, Kinematics, ParameterErrors, Real, Robot};
 use calib_tests::{distance, er10l_file, table2, table2_errors, uniform};
+use host_tools::analysis::reference::{self, RefModel};
 use host_tools::io::robot_file::{FrameEntry, RobotFile, RobotModel};
-use host_tools::reference::RefModel;
 use nalgebra::U6;
 use rand_core::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -56,7 +56,7 @@ fn convert<T: Real>(robot: &Robot<f64, U6>) -> Robot<T, U6> {
 #[test]
 fn f64_core_agrees_with_reference_on_10000_configurations() {
     let file = er10l_file();
-    let reference = RefModel::from_file(&file, &table2(), &[0.0; 6], &[0.0; 6]);
+    let reference = reference::model(&file, &table2(), &[0.0; 6], &[0.0; 6]);
     let (dp, dr) = worst_disagreement::<f64>(&file, &table2_errors(), &reference, 1);
     println!("f64: worst position {dp:.3e} mm, worst rotation {dr:.3e} rad");
     assert!(dp < 1e-9, "position disagreement {dp} mm");
@@ -67,7 +67,7 @@ fn f64_core_agrees_with_reference_on_10000_configurations() {
 fn f32_core_agrees_with_reference_on_10000_configurations() {
     let file = er10l_file();
     // The f32 core adds nominal and error in f32; the reference uses the exact f64 values.
-    let reference = RefModel::from_file(&file, &table2(), &[0.0; 6], &[0.0; 6]);
+    let reference = reference::model(&file, &table2(), &[0.0; 6], &[0.0; 6]);
     let (dp, dr) = worst_disagreement::<f32>(&file, &table2_errors(), &reference, 2);
     println!("f32: worst position {dp:.3e} mm, worst rotation {dr:.3e} rad");
     assert!(dp < 2e-3, "position disagreement {dp} mm");
@@ -87,7 +87,7 @@ fn f64_core_agrees_with_reference_with_base_and_tool_frames() {
     });
     let base_errors = [0.7, -0.3, 0.2, 0.004, -0.002, 0.006];
     let tool_errors = [-0.2, 0.4, -0.6, -0.003, 0.005, 0.001];
-    let reference = RefModel::from_file(&file, &table2(), &base_errors, &tool_errors);
+    let reference = reference::model(&file, &table2(), &base_errors, &tool_errors);
     let mut errors = table2_errors::<f64>();
     errors.base.translation = [0.7, -0.3, 0.2];
     errors.base.rotation = [0.004, -0.002, 0.006];

@@ -4,5 +4,6 @@
 
 pub mod evaluation;
 pub mod identifiability;
+pub mod reference;
 pub mod truth;
 pub mod verify;

@@ -178,7 +178,7 @@ fn run(
     let x32 = solve_f32(calibration, set.clone(), k)?;
     // Reference optimiser.
     let names: Vec<String> = set.parameters().iter().map(ToString::to_string).collect();
-    let fit = crate::reference::lm::fit(
+    let fit = crate::analysis::reference::fit(
         &calibration.file,
         &names,
         &calibration.as_seen_by_the_geometry(),

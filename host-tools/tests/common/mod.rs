@@ -67,8 +67,8 @@ pub fn parse<T: clap::Args>(args: &[&str]) -> T {
 pub fn compensation_misses(
     out: &Path,
     joints: usize,
-    reached: impl Fn(&calib_core::model::JointVec<f64>) -> host_tools::reference::Mat4,
-    target: impl Fn(usize) -> host_tools::reference::Mat4,
+    reached: impl Fn(&calib_core::model::JointVec<f64>) -> host_tools::analysis::reference::Mat4,
+    target: impl Fn(usize) -> host_tools::analysis::reference::Mat4,
 ) -> Vec<f64> {
     let mut reader = csv::Reader::from_path(out).unwrap();
     reader
@@ -81,7 +81,7 @@ pub fn compensation_misses(
             let q = calib_core::model::JointVec::<f64>::from_fn(joints, |j| {
                 record[j + 1].parse::<f64>().unwrap().to_radians()
             });
-            let e = host_tools::reference::pose_error(&target(i), &reached(&q));
+            let e = host_tools::analysis::reference::pose_error(&target(i), &reached(&q));
             (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt()
         })
         .collect()

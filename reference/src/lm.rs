@@ -3,9 +3,7 @@
 //! same residual `[dp; sqrt(k) dr]` (times `sqrt(weight)`) with the reference kinematics of
 //! [`super::kinematics`] and a central-difference Jacobian. No calib-core code is involved.
 
-use super::kinematics::{Mat4, RefModel, pose_error};
-use crate::io::robot_file::RobotFile;
-use crate::io::tracker_data::TrackerData;
+use super::kinematics::{Mat4, RefModel, RefRobot, pose_error};
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra034::{DMatrix, DVector, Dyn, Owned};
 
@@ -38,9 +36,30 @@ fn slot(name: &str) -> Option<Slot> {
     (joint >= 1).then_some(Slot::Joint(joint - 1, index))
 }
 
+/// One measured pose: joint readings (rad), the measured transform (translation in mm), whether
+/// its orientation was measured, and its weight.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Observation {
+    /// Joint readings, rad.
+    pub q: Vec<f64>,
+    /// The measured pose; its rotation counts only when `oriented`.
+    pub pose: Mat4,
+    /// Whether the orientation was measured.
+    pub oriented: bool,
+    /// The residual's weight (its square root multiplies the residual).
+    pub weight: f64,
+}
+
+/// A parameter name the reference does not know.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error(
+    "unknown parameter {0} (known: da1, dalpha1, dtheta1, dd1, dbeta1, ..., base_tx..base_rz, tool_tx..tool_rz)"
+)]
+pub struct UnknownParameter(pub String);
+
 /// The fitting problem.
 struct Problem<'a> {
-    file: &'a RobotFile,
+    robot: &'a RefRobot,
     slots: Vec<Slot>,
     /// (q rad, measured transform, has orientation, sqrt weight).
     poses: Vec<(Vec<f64>, Mat4, bool, f64)>,
@@ -50,7 +69,7 @@ struct Problem<'a> {
 
 impl Problem<'_> {
     fn model(&self, x: &DVector<f64>) -> RefModel {
-        let joints = self.file.joint.len();
+        let joints = self.robot.joints.len();
         let mut joint_errors = vec![[0.0; 5]; joints];
         let mut base = [0.0; 6];
         let mut tool = [0.0; 6];
@@ -65,7 +84,7 @@ impl Problem<'_> {
                 Slot::Tool(i) => tool[i] = *value,
             }
         }
-        RefModel::from_file(self.file, &joint_errors, &base, &tool)
+        RefModel::new(self.robot, &joint_errors, &base, &tool)
     }
 
     fn residuals_at(&self, x: &DVector<f64>) -> DVector<f64> {
@@ -134,35 +153,25 @@ pub struct ReferenceFit {
     pub evaluations: usize,
 }
 
-/// Fits the errors of `names` (names such as `da1`, `dbeta2`) to `data` from `start`.
+/// Fits the errors of `names` (names such as `da1`, `dbeta2`) of `robot` to `observations`
+/// from `start`; `k` weighs the orientation residual (rad) against the position residual (mm).
 pub fn fit(
-    file: &RobotFile,
+    robot: &RefRobot,
     names: &[String],
-    data: &TrackerData,
+    observations: &[Observation],
     k: f64,
     start: &[f64],
-) -> anyhow::Result<ReferenceFit> {
+) -> Result<ReferenceFit, UnknownParameter> {
     let slots = names
         .iter()
-        .map(|n| slot(n).ok_or_else(|| anyhow::anyhow!("unknown parameter {n}")))
-        .collect::<anyhow::Result<Vec<_>>>()?;
-    let poses = data
-        .records
+        .map(|n| slot(n).ok_or_else(|| UnknownParameter(n.clone())))
+        .collect::<Result<Vec<_>, _>>()?;
+    let poses = observations
         .iter()
-        .map(|r| {
-            let mut t = super::kinematics::IDENTITY;
-            let rotation = r.rotation.unwrap_or_else(nalgebra::Matrix3::identity);
-            for (i, row) in t.iter_mut().take(3).enumerate() {
-                for (j, v) in row.iter_mut().take(3).enumerate() {
-                    *v = rotation[(i, j)];
-                }
-                row[3] = r.position[i];
-            }
-            (r.q.clone(), t, r.rotation.is_some(), r.weight.sqrt())
-        })
+        .map(|o| (o.q.clone(), o.pose, o.oriented, o.weight.sqrt()))
         .collect();
     let problem = Problem {
-        file,
+        robot,
         slots,
         poses,
         sqrt_k: k.sqrt(),
@@ -186,19 +195,16 @@ pub fn fit(
     })
 }
 
-/// Root mean square of the absolute position error `|dp|` (mm) of the reference model of a robot
-/// file (its values taken as they are, no errors added) on a data file.
-pub fn rms_position_error(file: &RobotFile, data: &TrackerData) -> f64 {
-    let model = RefModel::from_file(file, &[], &[0.0; 6], &[0.0; 6]);
-    let sum: f64 = data
-        .records
+/// Root mean square of the absolute position error `|dp|` (mm) of `model` on `observations`.
+pub fn rms_position_error(model: &RefModel, observations: &[Observation]) -> f64 {
+    let sum: f64 = observations
         .iter()
-        .map(|r| {
-            let t = model.forward(&r.q);
+        .map(|o| {
+            let t = model.forward(&o.q);
             (0..3)
-                .map(|i| (r.position[i] - t[i][3]).powi(2))
+                .map(|i| (o.pose[i][3] - t[i][3]).powi(2))
                 .sum::<f64>()
         })
         .sum();
-    (sum / data.records.len().max(1) as f64).sqrt()
+    (sum / observations.len().max(1) as f64).sqrt()
 }

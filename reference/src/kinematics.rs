@@ -4,8 +4,6 @@
 //! with `std` trigonometry, no nalgebra and no call into `calib-core`, so that agreement between
 //! the two means something. Slow on purpose: clarity over speed.
 
-use crate::io::robot_file::RobotFile;
-
 /// A homogeneous transform, row-major: `m[row][col]`.
 pub type Mat4 = [[f64; 4]; 4];
 
@@ -89,6 +87,27 @@ pub struct RefJoint {
 /// `R_nominal Rz(rz) Ry(ry) Rx(rx)`.
 pub type RefFrameErrors = [f64; 6];
 
+/// A nominal frame (base or tool): translation in mm, then the rotation `Rz(rz) Ry(ry) Rx(rx)`
+/// of `rpy = [rx, ry, rz]` in rad.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RefFrame {
+    /// Translation, mm.
+    pub xyz_mm: [f64; 3],
+    /// Roll, pitch, yaw about x, y, z, rad.
+    pub rpy_rad: [f64; 3],
+}
+
+/// A nominal robot as a robot file states it, in mm and rad: joint 1 first, base and tool.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RefRobot {
+    /// Nominal joints, joint 1 first.
+    pub joints: Vec<RefJoint>,
+    /// Nominal base frame.
+    pub base: RefFrame,
+    /// Nominal tool frame.
+    pub tool: RefFrame,
+}
+
 /// The reference model: joints, base and tool as homogeneous transforms.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RefModel {
@@ -100,45 +119,43 @@ pub struct RefModel {
     pub tool: Mat4,
 }
 
-fn frame(xyz: [f64; 3], rpy: [f64; 3], errors: &RefFrameErrors) -> Mat4 {
-    let t = trans(xyz[0] + errors[0], xyz[1] + errors[1], xyz[2] + errors[2]);
-    let nominal = mul(&mul(&rz(rpy[2]), &ry(rpy[1])), &rx(rpy[0]));
+fn frame(nominal: &RefFrame, errors: &RefFrameErrors) -> Mat4 {
+    let [x, y, z] = nominal.xyz_mm;
+    let [roll, pitch, yaw] = nominal.rpy_rad;
+    let t = trans(x + errors[0], y + errors[1], z + errors[2]);
+    let rotation = mul(&mul(&rz(yaw), &ry(pitch)), &rx(roll));
     let error = mul(&mul(&rz(errors[5]), &ry(errors[4])), &rx(errors[3]));
-    mul(&t, &mul(&nominal, &error))
+    mul(&t, &mul(&rotation, &error))
 }
 
 impl RefModel {
-    /// The actual model of a robot file plus errors: per joint `[da, dalpha, dtheta, dd, dbeta]`
-    /// (mm, rad), base and tool errors. Missing joint errors count as zero.
-    pub fn from_file(
-        file: &RobotFile,
+    /// The actual model of a nominal robot plus errors: per joint `[da, dalpha, dtheta, dd,
+    /// dbeta]` (mm, rad), base and tool errors. Missing joint errors count as zero.
+    pub fn new(
+        robot: &RefRobot,
         joint_errors: &[[f64; 5]],
         base_errors: &RefFrameErrors,
         tool_errors: &RefFrameErrors,
     ) -> Self {
-        let joints = file
-            .joint
+        let joints = robot
+            .joints
             .iter()
             .enumerate()
             .map(|(i, j)| {
                 let e = joint_errors.get(i).copied().unwrap_or([0.0; 5]);
                 RefJoint {
-                    a: j.a_mm + e[0],
-                    alpha: j.alpha_deg.to_radians() + e[1],
-                    theta_offset: j.theta_offset_deg.to_radians() + e[2],
-                    d: j.d_mm + e[3],
-                    beta: j.beta_deg.to_radians() + e[4],
+                    a: j.a + e[0],
+                    alpha: j.alpha + e[1],
+                    theta_offset: j.theta_offset + e[2],
+                    d: j.d + e[3],
+                    beta: j.beta + e[4],
                 }
             })
             .collect();
-        let frame_of = |entry: &Option<crate::io::robot_file::FrameEntry>, errors| match entry {
-            Some(f) => frame(f.xyz_mm, f.rpy_deg.map(f64::to_radians), errors),
-            None => frame([0.0; 3], [0.0; 3], errors),
-        };
         Self {
             joints,
-            base: frame_of(&file.base, base_errors),
-            tool: frame_of(&file.tool, tool_errors),
+            base: frame(&robot.base, base_errors),
+            tool: frame(&robot.tool, tool_errors),
         }
     }
 
