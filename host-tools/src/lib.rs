@@ -27,9 +27,12 @@
 /// Every command takes 2 to 9 joints ([`model::counts::JOINT_COUNTS`]).
 pub const JOINTS: usize = 6;
 
+pub use error::{Error, Result};
+
 pub mod analysis;
 pub mod calibration;
 pub mod cli;
+pub mod error;
 pub mod formats;
 pub mod io;
 pub mod kinematics;

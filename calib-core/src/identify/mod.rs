@@ -18,4 +18,4 @@ pub mod objective;
 mod problem;
 pub mod statistics;
 
-pub use problem::Problem;
+pub use problem::{Problem, ProblemError};

@@ -36,7 +36,7 @@ pub fn evaluate(
     frames: Frames,
     fit_poses: Option<usize>,
     seed: u64,
-) -> anyhow::Result<Evaluation> {
+) -> crate::Result<Evaluation> {
     let k = calib_core::identify::objective::DEFAULT_K;
     let zero = calib_core::ParameterErrors::zeros_for(dataset.model.robot.joint_count());
     let n = dataset.measurements.len();
@@ -50,9 +50,9 @@ pub fn evaluate(
     };
     if frames == Frames::None {
         if fit_poses.is_some() {
-            anyhow::bail!(
+            return Err(crate::refused!(
                 "--fit-poses needs frames to fit: the data are evaluated in the base frame (--fit-frames none)"
-            );
+            ));
         }
         let (report, _) =
             crate::measurement::frames::prepare(frames, &mut dataset.clone(), &mut [], k)?;
@@ -69,9 +69,9 @@ pub fn evaluate(
     let (mut fitting, mut evaluated, separate) = match fit_poses {
         Some(count) => {
             if count < 3 || count >= n {
-                anyhow::bail!(
+                return Err(crate::refused!(
                     "--fit-poses {count}: give at least 3 poses to fit the frames and leave at least one of the {n} poses to evaluate"
-                );
+                ));
             }
             // The same choice as `calib calibrate --validate (n - count) / n --validate-seed seed`.
             let (fitting, evaluated) =

@@ -4,7 +4,7 @@
 //! ill-conditioned pose set.
 
 use crate::measurement::dataset::Dataset;
-use anyhow::bail;
+
 use calib_core::identify::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability, Status};
 use calib_core::identify::lm::LeastSquares;
 use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, Problem};
@@ -78,7 +78,7 @@ pub fn default_mask(
     dataset: &Dataset,
     mut mask: ParameterMask<Dyn>,
     k: f64,
-) -> anyhow::Result<(ParameterMask<Dyn>, Option<ReflectorOnAxis>)> {
+) -> crate::Result<(ParameterMask<Dyn>, Option<ReflectorOnAxis>)> {
     let reflector = reflector_on_last_axis(dataset, &mask, k)?;
     for u in reflector.iter().flat_map(|r| &r.not_identified) {
         mask.set(u.parameter, false);
@@ -101,7 +101,7 @@ fn reflector_on_last_axis(
     dataset: &Dataset,
     mask: &ParameterMask<Dyn>,
     k: f64,
-) -> anyhow::Result<Option<ReflectorOnAxis>> {
+) -> crate::Result<Option<ReflectorOnAxis>> {
     if dataset.measurements.iter().any(|m| m.rotation.is_some()) {
         return Ok(None);
     }
@@ -289,7 +289,7 @@ pub fn check(
     mut dataset: Dataset,
     frames: Option<crate::measurement::frames::Frames>,
     k: f64,
-) -> anyhow::Result<IdentifiabilityReport> {
+) -> crate::Result<IdentifiabilityReport> {
     let frames = crate::measurement::frames::Frames::chosen(frames, &dataset.data);
     let (_, mask) = crate::measurement::frames::prepare(frames, &mut dataset, &mut [], k)?;
     let (mask, reflector) = default_mask(&dataset, mask, k)?;
@@ -303,15 +303,15 @@ pub fn analyse(
     dataset: &Dataset,
     mask: &ParameterMask<Dyn>,
     k: f64,
-) -> anyhow::Result<IdentifiabilityReport> {
+) -> crate::Result<IdentifiabilityReport> {
     let set = crate::model::counts::analysable_set(mask)?;
     let count = set.len();
     if dataset.rows() < count {
-        bail!(
+        return Err(crate::refused!(
             "{} poses give {} equations, fewer than the {count} identified parameters",
             dataset.measurements.len(),
             dataset.rows()
-        );
+        ));
     }
     let problem = Problem::new(
         &dataset.model.robot,

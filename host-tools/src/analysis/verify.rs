@@ -5,9 +5,9 @@
 //! All three fit the same parameters from the same start (zero errors on the robot with its
 //! frames registered and fitted, as `calib calibrate` prepares it) by least squares.
 
+use crate::error::Context;
 use crate::measurement::dataset::Dataset;
 use crate::measurement::frames::Frames;
-use anyhow::Context;
 use calib_core::Problem;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
 use calib_core::identify::objective::Measurement;
@@ -136,7 +136,7 @@ pub fn verify(
     mut validation: Dataset,
     frames: Option<Frames>,
     k: f64,
-) -> anyhow::Result<Verification> {
+) -> crate::Result<Verification> {
     let frames = Frames::chosen(frames, &calibration.data);
     let (_, mask) =
         crate::measurement::frames::prepare(frames, &mut calibration, &mut [&mut validation], k)?;
@@ -156,7 +156,7 @@ fn run(
     validation: &Dataset,
     mask: &ParameterMask<Dyn>,
     k: f64,
-) -> anyhow::Result<Verification> {
+) -> crate::Result<Verification> {
     let set = crate::model::counts::solvable_set(mask)?;
     let parameters = set.len();
     let condition_number =
@@ -187,7 +187,7 @@ fn run(
     )?;
     let xref: Vec<f64> = fit.errors.iter().map(|(_, v)| *v).collect();
 
-    let rms = |x: &DVector<f64>| -> anyhow::Result<f64> {
+    let rms = |x: &DVector<f64>| -> crate::Result<f64> {
         let kinematics = Kinematics::new(&validation.model.robot, &set.unpack(x))?;
         let (table, _) = crate::measurement::statistics::table3(&kinematics, validation);
         Ok(table.position_mm.rms)
@@ -236,7 +236,7 @@ fn solve_f32(
     calibration: &Dataset,
     set: ParameterSet<Dyn, Dyn>,
     k: f64,
-) -> anyhow::Result<DVector<f32>> {
+) -> crate::Result<DVector<f32>> {
     let robot32 = crate::formats::export::to_f32(&calibration.model.robot);
     // The kinematic angles (with the maps), rounded to f32 as a controller holds them.
     let seen = calibration.as_seen_by_the_geometry();
@@ -253,9 +253,9 @@ fn solve_f32(
                 m.rotation.map(|r| r.map(|v| v as f32)),
                 m.weight as f32,
             )
-            .map_err(anyhow::Error::from)
+            .map_err(crate::Error::from)
         })
-        .collect::<anyhow::Result<Vec<_>>>()?;
+        .collect::<crate::Result<Vec<_>>>()?;
     let problem32 = Problem::new(
         &robot32,
         &ParameterErrors::zeros_for(robot32.joint_count()),

@@ -76,7 +76,10 @@ enum Command {
 /// backtrace (even under `RUST_BACKTRACE=1`), and exit status 1.
 fn main() -> std::process::ExitCode {
     let command = Cli::parse().command;
-    match host_tools::io::outputs::clean_up_on_interrupt().and_then(|()| run(command)) {
+    match host_tools::io::outputs::clean_up_on_interrupt()
+        .map_err(anyhow::Error::from)
+        .and_then(|()| run(command))
+    {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(error) => {
             let mut message = format!("Error: {error}\n");

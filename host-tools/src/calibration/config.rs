@@ -1,7 +1,7 @@
 //! The settings of a calibration, with the paper's values as defaults.
 
 use crate::measurement::frames::Frames;
-use anyhow::bail;
+
 use calib_core::identify::halton::Scrambling;
 use calib_core::identify::ipso;
 use calib_core::identify::lm::Loss;
@@ -236,14 +236,14 @@ impl Default for CalibrationConfig {
 
 impl CalibrationConfig {
     /// An error naming the first setting out of its range (by its command-line flag).
-    pub fn check(&self) -> anyhow::Result<()> {
+    pub fn check(&self) -> crate::Result<()> {
         if !SWARM_SIZES.contains(&self.swarm.particles) {
-            bail!(
+            return Err(crate::refused!(
                 "--swarm {} is out of range; choose {} to {} particles (paper: 20)",
                 self.swarm.particles,
                 SWARM_SIZES.start(),
                 SWARM_SIZES.end()
-            );
+            ));
         }
         for (name, v) in [
             ("--k", self.k),
@@ -252,25 +252,29 @@ impl CalibrationConfig {
             ("--bound-factor", self.swarm.bound_factor),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                bail!("{name} must be a finite number >= 0, got {v}");
+                return Err(crate::refused!(
+                    "{name} must be a finite number >= 0, got {v}"
+                ));
             }
         }
         if let Some(scale) = self.loss_scale_mm
             && !(scale.is_finite() && scale > 0.0)
         {
-            bail!("--loss-scale-mm must be a finite number > 0, got {scale}");
+            return Err(crate::refused!(
+                "--loss-scale-mm must be a finite number > 0, got {scale}"
+            ));
         }
         if self.model.maps() && self.identify == Identify::Frames {
-            bail!(
+            return Err(crate::refused!(
                 "--model joint-maps identifies maps with the geometry; --identify frames keeps the robot file's model \
                  (with its maps, when it has them): drop one of the two"
-            );
+            ));
         }
         if self.loss != LossChoice::L2 && !self.method.least_squares() {
-            bail!(
+            return Err(crate::refused!(
                 "--loss {:?} applies to the least-squares stage: use --method lm or ipso+lm",
                 self.loss
-            );
+            ));
         }
         Ok(())
     }

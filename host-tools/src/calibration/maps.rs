@@ -197,43 +197,43 @@ fn orientation_scale(dataset: &Dataset, geometric: &Kinematics<f64, Dyn>) -> f64
 
 /// Refuses a robot file that already has joint maps as the start of a joint-maps calibration:
 /// its maps would be applied to the data and new ones identified on top.
-pub fn check_robot_file(dataset: &Dataset, config: &CalibrationConfig) -> anyhow::Result<()> {
+pub fn check_robot_file(dataset: &Dataset, config: &CalibrationConfig) -> crate::Result<()> {
     gravity(dataset, config)?;
     if dataset.file.joint_maps.is_some() || dataset.file.compliance.is_some() {
-        anyhow::bail!(
+        return Err(crate::refused!(
             "{}: the robot file already has joint maps or compliance; identify new ones from the nominal robot file or the \
              geometric calibration's file (to keep its model and re-fit only the frames: --identify frames)",
             dataset.model.path.display()
-        );
+        ));
     }
     Ok(())
 }
 
 /// The masses of the robot file for `--model joint-maps+compliance` (`None` for the other models);
 /// an error says what the file lacks.
-fn gravity(dataset: &Dataset, config: &CalibrationConfig) -> anyhow::Result<Option<Gravity>> {
+fn gravity(dataset: &Dataset, config: &CalibrationConfig) -> crate::Result<Option<Gravity>> {
     if config.model != ErrorModel::JointMapsCompliance {
         return Ok(None);
     }
     let joints = dataset.model.robot.joints.len();
     if joints != JOINTS {
-        anyhow::bail!(
+        return Err(crate::refused!(
             "--model joint-maps+compliance: gravity compliance is modelled for {JOINTS}-joint robots (the torsion and \
              tilt gains of joints 1 to 4 of a 6R arm); this robot has {joints} joints: calibrate with --model joint-maps"
-        );
+        ));
     }
     let Some(dynamics) = &dataset.file.dynamics else {
-        anyhow::bail!(
+        return Err(crate::refused!(
             "{}: --model joint-maps+compliance needs the robot's link masses and centres of mass: add a [dynamics] \
              section (gravity_mps2, one [[dynamics.link]] per joint with mass_kg and com_mm, and [dynamics.tool] for \
              the probe or reflector; host-tools/robots/ur10.toml has the UR10's)",
             dataset.model.path.display()
-        );
+        ));
     };
     dynamics
         .to_gravity()
         .map(Some)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", dataset.model.path.display()))
+        .map_err(|e| crate::refused!("{}: {e}", dataset.model.path.display()))
 }
 
 /// `dataset` as the model with maps and compliance sees it: the maps added to the readings, the
@@ -243,7 +243,7 @@ pub fn model_view(
     dataset: &Dataset,
     found: &joint_maps::MapIdentification,
     gravity: Option<&Gravity>,
-) -> anyhow::Result<Dataset> {
+) -> crate::Result<Dataset> {
     let mapped = dataset.with_maps(&found.maps)?;
     match (gravity, &found.compliance) {
         (Some(gravity), Some(c)) => mapped.without_compliance(
@@ -264,7 +264,7 @@ pub fn add_joint_maps(
     dataset: &Dataset,
     validation: Option<&Dataset>,
     config: &CalibrationConfig,
-) -> anyhow::Result<CalibrationResult> {
+) -> crate::Result<CalibrationResult> {
     check_robot_file(dataset, config)?;
     let geometric = Kinematics::new(&dataset.model.robot, &result.errors)?;
     let residuals: Vec<f64> = dataset
@@ -413,7 +413,7 @@ fn with_maps(
     parameters: &[calib_core::Parameter],
     (found, gravity): (&joint_maps::MapIdentification, Option<&Gravity>),
     ranges: &[[f64; 2]],
-) -> anyhow::Result<CalibrationResult> {
+) -> crate::Result<CalibrationResult> {
     // The statistics of the model with the maps (and the compliance).
     let actual = Kinematics::new(&dataset.model.robot, &found.errors)?;
     let mapped = model_view(dataset, found, gravity)?;
@@ -448,7 +448,7 @@ fn with_maps(
     let section = JointMapsSection::new(&found.maps, ranges);
     // Never write a file that its own reader refuses.
     section.to_maps(dataset.model.robot.joints.len()).map_err(|problem| {
-        anyhow::anyhow!(
+        crate::refused!(
             "the identified joint maps are not plausible ({problem}); nothing was written. The poses may not move \
              that joint enough, or hold an outlier: calibrate with --model geometric, or measure more varied poses"
         )
@@ -457,7 +457,7 @@ fn with_maps(
     if let Some(c) = &found.compliance {
         let section = crate::model::compliance::ComplianceSection::new(&c.gains);
         section.to_gains().map_err(|problem| {
-            anyhow::anyhow!(
+            crate::refused!(
                 "the identified gravity compliance is not plausible ({problem}); nothing was written. The poses may \
                  not load the joints differently enough: calibrate with --model joint-maps, or measure more varied poses"
             )

@@ -68,7 +68,7 @@ use crate::analysis::identifiability::{IdentifiabilityReport, analyse};
 use crate::measurement::dataset::Dataset;
 use crate::measurement::frames::{Frames, FramesReport};
 use crate::runtime::swarm_team::{LaneObjective, SwarmTeam};
-use anyhow::bail;
+
 use calib_core::identify::ipso::{self, Control, IpsoSettings, SearchSpace};
 use calib_core::identify::lm::{LeastSquares, LmError, LmResult, LmSettings};
 use calib_core::identify::objective::Objective;
@@ -87,7 +87,7 @@ pub fn calibrate(
     mut dataset: Dataset,
     mut validation: Option<Dataset>,
     config: &CalibrationConfig,
-) -> anyhow::Result<CalibrationResult> {
+) -> crate::Result<CalibrationResult> {
     config.check()?;
     if config.model.maps() {
         maps::check_robot_file(&dataset, config)?;
@@ -118,9 +118,9 @@ pub fn calibrate(
         Identify::Geometry => mask,
         Identify::Frames => {
             if !frames.base() {
-                bail!(
+                return Err(crate::refused!(
                     "--identify frames re-registers the frames of a measurement setup: the data must be in a tracker's frame (--frames base or base+tool), not in the base frame"
-                );
+                ));
             }
             let mut only_frames = ParameterMask::empty_for(mask.joint_count());
             for p in mask.iter() {
@@ -156,7 +156,7 @@ pub fn calibrate(
             errors = round.errors;
             result = Some(round);
         }
-        result.ok_or_else(|| anyhow::anyhow!("no compliance round ran"))?
+        result.ok_or_else(|| crate::numerical!("no compliance round ran"))?
     } else {
         solved(&dataset, validation.as_ref())?
     };
@@ -172,11 +172,11 @@ pub fn calibrate(
     }
     result.implausible = plausibility::check(&result);
     if !result.implausible.is_empty() && !config.accept_implausible {
-        bail!(
+        return Err(crate::refused!(
             "the calibration is not plausible, nothing was written:\n  - {}\n{}",
             result.implausible.join("\n  - "),
             plausibility::LIKELY_CAUSES
-        );
+        ));
     }
     Ok(result)
 }
@@ -200,7 +200,7 @@ pub fn select_parameters(
     dataset: &Dataset,
     mask: ParameterMask<Dyn>,
     config: &CalibrationConfig,
-) -> anyhow::Result<Selection> {
+) -> crate::Result<Selection> {
     let analysed = |mask: &ParameterMask<Dyn>| analyse(dataset, mask, config.k);
     let (mut mask, reflector) =
         crate::analysis::identifiability::default_mask(dataset, mask, config.k)?;
@@ -210,13 +210,13 @@ pub fn select_parameters(
     let mut dropped = Vec::new();
     if identifiability.rank < identifiability.parameters {
         if !config.auto_mask {
-            bail!(
+            return Err(crate::refused!(
                 "the data cannot determine every identified parameter (rank {} of {}): {}. \
                  Drop them with --auto-mask, or set identify = [...] in the robot file; `calib check` shows the analysis",
                 identifiability.rank,
                 identifiability.parameters,
                 identifiability.problem()
-            );
+            ));
         }
         for parameter in identifiability.to_drop() {
             mask.set(parameter, false);
@@ -255,7 +255,7 @@ fn solve(
     config: &CalibrationConfig,
     selection: Selection,
     mut frames: FramesReport,
-) -> anyhow::Result<CalibrationResult> {
+) -> crate::Result<CalibrationResult> {
     let set = crate::model::counts::solvable_set(&selection.mask)?;
     let problem = Problem::new(
         &dataset.model.robot,
@@ -441,7 +441,7 @@ fn run_swarm(
     config: &CalibrationConfig,
     objective: &Objective<'_, f64, Dyn, Dyn>,
     set: &ParameterSet<Dyn, Dyn>,
-) -> anyhow::Result<SwarmRun> {
+) -> crate::Result<SwarmRun> {
     let swarm = &config.swarm;
     let space = SearchSpace::for_parameters(
         set,
@@ -524,7 +524,7 @@ fn least_squares(
     least_squares: &LeastSquares<'_, f64, Dyn, Dyn>,
     start: &DVector<f64>,
     dataset: &Dataset,
-) -> anyhow::Result<Fit> {
+) -> crate::Result<Fit> {
     let set = least_squares.problem().set();
     let settings = LmSettings {
         max_iterations: config.lm_iterations,
@@ -631,7 +631,7 @@ pub fn robust_scale(
     start: &DVector<f64>,
     settings: &LmSettings<f64>,
     k: f64,
-) -> anyhow::Result<RobustScale> {
+) -> crate::Result<RobustScale> {
     let set = least_squares.problem().set();
     let fit = least_squares
         .solve(start, settings)
@@ -680,7 +680,7 @@ pub(crate) fn median(v: &mut [f64]) -> f64 {
 }
 
 /// A least-squares error in the user's terms (parameter names, not indices).
-fn lm_error(error: LmError, set: &ParameterSet<Dyn, Dyn>) -> anyhow::Error {
+fn lm_error(error: LmError, set: &ParameterSet<Dyn, Dyn>) -> crate::Error {
     match error {
         LmError::UnobservableParameter(i) => {
             let name = set
@@ -688,11 +688,11 @@ fn lm_error(error: LmError, set: &ParameterSet<Dyn, Dyn>) -> anyhow::Error {
                 .get(usize::from(i))
                 .map(ToString::to_string)
                 .unwrap_or_default();
-            anyhow::anyhow!(
+            crate::refused!(
                 "the data cannot determine {name}: it changes no residual; remove it from the identified parameters"
             )
         }
-        other => anyhow::Error::new(other).context("least squares"),
+        other => crate::Error::from(other).context("least squares"),
     }
 }
 
@@ -703,7 +703,7 @@ fn evaluate(
     validation: Option<&Dataset>,
     errors: &ParameterErrors<f64, Dyn>,
     fit: Option<&Fit>,
-) -> anyhow::Result<(Stage, Option<Stage>, PerPose, Vec<PoseReport>)> {
+) -> crate::Result<(Stage, Option<Stage>, PerPose, Vec<PoseReport>)> {
     use crate::measurement::statistics::{orientation_per_pose, table3};
     let nominal = Kinematics::nominal(&dataset.model.robot)?;
     let actual = Kinematics::new(&dataset.model.robot, errors)?;

@@ -440,5 +440,5 @@ pub fn write_outputs(
             },
         )?;
     }
-    outputs.commit()
+    Ok(outputs.commit()?)
 }

@@ -27,5 +27,9 @@ pub fn check(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
     // Joint maps and gravity compliance of the file are held fixed: the analysis is that of the
     // geometric parameters at the kinematic angles (the readings with the maps).
     let (_, dataset) = options.input.load()?;
-    crate::analysis::identifiability::check(dataset, options.frames, options.k)
+    Ok(crate::analysis::identifiability::check(
+        dataset,
+        options.frames,
+        options.k,
+    )?)
 }

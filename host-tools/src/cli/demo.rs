@@ -36,7 +36,7 @@ fn simulate_into(
     data: &Path,
     truth: &Path,
 ) -> anyhow::Result<()> {
-    simulate::simulate(&robot.0, &robot.1, config)?.write(data, truth, &robot.1)
+    Ok(simulate::simulate(&robot.0, &robot.1, config)?.write(data, truth, &robot.1)?)
 }
 
 /// Calibrates `data` (validating on `holdout`), renders against `truth`, writes the identified

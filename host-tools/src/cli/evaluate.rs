@@ -33,7 +33,12 @@ pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
     crate::model::counts::joint_count(options.input.joints()?)?;
     let (_, dataset) = options.input.load()?;
     let frames = Frames::chosen(options.fit_frames, &dataset.data);
-    crate::analysis::evaluation::evaluate(&dataset, frames, options.fit_poses, options.seed)
+    Ok(crate::analysis::evaluation::evaluate(
+        &dataset,
+        frames,
+        options.fit_poses,
+        options.seed,
+    )?)
 }
 
 impl Evaluation {

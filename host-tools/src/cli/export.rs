@@ -70,14 +70,14 @@ fn exported(
     urdf: &crate::formats::urdf::UrdfSettings,
 ) -> anyhow::Result<Vec<u8>> {
     let model: RobotModel = file.to_model(&options.params)?;
-    crate::formats::export::export(
+    Ok(crate::formats::export::export(
         file,
         &model,
         options.format,
         options.scalar,
         options.sequence,
         urdf,
-    )
+    )?)
 }
 
 /// The URDF names of the options (defaults for the file's joint count).

@@ -33,5 +33,10 @@ pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
     let (_, all) = options.input.load()?;
     let (calibration, validation) =
         crate::measurement::dataset::split(&all, options.validate, options.validate_seed)?;
-    crate::analysis::verify::verify(calibration, validation, options.frames, options.k)
+    Ok(crate::analysis::verify::verify(
+        calibration,
+        validation,
+        options.frames,
+        options.k,
+    )?)
 }

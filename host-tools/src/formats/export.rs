@@ -50,7 +50,7 @@ pub fn parameter_block(
     compliance: Option<&FileCompliance>,
     scalar: BlockScalar,
     sequence: u32,
-) -> anyhow::Result<Vec<u8>> {
+) -> crate::Result<Vec<u8>> {
     if maps.is_some() || compliance.is_some() {
         return Ok(match scalar {
             BlockScalar::F64 => model_block(controller_model(*robot, maps, compliance)?, sequence)?,
@@ -67,7 +67,7 @@ pub fn geometry_block(
     robot: &calib_core::Robot<f64, Dyn>,
     scalar: BlockScalar,
     sequence: u32,
-) -> anyhow::Result<Vec<u8>> {
+) -> crate::Result<Vec<u8>> {
     Ok(match scalar {
         BlockScalar::F64 => {
             let mut buffer = vec![0u8; storage::block_len::<f64>(robot.joints.len())];
@@ -88,7 +88,7 @@ pub fn controller_model<T: calib_core::Real>(
     robot: calib_core::Robot<T, Dyn>,
     maps: Option<&JointMaps>,
     compliance: Option<&FileCompliance>,
-) -> anyhow::Result<ControllerModel<T, Dyn, MAX_FILE_HARMONICS>> {
+) -> crate::Result<ControllerModel<T, Dyn, MAX_FILE_HARMONICS>> {
     let joints = robot.joints.len();
     let mut model = ControllerModel::geometric(robot);
     if let Some(maps) = maps {
@@ -104,7 +104,7 @@ pub fn controller_model<T: calib_core::Real>(
 fn model_block<T: calib_core::Real>(
     model: ControllerModel<T, Dyn, MAX_FILE_HARMONICS>,
     sequence: u32,
-) -> anyhow::Result<Vec<u8>> {
+) -> crate::Result<Vec<u8>> {
     let mut buffer = vec![
         0u8;
         storage::model_block_len::<T>(
@@ -129,9 +129,9 @@ pub fn export(
     scalar: BlockScalar,
     sequence: u32,
     urdf: &crate::formats::urdf::UrdfSettings,
-) -> anyhow::Result<Vec<u8>> {
+) -> crate::Result<Vec<u8>> {
     let source = model.path.display().to_string();
-    let geometry = |what: &str| -> anyhow::Result<()> {
+    let geometry = |what: &str| -> crate::Result<()> {
         let beyond = match (file.joint_maps.is_some(), file.compliance.is_some()) {
             (true, true) => "joint maps and gravity compliance",
             (true, false) => "joint maps",
@@ -141,11 +141,11 @@ pub fn export(
         if urdf.geometry_only {
             return Ok(());
         }
-        anyhow::bail!(
+        Err(crate::refused!(
             "{source}: the model has {beyond}, which {what} cannot carry: exported, it would be less accurate \
              than the model (Series B: 0.43 against 0.21 mm held out). Pass --geometry-only to export the geometry \
              anyway, or use --format block for the controller"
-        )
+        ))
     };
     Ok(match format {
         ExportFormat::Block => parameter_block(
@@ -158,9 +158,9 @@ pub fn export(
         ExportFormat::UrKinematicsYaml => {
             let joints = model.robot.joints.len();
             if joints != JOINTS {
-                anyhow::bail!(
+                return Err(crate::refused!(
                     "{source}: a UR kinematics file describes a {JOINTS}-joint UR robot; this one has {joints} joints"
-                );
+                ));
             }
             geometry("a UR kinematics file")?;
             crate::formats::ur_kinematics::yaml(&model.robot, &source)?.into_bytes()
@@ -184,17 +184,19 @@ fn geometry_formats(
     scalar: BlockScalar,
     sequence: u32,
     urdf: &crate::formats::urdf::UrdfSettings,
-) -> anyhow::Result<Vec<u8>> {
+) -> crate::Result<Vec<u8>> {
     let source = model.path.display().to_string();
     Ok(match format {
         ExportFormat::Block => geometry_block(&model.robot, scalar, sequence)?,
         ExportFormat::Toml => file.to_toml("exported by calib export").into_bytes(),
         ExportFormat::Json => serde_json::to_vec_pretty(file)?,
         ExportFormat::Urdf => crate::formats::urdf::urdf(&model.robot, urdf, &source)?.into_bytes(),
-        ExportFormat::UrKinematicsYaml => anyhow::bail!(
-            "{source}: a UR kinematics file describes a {JOINTS}-joint UR robot; this one has {} joints",
-            model.robot.joints.len()
-        ),
+        ExportFormat::UrKinematicsYaml => {
+            return Err(crate::refused!(
+                "{source}: a UR kinematics file describes a {JOINTS}-joint UR robot; this one has {} joints",
+                model.robot.joints.len()
+            ));
+        }
     })
 }
 

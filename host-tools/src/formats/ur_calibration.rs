@@ -15,7 +15,7 @@
 //! reproduce them to [`POSITION_TOLERANCE_MM`] and [`ROTATION_TOLERANCE_RAD`] is refused.
 
 use crate::JOINTS;
-use anyhow::{Context, bail};
+use crate::error::Context;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
 use calib_core::model::JointVec;
 use calib_core::{
@@ -50,7 +50,7 @@ pub struct UrCalibration {
 
 impl UrCalibration {
     /// Reads a `calibration.conf`.
-    pub fn read(path: &Path) -> anyhow::Result<Self> {
+    pub fn read(path: &Path) -> crate::Result<Self> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("{}: cannot read the UR calibration", path.display()))?;
         Self::parse(&text, path)
@@ -58,7 +58,7 @@ impl UrCalibration {
 
     /// Parses `calibration.conf` text: the four arrays of its `[mounting]` section (other keys
     /// and sections are ignored); `path` names the source in errors.
-    pub fn parse(text: &str, path: &Path) -> anyhow::Result<Self> {
+    pub fn parse(text: &str, path: &Path) -> crate::Result<Self> {
         let mut section = String::new();
         let mut found: [Option<[f64; JOINTS]>; 4] = [None; 4];
         const KEYS: [&str; 4] = ["delta_theta", "delta_a", "delta_d", "delta_alpha"];
@@ -101,9 +101,9 @@ impl UrCalibration {
                             )
                         })
                 })
-                .collect::<anyhow::Result<Vec<f64>>>()?;
+                .collect::<crate::Result<Vec<f64>>>()?;
             let values: [f64; JOINTS] = values.try_into().map_err(|v: Vec<f64>| {
-                anyhow::anyhow!(
+                crate::refused!(
                     "{}: {} has {} values, expected {JOINTS}",
                     at(),
                     KEYS[slot],
@@ -111,7 +111,7 @@ impl UrCalibration {
                 )
             })?;
             if found[slot].replace(values).is_some() {
-                bail!("{}: {} is given twice", at(), KEYS[slot]);
+                return Err(crate::refused!("{}: {} is given twice", at(), KEYS[slot]));
             }
         }
         let get = |slot: usize| {
@@ -133,19 +133,19 @@ impl UrCalibration {
 
     /// The calibrated classic DH robot: `nominal` (classic DH: every `beta` zero) plus the
     /// deltas, in mm and rad (with its base and tool).
-    pub fn classic_dh(&self, nominal: &Robot<f64, Dyn>) -> anyhow::Result<Robot<f64, Dyn>> {
+    pub fn classic_dh(&self, nominal: &Robot<f64, Dyn>) -> crate::Result<Robot<f64, Dyn>> {
         if nominal.joints.len() != JOINTS {
-            bail!(
+            return Err(crate::refused!(
                 "a UR calibration describes a {JOINTS}-joint UR robot; the nominal robot has {} joints",
                 nominal.joints.len()
-            );
+            ));
         }
         if let Some(j) = nominal.joints.iter().position(|j| j.beta != 0.0) {
-            bail!(
+            return Err(crate::refused!(
                 "the nominal robot file must be in classic DH, as UR publishes it (beta = 0), but joint {} has beta {} deg",
                 j + 1,
                 nominal.joints[j].beta.to_degrees()
-            );
+            ));
         }
         let mut robot = *nominal;
         for (i, joint) in robot.joints.iter_mut().enumerate() {
@@ -178,7 +178,7 @@ pub struct Import {
 }
 
 /// Converts `calibration` on the `nominal` robot into Hayati errors (module documentation).
-pub fn import(nominal: &Robot<f64, Dyn>, calibration: &UrCalibration) -> anyhow::Result<Import> {
+pub fn import(nominal: &Robot<f64, Dyn>, calibration: &UrCalibration) -> crate::Result<Import> {
     let classic = calibration.classic_dh(nominal)?;
     let dh = Kinematics::nominal(&classic)?;
     let mut mask = ParameterMask::default_for(nominal);
@@ -227,11 +227,11 @@ pub fn import(nominal: &Robot<f64, Dyn>, calibration: &UrCalibration) -> anyhow:
         max_change_mm = max_change_mm.max((n.translation.vector - b.translation.vector).norm());
     }
     if !(max_position_mm <= POSITION_TOLERANCE_MM && max_rotation_rad <= ROTATION_TOLERANCE_RAD) {
-        bail!(
+        return Err(crate::refused!(
             "the Hayati parameters reproduce the UR calibration only to {max_position_mm:.3e} mm and \
              {max_rotation_rad:.3e} rad (needed: {POSITION_TOLERANCE_MM:e} mm, {ROTATION_TOLERANCE_RAD:e} rad): \
              is the nominal robot file the robot's model (UR5, UR10, UR10e, ...)?"
-        );
+        ));
     }
     Ok(Import {
         errors,
@@ -247,7 +247,7 @@ fn fit(
     nominal: &Robot<f64, Dyn>,
     mask: &ParameterMask<Dyn>,
     measurements: &[Measurement<f64, Dyn>],
-) -> anyhow::Result<ParameterErrors<f64, Dyn>> {
+) -> crate::Result<ParameterErrors<f64, Dyn>> {
     let set = crate::model::counts::solvable_set(mask)?;
     let problem = Problem::new(
         nominal,

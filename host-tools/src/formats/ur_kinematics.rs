@@ -49,20 +49,20 @@ fn x_part(joint: &MdhJoint<f64>) -> IsometryMatrix3<f64> {
 
 /// The six segments (mm), or why the model has no UR form (a robot of other than six joints
 /// is no UR).
-pub fn segments(robot: &Robot<f64, Dyn>) -> anyhow::Result<Vec<IsometryMatrix3<f64>>> {
+pub fn segments(robot: &Robot<f64, Dyn>) -> crate::Result<Vec<IsometryMatrix3<f64>>> {
     let (Some(last), Some(first)) = (robot.joints.last(), robot.joints.first()) else {
-        anyhow::bail!(
+        return Err(crate::refused!(
             "a UR kinematics file describes a {JOINTS}-joint UR robot; this one has none"
-        );
+        ));
     };
     if robot.joints.len() != JOINTS {
-        anyhow::bail!(
+        return Err(crate::refused!(
             "a UR kinematics file describes a {JOINTS}-joint UR robot; this one has {} joints",
             robot.joints.len()
-        );
+        ));
     }
     if last.a != 0.0 || last.alpha != 0.0 || last.beta != 0.0 {
-        anyhow::bail!(
+        return Err(crate::refused!(
             "the model has a fixed transform after joint 6 (a6 = {} mm, alpha6 = {} deg, beta6 = {} deg), \
              for which a UR kinematics file has no frame (its tool0 is joint 6's frame). Export the URDF \
              instead (--format urdf, exact), or calibrate without them (identify = [\"theta\", \"d\"] for joint 6 \
@@ -70,7 +70,7 @@ pub fn segments(robot: &Robot<f64, Dyn>) -> anyhow::Result<Vec<IsometryMatrix3<f
             last.a,
             last.alpha.to_degrees(),
             last.beta.to_degrees()
-        );
+        ));
     }
     let mut out = vec![frame(&robot.base) * z_part(first)];
     for pair in robot.joints.windows(2) {
@@ -80,7 +80,7 @@ pub fn segments(robot: &Robot<f64, Dyn>) -> anyhow::Result<Vec<IsometryMatrix3<f
 }
 
 /// The YAML of `robot` (`source` names the file in a comment).
-pub fn yaml(robot: &Robot<f64, Dyn>, source: &str) -> anyhow::Result<String> {
+pub fn yaml(robot: &Robot<f64, Dyn>, source: &str) -> crate::Result<String> {
     // Positional notation with every digit (Rust's f64 Display round-trips and never writes an
     // exponent, which YAML 1.1 readers such as PyYAML, used by xacro, would take for a string).
     let mut body = String::from("kinematics:\n");

@@ -130,13 +130,13 @@ impl UrdfSettings {
 
     /// Checks the names for a robot of `count` joints: the right counts, unique, and plain
     /// (letters, digits, `_ - . /`), so that they need no escaping in XML.
-    pub fn check(&self, count: usize) -> anyhow::Result<()> {
+    pub fn check(&self, count: usize) -> crate::Result<()> {
         if self.links.len() != count || self.joints.len() != count {
-            anyhow::bail!(
+            return Err(crate::refused!(
                 "--link-names and --joint-names need {count} names each (one per joint), got {} and {}",
                 self.links.len(),
                 self.joints.len()
-            );
+            ));
         }
         let mut links: Vec<&str> = vec![&self.base_link, &self.flange, &self.tool];
         links.extend(self.links.iter().map(String::as_str));
@@ -146,16 +146,16 @@ impl UrdfSettings {
         for names in [&links, &joints] {
             for (i, name) in names.iter().enumerate() {
                 if names[..i].contains(name) {
-                    anyhow::bail!("the URDF name \"{name}\" is used twice");
+                    return Err(crate::refused!("the URDF name \"{name}\" is used twice"));
                 }
                 let plain = !name.is_empty()
                     && name
                         .chars()
                         .all(|c| c.is_ascii_alphanumeric() || "_-./".contains(c));
                 if !plain {
-                    anyhow::bail!(
+                    return Err(crate::refused!(
                         "the URDF name \"{name}\" must be letters, digits and _ - . / only"
-                    );
+                    ));
                 }
             }
         }
@@ -169,7 +169,7 @@ pub fn urdf(
     robot: &Robot<f64, Dyn>,
     settings: &UrdfSettings,
     source: &str,
-) -> anyhow::Result<String> {
+) -> crate::Result<String> {
     let n = robot.joints.len();
     settings.check(n)?;
     let origins: Vec<Origin> = chain(robot).iter().map(Origin::of).collect();

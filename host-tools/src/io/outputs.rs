@@ -29,7 +29,7 @@
 //! output's directory. Anything else is left alone with a note: a planted journal can move or
 //! delete no file.
 
-use anyhow::{Context, bail};
+use crate::error::Context;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -52,13 +52,14 @@ const INTERRUPTED_STATUS: i32 = 130;
 /// Installs the handler of Ctrl-C (SIGINT) and SIGTERM: staged temporaries are removed and the
 /// process exits with status 130; while a file is being staged or the outputs committed, that step
 /// finishes first. Call once, at the start of the program.
-pub fn clean_up_on_interrupt() -> anyhow::Result<()> {
+pub fn clean_up_on_interrupt() -> crate::Result<()> {
     ctrlc::set_handler(|| {
         INTERRUPTED.store(true, Ordering::SeqCst);
         if !BUSY.load(Ordering::SeqCst) {
             exit_if_interrupted();
         }
     })
+    .map_err(|e| std::io::Error::other(e.to_string()))
     .context("installing the interrupt handler")
 }
 
@@ -218,7 +219,7 @@ fn journal_name(pid: u32) -> String {
 /// Writes the journal of a commit of `staged` into every directory of an output, each copy
 /// complete before it appears under its name; none for a single output (one rename is atomic).
 /// Returns the journals written.
-fn write_journals(staged: &[Staged]) -> anyhow::Result<Vec<PathBuf>> {
+fn write_journals(staged: &[Staged]) -> crate::Result<Vec<PathBuf>> {
     if staged.len() < 2 {
         return Ok(Vec::new());
     }
@@ -262,7 +263,7 @@ fn write_journals(staged: &[Staged]) -> anyhow::Result<Vec<PathBuf>> {
             for done in &journal.journals {
                 let _ = std::fs::remove_file(done);
             }
-            return Err(anyhow::Error::new(e).context(format!("writing {}", path.display())));
+            return Err(crate::Error::from(e).context(format!("writing {}", path.display())));
         }
     }
     Ok(journal.journals)
@@ -384,7 +385,7 @@ impl Outputs {
     }
 
     /// Stages `bytes` for `path`, asked for by `name` (such as `--out`).
-    pub fn stage(&mut self, name: &str, path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    pub fn stage(&mut self, name: &str, path: &Path, bytes: &[u8]) -> crate::Result<()> {
         uninterrupted(|| {
             self.stage_now(name, path, |_, mut file| {
                 file.write_all(bytes)?;
@@ -400,8 +401,8 @@ impl Outputs {
         &mut self,
         name: &str,
         path: &Path,
-        write: impl FnOnce(&Path) -> anyhow::Result<()>,
-    ) -> anyhow::Result<()> {
+        write: impl FnOnce(&Path) -> crate::Result<()>,
+    ) -> crate::Result<()> {
         uninterrupted(|| self.stage_now(name, path, |temporary, _| write(temporary)))
     }
 
@@ -409,8 +410,8 @@ impl Outputs {
         &mut self,
         name: &str,
         path: &Path,
-        write: impl FnOnce(&Path, std::fs::File) -> anyhow::Result<()>,
-    ) -> anyhow::Result<()> {
+        write: impl FnOnce(&Path, std::fs::File) -> crate::Result<()>,
+    ) -> crate::Result<()> {
         let (target, permissions) = self.checked_target(name, path)?;
         let dir = match target.parent() {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
@@ -445,17 +446,17 @@ impl Outputs {
                 }
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
                 Err(e) => {
-                    return Err(anyhow::Error::new(e)
+                    return Err(crate::Error::from(e)
                         .context(format!("writing {} ({name})", path.display())));
                 }
             }
         }
         let Some((temporary, file)) = created else {
-            bail!(
+            return Err(crate::refused!(
                 "writing {} ({name}): {MAX_TEMPORARY_TRIES} names for its temporary file are taken in {}; remove the files named .{file_name}.calib-*.tmp there",
                 path.display(),
                 dir.display()
-            );
+            ));
         };
         if let Err(e) = write(&temporary, file) {
             let _ = std::fs::remove_file(&temporary);
@@ -476,54 +477,56 @@ impl Outputs {
         &self,
         name: &str,
         path: &Path,
-    ) -> anyhow::Result<(PathBuf, Option<std::fs::Permissions>)> {
+    ) -> crate::Result<(PathBuf, Option<std::fs::Permissions>)> {
         // `dir/` names a directory: never written as a file called `dir` (issue 39, N19).
         if path
             .as_os_str()
             .to_string_lossy()
             .ends_with(std::path::is_separator)
         {
-            bail!(
+            return Err(crate::refused!(
                 "{name} {}: ends with a path separator, so it names a directory; give the path of a file",
                 path.display()
-            );
+            ));
         }
         let target = resolved(path);
         let is_link = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
         if is_link && std::fs::metadata(path).is_err() {
-            bail!(
+            return Err(crate::refused!(
                 "{name} {}: a symbolic link to a missing file; give the path of a file",
                 path.display()
-            );
+            ));
         }
         let permissions = match std::fs::metadata(&target) {
             Ok(meta) if meta.is_file() => Some(meta.permissions()),
-            Ok(_) => bail!(
-                "{name} {}: not a regular file (a directory, device or FIFO); give the path of a file",
-                path.display()
-            ),
+            Ok(_) => {
+                return Err(crate::refused!(
+                    "{name} {}: not a regular file (a directory, device or FIFO); give the path of a file",
+                    path.display()
+                ));
+            }
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
             Err(e) => return Err(e).with_context(|| format!("{name} {}", path.display())),
         };
         if let Some(other) = self.staged.iter().find(|s| s.target == target) {
-            bail!(
+            return Err(crate::refused!(
                 "{name} and {} name the same file {}; give each output its own path",
                 other.name,
                 path.display()
-            );
+            ));
         }
         if let Some((input, _)) = self.inputs.iter().find(|(_, p)| *p == target) {
-            bail!(
+            return Err(crate::refused!(
                 "{name} {} is the input {input}; writing it would destroy the input, give another path",
                 path.display()
-            );
+            ));
         }
         Ok((target, permissions))
     }
 
     /// Replaces every target by its staged file; returns the paths written.
     /// An interruption during the commit takes effect when it ends.
-    pub fn commit(mut self) -> anyhow::Result<Vec<PathBuf>> {
+    pub fn commit(mut self) -> crate::Result<Vec<PathBuf>> {
         let mut written = Vec::with_capacity(self.staged.len());
         // An interruption before the commit: nothing is replaced.
         exit_if_interrupted();
@@ -548,7 +551,7 @@ impl Outputs {
                 untrack(&staged.temporary);
                 if let Err(e) = renamed {
                     let _ = std::fs::remove_file(&staged.temporary);
-                    return Err(anyhow::Error::new(e)
+                    return Err(crate::Error::from(e)
                         .context(format!("writing {}", staged.target.display())));
                 }
                 written.push(staged.target);
@@ -592,7 +595,7 @@ fn resolved(path: &Path) -> PathBuf {
 }
 
 /// Writes `bytes` to `path` as the only output of a command (see [`Outputs`]).
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> crate::Result<()> {
     let mut outputs = Outputs::default();
     outputs.stage("output", path, bytes)?;
     outputs.commit().map(|_| ())

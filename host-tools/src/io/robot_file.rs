@@ -535,28 +535,28 @@ impl RobotFile {
 
     /// Refuses a file with gravity compliance for `what` (a command that cannot apply it:
     /// `simulate`), so that no result silently leaves it out.
-    pub fn refuse_compliance(&self, path: &Path, what: &str) -> anyhow::Result<()> {
+    pub fn refuse_compliance(&self, path: &Path, what: &str) -> crate::Result<()> {
         if self.compliance.is_some() {
-            anyhow::bail!(
+            return Err(crate::refused!(
                 "{}: this robot file has gravity compliance ([compliance], from calibrate --model joint-maps+compliance), \
                  which {what} cannot apply yet; leaving it out would make the result silently less accurate. \
                  Use a file without it here (calibrate --model geometric or joint-maps)",
                 path.display()
-            );
+            ));
         }
         Ok(())
     }
 
     /// Refuses a file with joint maps for `what` (a command or an output that cannot apply them
     /// yet), so that no result silently leaves the maps out.
-    pub fn refuse_joint_maps(&self, path: &Path, what: &str) -> anyhow::Result<()> {
+    pub fn refuse_joint_maps(&self, path: &Path, what: &str) -> crate::Result<()> {
         if self.joint_maps.is_some() {
-            anyhow::bail!(
+            return Err(crate::refused!(
                 "{}: this robot file has joint maps ([joint_maps], from calibrate --model joint-maps), \
                  which {what} cannot apply yet; leaving them out would make the result silently less accurate. \
                  Use the geometric calibration's file (calibrate --model geometric) here",
                 path.display()
-            );
+            ));
         }
         Ok(())
     }

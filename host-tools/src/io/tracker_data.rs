@@ -774,12 +774,12 @@ pub struct PoseRow {
 }
 
 /// Writes poses as tracker CSV (atomically): `comments` become `#` lines at the top.
-pub fn write_tracker_csv(path: &Path, comments: &[String], rows: &[PoseRow]) -> anyhow::Result<()> {
+pub fn write_tracker_csv(path: &Path, comments: &[String], rows: &[PoseRow]) -> crate::Result<()> {
     write_atomic(path, tracker_csv(comments, rows)?.as_bytes())
 }
 
 /// Poses as tracker CSV text: `comments` become `#` lines at the top.
-pub fn tracker_csv(comments: &[String], rows: &[PoseRow]) -> anyhow::Result<String> {
+pub fn tracker_csv(comments: &[String], rows: &[PoseRow]) -> crate::Result<String> {
     let joints = rows.first().map_or(0, |r| r.q.len());
     let orientation = rows.first().is_some_and(|r| r.rotation.is_some());
     let mut text = String::new();
@@ -805,6 +805,8 @@ pub fn tracker_csv(comments: &[String], rows: &[PoseRow]) -> anyhow::Result<Stri
         }
         writer.write_record(&fields)?;
     }
-    text.push_str(std::str::from_utf8(&writer.into_inner()?)?);
+    text.push_str(std::str::from_utf8(
+        &writer.into_inner().map_err(|e| e.into_error())?,
+    )?);
     Ok(text)
 }

@@ -8,8 +8,8 @@
 //! identified robot is solved from the nominal (or nearest) configuration, under the same bounds.
 //! The output's `start` column says which way each row went.
 
+use crate::error::Context;
 use crate::io::tracker_data::TrackerData;
-use anyhow::Context;
 use calib_core::controller::compensate::{
     ActualRobot, Compensated, CompensationError, CompensationSettings, compensate_joints_from,
     solve_joints,
@@ -70,7 +70,7 @@ pub fn compensate_targets(
     targets: &TrackerData,
     settings: &CompensationSettings<f64>,
     branch: usize,
-) -> anyhow::Result<Vec<TargetOutcome>> {
+) -> crate::Result<Vec<TargetOutcome>> {
     let real = Kinematics::nominal(actual).context("identified robot")?;
     compensate_targets_of(nominal, &real, targets, settings, branch)
 }
@@ -83,7 +83,7 @@ pub fn compensate_targets_of(
     targets: &TrackerData,
     settings: &CompensationSettings<f64>,
     branch: usize,
-) -> anyhow::Result<Vec<TargetOutcome>> {
+) -> crate::Result<Vec<TargetOutcome>> {
     let planned = Kinematics::nominal(nominal).context("nominal robot")?;
     let outcomes = targets
         .records
@@ -493,7 +493,7 @@ fn needed_correction(
 
 /// The outcomes of a robot of `joints` joints as CSV: `id, q1_deg..qN_deg, residual_mm, residual_deg, status, start` (`ok` or
 /// the error; a refused target leaves the joints and residuals empty).
-pub fn to_csv(outcomes: &[TargetOutcome], joints: usize) -> anyhow::Result<Vec<u8>> {
+pub fn to_csv(outcomes: &[TargetOutcome], joints: usize) -> crate::Result<Vec<u8>> {
     let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header = vec!["id".to_string()];
     header.extend((1..=joints).map(|i| format!("q{i}_deg")));
@@ -516,5 +516,5 @@ pub fn to_csv(outcomes: &[TargetOutcome], joints: usize) -> anyhow::Result<Vec<u
         row.push(outcome.start.clone());
         writer.write_record(&row)?;
     }
-    Ok(writer.into_inner()?)
+    Ok(writer.into_inner().map_err(|e| e.into_error())?)
 }

@@ -1,7 +1,7 @@
 //! `calib fk`: the end pose of a robot model for given joint readings.
 
+use crate::error::Context;
 use crate::io::robot_file::RobotModel;
-use anyhow::{Context, bail};
 use calib_core::math::so3;
 use calib_core::model::JointVec;
 use calib_core::{Kinematics, Pose};
@@ -49,41 +49,44 @@ impl FkOutput {
 }
 
 /// Forward kinematics of the nominal model in `model` for joint readings in degrees.
-pub fn forward_deg(model: &RobotModel, joints_deg: &[f64]) -> anyhow::Result<FkOutput> {
+pub fn forward_deg(model: &RobotModel, joints_deg: &[f64]) -> crate::Result<FkOutput> {
     let joints = model.robot.joints.len();
     if joints_deg.len() != joints {
-        bail!(
+        return Err(crate::refused!(
             "--joints-deg has {} values, the robot {} has {joints} joints",
             joints_deg.len(),
             model.name
-        );
+        ));
     }
     let mut q = JointVec::<f64>::from_fn(joints, |_| 0.0);
     for (i, (qi, deg)) in q.iter_mut().zip(joints_deg).enumerate() {
         if !deg.is_finite() {
-            bail!("--joints-deg: q{} = {deg} is not a finite number", i + 1);
+            return Err(crate::refused!(
+                "--joints-deg: q{} = {deg} is not a finite number",
+                i + 1
+            ));
         }
         // As in tracker data: beyond ten turns a reading is a unit or typing error (and its
         // sine and cosine no longer mean anything).
         if deg.abs() > crate::io::tracker_data::MAX_JOINT_DEG {
-            bail!(
+            return Err(crate::refused!(
                 "--joints-deg: q{} = {deg:e} deg is beyond ten turns ({} deg); give the joint readings in degrees",
                 i + 1,
                 crate::io::tracker_data::MAX_JOINT_DEG
-            );
+            ));
         }
         *qi = deg.to_radians();
     }
     for (i, (qi, limits)) in q.iter().zip(&model.robot.limits).enumerate() {
         if !limits.contains(*qi) {
-            bail!(
+            return Err(crate::refused!(
                 "--joints-deg: q{} = {} deg is outside the joint limits [{}, {}] deg of {}",
                 i + 1,
                 qi.to_degrees(),
                 limits.lower.to_degrees(),
                 limits.upper.to_degrees(),
                 model.path.display()
-            );
+            ));
         }
     }
     let kinematics = Kinematics::nominal(&model.robot)
@@ -99,7 +102,7 @@ pub fn forward_deg_compliant(
     joints_deg: &[f64],
     gravity: &crate::model::compliance::Gravity,
     gains: &[f64; crate::model::compliance::GAIN_COUNT],
-) -> anyhow::Result<FkOutput> {
+) -> crate::Result<FkOutput> {
     forward_deg(model, joints_deg)?;
     let q = JointVec::<f64>::from_fn(joints_deg.len(), |j| joints_deg[j].to_radians());
     let mut pose = Kinematics::nominal(&model.robot)?.forward(&q)?;

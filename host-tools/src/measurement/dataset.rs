@@ -3,10 +3,10 @@
 //! and the held-out split used for validation.
 
 use crate::JOINTS;
+use crate::error::Context;
 use crate::io::profile::DataProfile;
 use crate::io::robot_file::{RobotFile, RobotModel};
 use crate::io::tracker_data::{OrientationColumns, Record, TrackerData};
-use anyhow::{Context, bail};
 use calib_core::identify::objective::Measurement;
 use calib_core::model::JointVec;
 use nalgebra::Dyn;
@@ -37,7 +37,7 @@ impl Dataset {
         file: RobotFile,
         records: Vec<Record>,
         base_frame: bool,
-    ) -> anyhow::Result<Self> {
+    ) -> crate::Result<Self> {
         let joints = records.first().map_or(0, |r| r.q.len());
         let orientation = if records.iter().any(|r| r.rotation.is_some()) {
             OrientationColumns::Quaternion
@@ -48,7 +48,9 @@ impl Dataset {
             .iter()
             .any(|r| r.rotation.is_some() != (orientation != OrientationColumns::None))
         {
-            bail!("either every pose has an orientation or none has");
+            return Err(crate::refused!(
+                "either every pose has an orientation or none has"
+            ));
         }
         let data = TrackerData {
             path: PathBuf::from("<memory>"),
@@ -63,50 +65,50 @@ impl Dataset {
     }
 
     /// Reads and checks both files (the data in our format).
-    pub fn load(robot: &Path, data: &Path) -> anyhow::Result<Self> {
+    pub fn load(robot: &Path, data: &Path) -> crate::Result<Self> {
         Self::load_with(robot, data, &DataProfile::default())
     }
 
     /// Reads and checks both files, the data through a data profile.
-    pub fn load_with(robot: &Path, data: &Path, profile: &DataProfile) -> anyhow::Result<Self> {
+    pub fn load_with(robot: &Path, data: &Path, profile: &DataProfile) -> crate::Result<Self> {
         let file = RobotFile::read(robot)?;
         let data_file = TrackerData::read_with(data, profile)?;
         Self::from_parts(file, robot, data_file)
     }
 
     /// Checks the data against the robot and converts them for the core.
-    fn from_parts(file: RobotFile, robot: &Path, data_file: TrackerData) -> anyhow::Result<Self> {
+    fn from_parts(file: RobotFile, robot: &Path, data_file: TrackerData) -> crate::Result<Self> {
         let model: RobotModel = file.to_model(robot)?;
         let joints = model.robot.joints.len();
         if joints != JOINTS && file.compliance.is_some() {
-            bail!(
+            return Err(crate::refused!(
                 "{}: gravity compliance is modelled for {JOINTS}-joint robots; this robot has {joints} joints: remove [compliance]",
                 robot.display()
-            );
+            ));
         }
         let data = data_file.path.clone();
         let data = data.as_path();
         if data_file.joints != joints {
-            bail!(
+            return Err(crate::refused!(
                 "{}:{}: has {} joint columns, the robot {} has {joints} joints",
                 data.display(),
                 data_file.header_line,
                 data_file.joints,
                 model.name
-            );
+            ));
         }
         if !data_file.records.is_empty() && data_file.records.iter().all(|r| r.weight == 0.0) {
-            bail!(
+            return Err(crate::refused!(
                 "{}: every pose has weight 0, so no pose counts; give the poses to use a weight above 0",
                 data.display()
-            );
+            ));
         }
         let mut measurements = Vec::with_capacity(data_file.records.len());
         for r in &data_file.records {
             let q = JointVec::<f64>::from_fn(r.q.len(), |i| r.q[i]);
             for (i, (qi, limits)) in q.iter().zip(&model.robot.limits).enumerate() {
                 if !limits.contains(*qi) {
-                    bail!(
+                    return Err(crate::refused!(
                         "{}:{}: column q{}: {:.4} deg is outside the joint limits [{}, {}] deg of {}",
                         data.display(),
                         r.line,
@@ -115,7 +117,7 @@ impl Dataset {
                         limits.lower.to_degrees(),
                         limits.upper.to_degrees(),
                         robot.display()
-                    );
+                    ));
                 }
             }
             let m = Measurement::new(&q, Vector3::from(r.position), r.rotation, r.weight)
@@ -140,7 +142,7 @@ impl Dataset {
     }
 
     /// The dataset with `maps` added to every joint reading: what the kinematics sees.
-    pub fn with_maps(&self, maps: &crate::model::joint_maps::JointMaps) -> anyhow::Result<Self> {
+    pub fn with_maps(&self, maps: &crate::model::joint_maps::JointMaps) -> crate::Result<Self> {
         let mut out = self.clone();
         for (m, r) in out.measurements.iter_mut().zip(&self.data.records) {
             let q = JointVec::<f64>::from_fn(r.q.len(), |j| r.q[j]);
@@ -166,7 +168,7 @@ impl Dataset {
         maps: Option<&crate::model::joint_maps::JointMaps>,
         gravity: &crate::model::compliance::Gravity,
         gains: &[f64; crate::model::compliance::GAIN_COUNT],
-    ) -> anyhow::Result<Self> {
+    ) -> crate::Result<Self> {
         let mut out = self.clone();
         for (m, r) in out.measurements.iter_mut().zip(&self.data.records) {
             let q = JointVec::<f64>::from_fn(r.q.len(), |j| r.q.get(j).copied().unwrap_or(0.0));
@@ -192,7 +194,7 @@ impl Dataset {
         &self,
         robot: &calib_core::Robot<f64, Dyn>,
         errors: &calib_core::ParameterErrors<f64, Dyn>,
-    ) -> anyhow::Result<Self> {
+    ) -> crate::Result<Self> {
         let Some(compliance) = self.file.gravity_compliance(&self.model.path)? else {
             return Ok(self.clone());
         };
@@ -228,7 +230,7 @@ impl Dataset {
 
     /// The dataset with its file in its measurement setup (`RobotFile::in_measurement_setup`:
     /// the identified probe or reflector as the tool), the identification mask kept.
-    pub fn in_measurement_setup(&self) -> anyhow::Result<Self> {
+    pub fn in_measurement_setup(&self) -> crate::Result<Self> {
         let mut kept = self.clone();
         kept.file = self.file.in_measurement_setup();
         let mask = kept.model.mask;
@@ -314,14 +316,18 @@ impl Dataset {
 
 /// Splits `inputs` into calibration and validation poses: `fraction` of the poses, chosen at
 /// random with `seed` (deterministic), are held out.
-pub fn split(dataset: &Dataset, fraction: f64, seed: u64) -> anyhow::Result<(Dataset, Dataset)> {
+pub fn split(dataset: &Dataset, fraction: f64, seed: u64) -> crate::Result<(Dataset, Dataset)> {
     if !(fraction > 0.0 && fraction < 1.0) {
-        anyhow::bail!("--validate must be a fraction between 0 and 1, got {fraction}");
+        return Err(crate::refused!(
+            "--validate must be a fraction between 0 and 1, got {fraction}"
+        ));
     }
     let n = dataset.measurements.len();
     let held = ((n as f64) * fraction).round() as usize;
     if held == 0 || held >= n {
-        anyhow::bail!("--validate {fraction} of {n} poses leaves no pose on one side");
+        return Err(crate::refused!(
+            "--validate {fraction} of {n} poses leaves no pose on one side"
+        ));
     }
     let order = shuffled(n, seed);
     let mut validation: Vec<usize> = order[..held].to_vec();

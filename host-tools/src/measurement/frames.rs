@@ -10,8 +10,8 @@
 //! `R_j t = R_base^T (m_j - p_base) - p_j`. For 6-DoF data the tool rotation is then the
 //! rotation nearest to the mean of `(R_base R_j)^T R_measured,j`.
 
+use crate::error::Context;
 use crate::io::robot_file::{FrameEntry, RobotFile};
-use anyhow::Context;
 use calib_core::identify::objective::Measurement;
 use calib_core::{FrameParameter, JointParameter, Kinematics, Parameter, ParameterMask, Robot};
 use nalgebra::Dyn;
@@ -27,7 +27,7 @@ use serde::Serialize;
 pub fn with_identified_probe(
     dataset: &crate::measurement::dataset::Dataset,
     frames: Frames,
-) -> anyhow::Result<Option<crate::measurement::dataset::Dataset>> {
+) -> crate::Result<Option<crate::measurement::dataset::Dataset>> {
     if frames != Frames::Base || dataset.identified_probe().is_none() {
         return Ok(None);
     }
@@ -443,9 +443,9 @@ fn measured_model(
     file: &RobotFile,
     inputs: &crate::measurement::dataset::Dataset,
     how: &str,
-) -> anyhow::Result<crate::io::robot_file::RobotModel> {
+) -> crate::Result<crate::io::robot_file::RobotModel> {
     file.to_model(&inputs.model.path).map_err(|e| match e {
-        crate::io::robot_file::RobotFileError::Invalid { message, .. } => anyhow::anyhow!(
+        crate::io::robot_file::RobotFileError::Invalid { message, .. } => crate::refused!(
             "{}: the tracker and tool frames {how} from these data are not physically plausible ({message}). \
              The positions do not come from this robot in one rigid tracker frame: check the units of the \
              positions (a data profile, --profile), the joint order and signs against the robot file {}, \
@@ -466,7 +466,7 @@ pub fn prepare(
     inputs: &mut crate::measurement::dataset::Dataset,
     others: &mut [&mut crate::measurement::dataset::Dataset],
     k: f64,
-) -> anyhow::Result<(FramesReport, ParameterMask<Dyn>)> {
+) -> crate::Result<(FramesReport, ParameterMask<Dyn>)> {
     let full_pose = inputs.measurements.iter().all(|m| m.rotation.is_some());
     let (mask, removed) = mask_with_frames(&inputs.model.mask, frames, full_pose);
     if frames == Frames::None {
@@ -488,7 +488,7 @@ pub fn prepare(
     }
     let registration = register(&inputs.model.robot, &inputs.measurements, frames.tool())?;
     if registration.rms_mm > MAX_REGISTRATION_RMS_MM {
-        anyhow::bail!(
+        return Err(crate::refused!(
             "{}: the nominal robot registered onto the measurements leaves {:.1} mm RMS ({:.1} mm max), \
              far above the few millimetres of a robot's geometric errors (limit {MAX_REGISTRATION_RMS_MM} mm). \
              Check the units and Euler convention of the data (a data profile, --profile), the joint order \
@@ -496,7 +496,7 @@ pub fn prepare(
             inputs.data.path.display(),
             registration.rms_mm,
             registration.max_mm
-        );
+        ));
     }
     let registered = with_registration(&inputs.file, &registration, frames.tool());
     let mut frame_mask = ParameterMask::empty_for(mask.joint_count());
@@ -510,7 +510,9 @@ pub fn prepare(
     fitted_inputs.model.mask = inputs.model.mask;
     let frame_parameters = frame_mask.count();
     if !(1..=12).contains(&frame_parameters) {
-        anyhow::bail!("{frame_parameters} frame parameters; the two frames have 1 to 12");
+        return Err(crate::refused!(
+            "{frame_parameters} frame parameters; the two frames have 1 to 12"
+        ));
     }
     let errors = fit_frames(&fitted_inputs, &frame_mask, k)?;
     let mut fitted = registered.with_errors(&errors, [], &[], "", "");
@@ -549,7 +551,7 @@ pub fn prepare(
 /// them within [`MAX_REGISTRATION_RMS_MM`]. Otherwise the error says what the data look like: in a
 /// tracker's frame (the registration fits), in other units (their spread is about 1000 times the
 /// model's), or wrong in another way.
-pub fn check_base_frame(dataset: &crate::measurement::dataset::Dataset) -> anyhow::Result<()> {
+pub fn check_base_frame(dataset: &crate::measurement::dataset::Dataset) -> crate::Result<()> {
     let kinematics = Kinematics::nominal(&dataset.model.robot)?;
     let rms = crate::measurement::statistics::table3(&kinematics, dataset)
         .0
@@ -590,12 +592,12 @@ pub fn check_base_frame(dataset: &crate::measurement::dataset::Dataset) -> anyho
          of a data profile, and whether the data are in the base frame at all (--frames base+tool)"
             .to_string()
     };
-    anyhow::bail!(
+    Err(crate::refused!(
         "{}: the data are said to be in the robot's base frame, but the model of {} misses them by {rms:.1} mm RMS, \
          far beyond the few millimetres of a robot's geometric errors (limit {MAX_REGISTRATION_RMS_MM} mm). Likely: {likely}",
         dataset.data.path.display(),
         dataset.model.path.display()
-    )
+    ))
 }
 
 /// RMS distance of points from their centroid, mm.
@@ -614,7 +616,7 @@ fn fit_frames(
     inputs: &crate::measurement::dataset::Dataset,
     mask: &ParameterMask<Dyn>,
     k: f64,
-) -> anyhow::Result<calib_core::ParameterErrors<f64, Dyn>> {
+) -> crate::Result<calib_core::ParameterErrors<f64, Dyn>> {
     let set = calib_core::ParameterSet::<Dyn, nalgebra::Dyn>::from_mask(mask)?;
     let problem = calib_core::Problem::new(
         &inputs.model.robot,

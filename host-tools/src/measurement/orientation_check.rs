@@ -93,7 +93,7 @@ fn median_disagreement_deg(flanges: &[Rotation3<f64>], rotations: &[Option<Matri
 
 /// Checks the orientations of `dataset` (read with the Euler convention `euler` when they are
 /// angle columns) against the nominal model; an error names the conventions that would agree.
-pub fn check(dataset: &Dataset, euler: &EulerConvention) -> anyhow::Result<()> {
+pub fn check(dataset: &Dataset, euler: &EulerConvention) -> crate::Result<()> {
     let rotations: Vec<Option<Matrix3<f64>>> =
         dataset.data.records.iter().map(|r| r.rotation).collect();
     if rotations.iter().filter(|r| r.is_some()).count() < 3 {
@@ -172,7 +172,7 @@ pub fn check(dataset: &Dataset, euler: &EulerConvention) -> anyhow::Result<()> {
                 .join("; ")
         )
     };
-    anyhow::bail!(
+    Err(crate::refused!(
         "{}: the measured orientations do not move as the robot does: the rotation between two poses differs \
          from the nominal model's by {disagreement:.2} deg (median; a robot's geometric errors explain a degree or two). \
          The orientations were read as {}; {agree}",
@@ -181,5 +181,5 @@ pub fn check(dataset: &Dataset, euler: &EulerConvention) -> anyhow::Result<()> {
             OrientationColumns::FixedAngles => euler.name(),
             _ => "quaternions (qw, qx, qy, qz)".to_string(),
         }
-    )
+    ))
 }

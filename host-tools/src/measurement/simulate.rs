@@ -7,10 +7,10 @@
 //! calibration can remove, so it is an option here (`--joint-noise-rad`), 0 by default.
 
 use crate::JOINTS;
+use crate::error::Context;
 use crate::io::robot_file::FrameEntry;
 use crate::io::robot_file::{RobotFile, RobotModel};
 use crate::io::tracker_data::{PoseRow, Record, tracker_csv};
-use anyhow::{Context, bail};
 use calib_core::model::paper;
 use calib_core::model::parameters::all_parameters;
 use calib_core::{Kinematics, ParameterErrors};
@@ -102,9 +102,9 @@ impl SimulationConfig {
     }
 
     /// An error naming the first setting out of range (by its command-line flag).
-    pub fn check(&self) -> anyhow::Result<()> {
+    pub fn check(&self) -> crate::Result<()> {
         if self.poses == 0 {
-            bail!("--poses must be at least 1");
+            return Err(crate::refused!("--poses must be at least 1"));
         }
         for (name, v) in [
             ("--joint-noise-rad", self.joint_noise_rad),
@@ -112,7 +112,9 @@ impl SimulationConfig {
             ("--orientation-sigma-rad", self.orientation_sigma_rad),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                bail!("{name} must be a finite number >= 0, got {v}");
+                return Err(crate::refused!(
+                    "{name} must be a finite number >= 0, got {v}"
+                ));
             }
         }
         Ok(())
@@ -157,7 +159,7 @@ impl Simulated {
 
     /// Writes the tracker CSV to `data` and the true robot to `truth`, both or neither (see
     /// [`crate::io::outputs::Outputs`]); neither may be `robot`, the robot file simulated.
-    pub fn write(&self, data: &Path, truth: &Path, robot: &Path) -> anyhow::Result<()> {
+    pub fn write(&self, data: &Path, truth: &Path, robot: &Path) -> crate::Result<()> {
         let mut outputs = crate::io::outputs::Outputs::new(&[("--robot", robot)]);
         outputs.stage(
             "--out",
@@ -178,7 +180,7 @@ pub fn simulate(
     file: &RobotFile,
     path: &Path,
     config: &SimulationConfig,
-) -> anyhow::Result<Simulated> {
+) -> crate::Result<Simulated> {
     config.check()?;
     let mut file = file.clone();
     if let Some(tracker) = &config.tracker {
@@ -221,14 +223,14 @@ fn true_errors(
     config: &SimulationConfig,
     model: &RobotModel,
     rng: &mut Xoshiro256PlusPlus,
-) -> anyhow::Result<ParameterErrors<f64, Dyn>> {
+) -> crate::Result<ParameterErrors<f64, Dyn>> {
     Ok(match config.errors {
         TrueErrors::Table2 => {
             let joints = model.robot.joints.len();
             if joints != JOINTS {
-                anyhow::bail!(
+                return Err(crate::refused!(
                     "Table 2 of the paper holds the errors of a {JOINTS}-joint robot; this robot has {joints} joints: use --errors random"
-                );
+                ));
             }
             // Every parameter of the paper's robot, by name (the same joints: 6).
             let table2 = paper::table2::<f64>();
@@ -259,10 +261,12 @@ fn measure(
     model: &RobotModel,
     truth: &Kinematics<f64, Dyn>,
     rng: &mut Xoshiro256PlusPlus,
-) -> anyhow::Result<Vec<PoseRow>> {
+) -> crate::Result<Vec<PoseRow>> {
     let mut rows = Vec::with_capacity(config.poses);
-    let position_noise = Normal::new(0.0, config.position_sigma_mm)?;
-    let orientation_noise = Normal::new(0.0, config.orientation_sigma_rad)?;
+    let position_noise = Normal::new(0.0, config.position_sigma_mm)
+        .map_err(|e| crate::refused!("position noise: {e}"))?;
+    let orientation_noise = Normal::new(0.0, config.orientation_sigma_rad)
+        .map_err(|e| crate::refused!("orientation noise: {e}"))?;
     for i in 0..config.poses {
         let mut q = calib_core::model::JointVec::<f64>::from_fn(model.robot.joints.len(), |_| 0.0);
         for (qi, limits) in q.iter_mut().zip(&model.robot.limits) {
@@ -272,7 +276,9 @@ fn measure(
                 } else {
                     (-std::f64::consts::PI, std::f64::consts::PI)
                 };
-            *qi = Uniform::new_inclusive(lo, hi)?.sample(rng);
+            *qi = Uniform::new_inclusive(lo, hi)
+                .map_err(|e| crate::refused!("joint range [{lo}, {hi}] rad: {e}"))?
+                .sample(rng);
         }
         // The robot moves to the commanded joints plus noise; the file records the commanded ones.
         let mut actual_q = q;

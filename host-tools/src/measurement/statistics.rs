@@ -98,7 +98,7 @@ pub fn orientation_per_pose(kinematics: &Kinematics<f64, Dyn>, dataset: &Dataset
 }
 
 /// Table 3 statistics of the dataset's own robot (nominal or identified) on its measurements.
-pub fn evaluate(dataset: &Dataset) -> anyhow::Result<Table3> {
+pub fn evaluate(dataset: &Dataset) -> crate::Result<Table3> {
     let kinematics = Kinematics::nominal(&dataset.model.robot)?;
     Ok(table3(&kinematics, dataset).0)
 }

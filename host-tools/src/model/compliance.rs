@@ -228,11 +228,11 @@ pub struct FileCompliance {
 }
 
 /// `Ok` for a robot of [`JOINTS`] joints, the one the gravity model describes.
-fn check_joints(joints: usize) -> anyhow::Result<()> {
+fn check_joints(joints: usize) -> crate::Result<()> {
     if joints != JOINTS {
-        anyhow::bail!(
+        return Err(crate::refused!(
             "gravity compliance is modelled for {JOINTS}-joint robots; this robot has {joints} joints"
-        );
+        ));
     }
     Ok(())
 }
@@ -243,7 +243,7 @@ impl FileCompliance {
     pub fn to_core<T: calib_core::Real>(
         &self,
         joints: usize,
-    ) -> anyhow::Result<calib_core::model::compliance::Compliance<T, Dyn>> {
+    ) -> crate::Result<calib_core::model::compliance::Compliance<T, Dyn>> {
         self.gravity.to_core(&self.gains, joints)
     }
 }
@@ -256,7 +256,7 @@ impl Gravity {
         &self,
         gains: &[f64; GAIN_COUNT],
         joints: usize,
-    ) -> anyhow::Result<calib_core::model::compliance::Compliance<T, Dyn>> {
+    ) -> crate::Result<calib_core::model::compliance::Compliance<T, Dyn>> {
         check_joints(joints)?;
         use calib_core::model::compliance::{Compliance, PointMass, TILT_X, TILT_Y, TORSION};
         let mass = |(m, c): &(f64, Vector3<f64>)| PointMass {
@@ -264,7 +264,7 @@ impl Gravity {
             centre_mm: [T::of(c.x), T::of(c.y), T::of(c.z)],
         };
         let count = calib_core::model::joint_count(joints)
-            .ok_or_else(|| anyhow::anyhow!("{joints} joints are too many"))?;
+            .ok_or_else(|| crate::refused!("{joints} joints are too many"))?;
         let mut per_joint = count.table([T::zero(); 3]);
         for (gain, value) in GAINS.iter().zip(gains) {
             let (j, axis) = match gain {
@@ -299,7 +299,7 @@ pub fn columns(
     robot: &Robot<f64, Dyn>,
     errors: &ParameterErrors<f64, Dyn>,
     q: &JointVec<f64>,
-) -> anyhow::Result<[[f64; 6]; GAIN_COUNT]> {
+) -> crate::Result<[[f64; 6]; GAIN_COUNT]> {
     check_joints(robot.joints.len())?;
     let kinematics = Kinematics::new(robot, errors)?;
     let base = kinematics.base();

@@ -14,14 +14,14 @@ pub const JOINT_COUNTS: std::ops::RangeInclusive<usize> = 2..=calib_core::model:
 
 /// The run-time joint count of a robot of `joints` joints, or an error naming the supported
 /// counts ([`JOINT_COUNTS`]).
-pub fn joint_count(joints: usize) -> anyhow::Result<Dyn> {
+pub fn joint_count(joints: usize) -> crate::Result<Dyn> {
     match calib_core::model::joint_count(joints) {
         Some(count) if JOINT_COUNTS.contains(&joints) => Ok(count),
-        _ => anyhow::bail!(
+        _ => Err(crate::refused!(
             "the robot file has {joints} joints; this command handles {} to {} joints",
             JOINT_COUNTS.start(),
             JOINT_COUNTS.end()
-        ),
+        )),
     }
 }
 
@@ -43,27 +43,24 @@ pub const fn solvable_parameters(joints: usize) -> usize {
 /// The parameters of `mask` as the solvers take them (the count at run time), refused with a
 /// message that says the limit beyond [`solvable_parameters`]`(N)`: more than a robot's data can
 /// determine.
-pub fn solvable_set(mask: &ParameterMask<Dyn>) -> anyhow::Result<ParameterSet<Dyn, Dyn>> {
+pub fn solvable_set(mask: &ParameterMask<Dyn>) -> crate::Result<ParameterSet<Dyn, Dyn>> {
     parameter_set(mask, solvable_parameters(mask.joint_count().value()))
 }
 
 /// The parameters of `mask` as the identifiability analysis takes them, refused beyond
 /// [`all_parameters`]`(N)`.
-pub fn analysable_set(mask: &ParameterMask<Dyn>) -> anyhow::Result<ParameterSet<Dyn, Dyn>> {
+pub fn analysable_set(mask: &ParameterMask<Dyn>) -> crate::Result<ParameterSet<Dyn, Dyn>> {
     parameter_set(mask, all_parameters(mask.joint_count().value()))
 }
 
 /// The set of `mask`'s 1 to `limit` parameters.
-fn parameter_set(
-    mask: &ParameterMask<Dyn>,
-    limit: usize,
-) -> anyhow::Result<ParameterSet<Dyn, Dyn>> {
+fn parameter_set(mask: &ParameterMask<Dyn>, limit: usize) -> crate::Result<ParameterSet<Dyn, Dyn>> {
     let count = mask.count();
     if !(1..=limit).contains(&count) {
-        anyhow::bail!(
+        return Err(crate::refused!(
             "{count} identified parameters; calib supports 1 to {limit} for a robot of {} joints",
             mask.joint_count().value()
-        );
+        ));
     }
     Ok(ParameterSet::from_mask(mask)?)
 }

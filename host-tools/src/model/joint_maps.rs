@@ -350,7 +350,7 @@ fn active_gains(
     robot: &Robot<f64, Dyn>,
     start: &ParameterErrors<f64, Dyn>,
     poses: &[Pose],
-) -> anyhow::Result<Vec<usize>> {
+) -> crate::Result<Vec<usize>> {
     let mut size = [0.0f64; GAIN_COUNT];
     for pose in poses {
         let columns = crate::model::compliance::columns(gravity, robot, start, &pose.q)?;
@@ -436,7 +436,7 @@ impl MapIdentification {
 /// every count tried (harmonics, log evidence).
 pub fn identify_best(
     problem: &MapsProblem<'_>,
-) -> anyhow::Result<(MapIdentification, Vec<(usize, f64)>)> {
+) -> crate::Result<(MapIdentification, Vec<(usize, f64)>)> {
     let mut tried: Vec<(usize, f64)> = Vec::new();
     let first = 3 * HARMONICS_STEP;
     let mut best = identify(problem, first)?;
@@ -470,7 +470,7 @@ pub fn identify_best(
 /// weighted by `orientation_scale_mm` (mm per rad; 0 ignores them); with `gravity`, the
 /// compliance gains too (flat prior, like the geometry). Errors: too few poses, a non-finite
 /// value, a singular problem.
-pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> anyhow::Result<MapIdentification> {
+pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> crate::Result<MapIdentification> {
     let MapsProblem {
         robot,
         start,
@@ -500,13 +500,13 @@ pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> anyhow::Result<M
     };
     let geometry = parameters.len() + active.len();
     if harmonics == 0 {
-        anyhow::bail!("joint maps need at least one harmonic");
+        return Err(crate::refused!("joint maps need at least one harmonic"));
     }
     if rows <= geometry + 1 {
-        anyhow::bail!(
+        return Err(crate::refused!(
             "{} poses give {rows} equations for {geometry} geometric parameters: too few for joint maps",
             poses.len()
-        );
+        ));
     }
     let joints = robot.joints.len();
     let all = all_mask(robot.joint_count());
@@ -515,9 +515,9 @@ pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> anyhow::Result<M
         .iter()
         .map(|p| {
             set.index_of(*p)
-                .ok_or_else(|| anyhow::anyhow!("parameter {p:?} is not a parameter of the robot"))
+                .ok_or_else(|| crate::refused!("parameter {p:?} is not a parameter of the robot"))
         })
-        .collect::<anyhow::Result<_>>()?;
+        .collect::<crate::Result<_>>()?;
     let per_joint = 2 * harmonics;
     let unknowns = geometry + joints * per_joint;
     let mut errors = *start;
@@ -582,7 +582,9 @@ pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> anyhow::Result<M
             }
         }
         if !design.iter().chain(residual.iter()).all(|v| v.is_finite()) {
-            anyhow::bail!("joint maps: a Jacobian or residual is not finite");
+            return Err(crate::numerical!(
+                "joint maps: a Jacobian or residual is not finite"
+            ));
         }
         residual += design.columns(geometry, joints * per_joint) * &current;
         let solved = if rows < unknowns {
@@ -622,7 +624,7 @@ pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> anyhow::Result<M
         result = Some(solved);
     }
     let Some(solved) = result else {
-        anyhow::bail!("joint maps: no linearisation ran");
+        return Err(crate::numerical!("joint maps: no linearisation ran"));
     };
     let coefficient_sd = (0..joints)
         .map(|j| {
@@ -695,7 +697,7 @@ fn evidence(
     per_joint: usize,
     alpha: &mut JointVec<f64>,
     beta: &mut f64,
-) -> anyhow::Result<Posterior> {
+) -> crate::Result<Posterior> {
     let mut last = None;
     for iteration in 0..EVIDENCE_ITERATIONS {
         let mut precision = gram * *beta;
@@ -706,9 +708,9 @@ fn evidence(
             }
         }
         let Some(cholesky) = precision.cholesky() else {
-            anyhow::bail!(
+            return Err(crate::refused!(
                 "joint maps: the posterior is singular (a geometric parameter is not determined)"
-            );
+            ));
         };
         let mean = cholesky.solve(projected) * *beta;
         let covariance = cholesky.inverse();
@@ -762,7 +764,7 @@ fn evidence(
             break;
         }
     }
-    last.ok_or_else(|| anyhow::anyhow!("joint maps: no evidence iteration ran"))
+    last.ok_or_else(|| crate::numerical!("joint maps: no evidence iteration ran"))
 }
 
 /// The same posterior and evidence as [`evidence`], computed in the space of the `N` equations
@@ -779,7 +781,7 @@ fn evidence_function_space(
     per_joint: usize,
     alpha: &mut JointVec<f64>,
     beta: &mut f64,
-) -> anyhow::Result<Posterior> {
+) -> crate::Result<Posterior> {
     let rows = design.nrows();
     let a = design.columns(0, geometry).into_owned();
     let phi: Vec<DMatrix<f64>> = (0..alpha.len())
@@ -802,14 +804,16 @@ fn evidence_function_space(
             }
         }
         let Some(k_chol) = k.cholesky() else {
-            anyhow::bail!("joint maps: the covariance of the poses is singular");
+            return Err(crate::numerical!(
+                "joint maps: the covariance of the poses is singular"
+            ));
         };
         let k_inv = k_chol.inverse();
         let k_inv_a = &k_inv * &a;
         let Some(m_chol) = (a.transpose() * &k_inv_a).cholesky() else {
-            anyhow::bail!(
+            return Err(crate::refused!(
                 "joint maps: the posterior is singular (a geometric parameter is not determined)"
-            );
+            ));
         };
         let p = &k_inv - &k_inv_a * m_chol.solve(&k_inv_a.transpose());
         let pr = &p * residual;
@@ -875,7 +879,7 @@ fn evidence_function_space(
     }
     *alpha = variance_prior.map(prior_precision);
     *beta = 1.0 / noise;
-    last.ok_or_else(|| anyhow::anyhow!("joint maps: no evidence iteration ran"))
+    last.ok_or_else(|| crate::numerical!("joint maps: no evidence iteration ran"))
 }
 
 #[cfg(test)]

@@ -23,11 +23,11 @@
 //! compares the verification poses with the prediction ([`PlanCheck`]).
 
 use crate::analysis::identifiability::analyse;
+use crate::error::Context;
 use crate::io::robot_file::RobotFile;
 use crate::io::tracker_data::{PlannedVerification, Record, Role};
 use crate::measurement::dataset::Dataset;
 use crate::measurement::frames::Frames;
-use anyhow::{Context, bail};
 use calib_core::model::JointVec;
 use calib_core::{JointAngles, Kinematics, Parameter, ParameterMask, ParameterSet, Robot};
 use nalgebra::DMatrix;
@@ -105,37 +105,40 @@ pub struct PlanSettings {
 
 impl PlanSettings {
     /// The settings' own checks, with the flag to change.
-    pub fn check(&self) -> anyhow::Result<()> {
+    pub fn check(&self) -> crate::Result<()> {
         if self.poses == 0 {
-            bail!("--poses must be at least 1");
+            return Err(crate::refused!("--poses must be at least 1"));
         }
         if self.core > self.poses {
-            bail!(
+            return Err(crate::refused!(
                 "--core {} is more than --poses {}: the core is part of the fitted poses",
                 self.core,
                 self.poses
-            );
+            ));
         }
         if !(self.min_distance_deg.is_finite() && self.min_distance_deg >= 0.0) {
-            bail!(
+            return Err(crate::refused!(
                 "--min-distance-deg must be 0 or more degrees, got {}",
                 self.min_distance_deg
-            );
+            ));
         }
         if !(self.noise_mm.is_finite() && self.noise_mm > 0.0 && self.noise_mm < 100.0) {
-            bail!(
+            return Err(crate::refused!(
                 "the noise level must be above 0 and below 100 mm, got {} (--noise-mm: the tracker's and the robot's repeatability, 1 sigma per coordinate)",
                 self.noise_mm
-            );
+            ));
         }
         if !(self.noise_deg.is_finite() && self.noise_deg > 0.0 && self.noise_deg < 10.0) {
-            bail!(
+            return Err(crate::refused!(
                 "the orientation noise must be above 0 and below 10 deg, got {} (--noise-deg)",
                 self.noise_deg
-            );
+            ));
         }
         if !(self.k.is_finite() && self.k > 0.0) {
-            bail!("--k must be a positive weight (mm^2/rad^2), got {}", self.k);
+            return Err(crate::refused!(
+                "--k must be a positive weight (mm^2/rad^2), got {}",
+                self.k
+            ));
         }
         Ok(())
     }
@@ -293,7 +296,7 @@ impl Plan {
     /// The plan as a tracker CSV without measurements (docs/USAGE.md): `id`, `role`, the joints
     /// in degrees and empty measurement columns (quaternion columns for `pose`), for the tracker
     /// software to fill; `comments` and the prediction line at the top.
-    pub fn csv(&self, comments: &[String]) -> anyhow::Result<String> {
+    pub fn csv(&self, comments: &[String]) -> crate::Result<String> {
         let joints = self.poses.first().map_or(0, |p| p.q.len());
         let mut text = String::new();
         for c in comments {
@@ -317,7 +320,9 @@ impl Plan {
             fields.extend(measured.iter().map(|_| String::new()));
             writer.write_record(&fields)?;
         }
-        text.push_str(std::str::from_utf8(&writer.into_inner()?)?);
+        text.push_str(std::str::from_utf8(
+            &writer.into_inner().map_err(|e| e.into_error())?,
+        )?);
         Ok(text)
     }
 }
@@ -343,7 +348,7 @@ fn information(
     q: &[Vec<f64>],
     measure: Measure,
     k: f64,
-) -> anyhow::Result<Information> {
+) -> crate::Result<Information> {
     let model = file.to_model(robot_path)?;
     let nominal = Kinematics::nominal(&model.robot)?;
     let mut records = Vec::with_capacity(q.len());
@@ -378,7 +383,7 @@ fn information(
         .measurements
         .iter()
         .map(|m| pose_rows(&kinematics, &parameters, &m.angles, measure, k))
-        .collect::<anyhow::Result<_>>()?;
+        .collect::<crate::Result<_>>()?;
     Ok(Information {
         parameters,
         undetermined,
@@ -394,7 +399,7 @@ fn pose_rows(
     angles: &JointAngles<f64, Dyn>,
     measure: Measure,
     k: f64,
-) -> anyhow::Result<DMatrix<f64>> {
+) -> crate::Result<DMatrix<f64>> {
     let rows = measure.rows();
     let mut out = DMatrix::zeros(rows, parameters.len());
     for (j, p) in parameters.iter().enumerate() {
@@ -417,25 +422,25 @@ pub fn plan(
     robot_path: &std::path::Path,
     candidates: &[(String, Vec<f64>)],
     settings: &PlanSettings,
-) -> anyhow::Result<Plan> {
+) -> crate::Result<Plan> {
     settings.check()?;
     let joints = file.joint.len();
     if let Some((id, q)) = candidates.iter().find(|(_, q)| q.len() != joints) {
-        bail!(
+        return Err(crate::refused!(
             "candidate {id} has {} joint values, the robot has {joints} joints",
             q.len()
-        );
+        ));
     }
     // Saturating: counts beyond any file (`--poses 18446744073709551615`) are refused below,
     // not an overflow.
     let wanted = settings.poses.saturating_add(settings.verify);
     if candidates.len() < wanted {
-        bail!(
+        return Err(crate::refused!(
             "{} candidates cannot give {} fitted and {} verification poses; give more candidates (--generate N or a longer --candidates file) or ask for fewer poses",
             candidates.len(),
             settings.poses,
             settings.verify
-        );
+        ));
     }
     let q: Vec<Vec<f64>> = candidates.iter().map(|(_, q)| q.clone()).collect();
     crate::model::counts::joint_count(joints)?;
@@ -443,12 +448,12 @@ pub fn plan(
     let parameters = info.parameters.len();
     let rows = settings.measure.rows();
     if settings.poses.saturating_mul(rows) <= parameters {
-        bail!(
+        return Err(crate::refused!(
             "{} poses give {} equations for {parameters} identified parameters: a fit needs more equations than parameters (to estimate its own noise); plan at least {} poses",
             settings.poses,
             settings.poses.saturating_mul(rows),
             parameters / rows + 1
-        );
+        ));
     }
     // Columns scaled to unit RMS over the candidates: units and lever arms drop out of the
     // greedy step's regularisation and of the conditioning.
@@ -462,10 +467,10 @@ pub fn plan(
         .iter()
         .position(|s| s.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater))
     {
-        bail!(
+        return Err(crate::refused!(
             "{} changes no measurement at any candidate; leave it out of the robot file's identify list",
             info.parameters[j]
-        );
+        ));
     }
     let scaled: Vec<DMatrix<f64>> = info
         .rows
@@ -492,7 +497,7 @@ pub fn plan(
             .clone()
             .cholesky()
             .map(|c| c.inverse())
-            .ok_or_else(|| anyhow::anyhow!("the information matrix lost its definiteness"))?;
+            .ok_or_else(|| crate::numerical!("the information matrix lost its definiteness"))?;
         let mut best: Option<(usize, f64)> = None;
         for (i, j) in scaled.iter().enumerate() {
             if !far_enough(&chosen, i) {
@@ -507,11 +512,11 @@ pub fn plan(
             }
         }
         let Some((i, _)) = best else {
-            bail!(
+            return Err(crate::refused!(
                 "only {} candidates are at least {} deg apart; lower --min-distance-deg or give more candidates",
                 chosen.len(),
                 settings.min_distance_deg
-            );
+            ));
         };
         information += scaled[i].transpose() * &scaled[i];
         chosen.push((i, Role::Core));
@@ -532,11 +537,11 @@ pub fn plan(
                 random.by_ref().find(|i| far_enough(&chosen, *i))
             };
             let Some(i) = next else {
-                bail!(
+                return Err(crate::refused!(
                     "only {} candidates are at least {} deg apart, {wanted} are needed; lower --min-distance-deg or give more candidates",
                     chosen.len(),
                     settings.min_distance_deg
-                );
+                ));
             };
             chosen.push((i, role));
         }
@@ -710,7 +715,7 @@ fn predict(
     scale: &[f64],
     chosen: &[(usize, Role)],
     settings: &PlanSettings,
-) -> anyhow::Result<Prediction> {
+) -> crate::Result<Prediction> {
     let p = info.parameters.len();
     let fitted: Vec<usize> = chosen
         .iter()
@@ -731,9 +736,9 @@ fn predict(
         .cholesky()
         .map(|c| c.inverse())
     else {
-        bail!(
+        return Err(crate::refused!(
             "the fitted poses do not determine every parameter (singular information matrix); plan more poses or a smaller identify list"
-        );
+        ));
     };
     let mut noisy = stacked.clone();
     for (r, mut row) in noisy.row_iter_mut().enumerate() {
@@ -849,7 +854,7 @@ pub fn leverages(
     q: &[Vec<f64>],
     measure: Measure,
     k: f64,
-) -> anyhow::Result<Vec<f64>> {
+) -> crate::Result<Vec<f64>> {
     crate::model::counts::joint_count(file.joint.len())?;
     let info = information(file, robot_path, q, measure, k)?;
     let stacked = stack(info.rows.iter(), info.parameters.len());
@@ -857,7 +862,9 @@ pub fn leverages(
         .cholesky()
         .map(|c| c.inverse())
     else {
-        bail!("the fitted poses do not determine every parameter");
+        return Err(crate::refused!(
+            "the fitted poses do not determine every parameter"
+        ));
     };
     Ok(info
         .rows
@@ -875,15 +882,15 @@ pub fn generate(
     robot_path: &std::path::Path,
     count: usize,
     box_mm: Option<[f64; 6]>,
-) -> anyhow::Result<Vec<(String, Vec<f64>)>> {
+) -> crate::Result<Vec<(String, Vec<f64>)>> {
     crate::model::counts::joint_count(file.joint.len())?;
     let robot: Robot<f64, Dyn> = file.to_model(robot_path)?.robot;
     let joints = robot.joints.len();
     if joints > calib_core::identify::halton::MAX_DIMENSION {
-        bail!(
+        return Err(crate::refused!(
             "--generate handles up to {} joints",
             calib_core::identify::halton::MAX_DIMENSION
-        );
+        ));
     }
     let kinematics = Kinematics::nominal(&robot)?;
     let bounds: Vec<(f64, f64)> = robot
@@ -915,7 +922,7 @@ pub fn generate(
         out.push((format!("C{:04}", out.len() + 1), q.to_vec()));
     }
     if out.len() < count {
-        bail!(
+        return Err(crate::refused!(
             "only {} of {count} generated configurations put the tool point in the box {} mm (base frame); widen the box or give candidates (--candidates)",
             out.len(),
             box_mm
@@ -924,7 +931,7 @@ pub fn generate(
                     b[0], b[1], b[2], b[3], b[4], b[5]
                 ))
                 .unwrap_or_default()
-        );
+        ));
     }
     Ok(out)
 }

@@ -79,7 +79,7 @@ fn numbers(value: &Value) -> Vec<f64> {
 }
 
 /// The page for `report` (the JSON report of a calibration).
-pub fn render(report: &Value, rendering: &Rendering) -> anyhow::Result<String> {
+pub fn render(report: &Value, rendering: &Rendering) -> crate::Result<String> {
     let mut page = String::new();
     let robot = text(&report["robot"]);
     let data = text(&report["data"]);
@@ -119,7 +119,7 @@ fn summary(
     rendering: &Rendering,
     robot: &str,
     data: &str,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     let stage = |name: &str| -> String {
         let s = &report[name];
         if s.is_null() {
@@ -168,7 +168,7 @@ fn numbers_or_texts(value: &Value) -> Vec<String> {
         .unwrap_or_default()
 }
 
-fn table3(page: &mut String, report: &Value) -> anyhow::Result<()> {
+fn table3(page: &mut String, report: &Value) -> crate::Result<()> {
     page.push_str("<h2 id=\"table3\">Table 3: errors before and after calibration</h2>\n");
     for name in ["calibration", "validation"] {
         let s = &report[name];
@@ -217,7 +217,7 @@ fn table3(page: &mut String, report: &Value) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn parameters(page: &mut String, report: &Value) -> anyhow::Result<()> {
+fn parameters(page: &mut String, report: &Value) -> crate::Result<()> {
     page.push_str("<h2 id=\"parameters\">Identified parameters</h2>\n<p class=\"note\">Errors added to the nominal model, with their standard errors from least squares (1 sigma).</p>\n<table>\n<tr><th>parameter</th><th>error</th><th>standard error</th><th>unit</th></tr>\n");
     if let Some(map) = report["parameters"].as_object() {
         for (name, p) in map {
@@ -248,7 +248,7 @@ fn parameters(page: &mut String, report: &Value) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn identifiability(page: &mut String, report: &Value) -> anyhow::Result<()> {
+fn identifiability(page: &mut String, report: &Value) -> crate::Result<()> {
     let i = &report["identifiability"];
     let weakest = i["weakest_direction"]
         .as_array()
@@ -321,7 +321,7 @@ fn identifiability(page: &mut String, report: &Value) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn plots(page: &mut String, report: &Value) -> anyhow::Result<()> {
+fn plots(page: &mut String, report: &Value) -> crate::Result<()> {
     let per_pose = &report["per_pose"];
     let axes = |v: &Value| -> Vec<[f64; 3]> {
         v.as_array()
@@ -382,7 +382,7 @@ fn strip_xml_declaration(svg: &str) -> &str {
     }
 }
 
-fn poses(page: &mut String, report: &Value) -> anyhow::Result<()> {
+fn poses(page: &mut String, report: &Value) -> crate::Result<()> {
     page.push_str("<h2 id=\"poses\">Calibration poses</h2>\n<table class=\"poses\">\n<tr><th>id</th><th>line</th><th>nominal |dp|, mm</th><th>identified |dp|, mm</th><th>robust weight</th></tr>\n");
     for p in report["poses"].as_array().map_or(&[][..], Vec::as_slice) {
         writeln!(
@@ -399,7 +399,7 @@ fn poses(page: &mut String, report: &Value) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn outliers(page: &mut String, report: &Value) -> anyhow::Result<()> {
+fn outliers(page: &mut String, report: &Value) -> crate::Result<()> {
     page.push_str("<h2 id=\"outliers\">Flagged poses</h2>\n");
     let list = report["outliers"].as_array().map_or(&[][..], Vec::as_slice);
     if list.is_empty() {
@@ -423,7 +423,7 @@ fn outliers(page: &mut String, report: &Value) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn frames(page: &mut String, report: &Value) -> anyhow::Result<()> {
+fn frames(page: &mut String, report: &Value) -> crate::Result<()> {
     let f = &report["frames"];
     writeln!(
         page,
@@ -460,7 +460,7 @@ fn frames(page: &mut String, report: &Value) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn settings(page: &mut String, report: &Value) -> anyhow::Result<()> {
+fn settings(page: &mut String, report: &Value) -> crate::Result<()> {
     page.push_str("<h2 id=\"settings\">Settings</h2>\n<table>\n");
     let mut rows = Vec::new();
     flatten("", &report["settings"], &mut rows);

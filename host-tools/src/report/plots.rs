@@ -3,7 +3,6 @@
 //! the orientation error per axis, and a histogram of the validation errors.
 //! Text is drawn with the bundled DejaVu Sans font, so PNGs need no system fonts.
 
-use anyhow::anyhow;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -24,11 +23,11 @@ fn register_font() {
 fn convergence<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     history: &[(u32, f64)],
-) -> anyhow::Result<()>
+) -> crate::Result<()>
 where
     DB::ErrorType: 'static,
 {
-    area.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    area.fill(&WHITE).map_err(crate::Error::plot)?;
     let last = history.last().map_or(1, |h| h.0).max(1);
     let positive: Vec<f64> = history
         .iter()
@@ -47,7 +46,7 @@ where
         .x_label_area_size(45)
         .y_label_area_size(80)
         .build_cartesian_2d(0u32..last, (lo / 2.0..hi * 2.0).log_scale())
-        .map_err(|e| anyhow!("{e}"))?;
+        .map_err(crate::Error::plot)?;
     chart
         .configure_mesh()
         .x_desc("generation")
@@ -55,7 +54,7 @@ where
         .label_style((FONT, 14))
         .y_label_formatter(&|v| format!("{v:.0e}"))
         .draw()
-        .map_err(|e| anyhow!("{e}"))?;
+        .map_err(crate::Error::plot)?;
     chart
         .draw_series(LineSeries::new(
             history
@@ -64,8 +63,8 @@ where
                 .map(|h| (h.0, h.1)),
             BLUE.stroke_width(2),
         ))
-        .map_err(|e| anyhow!("{e}"))?;
-    area.present().map_err(|e| anyhow!("{e}"))?;
+        .map_err(crate::Error::plot)?;
+    area.present().map_err(crate::Error::plot)?;
     Ok(())
 }
 
@@ -76,7 +75,7 @@ fn per_pose<DB: DrawingBackend>(
     y_desc: &str,
     before: &[f64],
     after: &[f64],
-) -> anyhow::Result<()>
+) -> crate::Result<()>
 where
     DB::ErrorType: 'static,
 {
@@ -94,7 +93,7 @@ where
         .x_label_area_size(40)
         .y_label_area_size(70)
         .build_cartesian_2d(0.5f64..n as f64 + 0.5, 0.0..hi)
-        .map_err(|e| anyhow!("{e}"))?;
+        .map_err(crate::Error::plot)?;
     chart
         .configure_mesh()
         .x_desc("pose")
@@ -102,7 +101,7 @@ where
         .x_label_formatter(&|v| format!("{v:.0}"))
         .label_style((FONT, 14))
         .draw()
-        .map_err(|e| anyhow!("{e}"))?;
+        .map_err(crate::Error::plot)?;
     let series = [
         (before, RED, "before calibration"),
         (after, BLUE, "after calibration"),
@@ -115,14 +114,14 @@ where
             .collect();
         chart
             .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))
-            .map_err(|e| anyhow!("{e}"))?
+            .map_err(crate::Error::plot)?
             .label(label)
             .legend(move |(x, y)| {
                 PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
             });
         chart
             .draw_series(points.iter().map(|p| Circle::new(*p, 3, color.filled())))
-            .map_err(|e| anyhow!("{e}"))?;
+            .map_err(crate::Error::plot)?;
     }
     chart
         .configure_series_labels()
@@ -130,7 +129,7 @@ where
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()
-        .map_err(|e| anyhow!("{e}"))?;
+        .map_err(crate::Error::plot)?;
     Ok(())
 }
 
@@ -138,11 +137,11 @@ where
 fn position_errors<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     plots: &PlotData<'_>,
-) -> anyhow::Result<()>
+) -> crate::Result<()>
 where
     DB::ErrorType: 'static,
 {
-    area.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    area.fill(&WHITE).map_err(crate::Error::plot)?;
     per_pose(
         area,
         plots.title,
@@ -150,7 +149,7 @@ where
         plots.before,
         plots.after,
     )?;
-    area.present().map_err(|e| anyhow!("{e}"))?;
+    area.present().map_err(crate::Error::plot)?;
     Ok(())
 }
 
@@ -159,11 +158,11 @@ fn orientation_errors<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     before: &[[f64; 3]],
     after: &[[f64; 3]],
-) -> anyhow::Result<()>
+) -> crate::Result<()>
 where
     DB::ErrorType: 'static,
 {
-    area.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    area.fill(&WHITE).map_err(crate::Error::plot)?;
     for (axis, panel) in area.split_evenly((3, 1)).iter().enumerate() {
         let pick = |v: &[[f64; 3]]| -> Vec<f64> { v.iter().map(|e| e[axis]).collect() };
         let name = ["x", "y", "z"][axis];
@@ -175,7 +174,7 @@ where
             &pick(after),
         )?;
     }
-    area.present().map_err(|e| anyhow!("{e}"))?;
+    area.present().map_err(crate::Error::plot)?;
     Ok(())
 }
 
@@ -184,11 +183,11 @@ fn histogram<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     before: &[f64],
     after: &[f64],
-) -> anyhow::Result<()>
+) -> crate::Result<()>
 where
     DB::ErrorType: 'static,
 {
-    area.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    area.fill(&WHITE).map_err(crate::Error::plot)?;
     const BINS: usize = 25;
     let panels = area.split_evenly((2, 1));
     for (panel, (values, color, label)) in panels.iter().zip([
@@ -217,22 +216,22 @@ where
             .x_label_area_size(40)
             .y_label_area_size(60)
             .build_cartesian_2d(0.0..hi, 0u32..top + top / 10 + 1)
-            .map_err(|e| anyhow!("{e}"))?;
+            .map_err(crate::Error::plot)?;
         chart
             .configure_mesh()
             .x_desc("absolute position error |dp| (mm)")
             .y_desc("poses")
             .label_style((FONT, 14))
             .draw()
-            .map_err(|e| anyhow!("{e}"))?;
+            .map_err(crate::Error::plot)?;
         chart
             .draw_series(counts.iter().enumerate().map(|(i, c)| {
                 let x0 = i as f64 * width;
                 Rectangle::new([(x0, 0), (x0 + width, *c)], color.mix(0.7).filled())
             }))
-            .map_err(|e| anyhow!("{e}"))?;
+            .map_err(crate::Error::plot)?;
     }
-    area.present().map_err(|e| anyhow!("{e}"))?;
+    area.present().map_err(crate::Error::plot)?;
     Ok(())
 }
 
@@ -242,11 +241,11 @@ where
 fn joint_maps<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     curves: &[crate::calibration::maps::MapCurve],
-) -> anyhow::Result<()>
+) -> crate::Result<()>
 where
     DB::ErrorType: 'static,
 {
-    area.fill(&WHITE).map_err(|e| anyhow!("{e}"))?;
+    area.fill(&WHITE).map_err(crate::Error::plot)?;
     let panels = area.split_evenly((3, 2));
     for (panel, curve) in panels.iter().zip(curves) {
         let extent = curve
@@ -266,7 +265,7 @@ where
             .x_label_area_size(35)
             .y_label_area_size(55)
             .build_cartesian_2d(-180.0..180.0, -extent..extent)
-            .map_err(|e| anyhow!("{e}"))?;
+            .map_err(crate::Error::plot)?;
         chart
             .configure_mesh()
             .x_desc("joint reading (deg)")
@@ -274,7 +273,7 @@ where
             .max_light_lines(1)
             .label_style((FONT, 12))
             .draw()
-            .map_err(|e| anyhow!("{e}"))?;
+            .map_err(crate::Error::plot)?;
         let band: Vec<(f64, f64)> = curve
             .q_deg
             .iter()
@@ -291,7 +290,7 @@ where
             .collect();
         chart
             .draw_series(std::iter::once(Polygon::new(band, BLUE.mix(0.2).filled())))
-            .map_err(|e| anyhow!("{e}"))?;
+            .map_err(crate::Error::plot)?;
         chart
             .draw_series(LineSeries::new(
                 curve
@@ -301,7 +300,7 @@ where
                     .zip(curve.mean_mrad.iter().copied()),
                 BLUE.stroke_width(2),
             ))
-            .map_err(|e| anyhow!("{e}"))?;
+            .map_err(crate::Error::plot)?;
         // The calibration readings, wrapped into one turn, as ticks at the bottom.
         let tick = extent * 0.08;
         chart
@@ -309,9 +308,9 @@ where
                 let q = (q + 180.0).rem_euclid(360.0) - 180.0;
                 PathElement::new(vec![(q, -extent), (q, -extent + tick)], RED)
             }))
-            .map_err(|e| anyhow!("{e}"))?;
+            .map_err(crate::Error::plot)?;
     }
-    area.present().map_err(|e| anyhow!("{e}"))?;
+    area.present().map_err(crate::Error::plot)?;
     Ok(())
 }
 
@@ -346,7 +345,7 @@ pub fn stage_plots(
     outputs: &mut crate::io::outputs::Outputs,
     dir: &Path,
     plots: &PlotData<'_>,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     register_font();
     // The bitmap backend picks its format from the extension: draw to "<temporary>.png".
     macro_rules! both {
@@ -354,15 +353,15 @@ pub fn stage_plots(
             outputs.stage_with("--plot", &dir.join(concat!($name, ".svg")), |t| {
                 let $area = SVGBackend::new(t, $size).into_drawing_area();
                 $draw?;
-                $area.present()?;
+                $area.present().map_err(crate::Error::plot)?;
                 Ok(())
             })?;
             outputs.stage_with("--plot", &dir.join(concat!($name, ".png")), |t| {
                 let png = t.with_extension("tmp.png");
-                let drawn = (|| -> anyhow::Result<()> {
+                let drawn = (|| -> crate::Result<()> {
                     let $area = BitMapBackend::new(&png, $size).into_drawing_area();
                     $draw?;
-                    $area.present()?;
+                    $area.present().map_err(crate::Error::plot)?;
                     Ok(())
                 })();
                 if let Err(e) = drawn.and_then(|()| Ok(std::fs::rename(&png, t)?)) {
@@ -403,21 +402,19 @@ pub fn stage_plots(
 
 /// The plots of [`stage_plots`] as SVG text, for a self-contained page
 /// ([`crate::report::html`]): `(name, caption, svg)` for each plot the data allow.
-pub fn svg_plots(
-    plots: &PlotData<'_>,
-) -> anyhow::Result<Vec<(&'static str, &'static str, String)>> {
+pub fn svg_plots(plots: &PlotData<'_>) -> crate::Result<Vec<(&'static str, &'static str, String)>> {
     register_font();
     let mut out = Vec::new();
     let mut draw = |name: &'static str,
                     caption: &'static str,
                     size: (u32, u32),
-                    f: &dyn Fn(&DrawingArea<SVGBackend<'_>, Shift>) -> anyhow::Result<()>|
-     -> anyhow::Result<()> {
+                    f: &dyn Fn(&DrawingArea<SVGBackend<'_>, Shift>) -> crate::Result<()>|
+     -> crate::Result<()> {
         let mut svg = String::new();
         {
             let area = SVGBackend::with_string(&mut svg, size).into_drawing_area();
             f(&area)?;
-            area.present().map_err(|e| anyhow!("{e}"))?;
+            area.present().map_err(crate::Error::plot)?;
         }
         out.push((name, caption, svg));
         Ok(())

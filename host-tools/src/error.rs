@@ -1,0 +1,191 @@
+//! The library's one error type: what went wrong, typed by where it came from, with its causes
+//! kept (`source()`), so that a program can tell a bad robot file from a refused option or a
+//! failed write, and a person reads the same messages as on the command line (`calib` prints an
+//! error and then its causes, one per line).
+//!
+//! Every public function of the library returns [`Result`]; `anyhow` is only the command line's
+//! (`cli/` and the binary), where any of these errors is printed and turned into exit status 1.
+//!
+//! ```
+//! use host_tools::error::Error;
+//! use host_tools::io::robot_file::RobotFile;
+//!
+//! let error = RobotFile::read(std::path::Path::new("no-such-robot.toml")).unwrap_err();
+//! assert!(matches!(error, host_tools::io::robot_file::RobotFileError::Read { .. }));
+//! // The same error as the library's type, with its message unchanged.
+//! let message = error.to_string();
+//! assert_eq!(Error::from(error).to_string(), message);
+//! ```
+
+use std::fmt::Display;
+
+/// Every error the host library returns.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// An input the library refuses: an option's value, a file's content, or a combination of
+    /// inputs that cannot give a result it could stand behind. The message names the input and
+    /// says how to fix it.
+    #[error("{0}")]
+    Refused(String),
+    /// A computation that could not finish (a matrix lost its definiteness, a value is not
+    /// finite); the message says which.
+    #[error("{0}")]
+    Numerical(String),
+    /// A robot file that cannot be read or does not describe a robot.
+    #[error(transparent)]
+    RobotFile(#[from] crate::io::robot_file::RobotFileError),
+    /// A data file that cannot be read (file, line and column named).
+    #[error(transparent)]
+    Data(#[from] crate::io::tracker_data::DataError),
+    /// A data profile that cannot be read.
+    #[error(transparent)]
+    Profile(#[from] crate::io::profile::ProfileError),
+    /// The tracker's registration to the robot failed.
+    #[error(transparent)]
+    Registration(#[from] crate::measurement::frames::RegistrationError),
+    /// The core refused a model or joint readings.
+    #[error(transparent)]
+    Kinematics(#[from] calib_core::KinematicsError),
+    /// The core refused a calibration problem.
+    #[error(transparent)]
+    Problem(#[from] calib_core::identify::ProblemError),
+    /// The core refused a measurement.
+    #[error(transparent)]
+    Measurement(#[from] calib_core::identify::objective::MeasurementError),
+    /// The core's least squares failed.
+    #[error(transparent)]
+    LeastSquares(#[from] calib_core::identify::lm::LmError),
+    /// The core's particle swarm refused its settings.
+    #[error(transparent)]
+    Swarm(#[from] calib_core::identify::ipso::IpsoError),
+    /// The core's controller-side model or block was refused.
+    #[error(transparent)]
+    Storage(#[from] calib_core::controller::storage::StorageError),
+    /// The independent reference was asked for a parameter it does not know.
+    #[error(transparent)]
+    Reference(#[from] calib_reference::lm::UnknownParameter),
+    /// Reading or writing a file failed.
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+    /// A JSON document could not be read or written.
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+    /// A CSV file could not be read or written.
+    #[error(transparent)]
+    Csv(#[from] csv::Error),
+    /// A TOML document could not be read.
+    #[error(transparent)]
+    TomlRead(#[from] toml::de::Error),
+    /// A TOML document could not be written.
+    #[error(transparent)]
+    TomlWrite(#[from] toml::ser::Error),
+    /// Text could not be formatted (writing into a `String` does not fail; a `Display` of ours
+    /// could).
+    #[error(transparent)]
+    Format(#[from] std::fmt::Error),
+    /// Bytes meant as text are not UTF-8.
+    #[error(transparent)]
+    Utf8(#[from] std::str::Utf8Error),
+    /// A plot could not be drawn (the plotting crate's message).
+    #[error("{0}")]
+    Plot(String),
+    /// What the library was doing when the cause failed.
+    #[error("{context}")]
+    Context {
+        /// What was being done, for example "robot file ur10.toml".
+        context: String,
+        /// Why it failed.
+        #[source]
+        source: Box<Error>,
+    },
+}
+
+/// The library's result type.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// An input refused with a message that says what to change: `Error::Refused(format!(...))`.
+#[macro_export]
+macro_rules! refused {
+    ($($message:tt)*) => {
+        $crate::error::Error::Refused(format!($($message)*))
+    };
+}
+
+/// A computation that could not finish: `Error::Numerical(format!(...))`.
+#[macro_export]
+macro_rules! numerical {
+    ($($message:tt)*) => {
+        $crate::error::Error::Numerical(format!($($message)*))
+    };
+}
+
+impl Error {
+    /// A plotting error, by its message.
+    pub fn plot(error: impl Display) -> Self {
+        Self::Plot(error.to_string())
+    }
+
+    /// This error as the cause of `context`.
+    pub fn context(self, context: impl Display) -> Self {
+        Self::Context {
+            context: context.to_string(),
+            source: Box::new(self),
+        }
+    }
+}
+
+/// Says what was being done when a result failed, as `anyhow::Context` does, but into the
+/// library's [`Error`].
+pub trait Context<T> {
+    /// The error, if any, as the cause of `context`.
+    fn context(self, context: impl Display) -> Result<T>;
+    /// The error, if any, as the cause of the context `f` gives (computed only on failure).
+    fn with_context<C: Display>(self, f: impl FnOnce() -> C) -> Result<T>;
+}
+
+impl<T, E: Into<Error>> Context<T> for std::result::Result<T, E> {
+    fn context(self, context: impl Display) -> Result<T> {
+        self.map_err(|e| e.into().context(context))
+    }
+
+    fn with_context<C: Display>(self, f: impl FnOnce() -> C) -> Result<T> {
+        self.map_err(|e| e.into().context(f()))
+    }
+}
+
+/// A missing value is refused with the context as its message.
+impl<T> Context<T> for Option<T> {
+    fn context(self, context: impl Display) -> Result<T> {
+        self.ok_or_else(|| Error::Refused(context.to_string()))
+    }
+
+    fn with_context<C: Display>(self, f: impl FnOnce() -> C) -> Result<T> {
+        self.ok_or_else(|| Error::Refused(f().to_string()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::error::Error as _;
+
+    /// The causes are kept in order, and each is printed once: the chain `calib` prints.
+    #[test]
+    fn context_keeps_the_cause_chain() {
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "no such file");
+        let error = Err::<(), _>(io)
+            .context("robot file r.toml")
+            .context("calibrating")
+            .unwrap_err();
+        let mut chain = vec![error.to_string()];
+        let mut cause = error.source();
+        while let Some(c) = cause {
+            chain.push(c.to_string());
+            cause = c.source();
+        }
+        assert_eq!(chain, ["calibrating", "robot file r.toml", "no such file"]);
+        let missing: Result<u8> = None.context("no pose given");
+        assert_eq!(missing.unwrap_err().to_string(), "no pose given");
+    }
+}
