@@ -52,6 +52,9 @@ where
     /// [`CostFunction::cost_batch`] then asks for all of them). A host evaluating on other
     /// threads starts on the first particles while the others are updated. The default does
     /// nothing.
+    // A host's speed-up hook (host-tools' swarm team evaluates on helper threads); hidden from
+    // the docs because a controller never needs it.
+    #[doc(hidden)]
     fn position_ready(&mut self, index: usize, x: &OVector<T, D>) {
         let _ = (index, x);
     }

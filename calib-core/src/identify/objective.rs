@@ -210,6 +210,9 @@ impl<T: Real, N: JointCount, const M: usize> MeasurementSet<T, N, M> {
 /// lane `i` of every field belongs to the same pose. `L` is `LANES` (4 on a PC, 1 on ARM) unless
 /// said otherwise. Unused lanes hold a pose of weight 0 (joints at zero, identity rotation), whose
 /// term is exactly zero.
+// Public only as a host's speed-up hook (host-tools' swarm team); hidden from the docs because
+// it is not part of the supported API: its layout may change with the lane width.
+#[doc(hidden)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PoseLanes<T: Real, N: JointCount, const L: usize = LANES> {
     cos: N::Table<Lanes<T, L>>,
@@ -326,6 +329,9 @@ where
     /// the same bits (eight lanes in AVX-512's 512-bit registers measured slower than four:
     /// `cargo bench -p calib-core --bench calibration -- lanes`).
     /// Zero lanes do not compile.
+    // Public only as a host's speed-up hook (host-tools' swarm team); hidden from the docs because
+    // it is not part of the supported API: its layout may change with the lane width.
+    #[doc(hidden)]
     pub fn lanes<const L: usize>(&self) -> impl Iterator<Item = PoseLanes<T, N, L>> + 'p {
         const { assert!(L > 0, "at least one lane") };
         let joints = self.problem.joint_count();
@@ -340,6 +346,9 @@ where
     /// for bit [`Objective::value`] (the poses' terms are summed in its groups of `GROUP` (4)
     /// whatever `L`), without gathering the poses on every call. Always inlined, so that a
     /// caller compiled for wider vectors (AVX2, AVX-512) gets the whole evaluation in them.
+    // Public only as a host's speed-up hook (host-tools' swarm team); hidden from the docs because
+    // it is not part of the supported API: its layout may change with the lane width.
+    #[doc(hidden)]
     #[inline(always)]
     pub fn value_of_lanes<const L: usize>(
         &self,

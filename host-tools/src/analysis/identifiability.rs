@@ -32,7 +32,7 @@ fn named<S: serde::Serializer>(parameter: &Parameter, s: S) -> Result<S::Ok, S::
 /// [`default_mask`]). Reflectors in a nest on the flange's centre sit a few millimetres
 /// off the axis (the Barrett WAM data: 3.0 mm); a reflector meant to sense the last joint is
 /// mounted tens of millimetres off it.
-pub const REFLECTOR_ON_AXIS_MM: f64 = 10.0;
+pub(crate) const REFLECTOR_ON_AXIS_MM: f64 = 10.0;
 
 /// A reflector on (or near) the last joint's axis, and what it leaves undetermined.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -74,7 +74,7 @@ impl ReflectorOnAxis {
 /// reflector moved onto the axis finds redundant are left out (on the Barrett WAM `dalpha6` and
 /// `dtheta6`, which then act like `dd6` and `da6`). The one rule `calibrate`, `check` and
 /// `verify` share; the analysis itself is private, so no caller can find it and not apply it.
-pub fn default_mask(
+pub(crate) fn default_mask(
     dataset: &Dataset,
     mut mask: ParameterMask<Dyn>,
     k: f64,
@@ -192,7 +192,7 @@ pub struct IdentifiabilityReport {
 
 impl IdentifiabilityReport {
     /// The parameters to drop so that the rest are determined.
-    pub fn to_drop(&self) -> Vec<Parameter> {
+    pub(crate) fn to_drop(&self) -> Vec<Parameter> {
         self.undetermined.iter().map(|u| u.parameter).collect()
     }
 
@@ -214,7 +214,7 @@ impl IdentifiabilityReport {
 
     /// The warning for an ill-conditioned pose set: the condition number and the parameters of
     /// the weakest direction.
-    pub fn ill_conditioned_text(&self) -> String {
+    pub(crate) fn ill_conditioned_text(&self) -> String {
         let weakest: Vec<String> = self
             .weakest_direction
             .iter()
@@ -299,7 +299,7 @@ pub fn check(
 }
 
 /// The identifiability of the parameters selected by `mask` at the nominal model.
-pub fn analyse(
+pub(crate) fn analyse(
     dataset: &Dataset,
     mask: &ParameterMask<Dyn>,
     k: f64,

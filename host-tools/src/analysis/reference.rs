@@ -50,7 +50,7 @@ pub fn model(
 
 /// The records of a data file as the reference's observations (a position-only record has an
 /// identity rotation that does not count).
-pub fn observations(data: &TrackerData) -> Vec<calib_reference::lm::Observation> {
+pub(crate) fn observations(data: &TrackerData) -> Vec<calib_reference::lm::Observation> {
     data.records
         .iter()
         .map(|r| {

@@ -19,18 +19,18 @@ use serde::Serialize;
 /// Tolerances of `calib verify`; past any of them it exits non-zero.
 pub mod tolerance {
     /// f64 core against the reference optimiser: lengths, mm.
-    pub const F64_LENGTH_MM: f64 = 1e-6;
+    pub(crate) const F64_LENGTH_MM: f64 = 1e-6;
     /// f64 core against the reference optimiser: angles, rad.
-    pub const F64_ANGLE_RAD: f64 = 1e-9;
+    pub(crate) const F64_ANGLE_RAD: f64 = 1e-9;
     /// f64 core against the reference optimiser: validation RMS position error, mm.
-    pub const F64_VALIDATION_MM: f64 = 1e-6;
+    pub(crate) const F64_VALIDATION_MM: f64 = 1e-6;
     /// f32 core against the f64 core: lengths, mm (f32 resolves about 1e-4 mm at 1 m, and the
     /// least-squares solution amplifies that by the condition number).
-    pub const F32_LENGTH_MM: f64 = 0.05;
+    pub(crate) const F32_LENGTH_MM: f64 = 0.05;
     /// f32 core against the f64 core: angles, rad.
-    pub const F32_ANGLE_RAD: f64 = 5e-5;
+    pub(crate) const F32_ANGLE_RAD: f64 = 5e-5;
     /// f32 core against the f64 core: validation RMS position error, mm.
-    pub const F32_VALIDATION_MM: f64 = 1e-3;
+    pub(crate) const F32_VALIDATION_MM: f64 = 1e-3;
 }
 
 /// The largest differences found.

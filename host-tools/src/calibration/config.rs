@@ -61,7 +61,7 @@ pub enum LossChoice {
 
 impl LossChoice {
     /// The core's loss with the given scale (mm).
-    pub fn with_scale(self, scale: f64) -> Loss<f64> {
+    pub(crate) fn with_scale(self, scale: f64) -> Loss<f64> {
         match self {
             Self::L2 => Loss::L2,
             Self::Huber => Loss::Huber(scale),
@@ -199,7 +199,7 @@ pub struct CalibrationConfig {
     /// Loss of the least-squares stage.
     pub loss: LossChoice,
     /// Scale of the robust loss, mm of pose residual; poses beyond it are outliers. `None`:
-    /// estimated from the data ([`super::robust_scale`]).
+    /// estimated from the data (the median absolute deviation of the least-squares residuals).
     pub loss_scale_mm: Option<f64>,
     /// Drop what the data cannot determine instead of refusing.
     pub auto_mask: bool,

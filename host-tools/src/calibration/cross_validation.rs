@@ -13,10 +13,10 @@ use serde::Serialize;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Poses up to which every pose is its own fold (leave-one-out).
-pub const LEAVE_ONE_OUT_UP_TO: usize = 20;
+pub(crate) const LEAVE_ONE_OUT_UP_TO: usize = 20;
 
 /// Folds above [`LEAVE_ONE_OUT_UP_TO`] poses.
-pub const FOLDS: usize = 5;
+pub(crate) const FOLDS: usize = 5;
 
 /// The estimate.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -39,7 +39,7 @@ pub struct CrossValidation {
 impl CrossValidation {
     /// `true` when the model identified from these poses is expected to predict new poses worse
     /// than the nominal model.
-    pub fn worse_than_nominal(&self) -> bool {
+    pub(crate) fn worse_than_nominal(&self) -> bool {
         self.calibrated_mean_mm > self.nominal_mean_mm
     }
 }

@@ -197,7 +197,7 @@ fn orientation_scale(dataset: &Dataset, geometric: &Kinematics<f64, Dyn>) -> f64
 
 /// Refuses a robot file that already has joint maps as the start of a joint-maps calibration:
 /// its maps would be applied to the data and new ones identified on top.
-pub fn check_robot_file(dataset: &Dataset, config: &CalibrationConfig) -> crate::Result<()> {
+pub(crate) fn check_robot_file(dataset: &Dataset, config: &CalibrationConfig) -> crate::Result<()> {
     gravity(dataset, config)?;
     if dataset.file.joint_maps.is_some() || dataset.file.compliance.is_some() {
         return Err(crate::refused!(
@@ -239,7 +239,7 @@ fn gravity(dataset: &Dataset, config: &CalibrationConfig) -> crate::Result<Optio
 /// `dataset` as the model with maps and compliance sees it: the maps added to the readings, the
 /// compliance's displacement taken off the measured poses (so that the geometry's error on it is
 /// the whole model's error).
-pub fn model_view(
+pub(crate) fn model_view(
     dataset: &Dataset,
     found: &joint_maps::MapIdentification,
     gravity: Option<&Gravity>,
@@ -259,7 +259,7 @@ pub fn model_view(
 
 /// Adds the joint maps to the geometric calibration `result` of `dataset` (prepared: frames
 /// fitted), validated on `validation`.
-pub fn add_joint_maps(
+pub(crate) fn add_joint_maps(
     mut result: CalibrationResult,
     dataset: &Dataset,
     validation: Option<&Dataset>,

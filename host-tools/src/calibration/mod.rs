@@ -604,7 +604,7 @@ pub const OUTLIER_DEVIATIONS: f64 = 6.0;
 
 /// Outlier thresholds and the robust loss scale, estimated from the data.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RobustScale {
+pub(crate) struct RobustScale {
     /// A pose whose position residual exceeds this is an outlier, mm.
     pub position_mm: f64,
     /// A pose whose orientation residual exceeds this is an outlier, rad (without orientations:
@@ -617,7 +617,7 @@ pub struct RobustScale {
 
 impl RobustScale {
     /// `true` when the pose error is beyond either threshold.
-    pub fn is_outlier(&self, position_mm: f64, rotation_rad: f64) -> bool {
+    pub(crate) fn is_outlier(&self, position_mm: f64, rotation_rad: f64) -> bool {
         position_mm > self.position_mm || rotation_rad > self.rotation_rad
     }
 }
@@ -626,7 +626,7 @@ impl RobustScale {
 /// and the orientation residuals of the poses separately, `median + OUTLIER_DEVIATIONS * 1.4826 *
 /// MAD` (median absolute deviation), so that orientation counted in millimetres never makes clean
 /// poses outliers.
-pub fn robust_scale(
+pub(crate) fn robust_scale(
     least_squares: &LeastSquares<'_, f64, Dyn, Dyn>,
     start: &DVector<f64>,
     settings: &LmSettings<f64>,

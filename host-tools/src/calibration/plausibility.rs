@@ -10,23 +10,23 @@ use super::CalibrationResult;
 /// Largest plausible identified length error (joints, and frames relative to their registration),
 /// mm. Manufacturing errors of a robot's links are below a few millimetres. A robot file's
 /// `max_length_error_mm` replaces it for that robot (and `max_angle_error_deg` the angle bound).
-pub const MAX_LENGTH_ERROR_MM: f64 = 20.0;
+pub(crate) const MAX_LENGTH_ERROR_MM: f64 = 20.0;
 
 /// Largest plausible identified angle error, degrees. Twist and joint zero errors are a fraction
 /// of a degree.
-pub const MAX_ANGLE_ERROR_DEG: f64 = 3.0;
+pub(crate) const MAX_ANGLE_ERROR_DEG: f64 = 3.0;
 
 /// Largest plausible RMS position residual after calibration, mm. Real robots calibrated with
 /// a geometric model reach 0.1-0.5 mm (the UR10 of the bundled data: 0.42 mm mean). A robot
 /// file's `repeatability_mm` raises it to [`REPEATABILITY_FACTOR`] times that: a cable-driven
 /// Barrett WAM (2 mm repeatability) fits its tracker data to 2.2 mm RMS.
-pub const MAX_FIT_RMS_MM: f64 = 2.0;
+pub(crate) const MAX_FIT_RMS_MM: f64 = 2.0;
 
 /// The plausible fit as a multiple of the robot's repeatability.
-pub const REPEATABILITY_FACTOR: f64 = 2.0;
+pub(crate) const REPEATABILITY_FACTOR: f64 = 2.0;
 
 /// What to check when a result is refused.
-pub const LIKELY_CAUSES: &str = "Likely causes: the units of the data columns (mm or m, deg or rad), the Euler convention of a \
+pub(crate) const LIKELY_CAUSES: &str = "Likely causes: the units of the data columns (mm or m, deg or rad), the Euler convention of a \
 data profile, the joint order or signs against the robot file, the frames (--frames), or a pose set that cannot \
 determine the parameters (`calib check`). If the result is right, --accept-implausible writes it.";
 

@@ -219,7 +219,7 @@ impl CalibrationResult {
     }
 
     /// Why the last stage stopped.
-    pub fn stop(&self) -> &'static str {
+    pub(crate) fn stop(&self) -> &'static str {
         match (&self.least_squares, &self.swarm) {
             (Some(l), _) => l.stop,
             (None, Some(s)) => swarm_stop(s.stop),

@@ -63,7 +63,7 @@ pub fn parameter_block(
 }
 
 /// The version 1 parameter block of `robot` (geometry, limits, frames) of any joint count.
-pub fn geometry_block(
+pub(crate) fn geometry_block(
     robot: &calib_core::Robot<f64, Dyn>,
     scalar: BlockScalar,
     sequence: u32,
@@ -84,7 +84,7 @@ pub fn geometry_block(
 
 /// The controller's model in scalar `T`: `robot`, the maps (zero without) and the compliance
 /// (none without).
-pub fn controller_model<T: calib_core::Real>(
+pub(crate) fn controller_model<T: calib_core::Real>(
     robot: calib_core::Robot<T, Dyn>,
     maps: Option<&JointMaps>,
     compliance: Option<&FileCompliance>,

@@ -21,7 +21,7 @@ use nalgebra::Dyn;
 use nalgebra::{IsometryMatrix3, Rotation3, Translation3, Vector3};
 
 /// The segment names of the UR description, joint 1 first.
-pub const SEGMENTS: [&str; 6] = [
+pub(crate) const SEGMENTS: [&str; 6] = [
     "shoulder",
     "upper_arm",
     "forearm",

@@ -22,7 +22,7 @@ use nalgebra::{IsometryMatrix3, Rotation3, Translation3, Vector3};
 
 /// A joint origin as a URDF says it: translation in metres, roll-pitch-yaw in radians.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Origin {
+pub(crate) struct Origin {
     /// Translation, m.
     pub xyz_m: [f64; 3],
     /// `[roll, pitch, yaw]`, rad (`R = Rz(yaw) Ry(pitch) Rx(roll)`).
@@ -51,7 +51,7 @@ impl Origin {
 }
 
 /// The fixed part `F = Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta)` of a joint's transform (mm).
-pub fn fixed_part(joint: &MdhJoint<f64>) -> IsometryMatrix3<f64> {
+pub(crate) fn fixed_part(joint: &MdhJoint<f64>) -> IsometryMatrix3<f64> {
     let rz = |angle: f64| Rotation3::from_axis_angle(&Vector3::z_axis(), angle);
     let rx = Rotation3::from_axis_angle(&Vector3::x_axis(), joint.alpha);
     let ry = Rotation3::from_axis_angle(&Vector3::y_axis(), joint.beta);
@@ -106,7 +106,7 @@ impl UrdfSettings {
     }
 
     /// [`UrdfSettings::named`] for a robot of `joints` joints.
-    pub fn named_for(robot_name: &str, joints: usize) -> Self {
+    pub(crate) fn named_for(robot_name: &str, joints: usize) -> Self {
         Self {
             robot_name: robot_name.to_string(),
             base_link: "base_link".into(),
@@ -120,7 +120,7 @@ impl UrdfSettings {
     }
 
     /// The fixed joints' names: last link to flange, flange to tool.
-    pub fn fixed_joints(&self) -> [String; 2] {
+    pub(crate) fn fixed_joints(&self) -> [String; 2] {
         let last = self.links.last().map_or("", String::as_str);
         [
             format!("{last}-{}", self.flange),

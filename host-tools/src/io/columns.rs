@@ -4,7 +4,7 @@
 
 /// What a column of tracker data holds, with the factor to mm or rad.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Column {
+pub(crate) enum Column {
     /// Joint reading: joint index (0-based), factor to rad.
     Joint(usize, f64),
     /// Position: axis (0 = x), factor to mm.
@@ -24,12 +24,12 @@ pub enum Column {
 }
 
 /// `true` when `name` is one of our column names (docs/ARCHITECTURE.md), such as `q3_deg` or `x_m`.
-pub fn is_known_column(name: &str) -> bool {
+pub(crate) fn is_known_column(name: &str) -> bool {
     parse_column(name).is_some()
 }
 
 /// The meaning of one of our column names; `None` for any other name.
-pub fn parse_column(name: &str) -> Option<Column> {
+pub(crate) fn parse_column(name: &str) -> Option<Column> {
     let deg = std::f64::consts::PI / 180.0;
     if let Some(rest) = name.strip_prefix('q') {
         if let Some((number, unit)) = rest.split_once('_') {

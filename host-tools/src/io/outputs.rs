@@ -397,7 +397,7 @@ impl Outputs {
 
     /// Stages the file that `write` writes at the temporary path it is given (the file exists,
     /// empty, created by this process: `write` may truncate and fill it).
-    pub fn stage_with(
+    pub(crate) fn stage_with(
         &mut self,
         name: &str,
         path: &Path,
@@ -595,7 +595,7 @@ fn resolved(path: &Path) -> PathBuf {
 }
 
 /// Writes `bytes` to `path` as the only output of a command (see [`Outputs`]).
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> crate::Result<()> {
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> crate::Result<()> {
     let mut outputs = Outputs::default();
     outputs.stage("output", path, bytes)?;
     outputs.commit().map(|_| ())

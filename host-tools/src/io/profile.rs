@@ -25,7 +25,7 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 pub enum ProfileError {
     /// The file could not be read.
-    #[error("{path}: cannot read the data profile: {source}")]
+    #[error("{path}: cannot read the data profile")]
     Read {
         /// The file.
         path: PathBuf,
@@ -63,7 +63,7 @@ pub struct EulerConvention {
 
 impl EulerConvention {
     /// the ARCHITECTURE conventions' `rx_deg, ry_deg, rz_deg`: fixed axes x, then y, then z (`R = Rz Ry Rx`).
-    pub const FIXED_XYZ: Self = Self {
+    pub(crate) const FIXED_XYZ: Self = Self {
         kind: EulerKind::Fixed,
         order: [0, 1, 2],
     };
@@ -240,7 +240,7 @@ impl Derived {
     }
 
     /// The combined value.
-    pub fn combine(&self, first: f64, second: f64) -> f64 {
+    pub(crate) fn combine(&self, first: f64, second: f64) -> f64 {
         match self.combination {
             Combination::Sum => first + second,
             Combination::Difference => first - second,

@@ -38,14 +38,14 @@ pub const ER10L_C10_TOML: &str = include_str!("../../robots/er10l-c10.toml");
 
 /// Largest length accepted in a robot file (`a_mm`, `d_mm`, frame `xyz_mm`), mm: 100 m, beyond
 /// any serial robot and any laser tracker's range. A larger value is a typing or unit error.
-pub const MAX_LENGTH_MM: f64 = 100_000.0;
+pub(crate) const MAX_LENGTH_MM: f64 = 100_000.0;
 
 /// Largest angle accepted in a robot file (`alpha_deg`, `beta_deg`, `theta_offset_deg`, frame
 /// `rpy_deg`), degrees: one turn each way.
-pub const MAX_ANGLE_DEG: f64 = 360.0;
+pub(crate) const MAX_ANGLE_DEG: f64 = 360.0;
 
 /// Largest joint limit accepted in a robot file (`limits_deg`), degrees: ten turns each way.
-pub const MAX_LIMIT_DEG: f64 = 3600.0;
+pub(crate) const MAX_LIMIT_DEG: f64 = 3600.0;
 
 /// `Err` naming `field` when `value` is not finite or beyond `max` in magnitude (`unit` is the
 /// field's unit, for the message).
@@ -65,7 +65,7 @@ fn plausible(field: &str, value: f64, max: f64, unit: &str) -> Result<(), String
 #[derive(Debug, thiserror::Error)]
 pub enum RobotFileError {
     /// The file could not be read.
-    #[error("{path}: cannot read the robot file: {source}")]
+    #[error("{path}: cannot read the robot file")]
     Read {
         /// The file.
         path: PathBuf,
@@ -535,7 +535,7 @@ impl RobotFile {
 
     /// Refuses a file with gravity compliance for `what` (a command that cannot apply it:
     /// `simulate`), so that no result silently leaves it out.
-    pub fn refuse_compliance(&self, path: &Path, what: &str) -> crate::Result<()> {
+    pub(crate) fn refuse_compliance(&self, path: &Path, what: &str) -> crate::Result<()> {
         if self.compliance.is_some() {
             return Err(crate::refused!(
                 "{}: this robot file has gravity compliance ([compliance], from calibrate --model joint-maps+compliance), \
@@ -549,7 +549,7 @@ impl RobotFile {
 
     /// Refuses a file with joint maps for `what` (a command or an output that cannot apply them
     /// yet), so that no result silently leaves the maps out.
-    pub fn refuse_joint_maps(&self, path: &Path, what: &str) -> crate::Result<()> {
+    pub(crate) fn refuse_joint_maps(&self, path: &Path, what: &str) -> crate::Result<()> {
         if self.joint_maps.is_some() {
             return Err(crate::refused!(
                 "{}: this robot file has joint maps ([joint_maps], from calibrate --model joint-maps), \

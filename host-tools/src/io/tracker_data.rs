@@ -38,25 +38,25 @@ use std::path::{Path, PathBuf};
 
 /// Largest magnitude of an Euler angle of a measured orientation, rad (two turns: tracker
 /// software writes one turn at most).
-pub const MAX_EULER_ANGLE_RAD: f64 = 4.0 * std::f64::consts::PI;
+pub(crate) const MAX_EULER_ANGLE_RAD: f64 = 4.0 * std::f64::consts::PI;
 
 /// Largest measured coordinate accepted, mm: 100 m, beyond any laser tracker's range.
-pub const MAX_POSITION_MM: f64 = 100_000.0;
+pub(crate) const MAX_POSITION_MM: f64 = 100_000.0;
 
 /// Largest joint reading accepted, degrees: ten turns.
-pub const MAX_JOINT_DEG: f64 = 3600.0;
+pub(crate) const MAX_JOINT_DEG: f64 = 3600.0;
 
 /// Largest pose weight accepted (weights are relative; 1 is the default).
-pub const MAX_WEIGHT: f64 = 1e6;
+pub(crate) const MAX_WEIGHT: f64 = 1e6;
 
 /// How far a quaternion's norm may be from 1 before it is refused.
-pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
+pub(crate) const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
 
 /// A problem with a tracker data file, located by file, line and column.
 #[derive(Debug, thiserror::Error)]
 pub enum DataError {
     /// The file could not be read.
-    #[error("{path}: cannot read the data file: {source}")]
+    #[error("{path}: cannot read the data file")]
     Read {
         /// The file.
         path: PathBuf,
@@ -153,7 +153,7 @@ pub struct PlannedVerification {
 
 impl PlannedVerification {
     /// The comment line's start.
-    pub const PREFIX: &'static str = "plan prediction:";
+    pub(crate) const PREFIX: &'static str = "plan prediction:";
 
     /// The comment line (without `#`).
     pub fn comment(&self) -> String {
@@ -252,7 +252,7 @@ impl TrackerData {
 
     /// Reads a file of target poses: like [`TrackerData::read`], but the joint columns are
     /// optional (when present they are start values).
-    pub fn read_targets(path: &Path) -> Result<Self, DataError> {
+    pub(crate) fn read_targets(path: &Path) -> Result<Self, DataError> {
         let text = read_text(path)?;
         Self::parse_with(&text, path, Needs::Targets, &DataProfile::default())
     }
@@ -260,7 +260,7 @@ impl TrackerData {
     /// Reads a file of candidate joint configurations (`calib plan --candidates`) through a data
     /// profile: only the joint columns are read (and `id`); any measurement columns are ignored,
     /// so a measured file or a plan not yet measured serves as well. Records' positions are zero.
-    pub fn read_joints(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
+    pub(crate) fn read_joints(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
         let text = read_text(path)?;
         Self::parse_with(&text, path, Needs::Joints, profile)
     }
@@ -755,7 +755,7 @@ fn check_columns(
 
 impl TrackerData {
     /// `true` when the file has no orientation columns.
-    pub fn rows_without_orientation(&self) -> bool {
+    pub(crate) fn rows_without_orientation(&self) -> bool {
         self.orientation == OrientationColumns::None
     }
 }
@@ -779,7 +779,7 @@ pub fn write_tracker_csv(path: &Path, comments: &[String], rows: &[PoseRow]) -> 
 }
 
 /// Poses as tracker CSV text: `comments` become `#` lines at the top.
-pub fn tracker_csv(comments: &[String], rows: &[PoseRow]) -> crate::Result<String> {
+pub(crate) fn tracker_csv(comments: &[String], rows: &[PoseRow]) -> crate::Result<String> {
     let joints = rows.first().map_or(0, |r| r.q.len());
     let orientation = rows.first().is_some_and(|r| r.rotation.is_some());
     let mut text = String::new();

@@ -77,7 +77,7 @@ pub fn compensate_targets(
 
 /// [`compensate_targets`] for any actual robot: the geometry alone ([`Kinematics`]) or with
 /// angle-error maps ([`calib_core::kinematics::MappedKinematics`]).
-pub fn compensate_targets_of(
+pub(crate) fn compensate_targets_of(
     nominal: &Robot<f64, Dyn>,
     real: &impl ActualRobot<f64, Dyn>,
     targets: &TrackerData,
@@ -406,20 +406,20 @@ fn closed_form(
 
 /// Retries after the first run from the controller's joints: the iteration cap is multiplied by
 /// this, and the start moved by up to [`RETRY_SPREAD_RAD`] in [`RETRIES`] fixed directions.
-pub const RETRY_ITERATION_FACTOR: u32 = 4;
+pub(crate) const RETRY_ITERATION_FACTOR: u32 = 4;
 
 /// Number of retries from points near the controller's joints.
-pub const RETRIES: usize = 12;
+pub(crate) const RETRIES: usize = 12;
 
 /// Largest move of a joint for a retry's start, rad.
-pub const RETRY_SPREAD_RAD: f64 = 0.02;
+pub(crate) const RETRY_SPREAD_RAD: f64 = 0.02;
 
 /// Compensates one target from the controller's joints `start`: the core's
 /// [`compensate_joints_from`] from `start`, then, if that fails, with a longer iteration cap and
 /// from [`RETRIES`] points near `start` (the bounds always apply to the change from `start`).
 /// A refusal says why; for a correction beyond the bounds, how large it is and which flag raises
 /// the bound.
-pub fn compensate_target(
+pub(crate) fn compensate_target(
     planned: &Kinematics<f64, Dyn>,
     real: &impl ActualRobot<f64, Dyn>,
     limits: &JointVec<calib_core::JointLimits<f64>>,
@@ -493,7 +493,7 @@ fn needed_correction(
 
 /// The outcomes of a robot of `joints` joints as CSV: `id, q1_deg..qN_deg, residual_mm, residual_deg, status, start` (`ok` or
 /// the error; a refused target leaves the joints and residuals empty).
-pub fn to_csv(outcomes: &[TargetOutcome], joints: usize) -> crate::Result<Vec<u8>> {
+pub(crate) fn to_csv(outcomes: &[TargetOutcome], joints: usize) -> crate::Result<Vec<u8>> {
     let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header = vec!["id".to_string()];
     header.extend((1..=joints).map(|i| format!("q{i}_deg")));

@@ -161,7 +161,7 @@ impl Dataset {
     /// gravity compliance displacement of `gains` taken off every measured pose: what the geometry
     /// `robot + errors` (in the dataset's frames) alone must explain. The displacement is
     /// evaluated at the kinematic angles (the readings with the maps).
-    pub fn without_compliance(
+    pub(crate) fn without_compliance(
         &self,
         robot: &calib_core::Robot<f64, Dyn>,
         errors: &calib_core::ParameterErrors<f64, Dyn>,
@@ -190,7 +190,7 @@ impl Dataset {
     /// unchanged. Commands that fit or check the geometry of a file with compliance use it (the
     /// deflection depends on the geometry only to second order: a few tenths of a millimetre
     /// times its relative change).
-    pub fn without_file_compliance(
+    pub(crate) fn without_file_compliance(
         &self,
         robot: &calib_core::Robot<f64, Dyn>,
         errors: &calib_core::ParameterErrors<f64, Dyn>,
@@ -212,7 +212,7 @@ impl Dataset {
     /// angles of its measurement (the joint maps added, in (-pi, pi]), its pose by the measured
     /// pose the measurement holds (the compliance taken off, when it was). For the reference
     /// kinematics, which knows neither maps nor compliance.
-    pub fn as_seen_by_the_geometry(&self) -> TrackerData {
+    pub(crate) fn as_seen_by_the_geometry(&self) -> TrackerData {
         let mut data = self.data.clone();
         for (r, m) in data.records.iter_mut().zip(&self.measurements) {
             r.q = m
@@ -240,7 +240,7 @@ impl Dataset {
     }
 
     /// The probe or reflector identified with the file's model (`[measurement] flange_tool`).
-    pub fn identified_probe(&self) -> Option<&crate::io::robot_file::FrameEntry> {
+    pub(crate) fn identified_probe(&self) -> Option<&crate::io::robot_file::FrameEntry> {
         self.file
             .measurement
             .as_ref()

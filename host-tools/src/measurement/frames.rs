@@ -24,7 +24,7 @@ use serde::Serialize;
 /// ([`Dataset::in_measurement_setup`]), or `None` when there is nothing to keep.
 ///
 /// [`Dataset::in_measurement_setup`]: crate::measurement::dataset::Dataset::in_measurement_setup
-pub fn with_identified_probe(
+pub(crate) fn with_identified_probe(
     dataset: &crate::measurement::dataset::Dataset,
     frames: Frames,
 ) -> crate::Result<Option<crate::measurement::dataset::Dataset>> {
@@ -85,7 +85,7 @@ impl Frames {
 
 /// Start values of the frames from the nominal model, and how well they explain the data.
 #[derive(Clone, Debug)]
-pub struct Registration {
+pub(crate) struct Registration {
     /// Tracker-to-base rotation.
     pub base_rotation: Rotation3<f64>,
     /// Tracker-to-base translation, mm.
@@ -122,7 +122,10 @@ pub enum RegistrationError {
 
 /// Rigid registration (Kabsch/Horn): the rotation and translation with `b ~ R a + t` in the
 /// least-squares sense, by SVD of the cross-covariance.
-pub fn kabsch(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> Option<(Rotation3<f64>, Vector3<f64>)> {
+pub(crate) fn kabsch(
+    a: &[Vector3<f64>],
+    b: &[Vector3<f64>],
+) -> Option<(Rotation3<f64>, Vector3<f64>)> {
     let n = a.len().min(b.len());
     if n < 3 {
         return None;
@@ -151,7 +154,7 @@ pub fn kabsch(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> Option<(Rotation3<f64>,
 }
 
 /// The rotation nearest (Frobenius) to `m`.
-pub fn nearest_rotation(m: &Matrix3<f64>) -> Option<Rotation3<f64>> {
+pub(crate) fn nearest_rotation(m: &Matrix3<f64>) -> Option<Rotation3<f64>> {
     let svd = m.svd(true, true);
     let (u, v_t) = (svd.u?, svd.v_t?);
     let mut d = Matrix3::identity();
@@ -163,7 +166,7 @@ pub fn nearest_rotation(m: &Matrix3<f64>) -> Option<Rotation3<f64>> {
 
 /// Registers the nominal robot (frames ignored: base and tool are identity) onto measurements
 /// in the tracker's frame. With `identify_tool == false` the robot's own tool is kept.
-pub fn register(
+pub(crate) fn register(
     robot: &Robot<f64, Dyn>,
     measurements: &[Measurement<f64, Dyn>],
     identify_tool: bool,
@@ -284,7 +287,7 @@ fn rms_of(values: &[f64]) -> f64 {
 }
 
 /// A frame as a robot-file entry (mm, `rpy_deg` with `R = Rz Ry Rx`).
-pub fn frame_entry(rotation: &Rotation3<f64>, translation: &Vector3<f64>) -> FrameEntry {
+pub(crate) fn frame_entry(rotation: &Rotation3<f64>, translation: &Vector3<f64>) -> FrameEntry {
     let (roll, pitch, yaw) = rotation.euler_angles();
     FrameEntry {
         xyz_mm: [translation.x, translation.y, translation.z],
@@ -293,7 +296,11 @@ pub fn frame_entry(rotation: &Rotation3<f64>, translation: &Vector3<f64>) -> Fra
 }
 
 /// The robot file with its base (and, with `tool`, its tool) replaced by the registration.
-pub fn with_registration(file: &RobotFile, registration: &Registration, tool: bool) -> RobotFile {
+pub(crate) fn with_registration(
+    file: &RobotFile,
+    registration: &Registration,
+    tool: bool,
+) -> RobotFile {
     let mut out = file.clone();
     out.base = Some(frame_entry(
         &registration.base_rotation,
@@ -314,7 +321,7 @@ pub fn with_registration(file: &RobotFile, registration: &Registration, tool: bo
 /// joint N after its rotation (`da6, dd6, dalpha6, dbeta6, dtheta6` are a constant transform on
 /// the flange, like the tool). `full_pose`: the tool's rotations are identified too (6-DoF data).
 /// Returns the mask and the joint parameters removed.
-pub fn mask_with_frames(
+pub(crate) fn mask_with_frames(
     mask: &ParameterMask<Dyn>,
     frames: Frames,
     full_pose: bool,
@@ -407,7 +414,7 @@ mod tests {
 /// Largest registration RMS (mm) accepted: a robot's geometric errors move the tool by a few
 /// millimetres, so a nominal model registered onto correct data fits within this; more means the
 /// data, the profile (units, Euler convention, joint order) or the robot file are wrong.
-pub const MAX_REGISTRATION_RMS_MM: f64 = 20.0;
+pub(crate) const MAX_REGISTRATION_RMS_MM: f64 = 20.0;
 
 /// What the frame identification did, for reports.
 #[derive(Clone, Debug, Serialize)]
@@ -551,7 +558,9 @@ pub fn prepare(
 /// them within [`MAX_REGISTRATION_RMS_MM`]. Otherwise the error says what the data look like: in a
 /// tracker's frame (the registration fits), in other units (their spread is about 1000 times the
 /// model's), or wrong in another way.
-pub fn check_base_frame(dataset: &crate::measurement::dataset::Dataset) -> crate::Result<()> {
+pub(crate) fn check_base_frame(
+    dataset: &crate::measurement::dataset::Dataset,
+) -> crate::Result<()> {
     let kinematics = Kinematics::nominal(&dataset.model.robot)?;
     let rms = crate::measurement::statistics::table3(&kinematics, dataset)
         .0

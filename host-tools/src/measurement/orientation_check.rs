@@ -15,15 +15,15 @@ use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 
 /// Median disagreement (deg) of the relative rotation angles beyond which the orientations are
 /// refused: a nominal model misses them by at most a degree or two.
-pub const MAX_MEDIAN_DISAGREEMENT_DEG: f64 = 5.0;
+pub(crate) const MAX_MEDIAN_DISAGREEMENT_DEG: f64 = 5.0;
 
 /// Median disagreement (deg) below which the data are accepted without trying other readings.
-pub const MIN_CHECKED_DISAGREEMENT_DEG: f64 = 0.5;
+pub(crate) const MIN_CHECKED_DISAGREEMENT_DEG: f64 = 0.5;
 
 /// Above [`MIN_CHECKED_DISAGREEMENT_DEG`], the data are refused when another reading agrees this
 /// many times better (UR10 Series B read as fixed instead of intrinsic xyz: 2.35 deg against
 /// 0.11 deg; Series D: 2.18 against 0.14 deg).
-pub const BETTER_BY: f64 = 3.0;
+pub(crate) const BETTER_BY: f64 = 3.0;
 
 /// Pose pairs compared at most.
 const PAIRS: usize = 2000;

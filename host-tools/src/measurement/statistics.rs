@@ -60,7 +60,7 @@ pub struct Table3 {
 
 impl Table3 {
     /// From the core's accumulated statistics.
-    pub fn from_statistics(s: &PoseStatistics<f64>) -> Self {
+    pub(crate) fn from_statistics(s: &PoseStatistics<f64>) -> Self {
         let deg = 180.0 / std::f64::consts::PI;
         let [x, y, z] = s.orientation.map(|o| Stat::from_summary(&o, deg));
         Self {
@@ -72,7 +72,7 @@ impl Table3 {
 }
 
 /// Table 3 statistics of `kinematics` on `dataset`, and `|dp|` per pose (mm).
-pub fn table3(kinematics: &Kinematics<f64, Dyn>, dataset: &Dataset) -> (Table3, Vec<f64>) {
+pub(crate) fn table3(kinematics: &Kinematics<f64, Dyn>, dataset: &Dataset) -> (Table3, Vec<f64>) {
     let mut stats = PoseStatistics::default();
     let mut per_pose = Vec::with_capacity(dataset.measurements.len());
     for m in &dataset.measurements {
@@ -85,7 +85,10 @@ pub fn table3(kinematics: &Kinematics<f64, Dyn>, dataset: &Dataset) -> (Table3, 
 
 /// `|dr_x|, |dr_y|, |dr_z|` (deg) of `kinematics` for every pose of `dataset` that has an
 /// orientation, in file order.
-pub fn orientation_per_pose(kinematics: &Kinematics<f64, Dyn>, dataset: &Dataset) -> Vec<[f64; 3]> {
+pub(crate) fn orientation_per_pose(
+    kinematics: &Kinematics<f64, Dyn>,
+    dataset: &Dataset,
+) -> Vec<[f64; 3]> {
     dataset
         .measurements
         .iter()

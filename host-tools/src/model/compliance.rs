@@ -38,7 +38,7 @@ pub const GAINS: [Gain; 11] = [
 ];
 
 /// Number of gains.
-pub const GAIN_COUNT: usize = GAINS.len();
+pub(crate) const GAIN_COUNT: usize = GAINS.len();
 
 /// Largest plausible gain, urad per N m (a 100 N m moment would turn a joint by 0.1 rad).
 pub const MAX_GAIN_URAD_PER_NM: f64 = 1000.0;

@@ -30,11 +30,11 @@ use serde::{Deserialize, Serialize};
 
 /// The harmonic counts the evidence chooses from (see [`identify_best`]): multiples of
 /// [`HARMONICS_STEP`] up to [`MAX_HARMONICS`].
-pub const HARMONICS_STEP: usize = 10;
+pub(crate) const HARMONICS_STEP: usize = 10;
 
 /// The most harmonics per joint [`identify_best`] tries (the study behind issue 14 used 40-60;
 /// on UR10 Series B with 50 poses the evidence prefers 30).
-pub const MAX_HARMONICS: usize = 60;
+pub(crate) const MAX_HARMONICS: usize = 60;
 
 /// Relinearisations of the geometry around the current estimate.
 const LINEARISATIONS: usize = 3;
@@ -50,7 +50,7 @@ const EVIDENCE_TOLERANCE: f64 = 1e-4;
 /// columns lie (numerically) in the span of the geometry's, as for a joint that did not move
 /// (its map at the one reading is a joint offset the frames or the geometry already absorb),
 /// and the evidence's update would divide one rounding error by another.
-pub const MIN_DETERMINED: f64 = 0.5;
+pub(crate) const MIN_DETERMINED: f64 = 0.5;
 
 /// The prior precision (1/rad^2) of a switched-off map: its coefficients are held at zero.
 const SWITCHED_OFF: f64 = 1e30;
@@ -89,11 +89,11 @@ fn hyperparameters_converged(
 }
 
 /// A prior amplitude below this (rad) is treated as zero: the evidence does not support a map.
-pub const NEGLIGIBLE_AMPLITUDE_RAD: f64 = 1e-7;
+pub(crate) const NEGLIGIBLE_AMPLITUDE_RAD: f64 = 1e-7;
 
 /// The basis of a map at reading `q` (rad), in the order of [`JointMaps::coefficients`]:
 /// `[sin(q), ..., sin(H q), cos(q), ..., cos(H q)]`.
-pub fn harmonic_basis(harmonics: usize, q: f64) -> DVector<f64> {
+pub(crate) fn harmonic_basis(harmonics: usize, q: f64) -> DVector<f64> {
     let mut basis = DVector::zeros(2 * harmonics);
     for k in 1..=harmonics {
         let (s, c) = (k as f64 * q).sin_cos();
@@ -138,7 +138,7 @@ impl JointMaps {
     }
 
     /// Whether the map of joint `joint` (0-based) is zero everywhere.
-    pub fn is_zero(&self, joint: usize) -> bool {
+    pub(crate) fn is_zero(&self, joint: usize) -> bool {
         self.coefficients
             .get(joint)
             .is_none_or(|c| c.iter().all(|v| *v == 0.0))
@@ -179,10 +179,10 @@ impl JointMaps {
 
 /// Largest magnitude of one map coefficient accepted in a robot file, rad (10 mrad; identified
 /// maps are below 1 mrad in all).
-pub const MAX_COEFFICIENT_RAD: f64 = 0.01;
+pub(crate) const MAX_COEFFICIENT_RAD: f64 = 0.01;
 
 /// Most harmonics accepted in a robot file.
-pub const MAX_FILE_HARMONICS: usize = 200;
+pub(crate) const MAX_FILE_HARMONICS: usize = 200;
 
 /// The `[joint_maps]` section of a robot file: each joint's angle-error map,
 /// `dq(q) = sum_h sin_rad[h-1] sin(h q) + cos_rad[h-1] cos(h q)` (rad, `q` the joint reading),
@@ -230,7 +230,7 @@ impl JointMapsSection {
 
     /// The maps of a robot of `joints` joints, checked: one per joint, `harmonics` finite
     /// coefficients within [`MAX_COEFFICIENT_RAD`] each. The error names the joint and the field.
-    pub fn to_maps(&self, joints: usize) -> Result<JointMaps, String> {
+    pub(crate) fn to_maps(&self, joints: usize) -> Result<JointMaps, String> {
         let h = self.harmonics;
         if h == 0 || h > MAX_FILE_HARMONICS {
             return Err(format!(
@@ -421,7 +421,7 @@ impl MapIdentification {
 
     /// Posterior standard deviation of joint `joint`'s (0-based) angle error at reading `q`,
     /// rad: `sqrt(phi(q)^T Sigma_j phi(q))`, `phi(q) = [sin(h q)..., cos(h q)...]`.
-    pub fn error_sd(&self, joint: usize, q: f64) -> f64 {
+    pub(crate) fn error_sd(&self, joint: usize, q: f64) -> f64 {
         let Some(block) = self.coefficient_covariance.get(joint) else {
             return 0.0;
         };
@@ -434,7 +434,7 @@ impl MapIdentification {
 /// steps of [`HARMONICS_STEP`] up or down while the log evidence rises, within
 /// `HARMONICS_STEP..=MAX_HARMONICS`. Returns the best identification and the log evidence of
 /// every count tried (harmonics, log evidence).
-pub fn identify_best(
+pub(crate) fn identify_best(
     problem: &MapsProblem<'_>,
 ) -> crate::Result<(MapIdentification, Vec<(usize, f64)>)> {
     let mut tried: Vec<(usize, f64)> = Vec::new();

@@ -959,7 +959,7 @@ pub struct PlanCheck {
 
 impl PlanCheck {
     /// Poses listed in each of the two lists.
-    pub const LISTED: usize = 3;
+    pub(crate) const LISTED: usize = 3;
 
     /// Text for people.
     pub fn text(&self) -> String {
@@ -999,7 +999,7 @@ impl PlanCheck {
 /// by residual. Leverages the fitted poses cannot give (they do not determine every parameter at
 /// the nominal model) are left out with the reason; the comparison stands without them.
 #[allow(clippy::too_many_arguments)]
-pub fn check_plan(
+pub(crate) fn check_plan(
     predicted: PlannedVerification,
     measured_mean_mm: f64,
     poses: usize,

@@ -315,7 +315,7 @@ where
 }
 
 /// What to plot for one calibration.
-pub struct PlotData<'a> {
+pub(crate) struct PlotData<'a> {
     /// Swarm convergence `(generation, best objective)`; empty without the swarm.
     pub history: &'a [(u32, f64)],
     /// Title of the position error plot.
@@ -341,7 +341,7 @@ pub struct PlotData<'a> {
 /// the swarm), `position-error`, `orientation-error` (with orientation data) and
 /// `validation-histogram` (with validation poses) and `joint-maps` (with joint maps). Nothing is replaced until the outputs are
 /// committed.
-pub fn stage_plots(
+pub(crate) fn stage_plots(
     outputs: &mut crate::io::outputs::Outputs,
     dir: &Path,
     plots: &PlotData<'_>,
@@ -402,7 +402,9 @@ pub fn stage_plots(
 
 /// The plots of [`stage_plots`] as SVG text, for a self-contained page
 /// ([`crate::report::html`]): `(name, caption, svg)` for each plot the data allow.
-pub fn svg_plots(plots: &PlotData<'_>) -> crate::Result<Vec<(&'static str, &'static str, String)>> {
+pub(crate) fn svg_plots(
+    plots: &PlotData<'_>,
+) -> crate::Result<Vec<(&'static str, &'static str, String)>> {
     register_font();
     let mut out = Vec::new();
     let mut draw = |name: &'static str,

@@ -5,7 +5,7 @@ use crate::analysis::truth::TruthRow;
 use crate::measurement::statistics::{Stat, Table3};
 
 /// The paper's Table 3 layout, before and after, as fixed-width text.
-pub fn table3_text(title: &str, before: &Table3, after: &Table3) -> String {
+pub(crate) fn table3_text(title: &str, before: &Table3, after: &Table3) -> String {
     let mut out = format!(
         "{title} ({} poses)\n{:<30} {:^32}   {:^32}\n{:<30} {:>10} {:>10} {:>10}   {:>10} {:>10} {:>10}\n",
         before.poses,
@@ -57,7 +57,7 @@ fn number(v: f64) -> String {
 }
 
 /// Table 3 of one model as fixed-width text.
-pub fn table3_single_text(title: &str, table: &Table3) -> String {
+pub(crate) fn table3_single_text(title: &str, table: &Table3) -> String {
     let mut out = format!(
         "{title} ({} poses)\n{:<30} {:>10} {:>10} {:>10}\n",
         table.poses, "", "mean", "std", "max"
@@ -83,7 +83,7 @@ pub fn table3_single_text(title: &str, table: &Table3) -> String {
 }
 
 /// The comparison as fixed-width text.
-pub fn truth_text(rows: &[TruthRow]) -> String {
+pub(crate) fn truth_text(rows: &[TruthRow]) -> String {
     let mut out = format!(
         "{:<10} {:>4} {:>16} {:>16} {:>13}\n",
         "parameter", "unit", "identified", "true", "difference"

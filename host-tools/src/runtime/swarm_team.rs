@@ -53,7 +53,7 @@ pub enum Vectors {
 
 impl Vectors {
     /// The widest this CPU has.
-    pub fn detected() -> Self {
+    pub(crate) fn detected() -> Self {
         #[cfg(target_arch = "x86_64")]
         {
             if std::arch::is_x86_feature_detected!("avx512f")
@@ -81,7 +81,8 @@ impl Vectors {
     }
 
     /// The paths this CPU can run, narrowest first (for tests comparing them).
-    pub fn available() -> Vec<Self> {
+    #[cfg(test)]
+    pub(crate) fn available() -> Vec<Self> {
         let widest = Self::detected();
         [Self::Baseline, Self::Avx2, Self::Avx512]
             .into_iter()
@@ -392,7 +393,8 @@ impl<'o, 'p> SwarmTeam<'_, 'o, 'p> {
     }
 
     /// The number of threads evaluating (the caller included).
-    pub fn members(&self) -> usize {
+    #[cfg(test)]
+    pub(crate) fn members(&self) -> usize {
         self.members
     }
 

@@ -81,7 +81,7 @@ fn frame_entry(frame: &Isometry3<f64>) -> FrameEntry {
 /// base and tool frames that absorb what a chain of our joints cannot (`base` and `tool` are the
 /// file's own frames, applied before and after the chain). Frames that stay the identity are
 /// `None`.
-pub fn to_standard(
+pub(crate) fn to_standard(
     joints: &[CraigJointEntry],
     flange: Option<&CraigFlangeEntry>,
     base: Option<&FrameEntry>,
