@@ -7,7 +7,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
-use common::{calib, ok};
+use common::{at, calib, ok};
 
 use std::path::Path;
 
@@ -38,11 +38,6 @@ fn robot_file(joints: usize, every_parameter: bool) -> String {
         ));
     }
     text
-}
-
-/// `dir/name` as a string.
-fn at(dir: &Path, name: &str) -> String {
-    dir.join(name).to_str().unwrap().to_string()
 }
 
 /// The arm of `joints` joints written to `dir` and 60 poses simulated for it (tracker frame,

@@ -8,21 +8,13 @@ use host_tools::io::robot_file::RobotFile;
 use serde_json::Value;
 use std::path::Path;
 
+/// Simulated data in `dir` (data.csv, data-truth.toml) as strings for a command line.
 fn simulate(dir: &Path, extra: &[&str]) -> (String, String) {
-    let data = dir.join("data.csv").display().to_string();
-    let truth = dir.join("truth.toml").display().to_string();
-    let mut args = vec![
-        "simulate",
-        "--robot",
-        ROBOT,
-        "--out",
-        &data,
-        "--truth-out",
-        &truth,
-    ];
-    args.extend_from_slice(extra);
-    ok(&calib(&args));
-    (data, truth)
+    let (data, truth) = common::simulate(dir, "data", extra);
+    (
+        common::arg(&data).to_string(),
+        common::arg(&truth).to_string(),
+    )
 }
 
 #[test]

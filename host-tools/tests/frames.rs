@@ -11,10 +11,11 @@ use host_tools::analysis::reference;
 use host_tools::cli::calibrate::{self, CalibrateOptions};
 use host_tools::io::robot_file::RobotFile;
 use host_tools::io::tracker_data::TrackerData;
-use host_tools::measurement::simulate::{self, SimulationConfig};
+use host_tools::measurement::simulate::SimulationConfig;
 use std::path::{Path, PathBuf};
 
-/// Simulates `poses` poses in the tracker frame; returns (data, truth file).
+/// Simulates `poses` poses in the tracker frame (tracker about 3 m away, turned arbitrarily;
+/// reflector 150 mm off the flange); returns (data, truth file).
 fn simulate(
     dir: &Path,
     name: &str,
@@ -22,9 +23,6 @@ fn simulate(
     seed: u64,
     position_only: bool,
 ) -> (PathBuf, PathBuf) {
-    let data = dir.join(format!("{name}.csv"));
-    let truth = dir.join(format!("{name}-truth.toml"));
-    // Tracker about 3 m away, turned arbitrarily; reflector 150 mm off the flange.
     let config = SimulationConfig {
         poses,
         seed,
@@ -34,12 +32,7 @@ fn simulate(
         ..SimulationConfig::default()
     }
     .in_realistic_cell();
-    let robot = RobotFile::read(Path::new(ROBOT)).unwrap();
-    simulate::simulate(&robot, Path::new(ROBOT), &config)
-        .unwrap()
-        .write(&data, &truth, Path::new(ROBOT))
-        .unwrap();
-    (data, truth)
+    common::simulate_with(dir, name, &config)
 }
 
 #[test]

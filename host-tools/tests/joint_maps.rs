@@ -460,76 +460,22 @@ fn compensation_uses_the_maps(d: &std::path::Path) {
 /// identification's compliance columns) on 30 targets within 1e-3 mm; the joints for the model
 /// of `baseline` miss them by more than `missed_by` mm on average.
 fn compensation_uses_the_model(d: &std::path::Path, params: &str, baseline: &str, missed_by: f64) {
-    use common::{calib_in, ok};
-    use host_tools::analysis::reference;
-    use host_tools::io::tracker_data::{PoseRow, write_tracker_csv};
-    let nominal_file = RobotFile::read(std::path::Path::new(ROBOT)).unwrap();
-    let nominal = reference::model(&nominal_file, &[], &[0.0; 6], &[0.0; 6]);
-    let file = RobotFile::read(&d.join(params)).unwrap();
-    let maps = file.joint_maps(&d.join(params)).unwrap().unwrap();
-    let actual = reference::model(&file, &[], &[0.0; 6], &[0.0; 6]);
-    let model: RobotModel = file.to_model(&d.join(params)).unwrap();
-    let compliance = file.gravity_compliance(&d.join(params)).unwrap();
-    let mut rows = Vec::new();
-    for i in 0..30 {
-        let t = f64::from(i);
-        // Readings within Series B's ranges, where the maps were identified.
-        let q = vec![
-            -1.7 + 0.05 * t,
-            -1.0 - 0.02 * t,
-            0.4 + 0.03 * t,
-            -1.8 + 0.04 * t,
-            -1.0 + 0.02 * t,
-            0.2 + 0.05 * t,
-        ];
-        let pose = nominal.forward(&q);
-        rows.push(PoseRow {
-            id: format!("T{i:02}"),
-            q,
-            position: [pose[0][3], pose[1][3], pose[2][3]],
-            rotation: Some(nalgebra::Matrix3::from_fn(|r, c| pose[r][c])),
-        });
-    }
-    write_tracker_csv(&d.join("targets.csv"), &["frame: base".into()], &rows).unwrap();
-    let misses = |params: &str| -> Vec<f64> {
-        let out = format!("{params}.csv");
-        ok(&calib_in(
-            d,
-            &[
-                "compensate",
-                "--robot",
-                ROBOT,
-                "--params",
-                params,
-                "--targets",
-                "targets.csv",
-                "--out",
-                &out,
-            ],
-        ));
-        common::compensation_misses(
-            &d.join(&out),
-            6,
-            |q| {
-                let angles = maps.apply(q);
-                let mut reached = actual.forward(&angles);
-                if let Some(c) = &compliance {
-                    let columns = host_tools::model::compliance::columns(
-                        &c.gravity,
-                        &model.robot,
-                        &calib_core::ParameterErrors::zeros_for(model.robot.joint_count()),
-                        &angles,
-                    )
-                    .unwrap();
-                    let v = host_tools::model::compliance::displacement(&columns, &c.gains);
-                    for (r, row) in reached.iter_mut().take(3).enumerate() {
-                        row[3] += v[r];
-                    }
-                }
-                reached
-            },
-            |i| nominal.forward(&rows[i].q),
-        )
+    // Readings within Series B's ranges, where the maps were identified.
+    let readings: Vec<Vec<f64>> = (0..30)
+        .map(|i| {
+            let t = f64::from(i);
+            vec![
+                -1.7 + 0.05 * t,
+                -1.0 - 0.02 * t,
+                0.4 + 0.03 * t,
+                -1.8 + 0.04 * t,
+                -1.0 + 0.02 * t,
+                0.2 + 0.05 * t,
+            ]
+        })
+        .collect();
+    let misses = |used: &str| {
+        common::compensated_misses(d, ROBOT, &d.join(used), &d.join(params), &readings)
     };
     let with = misses(params);
     let without = misses(baseline);

@@ -3,31 +3,14 @@
 //! independent float64 reference optimiser and the known truth.
 
 mod common;
-use common::{ROBOT, parse};
+use common::{ROBOT, parse, simulate};
 
 use host_tools::analysis::reference;
 use host_tools::cli::calibrate::{self, CalibrateOptions, Calibration};
 use host_tools::cli::check::{self, CheckOptions};
-use host_tools::cli::simulate::{self, Simulation};
 use host_tools::io::robot_file::RobotFile;
 use host_tools::io::tracker_data::TrackerData;
-use std::path::{Path, PathBuf};
-
-fn simulate(dir: &Path, name: &str, args: &[&str]) -> (PathBuf, PathBuf) {
-    let data = dir.join(format!("{name}.csv"));
-    let truth = dir.join(format!("{name}-truth.toml"));
-    let mut all = vec![
-        "--robot",
-        ROBOT,
-        "--out",
-        data.to_str().unwrap(),
-        "--truth-out",
-        truth.to_str().unwrap(),
-    ];
-    all.extend_from_slice(args);
-    simulate::simulate(&parse::<Simulation>(&all)).unwrap();
-    (data, truth)
-}
+use std::path::Path;
 
 fn calibrate(data: &Path, truth: &Path, args: &[&str]) -> Calibration {
     let mut all = vec![

@@ -5,18 +5,13 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
-use common::{calib, ok};
+use common::{at, calib, ok};
 
 use host_tools::io::robot_file::RobotFile;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use std::path::Path;
 
 const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/kuka-iiwa14.toml");
-
-/// `dir/name` as a string.
-fn at(dir: &Path, name: &str) -> String {
-    dir.join(name).to_str().unwrap().to_string()
-}
 
 #[test]
 fn every_command_on_a_simulated_seven_joint_robot() {
@@ -352,7 +347,6 @@ fn six_joint_models_refuse_a_seven_joint_robot_with_a_reason() {
 fn joint_maps_of_a_seven_joint_arm_are_exported_and_compensated() {
     use calib_core::controller::storage::{decode_model, model_block_len};
     use host_tools::analysis::reference;
-    use host_tools::io::tracker_data::{PoseRow, write_tracker_csv};
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let mut text = std::fs::read_to_string(ROBOT).unwrap();
@@ -421,17 +415,10 @@ fn joint_maps_of_a_seven_joint_arm_are_exported_and_compensated() {
     }
 
     // Compensation with the maps.
-    let nominal = reference::model(
-        &RobotFile::read(Path::new(ROBOT)).unwrap(),
-        &[],
-        &[0.0; 6],
-        &[0.0; 6],
-    );
-    let actual = reference::model(&file, &[], &[0.0; 6], &[0.0; 6]);
-    let rows: Vec<PoseRow> = (0..30)
+    let readings: Vec<Vec<f64>> = (0..30)
         .map(|i| {
             let t = f64::from(i);
-            let q = vec![
+            vec![
                 -1.2 + 0.08 * t,
                 0.3 + 0.02 * t,
                 0.5 - 0.03 * t,
@@ -439,38 +426,11 @@ fn joint_maps_of_a_seven_joint_arm_are_exported_and_compensated() {
                 0.2 + 0.04 * t,
                 0.9 - 0.02 * t,
                 -0.5 + 0.05 * t,
-            ];
-            let pose = nominal.forward(&q);
-            PoseRow {
-                id: format!("T{i:02}"),
-                q,
-                position: [pose[0][3], pose[1][3], pose[2][3]],
-                rotation: Some(nalgebra::Matrix3::from_fn(|r, c| pose[r][c])),
-            }
+            ]
         })
         .collect();
-    let targets = d.join("targets.csv");
-    write_tracker_csv(&targets, &["frame: base".into()], &rows).unwrap();
-    let misses = |params: &str| -> Vec<f64> {
-        let out = at(d, &format!("{params}.csv"));
-        ok(&calib(&[
-            "compensate",
-            "--robot",
-            ROBOT,
-            "--params",
-            params,
-            "--targets",
-            targets.to_str().unwrap(),
-            "--out",
-            &out,
-        ]));
-        common::compensation_misses(
-            Path::new(&out),
-            7,
-            |q| actual.forward(&maps.apply(q)),
-            |i| nominal.forward(&rows[i].q),
-        )
-    };
+    let misses =
+        |used: &str| common::compensated_misses(d, ROBOT, Path::new(used), &params, &readings);
     let with = misses(&at(d, "maps.toml"));
     let without = misses(ROBOT);
     let worst = with.iter().fold(0.0f64, |m, v| m.max(*v));

@@ -6,27 +6,20 @@ use common::{ROBOT, calib, ok};
 use serde_json::Value;
 use std::path::Path;
 
+/// `poses` simulated poses (0.02 mm, 1e-4 rad of noise) in `dir/NAME.csv`, as a string.
 fn simulate(dir: &Path, name: &str, poses: &str, seed: &str) -> String {
-    let data = dir.join(name).display().to_string();
-    let truth = dir.join(format!("{name}.truth.toml")).display().to_string();
-    ok(&calib(&[
-        "simulate",
-        "--robot",
-        ROBOT,
-        "--poses",
-        poses,
-        "--seed",
-        seed,
+    let noise = [
         "--position-sigma-mm",
         "0.02",
         "--orientation-sigma-rad",
         "1e-4",
-        "--out",
-        &data,
-        "--truth-out",
-        &truth,
-    ]));
-    data
+    ];
+    let (data, _) = common::simulate(
+        dir,
+        name.trim_end_matches(".csv"),
+        &[&["--poses", poses, "--seed", seed][..], &noise].concat(),
+    );
+    common::arg(&data).to_string()
 }
 
 #[test]

@@ -1,4 +1,4 @@
-//! Compensation for a 7-joint robot on the controller (issue 15): the KUKA LBR iiwa 14 R820 in
+//! Compensation for a 7-joint robot on the controller: the KUKA LBR iiwa 14 R820 in
 //! f32 (the shipped robot file `host-tools/robots/kuka-iiwa14.toml`: standard DH after Faria et
 //! al. 2018 with KUKA's link lengths), an actual robot with errors of a few tenths of a
 //! millimetre and milliradian on every joint, and four targets: the nominal poses at four

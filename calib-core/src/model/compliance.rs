@@ -1,4 +1,4 @@
-//! Gravity compliance (issue 14): joints and bearings that yield under the weight of the links
+//! Gravity compliance: joints and bearings that yield under the weight of the links
 //! beyond them.
 //!
 //! For joint `j`, the gravity moment of everything it carries (links `j..N` and the flange's

@@ -1,4 +1,4 @@
-//! Per-joint angle-error maps: what a geometric calibration leaves on a real robot (issue 14).
+//! Per-joint angle-error maps: what a geometric calibration leaves on a real robot.
 //!
 //! Joint `j`'s map is a Fourier series of its own reading `q_j` (rad),
 //!

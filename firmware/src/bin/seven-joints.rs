@@ -1,4 +1,4 @@
-//! Compensation for a 7-joint robot on the reference controller board (issue 15): the KUKA LBR
+//! Compensation for a 7-joint robot on the reference controller board: the KUKA LBR
 //! iiwa 14 R820 in f32 (`calib_onboard::seven_joints`), four targets compensated with an actual
 //! robot that differs by tenths of a millimetre and milliradian per joint. A binary of its own,
 //! so its flash is measured alone (`run.sh --size --bin seven-joints`) and the 6-joint

@@ -1,4 +1,4 @@
-//! Import of a Universal Robots controller's factory calibration (issue 16): the `[mounting]`
+//! Import of a Universal Robots controller's factory calibration: the `[mounting]`
 //! section of its `calibration.conf`, `delta_theta`, `delta_a`, `delta_d`, `delta_alpha` (six
 //! values each, m and rad), added to the nominal classic DH `T_i = Rz(q_i + theta_i) Tz(d_i)
 //! Tx(a_i) Rx(alpha_i)`.

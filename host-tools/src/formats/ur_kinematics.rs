@@ -1,4 +1,4 @@
-//! The UR-style kinematics YAML (issue 16): the `kinematics:` file of Universal Robots' ROS
+//! The UR-style kinematics YAML: the `kinematics:` file of Universal Robots' ROS
 //! description packages (`ur_description`, `default_kinematics.yaml` and what `ur_calibration`
 //! writes), which the UR ROS drivers load into their URDF.
 //!

@@ -1,4 +1,4 @@
-//! The robot model as a URDF (issue 16): joint origins that reproduce our forward kinematics
+//! The robot model as a URDF: joint origins that reproduce our forward kinematics
 //! exactly, for ROS (robot_state_publisher, MoveIt) and every tool that reads URDF.
 //!
 //! The Hayati joint transform of eq. (1), `A_i = Rz(q_i + theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)

@@ -1,4 +1,4 @@
-//! Gravity compliance (issue 14): joints and bearings that yield under the weight of the links
+//! Gravity compliance: joints and bearings that yield under the weight of the links
 //! beyond them, identified with the joint maps (`calibrate --model joint-maps+compliance`).
 //!
 //! For joint `j`, the gravity moment of everything beyond it (links `j..N` and the tool's load,

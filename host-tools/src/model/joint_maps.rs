@@ -1,4 +1,4 @@
-//! Per-joint angle-error maps identified jointly with the geometry (issue 14).
+//! Per-joint angle-error maps identified jointly with the geometry.
 //!
 //! What a geometric calibration leaves on a real robot is mostly an angle error of each joint that
 //! repeats with that joint's own angle (gearbox or encoder). Each joint `j` gets a map
@@ -32,7 +32,7 @@ use serde::{Deserialize, Serialize};
 /// [`HARMONICS_STEP`] up to [`MAX_HARMONICS`].
 pub(crate) const HARMONICS_STEP: usize = 10;
 
-/// The most harmonics per joint [`identify_best`] tries (the study behind issue 14 used 40-60;
+/// The most harmonics per joint [`identify_best`] tries (the published joint-map study used 40-60;
 /// on UR10 Series B with 50 poses the evidence prefers 30).
 pub(crate) const MAX_HARMONICS: usize = 60;
 

@@ -1,4 +1,4 @@
-//! The calibration report as one self-contained HTML file (issue 16): for the people who pay for
+//! The calibration report as one self-contained HTML file: for the people who pay for
 //! a calibration and archive it. Inline SVG plots and an inline stylesheet (with a print
 //! layout); no script, no external reference of any kind.
 //!

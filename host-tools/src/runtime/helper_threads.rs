@@ -4,10 +4,8 @@
 //! A new thread is queued on its parent's CPU. While the parent computes, the scheduler runs the
 //! new thread there only when the parent's time slice ends or the load is balanced, milliseconds
 //! later; until then the helper does not work and, once it runs, it shares the CPU with the
-//! parent. Measured with `perf sched timehist` on this 2-vCPU machine (six processes of `calib
-//! calibrate --method ipso` on the paper scenario): the swarm's helper waited 1.5 and 2.3 ms on
-//! its parent's CPU in two of six, and 3.1 and 3.6 ms in two of five in another series.
-//! [`spawn`] therefore moves the helper off the parent's CPU as its first step and yields the
+//! parent (waits of milliseconds measured with `perf sched timehist`: docs/RESULTS.md, "Speed to
+//! the limit"). [`spawn`] therefore moves the helper off the parent's CPU as its first step and yields the
 //! parent's CPU once, so that a helper queued there runs (and moves) at once.
 
 use std::thread::{Scope, ScopedJoinHandle};

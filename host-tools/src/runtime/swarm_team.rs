@@ -13,8 +13,8 @@
 //! The swarm's update between two generations runs on the caller alone, particle by particle;
 //! each particle the members evaluate is published as soon as the update has given it its position
 //! ([`CostFunction::position_ready`]), and a member evaluates it while the caller updates the
-//! next ones (the paper's swarm alone: 13.7-13.9 ms with the whole generation published after the
-//! update, 13.3-13.8 ms so, alternating in a scratch criterion bench). Its random pairs
+//! next ones (measured faster than publishing the whole generation after the update: docs/RESULTS.md,
+//! "Speed to the limit"). Its random pairs
 //! `r1, r2` (960 draws from one sequential generator per generation of the paper's swarm) are
 //! drawn ahead by a helper, which is idle while the caller updates: [`TeamPairs`] posts the next
 //! generation's draws as an update starts and hands the swarm the pairs drawn during the previous
@@ -23,7 +23,7 @@
 //! Every particle's cost is computed alone by [`LaneObjective::value`]: the measurements in lane
 //! layout collected once ([`Objective::lanes`]) and, where the CPU has AVX-512 (detected at run
 //! time; the binary still runs on baseline x86-64), the evaluation compiled for it (an AVX2 build
-//! exists too, for tests: it measured slower than the baseline, [`Vectors::preferred`]). Rust never
+//! exists too, for tests: [`Vectors::preferred`] says why it is not used). Rust never
 //! fuses a multiplication and an addition on its own, so the wider vectors compute the same
 //! operations with the same roundings: the costs, and the swarm, are bit for bit those of
 //! [`Objective::value`] on one thread (test `team_evaluates_bit_for_bit`).
