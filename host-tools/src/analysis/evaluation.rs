@@ -54,17 +54,7 @@ pub fn evaluate(
                 "--fit-poses needs frames to fit: the data are evaluated in the base frame (--fit-frames none)"
             ));
         }
-        let (report, _) =
-            crate::measurement::frames::prepare(frames, &mut dataset.clone(), &mut [], k)?;
-        let kinematics = Kinematics::nominal(&dataset.model.robot)?;
-        let seen = dataset.without_file_compliance(&dataset.model.robot, &zero)?;
-        return Ok(Evaluation {
-            table: table3(&kinematics, &seen).0,
-            frames: report,
-            fitted_poses: 0,
-            evaluated_poses: n,
-            fitted_poses_evaluated: false,
-        });
+        return in_the_base_frame(dataset);
     }
     let (mut fitting, mut evaluated, separate) = match fit_poses {
         Some(count) => {
@@ -113,5 +103,23 @@ pub fn evaluate(
         fitted_poses: fitting.measurements.len(),
         evaluated_poses: evaluated.measurements.len(),
         fitted_poses_evaluated: !separate,
+    })
+}
+
+/// The evaluation of data in the robot's base frame: nothing fitted, every pose evaluated (the
+/// robot file's gravity compliance, if any, taken off the measured poses).
+fn in_the_base_frame(dataset: &Dataset) -> crate::Result<Evaluation> {
+    let k = calib_core::identify::objective::DEFAULT_K;
+    let zero = calib_core::ParameterErrors::zeros_for(dataset.model.robot.joint_count());
+    let (report, _) =
+        crate::measurement::frames::prepare(Frames::None, &mut dataset.clone(), &mut [], k)?;
+    let kinematics = Kinematics::nominal(&dataset.model.robot)?;
+    let seen = dataset.without_file_compliance(&dataset.model.robot, &zero)?;
+    Ok(Evaluation {
+        table: table3(&kinematics, &seen).0,
+        frames: report,
+        fitted_poses: 0,
+        evaluated_poses: dataset.measurements.len(),
+        fitted_poses_evaluated: false,
     })
 }

@@ -10,7 +10,9 @@ use crate::JOINTS;
 use crate::measurement::dataset::Dataset;
 use crate::measurement::statistics::table3;
 use crate::model::compliance::{self, Gravity};
-use crate::model::joint_maps::{self, JointMapsSection, NEGLIGIBLE_AMPLITUDE_RAD, Pose};
+use crate::model::joint_maps::{
+    self, JointMapsSection, MapIdentification, NEGLIGIBLE_AMPLITUDE_RAD, Pose,
+};
 use calib_core::Kinematics;
 use calib_core::model::JointVec;
 use nalgebra::Dyn;
@@ -267,30 +269,11 @@ pub(crate) fn add_joint_maps(
 ) -> crate::Result<CalibrationResult> {
     check_robot_file(dataset, config)?;
     let geometric = Kinematics::new(&dataset.model.robot, &result.errors)?;
-    let residuals: Vec<f64> = dataset
-        .measurements
-        .iter()
-        .map(|m| (m.position - geometric.forward_angles(&m.angles).translation.vector).norm())
-        .collect();
-    let median = super::median(&mut residuals.clone());
-    let mut deviations: Vec<f64> = residuals.iter().map(|r| (r - median).abs()).collect();
-    let spread = 1.4826 * super::median(&mut deviations);
-    let limit = median + OUTLIER_DEVIATIONS * spread;
-    let mut left_out_lines = Vec::new();
-    let mut poses = Vec::new();
-    let mut kept = Vec::new();
-    for (i, (r, residual)) in dataset.data.records.iter().zip(&residuals).enumerate() {
-        if *residual > limit || r.weight == 0.0 {
-            left_out_lines.push(r.line);
-            continue;
-        }
-        kept.push(i);
-        poses.push(Pose {
-            q: JointVec::from_fn(r.q.len(), |j| r.q[j]),
-            position: Vector3::from(r.position),
-            rotation: r.rotation,
-        });
-    }
+    let Screened {
+        poses,
+        kept,
+        left_out_lines,
+    } = screened(dataset, &geometric);
     // 6-DoF data: the orientation rows too (position rows alone cannot determine the geometry
     // identified from full poses, such as the probe's rotation).
     let orientation_scale_mm = orientation_scale(dataset, &geometric);
@@ -316,15 +299,7 @@ pub(crate) fn add_joint_maps(
                 >= (1.0 - CROSS_VALIDATION_MARGIN) * geometric.calibrated_mean_mm,
         })
     });
-    let ranges: Vec<[f64; 2]> = (0..dataset.model.robot.joints.len())
-        .map(|j| {
-            poses
-                .iter()
-                .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], p| {
-                    [lo.min(p.q[j]), hi.max(p.q[j])]
-                })
-        })
-        .collect();
+    let ranges = reading_ranges(&poses, dataset.model.robot.joints.len());
     let kept_at_zero = cross_validation.is_some_and(|c| c.kept_at_zero);
     let geometric_calibration = result.calibration;
     let geometric_validation = result.validation;
@@ -342,44 +317,8 @@ pub(crate) fn add_joint_maps(
             &ranges,
         )?;
     }
-    let joints = (0..ranges.len())
-        .map(|j| {
-            let values: Vec<f64> = poses.iter().map(|p| found.maps.error(j, p.q[j])).collect();
-            let rms =
-                (values.iter().map(|v| v * v).sum::<f64>() / values.len().max(1) as f64).sqrt();
-            let max = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            JointMapReport {
-                joint: j + 1,
-                supported: found.amplitude_rad[j] > NEGLIGIBLE_AMPLITUDE_RAD,
-                prior_sd_mrad: found.amplitude_rad[j] * 1e3,
-                rms_mrad: rms * 1e3,
-                max_mrad: max * 1e3,
-                determined: found.determined[j],
-                range_deg: ranges[j].map(f64::to_degrees),
-            }
-        })
-        .collect();
-    let turn = (360.0 / CURVE_STEP_DEG) as usize;
-    let curves = (0..ranges.len())
-        .map(|j| {
-            let q_deg: Vec<f64> = (0..=turn)
-                .map(|i| i as f64 * CURVE_STEP_DEG - 180.0)
-                .collect();
-            MapCurve {
-                joint: j + 1,
-                mean_mrad: q_deg
-                    .iter()
-                    .map(|q| found.maps.error(j, q.to_radians()) * 1e3)
-                    .collect(),
-                sd_mrad: q_deg
-                    .iter()
-                    .map(|q| found.error_sd(j, q.to_radians()) * 1e3)
-                    .collect(),
-                readings_deg: poses.iter().map(|p| p.q[j].to_degrees()).collect(),
-                q_deg,
-            }
-        })
-        .collect();
+    let joints = joint_reports(&found, &poses, &ranges);
+    let curves = map_curves(&found, &poses, ranges.len());
     result.joint_maps = Some(JointMapsReport {
         curves,
         harmonics: found.maps.harmonics,
@@ -400,6 +339,110 @@ pub(crate) fn add_joint_maps(
         cross_validation,
     });
     Ok(result)
+}
+
+/// The poses the maps are identified from: those the geometric model (`geometric`) fits within
+/// [`OUTLIER_DEVIATIONS`] robust deviations of the median, with weight above 0.
+struct Screened {
+    poses: Vec<Pose>,
+    /// The dataset's indices of `poses`.
+    kept: Vec<usize>,
+    /// The file lines of the poses left out.
+    left_out_lines: Vec<u64>,
+}
+
+fn screened(dataset: &Dataset, geometric: &Kinematics<f64, Dyn>) -> Screened {
+    let residuals: Vec<f64> = dataset
+        .measurements
+        .iter()
+        .map(|m| (m.position - geometric.forward_angles(&m.angles).translation.vector).norm())
+        .collect();
+    let median = super::median(&mut residuals.clone());
+    let mut deviations: Vec<f64> = residuals.iter().map(|r| (r - median).abs()).collect();
+    let spread = 1.4826 * super::median(&mut deviations);
+    let limit = median + OUTLIER_DEVIATIONS * spread;
+    let mut screened = Screened {
+        poses: Vec::new(),
+        kept: Vec::new(),
+        left_out_lines: Vec::new(),
+    };
+    for (i, (r, residual)) in dataset.data.records.iter().zip(&residuals).enumerate() {
+        if *residual > limit || r.weight == 0.0 {
+            screened.left_out_lines.push(r.line);
+            continue;
+        }
+        screened.kept.push(i);
+        screened.poses.push(Pose {
+            q: JointVec::from_fn(r.q.len(), |j| r.q[j]),
+            position: Vector3::from(r.position),
+            rotation: r.rotation,
+        });
+    }
+    screened
+}
+
+/// Each joint's range of readings over `poses`, rad.
+fn reading_ranges(poses: &[Pose], joints: usize) -> Vec<[f64; 2]> {
+    (0..joints)
+        .map(|j| {
+            poses
+                .iter()
+                .fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], p| {
+                    [lo.min(p.q[j]), hi.max(p.q[j])]
+                })
+        })
+        .collect()
+}
+
+/// What each joint's map does on the poses it was identified from (readings within `ranges`).
+fn joint_reports(
+    found: &MapIdentification,
+    poses: &[Pose],
+    ranges: &[[f64; 2]],
+) -> Vec<JointMapReport> {
+    (0..ranges.len())
+        .map(|j| {
+            let values: Vec<f64> = poses.iter().map(|p| found.maps.error(j, p.q[j])).collect();
+            let rms =
+                (values.iter().map(|v| v * v).sum::<f64>() / values.len().max(1) as f64).sqrt();
+            let max = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            JointMapReport {
+                joint: j + 1,
+                supported: found.amplitude_rad[j] > NEGLIGIBLE_AMPLITUDE_RAD,
+                prior_sd_mrad: found.amplitude_rad[j] * 1e3,
+                rms_mrad: rms * 1e3,
+                max_mrad: max * 1e3,
+                determined: found.determined[j],
+                range_deg: ranges[j].map(f64::to_degrees),
+            }
+        })
+        .collect()
+}
+
+/// Each joint's map over one turn, every [`CURVE_STEP_DEG`], with its standard deviation and
+/// the readings of `poses`.
+fn map_curves(found: &MapIdentification, poses: &[Pose], joints: usize) -> Vec<MapCurve> {
+    let turn = (360.0 / CURVE_STEP_DEG) as usize;
+    (0..joints)
+        .map(|j| {
+            let q_deg: Vec<f64> = (0..=turn)
+                .map(|i| i as f64 * CURVE_STEP_DEG - 180.0)
+                .collect();
+            MapCurve {
+                joint: j + 1,
+                mean_mrad: q_deg
+                    .iter()
+                    .map(|q| found.maps.error(j, q.to_radians()) * 1e3)
+                    .collect(),
+                sd_mrad: q_deg
+                    .iter()
+                    .map(|q| found.error_sd(j, q.to_radians()) * 1e3)
+                    .collect(),
+                readings_deg: poses.iter().map(|p| p.q[j].to_degrees()).collect(),
+                q_deg,
+            }
+        })
+        .collect()
 }
 
 /// `result` (the geometric calibration) replaced by the model with the maps `found`: statistics,

@@ -98,37 +98,12 @@ pub fn calibrate(
     // records the probe in its measurement setup.
     let given = dataset.file.clone();
     let probe = dataset.identified_probe().cloned();
-    let probe_kept = match crate::measurement::frames::with_identified_probe(&dataset, frames)? {
-        Some(kept) => {
-            dataset = kept;
-            if let Some(v) = validation.as_mut()
-                && let Some(kept) = crate::measurement::frames::with_identified_probe(v, frames)?
-            {
-                *v = kept;
-            }
-            true
-        }
-        None => false,
-    };
+    let probe_kept = keep_identified_probe(&mut dataset, validation.as_mut(), frames)?;
     let (frames_report, mask) = {
         let mut others: Vec<&mut Dataset> = validation.iter_mut().collect();
         crate::measurement::frames::prepare(frames, &mut dataset, &mut others, config.k)?
     };
-    let mask = match config.identify {
-        Identify::Geometry => mask,
-        Identify::Frames => {
-            if !frames.base() {
-                return Err(crate::refused!(
-                    "--identify frames re-registers the frames of a measurement setup: the data must be in a tracker's frame (--frames base or base+tool), not in the base frame"
-                ));
-            }
-            let mut only_frames = ParameterMask::empty_for(mask.joint_count());
-            for p in mask.iter() {
-                only_frames.set(p, matches!(p, Parameter::Base(_) | Parameter::Tool(_)));
-            }
-            only_frames
-        }
-    };
+    let mask = identified_mask(mask, frames, config)?;
     let selection = select_parameters(&dataset, mask, config)?;
     let solved = |dataset: &Dataset, validation: Option<&Dataset>| {
         solve(
@@ -140,23 +115,7 @@ pub fn calibrate(
         )
     };
     let mut result = if dataset.file.compliance.is_some() {
-        // The file's gravity compliance is part of the model and held fixed: the geometry (or
-        // the frames) is fitted to the measured poses with its deflection taken off, evaluated at
-        // the registered frames, then again at the first fit's errors (the deflection depends on
-        // the geometry only through its small change).
-        let mut errors = ParameterErrors::zeros_for(dataset.model.robot.joint_count());
-        let mut result = None;
-        for _ in 0..COMPLIANCE_ROUNDS {
-            let calibration = dataset.without_file_compliance(&dataset.model.robot, &errors)?;
-            let held_out = match &validation {
-                Some(v) => Some(v.without_file_compliance(&v.model.robot, &errors)?),
-                None => None,
-            };
-            let round = solved(&calibration, held_out.as_ref())?;
-            errors = round.errors;
-            result = Some(round);
-        }
-        result.ok_or_else(|| crate::numerical!("no compliance round ran"))?
+        with_file_compliance(&dataset, validation.as_ref(), solved)?
     } else {
         solved(&dataset, validation.as_ref())?
     };
@@ -179,6 +138,73 @@ pub fn calibrate(
         ));
     }
     Ok(result)
+}
+
+/// With only the base frame fitted, the probe identified with the robot file's model is kept as
+/// the tool of `dataset` and `validation`; returns whether it was.
+fn keep_identified_probe(
+    dataset: &mut Dataset,
+    validation: Option<&mut Dataset>,
+    frames: Frames,
+) -> crate::Result<bool> {
+    let Some(kept) = crate::measurement::frames::with_identified_probe(dataset, frames)? else {
+        return Ok(false);
+    };
+    *dataset = kept;
+    if let Some(v) = validation
+        && let Some(kept) = crate::measurement::frames::with_identified_probe(v, frames)?
+    {
+        *v = kept;
+    }
+    Ok(true)
+}
+
+/// The parameters to identify of `mask` (the robot's and the frames'): all of them, or with
+/// `--identify frames` only the frames' (which needs data in a tracker's frame).
+fn identified_mask(
+    mask: ParameterMask<Dyn>,
+    frames: Frames,
+    config: &CalibrationConfig,
+) -> crate::Result<ParameterMask<Dyn>> {
+    match config.identify {
+        Identify::Geometry => Ok(mask),
+        Identify::Frames => {
+            if !frames.base() {
+                return Err(crate::refused!(
+                    "--identify frames re-registers the frames of a measurement setup: the data must be in a tracker's frame (--frames base or base+tool), not in the base frame"
+                ));
+            }
+            let mut only_frames = ParameterMask::empty_for(mask.joint_count());
+            for p in mask.iter() {
+                only_frames.set(p, matches!(p, Parameter::Base(_) | Parameter::Tool(_)));
+            }
+            Ok(only_frames)
+        }
+    }
+}
+
+/// The fit (`solved`) of a robot file with gravity compliance, which is part of the model and
+/// held fixed: the geometry (or the frames) is fitted to the measured poses with its deflection
+/// taken off, evaluated at the registered frames, then again at the first fit's errors (the
+/// deflection depends on the geometry only through its small change).
+fn with_file_compliance(
+    dataset: &Dataset,
+    validation: Option<&Dataset>,
+    solved: impl Fn(&Dataset, Option<&Dataset>) -> crate::Result<CalibrationResult>,
+) -> crate::Result<CalibrationResult> {
+    let mut errors = ParameterErrors::zeros_for(dataset.model.robot.joint_count());
+    let mut result = None;
+    for _ in 0..COMPLIANCE_ROUNDS {
+        let calibration = dataset.without_file_compliance(&dataset.model.robot, &errors)?;
+        let held_out = match validation {
+            Some(v) => Some(v.without_file_compliance(&v.model.robot, &errors)?),
+            None => None,
+        };
+        let round = solved(&calibration, held_out.as_ref())?;
+        errors = round.errors;
+        result = Some(round);
+    }
+    result.ok_or_else(|| crate::numerical!("no compliance round ran"))
 }
 
 /// The parameters to identify and why.
@@ -248,6 +274,36 @@ pub fn select_parameters(
     })
 }
 
+/// The errors identified by the method of `config`: the swarm from zero errors, then least
+/// squares from its best (or from zero); returns both runs (where they ran) and the best errors.
+fn identify_errors(
+    config: &CalibrationConfig,
+    problem: &Problem<'_, f64, Dyn, Dyn>,
+    objective: &Objective<'_, f64, Dyn, Dyn>,
+    dataset: &Dataset,
+) -> crate::Result<(Option<SwarmRun>, Option<Fit>, DVector<f64>)> {
+    let swarm = if config.method.swarm() {
+        Some(run_swarm(config, objective, problem.set())?)
+    } else {
+        None
+    };
+    let start = swarm
+        .as_ref()
+        .map_or_else(|| problem.set().zeros(), |s| s.best.clone());
+    let fit = if config.method.least_squares() {
+        Some(least_squares(
+            config,
+            &LeastSquares::new(problem),
+            &start,
+            dataset,
+        )?)
+    } else {
+        None
+    };
+    let best = fit.as_ref().map_or(start, |f| f.result.x.clone());
+    Ok((swarm, fit, best))
+}
+
 /// Identifies the parameters of `selection` and evaluates the result.
 fn solve(
     dataset: &Dataset,
@@ -268,26 +324,8 @@ fn solve(
     let objective = Objective::new(&problem);
     let zero = set.zeros();
     let started = Instant::now();
-    let swarm = if config.method.swarm() {
-        Some(run_swarm(config, &objective, set)?)
-    } else {
-        None
-    };
-    let start = swarm
-        .as_ref()
-        .map_or_else(|| zero.clone(), |s| s.best.clone());
-    let fit = if config.method.least_squares() {
-        Some(least_squares(
-            config,
-            &LeastSquares::new(&problem),
-            &start,
-            dataset,
-        )?)
-    } else {
-        None
-    };
+    let (swarm, fit, best) = identify_errors(config, &problem, &objective, dataset)?;
     let seconds = started.elapsed().as_secs_f64();
-    let best = fit.as_ref().map_or(start, |f| f.result.x.clone());
     let standard_errors = fit.as_ref().and_then(|f| f.result.standard_errors());
     let parameters = identified_parameters(set, &best, standard_errors.as_ref());
     let errors = set.unpack(&best);

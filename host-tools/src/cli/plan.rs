@@ -139,9 +139,9 @@ fn noise_of_report(path: &std::path::Path) -> anyhow::Result<(f64, f64)> {
     Ok((position, orientation))
 }
 
-/// `calib plan`: plans, writes the plan (and the report) together, returns the plan.
-pub fn plan(options: &PlanOptions) -> anyhow::Result<Plan> {
-    let file = RobotFile::read(&options.robot)?;
+/// The candidates of `calib plan`: read from `--candidates` or generated (`--generate`, within
+/// `--box-mm`), at most [`MAX_CANDIDATES`].
+fn candidates(options: &PlanOptions, file: &RobotFile) -> anyhow::Result<Vec<(String, Vec<f64>)>> {
     let candidates: Vec<(String, Vec<f64>)> = match (&options.candidates, options.generate) {
         (Some(path), _) => {
             let profile = DataProfile::load(options.profile.as_deref())?;
@@ -165,7 +165,7 @@ pub fn plan(options: &PlanOptions) -> anyhow::Result<Plan> {
             if count > MAX_CANDIDATES {
                 bail!("--generate {count}: at most {MAX_CANDIDATES} candidates");
             }
-            planning::generate(&file, &options.robot, count, box_mm)?
+            planning::generate(file, &options.robot, count, box_mm)?
         }
         (None, None) => bail!("give the candidates: --candidates FILE or --generate N"),
     };
@@ -175,6 +175,13 @@ pub fn plan(options: &PlanOptions) -> anyhow::Result<Plan> {
             candidates.len()
         );
     }
+    Ok(candidates)
+}
+
+/// `calib plan`: plans, writes the plan (and the report) together, returns the plan.
+pub fn plan(options: &PlanOptions) -> anyhow::Result<Plan> {
+    let file = RobotFile::read(&options.robot)?;
+    let candidates = candidates(options, &file)?;
     let rows = options.measure.rows();
     let (noise_mm, noise_deg) = options.noise()?;
     let settings = PlanSettings {

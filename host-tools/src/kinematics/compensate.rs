@@ -172,6 +172,20 @@ fn compensate_record(
         Some(Err(e)) => return (Err(e), String::new()),
         None => {}
     }
+    from_numerical_starts(nominal, planned, real, target, settings)
+}
+
+/// Compensates `target` from the nominal robot's numerical inverse kinematics, from the middle
+/// of the joint limits (each limit taken within one turn of zero), up to [`NUMERICAL_STARTS`]
+/// solutions in seed order; where none works, the identified robot is solved from the first
+/// start (or the middle of the limits). Returns the outcome and where the start came from.
+fn from_numerical_starts(
+    nominal: &Robot<f64, Dyn>,
+    planned: &Kinematics<f64, Dyn>,
+    real: &impl ActualRobot<f64, Dyn>,
+    target: &Pose,
+    settings: &CompensationSettings<f64>,
+) -> (Result<Compensated<f64, Dyn>, String>, String) {
     let pi = std::f64::consts::PI;
     let reference = nominal
         .limits
@@ -196,7 +210,7 @@ fn compensate_record(
             }
         };
         let method = format!("numerical, seed {}", start.seed);
-        match from(&start.q) {
+        match compensate_target(planned, real, &nominal.limits, target, &start.q, settings) {
             Ok(c) => return (Ok(c), method),
             Err(e) => {
                 first.get_or_insert((e, method, start.q));

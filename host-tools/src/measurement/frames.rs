@@ -464,6 +464,35 @@ fn measured_model(
     })
 }
 
+/// The robot file `registered` (the registration's frames) with the frames of `mask` fitted by
+/// least squares to `inputs`, the geometry fixed.
+fn with_fitted_frames(
+    inputs: &crate::measurement::dataset::Dataset,
+    registered: RobotFile,
+    mask: &ParameterMask<Dyn>,
+    k: f64,
+) -> crate::Result<RobotFile> {
+    let mut frame_mask = ParameterMask::empty_for(mask.joint_count());
+    for p in mask.iter() {
+        if matches!(p, Parameter::Base(_) | Parameter::Tool(_)) {
+            frame_mask.set(p, true);
+        }
+    }
+    let mut fitted_inputs = inputs.clone();
+    fitted_inputs.model = measured_model(&registered, inputs, "registered")?;
+    fitted_inputs.model.mask = inputs.model.mask;
+    let frame_parameters = frame_mask.count();
+    if !(1..=12).contains(&frame_parameters) {
+        return Err(crate::refused!(
+            "{frame_parameters} frame parameters; the two frames have 1 to 12"
+        ));
+    }
+    let errors = fit_frames(&fitted_inputs, &frame_mask, k)?;
+    let mut fitted = registered.with_errors(&errors, [], &[], "", "");
+    fitted.calibration = None;
+    Ok(fitted)
+}
+
 /// Registers the frames of `inputs` and fits them (nominal geometry) by least squares; replaces
 /// the robot of `inputs` (and of `others`, e.g. validation poses in the same tracker frame) by the
 /// nominal geometry with the fitted frames. Returns the report and the mask of identified
@@ -506,24 +535,7 @@ pub fn prepare(
         ));
     }
     let registered = with_registration(&inputs.file, &registration, frames.tool());
-    let mut frame_mask = ParameterMask::empty_for(mask.joint_count());
-    for p in mask.iter() {
-        if matches!(p, Parameter::Base(_) | Parameter::Tool(_)) {
-            frame_mask.set(p, true);
-        }
-    }
-    let mut fitted_inputs = inputs.clone();
-    fitted_inputs.model = measured_model(&registered, inputs, "registered")?;
-    fitted_inputs.model.mask = inputs.model.mask;
-    let frame_parameters = frame_mask.count();
-    if !(1..=12).contains(&frame_parameters) {
-        return Err(crate::refused!(
-            "{frame_parameters} frame parameters; the two frames have 1 to 12"
-        ));
-    }
-    let errors = fit_frames(&fitted_inputs, &frame_mask, k)?;
-    let mut fitted = registered.with_errors(&errors, [], &[], "", "");
-    fitted.calibration = None;
+    let fitted = with_fitted_frames(inputs, registered, &mask, k)?;
     let mut model = measured_model(&fitted, inputs, "fitted")?;
     model.mask = inputs.model.mask;
     let kinematics = Kinematics::nominal(&model.robot)?;

@@ -112,12 +112,51 @@ pub fn check(dataset: &Dataset, euler: &EulerConvention) -> crate::Result<()> {
     if disagreement <= MIN_CHECKED_DISAGREEMENT_DEG {
         return Ok(());
     }
-    // Reinterpret the columns under other conventions.
+    let candidates = other_readings(dataset, euler, &flanges, &rotations, disagreement);
+    if candidates.is_empty() && disagreement <= MAX_MEDIAN_DISAGREEMENT_DEG {
+        return Ok(());
+    }
+    let agree = if candidates.is_empty() {
+        "no other Euler convention or quaternion order agrees either: check the joint order and signs against the robot \
+         file, and the orientation columns"
+            .to_string()
+    } else {
+        format!(
+            "they agree better when read as: {}. Set that in the data profile ([orientation]) or the file",
+            candidates
+                .iter()
+                .map(|(name, d)| format!("{name} ({d:.2} deg)"))
+                .collect::<Vec<_>>()
+                .join("; ")
+        )
+    };
+    Err(crate::refused!(
+        "{}: the measured orientations do not move as the robot does: the rotation between two poses differs \
+         from the nominal model's by {disagreement:.2} deg (median; a robot's geometric errors explain a degree or two). \
+         The orientations were read as {}; {agree}",
+        dataset.data.path.display(),
+        match dataset.data.orientation {
+            OrientationColumns::FixedAngles => euler.name(),
+            _ => "quaternions (qw, qx, qy, qz)".to_string(),
+        }
+    ))
+}
+
+/// The other readings of the orientation columns (Euler conventions, quaternion order, inverse
+/// rotations) under which the measured `rotations` agree with the nominal `flanges` much better
+/// than the `disagreement` (deg) of the reading given, best first: (reading, median deg).
+fn other_readings(
+    dataset: &Dataset,
+    euler: &EulerConvention,
+    flanges: &[Rotation3<f64>],
+    rotations: &[Option<Matrix3<f64>>],
+    disagreement: f64,
+) -> Vec<(String, f64)> {
     let mut candidates: Vec<(String, f64)> = Vec::new();
     let mut try_reading = |name: String, read: &dyn Fn(&Matrix3<f64>) -> Matrix3<f64>| {
         let reread: Vec<Option<Matrix3<f64>>> =
             rotations.iter().map(|r| r.map(|m| read(&m))).collect();
-        let d = median_disagreement_deg(&flanges, &reread);
+        let d = median_disagreement_deg(flanges, &reread);
         // Another reading must explain the data much better than the one given.
         if d <= MAX_MEDIAN_DISAGREEMENT_DEG && d * BETTER_BY < disagreement {
             candidates.push((name, d));
@@ -155,31 +194,5 @@ pub fn check(dataset: &Dataset, euler: &EulerConvention) -> crate::Result<()> {
         OrientationColumns::None => {}
     }
     candidates.sort_by(|a, b| a.1.total_cmp(&b.1));
-    if candidates.is_empty() && disagreement <= MAX_MEDIAN_DISAGREEMENT_DEG {
-        return Ok(());
-    }
-    let agree = if candidates.is_empty() {
-        "no other Euler convention or quaternion order agrees either: check the joint order and signs against the robot \
-         file, and the orientation columns"
-            .to_string()
-    } else {
-        format!(
-            "they agree better when read as: {}. Set that in the data profile ([orientation]) or the file",
-            candidates
-                .iter()
-                .map(|(name, d)| format!("{name} ({d:.2} deg)"))
-                .collect::<Vec<_>>()
-                .join("; ")
-        )
-    };
-    Err(crate::refused!(
-        "{}: the measured orientations do not move as the robot does: the rotation between two poses differs \
-         from the nominal model's by {disagreement:.2} deg (median; a robot's geometric errors explain a degree or two). \
-         The orientations were read as {}; {agree}",
-        dataset.data.path.display(),
-        match dataset.data.orientation {
-            OrientationColumns::FixedAngles => euler.name(),
-            _ => "quaternions (qw, qx, qy, qz)".to_string(),
-        }
-    ))
+    candidates
 }

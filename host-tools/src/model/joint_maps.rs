@@ -430,6 +430,13 @@ impl MapIdentification {
     }
 }
 
+impl MapsProblem<'_> {
+    /// Whether a pose's orientation counts: it has one and the orientation scale is positive.
+    fn uses_rotation(&self, pose: &Pose) -> bool {
+        self.orientation_scale_mm > 0.0 && pose.rotation.is_some()
+    }
+}
+
 /// Identifies the maps with the number of harmonics the evidence prefers: starting from 30,
 /// steps of [`HARMONICS_STEP`] up or down while the log evidence rises, within
 /// `HARMONICS_STEP..=MAX_HARMONICS`. Returns the best identification and the log evidence of
@@ -471,123 +478,24 @@ pub(crate) fn identify_best(
 /// compliance gains too (flat prior, like the geometry). Errors: too few poses, a non-finite
 /// value, a singular problem.
 pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> crate::Result<MapIdentification> {
-    let MapsProblem {
-        robot,
-        start,
-        parameters,
-        poses,
-        orientation_scale_mm,
-        gravity,
-    } = *problem;
-    // Row offsets: 3 position rows per pose, and 3 orientation rows (rad times
-    // `orientation_scale_mm`) for a pose with orientation when the scale is positive.
-    let use_rotation = |p: &Pose| orientation_scale_mm > 0.0 && p.rotation.is_some();
-    let offsets: Vec<usize> = poses
-        .iter()
-        .scan(0, |next, p| {
-            let at = *next;
-            *next += if use_rotation(p) { 6 } else { 3 };
-            Some(at)
-        })
-        .collect();
-    let rows = poses
-        .iter()
-        .map(|p| if use_rotation(p) { 6 } else { 3 })
-        .sum::<usize>();
-    let active = match gravity {
-        Some(g) => active_gains(g, robot, start, poses)?,
-        None => Vec::new(),
-    };
-    let geometry = parameters.len() + active.len();
-    if harmonics == 0 {
-        return Err(crate::refused!("joint maps need at least one harmonic"));
-    }
-    if rows <= geometry + 1 {
-        return Err(crate::refused!(
-            "{} poses give {rows} equations for {geometry} geometric parameters: too few for joint maps",
-            poses.len()
-        ));
-    }
-    let joints = robot.joints.len();
-    let all = all_mask(robot.joint_count());
-    let set = calib_core::ParameterSet::<Dyn, nalgebra::Dyn>::from_mask(&all)?;
-    let columns: Vec<usize> = parameters
-        .iter()
-        .map(|p| {
-            set.index_of(*p)
-                .ok_or_else(|| crate::refused!("parameter {p:?} is not a parameter of the robot"))
-        })
-        .collect::<crate::Result<_>>()?;
-    let per_joint = 2 * harmonics;
-    let unknowns = geometry + joints * per_joint;
-    let mut errors = *start;
+    let system = System::new(problem, harmonics)?;
+    let (joints, per_joint, geometry) = (system.joints, system.per_joint, system.geometry);
+    let mut errors = *problem.start;
     let mut maps = JointMaps::zero(joints, harmonics);
     // Prior precisions of the joint groups (1/s_j^2) and the noise precision (1/sigma^2).
     let mut alpha = JointVec::<f64>::from_fn(joints, |_| 1.0 / (1e-4f64).powi(2));
     let mut beta = 1.0 / (0.05f64).powi(2);
     let mut result = None;
     for _ in 0..LINEARISATIONS {
-        let kinematics = Kinematics::new(robot, &errors)?;
-        // Design matrix and the residual with the current maps taken back out (the model is
-        // solved for the total coefficients, whose prior is centred on zero).
-        let mut design = DMatrix::<f64>::zeros(rows, unknowns);
-        let mut residual = DVector::<f64>::zeros(rows);
+        let (design, mut residual) = system.linearised(&errors, &maps)?;
+        // The model is solved for the total coefficients, whose prior is centred on zero: the
+        // current maps are taken back out of the residual.
         let current: DVector<f64> = DVector::from_iterator(
             joints * per_joint,
             maps.coefficients.iter().flatten().copied(),
         );
-        for (i, pose) in poses.iter().enumerate() {
-            let q = maps.apply(&pose.q);
-            let angles = JointAngles::new(&q)?;
-            let (end, parameter_jacobian) = kinematics.parameter_jacobian(&set, &angles);
-            let (_, joint_jacobian) = kinematics.geometric_jacobian(&q)?;
-            let bases: Vec<DVector<f64>> = pose
-                .q
-                .iter()
-                .map(|qj| harmonic_basis(harmonics, *qj))
-                .collect();
-            let extra_columns: Vec<[f64; 6]> = match gravity {
-                Some(g) => {
-                    let all = crate::model::compliance::columns(g, robot, &errors, &q)?;
-                    active.iter().map(|i| all[*i]).collect()
-                }
-                None => Vec::new(),
-            };
-            let mut r = nalgebra::Vector6::<f64>::zeros();
-            r.fixed_rows_mut::<3>(0)
-                .copy_from(&(pose.position - end.translation.vector));
-            let count = if use_rotation(pose) { 6 } else { 3 };
-            if let Some(measured) = pose.rotation.filter(|_| count == 6) {
-                // Left-multiplicative error, as the Jacobians' angular rows: R_m = exp(r) R.
-                let error = measured * end.rotation.matrix().transpose();
-                r.fixed_rows_mut::<3>(3)
-                    .copy_from(&(calib_core::math::so3::log(&error) * orientation_scale_mm));
-            }
-            for axis in 0..count {
-                let row = offsets[i] + axis;
-                let scale = if axis < 3 { 1.0 } else { orientation_scale_mm };
-                residual[row] = r[axis];
-                for (c, &p) in columns.iter().enumerate() {
-                    design[(row, c)] = parameter_jacobian[(axis, p)] * scale;
-                }
-                for (i, column) in extra_columns.iter().enumerate() {
-                    design[(row, columns.len() + i)] = column[axis] * scale;
-                }
-                for (j, basis) in bases.iter().enumerate() {
-                    let jq = joint_jacobian[j][axis] * scale;
-                    for (k, b) in basis.iter().enumerate() {
-                        design[(row, geometry + j * per_joint + k)] = jq * b;
-                    }
-                }
-            }
-        }
-        if !design.iter().chain(residual.iter()).all(|v| v.is_finite()) {
-            return Err(crate::numerical!(
-                "joint maps: a Jacobian or residual is not finite"
-            ));
-        }
         residual += design.columns(geometry, joints * per_joint) * &current;
-        let solved = if rows < unknowns {
+        let solved = if system.rows < system.unknowns() {
             evidence_function_space(
                 &design, &residual, geometry, per_joint, &mut alpha, &mut beta,
             )?
@@ -598,14 +506,14 @@ pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> crate::Result<Ma
                 &gram,
                 &projected,
                 residual.norm_squared(),
-                rows,
+                system.rows,
                 geometry,
                 per_joint,
                 &mut alpha,
                 &mut beta,
             )?
         };
-        for (c, &p) in parameters.iter().enumerate() {
+        for (c, &p) in problem.parameters.iter().enumerate() {
             let old = errors.get(p).unwrap_or(0.0);
             errors.set(p, old + solved.mean[c]);
         }
@@ -626,41 +534,197 @@ pub fn identify(problem: &MapsProblem<'_>, harmonics: usize) -> crate::Result<Ma
     let Some(solved) = result else {
         return Err(crate::numerical!("joint maps: no linearisation ran"));
     };
-    let coefficient_sd = (0..joints)
-        .map(|j| {
-            (0..per_joint)
-                .map(|k| {
-                    solved.variance[geometry + j * per_joint + k]
-                        .max(0.0)
-                        .sqrt()
-                })
-                .collect()
-        })
-        .collect();
-    let parameter_sd = (0..geometry)
-        .map(|i| solved.variance[i].max(0.0).sqrt())
-        .collect();
-    let compliance = gravity.map(|_| {
-        let mut gains = [0.0; GAIN_COUNT];
-        let mut sd = [0.0; GAIN_COUNT];
-        for (k, i) in active.iter().enumerate() {
-            gains[*i] = solved.mean[parameters.len() + k];
-            sd[*i] = solved.variance[parameters.len() + k].max(0.0).sqrt();
+    Ok(system.identification(&solved, errors, maps, &alpha, beta))
+}
+
+/// The linear system of one joint-maps identification: its rows (3 position rows per pose, and
+/// 3 orientation rows, rad times `orientation_scale_mm`, for a pose with orientation when the
+/// scale is positive) and its unknowns (the geometric parameters, the active compliance gains,
+/// then each joint's `2 harmonics` coefficients).
+struct System<'a> {
+    problem: &'a MapsProblem<'a>,
+    harmonics: usize,
+    /// Every parameter of the robot, for the parameter Jacobian.
+    set: calib_core::ParameterSet<Dyn, Dyn>,
+    /// The identified parameters' columns in `set`'s Jacobian.
+    columns: Vec<usize>,
+    /// The compliance gains the poses determine (indices into the gains).
+    active: Vec<usize>,
+    /// The first row of each pose.
+    offsets: Vec<usize>,
+    rows: usize,
+    joints: usize,
+    per_joint: usize,
+    /// Geometric parameters and active gains: the unknowns with a flat prior.
+    geometry: usize,
+}
+
+impl<'a> System<'a> {
+    /// The layout of `problem` with `harmonics` harmonics per joint. Errors: no harmonic, too
+    /// few poses, a parameter the robot does not have.
+    fn new(problem: &'a MapsProblem<'a>, harmonics: usize) -> crate::Result<Self> {
+        let MapsProblem {
+            robot,
+            start,
+            parameters,
+            poses,
+            gravity,
+            ..
+        } = *problem;
+        let mut offsets = Vec::with_capacity(poses.len());
+        let mut rows = 0;
+        for pose in poses {
+            offsets.push(rows);
+            rows += if problem.uses_rotation(pose) { 6 } else { 3 };
         }
-        Compliance { gains, sd }
-    });
-    Ok(MapIdentification {
-        compliance,
-        errors,
-        parameter_sd,
-        coefficient_covariance: solved.blocks.clone(),
-        maps,
-        coefficient_sd,
-        amplitude_rad: alpha.iter().map(|a| prior_variance(*a).sqrt()).collect(),
-        noise_mm: 1.0 / beta.sqrt(),
-        log_evidence: solved.log_evidence,
-        determined: solved.determined.to_vec(),
-    })
+        let active = match gravity {
+            Some(g) => active_gains(g, robot, start, poses)?,
+            None => Vec::new(),
+        };
+        let geometry = parameters.len() + active.len();
+        if harmonics == 0 {
+            return Err(crate::refused!("joint maps need at least one harmonic"));
+        }
+        if rows <= geometry + 1 {
+            return Err(crate::refused!(
+                "{} poses give {rows} equations for {geometry} geometric parameters: too few for joint maps",
+                poses.len()
+            ));
+        }
+        let set = calib_core::ParameterSet::<Dyn, Dyn>::from_mask(&all_mask(robot.joint_count()))?;
+        let columns: Vec<usize> = parameters
+            .iter()
+            .map(|p| {
+                set.index_of(*p).ok_or_else(|| {
+                    crate::refused!("parameter {p:?} is not a parameter of the robot")
+                })
+            })
+            .collect::<crate::Result<_>>()?;
+        Ok(Self {
+            problem,
+            harmonics,
+            set,
+            columns,
+            active,
+            offsets,
+            rows,
+            joints: robot.joints.len(),
+            per_joint: 2 * harmonics,
+            geometry,
+        })
+    }
+
+    fn unknowns(&self) -> usize {
+        self.geometry + self.joints * self.per_joint
+    }
+
+    /// The design matrix and the residual at the geometric errors `errors` and the maps `maps`
+    /// (the residual with the maps in it). Error: a value that is not finite.
+    fn linearised(
+        &self,
+        errors: &ParameterErrors<f64, Dyn>,
+        maps: &JointMaps,
+    ) -> crate::Result<(DMatrix<f64>, DVector<f64>)> {
+        let problem = self.problem;
+        let scale_mm = problem.orientation_scale_mm;
+        let kinematics = Kinematics::new(problem.robot, errors)?;
+        let mut design = DMatrix::<f64>::zeros(self.rows, self.unknowns());
+        let mut residual = DVector::<f64>::zeros(self.rows);
+        for (i, pose) in problem.poses.iter().enumerate() {
+            let q = maps.apply(&pose.q);
+            let angles = JointAngles::new(&q)?;
+            let (end, parameter_jacobian) = kinematics.parameter_jacobian(&self.set, &angles);
+            let (_, joint_jacobian) = kinematics.geometric_jacobian(&q)?;
+            let bases: Vec<DVector<f64>> = pose
+                .q
+                .iter()
+                .map(|qj| harmonic_basis(self.harmonics, *qj))
+                .collect();
+            let extra_columns: Vec<[f64; 6]> = match problem.gravity {
+                Some(g) => {
+                    let all = crate::model::compliance::columns(g, problem.robot, errors, &q)?;
+                    self.active.iter().map(|i| all[*i]).collect()
+                }
+                None => Vec::new(),
+            };
+            let mut r = nalgebra::Vector6::<f64>::zeros();
+            r.fixed_rows_mut::<3>(0)
+                .copy_from(&(pose.position - end.translation.vector));
+            let count = if problem.uses_rotation(pose) { 6 } else { 3 };
+            if let Some(measured) = pose.rotation.filter(|_| count == 6) {
+                // Left-multiplicative error, as the Jacobians' angular rows: R_m = exp(r) R.
+                let error = measured * end.rotation.matrix().transpose();
+                r.fixed_rows_mut::<3>(3)
+                    .copy_from(&(calib_core::math::so3::log(&error) * scale_mm));
+            }
+            for axis in 0..count {
+                let row = self.offsets[i] + axis;
+                let scale = if axis < 3 { 1.0 } else { scale_mm };
+                residual[row] = r[axis];
+                for (c, &p) in self.columns.iter().enumerate() {
+                    design[(row, c)] = parameter_jacobian[(axis, p)] * scale;
+                }
+                for (i, column) in extra_columns.iter().enumerate() {
+                    design[(row, self.columns.len() + i)] = column[axis] * scale;
+                }
+                for (j, basis) in bases.iter().enumerate() {
+                    let jq = joint_jacobian[j][axis] * scale;
+                    for (k, b) in basis.iter().enumerate() {
+                        design[(row, self.geometry + j * self.per_joint + k)] = jq * b;
+                    }
+                }
+            }
+        }
+        if !design.iter().chain(residual.iter()).all(|v| v.is_finite()) {
+            return Err(crate::numerical!(
+                "joint maps: a Jacobian or residual is not finite"
+            ));
+        }
+        Ok((design, residual))
+    }
+
+    /// The identification from the last linearisation's posterior.
+    fn identification(
+        &self,
+        solved: &Posterior,
+        errors: ParameterErrors<f64, Dyn>,
+        maps: JointMaps,
+        alpha: &JointVec<f64>,
+        beta: f64,
+    ) -> MapIdentification {
+        let (geometry, per_joint) = (self.geometry, self.per_joint);
+        let sd = |i: usize| solved.variance[i].max(0.0).sqrt();
+        let coefficient_sd = (0..self.joints)
+            .map(|j| {
+                (0..per_joint)
+                    .map(|k| sd(geometry + j * per_joint + k))
+                    .collect()
+            })
+            .collect();
+        let parameter_sd = (0..geometry).map(sd).collect();
+        let identified = self.problem.parameters.len();
+        let compliance = self.problem.gravity.map(|_| {
+            let mut gains = [0.0; GAIN_COUNT];
+            let mut gain_sd = [0.0; GAIN_COUNT];
+            for (k, i) in self.active.iter().enumerate() {
+                gains[*i] = solved.mean[identified + k];
+                gain_sd[*i] = sd(identified + k);
+            }
+            Compliance { gains, sd: gain_sd }
+        });
+        MapIdentification {
+            compliance,
+            errors,
+            parameter_sd,
+            coefficient_covariance: solved.blocks.clone(),
+            maps,
+            coefficient_sd,
+            amplitude_rad: alpha.iter().map(|a| prior_variance(*a).sqrt()).collect(),
+            noise_mm: 1.0 / beta.sqrt(),
+            log_evidence: solved.log_evidence,
+            determined: solved.determined.to_vec(),
+        }
+    }
 }
 
 fn all_mask(joints: Dyn) -> ParameterMask<Dyn> {
@@ -767,6 +831,102 @@ fn evidence(
     last.ok_or_else(|| crate::numerical!("joint maps: no evidence iteration ran"))
 }
 
+/// The geometry's part of the function-space posterior (flat prior on the geometric
+/// parameters, columns `a`): `M = A^T K^-1 A`, `P = K^-1 - K^-1 A M^-1 A^T K^-1`, `P r` and the
+/// geometry's mean `M^-1 A^T K^-1 r`.
+struct Restricted {
+    m_chol: nalgebra::Cholesky<f64, Dyn>,
+    p: DMatrix<f64>,
+    pr: DVector<f64>,
+    dtheta: DVector<f64>,
+}
+
+fn restricted(
+    k_chol: &nalgebra::Cholesky<f64, Dyn>,
+    a: &DMatrix<f64>,
+    residual: &DVector<f64>,
+) -> crate::Result<Restricted> {
+    let k_inv = k_chol.inverse();
+    let k_inv_a = &k_inv * a;
+    let Some(m_chol) = (a.transpose() * &k_inv_a).cholesky() else {
+        return Err(crate::refused!(
+            "joint maps: the posterior is singular (a geometric parameter is not determined)"
+        ));
+    };
+    let p = &k_inv - &k_inv_a * m_chol.solve(&k_inv_a.transpose());
+    let pr = &p * residual;
+    let dtheta = m_chol.solve(&(k_inv_a.transpose() * residual));
+    Ok(Restricted {
+        m_chol,
+        p,
+        pr,
+        dtheta,
+    })
+}
+
+/// The covariance of the equations, `K = sigma^2 I + sum_j s_j^2 Phi_j Phi_j^T`, of noise
+/// variance `noise` and the joints' `kernels` `Phi_j Phi_j^T` with prior variances `s2`.
+fn pose_covariance(kernels: &[DMatrix<f64>], s2: &JointVec<f64>, noise: f64) -> DMatrix<f64> {
+    let rows = kernels.first().map_or(0, DMatrix::nrows);
+    let mut k = DMatrix::<f64>::identity(rows, rows) * noise;
+    for (kernel, s2) in kernels.iter().zip(s2) {
+        if *s2 > 0.0 {
+            k += kernel * *s2;
+        }
+    }
+    k
+}
+
+/// `log |M|` of a matrix from its Cholesky factor.
+fn log_det(cholesky: &nalgebra::Cholesky<f64, Dyn>) -> f64 {
+    cholesky.l().diagonal().iter().map(|d| 2.0 * d.ln()).sum()
+}
+
+/// One joint's posterior in the space of the equations (see [`evidence_function_space`]).
+struct JointPosterior {
+    /// Mean of its coefficients, `m_j = s_j^2 Phi_j^T P r`.
+    mean: DVector<f64>,
+    /// Covariance of its coefficients, `Sigma_j = s_j^2 I - s_j^4 Phi_j^T P Phi_j`.
+    block: DMatrix<f64>,
+    /// How many of its coefficients the data determine, `gamma_j = s_j^2 tr(P Phi_j Phi_j^T)`.
+    determined: f64,
+    /// The prior variance at the evidence maximum (0 when negligible or undetermined).
+    prior_variance: f64,
+}
+
+/// The posterior of the joint with design columns `phi` (`kernel = phi phi^T`) and prior
+/// variance `s2`, given `P` and `P r`.
+fn joint_posterior(
+    phi: &DMatrix<f64>,
+    kernel: &DMatrix<f64>,
+    p: &DMatrix<f64>,
+    pr: &DVector<f64>,
+    s2: f64,
+) -> JointPosterior {
+    let per_joint = phi.ncols();
+    let u = phi.transpose() * pr;
+    let trace = p.component_mul(kernel).sum();
+    let block = DMatrix::<f64>::identity(per_joint, per_joint) * s2
+        - (phi.transpose() * p * phi) * (s2 * s2);
+    let determined = s2 * trace;
+    let mut prior_variance = if trace > 0.0 {
+        s2 * u.norm_squared() / trace
+    } else {
+        0.0
+    };
+    if prior_variance < NEGLIGIBLE_AMPLITUDE_RAD * NEGLIGIBLE_AMPLITUDE_RAD
+        || determined < MIN_DETERMINED
+    {
+        prior_variance = 0.0;
+    }
+    JointPosterior {
+        mean: &u * s2,
+        block,
+        determined,
+        prior_variance,
+    }
+}
+
 /// The same posterior and evidence as [`evidence`], computed in the space of the `N` equations
 /// (cheaper when there are fewer equations than unknowns): the coefficients are integrated out,
 /// `r ~ N(A dtheta, K)` with `K = sigma^2 I + sum_j s_j^2 Phi_j Phi_j^T`, and the geometry's flat
@@ -784,12 +944,9 @@ fn evidence_function_space(
 ) -> crate::Result<Posterior> {
     let rows = design.nrows();
     let a = design.columns(0, geometry).into_owned();
+    let joint_columns = |j: usize| design.columns(geometry + j * per_joint, per_joint);
     let phi: Vec<DMatrix<f64>> = (0..alpha.len())
-        .map(|j| {
-            design
-                .columns(geometry + j * per_joint, per_joint)
-                .into_owned()
-        })
+        .map(|j| joint_columns(j).into_owned())
         .collect();
     let kernels: Vec<DMatrix<f64>> = phi.iter().map(|p| p * p.transpose()).collect();
     // Prior variances s_j^2 and noise variance sigma^2.
@@ -797,27 +954,17 @@ fn evidence_function_space(
     let mut noise = 1.0 / *beta;
     let mut last = None;
     for iteration in 0..EVIDENCE_ITERATIONS {
-        let mut k = DMatrix::<f64>::identity(rows, rows) * noise;
-        for (kernel, s2) in kernels.iter().zip(&variance_prior) {
-            if *s2 > 0.0 {
-                k += kernel * *s2;
-            }
-        }
-        let Some(k_chol) = k.cholesky() else {
+        let Some(k_chol) = pose_covariance(&kernels, &variance_prior, noise).cholesky() else {
             return Err(crate::numerical!(
                 "joint maps: the covariance of the poses is singular"
             ));
         };
-        let k_inv = k_chol.inverse();
-        let k_inv_a = &k_inv * &a;
-        let Some(m_chol) = (a.transpose() * &k_inv_a).cholesky() else {
-            return Err(crate::refused!(
-                "joint maps: the posterior is singular (a geometric parameter is not determined)"
-            ));
-        };
-        let p = &k_inv - &k_inv_a * m_chol.solve(&k_inv_a.transpose());
-        let pr = &p * residual;
-        let dtheta = m_chol.solve(&(k_inv_a.transpose() * residual));
+        let Restricted {
+            m_chol,
+            p,
+            pr,
+            dtheta,
+        } = restricted(&k_chol, &a, residual)?;
         let mut mean = DVector::<f64>::zeros(geometry + alpha.len() * per_joint);
         mean.rows_mut(0, geometry).copy_from(&dtheta);
         let mut variance = DVector::<f64>::zeros(geometry + alpha.len() * per_joint);
@@ -828,36 +975,20 @@ fn evidence_function_space(
         let mut new_prior = variance_prior;
         let mut blocks = Vec::with_capacity(alpha.len());
         for j in 0..alpha.len() {
-            let s2 = variance_prior[j];
-            let u = phi[j].transpose() * &pr;
-            let trace = p.component_mul(&kernels[j]).sum();
+            let joint = joint_posterior(&phi[j], &kernels[j], &p, &pr, variance_prior[j]);
             let offset = geometry + j * per_joint;
-            mean.rows_mut(offset, per_joint).copy_from(&(&u * s2));
-            // Sigma_j = s^2 I - s^4 Phi_j^T P Phi_j.
-            let block = DMatrix::<f64>::identity(per_joint, per_joint) * s2
-                - (phi[j].transpose() * &p * &phi[j]) * (s2 * s2);
+            mean.rows_mut(offset, per_joint).copy_from(&joint.mean);
             for c in 0..per_joint {
-                variance[offset + c] = block[(c, c)].max(0.0);
+                variance[offset + c] = joint.block[(c, c)].max(0.0);
             }
-            blocks.push(block);
-            determined[j] = s2 * trace;
-            new_prior[j] = if trace > 0.0 {
-                s2 * u.norm_squared() / trace
-            } else {
-                0.0
-            };
-            if new_prior[j] < NEGLIGIBLE_AMPLITUDE_RAD * NEGLIGIBLE_AMPLITUDE_RAD
-                || determined[j] < MIN_DETERMINED
-            {
-                new_prior[j] = 0.0;
-            }
+            blocks.push(joint.block);
+            determined[j] = joint.determined;
+            new_prior[j] = joint.prior_variance;
         }
         let gamma = geometry as f64 + determined.iter().sum::<f64>();
-        let log_det_k: f64 = k_chol.l().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
-        let log_det_m: f64 = m_chol.l().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
         let log_evidence = -0.5 * residual.dot(&pr)
-            - 0.5 * log_det_k
-            - 0.5 * log_det_m
+            - 0.5 * log_det(&k_chol)
+            - 0.5 * log_det(&m_chol)
             - 0.5 * (rows - geometry) as f64 * (2.0 * std::f64::consts::PI).ln();
         let new_noise = noise * noise * pr.norm_squared() / (rows as f64 - gamma).max(1.0);
         let converged = hyperparameters_converged(

@@ -415,14 +415,13 @@ fn pose_rows(
     Ok(out)
 }
 
-/// Plans the measurement of the robot in `file` (at `robot_path`, for messages) from
-/// `candidates` (joint values in rad, with ids).
-pub fn plan(
+/// The candidates' joint values, after checking that each has the robot's joint count and that
+/// there are enough of them for the poses asked for.
+fn checked_candidates(
     file: &RobotFile,
-    robot_path: &std::path::Path,
     candidates: &[(String, Vec<f64>)],
     settings: &PlanSettings,
-) -> crate::Result<Plan> {
+) -> crate::Result<Vec<Vec<f64>>> {
     settings.check()?;
     let joints = file.joint.len();
     if let Some((id, q)) = candidates.iter().find(|(_, q)| q.len() != joints) {
@@ -431,8 +430,8 @@ pub fn plan(
             q.len()
         ));
     }
-    // Saturating: counts beyond any file (`--poses 18446744073709551615`) are refused below,
-    // not an overflow.
+    // Saturating: counts beyond any file (`--poses 18446744073709551615`) are refused here, not
+    // an overflow.
     let wanted = settings.poses.saturating_add(settings.verify);
     if candidates.len() < wanted {
         return Err(crate::refused!(
@@ -442,25 +441,18 @@ pub fn plan(
             settings.verify
         ));
     }
-    let q: Vec<Vec<f64>> = candidates.iter().map(|(_, q)| q.clone()).collect();
     crate::model::counts::joint_count(joints)?;
-    let info = information(file, robot_path, &q, settings.measure, settings.k)?;
-    let parameters = info.parameters.len();
-    let rows = settings.measure.rows();
-    if settings.poses.saturating_mul(rows) <= parameters {
-        return Err(crate::refused!(
-            "{} poses give {} equations for {parameters} identified parameters: a fit needs more equations than parameters (to estimate its own noise); plan at least {} poses",
-            settings.poses,
-            settings.poses.saturating_mul(rows),
-            parameters / rows + 1
-        ));
-    }
-    // Columns scaled to unit RMS over the candidates: units and lever arms drop out of the
-    // greedy step's regularisation and of the conditioning.
-    let scale: Vec<f64> = (0..parameters)
+    Ok(candidates.iter().map(|(_, q)| q.clone()).collect())
+}
+
+/// The columns' scales (RMS over the `count` candidates) and every candidate's rows with its
+/// columns scaled to unit RMS: units and lever arms drop out of the greedy step's
+/// regularisation and of the conditioning. Error: a parameter no candidate moves.
+fn unit_scaled(info: &Information, count: usize) -> crate::Result<(Vec<f64>, Vec<DMatrix<f64>>)> {
+    let scale: Vec<f64> = (0..info.parameters.len())
         .map(|j| {
             let sum: f64 = info.rows.iter().map(|r| r.column(j).norm_squared()).sum();
-            (sum / candidates.len() as f64).sqrt()
+            (sum / count as f64).sqrt()
         })
         .collect();
     if let Some(j) = scale
@@ -472,7 +464,7 @@ pub fn plan(
             info.parameters[j]
         ));
     }
-    let scaled: Vec<DMatrix<f64>> = info
+    let scaled = info
         .rows
         .iter()
         .map(|r| {
@@ -483,14 +475,27 @@ pub fn plan(
             s
         })
         .collect();
+    Ok((scale, scaled))
+}
 
+/// Whether candidate `i` is not chosen yet and at least `--min-distance-deg` from every chosen one.
+fn far_enough(q: &[Vec<f64>], chosen: &[(usize, Role)], i: usize, settings: &PlanSettings) -> bool {
+    chosen
+        .iter()
+        .all(|(c, _)| *c != i && distance_deg(&q[*c], &q[i]) >= settings.min_distance_deg)
+}
+
+/// The D-optimal core: `settings.core` candidates chosen greedily on the log determinant of the
+/// regularised information of the unit-scaled rows `scaled`.
+fn d_optimal_core(
+    scaled: &[DMatrix<f64>],
+    q: &[Vec<f64>],
+    settings: &PlanSettings,
+) -> crate::Result<Vec<(usize, Role)>> {
+    let wanted = settings.poses.saturating_add(settings.verify);
+    let parameters = scaled.first().map_or(0, DMatrix::ncols);
+    let rows = settings.measure.rows();
     let mut chosen: Vec<(usize, Role)> = Vec::with_capacity(wanted);
-    let far_enough = |chosen: &[(usize, Role)], i: usize| {
-        chosen
-            .iter()
-            .all(|(c, _)| *c != i && distance_deg(&q[*c], &q[i]) >= settings.min_distance_deg)
-    };
-    // The D-optimal core: greedy on log det of the regularised information.
     let mut information = DMatrix::<f64>::identity(parameters, parameters) * 1e-6;
     for _ in 0..settings.core {
         let inverse = information
@@ -500,7 +505,7 @@ pub fn plan(
             .ok_or_else(|| crate::numerical!("the information matrix lost its definiteness"))?;
         let mut best: Option<(usize, f64)> = None;
         for (i, j) in scaled.iter().enumerate() {
-            if !far_enough(&chosen, i) {
+            if !far_enough(q, &chosen, i, settings) {
                 continue;
             }
             let a = DMatrix::identity(rows, rows) + j * &inverse * j.transpose();
@@ -521,20 +526,33 @@ pub fn plan(
         information += scaled[i].transpose() * &scaled[i];
         chosen.push((i, Role::Core));
     }
-    // Fill and verification poses: random candidates, far enough from every chosen pose; for
-    // joint maps the fill poses spread each joint's readings instead.
-    let order = crate::measurement::dataset::shuffled(candidates.len(), settings.seed);
+    Ok(chosen)
+}
+
+/// Adds the fill and verification poses to `chosen`: random candidates, far enough from every
+/// chosen pose; for joint maps the fill poses spread each joint's readings instead.
+fn fill_and_verify(
+    chosen: &mut Vec<(usize, Role)>,
+    q: &[Vec<f64>],
+    settings: &PlanSettings,
+) -> crate::Result<()> {
+    let wanted = settings.poses.saturating_add(settings.verify);
+    let order = crate::measurement::dataset::shuffled(q.len(), settings.seed);
     let mut random = order.clone().into_iter();
-    let ranges = joint_ranges(&q);
+    let ranges = joint_ranges(q);
     for (role, count) in [
         (Role::Fill, settings.poses - settings.core),
         (Role::Verify, settings.verify),
     ] {
         for _ in 0..count {
             let next = if role == Role::Fill && settings.model == PlanModel::JointMaps {
-                even_fill(&q, &ranges, &chosen, &order, |i| far_enough(&chosen, i))
+                even_fill(q, &ranges, chosen, &order, |i| {
+                    far_enough(q, chosen, i, settings)
+                })
             } else {
-                random.by_ref().find(|i| far_enough(&chosen, *i))
+                random
+                    .by_ref()
+                    .find(|i| far_enough(q, chosen, *i, settings))
             };
             let Some(i) = next else {
                 return Err(crate::refused!(
@@ -546,7 +564,32 @@ pub fn plan(
             chosen.push((i, role));
         }
     }
+    Ok(())
+}
 
+/// Plans the measurement of the robot in `file` (at `robot_path`, for messages) from
+/// `candidates` (joint values in rad, with ids).
+pub fn plan(
+    file: &RobotFile,
+    robot_path: &std::path::Path,
+    candidates: &[(String, Vec<f64>)],
+    settings: &PlanSettings,
+) -> crate::Result<Plan> {
+    let q = checked_candidates(file, candidates, settings)?;
+    let info = information(file, robot_path, &q, settings.measure, settings.k)?;
+    let parameters = info.parameters.len();
+    let rows = settings.measure.rows();
+    if settings.poses.saturating_mul(rows) <= parameters {
+        return Err(crate::refused!(
+            "{} poses give {} equations for {parameters} identified parameters: a fit needs more equations than parameters (to estimate its own noise); plan at least {} poses",
+            settings.poses,
+            settings.poses.saturating_mul(rows),
+            parameters / rows + 1
+        ));
+    }
+    let (scale, scaled) = unit_scaled(&info, candidates.len())?;
+    let mut chosen = d_optimal_core(&scaled, &q, settings)?;
+    fill_and_verify(&mut chosen, &q, settings)?;
     let prediction = predict(&info, &scaled, &scale, &chosen, settings)?;
     let mut by_candidate = chosen.clone();
     by_candidate.sort_unstable_by_key(|(i, _)| *i);
@@ -708,6 +751,93 @@ fn maxwell_variance() -> f64 {
     3.0 - 8.0 / PI
 }
 
+/// The covariance of the identified parameters (in their units) of a fit to the unit-scaled
+/// rows `stacked` whose columns were divided by `scale`, under the noise of `settings`: `S^-1
+/// A^-1 (J~^T Sigma J~) A^-1 S^-1`. Error: the rows do not determine every parameter.
+fn parameter_covariance(
+    stacked: &DMatrix<f64>,
+    scale: &[f64],
+    settings: &PlanSettings,
+) -> crate::Result<DMatrix<f64>> {
+    let sigma = settings.noise_mm;
+    // Noise of each weighted row: position rows sigma, orientation rows sigma_r sqrt(k).
+    let row_sigma = |row: usize| {
+        if settings.measure == Measure::Position || row % 6 < 3 {
+            sigma
+        } else {
+            settings.noise_deg.to_radians() * settings.k.sqrt()
+        }
+    };
+    let Some(inverse) = (stacked.transpose() * stacked)
+        .cholesky()
+        .map(|c| c.inverse())
+    else {
+        return Err(crate::refused!(
+            "the fitted poses do not determine every parameter (singular information matrix); plan more poses or a smaller identify list"
+        ));
+    };
+    let mut noisy = stacked.clone();
+    for (r, mut row) in noisy.row_iter_mut().enumerate() {
+        row *= row_sigma(r);
+    }
+    let mut covariance = &inverse * (noisy.transpose() * &noisy) * &inverse;
+    for (r, sr) in scale.iter().enumerate() {
+        for (c, sc) in scale.iter().enumerate() {
+            covariance[(r, c)] /= sr * sc;
+        }
+    }
+    Ok(covariance)
+}
+
+/// The condition number and the observability index O1 of `stacked` with its columns at unit
+/// norm (as `calib check`), for `poses` fitted poses.
+fn conditioning(stacked: &DMatrix<f64>, poses: usize) -> (f64, f64) {
+    let mut unit = stacked.clone();
+    for mut c in unit.column_iter_mut() {
+        let n = c.norm();
+        if n > 0.0 {
+            c /= n;
+        }
+    }
+    let singular = unit.singular_values();
+    let (largest, smallest) = (singular.max(), singular.min());
+    let observability_index =
+        (singular.iter().map(|s| s.ln()).sum::<f64>() / stacked.ncols() as f64).exp()
+            / (poses as f64).sqrt();
+    let condition_number = if smallest > 0.0 {
+        largest / smallest
+    } else {
+        f64::INFINITY
+    };
+    (condition_number, observability_index)
+}
+
+/// The predicted mean error of the verification poses `verify` (none without them) and its 95 %
+/// interval; `held_out(i)` is candidate `i`'s mean square error and its estimation part.
+fn planned_verification(
+    verify: &[usize],
+    held_out: impl Fn(usize) -> (f64, f64),
+    sigma: f64,
+) -> Option<PlannedVerification> {
+    if verify.is_empty() {
+        return None;
+    }
+    let (mut mean, mut variance) = (0.0, 0.0);
+    for i in verify {
+        let (s2, _) = held_out(*i);
+        mean += maxwell_mean() * s2.sqrt();
+        variance += maxwell_variance() * s2;
+    }
+    let n = verify.len() as f64;
+    let (mean, half) = (mean / n, 1.96 * variance.sqrt() / n);
+    Some(PlannedVerification {
+        mean_mm: mean,
+        low_mm: (mean - half).max(0.0),
+        high_mm: mean + half,
+        noise_mm: sigma,
+    })
+}
+
 /// The prediction for the fitted poses of `chosen` (see [`Prediction`]).
 fn predict(
     info: &Information,
@@ -724,45 +854,8 @@ fn predict(
         .collect();
     let stacked = stack(fitted.iter().map(|i| &scaled[*i]), p);
     let sigma = settings.noise_mm;
-    // Noise of each weighted row: position rows sigma, orientation rows sigma_r sqrt(k).
-    let row_sigma = |row: usize| {
-        if settings.measure == Measure::Position || row % 6 < 3 {
-            sigma
-        } else {
-            settings.noise_deg.to_radians() * settings.k.sqrt()
-        }
-    };
-    let Some(inverse) = (stacked.transpose() * &stacked)
-        .cholesky()
-        .map(|c| c.inverse())
-    else {
-        return Err(crate::refused!(
-            "the fitted poses do not determine every parameter (singular information matrix); plan more poses or a smaller identify list"
-        ));
-    };
-    let mut noisy = stacked.clone();
-    for (r, mut row) in noisy.row_iter_mut().enumerate() {
-        row *= row_sigma(r);
-    }
-    // Covariance in parameter units: S^-1 A^-1 (J~^T Sigma J~) A^-1 S^-1.
-    let mut covariance = &inverse * (noisy.transpose() * &noisy) * &inverse;
-    for (r, sr) in scale.iter().enumerate() {
-        for (c, sc) in scale.iter().enumerate() {
-            covariance[(r, c)] /= sr * sc;
-        }
-    }
-    // Condition and O1 with columns at unit norm over the fitted poses (as `calib check`).
-    let mut unit = stacked.clone();
-    for mut c in unit.column_iter_mut() {
-        let n = c.norm();
-        if n > 0.0 {
-            c /= n;
-        }
-    }
-    let singular = unit.singular_values();
-    let (largest, smallest) = (singular.max(), singular.min());
-    let observability_index = (singular.iter().map(|s| s.ln()).sum::<f64>() / p as f64).exp()
-        / (fitted.len() as f64).sqrt();
+    let covariance = parameter_covariance(&stacked, scale, settings)?;
+    let (condition_number, observability_index) = conditioning(&stacked, fitted.len());
     let standard_errors = info
         .parameters
         .iter()
@@ -788,22 +881,7 @@ fn predict(
         .filter(|(_, r)| *r == Role::Verify)
         .map(|(i, _)| *i)
         .collect();
-    let verification = (!verify.is_empty()).then(|| {
-        let (mut mean, mut variance) = (0.0, 0.0);
-        for i in &verify {
-            let (s2, _) = held_out(*i);
-            mean += maxwell_mean() * s2.sqrt();
-            variance += maxwell_variance() * s2;
-        }
-        let n = verify.len() as f64;
-        let (mean, half) = (mean / n, 1.96 * variance.sqrt() / n);
-        PlannedVerification {
-            mean_mm: mean,
-            low_mm: (mean - half).max(0.0),
-            high_mm: mean + half,
-            noise_mm: sigma,
-        }
-    });
+    let verification = planned_verification(&verify, held_out, sigma);
     let (mut region_mean, mut region_estimation) = (0.0, 0.0);
     for i in 0..info.rows.len() {
         let (s2, estimation) = held_out(i);
@@ -816,11 +894,7 @@ fn predict(
         noise_deg: (settings.measure == Measure::Pose).then_some(settings.noise_deg),
         parameters: p,
         equations: stacked.nrows(),
-        condition_number: if smallest > 0.0 {
-            largest / smallest
-        } else {
-            f64::INFINITY
-        },
+        condition_number,
         observability_index,
         standard_errors,
         noise_floor_mean_mm: maxwell_mean() * sigma,
