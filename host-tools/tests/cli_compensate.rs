@@ -97,7 +97,8 @@ fn compensated_joints_put_the_actual_robot_on_the_targets() {
             "residual_mm",
             "residual_deg",
             "status",
-            "start"
+            "start",
+            "configuration"
         ]
     );
     let mut worst = (0.0f64, 0.0f64);
@@ -458,9 +459,33 @@ fn ur_targets_reached(conf: &str, set: &str) {
     assert_eq!(reached + refused, 1000);
 }
 
-/// Runs `calib compensate` with the default bounds and checks that it succeeded.
+/// The middle of each joint's limits (each limit taken within one turn of zero), deg, as
+/// `--near-deg` takes it: the posture numerical inverse kinematics started from before a
+/// configuration had to be named.
+fn middle_of_limits(robot: &str) -> String {
+    let model: RobotModel = RobotFile::read(Path::new(robot))
+        .unwrap()
+        .to_model(Path::new(robot))
+        .unwrap();
+    let pi = std::f64::consts::PI;
+    model
+        .robot
+        .limits
+        .iter()
+        .map(|l| {
+            (0.5 * (l.lower.max(-pi) + l.upper.min(pi)))
+                .to_degrees()
+                .to_string()
+        })
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+/// Runs `calib compensate` with the default bounds (targets without joints in the configuration
+/// of the middle of the limits) and checks that it succeeded.
 fn compensate_cli(robot: &str, params: &Path, targets: &Path, out: &Path) {
-    let result = calib(&[
+    let near = middle_of_limits(robot);
+    let mut args = vec![
         "compensate",
         "--robot",
         robot,
@@ -470,7 +495,12 @@ fn compensate_cli(robot: &str, params: &Path, targets: &Path, out: &Path) {
         targets.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
-    ]);
+    ];
+    // Targets with the controller's joints name their configuration themselves.
+    if !std::fs::read_to_string(targets).unwrap().contains("q1_deg") {
+        args.extend(["--near-deg", &near]);
+    }
+    let result = calib(&args);
     assert!(
         result.status.success(),
         "{}",
@@ -806,6 +836,7 @@ fn compensate_groups(
     joints: usize,
 ) -> Counts {
     let mut counts = Counts::default();
+    let near = middle_of_limits(robot);
     for (i, (branch, poses)) in groups.iter().enumerate() {
         let targets = dir.join(format!("targets-{i}.csv"));
         let out = dir.join(format!("out-{i}.csv"));
@@ -827,7 +858,9 @@ fn compensate_groups(
             "--max-joint-correction-deg",
             "90",
         ];
-        if !branch.is_empty() {
+        if branch.is_empty() {
+            args.extend(["--near-deg", &near]);
+        } else {
             args.extend(["--branch", branch]);
         }
         let result = calib(&args);
@@ -857,4 +890,215 @@ fn compensate_groups(
         }
     }
     counts
+}
+
+/// The UR10 cases of issue 40: targets the nominal UR10 reaches at (0, -90, 90, -90, -90, 0) deg
+/// and (90, -60, 60, -90, -90, 0) deg, given without joints. Without a configuration nothing is
+/// written and the message names the choices; with `--near-deg` at those postures each comes back
+/// within the joint bound of its posture (the reference's nominal kinematics says the joints put
+/// the identified robot on the target); every row states its configuration, the one of its
+/// posture; and a `--branch` that is another configuration is reported as such.
+#[test]
+fn targets_without_joints_keep_the_configuration_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let ur10 = common::UR10;
+    let nominal = reference::model(
+        &RobotFile::read(Path::new(ur10)).unwrap(),
+        &[],
+        &[0.0; 6],
+        &[0.0; 6],
+    );
+    // The identified robot: the UR10 with small errors of its own.
+    let mut actual_robot = RobotFile::read(Path::new(ur10)).unwrap();
+    for j in &mut actual_robot.joint {
+        j.a_mm += 0.3;
+        j.d_mm += 0.2;
+        j.alpha_deg += 0.05;
+        j.theta_offset_deg -= 0.1;
+    }
+    let actual_file = dir.path().join("actual.toml");
+    std::fs::write(&actual_file, actual_robot.to_toml("")).unwrap();
+    let actual = reference::model(
+        &RobotFile::read(&actual_file).unwrap(),
+        &[],
+        &[0.0; 6],
+        &[0.0; 6],
+    );
+    let postures_deg = [
+        [0.0, -90.0, 90.0, -90.0, -90.0, 0.0],
+        [90.0, -60.0, 60.0, -90.0, -90.0, 0.0],
+    ];
+    for (k, posture) in postures_deg.iter().enumerate() {
+        let q: Vec<f64> = posture.iter().map(|d: &f64| d.to_radians()).collect();
+        let pose = nominal.forward(&q);
+        let targets = dir.path().join(format!("t{k}.csv"));
+        std::fs::write(
+            &targets,
+            format!(
+                "x_mm,y_mm,z_mm,qw,qx,qy,qz\n{},{},{},{}\n",
+                pose[0][3],
+                pose[1][3],
+                pose[2][3],
+                reference::quaternion(&pose)
+                    .map(|v| v.to_string())
+                    .join(",")
+            ),
+        )
+        .unwrap();
+        let out = dir.path().join(format!("o{k}.csv"));
+        let args = |extra: &[&str]| -> Vec<String> {
+            let mut a: Vec<String> = [
+                "compensate",
+                "--robot",
+                ur10,
+                "--params",
+                actual_file.to_str().unwrap(),
+                "--targets",
+                targets.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ]
+            .map(String::from)
+            .to_vec();
+            a.extend(extra.iter().map(|s| s.to_string()));
+            a
+        };
+        let run = |extra: &[&str]| {
+            let a = args(extra);
+            calib(&a.iter().map(String::as_str).collect::<Vec<_>>())
+        };
+        // No configuration: refused, nothing written.
+        let refused = run(&[]);
+        assert!(!refused.status.success());
+        let message = String::from_utf8_lossy(&refused.stderr);
+        assert!(
+            message.contains("--near-deg") && message.contains("--branch"),
+            "{message}"
+        );
+        assert!(!out.exists());
+        // Near the posture: the posture's configuration, the joints within the bound of it.
+        let near = posture.map(|d| d.to_string()).join(",");
+        let result = run(&["--near-deg", &near]);
+        assert!(
+            result.status.success(),
+            "{}",
+            String::from_utf8_lossy(&result.stderr)
+        );
+        let mut reader = csv::Reader::from_path(&out).unwrap();
+        let headers = reader.headers().unwrap().clone();
+        assert_eq!(&headers[headers.len() - 1], "configuration");
+        let row = reader.records().next().unwrap().unwrap();
+        assert_eq!(&row[9], "ok", "{row:?}");
+        let joints: Vec<f64> = (1..=6).map(|j| row[j].parse::<f64>().unwrap()).collect();
+        let moved = joints
+            .iter()
+            .zip(posture)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f64, f64::max);
+        println!(
+            "UR10 target of {posture:?} deg: compensated {joints:.3?} deg, {moved:.3} deg from the posture, {}",
+            &row[11]
+        );
+        assert!(moved < 2.0, "moved {moved} deg from the posture");
+        let reached = actual.forward(&joints.iter().map(|d| d.to_radians()).collect::<Vec<_>>());
+        let e = reference::pose_error(&pose, &reached);
+        assert!(
+            (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt() < 1e-3,
+            "{e:?}"
+        );
+        let configuration = row[11].to_string();
+        assert!(configuration.starts_with("branch "), "{configuration}");
+        // Every other branch: a row in that branch (or refused), never one labelled otherwise.
+        for branch in 0..8 {
+            let b = branch.to_string();
+            let result = run(&["--branch", &b, "--max-correction-mm", "50"]);
+            assert!(result.status.success());
+            let mut reader = csv::Reader::from_path(&out).unwrap();
+            let row = reader.records().next().unwrap().unwrap();
+            if &row[9] == "ok" {
+                assert!(
+                    row[11]
+                        .split(" or ")
+                        .any(|b| b.trim_start_matches("branch ") == branch.to_string()),
+                    "--branch {branch}: row in {}",
+                    &row[11]
+                );
+            }
+        }
+    }
+}
+
+/// Joint maps are identified on a range of readings: a target whose joints leave it is refused
+/// (the message names the joint and the range) unless `--allow-extrapolation`, which compensates
+/// it and counts it in the summary.
+#[test]
+fn targets_beyond_a_map_range_are_refused_unless_allowed() {
+    let dir = tempfile::tempdir().unwrap();
+    let ur10 = common::UR10;
+    let mut text = std::fs::read_to_string(ur10).unwrap();
+    text.push_str("\n[joint_maps]\nharmonics = 1\n");
+    for _ in 0..6 {
+        text.push_str("\n[[joint_maps.joint]]\nrange_deg = [-100.0, 100.0]\nsin_rad = [2e-4]\ncos_rad = [1e-4]\n");
+    }
+    let maps = dir.path().join("maps.toml");
+    std::fs::write(&maps, text).unwrap();
+    let nominal = reference::model(
+        &RobotFile::read(Path::new(ur10)).unwrap(),
+        &[],
+        &[0.0; 6],
+        &[0.0; 6],
+    );
+    let rows: Vec<PoseRow> = [
+        [10.0, -80.0, 70.0, -60.0, -80.0, 20.0],
+        [150.0, -80.0, 70.0, -60.0, -80.0, 20.0],
+    ]
+    .iter()
+    .enumerate()
+    .map(|(i, deg)| {
+        let q: Vec<f64> = deg.iter().map(|d: &f64| d.to_radians()).collect();
+        let pose = nominal.forward(&q);
+        PoseRow {
+            id: format!("T{i}"),
+            q,
+            position: [pose[0][3], pose[1][3], pose[2][3]],
+            rotation: Some(nalgebra::Matrix3::from_fn(|r, c| pose[r][c])),
+        }
+    })
+    .collect();
+    let targets = dir.path().join("targets.csv");
+    write_tracker_csv(&targets, &["frame: base".into()], &rows).unwrap();
+    let out = dir.path().join("out.csv");
+    let run = |extra: &[&str]| {
+        let mut a = vec![
+            "compensate",
+            "--robot",
+            ur10,
+            "--params",
+            maps.to_str().unwrap(),
+            "--targets",
+            targets.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        a.extend_from_slice(extra);
+        common::ok(&calib(&a))
+    };
+    let text = run(&[]);
+    assert!(
+        text.contains("compensated 1 of 2 targets (1 refused"),
+        "{text}"
+    );
+    let mut reader = csv::Reader::from_path(&out).unwrap();
+    let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
+    assert_eq!(&rows[0][9], "ok");
+    assert!(
+        rows[1][9].contains("joint 1 at 149.9") && rows[1][9].contains("--allow-extrapolation"),
+        "{:?}",
+        &rows[1][9]
+    );
+    let text = run(&["--allow-extrapolation"]);
+    assert!(
+        text.contains("compensated 2 of 2 targets (0 refused, see the status column, 1 with a joint map extrapolated"),
+        "{text}"
+    );
 }

@@ -124,7 +124,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
     use calib_core::kinematics::ik::inverse_kinematics;
     use host_tools::io::robot_file::{ER10L_C10_TOML, RobotFile};
     use host_tools::io::tracker_data::{OrientationColumns, Record, TrackerData};
-    use host_tools::kinematics::compensate::compensate_targets;
+    use host_tools::kinematics::compensate::{Request, compensate_targets};
     use rand::{RngExt, SeedableRng};
     use std::path::Path;
 
@@ -193,7 +193,14 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
             records: records.clone(),
             planned: None,
         };
-        let outcomes = compensate_targets(&nominal, &truth, &targets, &settings, branch).unwrap();
+        let outcomes = compensate_targets(
+            &nominal,
+            &truth,
+            &targets,
+            &settings,
+            &Request::branch(branch),
+        )
+        .unwrap();
         for (outcome, record) in outcomes.iter().zip(&records) {
             match &outcome.result {
                 Ok(c) => {
@@ -230,8 +237,14 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
         records: vec![record],
         planned: None,
     };
-    let outcome =
-        compensate_targets(&nominal, &truth, &one, &CompensationSettings::default(), 0).unwrap();
+    let outcome = compensate_targets(
+        &nominal,
+        &truth,
+        &one,
+        &CompensationSettings::default(),
+        &Request::branch(0),
+    )
+    .unwrap();
     let message = outcome[0].result.clone().unwrap_err();
     assert!(
         message.contains("needs") && message.contains("--max-correction-mm"),

@@ -460,7 +460,7 @@ fn compensation_uses_the_maps(d: &std::path::Path) {
 /// identification's compliance columns) on 30 targets within 1e-3 mm; the joints for the model
 /// of `baseline` miss them by more than `missed_by` mm on average.
 fn compensation_uses_the_model(d: &std::path::Path, params: &str, baseline: &str, missed_by: f64) {
-    // Readings within Series B's ranges, where the maps were identified.
+    // Readings around Series B's ranges (partly beyond them: extrapolation allowed).
     let readings: Vec<Vec<f64>> = (0..30)
         .map(|i| {
             let t = f64::from(i);

@@ -210,6 +210,9 @@ fn tracker_data_calibrate_export_compensate_reaches_the_targets() {
             "targets.csv",
             "--out",
             "compensated.csv",
+            // The configuration of the postures the targets were planned at.
+            "--branch",
+            "0",
         ],
     ));
     assert!(text.contains("compensated 5 of 5"), "{text}");

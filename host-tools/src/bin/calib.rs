@@ -114,8 +114,16 @@ fn run(command: Command) -> anyhow::Result<()> {
         }
         Command::Compensate(options) => {
             let summary = host_tools::cli::compensate::compensate(&options)?;
+            let extrapolated = if summary.extrapolated > 0 {
+                format!(
+                    ", {} with a joint map extrapolated beyond its identified readings",
+                    summary.extrapolated
+                )
+            } else {
+                String::new()
+            };
             host_tools::cli::print_line(format_args!(
-                "compensated {} of {} targets ({} refused, see the status column); wrote {}",
+                "compensated {} of {} targets ({} refused, see the status column{extrapolated}); wrote {}",
                 summary.ok,
                 summary.ok + summary.failed,
                 summary.failed,

@@ -6,7 +6,9 @@ use crate::io::outputs::Outputs;
 use crate::io::robot_file::RobotFile;
 use crate::io::robot_file::RobotModel;
 use crate::io::tracker_data::TrackerData;
-use crate::kinematics::compensate::{Summary, compensate_targets, compensate_targets_of, to_csv};
+use crate::kinematics::compensate::{
+    Configuration, Request, Summary, compensate_targets, compensate_targets_of, to_csv,
+};
 use anyhow::bail;
 use calib_core::controller::compensate::CompensationSettings;
 use std::path::PathBuf;
@@ -23,9 +25,9 @@ pub struct CompensateOptions {
     #[arg(long, value_name = "FILE")]
     pub params: PathBuf,
     /// Target poses in the base frame (CSV: x_mm, y_mm, z_mm and an orientation; optional
-    /// q1_deg..qN_deg as the start, i.e. the controller's nominal joints for the target; without
-    /// them the nominal inverse kinematics is the start: closed form on --branch for a spherical
-    /// or UR-type wrist, numerical otherwise, e.g. for 7-joint arms).
+    /// q1_deg..qN_deg as the start, i.e. the controller's nominal joints for the target, which
+    /// also name its arm configuration; without them name the configuration with --near-deg or
+    /// --branch).
     #[arg(long, value_name = "FILE")]
     pub targets: PathBuf,
     /// Output CSV: one row per target, in input order.
@@ -40,11 +42,53 @@ pub struct CompensateOptions {
     /// Largest allowed change of any joint, deg.
     #[arg(long, default_value_t = 0.5f64.to_degrees())]
     pub max_joint_correction_deg: f64,
-    /// Inverse kinematics branch for targets without joints (closed form: spherical wrist or
-    /// UR-type offset wrist):
-    /// 0-7, bit 4 = shoulder back, bit 2 = elbow down, bit 1 = wrist flipped.
-    #[arg(long, default_value_t = 0)]
-    pub branch: usize,
+    /// Arm configuration of targets without joints: that of this posture (joint readings in
+    /// deg, e.g. the robot's home), kept by every target (closed form where the robot has one,
+    /// each joint within whole turns of the posture; numerical from the posture otherwise).
+    #[arg(
+        long,
+        value_name = "Q1,...,QN",
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        conflicts_with = "branch"
+    )]
+    pub near_deg: Option<Vec<f64>>,
+    /// Arm configuration of targets without joints, as a closed-form inverse kinematics branch
+    /// (spherical wrist or UR-type offset wrist): 0-7, bit 4 = shoulder back, bit 2 = elbow
+    /// down, bit 1 = wrist flipped.
+    #[arg(long, value_name = "B")]
+    pub branch: Option<usize>,
+    /// Compensate targets whose joints leave the range of readings a joint map was identified
+    /// on (counted in the summary) instead of refusing them.
+    #[arg(long)]
+    pub allow_extrapolation: bool,
+}
+
+impl CompensateOptions {
+    /// The request of these options for a robot whose joint maps (if any) were identified on
+    /// `map_ranges` (rad, per joint; `None` where a joint has no map).
+    fn request(&self, map_ranges: Vec<Option<[f64; 2]>>) -> anyhow::Result<Request> {
+        let configuration = match (&self.near_deg, self.branch) {
+            (Some(posture), _) => {
+                if let Some(v) = posture.iter().find(|v| !v.is_finite()) {
+                    bail!("--near-deg: {v} is not a finite angle");
+                }
+                let Some(q) = calib_core::model::JointVec::from_slice(
+                    &posture.iter().map(|v| v.to_radians()).collect::<Vec<_>>(),
+                ) else {
+                    bail!("--near-deg has {} values; at most 9 joints", posture.len());
+                };
+                Some(Configuration::Near(q))
+            }
+            (None, Some(branch)) => Some(Configuration::Branch(branch)),
+            (None, None) => None,
+        };
+        Ok(Request {
+            configuration,
+            map_ranges,
+            allow_extrapolation: self.allow_extrapolation,
+        })
+    }
 }
 
 /// The fewest joints that put a tool on a 6-DoF pose.
@@ -77,10 +121,23 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
     let maps = params.joint_maps(&options.params)?;
     let compliance = params.gravity_compliance(&options.params)?;
     crate::model::counts::joint_count(file.joint.len())?;
+    // The readings each non-zero map was identified on.
+    let ranges = params
+        .joint_maps
+        .as_ref()
+        .map(crate::model::joint_maps::JointMapsSection::ranges)
+        .unwrap_or_default();
+    let map_ranges = (0..file.joint.len())
+        .map(|j| {
+            let mapped = maps.as_ref().is_some_and(|m| !m.is_zero(j));
+            ranges.get(j).copied().filter(|_| mapped)
+        })
+        .collect();
+    let request = options.request(map_ranges)?;
     if maps.is_none() && compliance.is_none() {
-        return compensate_geometric(options);
+        return compensate_geometric(options, &request);
     }
-    compensate_model(options, (maps.as_ref(), compliance.as_ref()))
+    compensate_model(options, (maps.as_ref(), compliance.as_ref()), &request)
 }
 
 /// `calib compensate` of a model with joint maps or gravity compliance (the
@@ -92,25 +149,19 @@ fn compensate_model(
         Option<&crate::model::joint_maps::JointMaps>,
         Option<&crate::model::compliance::FileCompliance>,
     ),
+    request: &Request,
 ) -> anyhow::Result<Summary> {
     let (nominal, actual, targets, settings) = inputs(options)?;
     let model = controller_model(actual.robot, maps, compliance)?;
     let real = model.kinematics()?;
-    let outcomes =
-        compensate_targets_of(&nominal.robot, &real, &targets, &settings, options.branch)?;
+    let outcomes = compensate_targets_of(&nominal.robot, &real, &targets, &settings, request)?;
     finish(options, &outcomes, nominal.robot.joints.len())
 }
 
 /// `calib compensate` of a geometric model.
-fn compensate_geometric(options: &CompensateOptions) -> anyhow::Result<Summary> {
+fn compensate_geometric(options: &CompensateOptions, request: &Request) -> anyhow::Result<Summary> {
     let (nominal, actual, targets, settings) = inputs(options)?;
-    let outcomes = compensate_targets(
-        &nominal.robot,
-        &actual.robot,
-        &targets,
-        &settings,
-        options.branch,
-    )?;
+    let outcomes = compensate_targets(&nominal.robot, &actual.robot, &targets, &settings, request)?;
     finish(options, &outcomes, nominal.robot.joints.len())
 }
 
@@ -139,9 +190,6 @@ fn inputs(
             options.targets.display(),
             targets.joints
         );
-    }
-    if options.branch > 7 {
-        bail!("--branch must be 0 to 7, got {}", options.branch);
     }
     for (name, v) in [
         ("--max-correction-mm", options.max_correction_mm),

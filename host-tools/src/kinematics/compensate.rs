@@ -7,6 +7,13 @@
 //! (within mm of a workspace boundary or singularity, where the two robots part ways), the
 //! identified robot is solved from the nominal (or nearest) configuration, under the same bounds.
 //! The output's `start` column says which way each row went.
+//!
+//! The arm configuration is never chosen silently: targets without joints are compensated in the
+//! configuration the caller names ([`Configuration`]: a closed-form branch, or the configuration
+//! of a reference posture), every row states the configuration its joints are in, and a solution
+//! in another configuration than asked is refused with the reason. Joint maps are identified on a
+//! range of readings; a target whose joints leave a map's range is refused unless extrapolation is
+//! allowed ([`Request`]), and counted.
 
 use crate::error::Context;
 use crate::io::tracker_data::TrackerData;
@@ -38,6 +45,48 @@ pub struct TargetOutcome {
     pub start: String,
     /// The compensated joints (rad) and predicted residuals, or why the target was refused.
     pub result: Result<Compensated<f64, Dyn>, String>,
+    /// The arm configuration of the compensated joints: `branch B` (the closed-form branch, for
+    /// robots that have one), `at a singularity` (no branch reproduces them), or `near the
+    /// posture` / `from the given joints` for robots without a closed form; empty when refused.
+    pub configuration: String,
+    /// Whether a joint of the compensated joints lies outside the range of readings its map was
+    /// identified on (compensated only when the request allows extrapolation).
+    pub extrapolated: bool,
+}
+
+/// The arm configuration of targets that carry no joints.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Configuration {
+    /// The closed-form inverse kinematics branch, 0-7: bit 4 shoulder back, bit 2 elbow down,
+    /// bit 1 wrist flipped (robots with a spherical or UR-type offset wrist).
+    Branch(usize),
+    /// The configuration of this posture (joint readings, rad): its closed-form branch, with
+    /// each joint turned by whole turns toward the posture where the limits allow; for robots
+    /// without a closed form, the numerical inverse kinematics started from the posture.
+    Near(JointVec<f64>),
+}
+
+/// What a compensation run asks for besides the bounds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Request {
+    /// The configuration of targets without joints; `None` refuses such targets.
+    pub configuration: Option<Configuration>,
+    /// Per joint, the range of readings (rad) its map was identified on; `None`: no map (or a
+    /// map that is zero), any reading.
+    pub map_ranges: Vec<Option<[f64; 2]>>,
+    /// Compensate targets whose joints leave a map's range (counted) instead of refusing them.
+    pub allow_extrapolation: bool,
+}
+
+impl Request {
+    /// Targets in the closed-form `branch`, no joint maps.
+    pub fn branch(branch: usize) -> Self {
+        Self {
+            configuration: Some(Configuration::Branch(branch)),
+            map_ranges: Vec::new(),
+            allow_extrapolation: false,
+        }
+    }
 }
 
 /// Counts of a compensation run.
@@ -47,6 +96,8 @@ pub struct Summary {
     pub ok: usize,
     /// Targets refused with an error.
     pub failed: usize,
+    /// Targets compensated with a joint outside its map's identified range.
+    pub extrapolated: usize,
 }
 
 impl Summary {
@@ -56,23 +107,25 @@ impl Summary {
         Self {
             ok,
             failed: outcomes.len() - ok,
+            extrapolated: outcomes.iter().filter(|o| o.extrapolated).count(),
         }
     }
 }
 
 /// Compensates every target of `targets` (base frame, with orientation; joints, when the file
-/// has `q1_deg..qN_deg`, are the start): `nominal` is the model the controller plans with,
-/// `actual` the identified robot. `branch` (0-7) picks the closed-form inverse kinematics
-/// solution for targets without joints. One outcome per target, in file order.
+/// has `q1_deg..qN_deg`, are the start and name the configuration): `nominal` is the model the
+/// controller plans with, `actual` the identified robot; `request` names the configuration of
+/// targets without joints. One outcome per target, in file order. Error: targets without joints
+/// and no configuration, or a configuration the robot cannot take.
 pub fn compensate_targets(
     nominal: &Robot<f64, Dyn>,
     actual: &Robot<f64, Dyn>,
     targets: &TrackerData,
     settings: &CompensationSettings<f64>,
-    branch: usize,
+    request: &Request,
 ) -> crate::Result<Vec<TargetOutcome>> {
     let real = Kinematics::nominal(actual).context("identified robot")?;
-    compensate_targets_of(nominal, &real, targets, settings, branch)
+    compensate_targets_of(nominal, &real, targets, settings, request)
 }
 
 /// [`compensate_targets`] for any actual robot: the geometry alone ([`Kinematics`]) or with
@@ -82,9 +135,10 @@ pub(crate) fn compensate_targets_of(
     real: &impl ActualRobot<f64, Dyn>,
     targets: &TrackerData,
     settings: &CompensationSettings<f64>,
-    branch: usize,
+    request: &Request,
 ) -> crate::Result<Vec<TargetOutcome>> {
     let planned = Kinematics::nominal(nominal).context("nominal robot")?;
+    let start = Start::of(nominal, &planned, targets, request)?;
     let outcomes = targets
         .records
         .iter()
@@ -94,21 +148,11 @@ pub(crate) fn compensate_targets_of(
                 Translation3::from(nalgebra::Vector3::from(record.position)),
                 Rotation3::from_matrix_unchecked(rotation),
             );
-            let (result, method) = compensate_record(
-                nominal,
-                &planned,
-                real,
-                &target,
-                record,
-                targets.joints,
-                branch,
-                settings,
-            );
-            TargetOutcome {
-                id: record.id.clone(),
-                start: method,
-                result,
-            }
+            let (result, method) =
+                compensate_record(nominal, &planned, real, &target, record, &start, settings);
+            checked(
+                settings, nominal, &planned, record, &start, request, result, method,
+            )
         })
         .collect();
     Ok(outcomes)
@@ -124,72 +168,65 @@ pub const NUMERICAL_STARTS: usize = 8;
 /// one (6 joints: spherical or UR-type offset wrist), else numerical from the middle of the joint
 /// limits (each limit taken within one turn of zero), up to [`NUMERICAL_STARTS`] solutions in
 /// seed order. Returns the outcome and where the start came from (empty when none was found).
-#[allow(clippy::too_many_arguments)]
 fn compensate_record(
     nominal: &Robot<f64, Dyn>,
     planned: &Kinematics<f64, Dyn>,
     real: &impl ActualRobot<f64, Dyn>,
     target: &Pose,
     record: &crate::io::tracker_data::Record,
-    joints_in_file: usize,
-    branch: usize,
+    start: &Start,
     settings: &CompensationSettings<f64>,
 ) -> (Result<Compensated<f64, Dyn>, String>, String) {
     let from = |start: &JointVec<f64>| {
         compensate_target(planned, real, &nominal.limits, target, start, settings)
     };
-    if joints_in_file == nominal.joints.len() {
-        let q = JointVec::from_fn(joints_in_file, |i| record.q.get(i).copied().unwrap_or(0.0));
-        return (from(&q), "given".into());
-    }
-    match closed_form(nominal, planned, target, branch) {
-        Some(Ok(ClosedForm::Exact(q, method))) => {
-            return match from(&q) {
-                Ok(c) => (Ok(c), method),
-                Err(e) => {
-                    on_identified_robot(planned, real, &nominal.limits, target, &q, true, settings)
-                        .map_or_else(
-                            |f| (Err(format!("{e}; then {f}")), method.clone()),
-                            |(c, m)| (Ok(c), format!("{method}; {m}")),
-                        )
-                }
-            };
+    let (branch, posture) = match start {
+        Start::Given => return (from(&given_joints(record, nominal)), "given".into()),
+        Start::Numerical(posture) => {
+            return from_numerical_starts(nominal, planned, real, target, posture, settings);
         }
+        Start::Branch(branch, posture) => (*branch, posture.as_ref()),
+    };
+    match closed_form(nominal, planned, target, branch, posture) {
+        Some(Ok(ClosedForm::Exact(q, method))) => match from(&q) {
+            Ok(c) => (Ok(c), method),
+            Err(e) => {
+                on_identified_robot(planned, real, &nominal.limits, target, &q, true, settings)
+                    .map_or_else(
+                        |f| (Err(format!("{e}; then {f}")), method.clone()),
+                        |(c, m)| (Ok(c), format!("{method}; {m}")),
+                    )
+            }
+        },
         Some(Ok(ClosedForm::Nearest(q, method))) => {
-            return match on_identified_robot(
-                planned,
-                real,
-                &nominal.limits,
-                target,
-                &q,
-                true,
-                settings,
-            ) {
+            match on_identified_robot(planned, real, &nominal.limits, target, &q, true, settings) {
                 Ok((c, m)) => (Ok(c), format!("{method}; {m}")),
                 Err(e) => (Err(e), method),
-            };
+            }
         }
-        Some(Err(e)) => return (Err(e), String::new()),
-        None => {}
+        Some(Err(e)) => (Err(e), String::new()),
+        None => (
+            Err(format!(
+                "branch {branch} names a closed-form configuration, and this robot has no closed form; name a posture instead (--near-deg)"
+            )),
+            String::new(),
+        ),
     }
-    from_numerical_starts(nominal, planned, real, target, settings)
 }
 
-/// Compensates `target` from the nominal robot's numerical inverse kinematics, from the middle
-/// of the joint limits (each limit taken within one turn of zero), up to [`NUMERICAL_STARTS`]
-/// solutions in seed order; where none works, the identified robot is solved from the first
-/// start (or the middle of the limits). Returns the outcome and where the start came from.
+/// Compensates `target` from the nominal robot's numerical inverse kinematics, from `posture`
+/// first, up to [`NUMERICAL_STARTS`] solutions in seed order; where none works, the identified
+/// robot is solved from the first start (or the posture). Returns the outcome and where the
+/// start came from.
 fn from_numerical_starts(
     nominal: &Robot<f64, Dyn>,
     planned: &Kinematics<f64, Dyn>,
     real: &impl ActualRobot<f64, Dyn>,
     target: &Pose,
+    posture: &JointVec<f64>,
     settings: &CompensationSettings<f64>,
 ) -> (Result<Compensated<f64, Dyn>, String>, String) {
-    let pi = std::f64::consts::PI;
-    let reference = nominal
-        .limits
-        .map(|l| 0.5 * (l.lower.max(-pi) + l.upper.min(pi)));
+    let reference = *posture;
     // The first failure: its error, method and start.
     let mut first: Option<(String, String, JointVec<f64>)> = None;
     let mut not_found = None;
@@ -240,6 +277,299 @@ fn from_numerical_starts(
     }
 }
 
+/// Each joint of `q` turned by whole turns toward `reference` where the limits allow.
+fn turned_toward(
+    q: &mut JointVec<f64>,
+    reference: &JointVec<f64>,
+    limits: &JointVec<calib_core::JointLimits<f64>>,
+) {
+    for ((q, r), l) in q.iter_mut().zip(reference).zip(limits) {
+        let turned = *q + std::f64::consts::TAU * ((r - *q) / std::f64::consts::TAU).round();
+        if l.contains(turned) {
+            *q = turned;
+        }
+    }
+}
+
+/// The nominal robot as a 6-joint robot, for the closed-form inverse kinematics (`None`: it has
+/// another joint count).
+fn as_six(nominal: &Robot<f64, Dyn>) -> Option<Robot<f64, nalgebra::U6>> {
+    Some(Robot::<f64, nalgebra::U6> {
+        joints: <[_; 6]>::try_from(&nominal.joints[..]).ok()?,
+        limits: <[_; 6]>::try_from(&nominal.limits[..]).ok()?,
+        base: nominal.base,
+        tool: nominal.tool,
+    })
+}
+
+/// How far a joint reading may be from a closed-form solution (whole turns aside) and still be
+/// in its configuration, rad: far above the closed form's rounding, far below any other
+/// configuration's distance.
+const SAME_CONFIGURATION_RAD: f64 = 1e-6;
+
+/// The closed-form branches (0-7) of the nominal robot whose solution for its own pose at `q`
+/// is `q` in the joints that tell the configurations apart (1, 3 and 5: shoulder, elbow, wrist;
+/// whole turns aside): the configurations `q` is in, two or more at a singularity, none where
+/// the closed form is indeterminate (a wrist centre on the first axis). `None`: the robot has no
+/// closed form.
+pub(crate) fn branches_of(
+    nominal: &Robot<f64, Dyn>,
+    planned: &Kinematics<f64, Dyn>,
+    q: &JointVec<f64>,
+) -> Option<Vec<usize>> {
+    let distances = branch_distances(nominal, planned, q)?;
+    Some(
+        (0..BRANCHES)
+            .filter(|b| distances[*b].is_some_and(|d| d < SAME_CONFIGURATION_RAD))
+            .collect(),
+    )
+}
+
+/// Per closed-form branch, how far its solution for the nominal robot's pose at `q` is from `q`
+/// in joints 1, 3 and 5 (the largest difference, whole turns aside), rad; `None` where the branch
+/// does not reach that pose. `None` for a robot without a closed form.
+fn branch_distances(
+    nominal: &Robot<f64, Dyn>,
+    planned: &Kinematics<f64, Dyn>,
+    q: &JointVec<f64>,
+) -> Option<[Option<f64>; BRANCHES]> {
+    let six = as_six(nominal)?;
+    let pose = planned.forward(q).ok()?;
+    let solutions = inverse_kinematics(&six, &pose).ok()?;
+    let pi = std::f64::consts::PI;
+    let wrapped = |d: f64| (d + pi).rem_euclid(std::f64::consts::TAU) - pi;
+    Some(solutions.map(|solution| {
+        let s = solution?;
+        Some(
+            [0, 2, 4]
+                .iter()
+                .map(|&j| wrapped(s[j] - q[j]).abs())
+                .fold(0.0, f64::max),
+        )
+    }))
+}
+
+/// Where the nominal start of targets without their own joints comes from.
+enum Start {
+    /// Every target has the controller's joints.
+    Given,
+    /// The closed-form branch, with the posture whose configuration it is (whole turns toward it).
+    Branch(usize, Option<JointVec<f64>>),
+    /// The numerical inverse kinematics from this posture (robots without a closed form).
+    Numerical(JointVec<f64>),
+}
+
+impl Start {
+    /// The start of `targets` under `request`. Errors: no joints and no configuration named; a
+    /// branch out of range; a posture of another joint count, outside the limits, or in no
+    /// configuration of the closed form.
+    fn of(
+        nominal: &Robot<f64, Dyn>,
+        planned: &Kinematics<f64, Dyn>,
+        targets: &TrackerData,
+        request: &Request,
+    ) -> crate::Result<Self> {
+        let joints = nominal.joints.len();
+        if targets.joints == joints {
+            if request.configuration.is_some() {
+                return Err(crate::refused!(
+                    "{}: the targets carry the controller's joints (q1_deg..q{joints}_deg), which name their configuration; give either the joints or a configuration (--branch, --near-deg), not both",
+                    targets.path.display()
+                ));
+            }
+            return Ok(Self::Given);
+        }
+        match &request.configuration {
+            None => Err(crate::refused!(
+                "{}: the targets carry no joints, so the arm configuration to reach them in must be named: --near-deg q1,...,q{joints} (the configuration of that posture, e.g. the robot's home), or --branch 0-7 (closed form: bit 4 shoulder back, bit 2 elbow down, bit 1 wrist flipped); or give the controller's joints as q1_deg..q{joints}_deg",
+                targets.path.display()
+            )),
+            Some(Configuration::Branch(branch)) if *branch >= BRANCHES => Err(crate::refused!(
+                "--branch must be 0 to {}, got {branch}",
+                BRANCHES - 1
+            )),
+            Some(Configuration::Branch(branch)) => Ok(Self::Branch(*branch, None)),
+            Some(Configuration::Near(posture)) => {
+                if posture.len() != joints {
+                    return Err(crate::refused!(
+                        "--near-deg has {} values; the robot has {joints} joints",
+                        posture.len()
+                    ));
+                }
+                if let Some((j, q)) = posture
+                    .iter()
+                    .zip(&nominal.limits)
+                    .enumerate()
+                    .find(|(_, (q, l))| !l.contains(**q))
+                    .map(|(j, (q, _))| (j, q))
+                {
+                    return Err(crate::refused!(
+                        "--near-deg: q{} = {:.3} deg is outside the joint limits of the robot",
+                        j + 1,
+                        q.to_degrees()
+                    ));
+                }
+                match branches_of(nominal, planned, posture) {
+                    None => Ok(Self::Numerical(*posture)),
+                    Some(branches) => match branches.first() {
+                        Some(branch) => Ok(Self::Branch(*branch, Some(*posture))),
+                        None => Err(crate::refused!(
+                            "--near-deg: the posture is at a singularity where the closed form cannot tell its configuration (the wrist centre on the first axis); name a posture away from it, or --branch"
+                        )),
+                    },
+                }
+            }
+        }
+    }
+}
+
+/// A record's joints as a joint vector (rad).
+fn given_joints(
+    record: &crate::io::tracker_data::Record,
+    nominal: &Robot<f64, Dyn>,
+) -> JointVec<f64> {
+    JointVec::from_fn(nominal.joints.len(), |i| {
+        record.q.get(i).copied().unwrap_or(0.0)
+    })
+}
+
+/// The outcome of one record, with the configuration checks: the compensated joints must be in
+/// the configuration asked for (the branch, or the given joints' configuration), and within the
+/// range each joint map was identified on unless extrapolation is allowed.
+#[allow(clippy::too_many_arguments)]
+fn checked(
+    settings: &CompensationSettings<f64>,
+    nominal: &Robot<f64, Dyn>,
+    planned: &Kinematics<f64, Dyn>,
+    record: &crate::io::tracker_data::Record,
+    start: &Start,
+    request: &Request,
+    result: Result<Compensated<f64, Dyn>, String>,
+    method: String,
+) -> TargetOutcome {
+    let mut outcome = TargetOutcome {
+        id: record.id.clone(),
+        start: method,
+        result,
+        configuration: String::new(),
+        extrapolated: false,
+    };
+    let Ok(compensated) = &outcome.result else {
+        return outcome;
+    };
+    let asked = match start {
+        Start::Given => branches_of(nominal, planned, &given_joints(record, nominal)),
+        Start::Branch(branch, _) => Some(vec![*branch]),
+        Start::Numerical(_) => None,
+    };
+    let (configuration, refusal) = configuration_of(
+        settings,
+        nominal,
+        planned,
+        &compensated.q,
+        start,
+        asked.as_deref(),
+    );
+    outcome.configuration = configuration;
+    let outside = outside_map_range(request, &compensated.q);
+    if let Some(reason) = refusal {
+        outcome.result = Err(reason);
+    } else if let Some((j, q, lo, hi)) = outside {
+        if request.allow_extrapolation {
+            outcome.extrapolated = true;
+        } else {
+            outcome.result = Err(format!(
+                "joint {} at {:.3} deg is outside [{:.3}, {:.3}] deg, the readings its map was identified on: the map would be extrapolated (pass --allow-extrapolation to compensate anyway)",
+                j + 1,
+                q.to_degrees(),
+                lo.to_degrees(),
+                hi.to_degrees()
+            ));
+        }
+    }
+    if outcome.result.is_err() {
+        outcome.configuration.clear();
+    }
+    outcome
+}
+
+/// The arm configuration of the compensated joints `q` as the output states it, and the
+/// refusal when they are in another configuration than `asked` (the branches of the start).
+fn configuration_of(
+    settings: &CompensationSettings<f64>,
+    nominal: &Robot<f64, Dyn>,
+    planned: &Kinematics<f64, Dyn>,
+    q: &JointVec<f64>,
+    start: &Start,
+    asked: Option<&[usize]>,
+) -> (String, Option<String>) {
+    let reached = branches_of(nominal, planned, q);
+    // In a configuration asked for: exactly, or within the joint bound of its solution (at the
+    // boundary of two configurations, where a correction may cross it by a fraction of a
+    // degree), or where it does not reach (the start was its nearest configuration).
+    let distances = branch_distances(nominal, planned, q);
+    let near_asked = |asked: &[usize]| {
+        asked.iter().any(|b| {
+            distances
+                .and_then(|d| d[*b])
+                .is_none_or(|d| d <= settings.max_joint_correction_rad)
+        })
+    };
+    let refusal = match (asked, &reached) {
+        (Some(asked), Some(reached))
+            if !asked.is_empty() && !reached.is_empty() && !near_asked(asked) =>
+        {
+            Some(format!(
+                "the compensated joints are in another arm configuration (branch {}) than {} (branch {}): refused, as the robot would move through the workspace another way",
+                list(reached),
+                match start {
+                    Start::Given => "the given joints",
+                    _ => "asked for",
+                },
+                list(asked)
+            ))
+        }
+        _ => None,
+    };
+    let configuration = match (&reached, start) {
+        (Some(b), _) if b.is_empty() => "at a singularity".into(),
+        (Some(b), _) => match asked {
+            Some(asked) if !asked.is_empty() && !asked.iter().any(|a| b.contains(a)) => format!(
+                "branch {}, at the boundary of branch {} (within the joint bound)",
+                list(b),
+                list(asked)
+            ),
+            _ => format!("branch {}", list(b)),
+        },
+        (None, Start::Given) => "from the given joints".into(),
+        (None, _) => "near the posture".into(),
+    };
+    (configuration, refusal)
+}
+
+/// The first joint of `q` outside the readings its map was identified on: (joint, reading,
+/// lowest, highest), rad.
+fn outside_map_range(request: &Request, q: &JointVec<f64>) -> Option<(usize, f64, f64, f64)> {
+    request
+        .map_ranges
+        .iter()
+        .zip(q.iter())
+        .enumerate()
+        .find_map(|(j, (range, q))| {
+            let [lo, hi] = (*range)?;
+            (*q < lo || *q > hi).then_some((j, *q, lo, hi))
+        })
+}
+
+/// Branch numbers as text: `3`, or `1 or 3`.
+fn list(branches: &[usize]) -> String {
+    branches
+        .iter()
+        .map(ToString::to_string)
+        .collect::<Vec<_>>()
+        .join(" or ")
+}
+
 /// A closed-form start and how it was found.
 enum ClosedForm {
     /// The nominal robot reaches the target there.
@@ -283,14 +613,7 @@ fn on_identified_robot(
                     0,
                 )
                 .map_err(|e| format!("on the identified robot: {e}"))?;
-                // Whole turns toward the reference where the limits allow.
-                for ((q, r), l) in start.q.iter_mut().zip(reference).zip(limits) {
-                    let turned =
-                        *q + std::f64::consts::TAU * ((r - *q) / std::f64::consts::TAU).round();
-                    if l.contains(turned) {
-                        *q = turned;
-                    }
-                }
+                turned_toward(&mut start.q, reference, limits);
                 let solution =
                     compensate_target(planned, real, limits, target, &start.q, &unbounded)?;
                 (
@@ -372,20 +695,19 @@ fn closed_form(
     planned: &Kinematics<f64, Dyn>,
     target: &Pose,
     branch: usize,
+    posture: Option<&JointVec<f64>>,
 ) -> Option<Result<ClosedForm, String>> {
-    // Only 6-joint robots have one: the same robot as a Robot<f64, 6>.
-    let six = Robot::<f64, nalgebra::U6> {
-        joints: <[_; 6]>::try_from(&nominal.joints[..]).ok()?,
-        limits: <[_; 6]>::try_from(&nominal.limits[..]).ok()?,
-        base: nominal.base,
-        tool: nominal.tool,
-    };
+    let six = as_six(nominal)?;
     let on_branch = |solutions: [Option<[f64; 6]>; BRANCHES]| -> Option<JointVec<f64>> {
-        solutions
+        let mut q = solutions
             .get(branch)
             .copied()
             .flatten()
-            .and_then(|q| JointVec::from_slice(&q))
+            .and_then(|q| JointVec::from_slice(&q))?;
+        if let Some(posture) = posture {
+            turned_toward(&mut q, posture, &nominal.limits);
+        }
+        Some(q)
     };
     match inverse_kinematics(&six, target) {
         Ok(solutions) => {
@@ -511,7 +833,16 @@ pub(crate) fn to_csv(outcomes: &[TargetOutcome], joints: usize) -> crate::Result
     let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header = vec!["id".to_string()];
     header.extend((1..=joints).map(|i| format!("q{i}_deg")));
-    header.extend(["residual_mm", "residual_deg", "status", "start"].map(String::from));
+    header.extend(
+        [
+            "residual_mm",
+            "residual_deg",
+            "status",
+            "start",
+            "configuration",
+        ]
+        .map(String::from),
+    );
     writer.write_record(&header)?;
     for outcome in outcomes {
         let mut row = vec![outcome.id.clone()];
@@ -528,7 +859,50 @@ pub(crate) fn to_csv(outcomes: &[TargetOutcome], joints: usize) -> crate::Result
             }
         }
         row.push(outcome.start.clone());
+        row.push(outcome.configuration.clone());
         writer.write_record(&row)?;
     }
     Ok(writer.into_inner().map_err(|e| e.into_error())?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The UR10 at (0, -90, 90, -90, -90, 0) deg is in exactly one closed-form branch (the
+    /// nominal robot's own solution of its pose there); joints in that branch pass, and asked for
+    /// any other branch, whose solution of the same pose is more than the joint bound away, they
+    /// are refused with both branches named.
+    #[test]
+    fn joints_in_another_configuration_than_asked_are_refused() {
+        let path = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml"));
+        let model = crate::io::robot_file::RobotModel::load(path).unwrap();
+        let planned = Kinematics::nominal(&model.robot).unwrap();
+        let q =
+            JointVec::from_slice(&[0.0f64, -90.0, 90.0, -90.0, -90.0, 0.0].map(f64::to_radians))
+                .unwrap();
+        let branches = branches_of(&model.robot, &planned, &q).unwrap();
+        assert_eq!(branches.len(), 1, "{branches:?}");
+        let own = branches[0];
+        let settings = CompensationSettings::default();
+        let start = Start::Branch(own, None);
+        let (label, refusal) =
+            configuration_of(&settings, &model.robot, &planned, &q, &start, Some(&[own]));
+        assert_eq!((label, refusal), (format!("branch {own}"), None));
+        for other in (0..BRANCHES).filter(|b| *b != own) {
+            let (_, refusal) = configuration_of(
+                &settings,
+                &model.robot,
+                &planned,
+                &q,
+                &start,
+                Some(&[other]),
+            );
+            let refusal = refusal.expect("another configuration is refused");
+            assert!(
+                refusal.contains(&format!("(branch {own}) than asked for (branch {other})")),
+                "{refusal}"
+            );
+        }
+    }
 }

@@ -137,6 +137,9 @@ pub fn compensated_misses(
         arg(&targets),
         "--out",
         arg(&out),
+        // The maps are evaluated where the targets are, within their identified readings or
+        // not: what is checked here is that compensation uses them.
+        "--allow-extrapolation",
     ]));
     compensation_misses(
         &out,
