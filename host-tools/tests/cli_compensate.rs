@@ -932,19 +932,7 @@ fn targets_without_joints_keep_the_configuration_named() {
         let q: Vec<f64> = posture.iter().map(|d: &f64| d.to_radians()).collect();
         let pose = nominal.forward(&q);
         let targets = dir.path().join(format!("t{k}.csv"));
-        std::fs::write(
-            &targets,
-            format!(
-                "x_mm,y_mm,z_mm,qw,qx,qy,qz\n{},{},{},{}\n",
-                pose[0][3],
-                pose[1][3],
-                pose[2][3],
-                reference::quaternion(&pose)
-                    .map(|v| v.to_string())
-                    .join(",")
-            ),
-        )
-        .unwrap();
+        std::fs::write(&targets, targets_csv(&[pose])).unwrap();
         let out = dir.path().join(format!("o{k}.csv"));
         let args = |extra: &[&str]| -> Vec<String> {
             let mut a: Vec<String> = [

@@ -517,3 +517,106 @@ fn ur_factory_calibrations_import_exactly_with_small_parameters() {
         assert!(!d.join("x.toml").exists());
     }
 }
+
+/// Issue 39 N3, N4, N13, N14: paths and robot names are written into other formats' comments,
+/// headers and markup. A file name with a line feed, a carriage return, U+2028, NEL and a control
+/// character, and a robot named `a---b` with a line break and `# frame: base` in it, inject
+/// nothing: the UR YAML has no line the name or path started, the URDF loads (the `k` crate's
+/// reader) with the robot's name as given (escaped), the plan CSV has no `# frame: base` line,
+/// and the robot file `calibrate` writes from such a data path reads back.
+#[test]
+fn names_and_paths_cannot_break_the_formats_they_are_written_into() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let text = std::fs::read_to_string(UR10).unwrap().replacen(
+        "name = \"",
+        "name = \"a---b\\n# frame: base\\u0001 ",
+        1,
+    );
+    let params = d.join("p\ninjected: 1\r\u{2028}x\u{85}y\u{1}.toml");
+    std::fs::write(&params, text).unwrap();
+    let params = params.to_str().unwrap();
+
+    ok(&calib_in(
+        d,
+        &[
+            "export",
+            "--params",
+            params,
+            "--format",
+            "ur-kinematics-yaml",
+            "--out",
+            "ur.yaml",
+        ],
+    ));
+    let yaml = std::fs::read_to_string(d.join("ur.yaml")).unwrap();
+    assert!(
+        !yaml.contains(['\r', '\u{2028}', '\u{85}', '\u{1}']),
+        "{yaml}"
+    );
+    assert!(
+        yaml.lines()
+            .all(|l| !l.starts_with("injected") && !l.starts_with('x')),
+        "{yaml}"
+    );
+
+    ok(&calib_in(
+        d,
+        &[
+            "export", "--params", params, "--format", "urdf", "--out", "r.urdf",
+        ],
+    ));
+    let urdf = std::fs::read_to_string(d.join("r.urdf")).unwrap();
+    assert!(
+        urdf.contains("<robot name=\"a---b\\u{000a}# frame: base\\u{0001} "),
+        "{urdf}"
+    );
+    let comment = &urdf[urdf.find("<!--").unwrap() + 4..urdf.find("-->").unwrap()];
+    assert!(!comment.contains("--"), "{comment}");
+    k::Chain::<f64>::from_urdf_file(d.join("r.urdf")).expect("a well-formed URDF");
+
+    ok(&calib_in(
+        d,
+        &[
+            "plan",
+            "--robot",
+            params,
+            "--generate",
+            "300",
+            "--poses",
+            "30",
+            "--measure",
+            "position",
+            "--noise-mm",
+            "0.02",
+            "--out",
+            "plan.csv",
+        ],
+    ));
+    let plan = std::fs::read_to_string(d.join("plan.csv")).unwrap();
+    assert!(
+        plan.lines()
+            .all(|l| l != "# frame: base" && !l.starts_with("injected")),
+        "{plan}"
+    );
+
+    let data = d.join("data\u{1}\n# frame: tracker.csv");
+    std::fs::copy(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/data/er10l-c10-sim32.csv"),
+        &data,
+    )
+    .unwrap();
+    ok(&calib_in(
+        d,
+        &[
+            "calibrate",
+            "--robot",
+            ER10,
+            "--data",
+            data.to_str().unwrap(),
+            "--out",
+            "id.toml",
+        ],
+    ));
+    RobotFile::read(&d.join("id.toml")).expect("the identified robot file reads back");
+}

@@ -94,6 +94,7 @@ pub fn yaml(robot: &Robot<f64, Dyn>, source: &str) -> crate::Result<String> {
     }
     let hash = crc32fast::hash(body.as_bytes());
     let tool = Origin::of(&frame(&robot.tool));
+    let source = crate::io::text::one_line(source);
     Ok(format!(
         "# Written by calib export --format ur-kinematics-yaml from {source}: the model's joint origins\n\
          # in the form of ur_description's kinematics files (m, rad); geometry only, exact.\n\

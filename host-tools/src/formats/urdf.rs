@@ -16,6 +16,7 @@
 //! never exported: the URDF is the controller's model, base and tool as in `[base]` and `[tool]`.
 
 use crate::JOINTS;
+use crate::io::text::{xml_attribute, xml_comment};
 use calib_core::{FramePose, MdhJoint, Robot};
 use nalgebra::Dyn;
 use nalgebra::{IsometryMatrix3, Rotation3, Translation3, Vector3};
@@ -220,8 +221,8 @@ pub fn urdf(
         "<?xml version=\"1.0\"?>\n<!-- {} as a URDF, written by calib export (format urdf) from {}.\n     \
          The joint origins reproduce calib's forward kinematics exactly (metres, radians); geometry only.\n     \
          Revolute limits are the robot file's; effort and velocity (0) are not known to calib: take them from the vendor's description. -->\n",
-        xml_text(&settings.robot_name),
-        xml_text(source)
+        xml_comment(&settings.robot_name),
+        xml_comment(source)
     );
     if settings.joints_only {
         return Ok(format!("{header}<joints>\n{joints}</joints>\n"));
@@ -236,16 +237,6 @@ pub fn urdf(
     }
     Ok(format!(
         "{header}<robot name=\"{}\">\n{links}{joints}</robot>\n",
-        xml_text(&settings.robot_name)
+        xml_attribute(&settings.robot_name)
     ))
-}
-
-/// `text` with XML's special characters escaped, and no `--` (which a comment may not hold): for
-/// the robot's name and the source path, free text.
-fn xml_text(text: &str) -> String {
-    text.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
-        .replace("--", "- -")
 }

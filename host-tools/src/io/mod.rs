@@ -5,4 +5,5 @@ pub mod columns;
 pub mod outputs;
 pub mod profile;
 pub mod robot_file;
+pub mod text;
 pub mod tracker_data;

@@ -675,7 +675,7 @@ impl RobotFile {
         let mut text = String::new();
         for line in comment.lines() {
             text.push_str("# ");
-            text.push_str(line);
+            text.push_str(&super::text::one_line(line));
             text.push('\n');
         }
         text.push_str(&body);

@@ -784,7 +784,7 @@ pub(crate) fn tracker_csv(comments: &[String], rows: &[PoseRow]) -> crate::Resul
     let orientation = rows.first().is_some_and(|r| r.rotation.is_some());
     let mut text = String::new();
     for c in comments {
-        let _ = writeln!(text, "# {c}");
+        let _ = writeln!(text, "# {}", super::text::one_line(c));
     }
     let mut header: Vec<String> = vec!["id".into()];
     header.extend((1..=joints).map(|i| format!("q{i}_deg")));

@@ -300,7 +300,7 @@ impl Plan {
         let joints = self.poses.first().map_or(0, |p| p.q.len());
         let mut text = String::new();
         for c in comments {
-            text.push_str(&format!("# {c}\n"));
+            text.push_str(&format!("# {}\n", crate::io::text::one_line(c)));
         }
         if let Some(v) = &self.prediction.verification {
             text.push_str(&format!("# {}\n", v.comment()));
