@@ -996,6 +996,25 @@ fn targets_without_joints_keep_the_configuration_named() {
         );
         let configuration = row[11].to_string();
         assert!(configuration.starts_with("branch "), "{configuration}");
+        // The same posture as the robot file's default: the same joints without an option.
+        let with_default = dir.path().join(format!("ur10-home{k}.toml"));
+        let mut text = std::fs::read_to_string(ur10).unwrap();
+        text.push_str(&format!(
+            "\n[compensation]\nnear_deg = [{}]\n",
+            posture.map(|d| format!("{d:.1}")).join(", ")
+        ));
+        std::fs::write(&with_default, text).unwrap();
+        let mut default_args = args(&[]);
+        default_args[2] = with_default.to_str().unwrap().to_string();
+        let result = calib(&default_args.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(
+            result.status.success(),
+            "{}",
+            String::from_utf8_lossy(&result.stderr)
+        );
+        let mut reader = csv::Reader::from_path(&out).unwrap();
+        let same = reader.records().next().unwrap().unwrap();
+        assert_eq!(same, row, "the file's [compensation] default as --near-deg");
         // Every other branch: a row in that branch (or refused), never one labelled otherwise.
         for branch in 0..8 {
             let b = branch.to_string();

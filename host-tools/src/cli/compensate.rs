@@ -42,8 +42,9 @@ pub struct CompensateOptions {
     /// Largest allowed change of any joint, deg.
     #[arg(long, default_value_t = 0.5f64.to_degrees())]
     pub max_joint_correction_deg: f64,
-    /// Arm configuration of targets without joints: that of this posture (joint readings in
-    /// deg, e.g. the robot's home), kept by every target (closed form where the robot has one,
+    /// Arm configuration of targets without joints (default: the --robot file's
+    /// `[compensation]`): that of this posture (joint readings in deg, e.g. the robot's home),
+    /// kept by every target (closed form where the robot has one,
     /// each joint within whole turns of the posture; numerical from the posture otherwise).
     #[arg(
         long,
@@ -66,22 +67,27 @@ pub struct CompensateOptions {
 
 impl CompensateOptions {
     /// The request of these options for a robot whose joint maps (if any) were identified on
-    /// `map_ranges` (rad, per joint; `None` where a joint has no map).
-    fn request(&self, map_ranges: Vec<Option<[f64; 2]>>) -> anyhow::Result<Request> {
-        let configuration = match (&self.near_deg, self.branch) {
-            (Some(posture), _) => {
-                if let Some(v) = posture.iter().find(|v| !v.is_finite()) {
-                    bail!("--near-deg: {v} is not a finite angle");
+    /// `map_ranges` (rad, per joint; `None` where a joint has no map); without a configuration
+    /// option, the nominal robot file's `[compensation]` default, if any.
+    fn request(
+        &self,
+        map_ranges: Vec<Option<[f64; 2]>>,
+        default: Option<&crate::io::robot_file::CompensationSection>,
+    ) -> anyhow::Result<Request> {
+        let robot = self.robot.display();
+        let configuration = match (&self.near_deg, self.branch, default) {
+            (Some(posture), _, _) => Some(near(posture, "--near-deg")?),
+            (None, Some(branch), _) => Some(Configuration::Branch(branch)),
+            (None, None, Some(section)) => match (&section.near_deg, section.branch) {
+                (Some(posture), None) => {
+                    Some(near(posture, &format!("{robot}: [compensation] near_deg"))?)
                 }
-                let Some(q) = calib_core::model::JointVec::from_slice(
-                    &posture.iter().map(|v| v.to_radians()).collect::<Vec<_>>(),
-                ) else {
-                    bail!("--near-deg has {} values; at most 9 joints", posture.len());
-                };
-                Some(Configuration::Near(q))
-            }
-            (None, Some(branch)) => Some(Configuration::Branch(branch)),
-            (None, None) => None,
+                (None, Some(branch)) => Some(Configuration::Branch(branch)),
+                _ => bail!(
+                    "{robot}: [compensation] states the configuration of targets without joints: give near_deg = [...] (a posture, deg) or branch = 0-7, one of them"
+                ),
+            },
+            (None, None, None) => None,
         };
         Ok(Request {
             configuration,
@@ -89,6 +95,19 @@ impl CompensateOptions {
             allow_extrapolation: self.allow_extrapolation,
         })
     }
+}
+
+/// The configuration of the posture `deg` (deg), named `what` in errors.
+fn near(deg: &[f64], what: &str) -> anyhow::Result<Configuration> {
+    if let Some(v) = deg.iter().find(|v| !v.is_finite()) {
+        bail!("{what}: {v} is not a finite angle");
+    }
+    let Some(q) = calib_core::model::JointVec::from_slice(
+        &deg.iter().map(|v| v.to_radians()).collect::<Vec<_>>(),
+    ) else {
+        bail!("{what} has {} values; at most 9 joints", deg.len());
+    };
+    Ok(Configuration::Near(q))
 }
 
 /// The fewest joints that put a tool on a 6-DoF pose.
@@ -133,7 +152,7 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
             ranges.get(j).copied().filter(|_| mapped)
         })
         .collect();
-    let request = options.request(map_ranges)?;
+    let request = options.request(map_ranges, file.compensation.as_ref())?;
     if maps.is_none() && compliance.is_none() {
         return compensate_geometric(options, &request);
     }

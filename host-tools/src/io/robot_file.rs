@@ -180,6 +180,23 @@ pub struct RobotFile {
     /// gains, part of the model.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub compliance: Option<crate::model::compliance::ComplianceSection>,
+    /// The arm configuration `calib compensate` gives targets without joints when no option
+    /// names one (`[compensation] near_deg = [...]` or `branch = B`). Optional.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub compensation: Option<CompensationSection>,
+}
+
+/// The arm configuration of targets without joints, stated once for a robot (its home, say):
+/// either a posture whose configuration they keep or a closed-form branch.
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct CompensationSection {
+    /// A posture (deg, one value per joint) whose configuration targets keep, as `--near-deg`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub near_deg: Option<Vec<f64>>,
+    /// A closed-form branch 0-7, as `--branch`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub branch: Option<usize>,
 }
 
 /// The measurement setup identified with the geometry: where the tracker saw the robot's base,

@@ -381,7 +381,7 @@ impl Start {
         }
         match &request.configuration {
             None => Err(crate::refused!(
-                "{}: the targets carry no joints, so the arm configuration to reach them in must be named: --near-deg q1,...,q{joints} (the configuration of that posture, e.g. the robot's home), or --branch 0-7 (closed form: bit 4 shoulder back, bit 2 elbow down, bit 1 wrist flipped); or give the controller's joints as q1_deg..q{joints}_deg",
+                "{}: the targets carry no joints, so the arm configuration to reach them in must be named: --near-deg q1,...,q{joints} (the configuration of that posture, e.g. the robot's home), or --branch 0-7 (closed form: bit 4 shoulder back, bit 2 elbow down, bit 1 wrist flipped); or give the controller's joints as q1_deg..q{joints}_deg; or state the robot's default in its file: [compensation] near_deg = [...]",
                 targets.path.display()
             )),
             Some(Configuration::Branch(branch)) if *branch >= BRANCHES => Err(crate::refused!(
