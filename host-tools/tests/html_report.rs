@@ -128,6 +128,33 @@ fn the_html_report_holds_everything_and_nothing_external() {
     };
     let again = std::fs::read_to_string(d.join("again.html")).unwrap();
     assert_eq!(undated(&again), undated(&html));
+    // Issue 39 N7: convergence values a log axis cannot show (zero, negative, 1e-300, 1e300,
+    // a huge generation) and per-pose errors of 1e308 and more: rendered, in bounded time.
+    let mut json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("r.json")).unwrap()).unwrap();
+    json["convergence"] = serde_json::json!([
+        [0, 0.0],
+        [1, -5.0],
+        [2, 1e-300],
+        [3, 1e300],
+        [4000000000u64, 1.0]
+    ]);
+    if let Some(before) = json["per_pose"]["before"].as_array_mut() {
+        for (i, e) in before.iter_mut().enumerate() {
+            *e = serde_json::json!(if i % 2 == 0 { 1e308 } else { -1.0 });
+        }
+    }
+    std::fs::write(d.join("extreme.json"), json.to_string()).unwrap();
+    let started = std::time::Instant::now();
+    ok(&calib_in(
+        d,
+        &["report", "--from", "extreme.json", "--html", "extreme.html"],
+    ));
+    println!(
+        "report of extreme values rendered in {:.2} s",
+        started.elapsed().as_secs_f64()
+    );
+    assert!(d.join("extreme.html").exists());
     // Not a report: said, nothing written.
     std::fs::write(d.join("other.json"), "{\"a\": 1}").unwrap();
     let out = calib_in(d, &["report", "--from", "other.json", "--html", "x.html"]);

@@ -19,6 +19,38 @@ fn register_font() {
     });
 }
 
+/// The most decades a log-scale axis spans: a report's values beyond them (a hand-edited or
+/// corrupted JSON's zero, 1e-300 or 1e300) are drawn at the axis' foot instead of making the
+/// axis, and its labels, without end.
+const LOG_DECADES: f64 = 12.0;
+
+/// The range of a log-scale axis over the positive finite `values`: from the smallest to the
+/// largest, one decade at least and at most [`LOG_DECADES`] below the largest; 1 to 10 when no
+/// value is positive and finite.
+fn log_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let positive: Vec<f64> = values.filter(|v| *v > 0.0 && v.is_finite()).collect();
+    if positive.is_empty() {
+        return (1.0, 10.0);
+    }
+    let lo = positive.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = positive
+        .iter()
+        .copied()
+        .fold(0.0, f64::max)
+        .min(1e300)
+        .max(lo * 10.0);
+    (lo.max(hi / 10f64.powf(LOG_DECADES)), hi)
+}
+
+/// The largest finite value of `values` for a linear axis from zero (at least 1e-9, at most
+/// 1e300, so that the axis has a finite, non-empty range).
+fn finite_max(values: impl Iterator<Item = f64>) -> f64 {
+    values
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max)
+        .clamp(1e-9, 1e300)
+}
+
 /// Draws the convergence curve: best objective (log scale) against generation.
 fn convergence<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
@@ -29,17 +61,7 @@ where
 {
     area.fill(&WHITE).map_err(crate::Error::plot)?;
     let last = history.last().map_or(1, |h| h.0).max(1);
-    let positive: Vec<f64> = history
-        .iter()
-        .map(|h| h.1)
-        .filter(|v| *v > 0.0 && v.is_finite())
-        .collect();
-    let lo = positive
-        .iter()
-        .copied()
-        .fold(f64::INFINITY, f64::min)
-        .max(1e-300);
-    let hi = positive.iter().copied().fold(0.0, f64::max).max(lo * 10.0);
+    let (lo, hi) = log_range(history.iter().map(|h| h.1));
     let mut chart = ChartBuilder::on(area)
         .caption("IPSO convergence (eq. 7)", (FONT, 24))
         .margin(15)
@@ -80,13 +102,7 @@ where
     DB::ErrorType: 'static,
 {
     let n = before.len().max(after.len()).max(1);
-    let hi = before
-        .iter()
-        .chain(after)
-        .copied()
-        .fold(0.0, f64::max)
-        .max(1e-9)
-        * 1.1;
+    let hi = finite_max(before.iter().chain(after).copied()) * 1.1;
     let mut chart = ChartBuilder::on(area)
         .caption(title, (FONT, 20))
         .margin(10)
@@ -194,7 +210,7 @@ where
         (after, BLUE, "after calibration"),
         (before, RED, "before calibration (nominal geometry)"),
     ]) {
-        let hi = values.iter().copied().fold(0.0, f64::max).max(1e-9) * 1.0001;
+        let hi = finite_max(values.iter().copied()) * 1.0001;
         let width = hi / BINS as f64;
         let mut counts = [0u32; BINS];
         for v in values {
