@@ -7,7 +7,8 @@ use std::borrow::Cow;
 
 /// `text` as one line of printable characters: every control character (`\n`, `\r`, tab, ...)
 /// and every character a parser may take for a line break (NEL U+0085, LINE SEPARATOR U+2028,
-/// PARAGRAPH SEPARATOR U+2029) written as its escape `\u{XXXX}`; the rest unchanged.
+/// PARAGRAPH SEPARATOR U+2029) written as its hexadecimal escape (a line feed as `\u{000a}`); the
+/// rest unchanged.
 ///
 /// ```
 /// use host_tools::io::text::one_line;

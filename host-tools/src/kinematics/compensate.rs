@@ -317,12 +317,14 @@ pub(crate) fn branches_of(
     planned: &Kinematics<f64, Dyn>,
     q: &JointVec<f64>,
 ) -> Option<Vec<usize>> {
-    let distances = branch_distances(nominal, planned, q)?;
-    Some(
-        (0..BRANCHES)
-            .filter(|b| distances[*b].is_some_and(|d| d < SAME_CONFIGURATION_RAD))
-            .collect(),
-    )
+    branch_distances(nominal, planned, q).map(|d| exact_branches(&d))
+}
+
+/// The branches whose solution is `q` itself, of the per-branch distances of [`branch_distances`].
+fn exact_branches(distances: &[Option<f64>; BRANCHES]) -> Vec<usize> {
+    (0..BRANCHES)
+        .filter(|b| distances[*b].is_some_and(|d| d < SAME_CONFIGURATION_RAD))
+        .collect()
 }
 
 /// Per closed-form branch, how far its solution for the nominal robot's pose at `q` is from `q`
@@ -503,11 +505,12 @@ fn configuration_of(
     start: &Start,
     asked: Option<&[usize]>,
 ) -> (String, Option<String>) {
-    let reached = branches_of(nominal, planned, q);
     // In a configuration asked for: exactly, or within the joint bound of its solution (at the
     // boundary of two configurations, where a correction may cross it by a fraction of a
-    // degree), or where it does not reach (the start was its nearest configuration).
+    // degree), or where it does not reach (the start was its nearest configuration). One
+    // closed-form solution of the pose at `q` serves both.
     let distances = branch_distances(nominal, planned, q);
+    let reached = distances.as_ref().map(exact_branches);
     let near_asked = |asked: &[usize]| {
         asked.iter().any(|b| {
             distances
