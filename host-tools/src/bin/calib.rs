@@ -20,6 +20,10 @@ use std::path::{Path, PathBuf};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Largest input file, MiB, for every input (default: 512 for data, candidates and reports,
+    /// 16 for robot files, profiles and UR calibrations). Raise it for a larger file.
+    #[arg(long, global = true, value_name = "MiB", value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
+    max_input_mb: Option<u64>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -75,7 +79,11 @@ enum Command {
 /// Runs the command; a user error is reported as a message with its causes, never with a stack
 /// backtrace (even under `RUST_BACKTRACE=1`), and exit status 1.
 fn main() -> std::process::ExitCode {
-    let command = Cli::parse().command;
+    let cli = Cli::parse();
+    if let Some(mib) = cli.max_input_mb {
+        host_tools::io::input::set_limit_mib(mib);
+    }
+    let command = cli.command;
     match host_tools::io::outputs::clean_up_on_interrupt()
         .map_err(anyhow::Error::from)
         .and_then(|()| run(command))

@@ -103,7 +103,7 @@ impl PlanOptions {
 /// and per orientation axis (deg) of its calibration poses, times sqrt(rows / (rows -
 /// parameters)).
 fn noise_of_report(path: &std::path::Path) -> anyhow::Result<(f64, f64)> {
-    let text = std::fs::read_to_string(path)
+    let text = crate::io::input::read_text(path, crate::io::input::Input::Data)
         .with_context(|| format!("{}: cannot read the report", path.display()))?;
     let report: serde_json::Value = serde_json::from_str(&text)
         .with_context(|| format!("{}: not a JSON report of calibrate", path.display()))?;

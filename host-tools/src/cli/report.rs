@@ -18,7 +18,7 @@ pub struct ReportOptions {
 
 /// Runs `calib report`; returns the number of bytes written.
 pub fn report(options: &ReportOptions) -> anyhow::Result<usize> {
-    let text = std::fs::read_to_string(&options.from)
+    let text = crate::io::input::read_text(&options.from, crate::io::input::Input::Data)
         .with_context(|| format!("{}: cannot read the report", options.from.display()))?;
     let report: serde_json::Value = serde_json::from_str(&text).with_context(|| {
         format!(

@@ -51,7 +51,7 @@ pub struct UrCalibration {
 impl UrCalibration {
     /// Reads a `calibration.conf`.
     pub fn read(path: &Path) -> crate::Result<Self> {
-        let text = std::fs::read_to_string(path)
+        let text = crate::io::input::read_text(path, crate::io::input::Input::Document)
             .with_context(|| format!("{}: cannot read the UR calibration", path.display()))?;
         Self::parse(&text, path)
     }

@@ -2,6 +2,7 @@
 //! their columns), and the outputs every command writes (staged and replaced all together).
 
 pub mod columns;
+pub mod input;
 pub mod outputs;
 pub mod profile;
 pub mod robot_file;

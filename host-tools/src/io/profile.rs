@@ -296,10 +296,12 @@ impl Default for DataProfile {
 impl DataProfile {
     /// Reads and checks a profile file.
     pub fn read(path: &Path) -> Result<Self, ProfileError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ProfileError::Read {
-            path: path.to_owned(),
-            source,
-        })?;
+        let text = crate::io::input::read_text(path, crate::io::input::Input::Document).map_err(
+            |source| ProfileError::Read {
+                path: path.to_owned(),
+                source,
+            },
+        )?;
         Self::parse(&text, path)
     }
 

@@ -245,10 +245,12 @@ pub struct RobotModel {
 impl RobotFile {
     /// Reads and parses a robot file.
     pub fn read(path: &Path) -> Result<Self, RobotFileError> {
-        let text = std::fs::read_to_string(path).map_err(|source| RobotFileError::Read {
-            path: path.to_owned(),
-            source,
-        })?;
+        let text = crate::io::input::read_text(path, crate::io::input::Input::Document).map_err(
+            |source| RobotFileError::Read {
+                path: path.to_owned(),
+                source,
+            },
+        )?;
         Self::parse(&text, path)
     }
 

@@ -14,9 +14,11 @@ use nalgebra::{Matrix3, Quaternion, Rotation3, UnitQuaternion};
 
 /// The file's text; invalid UTF-8 is reported with its line.
 fn read_text(path: &Path) -> Result<String, DataError> {
-    let bytes = std::fs::read(path).map_err(|source| DataError::Read {
-        path: path.to_owned(),
-        source,
+    let bytes = crate::io::input::read(path, crate::io::input::Input::Data).map_err(|source| {
+        DataError::Read {
+            path: path.to_owned(),
+            source,
+        }
     })?;
     String::from_utf8(bytes).map_err(|e| {
         let valid = e.utf8_error().valid_up_to();

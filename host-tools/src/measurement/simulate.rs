@@ -41,6 +41,9 @@ pub const REALISTIC_TRACKER: FrameEntry = FrameEntry {
 /// The realistic cell's reflector: 150 mm off the flange (mm, flange frame).
 pub const REALISTIC_REFLECTOR_MM: [f64; 3] = [0.0, 60.0, 137.4773];
 
+/// Most poses one simulation writes: 10 million (1.6 GB of CSV).
+pub const MAX_POSES: usize = 10_000_000;
+
 /// What to simulate. `Default` is the paper's section 3.1: Table 2 errors, 32 exact 6-DoF poses
 /// uniform in [-180, 180] deg, in the base frame, seed 1.
 #[derive(Clone, Debug, PartialEq)]
@@ -105,6 +108,13 @@ impl SimulationConfig {
     pub fn check(&self) -> crate::Result<()> {
         if self.poses == 0 {
             return Err(crate::refused!("--poses must be at least 1"));
+        }
+        if self.poses > MAX_POSES {
+            return Err(crate::refused!(
+                "--poses {} is more than the {MAX_POSES} poses a simulation may have (about 160 \
+                 bytes of CSV and 500 bytes of memory each); simulate in parts with other seeds",
+                self.poses
+            ));
         }
         for (name, v) in [
             ("--joint-noise-rad", self.joint_noise_rad),
