@@ -467,8 +467,8 @@ fn n19_huge_fk_readings_and_a_directory_as_output_are_refused() {
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }
 
-/// Issue 39, N9: inputs have a size limit, checked before they are read. A data file over 512
-/// MiB (sparse, so the test writes nothing) and an endless robot file (`/dev/zero`) are refused
+/// Issue 39, N9: inputs have a size limit, checked before they are read. A data file over 1
+/// GiB (sparse, so the test writes nothing) and an endless robot file (`/dev/zero`) are refused
 /// with the limit and the option that raises it, in bounded memory; `--max-input-mb` raises it
 /// (a robot file of 17 MiB, mostly a comment, is then read); `simulate --poses 100000000000` is refused instead
 /// of allocating terabytes.
@@ -477,14 +477,14 @@ fn n9_inputs_over_their_size_limit_are_refused_with_the_option_to_raise_it() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("big.csv");
     let file = std::fs::File::create(&data).unwrap();
-    file.set_len(600 << 20).unwrap();
+    file.set_len(1100 << 20).unwrap();
     let data = data.to_str().unwrap();
     let out = calib(&["check", "--robot", ROBOT, "--data", data]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(
         stderr.contains("cannot read the data file")
-            && stderr.contains("600.0 MiB, more than the 512 MiB")
+            && stderr.contains("1100.0 MiB, more than the 1024 MiB")
             && stderr.contains("--max-input-mb"),
         "{stderr}"
     );

@@ -620,3 +620,112 @@ fn names_and_paths_cannot_break_the_formats_they_are_written_into() {
     ));
     RobotFile::read(&d.join("id.toml")).expect("the identified robot file reads back");
 }
+
+/// Issue 39, N6: `import-ur-calibration` judges what it imports. Deltas no calibration reaches
+/// (`delta_theta` 1e300, `delta_alpha` 100, `delta_d` 1e300) are refused with the file, line and
+/// key; deltas that convert to Hayati errors beyond a robot's (`delta_a` 0.5 m: `da2` over a
+/// metre) and a nominal file of another robot (the ER10L-C10 with a UR10 calibration moves the
+/// flange by metres) are refused unless `--accept-implausible`; nothing is written when refused.
+#[test]
+fn n6_implausible_ur_calibrations_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let good = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/data/ur-factory-calibration/ur10-test-set-1.conf"
+    ))
+    .unwrap();
+    let with = |key: &str, index: usize, value: &str| -> String {
+        good.lines()
+            .map(|line| {
+                if line.starts_with(key) {
+                    let (head, list) = line.split_once('[').unwrap();
+                    let mut values: Vec<&str> = list
+                        .trim_end_matches(']')
+                        .split(',')
+                        .map(str::trim)
+                        .collect();
+                    values[index] = value;
+                    format!("{head}[{}]\n", values.join(", "))
+                } else {
+                    format!("{line}\n")
+                }
+            })
+            .collect()
+    };
+    let import = |robot: &str, text: &str, extra: &[&str]| {
+        std::fs::write(d.join("c.conf"), text).unwrap();
+        let mut args = vec![
+            "import-ur-calibration",
+            "--robot",
+            robot,
+            "--calibration",
+            "c.conf",
+            "--out",
+            "x.toml",
+        ];
+        args.extend_from_slice(extra);
+        calib_in(d, &args)
+    };
+    for (text, says) in [
+        (
+            with("delta_theta", 0, "1e300"),
+            "c.conf:3: delta_theta[1] = 1e300 rad: beyond two turns",
+        ),
+        (
+            with("delta_alpha", 2, "100"),
+            "c.conf:6: delta_alpha[3] = 1e2 rad: beyond two turns",
+        ),
+        (
+            with("delta_d", 1, "1e300"),
+            "c.conf:5: delta_d[2] = 1e300 m: beyond 10 km",
+        ),
+        (
+            with("delta_a", 1, "0.5"),
+            "da2 = -184.889 mm is beyond 20 mm",
+        ),
+    ] {
+        let out = import(UR10, &text, &[]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains(says), "{says}: {stderr}");
+        assert!(!d.join("x.toml").exists());
+    }
+    let out = import(UR10, &with("delta_a", 1, "0.5"), &[]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("is not a plausible calibration, nothing written")
+            && stderr.contains("--accept-implausible"),
+        "{stderr}"
+    );
+    let out = import(ER10, &good, &[]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("moves the flange by up to") && stderr.contains("another robot"),
+        "{stderr}"
+    );
+    let moved: f64 = stderr
+        .split("moves the flange by up to ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(moved > 1000.0, "{moved} mm");
+    assert!(!d.join("x.toml").exists());
+    // Accepted when asked, with the problems printed.
+    let out = ok(&import(
+        UR10,
+        &with("delta_a", 1, "0.5"),
+        &["--accept-implausible"],
+    ));
+    assert!(
+        out.contains("warning: implausible, written as asked: da2 = "),
+        "{out}"
+    );
+    assert!(d.join("x.toml").exists());
+    // The real calibrations stay plausible.
+    let out = ok(&import(UR10, &good, &[]));
+    assert!(!out.contains("warning"), "{out}");
+}

@@ -14,6 +14,7 @@
 //! covariance `sigma^2 (J^T J)^-1 = sigma^2 R^-1 R^-T` and the standard errors follow.
 
 use crate::identify::Problem;
+use crate::identify::objective::Measurement;
 use crate::kinematics::pose_error::pose_error_jacobian;
 use crate::model::JointCount;
 use crate::scalar::Real;
@@ -255,6 +256,8 @@ where
 {
     problem: &'p Problem<'p, T, N, D>,
     sqrt_k: T,
+    /// `true` at the poses left out ([`LeastSquares::leaving_out`]); empty: none.
+    left_out: &'p [bool],
 }
 
 /// Triangular factor, `Q^T r` and `|r|^2` of the stacked residual, accumulated row by row.
@@ -408,7 +411,26 @@ where
         Self {
             sqrt_k: problem.k().sqrt(),
             problem,
+            left_out: &[],
         }
+    }
+
+    /// The same least squares without the poses at which `left_out` is `true` (a shorter mask
+    /// keeps the poses past its end): a cross-validation fold over the problem's measurements
+    /// without a copy of them. The result has the bits of a problem built on the other poses
+    /// alone; weight buffers and per-pose outputs keep one entry per measurement (the left-out
+    /// poses' entries are not written).
+    pub fn leaving_out(self, left_out: &'p [bool]) -> Self {
+        Self { left_out, ..self }
+    }
+
+    /// The measurements taken into account, with their indices.
+    fn poses(&self) -> impl Iterator<Item = (usize, &'p Measurement<T, N>)> + '_ {
+        self.problem
+            .measurements()
+            .iter()
+            .enumerate()
+            .filter(|(index, _)| !self.left_out.get(*index).copied().unwrap_or(false))
     }
 
     /// The problem: identified parameters, measurements, `k`.
@@ -418,10 +440,8 @@ where
 
     /// Number of residual rows: 6 per full pose, 3 per position-only pose.
     pub fn rows(&self) -> u32 {
-        self.problem
-            .measurements()
-            .iter()
-            .map(|m| if m.rotation.is_some() { 6 } else { 3 })
+        self.poses()
+            .map(|(_, m)| if m.rotation.is_some() { 6 } else { 3 })
             .sum()
     }
 
@@ -439,7 +459,7 @@ where
         let zero = self.problem.set().zeros::<T>();
         // One scaled Jacobian row at a time, in one buffer (no allocation per row for `Dyn`).
         let mut scaled = zero.clone();
-        for (index, m) in self.problem.measurements().iter().enumerate() {
+        for (index, m) in self.poses() {
             let robust_weight = robust.get(index).copied().unwrap_or_else(T::one);
             let w = (m.weight * robust_weight).sqrt();
             let (error, jacobian) = if with_jacobian {
@@ -482,7 +502,7 @@ where
     /// Calls `visit(index, norm)` with the residual norm of every pose at `x`.
     fn for_each_pose_norm(&self, x: &OVector<T, D>, mut visit: impl FnMut(usize, T)) {
         let kinematics = self.problem.kinematics(x);
-        for (index, m) in self.problem.measurements().iter().enumerate() {
+        for (index, m) in self.poses() {
             let predicted = kinematics.forward_angles(&m.angles);
             let dp2 = (m.position - predicted.translation.vector).norm_squared();
             let norm = match &m.rotation {
@@ -870,6 +890,65 @@ mod tests {
             result.iterations
         );
         assert!(mm < 2e-3 && rad < 2e-6, "{mm} mm, {rad} rad");
+    }
+
+    #[test]
+    fn poses_left_out_give_the_bits_of_the_other_poses_alone() {
+        let robot = er10l_c10::<f64>();
+        let set = ParameterSet::<U6, U24>::default_for(&robot).unwrap();
+        let data = paper_measurements::<f64>(1);
+        // Measurement noise (and three gross errors), so that every subset has its own fit.
+        let noisy: std::vec::Vec<Measurement<f64, U6>> = data
+            .as_slice()
+            .iter()
+            .enumerate()
+            .map(|(i, m)| {
+                let mut m = *m;
+                let i = i as f64;
+                m.position += nalgebra::Vector3::new(0.05 * i.sin(), 0.04 * (2.0 * i).cos(), 0.03);
+                if i as usize % 11 == 3 {
+                    m.position.x += 2.0;
+                }
+                m
+            })
+            .collect();
+        let left_out: std::vec::Vec<bool> = (0..noisy.len()).map(|i| i % 5 == 2).collect();
+        let kept: std::vec::Vec<_> = noisy
+            .iter()
+            .zip(&left_out)
+            .filter(|(_, l)| !**l)
+            .map(|(m, _)| *m)
+            .collect();
+        let settings = LmSettings::default();
+        let loss = Loss::Huber(0.5);
+        let all = Problem::new(&robot, &ParameterErrors::zero(), set, &noisy, 1e6).unwrap();
+        let alone = Problem::new(&robot, &ParameterErrors::zero(), set, &kept, 1e6).unwrap();
+        let mut weights = std::vec![0.0; noisy.len()];
+        let masked = LeastSquares::new(&all)
+            .leaving_out(&left_out)
+            .solve_robust(&SVector::zeros(), &settings, loss, &mut weights)
+            .unwrap();
+        let mut kept_weights = std::vec![0.0; kept.len()];
+        let copied = LeastSquares::new(&alone)
+            .solve_robust(&SVector::zeros(), &settings, loss, &mut kept_weights)
+            .unwrap();
+        assert_eq!(masked.result.x, copied.result.x);
+        assert_eq!(masked.result.cost.to_bits(), copied.result.cost.to_bits());
+        assert_eq!(masked.result.rows, 6 * kept.len() as u32);
+        assert_eq!(masked.outliers, copied.outliers);
+        assert!(masked.outliers >= 2, "the gross errors are outliers");
+        let masked_kept: std::vec::Vec<f64> = weights
+            .iter()
+            .zip(&left_out)
+            .filter(|(_, l)| !**l)
+            .map(|(w, _)| *w)
+            .collect();
+        assert_eq!(masked_kept, kept_weights);
+        // And the whole set fits otherwise.
+        let whole = LeastSquares::new(&all)
+            .solve(&SVector::zeros(), &settings)
+            .unwrap();
+        assert_ne!(whole.x, copied.result.x);
     }
 
     #[test]

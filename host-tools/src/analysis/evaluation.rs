@@ -98,7 +98,7 @@ pub fn evaluate(
     }
     let kinematics = Kinematics::nominal(&evaluated.model.robot)?;
     Ok(Evaluation {
-        table: table3(&kinematics, &evaluated).0,
+        table: table3(&kinematics, &evaluated.measurements).0,
         frames: report,
         fitted_poses: fitting.measurements.len(),
         evaluated_poses: evaluated.measurements.len(),
@@ -116,7 +116,7 @@ fn in_the_base_frame(dataset: &Dataset) -> crate::Result<Evaluation> {
     let kinematics = Kinematics::nominal(&dataset.model.robot)?;
     let seen = dataset.without_file_compliance(&dataset.model.robot, &zero)?;
     Ok(Evaluation {
-        table: table3(&kinematics, &seen).0,
+        table: table3(&kinematics, &seen.measurements).0,
         frames: report,
         fitted_poses: 0,
         evaluated_poses: dataset.measurements.len(),

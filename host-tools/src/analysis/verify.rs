@@ -189,7 +189,8 @@ fn run(
 
     let rms = |x: &DVector<f64>| -> crate::Result<f64> {
         let kinematics = Kinematics::new(&validation.model.robot, &set.unpack(x))?;
-        let (table, _) = crate::measurement::statistics::table3(&kinematics, validation);
+        let (table, _) =
+            crate::measurement::statistics::table3(&kinematics, &validation.measurements);
         Ok(table.position_mm.rms)
     };
     let x32_64 = x32.map(f64::from);

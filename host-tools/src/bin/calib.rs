@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 struct Cli {
     #[command(subcommand)]
     command: Command,
-    /// Largest input file, MiB, for every input (default: 512 for data, candidates and reports,
+    /// Largest input file, MiB, for every input (default: 1024 for data, candidates and reports,
     /// 16 for robot files, profiles and UR calibrations). Raise it for a larger file.
     #[arg(long, global = true, value_name = "MiB", value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
     max_input_mb: Option<u64>,

@@ -300,7 +300,9 @@ pub(crate) fn add_joint_maps(
         })
     });
     let ranges = reading_ranges(&poses, dataset.model.robot.joints.len());
-    let kept_at_zero = cross_validation.is_some_and(|c| c.kept_at_zero);
+    // Maps whose cross-validation could not run (too few poses, a fold that failed) have
+    // nothing to show that they predict new poses: kept at zero, like maps that do not help.
+    let kept_at_zero = cross_validation.is_none_or(|c| c.kept_at_zero);
     let geometric_calibration = result.calibration;
     let geometric_validation = result.validation;
     if kept_at_zero {
@@ -460,7 +462,7 @@ fn with_maps(
     // The statistics of the model with the maps (and the compliance).
     let actual = Kinematics::new(&dataset.model.robot, &found.errors)?;
     let mapped = model_view(dataset, found, gravity)?;
-    let (after, after_poses) = table3(&actual, &mapped);
+    let (after, after_poses) = table3(&actual, &mapped.measurements);
     result.calibration.after = after;
     for (pose, after) in result.poses.iter_mut().zip(&after_poses) {
         pose.after_mm = *after;
@@ -469,7 +471,7 @@ fn with_maps(
     result.per_pose.orientation_after =
         crate::measurement::statistics::orientation_per_pose(&actual, &mapped);
     if let (Some(v), Some(stage)) = (validation, result.validation.as_mut()) {
-        let (after, per_pose) = table3(&actual, &model_view(v, found, gravity)?);
+        let (after, per_pose) = table3(&actual, &model_view(v, found, gravity)?.measurements);
         stage.after = after;
         result.per_pose.validation_after = per_pose;
     }
@@ -572,6 +574,11 @@ impl JointMapsReport {
                      the result is the geometric calibration (more poses, or wider joint ranges, may support maps)\n",
                 );
             }
+        } else {
+            text.push_str(
+                "the maps could not be cross-validated (too few calibration poses, or a fold's identification failed): every map is \
+                 kept at zero and the result is the geometric calibration (more poses may support maps)\n",
+            );
         }
         if !self.left_out_lines.is_empty() {
             text.push_str(&format!(

@@ -745,16 +745,16 @@ fn evaluate(
     use crate::measurement::statistics::{orientation_per_pose, table3};
     let nominal = Kinematics::nominal(&dataset.model.robot)?;
     let actual = Kinematics::new(&dataset.model.robot, errors)?;
-    let (before, before_poses) = table3(&nominal, dataset);
-    let (after, after_poses) = table3(&actual, dataset);
+    let (before, before_poses) = table3(&nominal, &dataset.measurements);
+    let (after, after_poses) = table3(&actual, &dataset.measurements);
     let mut per_pose = PerPose {
         orientation_before: orientation_per_pose(&nominal, dataset),
         orientation_after: orientation_per_pose(&actual, dataset),
         ..PerPose::default()
     };
     let validation_stage = validation.map(|v| {
-        let (before, per_pose_before) = table3(&nominal, v);
-        let (after, per_pose_after) = table3(&actual, v);
+        let (before, per_pose_before) = table3(&nominal, &v.measurements);
+        let (after, per_pose_after) = table3(&actual, &v.measurements);
         per_pose.validation_before = per_pose_before;
         per_pose.validation_after = per_pose_after;
         Stage {

@@ -19,6 +19,41 @@ pub struct ImportUrOptions {
     /// The robot file to write: nominal + the calibration as Hayati errors.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
+    /// Write an import whose Hayati errors are beyond a robot's geometric errors (20 mm, 3 deg,
+    /// or the robot file's max_length_error_mm, max_angle_error_deg) or that moves the flange by
+    /// more than 20 mm, instead of refusing it.
+    #[arg(long)]
+    pub accept_implausible: bool,
+}
+
+/// The problems of an import, each naming the value and its bound; empty when it is plausible.
+/// A factory calibration corrects a robot by millimetres and tenths of a degree; more means
+/// wrong deltas or a nominal file of another robot than the one calibrated.
+fn implausible(file: &RobotFile, import: &Import) -> Vec<String> {
+    use crate::calibration::plausibility::{MAX_ANGLE_ERROR_DEG, MAX_LENGTH_ERROR_MM};
+    let length_bound = file.max_length_error_mm.unwrap_or(MAX_LENGTH_ERROR_MM);
+    let angle_bound = file.max_angle_error_deg.unwrap_or(MAX_ANGLE_ERROR_DEG);
+    let mut problems = Vec::new();
+    for p in import.mask.iter() {
+        let value = import.errors.get(p).unwrap_or(0.0);
+        let (shown, bound, unit) = if p.is_angle() {
+            (value.to_degrees(), angle_bound, "deg")
+        } else {
+            (value, length_bound, "mm")
+        };
+        if shown.abs() > bound || !shown.is_finite() {
+            problems.push(format!(
+                "{p} = {shown:.3} {unit} is beyond {bound} {unit}, a robot's geometric errors"
+            ));
+        }
+    }
+    if import.max_change_mm > MAX_LENGTH_ERROR_MM || !import.max_change_mm.is_finite() {
+        problems.push(format!(
+            "the calibration moves the flange by up to {:.1} mm (a factory calibration moves it by millimetres)",
+            import.max_change_mm
+        ));
+    }
+    problems
 }
 
 /// Runs `calib import-ur-calibration`; returns the import and the text to print.
@@ -27,6 +62,17 @@ pub fn import(options: &ImportUrOptions) -> anyhow::Result<(Import, String)> {
     let model: RobotModel = file.to_model(&options.robot)?;
     let calibration = UrCalibration::read(&options.calibration)?;
     let import = crate::formats::ur_calibration::import(&model.robot, &calibration)?;
+    let problems = implausible(&file, &import);
+    if !problems.is_empty() && !options.accept_implausible {
+        anyhow::bail!(
+            "{} on {} is not a plausible calibration, nothing written:\n  {}\nLikely causes: a nominal \
+             file of another robot than the one calibrated (ur5.toml, ur10.toml, ur10e.toml), or \
+             wrong deltas. If the import is right, --accept-implausible writes it.",
+            options.calibration.display(),
+            options.robot.display(),
+            problems.join("\n  ")
+        );
+    }
     let listed: Vec<_> = import.mask.iter().collect();
     let mut out = file.with_errors(
         &import.errors,
@@ -66,6 +112,11 @@ pub fn import(options: &ImportUrOptions) -> anyhow::Result<(Import, String)> {
             format!("{value:>12.6} mm")
         };
         text.push_str(&format!("  {:<10} {shown}\n", p.to_string()));
+    }
+    for problem in &problems {
+        text.push_str(&format!(
+            "warning: implausible, written as asked: {problem}\n"
+        ));
     }
     text.push_str(&format!("wrote {}\n", options.out.display()));
     Ok((import, text))

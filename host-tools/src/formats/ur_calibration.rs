@@ -35,6 +35,21 @@ pub const POSITION_TOLERANCE_MM: f64 = 1e-6;
 /// Largest accepted rotation difference, rad.
 pub const ROTATION_TOLERANCE_RAD: f64 = 1e-9;
 
+/// Largest magnitude, unit and reason of each key's values (`delta_theta`, `delta_a`,
+/// `delta_d`, `delta_alpha`). Classic DH puts the common normal of nearly parallel axes far
+/// away, so real `delta_d` reach hundreds of metres and `delta_a`, `delta_theta` tenths of a
+/// metre and radians (the bundled UR10e: 446 m, 0.63 m, 1.69 rad); whether the deltas are
+/// plausible is judged on the Hayati errors they convert to.
+const BOUNDS: [(f64, &str, &str); 4] = [
+    (TWO_TURNS, "rad", "two turns"),
+    (1e4, "m", "10 km"),
+    (1e4, "m", "10 km"),
+    (TWO_TURNS, "rad", "two turns"),
+];
+
+/// Two turns, rad: the bound of an angle delta (ur_calibration's test set 2 has 7.13 rad).
+const TWO_TURNS: f64 = 2.0 * std::f64::consts::TAU;
+
 /// The deltas of a `calibration.conf` (m, rad), joint 1 first.
 #[derive(Clone, Debug, PartialEq)]
 pub struct UrCalibration {
@@ -102,6 +117,17 @@ impl UrCalibration {
                         })
                 })
                 .collect::<crate::Result<Vec<f64>>>()?;
+            let bound = BOUNDS[slot];
+            if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| v.abs() > bound.0) {
+                return Err(crate::refused!(
+                    "{}: {}[{}] = {v:e} {}: beyond {} (a real calibration's deltas are far smaller)",
+                    at(),
+                    KEYS[slot],
+                    i + 1,
+                    bound.1,
+                    bound.2
+                ));
+            }
             let values: [f64; JOINTS] = values.try_into().map_err(|v: Vec<f64>| {
                 crate::refused!(
                     "{}: {} has {} values, expected {JOINTS}",

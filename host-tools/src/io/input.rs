@@ -7,7 +7,7 @@
 //! before a byte of it is parsed.
 //!
 //! Two kinds, two default limits: [`Input::Data`] (tracker data, candidate configurations, JSON
-//! reports: 512 MiB, which holds some three million poses of our CSV) and [`Input::Document`]
+//! reports: 1 GiB, which holds some four million 6-DoF poses of our CSV) and [`Input::Document`]
 //! (robot files, data profiles, UR calibrations: 16 MiB, far beyond any real one). A user with a
 //! larger file raises both with `calib --max-input-mb <MiB>` ([`set_limit_mib`]).
 
@@ -25,7 +25,7 @@ pub enum Input {
 }
 
 /// Default limit of [`Input::Data`], bytes.
-pub const DATA_LIMIT: u64 = 512 << 20;
+pub const DATA_LIMIT: u64 = 1 << 30;
 /// Default limit of [`Input::Document`], bytes.
 pub const DOCUMENT_LIMIT: u64 = 16 << 20;
 

@@ -539,10 +539,11 @@ pub fn prepare(
     let mut model = measured_model(&fitted, inputs, "fitted")?;
     model.mask = inputs.model.mask;
     let kinematics = Kinematics::nominal(&model.robot)?;
-    let frames_fit_rms_mm = crate::measurement::statistics::table3(&kinematics, inputs)
-        .0
-        .position_mm
-        .rms;
+    let frames_fit_rms_mm =
+        crate::measurement::statistics::table3(&kinematics, &inputs.measurements)
+            .0
+            .position_mm
+            .rms;
     let given = inputs.file.clone();
     for other in others.iter_mut() {
         other.file = fitted.clone();
@@ -574,7 +575,7 @@ pub(crate) fn check_base_frame(
     dataset: &crate::measurement::dataset::Dataset,
 ) -> crate::Result<()> {
     let kinematics = Kinematics::nominal(&dataset.model.robot)?;
-    let rms = crate::measurement::statistics::table3(&kinematics, dataset)
+    let rms = crate::measurement::statistics::table3(&kinematics, &dataset.measurements)
         .0
         .position_mm
         .rms;

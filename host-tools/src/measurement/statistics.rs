@@ -71,11 +71,14 @@ impl Table3 {
     }
 }
 
-/// Table 3 statistics of `kinematics` on `dataset`, and `|dp|` per pose (mm).
-pub(crate) fn table3(kinematics: &Kinematics<f64, Dyn>, dataset: &Dataset) -> (Table3, Vec<f64>) {
+/// Table 3 statistics of `kinematics` on `measurements`, and `|dp|` per pose (mm).
+pub(crate) fn table3<'a>(
+    kinematics: &Kinematics<f64, Dyn>,
+    measurements: impl IntoIterator<Item = &'a calib_core::identify::objective::Measurement<f64, Dyn>>,
+) -> (Table3, Vec<f64>) {
     let mut stats = PoseStatistics::default();
-    let mut per_pose = Vec::with_capacity(dataset.measurements.len());
-    for m in &dataset.measurements {
+    let mut per_pose = Vec::new();
+    for m in measurements {
         let error = m.error_of(&kinematics.forward_angles(&m.angles));
         stats.add(&error, m.rotation.is_some());
         per_pose.push(error.position.norm());
@@ -103,5 +106,5 @@ pub(crate) fn orientation_per_pose(
 /// Table 3 statistics of the dataset's own robot (nominal or identified) on its measurements.
 pub fn evaluate(dataset: &Dataset) -> crate::Result<Table3> {
     let kinematics = Kinematics::nominal(&dataset.model.robot)?;
-    Ok(table3(&kinematics, dataset).0)
+    Ok(table3(&kinematics, &dataset.measurements).0)
 }
