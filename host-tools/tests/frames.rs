@@ -116,3 +116,68 @@ fn frames_and_geometry_reach_the_reference_optimum() {
         assert!(rms_core < 0.06, "{rms_core}");
     }
 }
+
+/// Issue 39, N12: large geometric errors are not a wrong frame. The 12 poses of
+/// er10l-c10-sim32.csv (in the base frame, the paper's Table 2 errors) that the nominal model
+/// misses most (20.3 mm RMS) were refused as "in another frame" although registering them
+/// explains them only 1.8 times better (11.1 mm); now they calibrate in the base frame and the
+/// identified errors are Table 2's. Data in a tracker frame are still refused
+/// (`real_cell::tracker_data_calibrate_export_compensate_reaches_the_targets`).
+#[test]
+fn n12_large_geometric_errors_in_the_base_frame_are_not_refused() {
+    use calib_core::Kinematics;
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/data/er10l-c10-sim32.csv");
+    let dataset =
+        host_tools::measurement::dataset::Dataset::load(Path::new(ROBOT), Path::new(data)).unwrap();
+    let nominal = Kinematics::nominal(&dataset.model.robot).unwrap();
+    let mut misses: Vec<(f64, u64)> = dataset
+        .measurements
+        .iter()
+        .zip(&dataset.data.records)
+        .map(|(m, r)| {
+            let error = m.error_of(&nominal.forward_angles(&m.angles));
+            (error.position.norm(), r.line)
+        })
+        .collect();
+    misses.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let worst: Vec<u64> = misses.iter().take(12).map(|(_, line)| *line).collect();
+    let rms = (misses.iter().take(12).map(|(m, _)| m * m).sum::<f64>() / 12.0).sqrt();
+    assert!(rms > 20.0, "{rms} mm RMS: beyond the registration limit");
+    let text = std::fs::read_to_string(data).unwrap();
+    let kept: String = text
+        .lines()
+        .enumerate()
+        .filter(|(i, l)| {
+            l.starts_with('#') || l.starts_with("id,") || worst.contains(&(*i as u64 + 1))
+        })
+        .map(|(_, l)| format!("{l}\n"))
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("worst.csv");
+    std::fs::write(&file, kept).unwrap();
+    let out = dir.path().join("identified.toml");
+    let stdout = common::ok(&common::calib(&[
+        "calibrate",
+        "--robot",
+        ROBOT,
+        "--data",
+        file.to_str().unwrap(),
+        "--method",
+        "lm",
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    assert!(stdout.contains("(12 poses)"), "{stdout}");
+    let identified = RobotFile::read(&out).unwrap();
+    let errors = identified.calibration.unwrap().errors;
+    let table2 = calib_core::model::paper::table2::<f64>();
+    for (j, joint) in table2.joints.iter().enumerate() {
+        let da = errors[&format!("da{}", j + 1)].as_float().unwrap();
+        assert!(
+            (da - joint.da).abs() < 1e-6,
+            "da{} {da} mm, Table 2 {} mm",
+            j + 1,
+            joint.da
+        );
+    }
+}

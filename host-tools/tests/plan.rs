@@ -626,3 +626,117 @@ fn huge_counts_and_a_core_above_the_poses_are_refused() {
         assert!(!Path::new(out).exists());
     }
 }
+
+/// Issue 39, N15 and N17: `--generate` draws within limits beyond half a turn (joint 1 limited to
+/// [190, 350] deg: every candidate was clamped to 180 deg and then refused as outside the limits,
+/// "<memory>:1"); a candidate file's configuration outside the limits is refused with the file's
+/// line; `--box-mm` with `--candidates` (silently ignored) and `--k` outside [1e-6, 1e12]
+/// mm^2/rad^2 (1e300 accepted, 0 blamed on the noise or the data's rank) are refused, naming the
+/// option.
+#[test]
+fn limits_beyond_half_a_turn_and_options_that_were_ignored() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let robot = d.join("robot.toml");
+    let text = std::fs::read_to_string(ROBOT).unwrap();
+    std::fs::write(
+        &robot,
+        text.replacen(
+            "limits_deg = [-360.0, 360.0]",
+            "limits_deg = [190.0, 350.0]",
+            1,
+        ),
+    )
+    .unwrap();
+    let robot = robot.to_str().unwrap();
+    let out = d.join("plan.csv");
+    let out = out.to_str().unwrap();
+    let plan = |extra: &[&str]| {
+        let mut args = vec![
+            "plan",
+            "--robot",
+            robot,
+            "--measure",
+            "pose",
+            "--noise-mm",
+            "0.02",
+            "--poses",
+            "30",
+            "--out",
+            out,
+        ];
+        args.extend_from_slice(extra);
+        common::calib(&args)
+    };
+    common::ok(&plan(&["--generate", "300"]));
+    let mut reader = csv::ReaderBuilder::new()
+        .comment(Some(b'#'))
+        .from_path(out)
+        .unwrap();
+    let column = reader
+        .headers()
+        .unwrap()
+        .iter()
+        .position(|h| h == "q1_deg")
+        .unwrap();
+    let mut rows = 0;
+    for record in reader.records() {
+        let q1: f64 = record.unwrap()[column].parse().unwrap();
+        assert!((190.0..=350.0).contains(&q1), "q1 = {q1} deg");
+        rows += 1;
+    }
+    assert!(
+        rows >= 30,
+        "{rows} poses: 30 fitted and the verification poses"
+    );
+    std::fs::remove_file(out).unwrap();
+    // A candidate outside the limits, on the file's third line.
+    let candidates = d.join("candidates.csv");
+    let mut text = String::from("id,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n");
+    for i in 0..40 {
+        let q1 = if i == 1 {
+            100.0
+        } else {
+            200.0 + 3.0 * i as f64
+        };
+        text.push_str(&format!(
+            "c{i},{q1},{},{},{},{},{}\n",
+            i * 2,
+            -i,
+            i * 3,
+            10 + i,
+            i
+        ));
+    }
+    std::fs::write(&candidates, text).unwrap();
+    let candidates = candidates.to_str().unwrap();
+    for (extra, expected, status) in [
+        (
+            vec!["--candidates", candidates],
+            "candidates.csv:3: candidate c1: q1 = 100.0000 deg is outside the joint limits [190, 350] deg",
+            1,
+        ),
+        (
+            vec!["--candidates", candidates, "--box-mm", "0,1,0,1,0,1"],
+            "--box-mm selects among generated candidates",
+            1,
+        ),
+        (
+            vec!["--generate", "100", "--k", "1e300"],
+            "invalid value '1e300' for '--k <K>': 1e300 mm^2/rad^2 is outside [1e-6, 1e12]",
+            2,
+        ),
+        (
+            vec!["--generate", "100", "--k", "0"],
+            "invalid value '0' for '--k <K>'",
+            2,
+        ),
+    ] {
+        let result = plan(&extra);
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert_eq!(result.status.code(), Some(status), "{extra:?}: {stderr}");
+        assert!(stderr.contains(expected), "{extra:?}: {stderr}");
+        assert!(!stderr.contains("<memory>"), "{stderr}");
+        assert!(!Path::new(out).exists());
+    }
+}

@@ -300,8 +300,7 @@ pub(crate) fn add_joint_maps(
         })
     });
     let ranges = reading_ranges(&poses, dataset.model.robot.joints.len());
-    // Maps whose cross-validation could not run (too few poses, a fold that failed) have
-    // nothing to show that they predict new poses: kept at zero, like maps that do not help.
+    // Maps that could not be cross-validated show nothing: kept at zero like maps that do not help.
     let kept_at_zero = cross_validation.is_none_or(|c| c.kept_at_zero);
     let geometric_calibration = result.calibration;
     let geometric_validation = result.validation;
@@ -515,6 +514,29 @@ fn with_maps(
 }
 
 impl JointMapsReport {
+    /// The lines on the maps' cross-validation (or why it could not run).
+    fn cross_validation_text(&self) -> String {
+        let mut text = String::new();
+        if let Some(cv) = &self.cross_validation {
+            text.push_str(&format!(
+                "cross-validation ({} folds of the calibration poses): mean |dp| {:.4} mm with the maps, {:.4} mm with the geometry alone\n",
+                cv.folds, cv.maps_mean_mm, cv.geometric_mean_mm
+            ));
+            if cv.kept_at_zero {
+                text.push_str(
+                    "the maps do not predict left-out poses clearly (5 %) better than the geometry alone: every map is kept at zero and \
+                     the result is the geometric calibration (more poses, or wider joint ranges, may support maps)\n",
+                );
+            }
+        } else {
+            text.push_str(
+                "the maps could not be cross-validated (too few calibration poses, or a fold's identification failed): every map is \
+                 kept at zero and the result is the geometric calibration (more poses may support maps)\n",
+            );
+        }
+        text
+    }
+
     /// The stage in words: the model chosen, each joint's map, and the geometric calibration's
     /// statistics for comparison.
     pub fn text(&self) -> String {
@@ -563,23 +585,7 @@ impl JointMapsReport {
                 text.push_str(&format!("  {name:<24} {value:>9.3} +- {sd:.3}\n"));
             }
         }
-        if let Some(cv) = &self.cross_validation {
-            text.push_str(&format!(
-                "cross-validation ({} folds of the calibration poses): mean |dp| {:.4} mm with the maps, {:.4} mm with the geometry alone\n",
-                cv.folds, cv.maps_mean_mm, cv.geometric_mean_mm
-            ));
-            if cv.kept_at_zero {
-                text.push_str(
-                    "the maps do not predict left-out poses clearly (5 %) better than the geometry alone: every map is kept at zero and \
-                     the result is the geometric calibration (more poses, or wider joint ranges, may support maps)\n",
-                );
-            }
-        } else {
-            text.push_str(
-                "the maps could not be cross-validated (too few calibration poses, or a fold's identification failed): every map is \
-                 kept at zero and the result is the geometric calibration (more poses may support maps)\n",
-            );
-        }
+        text.push_str(&self.cross_validation_text());
         if !self.left_out_lines.is_empty() {
             text.push_str(&format!(
                 "left out of the maps as outliers of the geometric fit: lines {:?}\n",

@@ -92,7 +92,7 @@ pub struct CalibrateOptions {
     #[arg(long, default_value_t = 2.05)]
     pub c2: f64,
     /// Orientation weight k of eq. (7), mm^2/rad^2: 1e6 makes 1 mrad weigh like 1 mm.
-    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K)]
+    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K, value_parser = crate::cli::orientation_weight)]
     pub k: f64,
     /// Seed of the swarm's random numbers r1, r2.
     #[arg(long, default_value_t = 0)]

@@ -14,7 +14,7 @@ pub struct CheckOptions {
     #[arg(long, value_enum)]
     pub frames: Option<crate::measurement::frames::Frames>,
     /// Orientation weight k, mm^2/rad^2 (as for calibrate).
-    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K)]
+    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K, value_parser = crate::cli::orientation_weight)]
     pub k: f64,
     /// Print JSON instead of text.
     #[arg(long)]

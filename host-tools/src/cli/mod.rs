@@ -53,6 +53,27 @@ impl InputFiles {
     }
 }
 
+/// Smallest and largest orientation weight `--k` accepted, mm^2/rad^2: beyond them one kind of
+/// row drowns the other in rounding (the paper's 1e6 makes 1 mrad weigh like 1 mm).
+pub const K_RANGE: [f64; 2] = [1e-6, 1e12];
+
+/// Parses `--k`, the orientation weight of eq. (7): a number in [`K_RANGE`].
+pub fn orientation_weight(text: &str) -> Result<f64, String> {
+    let k: f64 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("\"{text}\" is not a number"))?;
+    if (K_RANGE[0]..=K_RANGE[1]).contains(&k) {
+        Ok(k)
+    } else {
+        Err(format!(
+            "{k:e} mm^2/rad^2 is outside [{:e}, {:e}]: 1e6 makes 1 mrad weigh like 1 mm; for data \
+             without orientations read them position-only (a profile without orientation columns)",
+            K_RANGE[0], K_RANGE[1]
+        ))
+    }
+}
+
 /// Prints `text` to standard output. A closed pipe (the reader has gone, as with `| head`) ends
 /// the printing quietly; any other write error (such as a full disk) is an error. Never panics.
 pub fn print(text: &str) -> anyhow::Result<()> {

@@ -73,7 +73,7 @@ pub struct PlanOptions {
     #[arg(long, value_name = "FILE", conflicts_with = "noise_mm")]
     pub noise_from: Option<PathBuf>,
     /// Orientation weight k, mm^2/rad^2 (as for calibrate).
-    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K)]
+    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K, value_parser = crate::cli::orientation_weight)]
     pub k: f64,
     /// Seed of the random fill and verification poses.
     #[arg(long, default_value_t = 1)]
@@ -144,12 +144,35 @@ fn noise_of_report(path: &std::path::Path) -> anyhow::Result<(f64, f64)> {
 fn candidates(options: &PlanOptions, file: &RobotFile) -> anyhow::Result<Vec<(String, Vec<f64>)>> {
     let candidates: Vec<(String, Vec<f64>)> = match (&options.candidates, options.generate) {
         (Some(path), _) => {
+            if options.box_mm.is_some() {
+                bail!(
+                    "--box-mm selects among generated candidates (--generate); with --candidates, give only the configurations to choose from"
+                );
+            }
             let profile = DataProfile::load(options.profile.as_deref())?;
-            TrackerData::read_joints(path, &profile)?
-                .records
-                .into_iter()
-                .map(|r| (r.id, r.q))
-                .collect()
+            let records = TrackerData::read_joints(path, &profile)?.records;
+            let robot = file.to_model(&options.robot)?.robot;
+            for r in &records {
+                let outside =
+                    r.q.iter()
+                        .zip(&robot.limits)
+                        .enumerate()
+                        .find(|(_, (q, l))| !l.contains(**q));
+                if let Some((j, (q, l))) = outside {
+                    bail!(
+                        "{}:{}: candidate {}: q{} = {:.4} deg is outside the joint limits [{}, {}] deg of {}; remove it or correct the limits",
+                        path.display(),
+                        r.line,
+                        r.id,
+                        j + 1,
+                        q.to_degrees(),
+                        l.lower.to_degrees(),
+                        l.upper.to_degrees(),
+                        options.robot.display()
+                    );
+                }
+            }
+            records.into_iter().map(|r| (r.id, r.q)).collect()
         }
         (None, Some(count)) => {
             let box_mm = match options.box_mm.as_deref() {

@@ -20,7 +20,7 @@ pub struct VerifyOptions {
     #[arg(long, default_value_t = 0)]
     pub validate_seed: u64,
     /// Orientation weight k, mm^2/rad^2.
-    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K)]
+    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K, value_parser = crate::cli::orientation_weight)]
     pub k: f64,
     /// Print JSON instead of text.
     #[arg(long)]

@@ -50,6 +50,55 @@ const BOUNDS: [(f64, &str, &str); 4] = [
 /// Two turns, rad: the bound of an angle delta (ur_calibration's test set 2 has 7.13 rad).
 const TWO_TURNS: f64 = 2.0 * std::f64::consts::TAU;
 
+/// The keys of `[mounting]`, in the order of [`BOUNDS`].
+const KEYS: [&str; 4] = ["delta_theta", "delta_a", "delta_d", "delta_alpha"];
+
+/// The six values of key `KEYS[slot]` from the text after its `=`, each finite and within its
+/// bound; `at` (`file:line`) names the place in errors.
+fn values_of(value: &str, slot: usize, at: &str) -> crate::Result<[f64; JOINTS]> {
+    let list = value
+        .trim()
+        .strip_prefix('[')
+        .and_then(|v| v.strip_suffix(']'))
+        .with_context(|| format!("{}: {} must be a list [v1, ..., v6]", at, KEYS[slot]))?;
+    let values = list
+        .split(',')
+        .map(|v| {
+            v.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .with_context(|| {
+                    format!(
+                        "{}: {}: \"{}\" is not a finite number",
+                        at,
+                        KEYS[slot],
+                        v.trim()
+                    )
+                })
+        })
+        .collect::<crate::Result<Vec<f64>>>()?;
+    let bound = BOUNDS[slot];
+    if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| v.abs() > bound.0) {
+        return Err(crate::refused!(
+            "{}: {}[{}] = {v:e} {}: beyond {} (a real calibration's deltas are far smaller)",
+            at,
+            KEYS[slot],
+            i + 1,
+            bound.1,
+            bound.2
+        ));
+    }
+    values.try_into().map_err(|v: Vec<f64>| {
+        crate::refused!(
+            "{}: {} has {} values, expected {JOINTS}",
+            at,
+            KEYS[slot],
+            v.len()
+        )
+    })
+}
+
 /// The deltas of a `calibration.conf` (m, rad), joint 1 first.
 #[derive(Clone, Debug, PartialEq)]
 pub struct UrCalibration {
@@ -76,7 +125,6 @@ impl UrCalibration {
     pub fn parse(text: &str, path: &Path) -> crate::Result<Self> {
         let mut section = String::new();
         let mut found: [Option<[f64; JOINTS]>; 4] = [None; 4];
-        const KEYS: [&str; 4] = ["delta_theta", "delta_a", "delta_d", "delta_alpha"];
         for (number, raw) in text.lines().enumerate() {
             let line = raw.split('#').next().unwrap_or("").trim();
             let at = || format!("{}:{}", path.display(), number + 1);
@@ -93,49 +141,7 @@ impl UrCalibration {
             if section != "mounting" {
                 continue;
             }
-            let list = value
-                .trim()
-                .strip_prefix('[')
-                .and_then(|v| v.strip_suffix(']'))
-                .with_context(|| {
-                    format!("{}: {} must be a list [v1, ..., v6]", at(), KEYS[slot])
-                })?;
-            let values = list
-                .split(',')
-                .map(|v| {
-                    v.trim()
-                        .parse::<f64>()
-                        .ok()
-                        .filter(|v| v.is_finite())
-                        .with_context(|| {
-                            format!(
-                                "{}: {}: \"{}\" is not a finite number",
-                                at(),
-                                KEYS[slot],
-                                v.trim()
-                            )
-                        })
-                })
-                .collect::<crate::Result<Vec<f64>>>()?;
-            let bound = BOUNDS[slot];
-            if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| v.abs() > bound.0) {
-                return Err(crate::refused!(
-                    "{}: {}[{}] = {v:e} {}: beyond {} (a real calibration's deltas are far smaller)",
-                    at(),
-                    KEYS[slot],
-                    i + 1,
-                    bound.1,
-                    bound.2
-                ));
-            }
-            let values: [f64; JOINTS] = values.try_into().map_err(|v: Vec<f64>| {
-                crate::refused!(
-                    "{}: {} has {} values, expected {JOINTS}",
-                    at(),
-                    KEYS[slot],
-                    v.len()
-                )
-            })?;
+            let values = values_of(value, slot, &at())?;
             if found[slot].replace(values).is_some() {
                 return Err(crate::refused!("{}: {} is given twice", at(), KEYS[slot]));
             }

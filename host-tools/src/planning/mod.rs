@@ -947,7 +947,7 @@ pub fn leverages(
         .collect())
 }
 
-/// Candidate configurations spread over the joint limits (unlimited joints: +-180 deg): `count`
+/// Candidate configurations spread over the joint limits (an unlimited joint: +-180 deg): `count`
 /// points of a Halton sequence (the core's), skipping its first point; with `box_mm` only those
 /// whose nominal tool point lies in the box `[x_min, x_max, y_min, y_max, z_min, z_max]` of the
 /// base frame (at most 100 times `count` points are tried).
@@ -970,7 +970,15 @@ pub fn generate(
     let bounds: Vec<(f64, f64)> = robot
         .limits
         .iter()
-        .map(|l| (l.lower.max(-PI), l.upper.min(PI)))
+        .map(|l| {
+            // A joint's limits as given (they may lie beyond +-180 deg, as [190, 350]); an
+            // unlimited joint turns once around.
+            if l.lower.is_finite() && l.upper.is_finite() {
+                (l.lower, l.upper)
+            } else {
+                (l.lower.max(-PI), l.upper.min(PI))
+            }
+        })
         .collect();
     let mut out = Vec::with_capacity(count);
     let mut point = vec![0.0; joints];
