@@ -947,6 +947,18 @@ pub fn leverages(
         .collect())
 }
 
+/// The range a joint's candidates are drawn from, rad: its limits `[lower, upper]` when they
+/// span at most a turn (wherever they lie, as [190, 350] deg), else the turn within them nearest
+/// to [-180, 180] deg (readings a turn apart give the same pose).
+fn one_turn(lower: f64, upper: f64) -> (f64, f64) {
+    if upper - lower <= 2.0 * PI {
+        (lower, upper)
+    } else {
+        let start = (-PI).clamp(lower, upper - 2.0 * PI);
+        (start, start + 2.0 * PI)
+    }
+}
+
 /// Candidate configurations spread over the joint limits (an unlimited joint: +-180 deg): `count`
 /// points of a Halton sequence (the core's), skipping its first point; with `box_mm` only those
 /// whose nominal tool point lies in the box `[x_min, x_max, y_min, y_max, z_min, z_max]` of the
@@ -970,15 +982,7 @@ pub fn generate(
     let bounds: Vec<(f64, f64)> = robot
         .limits
         .iter()
-        .map(|l| {
-            // A joint's limits as given (they may lie beyond +-180 deg, as [190, 350]); an
-            // unlimited joint turns once around.
-            if l.lower.is_finite() && l.upper.is_finite() {
-                (l.lower, l.upper)
-            } else {
-                (l.lower.max(-PI), l.upper.min(PI))
-            }
-        })
+        .map(|l| one_turn(l.lower, l.upper))
         .collect();
     let mut out = Vec::with_capacity(count);
     let mut point = vec![0.0; joints];
@@ -1120,5 +1124,24 @@ pub(crate) fn check_plan(
         largest_leverage,
         largest_residual,
         leverage_note,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::one_turn;
+
+    #[test]
+    fn candidates_span_the_limits_or_one_turn_within_them() {
+        let deg = |(a, b): (f64, f64)| (a.to_degrees().round(), b.to_degrees().round());
+        let r = f64::to_radians;
+        assert_eq!(deg(one_turn(r(190.0), r(350.0))), (190.0, 350.0));
+        assert_eq!(deg(one_turn(r(-360.0), r(360.0))), (-180.0, 180.0));
+        assert_eq!(deg(one_turn(r(-370.0), r(0.0))), (-360.0, 0.0));
+        assert_eq!(deg(one_turn(r(100.0), r(900.0))), (100.0, 460.0));
+        assert_eq!(
+            deg(one_turn(f64::NEG_INFINITY, f64::INFINITY)),
+            (-180.0, 180.0)
+        );
     }
 }
