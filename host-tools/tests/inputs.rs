@@ -538,3 +538,67 @@ fn n9_inputs_over_their_size_limit_are_refused_with_the_option_to_raise_it() {
     assert!(stderr.contains("more than the 10000000 poses"), "{stderr}");
     assert!(!truth.exists());
 }
+
+/// Issue 39, N19 (the rest): a robot file whose `[calibration.errors]` holds `da2 = 1e39` is
+/// refused by every command that reads it (`export --format toml` copied it on); a run that
+/// fails leaves no directory it created for its outputs; N16: an output name of 250 bytes (legal:
+/// the limit is 255) is written, although its temporary's name would be longer.
+#[test]
+fn n19_implausible_calibration_errors_and_directories_of_a_failed_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let robot = d.join("robot.toml");
+    std::fs::write(
+        &robot,
+        format!("{ER10L_C10_TOML}\n[calibration]\nmethod = \"lm\"\nnominal = \"x\"\n[calibration.errors]\nda2 = 1e39\n"),
+    )
+    .unwrap();
+    let out = d.join("new/deeper/out.toml");
+    let result = calib(&[
+        "export",
+        "--params",
+        robot.to_str().unwrap(),
+        "--format",
+        "toml",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("[calibration.errors]: da2 = 1e39 is beyond the plausible range"),
+        "{stderr}"
+    );
+    // A failure after the outputs' directories were made: the second output replaces an input.
+    let result = calib(&[
+        "simulate",
+        "--robot",
+        ROBOT,
+        "--out",
+        out.to_str().unwrap(),
+        "--truth-out",
+        ROBOT,
+    ]);
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(1), "{stderr}");
+    assert!(!d.join("new").exists(), "{stderr}");
+    assert_eq!(std::fs::read_dir(d).unwrap().count(), 1);
+    // N16: a name of 250 bytes.
+    let long = d.join(format!("{}.toml", "n".repeat(245)));
+    let result = calib(&[
+        "export",
+        "--params",
+        ROBOT,
+        "--format",
+        "toml",
+        "--out",
+        long.to_str().unwrap(),
+    ]);
+    assert!(
+        result.status.success(),
+        "{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    assert!(long.exists());
+    assert_eq!(std::fs::read_dir(d).unwrap().count(), 2);
+}

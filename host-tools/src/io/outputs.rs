@@ -111,10 +111,32 @@ fn untrack(path: &Path) {
         .retain(|p| p != path);
 }
 
+/// Longest target name kept whole in the names of its temporaries, bytes: a temporary adds up to
+/// 40 bytes (`.`, `.calib-<pid>-<n>.tmp.png`) and a file name holds at most 255 on common file
+/// systems, so a legal target name of up to 255 bytes still has legal temporaries.
+const LONGEST_STEM: usize = 200;
+
+/// The target's name as its temporaries carry it (`.<stem>.calib-<pid>-<n>.tmp`): the name
+/// itself up to [`LONGEST_STEM`] bytes, else its start and a 64-bit FNV-1a hash of the whole name
+/// (distinct targets keep distinct temporaries).
+fn temporary_stem(file_name: &str) -> String {
+    if file_name.len() <= LONGEST_STEM {
+        return file_name.to_string();
+    }
+    let mut cut = LONGEST_STEM - 17;
+    while !file_name.is_char_boundary(cut) {
+        cut -= 1;
+    }
+    let hash = file_name.bytes().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    });
+    format!("{}~{hash:016x}", &file_name[..cut])
+}
+
 /// Removes the temporaries that processes which have ended left beside `file_name` in `dir`
 /// (killed while writing it). Only names of our own pattern, of processes no longer running.
 fn remove_stale_temporaries(dir: &Path, file_name: &str) {
-    let prefix = format!(".{file_name}.calib-");
+    let prefix = format!(".{}.calib-", temporary_stem(file_name));
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
@@ -170,7 +192,7 @@ impl Journal {
             let (Some(name), Some(dir)) = (target.file_name(), target.parent()) else {
                 return false;
             };
-            let prefix = format!(".{}.calib-{pid}-", name.to_string_lossy());
+            let prefix = format!(".{}.calib-{pid}-", temporary_stem(&name.to_string_lossy()));
             temporary.parent() == Some(dir)
                 && temporary
                     .file_name()
@@ -370,6 +392,9 @@ pub struct Outputs {
     /// The command's inputs, resolved: no output may replace one.
     inputs: Vec<(String, PathBuf)>,
     staged: Vec<Staged>,
+    /// Directories created for the outputs, outermost first: removed again (when empty) unless
+    /// the outputs are committed.
+    created_dirs: Vec<PathBuf>,
 }
 
 impl Outputs {
@@ -381,6 +406,7 @@ impl Outputs {
                 .map(|(name, path)| ((*name).to_string(), resolved(path)))
                 .collect(),
             staged: Vec::new(),
+            created_dirs: Vec::new(),
         }
     }
 
@@ -417,12 +443,12 @@ impl Outputs {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        std::fs::create_dir_all(&dir)
-            .with_context(|| format!("creating directory {}", dir.display()))?;
+        self.create_dirs(&dir)?;
         let file_name = target
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
+        let stem = temporary_stem(&file_name);
         complete_interrupted_commits(&dir);
         remove_stale_temporaries(&dir, &file_name);
         // A new file, created by this process with the permissions of the file it replaces (a
@@ -438,7 +464,7 @@ impl Outputs {
         let mode = None;
         let mut created = None;
         for n in self.staged.len()..self.staged.len() + MAX_TEMPORARY_TRIES {
-            let temporary = dir.join(format!(".{file_name}.calib-{}-{n}.tmp", std::process::id()));
+            let temporary = dir.join(format!(".{stem}.calib-{}-{n}.tmp", std::process::id()));
             match create_tracked(&temporary, mode) {
                 Ok(file) => {
                     created = Some((temporary, file));
@@ -453,7 +479,7 @@ impl Outputs {
         }
         let Some((temporary, file)) = created else {
             return Err(crate::refused!(
-                "writing {} ({name}): {MAX_TEMPORARY_TRIES} names for its temporary file are taken in {}; remove the files named .{file_name}.calib-*.tmp there",
+                "writing {} ({name}): {MAX_TEMPORARY_TRIES} names for its temporary file are taken in {}; remove the files named .{stem}.calib-*.tmp there",
                 path.display(),
                 dir.display()
             ));
@@ -562,18 +588,44 @@ impl Outputs {
             Ok(())
         })();
         BUSY.store(false, Ordering::SeqCst);
+        if committed.is_ok() {
+            self.created_dirs.clear();
+        }
         drop(self);
         exit_if_interrupted();
         committed.map(|()| written)
     }
+
+    /// Creates `dir` and its missing ancestors, remembering those it created.
+    fn create_dirs(&mut self, dir: &Path) -> crate::Result<()> {
+        let missing: Vec<&Path> = dir
+            .ancestors()
+            .take_while(|d| !d.as_os_str().is_empty() && !d.exists())
+            .collect();
+        for d in missing.into_iter().rev() {
+            match std::fs::create_dir(d) {
+                Ok(()) => self.created_dirs.push(d.to_path_buf()),
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && d.is_dir() => {}
+                Err(e) => {
+                    return Err(crate::Error::from(e)
+                        .context(format!("creating directory {}", d.display())));
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Drop for Outputs {
-    /// Outputs not committed leave nothing behind.
+    /// Outputs not committed leave nothing behind: no temporary, and no directory created for
+    /// them (one that holds anything else stays).
     fn drop(&mut self) {
         for staged in &self.staged {
             let _ = std::fs::remove_file(&staged.temporary);
             untrack(&staged.temporary);
+        }
+        for dir in self.created_dirs.iter().rev() {
+            let _ = std::fs::remove_dir(dir);
         }
     }
 }

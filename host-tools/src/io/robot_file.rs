@@ -54,8 +54,13 @@ fn plausible(field: &str, value: f64, max: f64, unit: &str) -> Result<(), String
         return Err(format!("{field} = {value} is not a finite number"));
     }
     if value.abs() > max {
+        let shown = if value.abs() < 1e9 {
+            value.to_string()
+        } else {
+            format!("{value:e}")
+        };
         return Err(format!(
-            "{field} = {value} is beyond the plausible range of +-{max} {unit}; check the value and its unit"
+            "{field} = {shown} is beyond the plausible range of +-{max} {unit}; check the value and its unit"
         ));
     }
     Ok(())
@@ -371,6 +376,9 @@ impl RobotFile {
             tool: frame_pose(self.tool.as_ref(), "tool").map_err(invalid)?,
         };
         robot.validate().map_err(|e| invalid(e.to_string()))?;
+        // The errors a file of identified parameters lists: numbers within the joints' own
+        // bounds, so that a file is never written on from a section it could not stand behind.
+        self.calibration_errors(path)?;
         if let Some(maps) = &self.joint_maps {
             maps.to_maps(count.value()).map_err(invalid)?;
         }
