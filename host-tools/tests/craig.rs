@@ -238,3 +238,25 @@ fn a_file_mixing_conventions_is_refused_with_the_fix() {
         .to_string();
     assert!(e.contains("has no joints"), "{e}");
 }
+
+/// Issue 39, N18: an error in a Craig row names that row. Row 4's `a_prev_mm` becomes joint 3's
+/// `a_mm` in our convention, and a value of 1e300 was reported as joint 3's.
+#[test]
+fn an_error_in_a_craig_row_names_the_row() {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/robots/franka-panda.toml"
+    ))
+    .unwrap()
+    .replacen("a_prev_mm = 82.5", "a_prev_mm = 1e300", 1);
+    let path = Path::new("panda.toml");
+    let e = RobotFile::parse(&text, path)
+        .and_then(|f| f.to_model(path))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("craig_joint 4: a_prev_mm = 1e300 is beyond the plausible range"),
+        "{e}"
+    );
+    assert!(!e.contains("joint 3"), "{e}");
+}

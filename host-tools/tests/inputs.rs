@@ -602,3 +602,76 @@ fn n19_implausible_calibration_errors_and_directories_of_a_failed_run() {
     assert!(long.exists());
     assert_eq!(std::fs::read_dir(d).unwrap().count(), 2);
 }
+
+/// Issue 39, N18: messages name the real cause. A tracker frame of 1e300 mm is refused as the
+/// `--tracker-xyz-mm` given, not as the robot file's `[base]`; measured points on one line and
+/// joint readings the model turns into one point are told apart (both were "the measured points
+/// do not span a plane").
+#[test]
+fn n18_messages_name_the_real_cause() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = calib(&[
+        "simulate",
+        "--robot",
+        ROBOT,
+        "--tracker-xyz-mm",
+        "1e300,0,0",
+        "--out",
+        d.join("s.csv").to_str().unwrap(),
+        "--truth-out",
+        d.join("t.toml").to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("--tracker-xyz-mm: 1e300 mm is beyond") && !stderr.contains("[base]"),
+        "{stderr}"
+    );
+    let head = "q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,x_mm,y_mm,z_mm\n";
+    // Varied joints, measured points on the x axis.
+    let mut on_a_line = String::from(head);
+    // Only joint 6 turns: the flange centre, the tool point of position-only data, stays put.
+    let mut one_point = String::from(head);
+    for i in 0..12 {
+        let f = f64::from(i);
+        on_a_line.push_str(&format!(
+            "{},{},{},{},{},{},{},0,0\n",
+            10.0 * f,
+            -5.0 * f,
+            3.0 * f,
+            7.0 * f,
+            20.0 + f,
+            f,
+            100.0 * f
+        ));
+        one_point.push_str(&format!(
+            "10,20,30,40,50,{},{},{},{}\n",
+            25.0 * f,
+            1000.0 + 50.0 * f.sin(),
+            200.0 * f.cos(),
+            300.0 + 10.0 * f
+        ));
+    }
+    for (text, expected) in [
+        (on_a_line, "the 12 measured points lie on one line"),
+        (
+            one_point,
+            "the nominal model puts the tool points of the 12 joint readings on one line",
+        ),
+    ] {
+        std::fs::write(d.join("data.csv"), text).unwrap();
+        let out = calib(&[
+            "calibrate",
+            "--robot",
+            ROBOT,
+            "--data",
+            d.join("data.csv").to_str().unwrap(),
+            "--out",
+            d.join("x.toml").to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains(expected), "{expected}: {stderr}");
+    }
+}

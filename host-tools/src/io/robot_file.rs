@@ -276,6 +276,7 @@ impl RobotFile {
                      convention (standard DH in [[joint]], Craig's modified DH in [[craig_joint]])",
                 ));
             }
+            craig::check(&file.craig_joint, file.craig_flange.as_ref()).map_err(|m| invalid(&m))?;
             let (joints, base, tool) = craig::to_standard(
                 &file.craig_joint,
                 file.craig_flange.as_ref(),

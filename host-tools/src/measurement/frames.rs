@@ -105,11 +105,19 @@ pub(crate) struct Registration {
 /// Errors of the registration.
 #[derive(Debug, thiserror::Error)]
 pub enum RegistrationError {
-    /// Fewer than 3 poses or all measured points on a line.
+    /// Fewer than 3 poses.
+    #[error("{0} poses: registering the measurement frame needs at least 3")]
+    TooFewPoses(usize),
+    /// The measured points lie on one line (or on one point).
     #[error(
-        "the measured points do not span a plane ({0} poses); registration needs at least 3 poses that are not on one line"
+        "the {0} measured points lie on one line: registration needs poses whose tool points are not on one line"
     )]
-    Degenerate(usize),
+    MeasuredOnALine(usize),
+    /// The nominal model's tool points of the joint readings lie on one line.
+    #[error(
+        "the nominal model puts the tool points of the {0} joint readings on one line (the poses move too few joints, or the tool point lies on the axes they move): measure poses that move the tool point across a plane"
+    )]
+    ModelledOnALine(usize),
     /// The nominal robot cannot be evaluated.
     #[error("the nominal robot: {0}")]
     Model(#[from] calib_core::KinematicsError),
@@ -153,6 +161,33 @@ pub(crate) fn kabsch(
     Some((rotation, cb - rotation * ca))
 }
 
+/// Why [`kabsch`] found no motion from the model's tool points to the `measured` ones: too few
+/// poses, the measured points on one line, or else the model's.
+fn degenerate(measured: &[Vector3<f64>]) -> RegistrationError {
+    let n = measured.len();
+    if n < 3 {
+        return RegistrationError::TooFewPoses(n);
+    }
+    // The second principal extent of a set of points, relative to its first.
+    let flat = |points: &[Vector3<f64>]| {
+        let centroid = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
+        let mut c = Matrix3::zeros();
+        for p in points {
+            c += (p - centroid) * (p - centroid).transpose();
+        }
+        let mut s = c.symmetric_eigenvalues();
+        s.as_mut_slice().sort_by(|x, y| y.total_cmp(x));
+        // As kabsch's test: its second singular value is at most the product of the two sets'
+        // second extents, so one of them is below 1e-9 of its first in squared extent.
+        !(s[1] > 1e-9 * s[0].max(1e-300))
+    };
+    if flat(measured) {
+        RegistrationError::MeasuredOnALine(n)
+    } else {
+        RegistrationError::ModelledOnALine(n)
+    }
+}
+
 /// The rotation nearest (Frobenius) to `m`.
 pub(crate) fn nearest_rotation(m: &Matrix3<f64>) -> Option<Rotation3<f64>> {
     let svd = m.svd(true, true);
@@ -193,7 +228,7 @@ pub(crate) fn register(
             .iter()
             .map(|f| f.rotation * tool + f.translation.vector)
             .collect();
-        base = kabsch(&points, &measured).ok_or(RegistrationError::Degenerate(n))?;
+        base = kabsch(&points, &measured).ok_or_else(|| degenerate(&measured))?;
         if !identify_tool {
             break;
         }

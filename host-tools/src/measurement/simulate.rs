@@ -127,6 +127,35 @@ impl SimulationConfig {
                 ));
             }
         }
+        // The frames are checked here, by their flags: once in the true robot they would be
+        // blamed on the robot file's [base] or [tool].
+        use crate::io::robot_file::{MAX_ANGLE_DEG, MAX_LENGTH_MM};
+        let tracker = self.tracker.as_ref();
+        for (name, values, max, unit) in [
+            (
+                "--tracker-xyz-mm",
+                tracker.map(|t| t.xyz_mm),
+                MAX_LENGTH_MM,
+                "mm",
+            ),
+            (
+                "--tracker-rpy-deg",
+                tracker.map(|t| t.rpy_deg),
+                MAX_ANGLE_DEG,
+                "deg",
+            ),
+            ("--tool-xyz-mm", self.tool_xyz_mm, MAX_LENGTH_MM, "mm"),
+        ] {
+            if let Some(v) = values
+                .into_iter()
+                .flatten()
+                .find(|v| v.abs() > max || v.is_nan())
+            {
+                return Err(crate::refused!(
+                    "{name}: {v:e} {unit} is beyond +-{max} {unit}; give the frame in mm and deg"
+                ));
+            }
+        }
         Ok(())
     }
 }

@@ -77,6 +77,39 @@ fn frame_entry(frame: &Isometry3<f64>) -> FrameEntry {
     }
 }
 
+/// Checks every value of the Craig tables where the file has it: a `[[craig_joint]]` row's
+/// `a_prev_mm` and `alpha_prev_deg` become the joint before's in our convention, so an error
+/// found after the conversion would name the wrong joint. The message names the row
+/// (`craig_joint 3: a_prev_mm = ...`) or `craig_flange`.
+pub(crate) fn check(
+    joints: &[CraigJointEntry],
+    flange: Option<&CraigFlangeEntry>,
+) -> Result<(), String> {
+    use super::{MAX_ANGLE_DEG, MAX_LENGTH_MM, plausible};
+    for (i, j) in joints.iter().enumerate() {
+        for (field, value, max, unit) in [
+            ("alpha_prev_deg", j.alpha_prev_deg, MAX_ANGLE_DEG, "deg"),
+            ("a_prev_mm", j.a_prev_mm, MAX_LENGTH_MM, "mm"),
+            ("d_mm", j.d_mm, MAX_LENGTH_MM, "mm"),
+            ("theta_offset_deg", j.theta_offset_deg, MAX_ANGLE_DEG, "deg"),
+        ] {
+            plausible(field, value, max, unit)
+                .map_err(|m| format!("craig_joint {}: {m}", i + 1))?;
+        }
+    }
+    if let Some(f) = flange {
+        for (field, value, max, unit) in [
+            ("alpha_prev_deg", f.alpha_prev_deg, MAX_ANGLE_DEG, "deg"),
+            ("a_prev_mm", f.a_prev_mm, MAX_LENGTH_MM, "mm"),
+            ("d_mm", f.d_mm, MAX_LENGTH_MM, "mm"),
+            ("theta_deg", f.theta_deg, MAX_ANGLE_DEG, "deg"),
+        ] {
+            plausible(field, value, max, unit).map_err(|m| format!("craig_flange: {m}"))?;
+        }
+    }
+    Ok(())
+}
+
 /// Our model of a robot published in Craig's convention: the joints in our convention, and the
 /// base and tool frames that absorb what a chain of our joints cannot (`base` and `tool` are the
 /// file's own frames, applied before and after the chain). Frames that stay the identity are
