@@ -179,7 +179,7 @@ fn degenerate(measured: &[Vector3<f64>]) -> RegistrationError {
         s.as_mut_slice().sort_by(|x, y| y.total_cmp(x));
         // As kabsch's test: its second singular value is at most the product of the two sets'
         // second extents, so one of them is below 1e-9 of its first in squared extent.
-        !(s[1] > 1e-9 * s[0].max(1e-300))
+        s[1].is_nan() || s[1] <= 1e-9 * s[0].max(1e-300)
     };
     if flat(measured) {
         RegistrationError::MeasuredOnALine(n)
