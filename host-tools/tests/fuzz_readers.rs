@@ -1,12 +1,15 @@
 //! Fuzzing of the input readers (a proptest suite: cargo-fuzz needs a tool not installed here).
-//! The tracker CSV reader (our format and through data profiles), the data-profile reader and the
-//! robot-file reader get arbitrary text and structured near-valid inputs; none may panic, and
+//! Every reader that takes a file gets arbitrary text and structured near-valid inputs: tracker
+//! CSV (our format, through data profiles, and plans read back with their `role` column),
+//! candidate configurations (`plan --candidates`), data profiles, robot files, UR
+//! `calibration.conf` files and JSON reports (`report --from`, rendered); none may panic, and
 //! whatever they accept must be usable (finite numbers, unit quaternions, valid robots).
 //!
 //! CI runs the default number of cases; the 10-minute run recorded in the README is
 //! `PROPTEST_CASES=1300000 cargo test -p host-tools --test fuzz_readers -- --test-threads=1` (the test
 //! profile keeps overflow checks, which found `q0_deg` underflowing a joint index).
 
+use host_tools::formats::ur_calibration::UrCalibration;
 use host_tools::io::profile::DataProfile;
 use host_tools::io::robot_file::RobotFile;
 use host_tools::io::tracker_data::TrackerData;
@@ -36,12 +39,14 @@ fn field() -> impl Strategy<Value = String> {
         Just("-inf".to_string()),
         Just("1e999".to_string()),
         Just("\"1,5\"".to_string()),
+        Just("core".to_string()),
+        Just("verify".to_string()),
         "[ -~]{0,6}",
         "\\PC{0,4}",
     ]
 }
 
-const NAMES: [&str; 24] = [
+const NAMES: [&str; 25] = [
     "id",
     "weight",
     "q1_deg",
@@ -64,6 +69,7 @@ const NAMES: [&str; 24] = [
     "ry_deg",
     "rz_rad",
     "temperature",
+    "role",
     "",
     "q0_deg",
 ];
@@ -186,5 +192,145 @@ proptest! {
         {
             prop_assert!(model.robot.validate().is_ok());
         }
+    }
+}
+
+/// A `calibration.conf` with four lists of fields (some numbers, some not).
+fn ur_conf() -> impl Strategy<Value = String> {
+    (
+        proptest::collection::vec(proptest::collection::vec(field(), 0..8), 4),
+        proptest::sample::select(&["mounting", "other", " mounting "][..]),
+        any::<bool>(),
+    )
+        .prop_map(|(lists, section, brackets)| {
+            let mut text = format!("[{section}]\n");
+            for (key, values) in ["delta_theta", "delta_a", "delta_d", "delta_alpha"]
+                .iter()
+                .zip(lists)
+            {
+                let list = values.join(", ");
+                if brackets {
+                    text.push_str(&format!("{key} = [{list}] # comment\n"));
+                } else {
+                    text.push_str(&format!("{key} = {list}\n"));
+                }
+            }
+            text
+        })
+}
+
+/// The JSON report of a calibration of the bundled simulated data, made once by `calib`.
+fn report() -> &'static serde_json::Value {
+    static REPORT: std::sync::OnceLock<serde_json::Value> = std::sync::OnceLock::new();
+    REPORT.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.json");
+        let manifest = env!("CARGO_MANIFEST_DIR");
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_calib"))
+            .args([
+                "calibrate",
+                "--robot",
+                &format!("{manifest}/robots/er10l-c10.toml"),
+                "--data",
+                &format!("{manifest}/data/er10l-c10-sim32.csv"),
+                "--method",
+                "lm",
+                "--validate",
+                "0.25",
+                "--report",
+                path.to_str().unwrap(),
+                "--out",
+                dir.path().join("x.toml").to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap()
+    })
+}
+
+/// Every JSON pointer to a leaf of `value`.
+fn leaves(value: &serde_json::Value, at: String, out: &mut Vec<String>) {
+    match value {
+        serde_json::Value::Object(map) => {
+            for (k, v) in map {
+                leaves(
+                    v,
+                    format!("{at}/{}", k.replace('~', "~0").replace('/', "~1")),
+                    out,
+                );
+            }
+        }
+        serde_json::Value::Array(items) => {
+            for (i, v) in items.iter().enumerate() {
+                leaves(v, format!("{at}/{i}"), out);
+            }
+        }
+        _ => out.push(at),
+    }
+}
+
+/// A JSON value a report's field might be replaced by.
+fn json_value() -> impl Strategy<Value = serde_json::Value> {
+    use serde_json::json;
+    prop_oneof![
+        any::<f64>().prop_map(|v| json!(v)),
+        proptest::sample::select(&[0.0, -5.0, 1e-300, 1e300, -1e308, 4e9][..])
+            .prop_map(|v| json!(v)),
+        any::<i64>().prop_map(|v| json!(v)),
+        "\\PC{0,12}".prop_map(|v| json!(v)),
+        Just(json!(null)),
+        Just(json!([])),
+        Just(json!({})),
+        Just(json!([1e300, -1e300, 0])),
+        Just(json!(true)),
+    ]
+}
+
+proptest! {
+    #[test]
+    fn candidate_files_never_panic(text in csv_text(',')) {
+        if let Ok(d) = TrackerData::parse_joints(&text, Path::new("c.csv"), &DataProfile::default()) {
+            prop_assert!(d.records.iter().all(|r| r.q.iter().all(|v| v.is_finite())));
+        }
+    }
+
+    #[test]
+    fn ur_calibrations_never_panic(text in "\\PC{0,300}", conf in ur_conf()) {
+        let _ = UrCalibration::parse(&text, Path::new("c.conf"));
+        if let Ok(c) = UrCalibration::parse(&conf, Path::new("c.conf")) {
+            for v in c.delta_theta.iter().chain(&c.delta_a).chain(&c.delta_d).chain(&c.delta_alpha) {
+                prop_assert!(v.is_finite() && v.abs() <= 1e4);
+            }
+        }
+    }
+}
+
+proptest! {
+    // Each case renders a page with its plots: fewer cases.
+    #![proptest_config(ProptestConfig::with_cases(48))]
+    #[test]
+    fn reports_never_panic(
+        picks in proptest::collection::vec((any::<proptest::sample::Index>(), json_value()), 1..12),
+        text in "\\PC{0,200}",
+    ) {
+        let rendering = host_tools::report::html::Rendering::now();
+        if let Ok(value) = serde_json::from_str::<serde_json::Value>(&text) {
+            let _ = host_tools::report::html::render(&value, &rendering);
+        }
+        let mut report = report().clone();
+        let mut pointers = Vec::new();
+        leaves(&report, String::new(), &mut pointers);
+        for (index, value) in picks {
+            let pointer = index.get(&pointers);
+            if let Some(slot) = report.pointer_mut(pointer) {
+                *slot = value;
+            }
+        }
+        let _ = host_tools::report::html::render(&report, &rendering);
     }
 }

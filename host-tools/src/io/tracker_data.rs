@@ -264,7 +264,13 @@ impl TrackerData {
     /// so a measured file or a plan not yet measured serves as well. Records' positions are zero.
     pub(crate) fn read_joints(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
         let text = read_text(path)?;
-        Self::parse_with(&text, path, Needs::Joints, profile)
+        Self::parse_joints(&text, path, profile)
+    }
+
+    /// Parses the text of a file of candidate joint configurations, as
+    /// [`read_joints`](Self::read_joints) reads it; `path` only names the source in errors.
+    pub fn parse_joints(text: &str, path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
+        Self::parse_with(text, path, Needs::Joints, profile)
     }
 
     fn parse_with(
