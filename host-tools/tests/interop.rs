@@ -682,7 +682,7 @@ fn n6_implausible_ur_calibrations_are_refused() {
         ),
         (
             with("delta_a", 1, "0.5"),
-            "da2 = -184.889 mm is beyond 20 mm",
+            "da2 = -184.889 mm is beyond 5 mm",
         ),
     ] {
         let out = import(UR10, &text, &[]);

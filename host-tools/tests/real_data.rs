@@ -342,3 +342,48 @@ fn a_wrong_euler_convention_is_refused_and_the_right_one_named() {
         );
     }
 }
+
+/// Issue 40, item 5: "is this the right robot model?". The UR10 of Series B calibrated with the
+/// UR10e file identified dd4 = -9.6 mm and dd5 = -4.2 mm and wrote a "UR10e" file; the UR files
+/// now state their bounds (5 mm, 1.5 deg, from UR's factory calibrations), so the calibration is
+/// refused with the parameters named and the question asked, and `--accept-implausible` still
+/// writes it. With the UR10 file the same data pass (largest joint length error 1.42 mm).
+#[test]
+fn ur10_data_with_the_ur10e_file_ask_whether_the_model_is_right() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("identified.toml");
+    let ur10e = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10e.toml");
+    let args = |robot: &'static str| {
+        vec![
+            "calibrate",
+            "--robot",
+            robot,
+            "--data",
+            DATA,
+            "--profile",
+            FULL_POSE,
+            "--validate",
+            "0.9666",
+            "--out",
+            out.to_str().unwrap(),
+        ]
+    };
+    let refused = common::calib(&args(ur10e));
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("dd4 = -9.5")
+            && stderr.contains("is beyond the plausible 5 mm of this robot's geometric errors")
+            && stderr.contains("Is Universal Robots UR10e")
+            && stderr.contains("the model of the robot that was measured?"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+    let mut accepted = args(ur10e);
+    accepted.push("--accept-implausible");
+    common::ok(&common::calib(&accepted));
+    assert!(out.exists());
+    std::fs::remove_file(&out).unwrap();
+    common::ok(&common::calib(&args(ROBOT)));
+    assert!(out.exists());
+}

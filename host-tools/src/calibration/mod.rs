@@ -131,8 +131,9 @@ pub fn calibrate(
     }
     result.implausible = plausibility::check(&result);
     if !result.implausible.is_empty() && !config.accept_implausible {
+        let question = plausibility::question(&result).map_or(String::new(), |q| q + "\n");
         return Err(crate::refused!(
-            "the calibration is not plausible, nothing was written:\n  - {}\n{}",
+            "the calibration is not plausible, nothing was written:\n  - {}\n{question}{}",
             result.implausible.join("\n  - "),
             plausibility::LIKELY_CAUSES
         ));

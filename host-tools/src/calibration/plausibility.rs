@@ -6,6 +6,8 @@
 //! (`--accept-implausible`).
 
 use super::CalibrationResult;
+use crate::io::robot_file::RobotFile;
+use calib_core::Parameter;
 
 /// Largest plausible identified length error (joints, and frames relative to their registration),
 /// mm. Manufacturing errors of a robot's links are below a few millimetres. A robot file's
@@ -30,33 +32,35 @@ pub(crate) const LIKELY_CAUSES: &str = "Likely causes: the units of the data col
 data profile, the joint order or signs against the robot file, the frames (--frames), or a pose set that cannot \
 determine the parameters (`calib check`). If the result is right, --accept-implausible writes it.";
 
+/// The bound (in the parameter's unit, mm or deg) of an identified parameter, and whose bound it
+/// is. A robot file's `max_length_error_mm` and `max_angle_error_deg` bound its joints' errors
+/// (the robot's geometry); the frames of the measurement set-up keep the general bounds.
+fn bound_of(robot: &RobotFile, parameter: Parameter) -> (f64, &'static str) {
+    let own = match parameter {
+        Parameter::Joint { .. } if parameter.is_angle() => robot.max_angle_error_deg,
+        Parameter::Joint { .. } => robot.max_length_error_mm,
+        _ => None,
+    };
+    match (own, parameter.is_angle()) {
+        (Some(b), true) => (b, OWN_ANGLE_BOUND),
+        (Some(b), false) => (b, OWN_LENGTH_BOUND),
+        (None, true) => (MAX_ANGLE_ERROR_DEG, "a robot's geometric errors"),
+        (None, false) => (MAX_LENGTH_ERROR_MM, "a robot's geometric errors"),
+    }
+}
+
+const OWN_ANGLE_BOUND: &str = "this robot's geometric errors (its file's max_angle_error_deg)";
+const OWN_LENGTH_BOUND: &str = "this robot's geometric errors (its file's max_length_error_mm)";
+
 /// The problems of `result`, each naming the value and its bound; empty when it is plausible.
 pub fn check(result: &CalibrationResult) -> Vec<String> {
     let mut problems = Vec::new();
-    let robot = &result.identified_robot;
     for p in &result.parameters {
-        let (value, (bound, whose), unit) = if p.parameter.is_angle() {
-            let bound = robot.max_angle_error_deg.map_or(
-                (MAX_ANGLE_ERROR_DEG, "a robot's geometric errors"),
-                |b| {
-                    (
-                        b,
-                        "this robot's geometric errors (its file's max_angle_error_deg)",
-                    )
-                },
-            );
-            (p.value.to_degrees(), bound, "deg")
+        let (bound, whose) = bound_of(&result.identified_robot, p.parameter);
+        let (value, unit) = if p.parameter.is_angle() {
+            (p.value.to_degrees(), "deg")
         } else {
-            let bound = robot.max_length_error_mm.map_or(
-                (MAX_LENGTH_ERROR_MM, "a robot's geometric errors"),
-                |b| {
-                    (
-                        b,
-                        "this robot's geometric errors (its file's max_length_error_mm)",
-                    )
-                },
-            );
-            (p.value, bound, "mm")
+            (p.value, "mm")
         };
         if !value.is_finite() || value.abs() > bound {
             problems.push(format!(
@@ -83,4 +87,22 @@ pub fn check(result: &CalibrationResult) -> Vec<String> {
         ));
     }
     problems
+}
+
+/// The question a refusal asks when a joint's error is beyond the bounds the robot's own file
+/// states: a model of another robot or variant (a UR10e file for a UR10) shows as errors of
+/// centimetres that the file's bounds, taken from real calibrations of the robot, rule out.
+pub fn question(result: &CalibrationResult) -> Option<String> {
+    result
+        .implausible
+        .iter()
+        .any(|p| p.contains(OWN_ANGLE_BOUND) || p.contains(OWN_LENGTH_BOUND))
+        .then(|| {
+            format!(
+                "Is {} ({}) the model of the robot that was measured? A model of another robot or \
+                 variant shows as geometric errors beyond the bounds its file states.",
+                result.robot,
+                result.robot_path.display()
+            )
+        })
 }
