@@ -24,12 +24,17 @@ pub struct CompensateOptions {
     /// joint-maps+compliance).
     #[arg(long, value_name = "FILE")]
     pub params: PathBuf,
-    /// Target poses in the base frame (CSV: x_mm, y_mm, z_mm and an orientation; optional
+    /// Target poses of the controller's tool (CSV: x_mm, y_mm, z_mm and an orientation; optional
     /// q1_deg..qN_deg as the start, i.e. the controller's nominal joints for the target, which
     /// also name its arm configuration; without them name the configuration with --near-deg or
-    /// --branch).
+    /// --branch), in the robot's base frame unless --targets-frame says otherwise.
     #[arg(long, value_name = "FILE")]
     pub targets: PathBuf,
+    /// The frame of the targets: the robot's base, or the tracker's (the cell's, as measured),
+    /// mapped into the base frame through the registration identified with the --params file
+    /// (its [measurement] section's tracker_base).
+    #[arg(long, value_enum, default_value_t = TargetsFrame::Base)]
+    pub targets_frame: TargetsFrame,
     /// Output CSV: one row per target, in input order.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
@@ -95,6 +100,49 @@ impl CompensateOptions {
             allow_extrapolation: self.allow_extrapolation,
         })
     }
+}
+
+/// The frame target poses are given in (`calib compensate --targets-frame`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum TargetsFrame {
+    /// The robot's base frame, as the controller plans.
+    Base,
+    /// The laser tracker's frame: the cell as measured.
+    Tracker,
+}
+
+/// Maps targets given in the tracker's frame into the robot's base frame through the registration
+/// identified with the `params` file: `T_base = B^-1 T_tracker`, `B` its `[measurement]`
+/// section's `tracker_base`. Refused without a registration, and for a target file that says
+/// `# frame: base`.
+fn targets_into_base(
+    targets: &mut TrackerData,
+    params: &std::path::Path,
+    targets_path: &std::path::Path,
+) -> anyhow::Result<()> {
+    if targets.base_frame {
+        bail!(
+            "{}: says '# frame: base', but --targets-frame tracker says the targets are in the tracker's frame; remove one",
+            targets_path.display()
+        );
+    }
+    let Some(measurement) = RobotFile::read(params)?.measurement else {
+        bail!(
+            "{}: has no [measurement] section, the registration of the tracker that --targets-frame tracker maps the targets \
+             through: give a file calibrated on data in the tracker's frame, or targets in the base frame",
+            params.display()
+        );
+    };
+    let base = measurement.tracker_base.isometry();
+    for record in &mut targets.records {
+        let position = nalgebra::Point3::from(nalgebra::Vector3::from(record.position));
+        record.position = base.inverse_transform_point(&position).coords.into();
+        record.rotation = record
+            .rotation
+            .map(|r| base.rotation.to_rotation_matrix().matrix().transpose() * r);
+    }
+    targets.base_frame = true;
+    Ok(())
 }
 
 /// The configuration of the posture `deg` (deg), named `what` in errors.
@@ -195,7 +243,10 @@ fn inputs(
 )> {
     let nominal: RobotModel = RobotModel::load(&options.robot)?;
     let actual: RobotModel = RobotModel::load(&options.params)?;
-    let targets = TrackerData::read_targets(&options.targets)?;
+    let mut targets = TrackerData::read_targets(&options.targets)?;
+    if options.targets_frame == TargetsFrame::Tracker {
+        targets_into_base(&mut targets, &options.params, &options.targets)?;
+    }
     if targets.rows_without_orientation() {
         bail!(
             "{}: targets need an orientation (qw..qz or rx_deg..rz_deg)",

@@ -485,6 +485,17 @@ impl JointEntry {
     }
 }
 
+impl FrameEntry {
+    /// The frame as an isometry (mm, `R = Rz(yaw) Ry(pitch) Rx(roll)`).
+    pub fn isometry(&self) -> nalgebra::Isometry3<f64> {
+        let [roll, pitch, yaw] = self.rpy_deg.map(f64::to_radians);
+        nalgebra::Isometry3::from_parts(
+            nalgebra::Translation3::from(nalgebra::Vector3::from(self.xyz_mm)),
+            nalgebra::UnitQuaternion::from_euler_angles(roll, pitch, yaw),
+        )
+    }
+}
+
 /// A `[base]` or `[tool]` table as a frame (mm, rad); absent: identity.
 fn frame_pose(entry: Option<&FrameEntry>, which: &str) -> Result<FramePose<f64>, String> {
     let Some(entry) = entry else {

@@ -19,7 +19,7 @@
 //! reproduces the published forward kinematics to rounding (test: `tests/craig.rs`, Franka Panda).
 
 use super::{FrameEntry, JointEntry};
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 
 /// A joint in Craig's modified DH convention (mm, degrees).
@@ -59,16 +59,7 @@ pub struct CraigFlangeEntry {
     pub theta_deg: f64,
 }
 
-/// A frame entry as an isometry (mm, `R = Rz(yaw) Ry(pitch) Rx(roll)`).
-fn isometry(frame: &FrameEntry) -> Isometry3<f64> {
-    let [roll, pitch, yaw] = frame.rpy_deg.map(f64::to_radians);
-    Isometry3::from_parts(
-        Translation3::from(Vector3::from(frame.xyz_mm)),
-        UnitQuaternion::from_euler_angles(roll, pitch, yaw),
-    )
-}
-
-/// An isometry as a frame entry (the inverse of [`isometry`]).
+/// An isometry as a frame entry (the inverse of [`FrameEntry::isometry`]).
 fn frame_entry(frame: &Isometry3<f64>) -> FrameEntry {
     let (roll, pitch, yaw) = frame.rotation.euler_angles();
     FrameEntry {
@@ -155,7 +146,7 @@ pub(crate) fn to_standard(
             UnitQuaternion::from_euler_angles(alpha0.to_radians(), 0.0, 0.0),
         );
         Some(frame_entry(
-            &(base.map_or(Isometry3::identity(), isometry) * first),
+            &(base.map_or(Isometry3::identity(), FrameEntry::isometry) * first),
         ))
     };
     // The flange's Rz(theta_F) Tz(d_F).
@@ -166,7 +157,7 @@ pub(crate) fn to_standard(
                 UnitQuaternion::from_euler_angles(0.0, 0.0, f.theta_deg.to_radians()),
             );
             Some(frame_entry(
-                &(last * tool.map_or(Isometry3::identity(), isometry)),
+                &(last * tool.map_or(Isometry3::identity(), FrameEntry::isometry)),
             ))
         }
         _ => tool.cloned(),
