@@ -369,6 +369,7 @@ fn solve(
         per_pose,
         identified_robot,
         seconds,
+        calibrated_at: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
         implausible: Vec::new(),
         cross_validation,
         joint_maps: None,

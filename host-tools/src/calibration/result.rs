@@ -180,6 +180,8 @@ pub struct CalibrationResult {
     pub identified_robot: RobotFile,
     /// Wall-clock time of the optimisation, s.
     pub seconds: f64,
+    /// When the calibration finished, RFC 3339 (UTC, to the second).
+    pub calibrated_at: String,
     /// Why the result is not plausible ([`super::plausibility`]); empty when it is. Non-empty only
     /// when the configuration accepts implausible results.
     pub implausible: Vec<String>,
@@ -259,6 +261,7 @@ impl CalibrationResult {
             },
             truth,
             seconds: self.seconds,
+            calibrated_at: &self.calibrated_at,
             per_pose: &self.per_pose,
             convergence: self
                 .swarm
@@ -376,6 +379,9 @@ pub struct Report<'a> {
     pub truth: Option<Vec<TruthRow>>,
     /// Wall-clock time of the optimisation, s.
     pub seconds: f64,
+    /// When the calibration finished, RFC 3339 (UTC, to the second): the date of the result, which
+    /// a report rendered later states (not the time of rendering).
+    pub calibrated_at: &'a str,
     /// Per-pose errors (calibration and validation poses), for plots.
     pub per_pose: &'a PerPose,
     /// The swarm's convergence: `[generation, best objective]` (empty without the swarm).

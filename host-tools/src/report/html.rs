@@ -87,7 +87,7 @@ pub fn render(report: &Value, rendering: &Rendering) -> crate::Result<String> {
         page,
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>Calibration report: {robot}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n<h1>Robot calibration report</h1>"
     )?;
-    summary(&mut page, report, rendering, &robot, &data)?;
+    summary(&mut page, report, &robot, &data)?;
     table3(&mut page, report)?;
     parameters(&mut page, report)?;
     identifiability(&mut page, report)?;
@@ -105,6 +105,15 @@ pub fn render(report: &Value, rendering: &Rendering) -> crate::Result<String> {
     Ok(page)
 }
 
+/// When the report's calibration finished (its `calibrated_at`), or that a report written before
+/// the date was recorded does not say.
+fn calibration_date(report: &Value) -> String {
+    match report["calibrated_at"].as_str() {
+        Some(date) => esc(date),
+        None => "not recorded in this report".to_string(),
+    }
+}
+
 /// The stylesheet: readable on screen and on paper.
 const STYLE: &str = "body{font-family:sans-serif;max-width:60em;margin:2em auto;padding:0 1em;color:#111}\
 h1{border-bottom:2px solid #333}h2{margin-top:2em;border-bottom:1px solid #999}\
@@ -113,13 +122,7 @@ th{background:#eee}td:first-child,th:first-child,td[colspan]{text-align:left}\
 .note{color:#555}.bad{color:#a00;font-weight:bold}figure{margin:1em 0}svg{max-width:100%;height:auto}\
 @media print{body{max-width:none;margin:0}h2{break-after:avoid}figure,table{break-inside:avoid}.poses{font-size:8pt}}";
 
-fn summary(
-    page: &mut String,
-    report: &Value,
-    rendering: &Rendering,
-    robot: &str,
-    data: &str,
-) -> crate::Result<()> {
+fn summary(page: &mut String, report: &Value, robot: &str, data: &str) -> crate::Result<()> {
     let stage = |name: &str| -> String {
         let s = &report[name];
         if s.is_null() {
@@ -135,10 +138,10 @@ fn summary(
     writeln!(
         page,
         "<h2 id=\"summary\">Summary</h2>\n<table>\n<tr><td>robot</td><td colspan=\"3\">{robot}</td></tr>\n\
-         <tr><td>data</td><td colspan=\"3\">{data}</td></tr>\n<tr><td>date</td><td colspan=\"3\">{}</td></tr>\n\
+         <tr><td>data</td><td colspan=\"3\">{data}</td></tr>\n<tr><td>calibrated</td><td colspan=\"3\">{}</td></tr>\n\
          <tr><td>method</td><td colspan=\"3\">{} ({}; stopped: {}; {} s)</td></tr>\n\
          <tr><th>mean position error</th><th>poses</th><th>nominal, mm</th><th>identified, mm</th></tr>\n{}\n{}\n</table>",
-        esc(&rendering.date),
+        calibration_date(report),
         text(&report["method"]),
         text(&report["settings"]["model"]),
         text(&report["stop"]),
