@@ -675,3 +675,33 @@ fn n18_messages_name_the_real_cause() {
         assert!(stderr.contains(expected), "{expected}: {stderr}");
     }
 }
+
+/// Issue 40, item 6: `calib simulate`'s default robot was the relative path
+/// `host-tools/robots/er10l-c10.toml`, so the command failed outside the repository; the
+/// default is now the ER10L-C10 built into calib, and the data match the bundled file's.
+#[test]
+fn simulate_without_a_robot_works_in_any_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = common::calib_in(
+        dir.path(),
+        &["simulate", "--out", "s.csv", "--truth-out", "t.toml"],
+    );
+    common::ok(&out);
+    let built_in = TrackerData::read(&dir.path().join("s.csv")).unwrap();
+    let other = tempfile::tempdir().unwrap();
+    common::ok(&common::calib_in(
+        other.path(),
+        &[
+            "simulate",
+            "--robot",
+            ROBOT,
+            "--out",
+            "s.csv",
+            "--truth-out",
+            "t.toml",
+        ],
+    ));
+    let from_file = TrackerData::read(&other.path().join("s.csv")).unwrap();
+    assert_eq!(built_in.records, from_file.records);
+    assert_eq!(built_in.records.len(), 32);
+}

@@ -8,13 +8,10 @@ use std::path::PathBuf;
 /// Settings of a simulation: the options of `calib simulate`.
 #[derive(Clone, Debug, PartialEq, clap::Args)]
 pub struct Simulation {
-    /// Nominal robot model file.
-    #[arg(
-        long,
-        value_name = "FILE",
-        default_value = "host-tools/robots/er10l-c10.toml"
-    )]
-    pub robot: PathBuf,
+    /// Nominal robot model file (default: the paper's Efort ER10L-C10, built into calib: the
+    /// file host-tools/robots/er10l-c10.toml, usable from any directory).
+    #[arg(long, value_name = "FILE")]
+    pub robot: Option<PathBuf>,
     /// True errors: the paper's Table 2, or random ones.
     #[arg(long, value_enum, default_value_t = TrueErrors::Table2)]
     pub errors: TrueErrors,
@@ -117,18 +114,29 @@ impl Simulation {
     }
 }
 
+/// How the built-in robot of `calib simulate` is named in files and messages.
+const BUILT_IN_ROBOT: &str = "er10l-c10.toml (built into calib)";
+
 /// Runs `calib simulate`: simulates, then writes the tracker CSV to `--out` and the true robot to
 /// `--truth-out` (nothing unless both are ready; each atomically).
 /// Robots of any joint count in [`JOINT_COUNTS`](crate::model::counts::JOINT_COUNTS); returns the
 /// number of poses written.
 pub fn simulate(options: &Simulation) -> anyhow::Result<usize> {
     let config = options.config()?;
-    let file = RobotFile::read(&options.robot)?;
-    file.refuse_compliance(&options.robot, "calib simulate")?;
-    file.refuse_joint_maps(&options.robot, "calib simulate")?;
+    let (file, robot) = match &options.robot {
+        Some(path) => (RobotFile::read(path)?, path.clone()),
+        None => {
+            let path = PathBuf::from(BUILT_IN_ROBOT);
+            (
+                RobotFile::parse(crate::io::robot_file::ER10L_C10_TOML, &path)?,
+                path,
+            )
+        }
+    };
+    file.refuse_compliance(&robot, "calib simulate")?;
+    file.refuse_joint_maps(&robot, "calib simulate")?;
     crate::model::counts::joint_count(file.joint.len())?;
-    let simulated: Simulated =
-        crate::measurement::simulate::simulate(&file, &options.robot, &config)?;
-    simulated.write(&options.out, &options.truth_out, &options.robot)?;
+    let simulated: Simulated = crate::measurement::simulate::simulate(&file, &robot, &config)?;
+    simulated.write(&options.out, &options.truth_out, &robot)?;
     Ok(simulated.rows.len())
 }
