@@ -40,8 +40,10 @@ pub struct ExportOptions {
     /// URDF: the controller's tool link (`[tool]` from the flange).
     #[arg(long, default_value = "tool0")]
     pub tool_link: String,
-    /// URDF: only the `<joint>` elements, to merge into an existing robot description with these
-    /// link names.
+    /// URDF: only the `<joint>` elements, with these link names. Their link frames are ours (each
+    /// joint's frame at the fixed part of the one before), not a vendor description's: meshes
+    /// placed in a vendor's link frames would be misplaced. For UR robots use --format
+    /// ur-kinematics-yaml, which ur_description composes with its own link frames.
     #[arg(long)]
     pub joints_only: bool,
     /// URDF and UR YAML: export the geometry of a model with joint maps or gravity compliance
