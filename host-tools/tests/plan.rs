@@ -740,3 +740,166 @@ fn limits_beyond_half_a_turn_and_options_that_were_ignored() {
         assert!(!Path::new(out).exists());
     }
 }
+
+/// Issue 40, item 3: plan -> robot program -> tracker export -> merge -> calibrate, on the bundled
+/// Series B rows. The plan of 30 poses (and 15 verification poses) from Series B's joints is
+/// written as URScript and as joint targets in the planned order; the "tracker export" is Series
+/// B's own file cut to the planned rows in that order (no id column, joints and points in the
+/// IPA format); `calib merge --by order` pairs them, keeps the roles and the prediction, and the
+/// result calibrates with the verification poses held out. Rows out of order, a missing row and
+/// pairing by a missing id column are refused with the row.
+#[test]
+fn plan_to_robot_program_and_back_by_merge() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (data, profile, ur10) = (SERIES_B, PROFILE, ROBOT);
+    let path = |name: &str| d.join(name).to_str().unwrap().to_string();
+    common::ok(&common::calib(&[
+        "plan",
+        "--robot",
+        ur10,
+        "--candidates",
+        data,
+        "--profile",
+        profile,
+        "--poses",
+        "30",
+        "--measure",
+        "pose",
+        "--noise-mm",
+        "0.3",
+        "--out",
+        &path("plan.csv"),
+        "--urscript",
+        &path("plan.script"),
+        "--joint-targets",
+        &path("targets.csv"),
+    ]));
+    let plan = TrackerData::read_joints(&d.join("plan.csv"), &DataProfile::default()).unwrap();
+    assert_eq!(plan.records.len(), 45);
+    // The program: one movej per pose in the plan's order, at the plan's joints (rad).
+    let script = std::fs::read_to_string(d.join("plan.script")).unwrap();
+    let moves: Vec<Vec<f64>> = script
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("movej(["))
+        .map(|l| {
+            l.split(']')
+                .next()
+                .unwrap()
+                .split(", ")
+                .map(|v| v.parse().unwrap())
+                .collect()
+        })
+        .collect();
+    assert_eq!(moves.len(), 45);
+    for (q, r) in moves.iter().zip(&plan.records) {
+        assert!(
+            q.iter().zip(&r.q).all(|(a, b)| (a - b).abs() < 1e-8),
+            "{q:?} {:?}",
+            r.q
+        );
+    }
+    assert!(script.ends_with("end\ncalib_plan()\n") && script.matches("sleep(2)").count() == 45);
+    let targets = std::fs::read_to_string(d.join("targets.csv")).unwrap();
+    let ids: Vec<&str> = targets
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap())
+        .collect();
+    let planned: Vec<&str> = plan.records.iter().map(|r| r.id.as_str()).collect();
+    assert_eq!(ids, planned);
+    // The export: Series B's rows of the planned poses (the plan's ids are their lines), in order.
+    let source: Vec<&str> = std::fs::read_to_string(data)
+        .unwrap()
+        .leak()
+        .lines()
+        .collect();
+    let export = |order: &[usize]| -> String {
+        let mut text = format!("{}\n", source[0]);
+        for &i in order {
+            let line: usize = planned[i].parse().unwrap();
+            text.push_str(source[line - 1]);
+            text.push('\n');
+        }
+        text
+    };
+    let in_order: Vec<usize> = (0..45).collect();
+    std::fs::write(d.join("export.csv"), export(&in_order)).unwrap();
+    let merge = |export: &str, by: &str, out: &str| {
+        common::calib(&[
+            "merge",
+            "--plan",
+            &path("plan.csv"),
+            "--measured",
+            &path(export),
+            "--profile",
+            profile,
+            "--by",
+            by,
+            "--out",
+            &path(out),
+        ])
+    };
+    assert!(common::ok(&merge("export.csv", "order", "measured.csv")).contains("merged 45"));
+    let merged = TrackerData::read(&d.join("measured.csv")).unwrap();
+    let measured = TrackerData::read_with(
+        &d.join("export.csv"),
+        &DataProfile::read(Path::new(profile)).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(merged.planned, plan.planned);
+    for ((m, p), e) in merged
+        .records
+        .iter()
+        .zip(&plan.records)
+        .zip(&measured.records)
+    {
+        assert_eq!((&m.id, m.role), (&p.id, p.role));
+        assert!(
+            m.position
+                .iter()
+                .zip(&e.position)
+                .all(|(a, b)| (a - b).abs() < 1e-9)
+        );
+        let (a, b) = (m.rotation.unwrap(), e.rotation.unwrap());
+        assert!((a - b).norm() < 1e-12);
+    }
+    assert_eq!(
+        merged
+            .records
+            .iter()
+            .filter(|r| r.role == Some(Role::Verify))
+            .count(),
+        15
+    );
+    let text = common::ok(&common::calib(&[
+        "calibrate",
+        "--robot",
+        ur10,
+        "--data",
+        &path("measured.csv"),
+        "--out",
+        &path("m.toml"),
+    ]));
+    assert!(text.contains("plan check: 15 verification poses"), "{text}");
+    // Refusals, nothing written.
+    let mut swapped = in_order.clone();
+    swapped.swap(2, 3);
+    std::fs::write(d.join("swapped.csv"), export(&swapped)).unwrap();
+    std::fs::write(d.join("short.csv"), export(&in_order[..44])).unwrap();
+    for (file, by, says) in [
+        ("swapped.csv", "order", "swapped.csv:4: q"),
+        ("short.csv", "order", "has 44 points and the plan"),
+        (
+            "export.csv",
+            "id",
+            "has no id column naming the planned poses",
+        ),
+    ] {
+        let out = merge(file, by, "x.csv");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains(says), "{says}: {stderr}");
+        assert!(!d.join("x.csv").exists());
+    }
+}

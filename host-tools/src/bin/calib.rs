@@ -68,12 +68,25 @@ enum Command {
     /// Convert a Universal Robots controller's factory calibration (calibration.conf) into a
     /// robot file: the same geometry in Hayati parameters.
     ImportUrCalibration(host_tools::cli::import_ur::ImportUrOptions),
+    /// Merge a tracker's export of the measured points into the plan it measured (by id or by
+    /// order, joints checked when the export has them): data that calibrate takes directly.
+    Merge(host_tools::cli::merge::MergeOptions),
     /// Calibrate with the f32 core, the f64 core and the independent reference optimiser and
     /// compare; exits with status 1 when a difference is past its documented tolerance.
     Verify(host_tools::cli::verify::VerifyOptions),
     /// Run the paper's experiment and a realistic cell on simulated data, no input files needed;
     /// prints the tables and writes data, reports and plots into a directory.
     Demo(host_tools::cli::demo::DemoOptions),
+}
+
+/// `calib merge`: merges, writes, says what it wrote.
+fn merge(options: &host_tools::cli::merge::MergeOptions) -> anyhow::Result<()> {
+    let merged = host_tools::cli::merge::merge(options)?;
+    host_tools::cli::print_line(format_args!(
+        "merged {} measured poses into the plan; wrote {}",
+        merged.rows.len(),
+        options.out.display()
+    ))
 }
 
 /// Runs the command; a user error is reported as a message with its causes, never with a stack
@@ -158,6 +171,7 @@ fn run(command: Command) -> anyhow::Result<()> {
             let (_, text) = host_tools::cli::import_ur::import(&options)?;
             host_tools::cli::print_text(format_args!("{text}"))?;
         }
+        Command::Merge(options) => merge(&options)?,
         Command::Evaluate(options) => evaluate(&options)?,
         Command::Plan(options) => {
             let plan = host_tools::cli::plan::plan(&options)?;

@@ -84,6 +84,23 @@ pub struct PlanOptions {
     /// Also write the plan and its prediction as JSON.
     #[arg(long, value_name = "FILE")]
     pub report: Option<PathBuf>,
+    /// Also write the plan as a URScript program (Universal Robots): a movej to each pose in the
+    /// planned order and a pause for the tracker (--settle-s).
+    #[arg(long, value_name = "FILE")]
+    pub urscript: Option<PathBuf>,
+    /// Also write the plan as joint targets for any controller (CSV: id, role, q1_deg..qN_deg in
+    /// the planned order).
+    #[arg(long, value_name = "FILE")]
+    pub joint_targets: Option<PathBuf>,
+    /// URScript: time the robot stands still at each pose for the tracker, s.
+    #[arg(long, default_value_t = 2.0)]
+    pub settle_s: f64,
+    /// URScript: joint speed of the moves, rad/s.
+    #[arg(long, default_value_t = 0.5)]
+    pub speed_rad_s: f64,
+    /// URScript: joint acceleration of the moves, rad/s^2.
+    #[arg(long, default_value_t = 0.5)]
+    pub acceleration_rad_s2: f64,
 }
 
 impl PlanOptions {
@@ -261,6 +278,19 @@ pub fn plan(options: &PlanOptions) -> anyhow::Result<Plan> {
             path,
             serde_json::to_string_pretty(&plan)?.as_bytes(),
         )?;
+    }
+    if let Some(path) = &options.urscript {
+        let motion = planning::program::Motion {
+            speed_rad_s: options.speed_rad_s,
+            acceleration_rad_s2: options.acceleration_rad_s2,
+            settle_s: options.settle_s,
+        };
+        let program = planning::program::urscript(&plan, &file.name, &motion)?;
+        outputs.stage("--urscript", path, program.as_bytes())?;
+    }
+    if let Some(path) = &options.joint_targets {
+        let targets = planning::program::joint_targets(&plan)?;
+        outputs.stage("--joint-targets", path, targets.as_bytes())?;
     }
     outputs.commit()?;
     Ok(plan)

@@ -262,9 +262,16 @@ impl TrackerData {
     /// Reads a file of candidate joint configurations (`calib plan --candidates`) through a data
     /// profile: only the joint columns are read (and `id`); any measurement columns are ignored,
     /// so a measured file or a plan not yet measured serves as well. Records' positions are zero.
-    pub(crate) fn read_joints(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
+    pub fn read_joints(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
         let text = read_text(path)?;
         Self::parse_joints(&text, path, profile)
+    }
+
+    /// Reads a tracker's export of measured points through a data profile: positions (and
+    /// orientations) required, joints optional (a robot log merged in), for `calib merge`.
+    pub fn read_measured(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
+        let text = read_text(path)?;
+        Self::parse_with(&text, path, Needs::Targets, profile)
     }
 
     /// Parses the text of a file of candidate joint configurations, as
@@ -472,7 +479,7 @@ impl Layout {
         }
         if needs == Needs::Joints {
             for c in &mut columns {
-                if !matches!(c, Column::Joint(..) | Column::Id) {
+                if !matches!(c, Column::Joint(..) | Column::Id | Column::Role) {
                     *c = Column::Ignored;
                 }
             }
@@ -788,6 +795,16 @@ pub fn write_tracker_csv(path: &Path, comments: &[String], rows: &[PoseRow]) -> 
 
 /// Poses as tracker CSV text: `comments` become `#` lines at the top.
 pub(crate) fn tracker_csv(comments: &[String], rows: &[PoseRow]) -> crate::Result<String> {
+    tracker_csv_with_roles(comments, rows, None)
+}
+
+/// Poses as tracker CSV text, with a `role` column after `id` when `roles` (one per row) are
+/// given: a measured plan that `calibrate` reads with its verification poses held out.
+pub(crate) fn tracker_csv_with_roles(
+    comments: &[String],
+    rows: &[PoseRow],
+    roles: Option<&[Role]>,
+) -> crate::Result<String> {
     let joints = rows.first().map_or(0, |r| r.q.len());
     let orientation = rows.first().is_some_and(|r| r.rotation.is_some());
     let mut text = String::new();
@@ -795,6 +812,9 @@ pub(crate) fn tracker_csv(comments: &[String], rows: &[PoseRow]) -> crate::Resul
         let _ = writeln!(text, "# {}", super::text::one_line(c));
     }
     let mut header: Vec<String> = vec!["id".into()];
+    if roles.is_some() {
+        header.push("role".into());
+    }
     header.extend((1..=joints).map(|i| format!("q{i}_deg")));
     header.extend(["x_mm", "y_mm", "z_mm"].map(String::from));
     if orientation {
@@ -802,8 +822,11 @@ pub(crate) fn tracker_csv(comments: &[String], rows: &[PoseRow]) -> crate::Resul
     }
     let mut writer = csv::Writer::from_writer(Vec::new());
     writer.write_record(&header)?;
-    for row in rows {
+    for (i, row) in rows.iter().enumerate() {
         let mut fields = vec![row.id.clone()];
+        if let Some(role) = roles.and_then(|r| r.get(i)) {
+            fields.push(role.name().to_string());
+        }
         fields.extend(row.q.iter().map(|q| q.to_degrees().to_string()));
         fields.extend(row.position.iter().map(f64::to_string));
         if let Some(r) = &row.rotation {

@@ -1,9 +1,11 @@
 //! The measured poses and the set-up that measured them: a dataset (a robot and its tracker
 //! records), the frames that register the tracker and the probe, the error statistics of a model
-//! on a dataset, the check of the data's orientation convention, and simulated measurements.
+//! on a dataset, the check of the data's orientation convention, simulated measurements, and a
+//! tracker's export merged into the plan it measured.
 
 pub mod dataset;
 pub mod frames;
+pub mod merge;
 pub mod orientation_check;
 pub mod simulate;
 pub mod statistics;

@@ -22,6 +22,8 @@
 //! compliance, temperature) make the measured error larger, which `calibrate` flags when it
 //! compares the verification poses with the prediction ([`PlanCheck`]).
 
+pub mod program;
+
 use crate::analysis::identifiability::analyse;
 use crate::error::Context;
 use crate::io::robot_file::RobotFile;

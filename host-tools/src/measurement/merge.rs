@@ -1,0 +1,197 @@
+//! A tracker's export merged into the plan it measured (`calib merge`): each measured point is
+//! given its planned pose's id, role and joints, so that `calibrate` takes the result directly,
+//! with the plan's verification poses held out and its prediction kept.
+//!
+//! A tracker exports points, not joints: the merge pairs them with the plan's poses by the `id`
+//! the export names them with ([`MatchBy::Id`]) or by their order ([`MatchBy::Order`]; the robot
+//! program of `calib plan --urscript` moves through the plan in its order). When the export also
+//! has joint columns (a robot log merged in), every pair's joints must agree with the plan's;
+//! a mismatch names the row, so that a skipped or repeated point cannot shift the data silently.
+
+use crate::io::tracker_data::{PoseRow, Record, Role, TrackerData};
+
+/// How measured points are paired with the plan's poses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum MatchBy {
+    /// The export's `id` column names the planned pose (as the plan's `id` column).
+    Id,
+    /// The export's rows are the plan's poses in the plan's order, one each.
+    Order,
+}
+
+/// The measured plan: one row per planned pose, the plan's id, role and joints with the
+/// measured position (and orientation), and the plan's prediction line among `comments`.
+pub struct Merged {
+    /// The rows, in the plan's order.
+    pub rows: Vec<PoseRow>,
+    /// Each row's role.
+    pub roles: Vec<Role>,
+    /// Comment lines for the written file (without `#`).
+    pub comments: Vec<String>,
+}
+
+impl Merged {
+    /// The merged data as tracker CSV text (with the `role` column).
+    pub fn csv(&self) -> crate::Result<String> {
+        crate::io::tracker_data::tracker_csv_with_roles(
+            &self.comments,
+            &self.rows,
+            Some(&self.roles),
+        )
+    }
+}
+
+/// Merges `measured` into `plan` (both as read: the plan's joints, the export's points),
+/// pairing them `by` id or order; joints in the export must agree with the plan's within
+/// `tolerance_rad`. Refused, naming the row, when a planned pose has no point or several, a point
+/// names no planned pose, or joints disagree.
+pub fn merge(
+    plan: &TrackerData,
+    measured: &TrackerData,
+    by: MatchBy,
+    tolerance_rad: f64,
+) -> crate::Result<Merged> {
+    let pairs = pairs(plan, measured, by)?;
+    let mut rows = Vec::with_capacity(pairs.len());
+    let mut roles = Vec::with_capacity(pairs.len());
+    for (planned, point) in pairs {
+        check_joints(planned, point, measured, tolerance_rad)?;
+        rows.push(PoseRow {
+            id: planned.id.clone(),
+            q: planned.q.clone(),
+            position: point.position,
+            rotation: point.rotation,
+        });
+        roles.push(planned.role.unwrap_or(Role::Fill));
+    }
+    if rows.iter().any(|r| r.rotation.is_some()) != rows.iter().all(|r| r.rotation.is_some()) {
+        return Err(crate::refused!(
+            "{}: some points have an orientation and some do not",
+            measured.path.display()
+        ));
+    }
+    let mut comments = vec![format!(
+        "measured plan: {} merged with the points of {} by {}",
+        plan.path.display(),
+        measured.path.display(),
+        match by {
+            MatchBy::Id => "id",
+            MatchBy::Order => "order",
+        }
+    )];
+    if let Some(planned) = &plan.planned {
+        comments.push(planned.comment());
+    }
+    if measured.base_frame {
+        comments.push("frame: base".to_string());
+    }
+    Ok(Merged {
+        rows,
+        roles,
+        comments,
+    })
+}
+
+/// Each planned pose with its measured point.
+fn pairs<'a>(
+    plan: &'a TrackerData,
+    measured: &'a TrackerData,
+    by: MatchBy,
+) -> crate::Result<Vec<(&'a Record, &'a Record)>> {
+    let (plan_path, data_path) = (plan.path.display(), measured.path.display());
+    match by {
+        MatchBy::Order => {
+            if plan.records.len() != measured.records.len() {
+                return Err(crate::refused!(
+                    "{data_path} has {} points and the plan {plan_path} {} poses: a pose was skipped or measured twice, \
+                     so the order does not pair them; give the export an id column and merge --by id",
+                    measured.records.len(),
+                    plan.records.len()
+                ));
+            }
+            Ok(plan.records.iter().zip(&measured.records).collect())
+        }
+        MatchBy::Id => {
+            // Without an id column a record's id is its line number: no name to pair by.
+            if measured.records.iter().all(|r| r.id == r.line.to_string()) {
+                return Err(crate::refused!(
+                    "{data_path} has no id column naming the planned poses; merge --by order, or export the point names as id"
+                ));
+            }
+            let mut by_id = std::collections::HashMap::new();
+            for point in &measured.records {
+                if let Some(other) = by_id.insert(point.id.as_str(), point) {
+                    return Err(crate::refused!(
+                        "{data_path}:{}: id {} was measured before, on line {}; keep one of them",
+                        point.line,
+                        point.id,
+                        other.line
+                    ));
+                }
+            }
+            let mut out = Vec::with_capacity(plan.records.len());
+            for planned in &plan.records {
+                let point = by_id.remove(planned.id.as_str()).ok_or_else(|| {
+                    crate::refused!(
+                        "{plan_path}:{}: the planned pose {} has no point in {data_path}; measure it, or delete its row from the plan",
+                        planned.line,
+                        planned.id
+                    )
+                })?;
+                out.push((planned, point));
+            }
+            if let Some(point) = by_id.values().min_by_key(|p| p.line) {
+                return Err(crate::refused!(
+                    "{data_path}:{}: the point {} names no pose of the plan {plan_path} ({} such points)",
+                    point.line,
+                    point.id,
+                    by_id.len()
+                ));
+            }
+            Ok(out)
+        }
+    }
+}
+
+/// Refuses a pair whose export row has joints that differ from the plan's.
+fn check_joints(
+    planned: &Record,
+    point: &Record,
+    measured: &TrackerData,
+    tolerance_rad: f64,
+) -> crate::Result<()> {
+    if point.q.is_empty() {
+        return Ok(());
+    }
+    if point.q.len() != planned.q.len() {
+        return Err(crate::refused!(
+            "{}:{}: has {} joints, the plan {}",
+            measured.path.display(),
+            point.line,
+            point.q.len(),
+            planned.q.len()
+        ));
+    }
+    let worst = planned
+        .q
+        .iter()
+        .zip(&point.q)
+        .enumerate()
+        .map(|(j, (a, b))| (j, (a - b).abs()))
+        .max_by(|a, b| a.1.total_cmp(&b.1));
+    if let Some((j, difference)) = worst.filter(|(_, d)| *d > tolerance_rad || d.is_nan()) {
+        return Err(crate::refused!(
+            "{}:{}: q{} = {:.4} deg, but the planned pose {} it is paired with has {:.4} deg ({:.4} deg apart, more \
+             than --tolerance-deg {:.4}): the points are not in the plan's order, or the robot was elsewhere",
+            measured.path.display(),
+            point.line,
+            j + 1,
+            point.q[j].to_degrees(),
+            planned.id,
+            planned.q[j].to_degrees(),
+            difference.to_degrees(),
+            tolerance_rad.to_degrees()
+        ));
+    }
+    Ok(())
+}
