@@ -903,3 +903,98 @@ fn plan_to_robot_program_and_back_by_merge() {
         assert!(!d.join("x.csv").exists());
     }
 }
+
+/// Issue 40, item 3 (the README's real-cell rehearsal, which CI also runs as written): a plan of
+/// 40 poses (and 15 verification poses) generated for the UR10 is "measured" by `calib simulate
+/// --joints-from` (random true errors, the tracker 2.5 m away, 0.02 mm and 0.1 mrad noise): the
+/// points keep the plan's ids and joints; merged by id and calibrated, the verification poses are
+/// held out and miss by less than the plan predicted at its assumed 0.05 mm noise.
+#[test]
+fn a_plan_rehearsed_by_simulation_calibrates_with_its_verification_held_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let run = |args: &[&str]| common::ok(&common::calib_in(d, args));
+    run(&[
+        "plan",
+        "--robot",
+        ROBOT,
+        "--generate",
+        "2000",
+        "--poses",
+        "40",
+        "--measure",
+        "pose",
+        "--noise-mm",
+        "0.05",
+        "--out",
+        "plan.csv",
+    ]);
+    run(&[
+        "simulate",
+        "--robot",
+        ROBOT,
+        "--joints-from",
+        "plan.csv",
+        "--errors",
+        "random",
+        "--tracker-xyz-mm",
+        "2500,300,-400",
+        "--tracker-rpy-deg",
+        "0,0,120",
+        "--position-sigma-mm",
+        "0.02",
+        "--orientation-sigma-rad",
+        "0.0001",
+        "--out",
+        "tracker.csv",
+        "--truth-out",
+        "truth.toml",
+    ]);
+    let plan = TrackerData::read_joints(&d.join("plan.csv"), &DataProfile::default()).unwrap();
+    let measured = TrackerData::read(&d.join("tracker.csv")).unwrap();
+    assert_eq!(measured.records.len(), plan.records.len());
+    for (m, p) in measured.records.iter().zip(&plan.records) {
+        assert_eq!(m.id, p.id);
+        assert!(m.q.iter().zip(&p.q).all(|(a, b)| (a - b).abs() < 1e-12));
+    }
+    run(&[
+        "merge",
+        "--plan",
+        "plan.csv",
+        "--measured",
+        "tracker.csv",
+        "--by",
+        "id",
+        "--out",
+        "measured.csv",
+    ]);
+    let text = run(&[
+        "calibrate",
+        "--robot",
+        ROBOT,
+        "--data",
+        "measured.csv",
+        "--out",
+        "cell.toml",
+    ]);
+    assert!(text.contains("plan check: 15 verification poses"), "{text}");
+    let measured_mm: f64 = text
+        .split("measured mean position error ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    let predicted_high_mm: f64 = text
+        .split("95 % range ")
+        .nth(1)
+        .and_then(|t| t.split(" ... ").nth(1))
+        .and_then(|t| t.split(' ').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    println!(
+        "verification poses: {measured_mm} mm measured, predicted at most {predicted_high_mm} mm"
+    );
+    assert!(measured_mm < predicted_high_mm, "{text}");
+}

@@ -24,6 +24,11 @@ pub struct Simulation {
     /// Number of poses.
     #[arg(long, default_value_t = 32)]
     pub poses: usize,
+    /// Measure these joint configurations, in this order, instead of random ones: a plan (calib
+    /// plan --out) or any CSV of joints in our format (id, q1_deg..qN_deg); each pose keeps its
+    /// id, as a tracker names its points. A rehearsal of a plan before the cell measures it.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["poses", "within_limits"])]
+    pub joints_from: Option<PathBuf>,
     /// Draw joints within the robot file's limits instead of uniformly in [-180, 180] deg.
     #[arg(long)]
     pub within_limits: bool,
@@ -110,6 +115,19 @@ impl Simulation {
             tracker,
             tool_xyz_mm: triple(&self.tool_xyz_mm, "--tool-xyz-mm")?,
             seed: self.seed,
+            commanded: match &self.joints_from {
+                Some(path) => Some(
+                    crate::io::tracker_data::TrackerData::read_joints(
+                        path,
+                        &crate::io::profile::DataProfile::default(),
+                    )?
+                    .records
+                    .into_iter()
+                    .map(|r| (r.id, r.q))
+                    .collect(),
+                ),
+                None => None,
+            },
         })
     }
 }
@@ -137,6 +155,10 @@ pub fn simulate(options: &Simulation) -> anyhow::Result<usize> {
     file.refuse_joint_maps(&robot, "calib simulate")?;
     crate::model::counts::joint_count(file.joint.len())?;
     let simulated: Simulated = crate::measurement::simulate::simulate(&file, &robot, &config)?;
-    simulated.write(&options.out, &options.truth_out, &robot)?;
+    let mut inputs = vec![("--robot", robot.as_path())];
+    if let Some(path) = &options.joints_from {
+        inputs.push(("--joints-from", path.as_path()));
+    }
+    simulated.write_beside(&options.out, &options.truth_out, &inputs)?;
     Ok(simulated.rows.len())
 }

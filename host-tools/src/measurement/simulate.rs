@@ -73,6 +73,9 @@ pub struct SimulationConfig {
     pub tool_xyz_mm: Option<[f64; 3]>,
     /// Seed of all random draws.
     pub seed: u64,
+    /// The commanded joint configurations (id, joints in rad), measured in this order instead of
+    /// `poses` random ones: a plan rehearsed before the cell measures it.
+    pub commanded: Option<Vec<(String, Vec<f64>)>>,
 }
 
 impl Default for SimulationConfig {
@@ -90,6 +93,7 @@ impl Default for SimulationConfig {
             tracker: None,
             tool_xyz_mm: None,
             seed: 1,
+            commanded: None,
         }
     }
 }
@@ -199,7 +203,17 @@ impl Simulated {
     /// Writes the tracker CSV to `data` and the true robot to `truth`, both or neither (see
     /// [`crate::io::outputs::Outputs`]); neither may be `robot`, the robot file simulated.
     pub fn write(&self, data: &Path, truth: &Path, robot: &Path) -> crate::Result<()> {
-        let mut outputs = crate::io::outputs::Outputs::new(&[("--robot", robot)]);
+        self.write_beside(data, truth, &[("--robot", robot)])
+    }
+
+    /// As [`Self::write`], refusing to replace any of `inputs` (each named by its flag).
+    pub fn write_beside(
+        &self,
+        data: &Path,
+        truth: &Path,
+        inputs: &[(&str, &Path)],
+    ) -> crate::Result<()> {
+        let mut outputs = crate::io::outputs::Outputs::new(inputs);
         outputs.stage(
             "--out",
             data,
@@ -306,9 +320,25 @@ fn measure(
         .map_err(|e| crate::refused!("position noise: {e}"))?;
     let orientation_noise = Normal::new(0.0, config.orientation_sigma_rad)
         .map_err(|e| crate::refused!("orientation noise: {e}"))?;
-    for i in 0..config.poses {
-        let mut q = calib_core::model::JointVec::<f64>::from_fn(model.robot.joints.len(), |_| 0.0);
-        for (qi, limits) in q.iter_mut().zip(&model.robot.limits) {
+    let joints = model.robot.joints.len();
+    let count = config.commanded.as_ref().map_or(config.poses, Vec::len);
+    for i in 0..count {
+        let mut q = calib_core::model::JointVec::<f64>::from_fn(joints, |_| 0.0);
+        let commanded = config.commanded.as_ref().and_then(|c| c.get(i));
+        if let Some((id, given)) = commanded {
+            if given.len() != joints {
+                return Err(crate::refused!(
+                    "commanded configuration {id} has {} joints, the robot {joints}",
+                    given.len()
+                ));
+            }
+            q.iter_mut().zip(given).for_each(|(a, b)| *a = *b);
+        }
+        for (qi, limits) in q
+            .iter_mut()
+            .zip(&model.robot.limits)
+            .filter(|_| commanded.is_none())
+        {
             let (lo, hi) =
                 if config.within_limits && limits.lower.is_finite() && limits.upper.is_finite() {
                     (limits.lower, limits.upper)
@@ -336,7 +366,7 @@ fn measure(
             *(nalgebra::Rotation3::new(noise) * pose.rotation).matrix()
         });
         rows.push(PoseRow {
-            id: format!("P{:03}", i + 1),
+            id: commanded.map_or_else(|| format!("P{:03}", i + 1), |(id, _)| id.clone()),
             q: q.to_vec(),
             position,
             rotation,
@@ -356,11 +386,11 @@ fn comments(config: &SimulationConfig, robot: &str, errors_text: &str) -> Vec<St
         },
         format!(
             "simulated by calib simulate: robot {robot}, errors {errors_text}, {} poses, joints {}",
-            config.poses,
-            if config.within_limits {
-                "within limits"
-            } else {
-                "uniform in [-180, 180] deg"
+            config.commanded.as_ref().map_or(config.poses, Vec::len),
+            match (&config.commanded, config.within_limits) {
+                (Some(_), _) => "as commanded (--joints-from)",
+                (None, true) => "within limits",
+                (None, false) => "uniform in [-180, 180] deg",
             }
         ),
         format!(
