@@ -40,15 +40,11 @@ const CONFIGURATIONS: [[f64; 6]; 5] = [
     [120.0, -10.0, 40.0, 20.0, -30.0, -45.0],
 ];
 
-/// Base-frame targets (CSV, position and quaternion) at [`CONFIGURATIONS`] of the nominal model.
-fn targets(nominal: &Kinematics<f64, nalgebra::Dyn>) -> (String, Vec<calib_core::Pose<f64>>) {
+/// Target poses as CSV (position and quaternion), named T1, T2, ...
+fn targets_csv(poses: impl Iterator<Item = nalgebra::Isometry3<f64>>) -> String {
     let mut csv = String::from("id,x_mm,y_mm,z_mm,qw,qx,qy,qz\n");
-    let mut poses = Vec::new();
-    for (i, q) in CONFIGURATIONS.iter().enumerate() {
-        let q = calib_core::model::JointVec::from_slice(&q.map(f64::to_radians)).unwrap();
-        let pose = nominal.forward(&q).unwrap();
-        let t = pose.translation.vector;
-        let r = nalgebra::UnitQuaternion::from_rotation_matrix(&pose.rotation);
+    for (i, pose) in poses.enumerate() {
+        let (t, r) = (pose.translation.vector, pose.rotation);
         csv.push_str(&format!(
             "T{},{},{},{},{},{},{},{}\n",
             i + 1,
@@ -60,9 +56,28 @@ fn targets(nominal: &Kinematics<f64, nalgebra::Dyn>) -> (String, Vec<calib_core:
             r.j,
             r.k
         ));
-        poses.push(pose);
     }
-    (csv, poses)
+    csv
+}
+
+/// A pose as an isometry.
+fn isometry(pose: &calib_core::Pose<f64>) -> nalgebra::Isometry3<f64> {
+    nalgebra::Isometry3::from_parts(
+        pose.translation.vector.into(),
+        nalgebra::UnitQuaternion::from_rotation_matrix(&pose.rotation),
+    )
+}
+
+/// Base-frame targets (CSV, position and quaternion) at [`CONFIGURATIONS`] of the nominal model.
+fn targets(nominal: &Kinematics<f64, nalgebra::Dyn>) -> (String, Vec<calib_core::Pose<f64>>) {
+    let poses: Vec<_> = CONFIGURATIONS
+        .iter()
+        .map(|q| {
+            let q = calib_core::model::JointVec::from_slice(&q.map(f64::to_radians)).unwrap();
+            nominal.forward(&q).unwrap()
+        })
+        .collect();
+    (targets_csv(poses.iter().map(isometry)), poses)
 }
 
 #[test]
@@ -177,6 +192,28 @@ fn tracker_data_calibrate_export_compensate_reaches_the_targets() {
     assert_eq!(json["fitted_poses"], 60);
     let mean = json["position_mm"]["mean"].as_f64().unwrap();
     assert!(mean < 0.05, "{mean}");
+    // Issue 40, item 4: the stored registration ([measurement]) is used when asked.
+    let text = ok(&calib_in(
+        d,
+        &[
+            "evaluate",
+            "--stored-registration",
+            "--robot",
+            "identified.toml",
+            "--data",
+            "data.csv",
+            "--json",
+        ],
+    ));
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let stored = json["position_mm"]["mean"].as_f64().unwrap();
+    println!(
+        "mean position error with the frames fitted {mean:.4} mm, with the stored registration {stored:.4} mm"
+    );
+    assert!(
+        stored < 0.05 && (stored - mean).abs() < 0.01,
+        "{stored} {mean}"
+    );
     for args in [
         &["evaluate", "--fit-frames", "none"][..],
         &["calibrate", "--frames", "none"][..],
@@ -253,26 +290,7 @@ fn tracker_data_calibrate_export_compensate_reaches_the_targets() {
         .base
         .unwrap()
         .isometry();
-    let mut csv = String::from("id,x_mm,y_mm,z_mm,qw,qx,qy,qz\n");
-    for (i, pose) in poses.iter().enumerate() {
-        let seen = tracker
-            * nalgebra::Isometry3::from_parts(
-                pose.translation.vector.into(),
-                nalgebra::UnitQuaternion::from_rotation_matrix(&pose.rotation),
-            );
-        let (t, r) = (seen.translation.vector, seen.rotation);
-        csv.push_str(&format!(
-            "T{},{},{},{},{},{},{},{}\n",
-            i + 1,
-            t.x,
-            t.y,
-            t.z,
-            r.w,
-            r.i,
-            r.j,
-            r.k
-        ));
-    }
+    let csv = targets_csv(poses.iter().map(|pose| tracker * isometry(pose)));
     std::fs::write(d.join("tracker-targets.csv"), &csv).unwrap();
     let compensate = |targets: &str, frame: &str| {
         calib_in(

@@ -32,7 +32,7 @@ pub struct CompensateOptions {
     pub targets: PathBuf,
     /// The frame of the targets: the robot's base, or the tracker's (the cell's, as measured),
     /// mapped into the base frame through the registration identified with the --params file
-    /// (its [measurement] section's tracker_base).
+    /// (its `[measurement]` section's `tracker_base`).
     #[arg(long, value_enum, default_value_t = TargetsFrame::Base)]
     pub targets_frame: TargetsFrame,
     /// Output CSV: one row per target, in input order.

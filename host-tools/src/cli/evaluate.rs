@@ -23,6 +23,11 @@ pub struct EvaluateOptions {
     /// Seed of the choice of --fit-poses (as --validate-seed of calibrate).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Use the registration stored with an identified model (its `[measurement]` section: the
+    /// tracker's view of the base and the probe) instead of fitting frames: how well the model
+    /// and its registration predict new data of the same set-up.
+    #[arg(long, conflicts_with_all = ["fit_frames", "fit_poses"])]
+    pub stored_registration: bool,
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
@@ -31,8 +36,20 @@ pub struct EvaluateOptions {
 /// Runs `calib evaluate`.
 pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
     crate::model::counts::joint_count(options.input.joints()?)?;
-    let (_, dataset) = options.input.load()?;
-    let frames = Frames::chosen(options.fit_frames, &dataset.data);
+    let (_, mut dataset) = options.input.load()?;
+    let frames = if options.stored_registration {
+        if dataset.file.measurement.is_none() {
+            anyhow::bail!(
+                "{}: has no [measurement] section, no registration to use: give a model identified on tracker data \
+                 (calibrate writes it), or fit the frames (--fit-frames)",
+                options.input.robot.display()
+            );
+        }
+        dataset = dataset.in_measurement_setup()?;
+        Frames::None
+    } else {
+        Frames::chosen(options.fit_frames, &dataset.data)
+    };
     Ok(crate::analysis::evaluation::evaluate(
         &dataset,
         frames,
