@@ -35,6 +35,7 @@ fn measure(real: &Kinematics<f64, Dyn>, count: usize, seed: u64) -> anyhow::Resu
                 rotation: None,
                 weight: 1.0,
                 role: None,
+                configuration: None,
             })
         })
         .collect()

@@ -1109,3 +1109,115 @@ fn targets_beyond_a_map_range_are_refused_unless_allowed() {
         "{text}"
     );
 }
+
+/// Issue 40, item 1: a target file names each target's configuration in a `configuration` column
+/// (`branch B`, as the output's column), without an option. The UR10 targets of (0, -90, 90,
+/// -90, -90, 0) and (90, -60, 60, -90, -90, 0) deg named in their postures' branch come back in
+/// it, near the postures, each reaching its target; the column and an option together, a row
+/// without a configuration among named ones, and a branch beyond 7 are refused, nothing written.
+#[test]
+fn a_configuration_column_names_each_targets_configuration() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ur10 = common::UR10;
+    let file = RobotFile::read(Path::new(ur10)).unwrap();
+    let nominal = reference::model(&file, &[], &[0.0; 6], &[0.0; 6]);
+    let postures = [
+        [0.0, -90.0, 90.0, -90.0, -90.0, 0.0],
+        [90.0, -60.0, 60.0, -90.0, -90.0, 0.0],
+    ];
+    let poses: Vec<_> = postures
+        .iter()
+        .map(|p| nominal.forward(&p.iter().map(|d: &f64| d.to_radians()).collect::<Vec<_>>()))
+        .collect();
+    // The branch of each posture, as compensate names it with --near-deg.
+    let branch_of = |k: usize| -> String {
+        std::fs::write(d.join("one.csv"), targets_csv(&poses[k..=k])).unwrap();
+        let near = postures[k].map(|v| v.to_string()).join(",");
+        common::ok(&calib(&[
+            "compensate",
+            "--robot",
+            ur10,
+            "--params",
+            ur10,
+            "--targets",
+            d.join("one.csv").to_str().unwrap(),
+            "--near-deg",
+            &near,
+            "--out",
+            d.join("one-out.csv").to_str().unwrap(),
+        ]));
+        let mut reader = csv::Reader::from_path(d.join("one-out.csv")).unwrap();
+        let row = reader.records().next().unwrap().unwrap();
+        std::fs::remove_file(d.join("one-out.csv")).unwrap();
+        row[11].to_string()
+    };
+    let branches = [branch_of(0), branch_of(1)];
+    let with_column = |values: [&str; 2]| {
+        let mut text = targets_csv(&poses).replacen('\n', ",configuration\n", 1);
+        let lines: Vec<String> = text.lines().map(String::from).collect();
+        text = format!(
+            "{}\n{},{}\n{},{}\n",
+            lines[0], lines[1], values[0], lines[2], values[1]
+        );
+        std::fs::write(d.join("targets.csv"), text).unwrap();
+    };
+    let out = d.join("out.csv");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "compensate",
+            "--robot",
+            ur10,
+            "--params",
+            ur10,
+            "--targets",
+            d.join("targets.csv").to_str().unwrap().to_string().leak(),
+            "--out",
+            out.to_str().unwrap().to_string().leak(),
+        ];
+        args.extend_from_slice(extra);
+        calib(&args)
+    };
+    with_column([&branches[0], &branches[1]]);
+    common::ok(&run(&[]));
+    let mut reader = csv::Reader::from_path(&out).unwrap();
+    for ((row, posture), branch) in reader.records().zip(&postures).zip(&branches) {
+        let row = row.unwrap();
+        assert_eq!((&row[9], &row[11]), ("ok", branch.as_str()), "{row:?}");
+        let joints: Vec<f64> = (1..=6).map(|j| row[j].parse::<f64>().unwrap()).collect();
+        let moved = joints
+            .iter()
+            .zip(posture)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(
+            moved < 1e-4,
+            "{moved} deg from the posture (nominal = actual here)"
+        );
+    }
+    std::fs::remove_file(&out).unwrap();
+    for (values, extra, says) in [
+        (
+            [branches[0].as_str(), branches[1].as_str()],
+            vec!["--branch", "4"],
+            "give one of them",
+        ),
+        (
+            [branches[0].as_str(), ""],
+            vec![],
+            "targets.csv:3: target 3 names no configuration",
+        ),
+        (
+            ["branch 9", "branch 0"],
+            vec![],
+            "\"branch 9\" is not an arm configuration",
+        ),
+    ] {
+        with_column(values);
+        let result = run(&extra);
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert_eq!(result.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains(says), "{says}: {stderr}");
+        assert!(!out.exists());
+    }
+}

@@ -174,6 +174,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
             rotation: Some(*pose.rotation.matrix()),
             weight: 1.0,
             role: None,
+            configuration: None,
         });
     }
     let settings = CompensationSettings {
@@ -227,6 +228,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
         rotation: Some(*nalgebra::Rotation3::from_euler_angles(3.1, 0.1, 0.2).matrix()),
         weight: 1.0,
         role: None,
+        configuration: None,
     };
     let one = TrackerData {
         path: "targets".into(),

@@ -36,6 +36,7 @@
 //!             rotation: Some(*pose.rotation.matrix()),
 //!             weight: 1.0,
 //!             role: None,
+//!             configuration: None,
 //!         }
 //!     })
 //!     .collect();

@@ -27,7 +27,8 @@ pub struct CompensateOptions {
     /// Target poses of the controller's tool (CSV: x_mm, y_mm, z_mm and an orientation; optional
     /// q1_deg..qN_deg as the start, i.e. the controller's nominal joints for the target, which
     /// also name its arm configuration; without them name the configuration with --near-deg or
-    /// --branch), in the robot's base frame unless --targets-frame says otherwise.
+    /// --branch, or a `configuration` column of `branch B` per target), in the robot's base frame
+    /// unless --targets-frame says otherwise.
     #[arg(long, value_name = "FILE")]
     pub targets: PathBuf,
     /// The frame of the targets: the robot's base, or the tracker's (the cell's, as measured),
@@ -96,6 +97,7 @@ impl CompensateOptions {
         };
         Ok(Request {
             configuration,
+            configuration_is_default: self.near_deg.is_none() && self.branch.is_none(),
             map_ranges,
             allow_extrapolation: self.allow_extrapolation,
         })

@@ -19,6 +19,8 @@ pub(crate) enum Column {
     Weight,
     /// The pose's role in a measurement plan (`core`, `fill`, `verify`; `calib plan`).
     Role,
+    /// A target's arm configuration (`branch B`; `calib compensate`).
+    Configuration,
     /// A source column the data profile does not map.
     Ignored,
 }
@@ -65,6 +67,7 @@ pub(crate) fn parse_column(name: &str) -> Option<Column> {
         "id" => Column::Id,
         "weight" => Column::Weight,
         "role" => Column::Role,
+        "configuration" => Column::Configuration,
         _ => return None,
     })
 }

@@ -107,6 +107,9 @@ pub struct Record {
     pub weight: f64,
     /// The pose's role in a measurement plan (the `role` column), if the file has one.
     pub role: Option<Role>,
+    /// A target's arm configuration, the closed-form branch 0-7 (the `configuration` column,
+    /// `branch B`), if the file has one.
+    pub configuration: Option<u8>,
 }
 
 /// A pose's role in a measurement plan (`calib plan`; the `role` column of a data file).
@@ -137,6 +140,25 @@ impl Role {
             .into_iter()
             .find(|r| r.name().eq_ignore_ascii_case(name))
     }
+}
+
+/// A `configuration` field: `branch B` or `B` (0-7), or empty for none.
+fn parse_configuration(field: &str) -> Result<Option<u8>, String> {
+    let text = field.trim();
+    if text.is_empty() {
+        return Ok(None);
+    }
+    let number = text.strip_prefix("branch").unwrap_or(text).trim();
+    number
+        .parse::<u8>()
+        .ok()
+        .filter(|b| *b < 8)
+        .map(Some)
+        .ok_or_else(|| {
+            format!(
+                "\"{field}\" is not an arm configuration: give the closed-form branch as `branch B`, B from 0 to 7 (bit 4 shoulder back, bit 2 elbow down, bit 1 wrist flipped)"
+            )
+        })
 }
 
 /// What a plan predicted for its verification poses, from its `# plan prediction:` comment line
@@ -548,6 +570,7 @@ impl Layout {
             rotation: None,
             weight: 1.0,
             role: None,
+            configuration: None,
         };
         let mut quaternion = [0.0; 4];
         let mut angle = [0.0; 3];
@@ -564,6 +587,10 @@ impl Layout {
                 Column::Ignored => continue,
                 Column::Id => {
                     record.id = field.to_string();
+                    continue;
+                }
+                Column::Configuration => {
+                    record.configuration = parse_configuration(field).map_err(at)?;
                     continue;
                 }
                 Column::Role => {
@@ -628,7 +655,7 @@ impl Layout {
                     }
                     record.weight = value;
                 }
-                Column::Id | Column::Role | Column::Ignored => {}
+                Column::Id | Column::Role | Column::Configuration | Column::Ignored => {}
             }
         }
         record.rotation = match self.orientation {

@@ -71,6 +71,9 @@ pub enum Configuration {
 pub struct Request {
     /// The configuration of targets without joints; `None` refuses such targets.
     pub configuration: Option<Configuration>,
+    /// `true` when `configuration` is the robot file's default (`[compensation]`), which a
+    /// target file's configuration column overrides; an option given for the run does not.
+    pub configuration_is_default: bool,
     /// Per joint, the range of readings (rad) its map was identified on; `None`: no map (or a
     /// map that is zero), any reading.
     pub map_ranges: Vec<Option<[f64; 2]>>,
@@ -83,6 +86,7 @@ impl Request {
     pub fn branch(branch: usize) -> Self {
         Self {
             configuration: Some(Configuration::Branch(branch)),
+            configuration_is_default: false,
             map_ranges: Vec::new(),
             allow_extrapolation: false,
         }
@@ -138,20 +142,33 @@ pub(crate) fn compensate_targets_of(
     request: &Request,
 ) -> crate::Result<Vec<TargetOutcome>> {
     let planned = Kinematics::nominal(nominal).context("nominal robot")?;
-    let start = Start::of(nominal, &planned, targets, request)?;
+    let start = Start::of_rows(nominal, &planned, targets, request)?;
     let outcomes = targets
         .records
         .iter()
         .map(|record| {
+            // A row's own configuration (the `configuration` column) before the file's.
+            let own = record
+                .configuration
+                .map(|branch| Start::Branch(usize::from(branch), None));
+            let Some(start) = own.as_ref().or(start.as_ref()) else {
+                return TargetOutcome {
+                    id: record.id.clone(),
+                    start: String::new(),
+                    result: Err("no arm configuration named for this target".to_string()),
+                    configuration: String::new(),
+                    extrapolated: false,
+                };
+            };
             let rotation = record.rotation.unwrap_or_else(nalgebra::Matrix3::identity);
             let target = Pose::from_parts(
                 Translation3::from(nalgebra::Vector3::from(record.position)),
                 Rotation3::from_matrix_unchecked(rotation),
             );
             let (result, method) =
-                compensate_record(nominal, &planned, real, &target, record, &start, settings);
+                compensate_record(nominal, &planned, real, &target, record, start, settings);
             checked(
-                settings, nominal, &planned, record, &start, request, result, method,
+                settings, nominal, &planned, record, start, request, result, method,
             )
         })
         .collect();
@@ -362,6 +379,49 @@ enum Start {
 }
 
 impl Start {
+    /// The start of the rows of `targets` without a configuration of their own; `None` when
+    /// every row names its own (the `configuration` column). Errors: as [`Start::of`]; a file
+    /// with both joints and a configuration column, or a configuration column and a
+    /// configuration option.
+    fn of_rows(
+        nominal: &Robot<f64, Dyn>,
+        planned: &Kinematics<f64, Dyn>,
+        targets: &TrackerData,
+        request: &Request,
+    ) -> crate::Result<Option<Self>> {
+        let named = targets
+            .records
+            .iter()
+            .filter(|r| r.configuration.is_some())
+            .count();
+        if named == 0 {
+            return Self::of(nominal, planned, targets, request).map(Some);
+        }
+        let path = targets.path.display();
+        if targets.joints == nominal.joints.len() {
+            return Err(crate::refused!(
+                "{path}: has both the controller's joints, which name each target's configuration, and a configuration column; give one of them"
+            ));
+        }
+        if request.configuration.is_some() && !request.configuration_is_default {
+            return Err(crate::refused!(
+                "{path}: its configuration column names the targets' configurations, and so does --branch or --near-deg; give one of them (leave the option out)"
+            ));
+        }
+        if let Some(r) = targets.records.iter().find(|r| r.configuration.is_none()) {
+            if request.configuration.is_some() {
+                // The robot file's default for the rows that name none.
+                return Self::of(nominal, planned, targets, request).map(Some);
+            }
+            return Err(crate::refused!(
+                "{path}:{}: target {} names no configuration while others do: fill its configuration column",
+                r.line,
+                r.id
+            ));
+        }
+        Ok(None)
+    }
+
     /// The start of `targets` under `request`. Errors: no joints and no configuration named; a
     /// branch out of range; a posture of another joint count, outside the limits, or in no
     /// configuration of the closed form.

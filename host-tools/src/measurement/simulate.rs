@@ -196,6 +196,7 @@ impl Simulated {
                 rotation: r.rotation,
                 weight: 1.0,
                 role: None,
+                configuration: None,
             })
             .collect()
     }

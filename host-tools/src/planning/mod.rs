@@ -367,6 +367,7 @@ fn information(
             rotation: (measure == Measure::Pose).then(|| *pose.rotation.matrix()),
             weight: 1.0,
             role: None,
+            configuration: None,
         });
     }
     // In a tracker's frame (here the base frame itself), as the measured file will be.
