@@ -255,6 +255,22 @@ fn series_b_model_re_registered_on_series_d() {
     ];
     let registered = calibrate::calibrate(&parse::<CalibrateOptions>(&all)).unwrap();
     assert_eq!(registered.result.calibration.poses, 30);
+    // Issue 40, item 4: like with like (the frames' prediction against their own fit, no
+    // warning that compared a cross-validation with an in-sample fit), and the probe's move.
+    let text = &registered.text;
+    assert!(
+        text.contains("cross-validation (frames only") && !text.contains("WARNING: calibrated"),
+        "{text}"
+    );
+    let moved: f64 = text
+        .split("moved ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!((2.5..4.0).contains(&moved), "{moved} mm: {text}");
+    assert!(text.contains("keep fitting it (--frames base+tool)"), "{text}");
     let v = registered.result.validation.as_ref().unwrap();
     assert_eq!(v.poses, 602);
     // Only frames identified: the geometry of the B model is kept in the file written.

@@ -7,11 +7,91 @@ use crate::calibration::{CalibrationResult, swarm_stop};
 use crate::measurement::frames::Frames;
 use crate::report::tables::{table3_text, truth_text};
 
+/// A probe fitted this far (mm) from the stored one has moved (a probe's re-fit scatters by
+/// tenths of a millimetre).
+const PROBE_MOVED_MM: f64 = 0.5;
+
 fn condition(c: Option<f64>) -> String {
     c.map_or_else(|| "infinite".to_string(), |c| format!("{c:.3e}"))
 }
 
 impl CalibrationResult {
+    /// The cross-validation lines: the calibrated model against the nominal one, with a warning
+    /// when it predicts worse; for a re-registration (`--identify frames`) the frames' prediction
+    /// against their fit, and the probe against the stored one.
+    fn cross_validation_text(&self) -> String {
+        let Some(cv) = &self.cross_validation else {
+            return String::new();
+        };
+        let mut text = String::new();
+        if self.config.identify == crate::calibration::Identify::Frames {
+            // Re-registration: the same geometry either way, so the comparison is the frames'
+            // fit on the poses against their prediction of new ones, not a model against another.
+            text.push_str(&format!(
+                "\ncross-validation (frames only, {} folds): poses predicted by the frames fitted without them: mean |dp| {:.4} mm \
+                 (RMS {:.4} mm); the frames fitted on every pose: {:.4} mm (the same geometry, the robot file's)\n",
+                cv.folds, cv.calibrated_mean_mm, cv.calibrated_rms_mm, cv.nominal_mean_mm
+            ));
+            text.push_str(&self.probe_text());
+            return text;
+        }
+        text.push_str(&format!(
+            "\ncross-validation (geometric model, {} folds{}, least squares): poses predicted by the model identified without them: \
+             mean |dp| {:.4} mm (RMS {:.4} mm), nominal geometry {:.4} mm{}\n",
+            cv.folds,
+            if cv.folds == cv.poses + cv.failed_folds { ", leave-one-out" } else { "" },
+            cv.calibrated_mean_mm,
+            cv.calibrated_rms_mm,
+            cv.nominal_mean_mm,
+            if cv.failed_folds > 0 {
+                format!(" ({} folds failed to fit)", cv.failed_folds)
+            } else {
+                String::new()
+            }
+        ));
+        if cv.worse_than_nominal() {
+            text.push_str(
+                "WARNING: calibrated on these poses, the model is expected to miss new poses by more than the \
+                 nominal model: the pose set is too small or too weak for the parameters identified. Measure more \
+                 poses, spread over the workspace, or identify fewer parameters\n",
+            );
+        }
+        text
+    }
+
+    /// For a re-registration: how far the probe fitted now lies from the one the file stores, and
+    /// the frames choice that fits (a moved probe is fitted with `--frames base+tool`; one that
+    /// stayed is kept with `--frames base`).
+    fn probe_text(&self) -> String {
+        let stored = self
+            .frames
+            .given
+            .measurement
+            .as_ref()
+            .and_then(|m| m.flange_tool.as_ref());
+        let (Some(stored), Some(fitted)) = (stored, self.frames.tool.as_ref()) else {
+            return String::new();
+        };
+        let (a, b) = (stored.isometry(), fitted.isometry());
+        let moved_mm = (b.translation.vector - a.translation.vector).norm();
+        let turned_deg = a.rotation.angle_to(&b.rotation).to_degrees();
+        let advice = if moved_mm > PROBE_MOVED_MM {
+            "the probe was moved or exchanged: keep fitting it (--frames base+tool)"
+        } else {
+            "the probe stayed: --frames base keeps the stored one and fits the tracker alone"
+        };
+        format!(
+            "probe: fitted at ({:.2}, {:.2}, {:.2}) mm, the file's at ({:.2}, {:.2}, {:.2}) mm: moved {moved_mm:.2} mm, \
+             turned {turned_deg:.3} deg; {advice}\n",
+            fitted.xyz_mm[0],
+            fitted.xyz_mm[1],
+            fitted.xyz_mm[2],
+            stored.xyz_mm[0],
+            stored.xyz_mm[1],
+            stored.xyz_mm[2],
+        )
+    }
+
     /// The text `calib calibrate` prints; `truth` adds the comparison with known errors.
     pub fn text(&self, truth: Option<&[TruthRow]>) -> String {
         let mut text = self.run_text();
@@ -42,29 +122,7 @@ impl CalibrationResult {
         if let Some(maps) = &self.joint_maps {
             text.push_str(&maps.text());
         }
-        if let Some(cv) = &self.cross_validation {
-            text.push_str(&format!(
-                "\ncross-validation (geometric model, {} folds{}, least squares): poses predicted by the model identified without them: \
-                 mean |dp| {:.4} mm (RMS {:.4} mm), nominal geometry {:.4} mm{}\n",
-                cv.folds,
-                if cv.folds == cv.poses + cv.failed_folds { ", leave-one-out" } else { "" },
-                cv.calibrated_mean_mm,
-                cv.calibrated_rms_mm,
-                cv.nominal_mean_mm,
-                if cv.failed_folds > 0 {
-                    format!(" ({} folds failed to fit)", cv.failed_folds)
-                } else {
-                    String::new()
-                }
-            ));
-            if cv.worse_than_nominal() {
-                text.push_str(
-                    "WARNING: calibrated on these poses, the model is expected to miss new poses by more than the \
-                     nominal model: the pose set is too small or too weak for the parameters identified. Measure more \
-                     poses, spread over the workspace, or identify fewer parameters\n",
-                );
-            }
-        }
+        text.push_str(&self.cross_validation_text());
         if !self.implausible.is_empty() {
             text.push_str("\nWARNING: the result is not plausible (written because of --accept-implausible):\n");
             for problem in &self.implausible {
