@@ -270,7 +270,10 @@ fn series_b_model_re_registered_on_series_d() {
         .parse()
         .unwrap();
     assert!((2.5..4.0).contains(&moved), "{moved} mm: {text}");
-    assert!(text.contains("keep fitting it (--frames base+tool)"), "{text}");
+    assert!(
+        text.contains("keep fitting it (--frames base+tool)"),
+        "{text}"
+    );
     let v = registered.result.validation.as_ref().unwrap();
     assert_eq!(v.poses, 602);
     // Only frames identified: the geometry of the B model is kept in the file written.
