@@ -193,6 +193,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
             orientation: OrientationColumns::Quaternion,
             records: records.clone(),
             planned: None,
+            has_ids: false,
         };
         let outcomes = compensate_targets(
             &nominal,
@@ -238,6 +239,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
         orientation: OrientationColumns::Quaternion,
         records: vec![record],
         planned: None,
+        has_ids: false,
     };
     let outcome = compensate_targets(
         &nominal,

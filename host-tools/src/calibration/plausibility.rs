@@ -35,7 +35,7 @@ determine the parameters (`calib check`). If the result is right, --accept-impla
 /// The bound (in the parameter's unit, mm or deg) of an identified parameter, and whose bound it
 /// is. A robot file's `max_length_error_mm` and `max_angle_error_deg` bound its joints' errors
 /// (the robot's geometry); the frames of the measurement set-up keep the general bounds.
-fn bound_of(robot: &RobotFile, parameter: Parameter) -> (f64, &'static str) {
+pub(crate) fn bound_of(robot: &RobotFile, parameter: Parameter) -> (f64, &'static str) {
     let own = match parameter {
         Parameter::Joint { .. } if parameter.is_angle() => robot.max_angle_error_deg,
         Parameter::Joint { .. } => robot.max_length_error_mm,

@@ -30,16 +30,16 @@ pub struct ImportUrOptions {
 /// A factory calibration corrects a robot by millimetres and tenths of a degree; more means
 /// wrong deltas or a nominal file of another robot than the one calibrated.
 fn implausible(file: &RobotFile, import: &Import) -> Vec<String> {
-    use crate::calibration::plausibility::{MAX_ANGLE_ERROR_DEG, MAX_LENGTH_ERROR_MM};
-    let length_bound = file.max_length_error_mm.unwrap_or(MAX_LENGTH_ERROR_MM);
-    let angle_bound = file.max_angle_error_deg.unwrap_or(MAX_ANGLE_ERROR_DEG);
+    use crate::calibration::plausibility::{MAX_LENGTH_ERROR_MM, bound_of};
     let mut problems = Vec::new();
     for p in import.mask.iter() {
         let value = import.errors.get(p).unwrap_or(0.0);
-        let (shown, bound, unit) = if p.is_angle() {
-            (value.to_degrees(), angle_bound, "deg")
+        // The bounds a calibration of this robot is held to (its file's, or the general ones).
+        let (bound, _) = bound_of(file, p);
+        let (shown, unit) = if p.is_angle() {
+            (value.to_degrees(), "deg")
         } else {
-            (value, length_bound, "mm")
+            (value, "mm")
         };
         if shown.abs() > bound || !shown.is_finite() {
             problems.push(format!(

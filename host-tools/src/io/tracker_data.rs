@@ -246,6 +246,8 @@ pub struct TrackerData {
     pub records: Vec<Record>,
     /// What the plan the file was measured from predicted (its `# plan prediction:` line).
     pub planned: Option<PlannedVerification>,
+    /// `true` when the file has an `id` column; without one each record's id is its line.
+    pub has_ids: bool,
 }
 
 impl TrackerData {
@@ -371,6 +373,7 @@ impl TrackerData {
             orientation: layout.orientation,
             records,
             planned,
+            has_ids: layout.columns.contains(&Column::Id),
         })
     }
 }

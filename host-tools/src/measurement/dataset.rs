@@ -60,6 +60,7 @@ impl Dataset {
             orientation,
             records,
             planned: None,
+            has_ids: true,
         };
         Self::from_parts(file, Path::new("<memory>"), data)
     }
@@ -311,6 +312,7 @@ impl Dataset {
                 orientation: data.orientation,
                 records: Vec::with_capacity(capacity),
                 planned: data.planned,
+                has_ids: data.has_ids,
             },
             measurements: Vec::with_capacity(capacity),
         }

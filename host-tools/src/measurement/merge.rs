@@ -112,8 +112,7 @@ fn pairs<'a>(
             Ok(plan.records.iter().zip(&measured.records).collect())
         }
         MatchBy::Id => {
-            // Without an id column a record's id is its line number: no name to pair by.
-            if measured.records.iter().all(|r| r.id == r.line.to_string()) {
+            if !measured.has_ids {
                 return Err(crate::refused!(
                     "{data_path} has no id column naming the planned poses; merge --by order, or export the point names as id"
                 ));

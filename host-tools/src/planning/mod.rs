@@ -299,7 +299,6 @@ impl Plan {
     /// in degrees and empty measurement columns (quaternion columns for `pose`), for the tracker
     /// software to fill; `comments` and the prediction line at the top.
     pub fn csv(&self, comments: &[String]) -> crate::Result<String> {
-        let joints = self.poses.first().map_or(0, |p| p.q.len());
         let mut text = String::new();
         for c in comments {
             text.push_str(&format!("# {}\n", crate::io::text::one_line(c)));
@@ -307,12 +306,19 @@ impl Plan {
         if let Some(v) = &self.prediction.verification {
             text.push_str(&format!("# {}\n", v.comment()));
         }
-        let mut header: Vec<String> = vec!["id".into(), "role".into()];
-        header.extend((1..=joints).map(|i| format!("q{i}_deg")));
         let mut measured = vec!["x_mm", "y_mm", "z_mm"];
         if self.settings.measure == Measure::Pose {
             measured.extend(["qw", "qx", "qy", "qz"]);
         }
+        text.push_str(&self.poses_csv(&measured)?);
+        Ok(text)
+    }
+
+    /// The poses as CSV rows: `id`, `role`, `q1_deg..qN_deg`, then the `measured` columns empty.
+    pub(crate) fn poses_csv(&self, measured: &[&str]) -> crate::Result<String> {
+        let joints = self.poses.first().map_or(0, |p| p.q.len());
+        let mut header: Vec<String> = vec!["id".into(), "role".into()];
+        header.extend((1..=joints).map(|i| format!("q{i}_deg")));
         header.extend(measured.iter().map(|s| s.to_string()));
         let mut writer = csv::Writer::from_writer(Vec::new());
         writer.write_record(&header)?;
@@ -322,10 +328,8 @@ impl Plan {
             fields.extend(measured.iter().map(|_| String::new()));
             writer.write_record(&fields)?;
         }
-        text.push_str(std::str::from_utf8(
-            &writer.into_inner().map_err(|e| e.into_error())?,
-        )?);
-        Ok(text)
+        let bytes = writer.into_inner().map_err(|e| e.into_error())?;
+        Ok(std::str::from_utf8(&bytes)?.to_string())
     }
 }
 

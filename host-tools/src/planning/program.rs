@@ -71,16 +71,5 @@ pub fn urscript(plan: &Plan, robot: &str, motion: &Motion) -> crate::Result<Stri
 /// The plan as joint targets for any controller: `id`, `role`, `q1_deg..qN_deg`, one row per
 /// pose in the planned order.
 pub fn joint_targets(plan: &Plan) -> crate::Result<String> {
-    let joints = plan.poses.first().map_or(0, |p| p.q.len());
-    let mut writer = csv::Writer::from_writer(Vec::new());
-    let mut header = vec!["id".to_string(), "role".to_string()];
-    header.extend((1..=joints).map(|i| format!("q{i}_deg")));
-    writer.write_record(&header)?;
-    for p in &plan.poses {
-        let mut fields = vec![p.id.clone(), p.role.name().to_string()];
-        fields.extend(p.q.iter().map(|q| q.to_degrees().to_string()));
-        writer.write_record(&fields)?;
-    }
-    let bytes = writer.into_inner().map_err(|e| e.into_error())?;
-    Ok(std::str::from_utf8(&bytes)?.to_string())
+    plan.poses_csv(&[])
 }
