@@ -36,6 +36,7 @@ fn measure(real: &Kinematics<f64, Dyn>, count: usize, seed: u64) -> anyhow::Resu
                 weight: 1.0,
                 role: None,
                 configuration: None,
+                time_s: None,
             })
         })
         .collect()

@@ -175,6 +175,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
             weight: 1.0,
             role: None,
             configuration: None,
+            time_s: None,
         });
     }
     let settings = CompensationSettings {
@@ -194,6 +195,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
             records: records.clone(),
             planned: None,
             has_ids: false,
+            has_times: false,
         };
         let outcomes = compensate_targets(
             &nominal,
@@ -230,6 +232,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
         weight: 1.0,
         role: None,
         configuration: None,
+        time_s: None,
     };
     let one = TrackerData {
         path: "targets".into(),
@@ -240,6 +243,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
         records: vec![record],
         planned: None,
         has_ids: false,
+        has_times: false,
     };
     let outcome = compensate_targets(
         &nominal,

@@ -998,3 +998,145 @@ fn a_plan_rehearsed_by_simulation_calibrates_with_its_verification_held_out() {
     );
     assert!(measured_mm < predicted_high_mm, "{text}");
 }
+
+/// Issue 40, item 3: merging by timestamp. The tracker measured continuously (points while the
+/// robot moved between poses too) and exported its points sorted by value, not by time; the
+/// robot's log says when it stood at each planned pose. Each planned pose gets the point measured
+/// nearest its logged time; the points taken in motion are left out and counted. A pose with no
+/// point within the tolerance, two poses nearest one point, a log whose joints are not the plan's,
+/// and files without a time column are refused, naming the row.
+#[test]
+fn merge_by_time_pairs_each_logged_pose_with_the_point_measured_then() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let write = |name: &str, text: &str| std::fs::write(d.join(name), text).unwrap();
+    write(
+        "plan.csv",
+        "# plan prediction: verification_mean_mm=0.1 low_mm=0.05 high_mm=0.2 noise_mm=0.02\n\
+         id,role,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n\
+         p1,core,0,-90,90,-90,-90,0\n\
+         p2,fill,10,-80,80,-90,-90,0\n\
+         p3,verify,20,-70,70,-90,-90,0\n\
+         p4,core,30,-60,60,-90,-90,0\n",
+    );
+    // The points the tracker took at the four poses (x = 100 * pose), and three in motion.
+    write(
+        "export.csv",
+        "time_ms,x_mm,y_mm,z_mm\n\
+         40020,400,1,2\n\
+         15000,150,1,2\n\
+         10200,100,1,2\n\
+         35000,350,1,2\n\
+         20100,200,1,2\n\
+         25000,250,1,2\n\
+         29700,300,1,2\n",
+    );
+    let log = |rows: &str| format!("id,time_s,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n{rows}");
+    write(
+        "log.csv",
+        &log("p1,10,0,-90,90,-90,-90,0\n\
+              p2,20,10,-80,80,-90,-90,0\n\
+              p3,30,20,-70,70,-90,-90,0\n\
+              p4,40,30,-60,60,-90,-90,0\n"),
+    );
+    let merge = |export: &str, log: Option<&str>, extra: &[&str]| {
+        let mut args = vec![
+            "merge",
+            "--plan",
+            "plan.csv",
+            "--measured",
+            export,
+            "--by",
+            "time",
+        ];
+        if let Some(log) = log {
+            args.extend(["--robot-log", log]);
+        }
+        args.extend(["--time-tolerance-s", "0.5", "--out", "measured.csv"]);
+        args.extend(extra);
+        common::calib_in(d, &args)
+    };
+    assert!(common::ok(&merge("export.csv", Some("log.csv"), &[])).contains("merged 4"));
+    let merged = TrackerData::read(&d.join("measured.csv")).unwrap();
+    let got: Vec<(&str, f64, Option<Role>)> = merged
+        .records
+        .iter()
+        .map(|r| (r.id.as_str(), r.position[0], r.role))
+        .collect();
+    assert_eq!(
+        got,
+        [
+            ("p1", 100.0, Some(Role::Core)),
+            ("p2", 200.0, Some(Role::Fill)),
+            ("p3", 300.0, Some(Role::Verify)),
+            ("p4", 400.0, Some(Role::Core))
+        ]
+    );
+    assert!((merged.records[1].q[0].to_degrees() - 10.0).abs() < 1e-12);
+    let text = std::fs::read_to_string(d.join("measured.csv")).unwrap();
+    assert!(
+        text.contains("# 3 points of the export were measured at no logged pose"),
+        "{text}"
+    );
+    assert!(
+        text.contains("# plan prediction: verification_mean_mm=0.1"),
+        "{text}"
+    );
+    std::fs::remove_file(d.join("measured.csv")).unwrap();
+    // Refusals, nothing written.
+    write(
+        "late.csv",
+        &log("p1,10,0,-90,90,-90,-90,0\n\
+              p2,20,10,-80,80,-90,-90,0\n\
+              p3,31,20,-70,70,-90,-90,0\n\
+              p4,40,30,-60,60,-90,-90,0\n"),
+    );
+    write(
+        "twice.csv",
+        &log("p1,10,0,-90,90,-90,-90,0\n\
+              p2,10.4,10,-80,80,-90,-90,0\n\
+              p3,30,20,-70,70,-90,-90,0\n\
+              p4,40,30,-60,60,-90,-90,0\n"),
+    );
+    write(
+        "elsewhere.csv",
+        &log("p1,10,0,-90,90,-90,-90,0\n\
+              p2,20,10,-80,80,-90,-90,0\n\
+              p3,30,20,-70,75,-90,-90,0\n\
+              p4,40,30,-60,60,-90,-90,0\n"),
+    );
+    write(
+        "untimed.csv",
+        "x_mm,y_mm,z_mm\n100,1,2\n200,1,2\n300,1,2\n400,1,2\n",
+    );
+    for (export, log, says) in [
+        (
+            "export.csv",
+            Some("late.csv"),
+            "late.csv:4: the robot stood at the planned pose p3 at 31 s, but export.csv has no point within \
+             --time-tolerance-s 0.5 of it (the nearest, line 8, is 1.300 s away)",
+        ),
+        (
+            "export.csv",
+            Some("twice.csv"),
+            "export.csv:4: the point is the nearest in time to two planned poses, p1 (log line 2) and p2 (log line 3)",
+        ),
+        (
+            "export.csv",
+            Some("elsewhere.csv"),
+            "elsewhere.csv:4: q3 = 75.0000 deg, but the planned pose p3 it is paired with has 70.0000 deg",
+        ),
+        ("export.csv", None, "merging by time needs the robot's log"),
+        (
+            "untimed.csv",
+            Some("log.csv"),
+            "untimed.csv has no time column",
+        ),
+    ] {
+        let out = merge(export, log, &[]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains(says), "{says}: {stderr}");
+        assert!(!d.join("measured.csv").exists());
+    }
+}

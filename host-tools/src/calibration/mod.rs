@@ -37,6 +37,7 @@
 //!             weight: 1.0,
 //!             role: None,
 //!             configuration: None,
+//!             time_s: None,
 //!         }
 //!     })
 //!     .collect();

@@ -21,6 +21,9 @@ pub(crate) enum Column {
     Role,
     /// A target's arm configuration (`branch B`; `calib compensate`).
     Configuration,
+    /// When the row was measured or logged: factor to seconds (`time_s`, `time_ms`; any epoch,
+    /// the same in the files merged by time, `calib merge --by time`).
+    Time(f64),
     /// A source column the data profile does not map.
     Ignored,
 }
@@ -68,6 +71,8 @@ pub(crate) fn parse_column(name: &str) -> Option<Column> {
         "weight" => Column::Weight,
         "role" => Column::Role,
         "configuration" => Column::Configuration,
+        "time_s" => Column::Time(1.0),
+        "time_ms" => Column::Time(1e-3),
         _ => return None,
     })
 }

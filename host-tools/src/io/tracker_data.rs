@@ -3,7 +3,8 @@
 //!
 //! Columns: joints `q1_deg..qN_deg` (or `_rad`), position `x_mm, y_mm, z_mm` (or `_m`), optional
 //! orientation as a unit quaternion `qw, qx, qy, qz` or fixed-axis angles `rx_deg, ry_deg, rz_deg`
-//! (`R = Rz Ry Rx`), optional `id` and `weight`. A comment line `# frame: base` says the
+//! (`R = Rz Ry Rx`), optional `id`, `weight`, `role`, `configuration` and `time_s` (or `time_ms`).
+//! A comment line `# frame: base` says the
 //! measurements are in the robot's base frame. Line numbers in errors are the file's physical lines
 //! (the header, and any comment above it, count).
 
@@ -110,6 +111,9 @@ pub struct Record {
     /// A target's arm configuration, the closed-form branch 0-7 (the `configuration` column,
     /// `branch B`), if the file has one.
     pub configuration: Option<u8>,
+    /// When the row was measured or logged, s (the `time_s` or `time_ms` column), if the file
+    /// has one.
+    pub time_s: Option<f64>,
 }
 
 /// A pose's role in a measurement plan (`calib plan`; the `role` column of a data file).
@@ -248,6 +252,8 @@ pub struct TrackerData {
     pub planned: Option<PlannedVerification>,
     /// `true` when the file has an `id` column; without one each record's id is its line.
     pub has_ids: bool,
+    /// `true` when the file has a time column (`time_s`, `time_ms`).
+    pub has_times: bool,
 }
 
 impl TrackerData {
@@ -374,6 +380,7 @@ impl TrackerData {
             records,
             planned,
             has_ids: layout.columns.contains(&Column::Id),
+            has_times: layout.columns.iter().any(|c| matches!(c, Column::Time(_))),
         })
     }
 }
@@ -504,7 +511,10 @@ impl Layout {
         }
         if needs == Needs::Joints {
             for c in &mut columns {
-                if !matches!(c, Column::Joint(..) | Column::Id | Column::Role) {
+                if !matches!(
+                    c,
+                    Column::Joint(..) | Column::Id | Column::Role | Column::Time(_)
+                ) {
                     *c = Column::Ignored;
                 }
             }
@@ -574,6 +584,7 @@ impl Layout {
             weight: 1.0,
             role: None,
             configuration: None,
+            time_s: None,
         };
         let mut quaternion = [0.0; 4];
         let mut angle = [0.0; 3];
@@ -658,6 +669,7 @@ impl Layout {
                     }
                     record.weight = value;
                 }
+                Column::Time(scale) => record.time_s = Some(value * scale),
                 Column::Id | Column::Role | Column::Configuration | Column::Ignored => {}
             }
         }
@@ -742,7 +754,7 @@ fn columns_of(
         let column = parse_column(name).ok_or_else(|| {
             at(
                 Some(format!("{} (\"{source}\")", i + 1)),
-                "unknown column; expected q<i>_deg or q<i>_rad, x_mm/y_mm/z_mm (or _m), qw/qx/qy/qz, rx_deg/ry_deg/rz_deg, id, weight".into(),
+                "unknown column; expected q<i>_deg or q<i>_rad, x_mm/y_mm/z_mm (or _m), qw/qx/qy/qz, rx_deg/ry_deg/rz_deg, id, weight, role, configuration, time_s (or time_ms)".into(),
             )
         })?;
         columns.push(column);

@@ -61,6 +61,7 @@ impl Dataset {
             records,
             planned: None,
             has_ids: true,
+            has_times: false,
         };
         Self::from_parts(file, Path::new("<memory>"), data)
     }
@@ -313,6 +314,7 @@ impl Dataset {
                 records: Vec::with_capacity(capacity),
                 planned: data.planned,
                 has_ids: data.has_ids,
+                has_times: data.has_times,
             },
             measurements: Vec::with_capacity(capacity),
         }

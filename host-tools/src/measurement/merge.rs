@@ -4,9 +4,13 @@
 //!
 //! A tracker exports points, not joints: the merge pairs them with the plan's poses by the `id`
 //! the export names them with ([`MatchBy::Id`]) or by their order ([`MatchBy::Order`]; the robot
-//! program of `calib plan --urscript` moves through the plan in its order). When the export also
-//! has joint columns (a robot log merged in), every pair's joints must agree with the plan's;
-//! a mismatch names the row, so that a skipped or repeated point cannot shift the data silently.
+//! program of `calib plan --urscript` moves through the plan in its order), or by the time each
+//! was measured ([`MatchBy::Time`]): the robot's log says when the robot stood at each planned
+//! pose, and the point measured nearest that time (within a tolerance) is its measurement, so that
+//! a tracker measuring continuously, points taken while the robot moved, or an export sorted by
+//! name, pair correctly. When the export (or the log) has joint columns, every pair's joints must
+//! agree with the plan's; a mismatch names the row, so that a skipped or repeated point cannot
+//! shift the data silently.
 
 use crate::io::tracker_data::{PoseRow, Record, Role, TrackerData};
 
@@ -17,6 +21,18 @@ pub enum MatchBy {
     Id,
     /// The export's rows are the plan's poses in the plan's order, one each.
     Order,
+    /// The export's `time_s` column against a robot log's: each planned pose's point is the one
+    /// measured nearest the time the log says the robot stood at it.
+    Time,
+}
+
+/// The robot's log for a merge by time: when the robot stood at each planned pose.
+pub struct RobotLog<'a> {
+    /// The log as read: a time column, and an `id` column naming the planned poses (else its rows
+    /// are the plan's poses in order); joint columns, when present, are checked against the plan.
+    pub log: &'a TrackerData,
+    /// Largest time between a logged pose and its measured point, s.
+    pub tolerance_s: f64,
 }
 
 /// The measured plan: one row per planned pose, the plan's id, role and joints with the
@@ -50,8 +66,22 @@ pub fn merge(
     measured: &TrackerData,
     by: MatchBy,
     tolerance_rad: f64,
+    log: Option<&RobotLog<'_>>,
 ) -> crate::Result<Merged> {
-    let pairs = pairs(plan, measured, by)?;
+    let pairs = match (by, log) {
+        (MatchBy::Time, Some(log)) => pairs_by_time(plan, measured, log, tolerance_rad)?,
+        (MatchBy::Time, None) => {
+            return Err(crate::refused!(
+                "merging by time needs the robot's log of when it stood at each planned pose (--robot-log)"
+            ));
+        }
+        (_, Some(_)) => {
+            return Err(crate::refused!(
+                "a robot log pairs points by time; merge --by time, or leave the log out"
+            ));
+        }
+        (_, None) => pairs(plan, measured, by)?,
+    };
     let mut rows = Vec::with_capacity(pairs.len());
     let mut roles = Vec::with_capacity(pairs.len());
     for (planned, point) in pairs {
@@ -77,8 +107,15 @@ pub fn merge(
         match by {
             MatchBy::Id => "id",
             MatchBy::Order => "order",
+            MatchBy::Time => "time",
         }
     )];
+    let unused = measured.records.len() - rows.len();
+    if unused > 0 {
+        comments.push(format!(
+            "{unused} points of the export were measured at no logged pose (while the robot moved) and are left out"
+        ));
+    }
     if let Some(planned) = &plan.planned {
         comments.push(planned.comment());
     }
@@ -92,12 +129,86 @@ pub fn merge(
     })
 }
 
-/// Each planned pose with its measured point.
-fn pairs<'a>(
+/// Each planned pose with the point measured nearest the time the log says the robot stood at
+/// it; the log's joints (when it has them) are checked against the plan's.
+fn pairs_by_time<'a>(
     plan: &'a TrackerData,
     measured: &'a TrackerData,
-    by: MatchBy,
+    log: &RobotLog<'_>,
+    tolerance_rad: f64,
 ) -> crate::Result<Vec<(&'a Record, &'a Record)>> {
+    let (log_path, data_path) = (log.log.path.display(), measured.path.display());
+    for (file, path) in [(log.log, &log_path), (measured, &data_path)] {
+        if !file.has_times {
+            return Err(crate::refused!(
+                "{path} has no time column (time_s or time_ms); merge by time needs one in the export and in the log \
+                 (map the tracker's timestamp to time_s in a data profile)"
+            ));
+        }
+    }
+    let by = if log.log.has_ids {
+        MatchBy::Id
+    } else {
+        MatchBy::Order
+    };
+    let logged = pairs(plan, log.log, by)?;
+    let mut by_time: Vec<&Record> = measured.records.iter().collect();
+    by_time.sort_by(|a, b| a.time_s.unwrap_or(0.0).total_cmp(&b.time_s.unwrap_or(0.0)));
+    let mut claimed = std::collections::HashMap::new();
+    let mut out = Vec::with_capacity(logged.len());
+    for (planned, entry) in logged {
+        check_joints(planned, entry, log.log, tolerance_rad)?;
+        let t = entry.time_s.unwrap_or(0.0);
+        let after = by_time.partition_point(|p| p.time_s.unwrap_or(0.0) < t);
+        let nearest = [after.checked_sub(1), Some(after)]
+            .into_iter()
+            .flatten()
+            .filter_map(|i| by_time.get(i))
+            .min_by(|a, b| {
+                (a.time_s.unwrap_or(0.0) - t)
+                    .abs()
+                    .total_cmp(&(b.time_s.unwrap_or(0.0) - t).abs())
+            })
+            .copied();
+        let point = nearest
+            .filter(|p| (p.time_s.unwrap_or(0.0) - t).abs() <= log.tolerance_s)
+            .ok_or_else(|| {
+                crate::refused!(
+                    "{log_path}:{}: the robot stood at the planned pose {} at {t} s, but {data_path} has no point within \
+                     --time-tolerance-s {} of it{}: was the pose measured, and do both clocks count from the same epoch?",
+                    entry.line,
+                    planned.id,
+                    log.tolerance_s,
+                    nearest.map_or_else(String::new, |p| format!(
+                        " (the nearest, line {}, is {:.3} s away)",
+                        p.line,
+                        (p.time_s.unwrap_or(0.0) - t).abs()
+                    ))
+                )
+            })?;
+        if let Some(other) = claimed.insert(point.line, (entry.line, &planned.id)) {
+            return Err(crate::refused!(
+                "{data_path}:{}: the point is the nearest in time to two planned poses, {} (log line {}) and {} (log \
+                 line {}); one of them was not measured: make --time-tolerance-s smaller than the time between poses",
+                point.line,
+                other.1,
+                other.0,
+                planned.id,
+                entry.line
+            ));
+        }
+        check_joints(planned, point, measured, tolerance_rad)?;
+        out.push((planned, point));
+    }
+    Ok(out)
+}
+
+/// Each planned pose with its measured point.
+fn pairs<'a, 'b>(
+    plan: &'a TrackerData,
+    measured: &'b TrackerData,
+    by: MatchBy,
+) -> crate::Result<Vec<(&'a Record, &'b Record)>> {
     let (plan_path, data_path) = (plan.path.display(), measured.path.display());
     match by {
         MatchBy::Order => {
@@ -149,6 +260,9 @@ fn pairs<'a>(
             }
             Ok(out)
         }
+        MatchBy::Time => Err(crate::refused!(
+            "merging by time needs the robot's log (--robot-log)"
+        )),
     }
 }
 

@@ -197,6 +197,7 @@ impl Simulated {
                 weight: 1.0,
                 role: None,
                 configuration: None,
+                time_s: None,
             })
             .collect()
     }

@@ -372,6 +372,7 @@ fn information(
             weight: 1.0,
             role: None,
             configuration: None,
+            time_s: None,
         });
     }
     // In a tracker's frame (here the base frame itself), as the measured file will be.
