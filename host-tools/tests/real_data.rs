@@ -230,7 +230,8 @@ const SERIES_D: &str = concat!(
 /// frames re-fitted on 30 poses of Series D (the tracker moved), evaluated on the other 602 poses
 /// of D, next to D's own 50-pose calibration and to the nominal geometry with the frames fitted.
 /// `calibrate --identify frames` and `evaluate --fit-frames --fit-poses` choose the same poses and
-/// must agree.
+/// agree but for the probe's z: the 30 poses cannot determine it (the selection drops `tool_tz`),
+/// so the re-registration holds it at the B model's probe (93.07 mm) where evaluate fits it.
 #[test]
 fn series_b_model_re_registered_on_series_d() {
     use host_tools::cli::evaluate::{self, EvaluateOptions};
@@ -269,7 +270,32 @@ fn series_b_model_re_registered_on_series_d() {
         .unwrap()
         .parse()
         .unwrap();
-    assert!((2.5..4.0).contains(&moved), "{moved} mm: {text}");
+    // Issue 40, item 4: the dropped tool_tz is held at the stored probe's (it moved 3.15 mm, to
+    // z = 96.16 mm, when the unconstrained frames fit set it); x and y moved 0.58 mm.
+    assert!(
+        text.contains("dropped tool_tz")
+            && text.contains(
+                "held at the robot file's probe ([measurement] flange_tool), not fitted: tool_tz"
+            ),
+        "{text}"
+    );
+    let stored_probe = |toml: &str| {
+        RobotFile::parse(toml, Path::new("x.toml"))
+            .unwrap()
+            .measurement
+            .unwrap()
+            .flange_tool
+            .unwrap()
+    };
+    let (stored, refitted) = (
+        stored_probe(&b.robot_toml),
+        stored_probe(&registered.robot_toml),
+    );
+    assert!(
+        (refitted.xyz_mm[2] - stored.xyz_mm[2]).abs() < 1e-9,
+        "{refitted:?} {stored:?}"
+    );
+    assert!((0.5..0.7).contains(&moved), "{moved} mm: {text}");
     assert!(
         text.contains("keep fitting it (--frames base+tool)"),
         "{text}"
@@ -308,7 +334,12 @@ fn series_b_model_re_registered_on_series_d() {
         (evaluation.fitted_poses, evaluation.evaluated_poses),
         (30, 602)
     );
-    assert!((evaluation.table.position_mm.mean - re_registered).abs() < 1e-6);
+    // Measured: 0.6283 mm fitted, 0.6287 mm held: the data hardly see the probe's z.
+    assert!(
+        (evaluation.table.position_mm.mean - re_registered).abs() < 1e-3,
+        "{} vs {re_registered}",
+        evaluation.table.position_mm.mean
+    );
     // D's own calibration on 50 poses, and the nominal geometry with D's frames fitted.
     let own = calibrate(SERIES_D, FULL_POSE, &["--validate", "0.92089"]);
     let own_v = own.result.validation.as_ref().unwrap();
@@ -318,7 +349,7 @@ fn series_b_model_re_registered_on_series_d() {
         "Series D held-out mean |dp|: nominal geometry, frames fitted {nominal:.4} mm; \
          Series B model re-registered on 30 D poses {re_registered:.4} mm; D's own 50-pose calibration {own_after:.4} mm"
     );
-    // Measured: 0.7547, 0.6283 and 0.3917 mm.
+    // Measured: 0.7547, 0.6287 and 0.3917 mm.
     assert!(
         re_registered < nominal - 0.1,
         "{re_registered} vs {nominal}"

@@ -101,12 +101,23 @@ pub fn calibrate(
     let given = dataset.file.clone();
     let probe = dataset.identified_probe().cloned();
     let probe_kept = keep_identified_probe(&mut dataset, validation.as_mut(), frames)?;
-    let (frames_report, mask) = {
+    let (mut frames_report, mask) = {
         let mut others: Vec<&mut Dataset> = validation.iter_mut().collect();
         crate::measurement::frames::prepare(frames, &mut dataset, &mut others, config.k)?
     };
     let mask = identified_mask(mask, frames, config)?;
     let selection = select_parameters(&dataset, mask, config)?;
+    if let Some(stored) = probe.as_ref().filter(|_| frames.tool()) {
+        let mut others: Vec<&mut Dataset> = validation.iter_mut().collect();
+        let held = crate::measurement::frames::hold_dropped_probe_parameters(
+            &mut dataset,
+            &mut others,
+            (&selection.dropped, &selection.mask),
+            stored,
+            config.k,
+        )?;
+        frames_report.held_at_stored_probe = held.iter().map(ToString::to_string).collect();
+    }
     let solved = |dataset: &Dataset, validation: Option<&Dataset>| {
         solve(
             dataset,

@@ -472,6 +472,10 @@ pub struct FramesReport {
     /// The identified tool frame (on the flange), when identified.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tool: Option<FrameEntry>,
+    /// Probe parameters the data could not determine in a re-registration, held at the robot
+    /// file's stored probe (`[measurement] flange_tool`) instead of being fitted.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub held_at_stored_probe: Vec<String>,
     /// The robot file as given: its base and tool are the controller's, kept for the identified
     /// robot file (the measured frames above belong to the measurement setup, not the controller).
     #[serde(skip)]
@@ -552,6 +556,7 @@ pub fn prepare(
                 redundant_with_frames: Vec::new(),
                 base: None,
                 tool: None,
+                held_at_stored_probe: Vec::new(),
                 given: inputs.file.clone(),
             },
             mask,
@@ -596,10 +601,64 @@ pub fn prepare(
             redundant_with_frames: removed.iter().map(ToString::to_string).collect(),
             base: None,
             tool: None,
+            held_at_stored_probe: Vec::new(),
             given,
         },
         mask,
     ))
+}
+
+/// Re-registration with the probe fitted (`base+tool`) against a robot file that stores one
+/// (`[measurement] flange_tool`): the probe's parameters the selection `dropped` (the data cannot
+/// determine them) are held at the stored probe's values, not at the values the unconstrained
+/// frames fit gave them, in `inputs` and `others` alike; the frame parameters of `mask` (the
+/// selection) are fitted again from there (nominal geometry, as in [`prepare`]). A translation is
+/// set to the stored one; a rotation is turned about the tool's own axis by the component of the
+/// turn from the fitted to the stored probe. Returns the parameters held.
+pub(crate) fn hold_dropped_probe_parameters(
+    inputs: &mut crate::measurement::dataset::Dataset,
+    others: &mut [&mut crate::measurement::dataset::Dataset],
+    (dropped, mask): (&[Parameter], &ParameterMask<Dyn>),
+    stored: &FrameEntry,
+    k: f64,
+) -> crate::Result<Vec<Parameter>> {
+    let held: Vec<Parameter> = dropped
+        .iter()
+        .copied()
+        .filter(|p| matches!(p, Parameter::Tool(_)))
+        .collect();
+    let Some(fitted) = inputs.file.tool.clone().filter(|_| !held.is_empty()) else {
+        return Ok(Vec::new());
+    };
+    let (now, target) = (fitted.isometry(), stored.isometry());
+    let mut translation = now.translation.vector;
+    // The turn from the fitted probe to the stored one, in the probe's own axes.
+    let turn = (now.rotation.inverse() * target.rotation).scaled_axis();
+    let mut kept_turn = Vector3::zeros();
+    for p in &held {
+        match p {
+            Parameter::Tool(FrameParameter::Tx) => translation.x = target.translation.vector.x,
+            Parameter::Tool(FrameParameter::Ty) => translation.y = target.translation.vector.y,
+            Parameter::Tool(FrameParameter::Tz) => translation.z = target.translation.vector.z,
+            Parameter::Tool(FrameParameter::Rx) => kept_turn.x = turn.x,
+            Parameter::Tool(FrameParameter::Ry) => kept_turn.y = turn.y,
+            Parameter::Tool(FrameParameter::Rz) => kept_turn.z = turn.z,
+            _ => {}
+        }
+    }
+    let rotation = now.rotation * nalgebra::UnitQuaternion::from_scaled_axis(kept_turn);
+    let mut held_file = inputs.file.clone();
+    held_file.tool = Some(frame_entry(&rotation.to_rotation_matrix(), &translation));
+    let file = with_fitted_frames(inputs, held_file, mask, k)?;
+    let mut model = measured_model(&file, inputs, "fitted")?;
+    model.mask = inputs.model.mask;
+    for other in others.iter_mut() {
+        other.file = file.clone();
+        other.model = model.clone();
+    }
+    inputs.file = file;
+    inputs.model = model;
+    Ok(held)
 }
 
 /// How many times better a registration must fit data said to be in the base frame for them to

@@ -250,6 +250,12 @@ impl CalibrationResult {
                 condition(id.condition_number_after_drop),
             ));
         }
+        if !self.frames.held_at_stored_probe.is_empty() {
+            text.push_str(&format!(
+                "  held at the robot file's probe ([measurement] flange_tool), not fitted: {}\n",
+                self.frames.held_at_stored_probe.join(", ")
+            ));
+        }
         text
     }
 }
