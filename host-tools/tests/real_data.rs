@@ -315,6 +315,57 @@ fn series_b_model_re_registered_on_series_d() {
     assert_eq!(written.joint, given.joint);
     assert_eq!(written.calibration, given.calibration);
     assert_ne!(written.measurement, given.measurement);
+    // Issue 40, item 4: the provenance. The geometry's record ([calibration], kept) names the
+    // files it was identified from; the registration's ([measurement]) the files of the new
+    // session and the robot file whose geometry was kept; each with the SHA-256 `sha256sum` gives.
+    let sha256sum = |path: &str| -> String {
+        let out = std::process::Command::new("sha256sum")
+            .arg(path)
+            .output()
+            .unwrap();
+        String::from_utf8(out.stdout).unwrap()[..64].to_string()
+    };
+    let record = given.calibration.as_ref().unwrap();
+    let flags: Vec<(&str, &str)> = (record.inputs.iter())
+        .map(|i| (i.flag.as_str(), i.path.as_str()))
+        .collect();
+    assert_eq!(
+        flags,
+        [
+            ("--robot", ROBOT),
+            ("--data", DATA),
+            ("--profile", FULL_POSE)
+        ]
+    );
+    for input in &record.inputs {
+        assert_eq!(input.sha256, sha256sum(&input.path), "{input:?}");
+    }
+    assert!(
+        record
+            .calibrated_at
+            .as_deref()
+            .is_some_and(|t| t.starts_with("20") && t.ends_with('Z'))
+    );
+    let registration = written.measurement.as_ref().unwrap();
+    let from = registration.geometry_from.as_ref().unwrap();
+    assert_eq!(
+        (from.flag.as_str(), from.path.as_str()),
+        ("--robot", b_path)
+    );
+    assert_eq!(from.sha256, sha256sum(b_path));
+    let flags: Vec<(&str, &str)> = (registration.inputs.iter())
+        .map(|i| (i.flag.as_str(), i.path.as_str()))
+        .collect();
+    assert_eq!(flags, [("--data", SERIES_D), ("--profile", FULL_POSE)]);
+    assert_eq!(registration.inputs[0].sha256, sha256sum(SERIES_D));
+    assert!(
+        registered.robot_toml.starts_with(&format!(
+            "# Universal Robots UR10: the geometry of {b_path} (its [calibration] says where it came from), \
+             the measurement frames re-registered"
+        )),
+        "{}",
+        &registered.robot_toml[..300]
+    );
     let re_registered = v.after.position_mm.mean;
     // The same through evaluate.
     let evaluation = evaluate::evaluate(&parse::<EvaluateOptions>(&[

@@ -467,6 +467,9 @@ pub(crate) fn identified_robot(
                 frames: frames.identified.name().to_string(),
                 tracker_base,
                 flange_tool: frames.tool.clone(),
+                registered_at: None,
+                geometry_from: None,
+                inputs: Vec::new(),
             });
     file
 }

@@ -233,7 +233,7 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
         }
         let (fitted, held) = all.partition(&verify);
         let result = calibration::calibrate(fitted.clone(), Some(held), &config)?;
-        let result = with_plan_check(result, &fitted, &config);
+        let result = with_provenance(with_plan_check(result, &fitted, &config), options)?;
         let hold_out = HoldOut {
             holdout: Some(format!(
                 "{} (the plan's verify poses)",
@@ -256,8 +256,47 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
         }
         (None, None) => (all, None),
     };
-    let result = calibration::calibrate(dataset, validation, &config)?;
+    let result = with_provenance(
+        calibration::calibrate(dataset, validation, &config)?,
+        options,
+    )?;
     Calibration::new(result, options.hold_out(), options.truth.as_deref())
+}
+
+/// `result` with its provenance in the identified robot file: the input files with their SHA-256
+/// and the date, in `[calibration]` for the files the geometry was identified from; for a
+/// re-registration (`--identify frames`) in `[measurement]`, with the robot file whose geometry
+/// was kept as `geometry_from` (its `[calibration]` is kept as it was).
+fn with_provenance(
+    mut result: CalibrationResult,
+    options: &CalibrateOptions,
+) -> crate::Result<CalibrationResult> {
+    let given = options.outputs().inputs;
+    let inputs: Vec<(&str, &std::path::Path)> = (given.iter())
+        .filter(|(flag, _)| *flag != "--truth")
+        .map(|(flag, path)| (*flag, path.as_path()))
+        .collect();
+    let records = crate::io::provenance::InputFile::all(&inputs)?;
+    let at = result.calibrated_at.clone();
+    let file = &mut result.identified_robot;
+    if result.config.identify == crate::calibration::Identify::Frames {
+        if let Some(m) = file.measurement.as_mut() {
+            let (robot, rest): (Vec<_>, Vec<_>) =
+                records.into_iter().partition(|r| r.flag == "--robot");
+            m.registered_at = Some(at);
+            m.geometry_from = robot.into_iter().next();
+            m.inputs = rest;
+        }
+    } else {
+        if let Some(m) = file.measurement.as_mut() {
+            m.registered_at = Some(at.clone());
+        }
+        if let Some(c) = file.calibration.as_mut() {
+            c.calibrated_at = Some(at);
+            c.inputs = records;
+        }
+    }
+    Ok(result)
 }
 
 /// `result` of a measured plan's fitted poses `fitted` with the check of its verification poses
@@ -304,11 +343,24 @@ impl Calibration {
             None => None,
             Some(path) => Some(truth_rows(&result, path)?),
         };
+        let header = if result.config.identify == crate::calibration::Identify::Frames {
+            format!(
+                "{}: the geometry of {} (its [calibration] says where it came from), the measurement frames re-registered by calib calibrate --identify frames ({}) from {} ([measurement]).",
+                result.robot,
+                result.robot_path.display(),
+                result.config.method.name(),
+                result.data_path.display()
+            )
+        } else {
+            format!(
+                "{} identified by calib calibrate ({}) from {}.",
+                result.robot,
+                result.config.method.name(),
+                result.data_path.display()
+            )
+        };
         let robot_toml = result.identified_robot.to_toml(&format!(
-            "{} identified by calib calibrate ({}) from {}.\nValues are nominal + identified errors; [calibration.errors] lists the errors and [calibration.std_errors] their standard errors, in mm and rad.",
-            result.robot,
-            result.config.method.name(),
-            result.data_path.display()
+            "{header}\nValues are nominal + identified errors; [calibration.errors] lists the errors and [calibration.std_errors] their standard errors, in mm and rad; [calibration.inputs] the files they were identified from, with their SHA-256."
         ));
         let text = result.text(truth.as_deref());
         Ok(Self {

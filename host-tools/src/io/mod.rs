@@ -1,10 +1,12 @@
 //! Files in and out: robot files (TOML, Craig tables), tracker data (CSV through data profiles and
-//! their columns), and the outputs every command writes (staged and replaced all together).
+//! their columns), the outputs every command writes (staged and replaced all together), and the
+//! provenance of a calibration (its input files and their SHA-256).
 
 pub mod columns;
 pub mod input;
 pub mod outputs;
 pub mod profile;
+pub mod provenance;
 pub mod robot_file;
 pub mod text;
 pub mod tracker_data;

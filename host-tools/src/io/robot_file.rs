@@ -216,6 +216,16 @@ pub struct MeasurementSection {
     /// The reflector or probe on the flange (mm, degrees), when identified.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub flange_tool: Option<FrameEntry>,
+    /// When the frames were registered (RFC 3339, UTC).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub registered_at: Option<String>,
+    /// A re-registration (`calib calibrate --identify frames`): the robot file whose geometry was
+    /// kept (its `[calibration]` says where that geometry came from).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geometry_from: Option<crate::io::provenance::InputFile>,
+    /// The files the frames were registered from, with their SHA-256.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub inputs: Vec<crate::io::provenance::InputFile>,
 }
 
 /// The errors behind a file of identified parameters. Units follow the parameter: mm for `da`,
@@ -232,6 +242,13 @@ pub struct CalibrationSection {
     /// Standard error of each identified parameter (mm or rad), when known.
     #[serde(default, skip_serializing_if = "toml::Table::is_empty")]
     pub std_errors: toml::Table,
+    /// When the geometry was identified (RFC 3339, UTC), for files written by `calib calibrate`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibrated_at: Option<String>,
+    /// The files the geometry was identified from (nominal robot file, data, profile, held-out
+    /// data), with their SHA-256, for files written by `calib calibrate`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub inputs: Vec<crate::io::provenance::InputFile>,
 }
 
 /// A robot file checked and converted to the core's units (mm, rad).
@@ -704,6 +721,8 @@ impl RobotFile {
             nominal: nominal.to_string(),
             errors: table,
             std_errors: std_table,
+            calibrated_at: None,
+            inputs: Vec::new(),
         });
         out
     }
