@@ -36,6 +36,13 @@ pub struct CompensateOptions {
     /// (its `[measurement]` section's `tracker_base`).
     #[arg(long, value_enum, default_value_t = TargetsFrame::Base)]
     pub targets_frame: TargetsFrame,
+    /// The targets are a robot program's joint targets (CSV: q1_deg..qN_deg, optional id, such as
+    /// calib plan --joint-targets writes): each target is the pose the --robot (nominal) model
+    /// puts the controller's tool at for those joints, and the joints are its start (and arm
+    /// configuration). The output is the program corrected: the joints that put the identified
+    /// robot where the program meant.
+    #[arg(long, conflicts_with_all = ["near_deg", "branch"])]
+    pub joint_targets: bool,
     /// Output CSV: one row per target, in input order.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
@@ -147,6 +154,47 @@ fn targets_into_base(
     Ok(())
 }
 
+/// The joint targets of the file at `path` (`--joint-targets`) as target poses: each record's
+/// position and orientation the nominal model's pose at its joints, in the base frame; its
+/// joints stay as the start. Joints outside the nominal model's limits are refused with the line.
+fn nominal_poses_of(nominal: &RobotModel, path: &std::path::Path) -> anyhow::Result<TrackerData> {
+    let mut targets = TrackerData::read_joints(path, &crate::io::profile::DataProfile::default())?;
+    let joints = nominal.robot.joints.len();
+    if targets.joints != joints {
+        bail!(
+            "{}: has {} joint columns, the robot {} has {joints} joints",
+            path.display(),
+            targets.joints,
+            nominal.path.display()
+        );
+    }
+    let kinematics = calib_core::Kinematics::nominal(&nominal.robot)?;
+    for record in &mut targets.records {
+        let q = calib_core::model::JointVec::from_slice(&record.q)
+            .ok_or_else(|| anyhow::anyhow!("{}: more than 9 joints", path.display()))?;
+        if let Some((i, (qi, limits))) = (q.iter().zip(&nominal.robot.limits).enumerate())
+            .find(|(_, (qi, limits))| !limits.contains(**qi))
+        {
+            bail!(
+                "{}:{}: q{} = {:.4} deg is outside the joint limits [{}, {}] deg of {}",
+                path.display(),
+                record.line,
+                i + 1,
+                qi.to_degrees(),
+                limits.lower.to_degrees(),
+                limits.upper.to_degrees(),
+                nominal.path.display()
+            );
+        }
+        let pose = kinematics.forward(&q)?;
+        record.position = pose.translation.vector.into();
+        record.rotation = Some(*pose.rotation.matrix());
+    }
+    targets.orientation = crate::io::tracker_data::OrientationColumns::Quaternion;
+    targets.base_frame = true;
+    Ok(targets)
+}
+
 /// The configuration of the posture `deg` (deg), named `what` in errors.
 fn near(deg: &[f64], what: &str) -> anyhow::Result<Configuration> {
     if let Some(v) = deg.iter().find(|v| !v.is_finite()) {
@@ -245,7 +293,16 @@ fn inputs(
 )> {
     let nominal: RobotModel = RobotModel::load(&options.robot)?;
     let actual: RobotModel = RobotModel::load(&options.params)?;
-    let mut targets = TrackerData::read_targets(&options.targets)?;
+    let mut targets = if options.joint_targets {
+        if options.targets_frame == TargetsFrame::Tracker {
+            bail!(
+                "--joint-targets: the targets are the nominal poses of the joints, in the base frame; drop --targets-frame tracker"
+            );
+        }
+        nominal_poses_of(&nominal, &options.targets)?
+    } else {
+        TrackerData::read_targets(&options.targets)?
+    };
     if options.targets_frame == TargetsFrame::Tracker {
         targets_into_base(&mut targets, &options.params, &options.targets)?;
     }
