@@ -1,8 +1,8 @@
 //! host-tools: everything around the core that needs `std`, the library under the `calib`
 //! command line. Its folders follow the data through a calibration:
 //!
-//! - [`model`]: the actual robot beyond the core's geometry (joint maps, compliance) and the joint
-//!   and parameter counts every robot is checked against;
+//! - [`model`]: the actual robot beyond the core's geometry (joint maps, compliance, each with its
+//!   robot-file sections) and the joint and parameter counts every robot is checked against;
 //! - [`io`]: files in and out: robot files, tracker data read through a data profile, and the
 //!   outputs every command stages and replaces all together;
 //! - [`measurement`]: a dataset (a robot and its measured poses), the frames that register the
@@ -10,10 +10,12 @@
 //! - [`formats`]: exports for controllers and other tools, and the UR factory-calibration import;
 //! - [`analysis`]: identifiability, evaluation on new poses, comparison with a known truth, and
 //!   verification against the independent float64 reference ([`analysis::reference`], on the crate `calib_reference`);
-//! - [`planning`]: which poses to measure (D-optimal design, tour, predicted accuracy, plan check);
+//! - [`planning`]: which poses to measure (candidates, information, D-optimal design, tour,
+//!   predicted accuracy, plan check, the robot program);
 //! - [`runtime`]: the threads and SIMD lanes that make the identification fast;
 //! - [`calibration`]: the pipeline of stages, from a dataset and a configuration to a typed
-//!   result (frames, selection, solve, joint maps, cross-validation, plausibility);
+//!   result (frames, selection, solve, joint maps and their evidence solver, cross-validation,
+//!   plausibility);
 //! - [`report`]: the text and HTML reports and their plots;
 //! - [`kinematics`]: an identified robot put to use off line: forward kinematics, compensation;
 //! - [`cli`]: the `calib` commands, thin layers over the above.

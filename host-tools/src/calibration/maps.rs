@@ -2,7 +2,10 @@
 //! calibration, the geometry is identified again jointly with each joint's angle-error map
 //! ([`crate::model::joint_maps`]) on the same calibration poses, and the statistics, the identified
 //! robot file and the report are those of the model with the maps. The geometric calibration's
-//! statistics stay in the report for comparison.
+//! statistics stay in the report for comparison. The solver of the maps' evidence is
+//! [`evidence`].
+
+pub mod evidence;
 
 use super::ErrorModel;
 use super::{CalibrationConfig, CalibrationResult, Stage};
@@ -10,11 +13,10 @@ use crate::JOINTS;
 use crate::measurement::dataset::Dataset;
 use crate::measurement::statistics::table3;
 use crate::model::compliance::{self, Gravity};
-use crate::model::joint_maps::{
-    self, JointMapsSection, MapIdentification, NEGLIGIBLE_AMPLITUDE_RAD, Pose,
-};
+use crate::model::joint_maps::{JointMapsSection, NEGLIGIBLE_AMPLITUDE_RAD};
 use calib_core::Kinematics;
 use calib_core::model::JointVec;
+use evidence::{MapIdentification, Pose};
 use nalgebra::Dyn;
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -124,7 +126,7 @@ pub struct MapsCrossValidation {
 fn maps_cross_validation(
     dataset: &Dataset,
     kept: &[usize],
-    problem: &joint_maps::MapsProblem<'_>,
+    problem: &evidence::MapsProblem<'_>,
     harmonics: usize,
 ) -> Option<(usize, f64)> {
     let (poses, gravity) = (problem.poses, problem.gravity);
@@ -149,11 +151,11 @@ fn maps_cross_validation(
             .filter(|(i, _)| !held.contains(i))
             .map(|(_, p)| *p)
             .collect();
-        let training_problem = joint_maps::MapsProblem {
+        let training_problem = evidence::MapsProblem {
             poses: &training,
             ..*problem
         };
-        let found = joint_maps::identify(&training_problem, harmonics).ok()?;
+        let found = evidence::identify(&training_problem, harmonics).ok()?;
         let model = Kinematics::new(robot, &found.errors).ok()?;
         for i in &held {
             let record = dataset.data.records.get(*i)?;
@@ -243,7 +245,7 @@ fn gravity(dataset: &Dataset, config: &CalibrationConfig) -> crate::Result<Optio
 /// the whole model's error).
 pub(crate) fn model_view(
     dataset: &Dataset,
-    found: &joint_maps::MapIdentification,
+    found: &evidence::MapIdentification,
     gravity: Option<&Gravity>,
 ) -> crate::Result<Dataset> {
     let mapped = dataset.with_maps(&found.maps)?;
@@ -279,7 +281,7 @@ pub(crate) fn add_joint_maps(
     let orientation_scale_mm = orientation_scale(dataset, &geometric);
     let parameters: Vec<_> = result.parameters.iter().map(|p| p.parameter).collect();
     let gravity = gravity(dataset, config)?;
-    let problem = joint_maps::MapsProblem {
+    let problem = evidence::MapsProblem {
         robot: &dataset.model.robot,
         start: &result.errors,
         parameters: &parameters,
@@ -287,7 +289,7 @@ pub(crate) fn add_joint_maps(
         orientation_scale_mm,
         gravity: gravity.as_ref(),
     };
-    let (mut found, evidence) = joint_maps::identify_best(&problem)?;
+    let (mut found, evidence) = evidence::identify_best(&problem)?;
     let cross_validation = result.cross_validation.and_then(|geometric| {
         let (folds, maps_mean_mm) =
             maps_cross_validation(dataset, &kept, &problem, found.maps.harmonics)?;
@@ -455,7 +457,7 @@ fn with_maps(
     validation: Option<&Dataset>,
     config: &CalibrationConfig,
     parameters: &[calib_core::Parameter],
-    (found, gravity): (&joint_maps::MapIdentification, Option<&Gravity>),
+    (found, gravity): (&evidence::MapIdentification, Option<&Gravity>),
     ranges: &[[f64; 2]],
 ) -> crate::Result<CalibrationResult> {
     // The statistics of the model with the maps (and the compliance).

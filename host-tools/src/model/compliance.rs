@@ -14,13 +14,21 @@
 //! deflections are below 1 mrad, the neglected terms below 1e-5 mm). A gain whose moment
 //! component vanishes in every pose (on a UR, joint 2's tilt about the vertical axis) is not
 //! identified and stays zero.
+//!
+//! The robot file holds the masses and the gains in its `[dynamics]` and `[compliance]` sections
+//! ([`sections`]); the gains' columns of the pose's motion, which the identification fits and
+//! [`displacement`] sums, are in [`columns`](mod@columns).
+
+pub mod columns;
+pub mod sections;
+
+pub use columns::{columns, displacement};
+pub use sections::{ComplianceSection, DynamicsSection, MassEntry};
 
 use crate::JOINTS;
-use calib_core::model::{JointCount, JointVec};
-use calib_core::{Kinematics, ParameterErrors, Robot};
+use calib_core::model::JointCount;
 use nalgebra::Dyn;
-use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use serde::{Deserialize, Serialize};
+use nalgebra::Vector3;
 
 /// The identified gains, in this order.
 pub const GAINS: [Gain; 11] = [
@@ -64,30 +72,6 @@ impl std::fmt::Display for Gain {
     }
 }
 
-/// A mass and its centre, as a robot file gives it.
-#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct MassEntry {
-    /// Mass, kg.
-    pub mass_kg: f64,
-    /// Centre of mass, mm: for a link in the frame after its joint's transform, for the tool's
-    /// load in the flange frame.
-    pub com_mm: [f64; 3],
-}
-
-/// The `[dynamics]` section of a robot file: what gravity pulls on.
-#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct DynamicsSection {
-    /// Gravity in the robot's base frame, m/s^2 (upright: `[0, 0, -9.81]`).
-    pub gravity_mps2: [f64; 3],
-    /// One entry per link, link 1 (moved by joint 1) first.
-    pub link: Vec<MassEntry>,
-    /// What the flange carries while measured (probe or reflector and its mount).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub tool: Option<MassEntry>,
-}
-
 /// Masses and gravity, checked.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Gravity {
@@ -97,125 +81,6 @@ pub struct Gravity {
     pub links: [(f64, Vector3<f64>); JOINTS],
     /// The flange's load: mass (kg) and centre (mm, flange frame).
     pub tool: (f64, Vector3<f64>),
-}
-
-impl DynamicsSection {
-    /// The masses, checked: one link per joint, masses 0-1000 kg, centres within 5 m, gravity
-    /// 9-10.5 m/s^2. The error names the field.
-    pub fn to_gravity(&self) -> Result<Gravity, String> {
-        if self.link.len() != JOINTS {
-            return Err(format!(
-                "[dynamics]: {} [[dynamics.link]] tables, expected {JOINTS} (one per joint)",
-                self.link.len()
-            ));
-        }
-        let g = Vector3::from(self.gravity_mps2);
-        if !(g.iter().all(|v| v.is_finite()) && (9.0..=10.5).contains(&g.norm())) {
-            return Err(format!(
-                "[dynamics]: gravity_mps2 = {:?} is not a gravity vector (magnitude 9 to 10.5 m/s^2, in the base frame)",
-                self.gravity_mps2
-            ));
-        }
-        let check = |what: String, m: &MassEntry| -> Result<(f64, Vector3<f64>), String> {
-            if !(m.mass_kg.is_finite() && (0.0..=1000.0).contains(&m.mass_kg)) {
-                return Err(format!(
-                    "[dynamics] {what}: mass_kg = {} is not 0 to 1000",
-                    m.mass_kg
-                ));
-            }
-            if !m.com_mm.iter().all(|v| v.is_finite() && v.abs() <= 5000.0) {
-                return Err(format!(
-                    "[dynamics] {what}: com_mm = {:?} is not within 5000 mm",
-                    m.com_mm
-                ));
-            }
-            Ok((m.mass_kg, Vector3::from(m.com_mm)))
-        };
-        let mut links = [(0.0, Vector3::zeros()); JOINTS];
-        for (j, (slot, entry)) in links.iter_mut().zip(&self.link).enumerate() {
-            *slot = check(format!("link {}", j + 1), entry)?;
-        }
-        let tool = match &self.tool {
-            Some(t) => check("tool".into(), t)?,
-            None => (0.0, Vector3::zeros()),
-        };
-        Ok(Gravity {
-            gravity: g,
-            links,
-            tool,
-        })
-    }
-}
-
-/// The `[compliance]` section of an identified robot file, urad per N m, joint 1 first (zero
-/// where not identified).
-#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct ComplianceSection {
-    /// Torsion gains (joints 2-4).
-    pub torsion_urad_per_nm: Vec<f64>,
-    /// Tilt gains about x (joints 1-4).
-    pub tilt_x_urad_per_nm: Vec<f64>,
-    /// Tilt gains about y (joints 1-4).
-    pub tilt_y_urad_per_nm: Vec<f64>,
-}
-
-impl ComplianceSection {
-    /// The section of `gains` (in the order of [`GAINS`]).
-    pub fn new(gains: &[f64; GAIN_COUNT]) -> Self {
-        let mut out = Self {
-            torsion_urad_per_nm: vec![0.0; JOINTS],
-            tilt_x_urad_per_nm: vec![0.0; JOINTS],
-            tilt_y_urad_per_nm: vec![0.0; JOINTS],
-        };
-        for (gain, value) in GAINS.iter().zip(gains) {
-            let (list, j) = match gain {
-                Gain::Torsion(j) => (&mut out.torsion_urad_per_nm, j),
-                Gain::TiltX(j) => (&mut out.tilt_x_urad_per_nm, j),
-                Gain::TiltY(j) => (&mut out.tilt_y_urad_per_nm, j),
-            };
-            list[j - 1] = *value;
-        }
-        out
-    }
-
-    /// The gains, checked: finite, within [`MAX_GAIN_URAD_PER_NM`], zero where the model has no
-    /// gain. The error names the gain.
-    pub fn to_gains(&self) -> Result<[f64; GAIN_COUNT], String> {
-        for (name, list) in [
-            ("torsion_urad_per_nm", &self.torsion_urad_per_nm),
-            ("tilt_x_urad_per_nm", &self.tilt_x_urad_per_nm),
-            ("tilt_y_urad_per_nm", &self.tilt_y_urad_per_nm),
-        ] {
-            if list.len() != JOINTS {
-                return Err(format!(
-                    "[compliance]: {name} has {} values, expected {JOINTS}",
-                    list.len()
-                ));
-            }
-        }
-        let gains: [f64; GAIN_COUNT] = std::array::from_fn(|i| match GAINS[i] {
-            Gain::Torsion(j) => self.torsion_urad_per_nm[j - 1],
-            Gain::TiltX(j) => self.tilt_x_urad_per_nm[j - 1],
-            Gain::TiltY(j) => self.tilt_y_urad_per_nm[j - 1],
-        });
-        if let Some((gain, value)) = GAINS
-            .iter()
-            .zip(&gains)
-            .find(|(_, v)| !(v.is_finite() && v.abs() <= MAX_GAIN_URAD_PER_NM))
-        {
-            return Err(format!(
-                "[compliance]: the {gain} is {value} urad/(N m), beyond the plausible +-{MAX_GAIN_URAD_PER_NM}"
-            ));
-        }
-        if ComplianceSection::new(&gains) != *self {
-            return Err(
-                "[compliance]: a gain is set where the model has none (torsion: joints 2-4; tilts: joints 1-4)"
-                    .into(),
-            );
-        }
-        Ok(gains)
-    }
 }
 
 /// The gravity compliance of an identified robot file: its masses and gains.
@@ -290,88 +155,11 @@ impl Gravity {
     }
 }
 
-/// Per gain, the motion `[v (mm); w (rad)]` of the end point (the origin of the tool frame) per
-/// urad/(N m) at kinematic joint angles `q` (rad), for the model `robot + errors` (in whatever
-/// frames it is given: gravity is turned by its base rotation). Error: a robot of other than
-/// [`JOINTS`] joints (the gravity model has one mass per joint of a 6-joint robot).
-pub fn columns(
-    gravity: &Gravity,
-    robot: &Robot<f64, Dyn>,
-    errors: &ParameterErrors<f64, Dyn>,
-    q: &JointVec<f64>,
-) -> crate::Result<[[f64; 6]; GAIN_COUNT]> {
-    check_joints(robot.joints.len())?;
-    let kinematics = Kinematics::new(robot, errors)?;
-    let base = kinematics.base();
-    let mut frame = Isometry3::from_parts(
-        Translation3::from(base.translation.vector),
-        UnitQuaternion::from_rotation_matrix(&base.rotation),
-    );
-    let turn = |axis: &nalgebra::Unit<Vector3<f64>>, angle: f64| {
-        Isometry3::from_parts(
-            Translation3::identity(),
-            UnitQuaternion::from_axis_angle(axis, angle),
-        )
-    };
-    // frames[j]: the frame joint j + 1 turns in; frames[N]: the flange.
-    let mut frames = vec![frame];
-    for ((joint, e), qj) in robot.joints.iter().zip(&errors.joints).zip(q.iter()) {
-        frame *= turn(&Vector3::z_axis(), qj + joint.theta_offset + e.dtheta)
-            * Isometry3::translation(joint.a + e.da, 0.0, joint.d + e.dd)
-            * turn(&Vector3::x_axis(), joint.alpha + e.dalpha)
-            * turn(&Vector3::y_axis(), joint.beta + e.dbeta);
-        frames.push(frame);
-    }
-    let end = (frame * Point3::from(kinematics.tool().translation.vector)).coords;
-    let g = base.rotation * gravity.gravity;
-    let masses: Vec<(f64, Vector3<f64>)> = gravity
-        .links
-        .iter()
-        .zip(&frames[1..])
-        .map(|((m, c), f)| (*m, (f * Point3::from(*c)).coords))
-        .chain(std::iter::once((
-            gravity.tool.0,
-            (frames[robot.joints.len()] * Point3::from(gravity.tool.1)).coords,
-        )))
-        .collect();
-    let mut out = [[0.0; 6]; GAIN_COUNT];
-    for (column, gain) in out.iter_mut().zip(&GAINS) {
-        let (j, axis_index) = match gain {
-            Gain::Torsion(j) => (*j, 2),
-            Gain::TiltX(j) => (*j, 0),
-            Gain::TiltY(j) => (*j, 1),
-        };
-        let f = &frames[j - 1];
-        let origin = f.translation.vector;
-        // Everything beyond joint j: links j..N and the tool's load (N m from kg mm m/s^2).
-        let moment: Vector3<f64> = masses
-            .iter()
-            .skip(j - 1)
-            .map(|(m, c)| (c - origin).cross(&(g * *m)))
-            .sum::<Vector3<f64>>()
-            * 1e-3;
-        let axis = f.rotation * Vector3::ith(axis_index, 1.0);
-        let w = axis * axis.dot(&moment) * 1e-6;
-        let v = w.cross(&(end - origin));
-        *column = [v.x, v.y, v.z, w.x, w.y, w.z];
-    }
-    Ok(out)
-}
-
-/// The end point's motion `[v (mm); w (rad)]` for `gains` (urad/(N m)) from [`columns`].
-pub fn displacement(columns: &[[f64; 6]; GAIN_COUNT], gains: &[f64; GAIN_COUNT]) -> [f64; 6] {
-    let mut out = [0.0; 6];
-    for (column, gain) in columns.iter().zip(gains) {
-        for (o, c) in out.iter_mut().zip(column) {
-            *o += c * gain;
-        }
-    }
-    out
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use calib_core::model::JointVec;
+    use calib_core::{Kinematics, ParameterErrors};
 
     /// The core's deflection (what the controller applies) equals the displacement of this
     /// module's gain columns (what the identification fits), on 1,000 random configurations of
