@@ -1,7 +1,8 @@
-//! A simulated 7-joint robot (KUKA LBR iiwa 14) through every command of `calib`, as a user runs
-//! them: simulate -> check -> calibrate (with plots and reports) -> report -> evaluate -> verify
-//! -> fk -> compensate -> export. The expectation is the simulation's truth: on exact data the
-//! identified errors are the true ones, and the identified model reproduces every measured pose.
+//! The shipped 7-joint robot (KUKA LBR iiwa 14): every command of `calib` as on the arms of every
+//! joint count ([`common::every_command`], shared with any_joint_count.rs), plus what a real
+//! robot file adds: its name in the reports, the report rendered again, fk in the measurement
+//! setup the identified file records; the 6-joint models' refusals; joint maps of 7 joints
+//! exported and compensated.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
@@ -40,116 +41,6 @@ fn every_command_on_a_simulated_seven_joint_robot() {
         &truth,
     ]));
     assert!(out.contains("wrote 60 poses"), "{out}");
-
-    // check: 7 x 5 Hayati parameters minus beta (no parallel axes) = 28, minus what the frames
-    // absorb (dd1, dtheta1; joint 7), plus base 6 and tool 6.
-    let out = ok(&calib(&["check", "--robot", ROBOT, "--data", &data]));
-    assert!(
-        out.contains("identifiability of 34 parameters: rank 34"),
-        "{out}"
-    );
-    assert!(
-        out.contains("every parameter is determined by the data"),
-        "{out}"
-    );
-
-    // calibrate (least squares) with every output.
-    let (identified, report, html, plots) = (
-        at(dir.path(), "iiwa-identified.toml"),
-        at(dir.path(), "report.json"),
-        at(dir.path(), "report.html"),
-        at(dir.path(), "plots"),
-    );
-    let out = ok(&calib(&[
-        "calibrate",
-        "--robot",
-        ROBOT,
-        "--data",
-        &data,
-        "--method",
-        "lm",
-        "--validate",
-        "0.25",
-        "--truth",
-        &truth,
-        "--out",
-        &identified,
-        "--report",
-        &report,
-        "--html",
-        &html,
-        "--plot",
-        &plots,
-    ]));
-    assert!(
-        out.contains("calibrated KUKA LBR iiwa 14 R820 with 45 poses"),
-        "{out}"
-    );
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
-    let truth_rows = json["truth"].as_array().unwrap();
-    assert_eq!(truth_rows.len(), 34);
-    let worst = truth_rows
-        .iter()
-        .filter(|row| {
-            let name = row["name"].as_str().unwrap();
-            !(name.starts_with("base") || name.starts_with("tool"))
-        })
-        .map(|row| (row["identified"].as_f64().unwrap() - row["truth"].as_f64().unwrap()).abs())
-        .fold(0.0, f64::max);
-    println!("largest joint parameter error against the truth: {worst:.2e}");
-    assert!(worst < 1e-9, "{worst}");
-    let after = json["validation"]["after"]["position_mm"]["max"]
-        .as_f64()
-        .unwrap();
-    assert!(after < 1e-9, "held-out max {after} mm");
-    let written = RobotFile::read(Path::new(&identified)).unwrap();
-    assert_eq!(written.joint.len(), 7);
-    for plot in [
-        "position-error.svg",
-        "position-error.png",
-        "validation-histogram.svg",
-    ] {
-        assert!(Path::new(&plots).join(plot).is_file(), "{plot}");
-    }
-    assert!(std::fs::read_to_string(&html).unwrap().contains("iiwa"));
-
-    // The default method (swarm then least squares) reaches the same fit.
-    let out = ok(&calib(&[
-        "calibrate",
-        "--robot",
-        ROBOT,
-        "--data",
-        &data,
-        "--quiet",
-    ]));
-    assert!(out.contains("by ipso+lm"), "{out}");
-
-    // report: the JSON rendered again as a page.
-    let page = at(dir.path(), "again.html");
-    ok(&calib(&["report", "--from", &report, "--html", &page]));
-    assert!(Path::new(&page).is_file());
-
-    // evaluate: the identified model on the data, frames re-fitted: exact.
-    let out = ok(&calib(&[
-        "evaluate",
-        "--robot",
-        &identified,
-        "--data",
-        &data,
-        "--json",
-    ]));
-    let evaluation: serde_json::Value = serde_json::from_str(&out).unwrap();
-    let mean = evaluation["position_mm"]["mean"].as_f64().unwrap();
-    assert!(mean < 1e-6, "evaluate mean {mean} mm");
-
-    // verify: the f32 core, the f64 core and the reference agree.
-    let out = ok(&calib(&["verify", "--robot", ROBOT, "--data", &data]));
-    assert!(out.contains("all within tolerance"), "{out}");
-
-    // fk of the identified file at the first pose, carried into the tracker's frame by the
-    // measurement setup it records (tracker registration, probe on the flange): the measured
-    // pose of the data file.
     let first = std::fs::read_to_string(&data)
         .unwrap()
         .lines()
@@ -159,10 +50,58 @@ fn every_command_on_a_simulated_seven_joint_robot() {
     let fields: Vec<&str> = first.split(',').collect();
     let joints: Vec<&str> = fields[1..8].to_vec();
     let measured: Vec<f64> = fields[8..11].iter().map(|v| v.parse().unwrap()).collect();
+
+    // check: 7 x 5 Hayati parameters minus beta (no parallel axes) = 28, minus what the frames
+    // absorb (dd1, dtheta1; joint 7), plus base 6 and tool 6: 34. Then every command as on the
+    // arms of every joint count (any_joint_count.rs), compensating at the first pose.
+    let out = ok(&calib(&["check", "--robot", ROBOT, "--data", &data]));
+    assert!(
+        out.contains("every parameter is determined by the data"),
+        "{out}"
+    );
+    let every = common::every_command(&common::Arm {
+        dir: dir.path(),
+        robot: ROBOT,
+        data: &data,
+        truth: &truth,
+        joints: 7,
+        parameters: 34,
+        target_deg: joints.iter().map(|v| v.parse().unwrap()).collect(),
+        exact: 1e-9,
+    });
+    assert!(
+        every
+            .calibrate_text
+            .contains("calibrated KUKA LBR iiwa 14 R820 with 45 poses"),
+        "{}",
+        every.calibrate_text
+    );
+    let written = RobotFile::read(Path::new(&every.identified)).unwrap();
+    assert_eq!(written.joint.len(), 7);
+    assert!(
+        std::fs::read_to_string(&every.html)
+            .unwrap()
+            .contains("iiwa")
+    );
+
+    // report: the JSON rendered again as a page.
+    let page = at(dir.path(), "again.html");
+    ok(&calib(&[
+        "report",
+        "--from",
+        &every.report,
+        "--html",
+        &page,
+    ]));
+    assert!(Path::new(&page).is_file());
+
+    // fk of the identified file at the first pose, carried into the tracker's frame by the
+    // measurement setup it records (tracker registration, probe on the flange): the measured
+    // pose of the data file.
     let out = ok(&calib(&[
         "fk",
         "--robot",
-        &identified,
+        &every.identified,
         "--joints-deg",
         &joints.join(","),
         "--json",
@@ -195,78 +134,6 @@ fn every_command_on_a_simulated_seven_joint_robot() {
         (predicted.translation.vector - Vector3::new(measured[0], measured[1], measured[2])).norm();
     println!("fk of the identified file in the measurement setup against the data: {miss:.2e} mm");
     assert!(miss < 1e-6, "{miss}");
-    let q = calib_core::model::JointVec::<f64>::from_fn(7, |i| {
-        joints[i].parse::<f64>().unwrap().to_radians()
-    });
-
-    // compensate: targets the nominal robot reaches at the simulated joints; the identified
-    // robot is put on them.
-    let nominal = RobotFile::read(Path::new(ROBOT))
-        .unwrap()
-        .to_model(Path::new(ROBOT))
-        .unwrap()
-        .robot;
-    let target = calib_core::Kinematics::nominal(&nominal)
-        .unwrap()
-        .forward(&q)
-        .unwrap();
-    let quaternion = nalgebra::UnitQuaternion::from_rotation_matrix(&target.rotation);
-    let targets = at(dir.path(), "targets.csv");
-    std::fs::write(
-        &targets,
-        format!(
-            "id,x_mm,y_mm,z_mm,qw,qx,qy,qz,{}\nT1,{},{},{},{},{},{},{},{}\n",
-            (1..=7)
-                .map(|j| format!("q{j}_deg"))
-                .collect::<Vec<_>>()
-                .join(","),
-            target.translation.x,
-            target.translation.y,
-            target.translation.z,
-            quaternion.w,
-            quaternion.i,
-            quaternion.j,
-            quaternion.k,
-            joints.join(",")
-        ),
-    )
-    .unwrap();
-    let compensated = at(dir.path(), "compensated.csv");
-    let out = ok(&calib(&[
-        "compensate",
-        "--robot",
-        ROBOT,
-        "--params",
-        &identified,
-        "--targets",
-        &targets,
-        "--out",
-        &compensated,
-        "--max-correction-mm",
-        "50",
-        "--max-correction-deg",
-        "5",
-    ]));
-    let mut reader = csv::Reader::from_path(&compensated).unwrap();
-    let row = reader.records().next().unwrap().unwrap();
-    assert!(out.contains("compensated 1 of 1 targets"), "{out}\n{row:?}");
-    assert_eq!(&row[10], "ok");
-    let residual: f64 = row[8].parse().unwrap();
-    assert!(residual < 1e-3, "{residual} mm");
-
-    // export: the controller's block of the identified 7-joint robot.
-    let block = at(dir.path(), "iiwa.bin");
-    let out = ok(&calib(&[
-        "export",
-        "--params",
-        &identified,
-        "--format",
-        "block",
-        "--out",
-        &block,
-    ]));
-    assert!(out.contains("wrote"), "{out}");
-    assert!(std::fs::metadata(&block).unwrap().len() > 0);
 }
 
 /// Commands that are defined for 6-joint robots only say so instead of guessing; joint maps are

@@ -213,3 +213,247 @@ pub fn at(dir: &Path, name: &str) -> String {
 pub fn arg(path: &Path) -> &str {
     path.to_str().unwrap()
 }
+
+/// A simulated arm for [`every_command`]: its robot file, 60 simulated poses (tracker frame,
+/// 6-DoF, random errors of every identified parameter, the last 25 % held out) and their truth.
+pub struct Arm<'a> {
+    /// The scratch directory the outputs go to.
+    pub dir: &'a Path,
+    /// The robot file, the data and the truth written by `calib simulate --truth-out`.
+    pub robot: &'a str,
+    pub data: &'a str,
+    pub truth: &'a str,
+    /// Its joint count.
+    pub joints: usize,
+    /// The parameters identified (`check` must find them all determined).
+    pub parameters: usize,
+    /// Joint readings (deg) of the compensation target: the nominal pose there.
+    pub target_deg: Vec<f64>,
+    /// The largest error of an identified joint parameter against the truth, and of a held-out
+    /// pose, that exact data allow.
+    pub exact: f64,
+}
+
+/// What [`every_command`] wrote: the calibration's text and files.
+pub struct Every {
+    pub calibrate_text: String,
+    pub identified: String,
+    pub report: String,
+    pub html: String,
+}
+
+/// An arm through every command of `calib`, as a user runs them: check -> calibrate (least
+/// squares with plots and reports, then the default swarm and least squares) -> evaluate ->
+/// verify -> fk -> compensate (6 joints or more; fewer are refused with the reason and nothing
+/// is written) -> export. The expectations are independent of the tool: every parameter
+/// determined, the simulation's truth given back by exact data, the identified model reproducing
+/// every pose. Prints what it measured.
+pub fn every_command(arm: &Arm<'_>) -> Every {
+    let (dir, robot, data, truth, joints) = (arm.dir, arm.robot, arm.data, arm.truth, arm.joints);
+    let minimal = arm.parameters;
+    let out = ok(&calib(&["check", "--robot", robot, "--data", data]));
+    assert!(
+        out.contains(&format!(
+            "identifiability of {minimal} parameters: rank {minimal}"
+        )),
+        "{joints} joints: {out}"
+    );
+
+    let report = at(dir, "report.json");
+    let identified = at(dir, "identified.toml");
+    let plots = at(dir, "plots");
+    let html = at(dir, "report.html");
+    let out = ok(&calib(&[
+        "calibrate",
+        "--robot",
+        robot,
+        "--data",
+        data,
+        "--method",
+        "lm",
+        "--validate",
+        "0.25",
+        "--truth",
+        truth,
+        "--out",
+        &identified,
+        "--report",
+        &report,
+        "--html",
+        &html,
+        "--plot",
+        &plots,
+    ]));
+    assert!(out.contains("with 45 poses"), "{out}");
+    let calibrate_text = out;
+    for plot in [
+        "position-error.svg",
+        "position-error.png",
+        "validation-histogram.svg",
+    ] {
+        assert!(
+            Path::new(&plots).join(plot).is_file(),
+            "{joints} joints: {plot}"
+        );
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let rows = json["truth"].as_array().unwrap();
+    assert_eq!(rows.len(), minimal, "{joints} joints");
+    // The frames' rows differ from the truth's zero by what they absorb of the first and last
+    // joints' errors; the joints' own parameters are the truth.
+    let worst = rows
+        .iter()
+        .filter(|row| {
+            let name = row["name"].as_str().unwrap();
+            !(name.starts_with("base") || name.starts_with("tool"))
+        })
+        .map(|row| (row["identified"].as_f64().unwrap() - row["truth"].as_f64().unwrap()).abs())
+        .fold(0.0, f64::max);
+    let held_out = json["validation"]["after"]["position_mm"]["max"]
+        .as_f64()
+        .unwrap();
+    println!(
+        "{joints} joints: {minimal} parameters, largest error against the truth {worst:.1e}, held-out max {held_out:.1e} mm"
+    );
+    assert!(worst < arm.exact, "{joints} joints: {worst}");
+    assert!(
+        held_out < arm.exact,
+        "{joints} joints: held-out max {held_out} mm"
+    );
+
+    // The default method, the swarm then least squares, reaches the same exact fit.
+    let again = at(dir, "again.json");
+    let out = ok(&calib(&[
+        "calibrate",
+        "--robot",
+        robot,
+        "--data",
+        data,
+        "--validate",
+        "0.25",
+        "--report",
+        &again,
+        "--quiet",
+    ]));
+    assert!(out.contains("by ipso+lm"), "{out}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&again).unwrap()).unwrap();
+    let held_out = json["validation"]["after"]["position_mm"]["max"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        held_out < arm.exact,
+        "{joints} joints: held-out max {held_out} mm"
+    );
+
+    let out = ok(&calib(&[
+        "evaluate",
+        "--robot",
+        &identified,
+        "--data",
+        data,
+        "--json",
+    ]));
+    let evaluation: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let mean = evaluation["position_mm"]["mean"].as_f64().unwrap();
+    assert!(mean < 1e-6, "{joints} joints: evaluate mean {mean} mm");
+
+    let out = ok(&calib(&["verify", "--robot", robot, "--data", data]));
+    assert!(
+        out.contains("all within tolerance"),
+        "{joints} joints: {out}"
+    );
+
+    compensate_and_export(dir, joints, robot, &identified, &arm.target_deg);
+    Every {
+        calibrate_text,
+        identified,
+        report,
+        html,
+    }
+}
+
+/// fk of the nominal robot at a joint vector gives a target; compensate puts the identified
+/// robot on it (6 joints or more; fewer are refused with the reason and nothing is written);
+/// export writes the controller's block.
+fn compensate_and_export(dir: &Path, joints: usize, robot: &str, identified: &str, q: &[f64]) {
+    let q: Vec<String> = q.iter().map(|v| v.to_string()).collect();
+    let out = ok(&calib(&[
+        "fk",
+        "--robot",
+        robot,
+        "--joints-deg",
+        &q.join(","),
+        "--json",
+    ]));
+    let pose: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let numbers = |key: &str| -> Vec<String> {
+        pose[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap().to_string())
+            .collect()
+    };
+    let targets = at(dir, "targets.csv");
+    std::fs::write(
+        &targets,
+        format!(
+            "id,x_mm,y_mm,z_mm,qw,qx,qy,qz,{}\nT1,{},{},{}\n",
+            (1..=joints)
+                .map(|j| format!("q{j}_deg"))
+                .collect::<Vec<_>>()
+                .join(","),
+            numbers("position_mm").join(","),
+            numbers("quaternion_wxyz").join(","),
+            q.join(",")
+        ),
+    )
+    .unwrap();
+    let compensated = at(dir, "compensated.csv");
+    let out = calib(&[
+        "compensate",
+        "--robot",
+        robot,
+        "--params",
+        identified,
+        "--targets",
+        &targets,
+        "--out",
+        &compensated,
+        "--max-correction-mm",
+        "50",
+        "--max-correction-deg",
+        "5",
+    ]);
+    if joints < 6 {
+        assert!(!out.status.success(), "{joints} joints");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains(&format!(
+                "which takes at least 6 joints; this robot has {joints}"
+            )),
+            "{err}"
+        );
+        assert!(!Path::new(&compensated).exists());
+    } else {
+        let text = ok(&out);
+        let mut reader = csv::Reader::from_path(&compensated).unwrap();
+        let row = reader.records().next().unwrap().unwrap();
+        assert!(
+            text.contains("compensated 1 of 1 targets"),
+            "{text}\n{row:?}"
+        );
+        let residual: f64 = row[joints + 1].parse().unwrap();
+        println!("{joints} joints: compensated to {residual:.1e} mm");
+        assert!(residual < 1e-3, "{joints} joints: {residual} mm");
+    }
+
+    let block = at(dir, "arm.bin");
+    let out = ok(&calib(&[
+        "export", "--params", identified, "--format", "block", "--out", &block,
+    ]));
+    assert!(out.contains("wrote"), "{out}");
+    assert!(std::fs::metadata(&block).unwrap().len() > 0);
+}
