@@ -64,6 +64,30 @@ fn the_html_report_holds_everything_and_nothing_external() {
         2,
         "calibration and validation tables"
     );
+    // Issue 41: the held-out accuracy (percentiles, per axis, the largest poses by line) with the
+    // JSON report's numbers.
+    let held = &json["held_out"];
+    for model in ["before", "after"] {
+        for key in ["p50_mm", "p95_mm", "p99_mm", "max_mm"] {
+            let v = held[model]["position"][key].as_f64().unwrap();
+            assert!(cells.contains(&format!("{v:.4}")), "{model} {key}");
+        }
+        let x = &held[model]["axes"][0];
+        let shown = format!(
+            "{:.4} \u{b1} {:.4}",
+            x["mean_mm"].as_f64().unwrap(),
+            x["std_mm"].as_f64().unwrap()
+        );
+        assert!(cells.contains(&shown), "{model} x: {shown}");
+    }
+    let largest = &held["largest"][0];
+    assert!(cells.contains(&largest["line"].to_string()));
+    assert!(cells.contains(&format!("{:.4}", largest["error_mm"].as_f64().unwrap())));
+    assert!(
+        select(&page, "caption")
+            .iter()
+            .any(|c| c.starts_with("Flagged held-out poses"))
+    );
     // Every parameter, with its value in the unit shown.
     let parameters = json["parameters"].as_object().unwrap();
     assert!(parameters.len() > 20);

@@ -488,3 +488,179 @@ fn ur10_data_with_the_ur10e_file_ask_whether_the_model_is_right() {
     common::ok(&common::calib(&args(ROBOT)));
     assert!(out.exists());
 }
+
+/// Issue 41: the certificate's figures on the bundled Series B (50 poses calibrated, 6-DoF, the
+/// other 1445 held out). The held-out percentiles (50/95/99 %, max), the signed mean and spread
+/// per base axis, and the flagged poses in the JSON report equal an independent computation from
+/// the per-pose errors it lists (percentiles at rank p (n - 1), linearly interpolated; flagged
+/// above median + 3 * 1.4826 MAD); every signed error's length is the pose's `|dp|`. An acceptance
+/// criterion that the held-out poses meet stamps PASS (exit 0); one they miss stamps FAIL, writes
+/// the files and exits with status 3; a criterion without held-out poses is refused.
+#[test]
+fn series_b_certificate_figures_and_the_acceptance_statement() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("b.json");
+    let run = |accept: &str| {
+        common::calib(&[
+            "calibrate",
+            "--robot",
+            ROBOT,
+            "--data",
+            DATA,
+            "--profile",
+            FULL_POSE,
+            "--validate",
+            "0.9666",
+            "--accept",
+            accept,
+            "--report",
+            report.to_str().unwrap(),
+        ])
+    };
+    let out = run("95% <= 1 mm");
+    let text = common::ok(&out);
+    assert!(
+        text.contains("acceptance: PASS: 95% of held-out poses <= 1 mm (measured: 9"),
+        "{text}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let numbers = |v: &serde_json::Value| -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let per_pose = &json["per_pose"];
+    let after = numbers(&per_pose["validation_after"]);
+    let lines: Vec<u64> = (per_pose["validation_lines"].as_array().unwrap().iter())
+        .map(|v| v.as_u64().unwrap())
+        .collect();
+    assert_eq!((after.len(), lines.len()), (1445, 1445));
+    // Independent: sort and interpolate.
+    let mut sorted = after.clone();
+    sorted.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    let at = |p: f64| {
+        let rank = p * (sorted.len() - 1) as f64;
+        let (lo, hi) = (rank.floor() as usize, rank.ceil() as usize);
+        sorted[lo] + (rank - lo as f64) * (sorted[hi] - sorted[lo])
+    };
+    let held = &json["held_out"];
+    let position = &held["after"]["position"];
+    for (key, p) in [
+        ("p50_mm", 0.5),
+        ("p95_mm", 0.95),
+        ("p99_mm", 0.99),
+        ("max_mm", 1.0),
+    ] {
+        let stated = position[key].as_f64().unwrap();
+        assert!(
+            (stated - at(p)).abs() < 1e-12,
+            "{key}: {stated} vs {}",
+            at(p)
+        );
+    }
+    println!(
+        "Series B held out: 50 % {:.4}, 95 % {:.4}, 99 % {:.4}, max {:.4} mm",
+        at(0.5),
+        at(0.95),
+        at(0.99),
+        at(1.0)
+    );
+    // Per axis: mean and sample standard deviation of the signed errors listed.
+    let xyz: Vec<Vec<f64>> = (per_pose["validation_after_xyz"].as_array().unwrap().iter())
+        .map(numbers)
+        .collect();
+    for (e, norm) in xyz.iter().zip(&after) {
+        assert!(((e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt() - norm).abs() < 1e-9);
+    }
+    for (k, axis) in held["after"]["axes"].as_array().unwrap().iter().enumerate() {
+        let n = xyz.len() as f64;
+        let mean = xyz.iter().map(|e| e[k]).sum::<f64>() / n;
+        let std = (xyz.iter().map(|e| (e[k] - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        assert!((axis["mean_mm"].as_f64().unwrap() - mean).abs() < 1e-12);
+        assert!((axis["std_mm"].as_f64().unwrap() - std).abs() < 1e-12);
+    }
+    // Flagged: above the median plus three robust standard deviations, by line.
+    let median = at(0.5);
+    let mut deviations: Vec<f64> = after.iter().map(|e| (e - median).abs()).collect();
+    deviations.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    let mad = {
+        let rank = 0.5 * (deviations.len() - 1) as f64;
+        let (lo, hi) = (rank.floor() as usize, rank.ceil() as usize);
+        deviations[lo] + (rank - lo as f64) * (deviations[hi] - deviations[lo])
+    };
+    let threshold = median + 3.0 * 1.4826 * mad;
+    let mut expected: Vec<u64> = (lines.iter().zip(&after))
+        .filter(|(_, e)| **e > threshold)
+        .map(|(l, _)| *l)
+        .collect();
+    expected.sort_unstable();
+    let mut flagged: Vec<u64> = (held["flagged"].as_array().unwrap().iter())
+        .map(|p| p["line"].as_u64().unwrap())
+        .collect();
+    flagged.sort_unstable();
+    assert!(!expected.is_empty());
+    assert_eq!(flagged, expected);
+    // The largest held-out error is named with its line (the issue's 2.06 mm).
+    let largest = &held["largest"][0];
+    let index = lines
+        .iter()
+        .position(|l| *l == largest["line"].as_u64().unwrap())
+        .unwrap();
+    assert_eq!(largest["error_mm"].as_f64().unwrap(), at(1.0));
+    assert_eq!(after[index], at(1.0));
+    assert!(
+        text.contains(&format!("largest held-out errors: line {}", lines[index])),
+        "{text}"
+    );
+    assert_eq!(json["acceptance"]["pass"], true);
+
+    // A criterion the poses miss: FAIL, the files written, exit status 3.
+    std::fs::remove_file(&report).unwrap();
+    let out = run("99.9% <= 0.5 mm");
+    assert_eq!(out.status.code(), Some(3));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("acceptance: FAIL: 99.9% of held-out poses <= 0.5 mm"),
+        "{stdout}"
+    );
+    assert!(String::from_utf8_lossy(&out.stderr).contains("the acceptance criterion is not met"));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(json["acceptance"]["pass"], false);
+    let within = after.iter().filter(|e| **e <= 0.5).count() as f64 / 1445.0 * 100.0;
+    let measured = json["acceptance"]["criteria"][0]["measured_percent"]
+        .as_f64()
+        .unwrap();
+    assert!((measured - within).abs() < 1e-12, "{measured} {within}");
+    // Without held-out poses: refused, nothing written.
+    std::fs::remove_file(&report).unwrap();
+    let out = common::calib(&[
+        "calibrate",
+        "--robot",
+        ROBOT,
+        "--data",
+        DATA,
+        "--profile",
+        FULL_POSE,
+        "--accept",
+        "95% <= 1 mm",
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("is judged on held-out poses"));
+    assert!(!report.exists());
+    let out = common::calib(&[
+        "calibrate",
+        "--robot",
+        ROBOT,
+        "--data",
+        DATA,
+        "--accept",
+        "95 <= 1 mm",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+}

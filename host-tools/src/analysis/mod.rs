@@ -1,7 +1,9 @@
-//! What a model and a dataset say beyond the fit: the identifiability of the parameters, the
+//! What a model and a dataset say beyond the fit: the accuracy on held-out poses as a certificate
+//! states it, the identifiability of the parameters, the
 //! evaluation of a model on new poses, the comparison against a known truth, and the verification
 //! of the core's calibration against the independent float64 reference.
 
+pub mod accuracy;
 pub mod evaluation;
 pub mod identifiability;
 pub mod reference;

@@ -117,6 +117,25 @@ fn main() -> std::process::ExitCode {
     }
 }
 
+/// `calib calibrate`: calibrates, writes, prints; exits with [`ACCEPTANCE_FAILED`] when an
+/// acceptance criterion is not met (after the files are written).
+fn calibrate_command(options: &CalibrateOptions) -> anyhow::Result<()> {
+    let written = calibrate::calibrate_and_write(options)?;
+    print(&written.text)?;
+    if written.accepted == Some(false) {
+        let _ = std::io::Write::flush(&mut std::io::stdout());
+        let _ = std::io::Write::write_all(
+            &mut std::io::stderr(),
+            b"Error: the acceptance criterion is not met (FAIL above and in the reports); the files were written\n",
+        );
+        std::process::exit(ACCEPTANCE_FAILED);
+    }
+    Ok(())
+}
+
+/// Exit status of `calib calibrate` when an acceptance criterion (`--accept`) is not met.
+const ACCEPTANCE_FAILED: i32 = 3;
+
 fn run(command: Command) -> anyhow::Result<()> {
     match command {
         Command::Fk {
@@ -193,7 +212,7 @@ fn run(command: Command) -> anyhow::Result<()> {
             }
         }
         Command::Demo(options) => host_tools::cli::demo::demo(&options)?,
-        Command::Calibrate(options) => print(&calibrate::calibrate_and_write(&options)?)?,
+        Command::Calibrate(options) => calibrate_command(&options)?,
     }
     Ok(())
 }

@@ -209,6 +209,9 @@ pub struct CalibrationConfig {
     /// Return a result that fails the plausibility check ([`super::plausibility`]) instead of
     /// refusing it; its problems are listed in the result.
     pub accept_implausible: bool,
+    /// Acceptance criteria judged on the held-out poses (`--accept`); empty: none stated.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub acceptance: Vec<crate::analysis::accuracy::Criterion>,
     /// Show a progress bar on a terminal.
     #[serde(skip)]
     pub progress: bool,
@@ -229,6 +232,7 @@ impl Default for CalibrationConfig {
             auto_mask: false,
             keep_ill_conditioned: false,
             accept_implausible: false,
+            acceptance: Vec::new(),
             progress: false,
         }
     }

@@ -472,9 +472,15 @@ fn with_maps(
     result.per_pose.orientation_after =
         crate::measurement::statistics::orientation_per_pose(&actual, &mapped);
     if let (Some(v), Some(stage)) = (validation, result.validation.as_mut()) {
-        let (after, per_pose) = table3(&actual, &model_view(v, found, gravity)?.measurements);
+        let seen = model_view(v, found, gravity)?;
+        let (after, per_pose) = table3(&actual, &seen.measurements);
         stage.after = after;
         result.per_pose.validation_after = per_pose;
+        result.per_pose.validation_after_xyz = crate::measurement::statistics::signed_errors(
+            &actual,
+            &seen.model.robot,
+            &seen.measurements,
+        );
     }
     for p in &mut result.parameters {
         p.value = found.errors.get(p.parameter).unwrap_or(0.0);

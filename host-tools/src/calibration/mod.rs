@@ -91,6 +91,13 @@ pub fn calibrate(
     config: &CalibrationConfig,
 ) -> crate::Result<CalibrationResult> {
     config.check()?;
+    if !config.acceptance.is_empty() && validation.is_none() {
+        return Err(crate::refused!(
+            "an acceptance criterion ({}) is judged on held-out poses, and none are held out: give --validate FRACTION \
+             or --holdout FILE (or measure a plan with verification poses)",
+            config.acceptance[0]
+        ));
+    }
     if config.model.maps() {
         maps::check_robot_file(&dataset, config)?;
     }
@@ -142,6 +149,32 @@ pub fn calibrate(
             m.flange_tool = probe;
         }
     }
+    accuracy_and_plausibility(result, validation.as_ref(), config)
+}
+
+/// The last stages: the accuracy on the held-out poses of `validation`, the acceptance criteria
+/// judged on them, and the plausibility check (an implausible result is refused unless the
+/// configuration accepts it).
+fn accuracy_and_plausibility(
+    mut result: CalibrationResult,
+    validation: Option<&Dataset>,
+    config: &CalibrationConfig,
+) -> crate::Result<CalibrationResult> {
+    if let Some(v) = validation {
+        let poses: Vec<(String, u64)> = (v.data.records.iter())
+            .map(|r| (r.id.clone(), r.line))
+            .collect();
+        result.per_pose.validation_lines = poses.iter().map(|(_, line)| *line).collect();
+        result.held_out = crate::analysis::accuracy::HeldOutAccuracy::of(
+            &poses,
+            &result.per_pose.validation_before_xyz,
+            &result.per_pose.validation_after_xyz,
+        );
+    }
+    result.acceptance = crate::analysis::accuracy::Acceptance::judge(
+        &config.acceptance,
+        &result.per_pose.validation_after,
+    );
     result.implausible = plausibility::check(&result);
     if !result.implausible.is_empty() && !config.accept_implausible {
         let question = plausibility::question(&result).map_or(String::new(), |q| q + "\n");
@@ -387,6 +420,8 @@ fn solve(
         cross_validation,
         joint_maps: None,
         plan_check: None,
+        held_out: None,
+        acceptance: None,
     })
 }
 
@@ -775,6 +810,13 @@ fn evaluate(
         let (after, per_pose_after) = table3(&actual, &v.measurements);
         per_pose.validation_before = per_pose_before;
         per_pose.validation_after = per_pose_after;
+        per_pose.validation_before_xyz = crate::measurement::statistics::signed_errors(
+            &nominal,
+            &v.model.robot,
+            &v.measurements,
+        );
+        per_pose.validation_after_xyz =
+            crate::measurement::statistics::signed_errors(&actual, &v.model.robot, &v.measurements);
         Stage {
             poses: v.measurements.len(),
             before,

@@ -135,6 +135,13 @@ pub struct PerPose {
     pub validation_before: Vec<f64>,
     /// With the identified model.
     pub validation_after: Vec<f64>,
+    /// `measured - predicted` per validation pose with the nominal model, along the robot's base
+    /// axes, mm.
+    pub validation_before_xyz: Vec<[f64; 3]>,
+    /// With the identified model.
+    pub validation_after_xyz: Vec<[f64; 3]>,
+    /// The data file's line of each validation pose.
+    pub validation_lines: Vec<u64>,
 }
 
 /// Everything a calibration found.
@@ -193,6 +200,11 @@ pub struct CalibrationResult {
     /// The measured verification poses of a plan against its prediction (`calib plan`), set by
     /// `calibrate` when the data file is a measured plan.
     pub plan_check: Option<crate::planning::PlanCheck>,
+    /// The accuracy on the held-out poses (percentiles, per axis, the poses to look at), when
+    /// poses were held out.
+    pub held_out: Option<crate::analysis::accuracy::HeldOutAccuracy>,
+    /// The acceptance criteria of the configuration judged on the held-out poses.
+    pub acceptance: Option<crate::analysis::accuracy::Acceptance>,
 }
 
 impl CalibrationResult {
@@ -248,6 +260,8 @@ impl CalibrationResult {
             cross_validation: self.cross_validation,
             joint_maps: self.joint_maps.as_ref(),
             plan_check: self.plan_check.as_ref(),
+            held_out: self.held_out.as_ref(),
+            acceptance: self.acceptance.as_ref(),
             frames: &self.frames,
             outliers: &self.outliers,
             poses: &self.poses,
@@ -357,6 +371,14 @@ pub struct Report<'a> {
     /// The plan's verification poses against its prediction, for a measured plan.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub plan_check: Option<&'a crate::planning::PlanCheck>,
+    /// The accuracy on the held-out poses: `|dp|` percentiles and signed error per base axis,
+    /// before and after; the largest and the flagged poses with their lines.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub held_out: Option<&'a crate::analysis::accuracy::HeldOutAccuracy>,
+    /// The acceptance criteria judged on the held-out poses: each with its measured share, and
+    /// `pass` when all are met.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub acceptance: Option<&'a crate::analysis::accuracy::Acceptance>,
     /// The frames identified with the geometry and their values.
     pub frames: &'a FramesReport,
     /// Poses whose residual exceeds the robust loss scale (empty for l2).

@@ -69,6 +69,12 @@ pub struct CalibrateOptions {
     /// the report.
     #[arg(long)]
     pub accept_implausible: bool,
+    /// An acceptance criterion judged on the held-out poses after calibration, such as
+    /// "95% <= 0.5 mm" (at least 95 % of them within 0.5 mm); repeat for several. The result
+    /// states PASS or FAIL; on FAIL the files are written and calib exits with status 3.
+    /// Needs held-out poses (--validate, --holdout or a plan's verification poses).
+    #[arg(long, value_name = "CRITERION")]
+    pub accept: Vec<crate::analysis::accuracy::Criterion>,
     /// Hold out this fraction of the poses (chosen at random with --validate-seed) and report the
     /// statistics on them separately.
     #[arg(long, value_name = "FRACTION", conflicts_with = "holdout")]
@@ -168,6 +174,7 @@ impl CalibrateOptions {
             auto_mask: self.auto_mask,
             keep_ill_conditioned: self.keep_ill_conditioned,
             accept_implausible: self.accept_implausible,
+            acceptance: self.accept.clone(),
             progress: !self.quiet,
         }
     }
@@ -199,8 +206,9 @@ pub struct Calibration {
 
 /// Runs `calib calibrate` as the command does: calibrates (the robot file's joint count one of
 /// [`JOINT_COUNTS`](crate::model::counts::JOINT_COUNTS)), writes the
-/// files asked for (all or none), and returns the text to print, with the files written.
-pub fn calibrate_and_write(options: &CalibrateOptions) -> anyhow::Result<String> {
+/// files asked for (all or none), and returns the text to print, with the files written, and
+/// whether the acceptance criteria (if any) are met.
+pub fn calibrate_and_write(options: &CalibrateOptions) -> anyhow::Result<Written> {
     crate::model::counts::joint_count(options.input.joints()?)?;
     let calibration = calibrate(options)?;
     // The files first: a closed or full standard output must not lose them.
@@ -209,7 +217,19 @@ pub fn calibrate_and_write(options: &CalibrateOptions) -> anyhow::Result<String>
     for path in written {
         text.push_str(&format!("wrote {}\n", path.display()));
     }
-    Ok(text)
+    Ok(Written {
+        text,
+        accepted: calibration.result.acceptance.as_ref().map(|a| a.pass),
+    })
+}
+
+/// What `calib calibrate` did, for the command to print and to set its exit status by.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Written {
+    /// The text to print (the result and the files written).
+    pub text: String,
+    /// With acceptance criteria (`--accept`): whether all are met.
+    pub accepted: Option<bool>,
 }
 
 /// Runs `calib calibrate` without writing anything: reads the files,

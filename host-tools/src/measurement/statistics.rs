@@ -86,6 +86,25 @@ pub(crate) fn table3<'a>(
     (Table3::from_statistics(&stats), per_pose)
 }
 
+/// `measured - predicted` position (mm) of `kinematics` for each of `measurements`, along the
+/// axes of the robot's base frame: turned back by the rotation of the model's base (for data in a
+/// tracker's frame, the registration), so that x, y and z are the robot's.
+pub(crate) fn signed_errors<'a>(
+    kinematics: &Kinematics<f64, Dyn>,
+    robot: &calib_core::Robot<f64, Dyn>,
+    measurements: impl IntoIterator<Item = &'a calib_core::identify::objective::Measurement<f64, Dyn>>,
+) -> Vec<[f64; 3]> {
+    let [roll, pitch, yaw] = robot.base.rpy;
+    let to_base = nalgebra::Rotation3::from_euler_angles(roll, pitch, yaw).inverse();
+    measurements
+        .into_iter()
+        .map(|m| {
+            let e = to_base * m.error_of(&kinematics.forward_angles(&m.angles)).position;
+            [e.x, e.y, e.z]
+        })
+        .collect()
+}
+
 /// `|dr_x|, |dr_y|, |dr_z|` (deg) of `kinematics` for every pose of `dataset` that has an
 /// orientation, in file order.
 pub(crate) fn orientation_per_pose(

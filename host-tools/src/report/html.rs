@@ -31,8 +31,9 @@ impl Rendering {
 
 /// The section identifiers of the page, in order (each an `<h2 id>`); tests and readers rely on
 /// them.
-pub const SECTIONS: [&str; 10] = [
+pub const SECTIONS: [&str; 11] = [
     "summary",
+    "accuracy",
     "table3",
     "parameters",
     "identifiability",
@@ -88,6 +89,7 @@ pub fn render(report: &Value, rendering: &Rendering) -> crate::Result<String> {
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>Calibration report: {robot}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n<h1>Robot calibration report</h1>"
     )?;
     summary(&mut page, report, &robot, &data)?;
+    accuracy(&mut page, report)?;
     table3(&mut page, report)?;
     parameters(&mut page, report)?;
     identifiability(&mut page, report)?;
@@ -119,7 +121,7 @@ const STYLE: &str = "body{font-family:sans-serif;max-width:60em;margin:2em auto;
 h1{border-bottom:2px solid #333}h2{margin-top:2em;border-bottom:1px solid #999}\
 table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #bbb;padding:0.2em 0.6em;text-align:right}\
 th{background:#eee}td:first-child,th:first-child,td[colspan]{text-align:left}\
-.note{color:#555}.bad{color:#a00;font-weight:bold}figure{margin:1em 0}svg{max-width:100%;height:auto}\
+.note{color:#555}.bad{color:#a00;font-weight:bold}.pass{color:#060;border:2px solid #060;padding:0.4em}.fail{color:#a00;border:2px solid #a00;padding:0.4em}figure{margin:1em 0}svg{max-width:100%;height:auto}\
 @media print{body{max-width:none;margin:0}h2{break-after:avoid}figure,table{break-inside:avoid}.poses{font-size:8pt}}";
 
 fn summary(page: &mut String, report: &Value, robot: &str, data: &str) -> crate::Result<()> {
@@ -169,6 +171,121 @@ fn numbers_or_texts(value: &Value) -> Vec<String> {
         .as_array()
         .map(|a| a.iter().map(text).collect())
         .unwrap_or_default()
+}
+
+/// The acceptance statement (`acceptance`), when criteria were given: ACCEPTED or NOT ACCEPTED
+/// with each criterion's measured share.
+fn acceptance_stamp(page: &mut String, acceptance: &Value) -> crate::Result<()> {
+    if let Some(criteria) = acceptance["criteria"].as_array() {
+        let pass = acceptance["pass"].as_bool() == Some(true);
+        writeln!(
+            page,
+            "<p class=\"{}\"><strong>{}</strong>: {}</p>",
+            if pass { "pass" } else { "fail" },
+            if pass { "ACCEPTED" } else { "NOT ACCEPTED" },
+            criteria
+                .iter()
+                .map(|c| format!(
+                    "{}: measured {}&nbsp;% ({})",
+                    text(&c["text"]),
+                    num(&c["measured_percent"], 2),
+                    if c["pass"].as_bool() == Some(true) {
+                        "met"
+                    } else {
+                        "not met"
+                    }
+                ))
+                .collect::<Vec<_>>()
+                .join("; ")
+        )?;
+    }
+    Ok(())
+}
+
+/// Table rows of named held-out poses (`largest`, `flagged`): line, id, `|dp|` and x, y, z.
+fn named_rows(poses: &Value) -> String {
+    poses
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .map(|p| {
+                    let xyz = numbers(&p["xyz_mm"]);
+                    format!(
+                        "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                        text(&p["line"]),
+                        text(&p["id"]),
+                        num(&p["error_mm"], 4),
+                        xyz.iter()
+                            .map(|v| format!("{v:.4}"))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// The accuracy on the held-out poses (`held_out`): the acceptance statement, the percentiles
+/// and the per-axis errors before and after, the largest and the flagged poses by line.
+fn accuracy(page: &mut String, report: &Value) -> crate::Result<()> {
+    page.push_str("<h2 id=\"accuracy\">Accuracy on the held-out poses</h2>\n");
+    let held = &report["held_out"];
+    if held.is_null() {
+        page.push_str("<p>No poses were held out: the accuracy on poses the calibration did not see is not measured (calibrate with --validate or --holdout).</p>\n");
+        return Ok(());
+    }
+    acceptance_stamp(page, &report["acceptance"])?;
+    writeln!(
+        page,
+        "<table>\n<tr><th>model ({} poses)</th><th>50&nbsp;%</th><th>95&nbsp;%</th><th>99&nbsp;%</th><th>max</th><th>x mean &plusmn; std</th><th>y mean &plusmn; std</th><th>z mean &plusmn; std</th></tr>",
+        text(&held["after"]["poses"])
+    )?;
+    for (model, label) in [("before", "nominal"), ("after", "identified")] {
+        let m = &held[model];
+        let p = &m["position"];
+        let axis = |k: usize| {
+            let a = &m["axes"][k];
+            format!(
+                "{} &plusmn; {}",
+                num(&a["mean_mm"], 4),
+                num(&a["std_mm"], 4)
+            )
+        };
+        writeln!(
+            page,
+            "<tr><td>{label}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            num(&p["p50_mm"], 4),
+            num(&p["p95_mm"], 4),
+            num(&p["p99_mm"], 4),
+            num(&p["max_mm"], 4),
+            axis(0),
+            axis(1),
+            axis(2)
+        )?;
+    }
+    page.push_str("</table>\n<p class=\"note\">|dp| percentiles in mm; the signed error (measured - predicted) along the robot's base axes, mm.</p>\n");
+    writeln!(
+        page,
+        "<table>\n<caption>Largest held-out errors</caption>\n<tr><th>line</th><th>id</th><th>|dp|, mm</th><th>x, y, z, mm</th></tr>\n{}</table>",
+        named_rows(&held["largest"])
+    )?;
+    let flagged = &held["flagged"];
+    if flagged.as_array().is_none_or(Vec::is_empty) {
+        writeln!(
+            page,
+            "<p>No held-out pose is flagged (none above {} mm, the median + 3 robust standard deviations).</p>",
+            num(&held["flag_above_mm"], 4)
+        )?;
+    } else {
+        writeln!(
+            page,
+            "<table>\n<caption>Flagged held-out poses (above {} mm, the median + 3 robust standard deviations)</caption>\n<tr><th>line</th><th>id</th><th>|dp|, mm</th><th>x, y, z, mm</th></tr>\n{}</table>",
+            num(&held["flag_above_mm"], 4),
+            named_rows(flagged)
+        )?;
+    }
+    Ok(())
 }
 
 fn table3(page: &mut String, report: &Value) -> crate::Result<()> {

@@ -115,6 +115,12 @@ impl CalibrationResult {
                 &stage.after,
             ));
         }
+        if let Some(held_out) = &self.held_out {
+            text.push_str(&held_out.text());
+        }
+        if let Some(acceptance) = &self.acceptance {
+            text.push_str(&acceptance.text());
+        }
         if let Some(check) = &self.plan_check {
             text.push('\n');
             text.push_str(&check.text());
