@@ -196,6 +196,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
             planned: None,
             has_ids: false,
             has_times: false,
+            instrument: None,
         };
         let outcomes = compensate_targets(
             &nominal,
@@ -244,6 +245,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
         planned: None,
         has_ids: false,
         has_times: false,
+        instrument: None,
     };
     let outcome = compensate_targets(
         &nominal,

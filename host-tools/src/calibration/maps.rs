@@ -489,6 +489,8 @@ fn with_maps(
         }
     }
     result.errors = found.errors;
+    // The geometric fit's covariance does not describe the model with the maps.
+    (result.uncertainty, result.covariance, result.significance) = (None, None, None);
     let mut frames = result.frames.clone();
     let mut file = super::identified_robot(
         dataset,

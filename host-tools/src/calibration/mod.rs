@@ -376,6 +376,8 @@ fn solve(
     let standard_errors = fit.as_ref().and_then(|f| f.result.standard_errors());
     let parameters = identified_parameters(set, &best, standard_errors.as_ref());
     let errors = set.unpack(&best);
+    let (covariance, uncertainty, significance) =
+        covariance_findings((dataset, validation), set, fit.as_ref(), &best, &errors)?;
     let (calibration, validation, per_pose, poses) =
         evaluate(dataset, validation, &errors, fit.as_ref())?;
     let identified_robot = identified_robot(dataset, config, &parameters, &errors, &mut frames);
@@ -422,7 +424,104 @@ fn solve(
         plan_check: None,
         held_out: None,
         acceptance: None,
+        uncertainty,
+        significance,
+        covariance,
     })
+}
+
+/// What the fit's covariance says (least squares only): the covariance itself, the held-out poses
+/// of `validation` against their predicted band, and the parameters' significance.
+type CovarianceFindings = (
+    Option<nalgebra::DMatrix<f64>>,
+    Option<crate::analysis::uncertainty::Coverage>,
+    Option<crate::analysis::uncertainty::Significance>,
+);
+
+/// [`CovarianceFindings`] of the fit of `set` (values `best`, errors `errors`) on `dataset`.
+fn covariance_findings(
+    (dataset, validation): (&Dataset, Option<&Dataset>),
+    set: &ParameterSet<Dyn, Dyn>,
+    fit: Option<&Fit>,
+    best: &DVector<f64>,
+    errors: &ParameterErrors<f64, Dyn>,
+) -> crate::Result<CovarianceFindings> {
+    let (Some(fit), Some(covariance)) = (fit, fit.and_then(|f| f.result.covariance())) else {
+        return Ok((None, None, None));
+    };
+    let uncertainty = match validation {
+        Some(v) => held_out_coverage((dataset, v), set, &covariance, errors, fit.report.sigma_mm)?,
+        None => None,
+    };
+    let significance = crate::analysis::uncertainty::Significance::of(
+        &set.parameters()
+            .iter()
+            .map(ToString::to_string)
+            .collect::<Vec<_>>(),
+        best.as_slice(),
+        &covariance,
+    );
+    Ok((Some(covariance), uncertainty, Some(significance)))
+}
+
+/// The held-out poses of `validation` against the 95 % band of the model `errors` predicted from
+/// the parameters' `covariance` (in the order of `set`) and the instrument's noise: the one the data
+/// profile states (`[instrument]`, at each point's distance from the tracker; the covariance then
+/// scaled from the fit's residual sigma to the instrument's noise on the calibration poses of
+/// `dataset`), else the fit's residual sigma.
+fn held_out_coverage(
+    (dataset, validation): (&Dataset, &Dataset),
+    set: &ParameterSet<Dyn, Dyn>,
+    covariance: &nalgebra::DMatrix<f64>,
+    errors: &ParameterErrors<f64, Dyn>,
+    sigma_mm: f64,
+) -> crate::Result<Option<crate::analysis::uncertainty::Coverage>> {
+    let instrument = validation.data.instrument.as_ref();
+    // Distances from the instrument are known in its own frame only.
+    let noise = |data: &Dataset, m: &calib_core::identify::objective::Measurement<f64, Dyn>| {
+        instrument.map_or(sigma_mm, |i| {
+            i.sigma_mm(if data.data.base_frame {
+                0.0
+            } else {
+                m.position.norm()
+            })
+        })
+    };
+    let (covariance, source) = match instrument {
+        None => (
+            covariance.clone(),
+            "from the fit's residual sigma".to_string(),
+        ),
+        Some(i) => {
+            let n = dataset.measurements.len().max(1) as f64;
+            let rms = (dataset.measurements.iter())
+                .map(|m| noise(dataset, m).powi(2))
+                .sum::<f64>()
+                / n;
+            (
+                covariance * (rms / (sigma_mm * sigma_mm).max(f64::MIN_POSITIVE)),
+                format!(
+                    "from the instrument ({}: MPE {} um + {} um/m, read as 2 sigma)",
+                    i.name.as_deref().unwrap_or("data profile"),
+                    i.mpe_um,
+                    i.mpe_um_per_m
+                ),
+            )
+        }
+    };
+    let actual = Kinematics::new(&validation.model.robot, errors)?;
+    let poses: Vec<_> = (validation.measurements.iter())
+        .zip(&validation.data.records)
+        .map(|(m, r)| {
+            let error = m.error_of(&actual.forward_angles(&m.angles)).position;
+            (m.angles, error, r.line, noise(validation, m))
+        })
+        .collect();
+    Ok(crate::analysis::uncertainty::coverage(
+        (&actual, set, &covariance),
+        &poses,
+        source,
+    ))
 }
 
 /// The identified values of `set` with their standard errors, when least squares gave them.

@@ -205,6 +205,15 @@ pub struct CalibrationResult {
     pub held_out: Option<crate::analysis::accuracy::HeldOutAccuracy>,
     /// The acceptance criteria of the configuration judged on the held-out poses.
     pub acceptance: Option<crate::analysis::accuracy::Acceptance>,
+    /// The held-out poses against the 95 % band predicted from the parameters' covariance (least
+    /// squares and held-out poses needed; not for a model with joint maps).
+    pub uncertainty: Option<crate::analysis::uncertainty::Coverage>,
+    /// The identified parameters' covariance (mm and rad, in the order of `parameters`), from
+    /// least squares.
+    pub covariance: Option<nalgebra::DMatrix<f64>>,
+    /// The parameters smaller than twice their standard error and the strongly correlated pairs
+    /// (from the covariance).
+    pub significance: Option<crate::analysis::uncertainty::Significance>,
 }
 
 impl CalibrationResult {
@@ -262,6 +271,12 @@ impl CalibrationResult {
             plan_check: self.plan_check.as_ref(),
             held_out: self.held_out.as_ref(),
             acceptance: self.acceptance.as_ref(),
+            uncertainty: self.uncertainty.as_ref(),
+            significance: self.significance.as_ref(),
+            covariance: self.covariance.as_ref().map(|c| Covariance {
+                parameters: self.names(),
+                matrix: c.row_iter().map(|r| r.iter().copied().collect()).collect(),
+            }),
             frames: &self.frames,
             outliers: &self.outliers,
             poses: &self.poses,
@@ -379,6 +394,15 @@ pub struct Report<'a> {
     /// `pass` when all are met.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub acceptance: Option<&'a crate::analysis::accuracy::Acceptance>,
+    /// The held-out poses against their predicted 95 % band (parameters' covariance and noise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<&'a crate::analysis::uncertainty::Coverage>,
+    /// The identified parameters' covariance from least squares.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub covariance: Option<Covariance>,
+    /// Parameters not shown to differ from zero, and strongly correlated pairs.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub significance: Option<&'a crate::analysis::uncertainty::Significance>,
     /// The frames identified with the geometry and their values.
     pub frames: &'a FramesReport,
     /// Poses whose residual exceeds the robust loss scale (empty for l2).
@@ -410,6 +434,15 @@ pub struct Report<'a> {
     pub convergence: &'a [(u32, f64)],
     /// The software that wrote the report.
     pub software: String,
+}
+
+/// The identified parameters' covariance in the JSON report.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Covariance {
+    /// The parameters, in the order of the rows and columns.
+    pub parameters: Vec<String>,
+    /// The matrix by rows, in the parameters' units (mm, rad) squared and crossed.
+    pub matrix: Vec<Vec<f64>>,
 }
 
 /// Why the swarm stopped, in words.

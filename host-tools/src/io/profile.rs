@@ -173,6 +173,49 @@ struct ProfileFile {
     columns: Option<toml::Table>,
     #[serde(default)]
     orientation: Option<OrientationEntry>,
+    #[serde(default)]
+    instrument: Option<Instrument>,
+}
+
+/// The measuring instrument (`[instrument]` of a data profile): its name and its maximum
+/// permissible error as its maker states it, `MPE = mpe_um + mpe_um_per_m * distance` (a laser
+/// tracker's, such as 15 um + 6 um/m), read as a 95 % bound (k = 2) on each coordinate of a
+/// measured point: the noise of a point at `distance` from the instrument is `MPE / 2` (1 sigma).
+#[derive(Clone, Debug, PartialEq, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Instrument {
+    /// What measured the data (maker, model, probe).
+    #[serde(default)]
+    pub name: Option<String>,
+    /// The constant part of the maximum permissible error, um.
+    pub mpe_um: f64,
+    /// The part that grows with the distance from the instrument, um per m.
+    #[serde(default)]
+    pub mpe_um_per_m: f64,
+}
+
+impl Instrument {
+    /// The noise (1 sigma per coordinate, mm) of a point `distance_mm` from the instrument.
+    pub fn sigma_mm(&self, distance_mm: f64) -> f64 {
+        (self.mpe_um + self.mpe_um_per_m * distance_mm / 1000.0) / 1000.0 / 2.0
+    }
+
+    /// Checked: finite, the constant part above 0 and below 10 mm, the distance part 0 to 1 mm/m.
+    fn check(&self) -> Result<(), String> {
+        if !(self.mpe_um.is_finite() && self.mpe_um > 0.0 && self.mpe_um <= 10_000.0) {
+            return Err(format!(
+                "[instrument]: mpe_um = {} is not a maximum permissible error above 0 and at most 10000 um",
+                self.mpe_um
+            ));
+        }
+        if !(self.mpe_um_per_m.is_finite() && (0.0..=1000.0).contains(&self.mpe_um_per_m)) {
+            return Err(format!(
+                "[instrument]: mpe_um_per_m = {} is not 0 to 1000 um per m",
+                self.mpe_um_per_m
+            ));
+        }
+        Ok(())
+    }
 }
 
 #[derive(Deserialize)]
@@ -276,6 +319,8 @@ pub struct DataProfile {
     pub derived: Vec<Derived>,
     /// The Euler convention of `rx, ry, rz` columns.
     pub euler: EulerConvention,
+    /// The measuring instrument and its stated error (`[instrument]`), when the profile names it.
+    pub instrument: Option<Instrument>,
 }
 
 impl Default for DataProfile {
@@ -289,6 +334,7 @@ impl Default for DataProfile {
             columns: None,
             derived: Vec::new(),
             euler: EulerConvention::FIXED_XYZ,
+            instrument: None,
         }
     }
 }
@@ -382,6 +428,9 @@ impl DataProfile {
                 ))
             })?,
         };
+        if let Some(instrument) = &file.instrument {
+            instrument.check().map_err(invalid)?;
+        }
         Ok(Self {
             path: Some(path.to_owned()),
             description: file.description,
@@ -391,6 +440,7 @@ impl DataProfile {
             columns,
             derived,
             euler,
+            instrument: file.instrument,
         })
     }
 

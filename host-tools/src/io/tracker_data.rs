@@ -254,6 +254,8 @@ pub struct TrackerData {
     pub has_ids: bool,
     /// `true` when the file has a time column (`time_s`, `time_ms`).
     pub has_times: bool,
+    /// The instrument that measured the data, as the data profile states it.
+    pub instrument: Option<crate::io::profile::Instrument>,
 }
 
 impl TrackerData {
@@ -381,6 +383,7 @@ impl TrackerData {
             planned,
             has_ids: layout.columns.contains(&Column::Id),
             has_times: layout.columns.iter().any(|c| matches!(c, Column::Time(_))),
+            instrument: profile.instrument.clone(),
         })
     }
 }

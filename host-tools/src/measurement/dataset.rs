@@ -62,6 +62,7 @@ impl Dataset {
             planned: None,
             has_ids: true,
             has_times: false,
+            instrument: None,
         };
         Self::from_parts(file, Path::new("<memory>"), data)
     }
@@ -315,6 +316,7 @@ impl Dataset {
                 planned: data.planned,
                 has_ids: data.has_ids,
                 has_times: data.has_times,
+                instrument: data.instrument.clone(),
             },
             measurements: Vec::with_capacity(capacity),
         }

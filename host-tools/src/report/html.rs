@@ -173,6 +173,25 @@ fn numbers_or_texts(value: &Value) -> Vec<String> {
         .unwrap_or_default()
 }
 
+/// The held-out poses against the band predicted from the parameters' covariance.
+fn uncertainty(page: &mut String, u: &Value) -> crate::Result<()> {
+    if u.is_null() {
+        return Ok(());
+    }
+    writeln!(
+        page,
+        "<p>Predicted uncertainty (the parameters' covariance, and {}&nbsp;mm of noise per coordinate {}): the held-out errors lie inside their predicted 95&nbsp;% band for <strong>{}&nbsp;%</strong> of {} poses; the parameters alone predict {}&nbsp;mm RMS on average, at most {}&nbsp;mm (line {}).</p>",
+        num(&u["noise_mm"], 4),
+        text(&u["noise_source"]),
+        num(&u["percent_inside_95"], 1),
+        text(&u["poses"]),
+        num(&u["mean_model_rms_mm"], 4),
+        num(&u["max_model_rms_mm"], 4),
+        text(&u["max_model_rms_line"])
+    )?;
+    Ok(())
+}
+
 /// The acceptance statement (`acceptance`), when criteria were given: ACCEPTED or NOT ACCEPTED
 /// with each criterion's measured share.
 fn acceptance_stamp(page: &mut String, acceptance: &Value) -> crate::Result<()> {
@@ -270,6 +289,7 @@ fn accuracy(page: &mut String, report: &Value) -> crate::Result<()> {
         "<table>\n<caption>Largest held-out errors</caption>\n<tr><th>line</th><th>id</th><th>|dp|, mm</th><th>x, y, z, mm</th></tr>\n{}</table>",
         named_rows(&held["largest"])
     )?;
+    uncertainty(page, &report["uncertainty"])?;
     let flagged = &held["flagged"];
     if flagged.as_array().is_none_or(Vec::is_empty) {
         writeln!(
@@ -365,6 +385,35 @@ fn parameters(page: &mut String, report: &Value) -> crate::Result<()> {
         }
     }
     page.push_str("</table>\n");
+    significance(page, &report["significance"])
+}
+
+/// The parameters not shown to differ from zero and the strongly correlated pairs.
+fn significance(page: &mut String, significance: &Value) -> crate::Result<()> {
+    if let Some(names) = significance["not_significant"]
+        .as_array()
+        .filter(|a| !a.is_empty())
+    {
+        writeln!(
+            page,
+            "<p class=\"note\">Smaller than twice their standard error (the data do not show them to differ from zero): {}.</p>",
+            text(&Value::Array(names.clone()))
+        )?;
+    }
+    if let Some(pairs) = significance["correlated"]
+        .as_array()
+        .filter(|a| !a.is_empty())
+    {
+        let shown: Vec<String> = pairs
+            .iter()
+            .map(|p| format!("{}/{} {}", text(&p[0]), text(&p[1]), num(&p[2], 3)))
+            .collect();
+        writeln!(
+            page,
+            "<p class=\"note\">Strongly correlated pairs (|correlation| &gt; 0.9): {}.</p>",
+            shown.join(", ")
+        )?;
+    }
     Ok(())
 }
 

@@ -118,6 +118,10 @@ impl CalibrationResult {
         if let Some(held_out) = &self.held_out {
             text.push_str(&held_out.text());
         }
+        if let Some(uncertainty) = &self.uncertainty {
+            text.push_str("  ");
+            text.push_str(&uncertainty.text());
+        }
         if let Some(acceptance) = &self.acceptance {
             text.push_str(&acceptance.text());
         }
@@ -255,6 +259,9 @@ impl CalibrationResult {
                 condition(id.condition_number),
                 condition(id.condition_number_after_drop),
             ));
+        }
+        if let Some(significance) = &self.significance {
+            text.push_str(&significance.text());
         }
         if !self.frames.held_at_stored_probe.is_empty() {
             text.push_str(&format!(

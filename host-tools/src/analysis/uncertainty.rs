@@ -1,0 +1,263 @@
+//! The uncertainty of an identified model's prediction at any pose, propagated from the
+//! identified parameters' covariance: the position's covariance at joint readings `q` is
+//! `J(q) S J(q)^T` (mm^2), `J` the 3 position rows of the parameter Jacobian at the identified
+//! errors and `S` the covariance least squares leaves (`sigma^2 (J^T J)^-1`, mm and rad), and the
+//! orientation's likewise from the 3 rotation rows. A measured pose adds the instrument's noise,
+//! `sigma^2 I` per coordinate: the prediction's error `e = measured - predicted` then has the
+//! covariance `C = J S J^T + sigma^2 I`, and lies inside the predicted 95 % band when
+//! `e^T C^-1 e <= 7.815` (the 95 % point of the chi-square distribution with 3 degrees of freedom).
+//!
+//! On held-out poses the share inside that band says whether the model's stated uncertainty can be
+//! trusted: about 95 % for a model that describes the robot (checked by simulation with known
+//! noise), less where errors the model does not have (joint-dependent, thermal) remain.
+
+use calib_core::{JointAngles, Kinematics, ParameterSet};
+use nalgebra::{DMatrix, Dyn, Matrix3, Vector3};
+use serde::Serialize;
+
+/// The 95 % point of the chi-square distribution with 3 degrees of freedom.
+pub const CHI_SQUARE_3_95: f64 = 7.814_727_903_251_178;
+
+/// The covariance of the position (mm^2) and of the orientation (rad^2) at one pose from the
+/// parameters' covariance `covariance` (in the order of `set`), for the model `kinematics`.
+pub fn pose_covariance(
+    kinematics: &Kinematics<f64, Dyn>,
+    set: &ParameterSet<Dyn, Dyn>,
+    covariance: &DMatrix<f64>,
+    angles: &JointAngles<f64, Dyn>,
+) -> (Matrix3<f64>, Matrix3<f64>) {
+    let (_, jacobian) = kinematics.parameter_jacobian(set, angles);
+    let full = &jacobian * covariance * jacobian.transpose();
+    (
+        full.fixed_view::<3, 3>(0, 0).into_owned(),
+        full.fixed_view::<3, 3>(3, 3).into_owned(),
+    )
+}
+
+/// A pose's predicted standard deviations, from the parameters alone (without the instrument).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct PoseSd {
+    /// Of the position along x, y and z of the measurement frame, mm.
+    pub position_mm: [f64; 3],
+    /// Of the position's length, `sqrt(trace)`: the RMS of the position error, mm.
+    pub position_rms_mm: f64,
+    /// Of the orientation about x, y and z, deg.
+    pub orientation_deg: [f64; 3],
+}
+
+impl PoseSd {
+    /// The standard deviations of the covariances `(position, orientation)`.
+    pub fn of((position, orientation): &(Matrix3<f64>, Matrix3<f64>)) -> Self {
+        Self {
+            position_mm: [0, 1, 2].map(|i| position[(i, i)].max(0.0).sqrt()),
+            position_rms_mm: position.trace().max(0.0).sqrt(),
+            orientation_deg: [0, 1, 2].map(|i| orientation[(i, i)].max(0.0).sqrt().to_degrees()),
+        }
+    }
+}
+
+/// The held-out poses against their predicted 95 % band.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Coverage {
+    /// Held-out poses.
+    pub poses: usize,
+    /// The instrument's noise assumed per coordinate (1 sigma), mm: the mean over the poses.
+    pub noise_mm: f64,
+    /// Where it came from: the instrument the data profile states, or the fit's residual sigma.
+    pub noise_source: String,
+    /// Poses whose error lies inside the predicted 95 % band.
+    pub inside_95: usize,
+    /// Their share, %.
+    pub percent_inside_95: f64,
+    /// Mean over the poses of the predicted RMS position error from the parameters alone, mm.
+    pub mean_model_rms_mm: f64,
+    /// Largest of it, mm.
+    pub max_model_rms_mm: f64,
+    /// The pose of that largest predicted error: its data file's line.
+    pub max_model_rms_line: u64,
+}
+
+/// One held-out pose for [`coverage`]: its joint angles, its position error `measured -
+/// predicted` (mm, measurement frame), its data file's line, and the instrument's noise there
+/// (1 sigma per coordinate, mm).
+pub type HeldOutPose = (JointAngles<f64, Dyn>, Vector3<f64>, u64, f64);
+
+/// The held-out `poses` against the band of `kinematics` (the identified model) with the
+/// parameters' covariance `covariance` (in the order of `set`) and each pose's noise; `noise_source`
+/// says where the noise came from.
+pub fn coverage(
+    (kinematics, set, covariance): (
+        &Kinematics<f64, Dyn>,
+        &ParameterSet<Dyn, Dyn>,
+        &DMatrix<f64>,
+    ),
+    poses: &[HeldOutPose],
+    noise_source: String,
+) -> Option<Coverage> {
+    if poses.is_empty() {
+        return None;
+    }
+    let mut inside = 0;
+    let (mut sum, mut max, mut max_line, mut noise_sum) = (0.0, 0.0, 0, 0.0);
+    for (angles, error, line, noise_mm) in poses {
+        noise_sum += *noise_mm;
+        let (position, _) = pose_covariance(kinematics, set, covariance, angles);
+        let rms = position.trace().max(0.0).sqrt();
+        sum += rms;
+        if rms > max {
+            (max, max_line) = (rms, *line);
+        }
+        let band = position + Matrix3::identity() * (noise_mm * noise_mm);
+        let inside_band = band
+            .cholesky()
+            .map(|c| error.dot(&c.solve(error)) <= CHI_SQUARE_3_95);
+        if inside_band == Some(true) {
+            inside += 1;
+        }
+    }
+    Some(Coverage {
+        poses: poses.len(),
+        noise_mm: noise_sum / poses.len() as f64,
+        noise_source,
+        inside_95: inside,
+        percent_inside_95: 100.0 * inside as f64 / poses.len() as f64,
+        mean_model_rms_mm: sum / poses.len() as f64,
+        max_model_rms_mm: max,
+        max_model_rms_line: max_line,
+    })
+}
+
+impl Coverage {
+    /// The line for people.
+    pub fn text(&self) -> String {
+        format!(
+            "predicted uncertainty (parameters' covariance, and {:.4} mm of noise per coordinate, {}): the held-out \
+             errors lie inside their predicted 95 % band for {:.1} % of {} poses; the parameters alone predict {:.4} mm \
+             RMS on average, at most {:.4} mm (line {})\n",
+            self.noise_mm,
+            self.noise_source,
+            self.percent_inside_95,
+            self.poses,
+            self.mean_model_rms_mm,
+            self.max_model_rms_mm,
+            self.max_model_rms_line
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A closed form: one identified parameter, a translation of the base along x with variance
+    /// 4 mm^2, moves every pose's position along x by itself, so the position's covariance is
+    /// diag(4, 0, 0) at any pose and the orientation's is zero.
+    #[test]
+    fn a_base_translation_propagates_to_every_pose_unchanged() {
+        use calib_core::{FrameParameter, Parameter, ParameterMask};
+        let text =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml"))
+                .unwrap();
+        let file =
+            crate::io::robot_file::RobotFile::parse(&text, std::path::Path::new("ur10.toml"))
+                .unwrap();
+        let model = file.to_model(std::path::Path::new("ur10.toml")).unwrap();
+        let mut mask = ParameterMask::empty_for(model.robot.joint_count());
+        mask.set(Parameter::Base(FrameParameter::Tx), true);
+        let set = ParameterSet::<Dyn, Dyn>::from_mask(&mask).unwrap();
+        let kinematics = Kinematics::nominal(&model.robot).unwrap();
+        let covariance = DMatrix::from_element(1, 1, 4.0);
+        for q in [
+            [0.1, -1.0, 1.2, -0.3, 0.5, 0.2],
+            [1.0, -2.0, 0.4, 1.3, -0.5, 2.0],
+        ] {
+            let q = calib_core::model::JointVec::from_slice(&q).unwrap();
+            let angles = JointAngles::new(&q).unwrap();
+            let sd = PoseSd::of(&pose_covariance(&kinematics, &set, &covariance, &angles));
+            assert!((sd.position_mm[0] - 2.0).abs() < 1e-12, "{sd:?}");
+            assert!(sd.position_mm[1].abs() < 1e-12 && sd.position_mm[2].abs() < 1e-12);
+            assert!(sd.orientation_deg.iter().all(|v| v.abs() < 1e-12));
+        }
+    }
+
+    /// Significance and correlation of a hand-made covariance: sd 1 and 2, correlation 0.95.
+    #[test]
+    fn parameters_within_two_standard_errors_and_correlated_pairs_are_named() {
+        let names = ["da1".to_string(), "dd2".to_string(), "da3".to_string()];
+        let covariance =
+            DMatrix::from_row_slice(3, 3, &[1.0, 1.9, 0.0, 1.9, 4.0, 0.0, 0.0, 0.0, 1.0]);
+        let s = Significance::of(&names, &[1.5, 5.0, -3.0], &covariance);
+        assert_eq!(s.not_significant, ["da1"]);
+        assert_eq!(s.correlated.len(), 1);
+        let (a, b, rho) = &s.correlated[0];
+        assert_eq!((a.as_str(), b.as_str()), ("da1", "dd2"));
+        assert!((rho - 0.95).abs() < 1e-12);
+    }
+}
+
+/// Correlation beyond which a pair of identified parameters is named: the data hardly tell them
+/// apart, and their values trade off against each other.
+pub const STRONG_CORRELATION: f64 = 0.9;
+
+/// The identified parameters read against their covariance: which joint parameters are smaller
+/// than twice their standard error (not significant at about 95 %: the data do not show the
+/// robot to differ from its drawing there; the frames' parameters are errors of frames fitted to
+/// these very data, near zero by construction, and are not judged) and which pairs are strongly
+/// correlated.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Significance {
+    /// Joint parameters with `|value| < 2 standard errors`, in canonical order.
+    pub not_significant: Vec<String>,
+    /// Pairs with `|correlation| > 0.9`: `(first, second, correlation)`, strongest first.
+    pub correlated: Vec<(String, String, f64)>,
+}
+
+impl Significance {
+    /// Of the parameters `names` with values `values` (in the order of the covariance's rows).
+    pub fn of(names: &[String], values: &[f64], covariance: &DMatrix<f64>) -> Self {
+        let sd: Vec<f64> = (0..names.len())
+            .map(|i| covariance[(i, i)].max(0.0).sqrt())
+            .collect();
+        let not_significant = (names.iter().zip(values).zip(&sd))
+            .filter(|((n, v), s)| {
+                !(n.starts_with("base_") || n.starts_with("tool_")) && v.abs() < 2.0 * **s
+            })
+            .map(|((n, _), _)| n.clone())
+            .collect();
+        let mut correlated = Vec::new();
+        for i in 0..names.len() {
+            for j in i + 1..names.len() {
+                let rho = covariance[(i, j)] / (sd[i] * sd[j]);
+                if rho.abs() > STRONG_CORRELATION {
+                    correlated.push((names[i].clone(), names[j].clone(), rho));
+                }
+            }
+        }
+        correlated.sort_by(|a, b| b.2.abs().total_cmp(&a.2.abs()));
+        Self {
+            not_significant,
+            correlated,
+        }
+    }
+
+    /// The lines for people (nothing when nothing is named).
+    pub fn text(&self) -> String {
+        let mut text = String::new();
+        if !self.not_significant.is_empty() {
+            text.push_str(&format!(
+                "  smaller than twice their standard error (not shown to differ from zero): {}\n",
+                self.not_significant.join(", ")
+            ));
+        }
+        if !self.correlated.is_empty() {
+            let pairs: Vec<String> = (self.correlated.iter())
+                .map(|(a, b, rho)| format!("{a}/{b} {rho:+.3}"))
+                .collect();
+            text.push_str(&format!(
+                "  strongly correlated pairs (|correlation| > {STRONG_CORRELATION}): {}\n",
+                pairs.join(", ")
+            ));
+        }
+        text
+    }
+}
