@@ -189,6 +189,9 @@ fn the_html_report_holds_everything_and_nothing_external() {
         started.elapsed().as_secs_f64()
     );
     assert!(d.join("extreme.html").exists());
+    // Issue 41: the certificate as a PDF (headless Chromium): A4 pages; without a browser on the
+    // PATH the PDF is refused and nothing (not even the HTML asked beside it) is written.
+    pdf(d);
     // Not a report: said, nothing written.
     std::fs::write(d.join("other.json"), "{\"a\": 1}").unwrap();
     let out = calib_in(d, &["report", "--from", "other.json", "--html", "x.html"]);
@@ -260,6 +263,62 @@ fn the_html_report_holds_everything_and_nothing_external() {
     assert!(select(&page, "figure#plot-orientation-error").is_empty());
     // In a real browser: headless Chromium renders it to a PNG with content.
     screenshot(&d.join("r.html"), &d.join("r.png"));
+}
+
+/// `calib report --pdf` of `dir/r.json`: a PDF of A4 pages (595 x 842 pt) where Chromium is
+/// installed; refused, writing nothing, where none is on the PATH.
+fn pdf(dir: &Path) {
+    let calib = env!("CARGO_BIN_EXE_calib");
+    let empty = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new(calib)
+        .current_dir(dir)
+        .env("PATH", empty.path())
+        .args([
+            "report", "--from", "r.json", "--html", "n.html", "--pdf", "n.pdf",
+        ])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("writing a PDF needs a headless Chromium"),
+        "{stderr}"
+    );
+    assert!(!dir.join("n.html").exists() && !dir.join("n.pdf").exists());
+    if host_tools::report::pdf::browser().is_none() {
+        assert!(
+            std::env::var("CALIB_REQUIRE_CHROMIUM").as_deref() != Ok("1"),
+            "CALIB_REQUIRE_CHROMIUM=1 but no chromium found"
+        );
+        eprintln!("skipped: no chromium to print the PDF (apt-get install chromium)");
+        return;
+    }
+    ok(&calib_in(
+        dir,
+        &["report", "--from", "r.json", "--pdf", "r.pdf"],
+    ));
+    let bytes = std::fs::read(dir.join("r.pdf")).unwrap();
+    assert!(bytes.starts_with(b"%PDF-"));
+    let text = String::from_utf8_lossy(&bytes);
+    let boxes: Vec<&str> = text
+        .match_indices("/MediaBox [")
+        .map(|(i, _)| &text[i + 11..])
+        .collect();
+    println!("PDF: {} bytes, {} pages", bytes.len(), boxes.len());
+    assert!(boxes.len() >= 2, "{} pages", boxes.len());
+    for b in boxes {
+        let numbers: Vec<f64> = b
+            .split(']')
+            .next()
+            .unwrap()
+            .split_whitespace()
+            .map(|v| v.parse().unwrap())
+            .collect();
+        assert!(
+            (numbers[2] - 595.3).abs() < 2.0 && (numbers[3] - 841.9).abs() < 2.0,
+            "{numbers:?}"
+        );
+    }
 }
 
 /// Renders `page` with headless Chromium into `png` and checks the picture: its size and that

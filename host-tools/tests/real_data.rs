@@ -616,6 +616,38 @@ fn series_b_certificate_figures_and_the_acceptance_statement() {
         "{text}"
     );
     assert_eq!(json["acceptance"]["pass"], true);
+    // Traceability: the software's version and commit, the command line, the inputs' SHA-256.
+    let software = json["software"].as_str().unwrap();
+    let head = std::process::Command::new("git")
+        .args(["rev-parse", "HEAD"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    let expected = head.unwrap_or_else(|| "unknown".into());
+    assert!(
+        software.starts_with("calib ") && software.contains(&format!("(commit {expected})")),
+        "{software}"
+    );
+    let command: Vec<&str> = (json["command_line"].as_array().unwrap().iter())
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    assert_eq!(&command[1..3], ["calibrate", "--robot"]);
+    assert!(command.contains(&"95% <= 1 mm"));
+    let inputs = json["inputs"].as_array().unwrap();
+    assert_eq!(inputs.len(), 3);
+    for input in inputs {
+        let path = input["path"].as_str().unwrap();
+        let out = std::process::Command::new("sha256sum")
+            .arg(path)
+            .output()
+            .unwrap();
+        assert_eq!(
+            input["sha256"].as_str().unwrap(),
+            &String::from_utf8_lossy(&out.stdout)[..64]
+        );
+    }
 
     // A criterion the poses miss: FAIL, the files written, exit status 3.
     std::fs::remove_file(&report).unwrap();

@@ -119,8 +119,9 @@ fn main() -> std::process::ExitCode {
 
 /// `calib calibrate`: calibrates, writes, prints; exits with [`ACCEPTANCE_FAILED`] when an
 /// acceptance criterion is not met (after the files are written).
-fn calibrate_command(options: &CalibrateOptions) -> anyhow::Result<()> {
-    let written = calibrate::calibrate_and_write(options)?;
+fn calibrate_command(mut options: CalibrateOptions) -> anyhow::Result<()> {
+    options.command_line = std::env::args().collect();
+    let written = calibrate::calibrate_and_write(&options)?;
     print(&written.text)?;
     if written.accepted == Some(false) {
         let _ = std::io::Write::flush(&mut std::io::stdout());
@@ -179,12 +180,10 @@ fn run(command: Command) -> anyhow::Result<()> {
             ))?;
         }
         Command::Report(options) => {
-            let bytes = host_tools::cli::report::report(&options)?;
-            host_tools::cli::print_line(format_args!(
-                "wrote {} bytes to {}",
-                bytes,
-                options.html.display()
-            ))?;
+            host_tools::cli::report::report(&options)?;
+            for path in options.html.iter().chain(&options.pdf) {
+                host_tools::cli::print_line(format_args!("wrote {}", path.display()))?;
+            }
         }
         Command::ImportUrCalibration(options) => {
             let (_, text) = host_tools::cli::import_ur::import(&options)?;
@@ -212,7 +211,7 @@ fn run(command: Command) -> anyhow::Result<()> {
             }
         }
         Command::Demo(options) => host_tools::cli::demo::demo(&options)?,
-        Command::Calibrate(options) => calibrate_command(&options)?,
+        Command::Calibrate(options) => calibrate_command(options)?,
     }
     Ok(())
 }

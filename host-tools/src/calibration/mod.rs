@@ -424,6 +424,7 @@ fn solve(
         plan_check: None,
         held_out: None,
         acceptance: None,
+        command_line: Vec::new(),
         uncertainty,
         significance,
         covariance,

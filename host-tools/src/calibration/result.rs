@@ -205,6 +205,9 @@ pub struct CalibrationResult {
     pub held_out: Option<crate::analysis::accuracy::HeldOutAccuracy>,
     /// The acceptance criteria of the configuration judged on the held-out poses.
     pub acceptance: Option<crate::analysis::accuracy::Acceptance>,
+    /// The command line that ran the calibration (set by `calib calibrate`; empty for a library
+    /// call).
+    pub command_line: Vec<String>,
     /// The held-out poses against the 95 % band predicted from the parameters' covariance (least
     /// squares and held-out poses needed; not for a model with joint maps).
     pub uncertainty: Option<crate::analysis::uncertainty::Coverage>,
@@ -230,6 +233,23 @@ impl CalibrationResult {
             .iter()
             .map(|p| p.parameter.to_string())
             .collect()
+    }
+
+    /// The run's input files with their SHA-256, as the identified robot file records them: a
+    /// re-registration's `[measurement]` files and the robot file it kept the geometry of, else
+    /// `[calibration]`'s (empty until `calib calibrate` records them).
+    pub fn inputs(&self) -> Vec<crate::io::provenance::InputFile> {
+        let file = &self.identified_robot;
+        match &file.measurement {
+            Some(m) if !m.inputs.is_empty() => {
+                m.geometry_from.iter().chain(&m.inputs).cloned().collect()
+            }
+            _ => file
+                .calibration
+                .as_ref()
+                .map(|c| c.inputs.clone())
+                .unwrap_or_default(),
+        }
     }
 
     /// Objective evaluations of the swarm plus residual evaluations of least squares.
@@ -296,7 +316,13 @@ impl CalibrationResult {
                 .swarm
                 .as_ref()
                 .map_or(&[][..], |s| s.history.as_slice()),
-            software: format!("calib {}", env!("CARGO_PKG_VERSION")),
+            software: format!(
+                "calib {} (commit {})",
+                env!("CARGO_PKG_VERSION"),
+                env!("CALIB_COMMIT")
+            ),
+            command_line: &self.command_line,
+            inputs: self.inputs(),
         }
     }
 }
@@ -432,8 +458,13 @@ pub struct Report<'a> {
     pub per_pose: &'a PerPose,
     /// The swarm's convergence: `[generation, best objective]` (empty without the swarm).
     pub convergence: &'a [(u32, f64)],
-    /// The software that wrote the report.
+    /// The software that wrote the report: its version and the git commit it was built from.
     pub software: String,
+    /// The command line that ran the calibration (empty for a library call); with `settings`
+    /// (seeds included) and the identified file's input hashes, what reproduces it.
+    pub command_line: &'a [String],
+    /// The run's input files with their SHA-256 (as the identified robot file records them).
+    pub inputs: Vec<crate::io::provenance::InputFile>,
 }
 
 /// The identified parameters' covariance in the JSON report.

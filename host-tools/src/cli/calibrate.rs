@@ -75,6 +75,9 @@ pub struct CalibrateOptions {
     /// Needs held-out poses (--validate, --holdout or a plan's verification poses).
     #[arg(long, value_name = "CRITERION")]
     pub accept: Vec<crate::analysis::accuracy::Criterion>,
+    /// The command line, for the report (set by the `calib` binary; empty otherwise).
+    #[arg(skip)]
+    pub command_line: Vec<String>,
     /// Hold out this fraction of the poses (chosen at random with --validate-seed) and report the
     /// statistics on them separately.
     #[arg(long, value_name = "FRACTION", conflicts_with = "holdout")]
@@ -297,6 +300,7 @@ fn with_provenance(
         .map(|(flag, path)| (*flag, path.as_path()))
         .collect();
     let records = crate::io::provenance::InputFile::all(&inputs)?;
+    result.command_line = options.command_line.clone();
     let at = result.calibrated_at.clone();
     let file = &mut result.identified_robot;
     if result.config.identify == crate::calibration::Identify::Frames {

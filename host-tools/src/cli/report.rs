@@ -1,5 +1,6 @@
 //! `calib report`: a calibration's JSON report (`calibrate --report`) rendered again, as the
-//! self-contained HTML page of `calibrate --html` ([`crate::report::html`]).
+//! self-contained HTML page of `calibrate --html` ([`crate::report::html`]), and printed to a PDF
+//! ([`crate::report::pdf`]).
 
 use crate::io::outputs::Outputs;
 use anyhow::Context;
@@ -12,11 +13,15 @@ pub struct ReportOptions {
     #[arg(long, value_name = "FILE")]
     pub from: PathBuf,
     /// The HTML page to write.
+    #[arg(long, value_name = "FILE", required_unless_present = "pdf")]
+    pub html: Option<PathBuf>,
+    /// The page printed to a PDF on A4 (needs a headless Chromium: chromium, chromium-browser or
+    /// google-chrome).
     #[arg(long, value_name = "FILE")]
-    pub html: PathBuf,
+    pub pdf: Option<PathBuf>,
 }
 
-/// Runs `calib report`; returns the number of bytes written.
+/// Runs `calib report`; returns the number of bytes written (of the HTML page, else the PDF).
 pub fn report(options: &ReportOptions) -> anyhow::Result<usize> {
     let text = crate::io::input::read_text(&options.from, crate::io::input::Input::Data)
         .with_context(|| format!("{}: cannot read the report", options.from.display()))?;
@@ -33,8 +38,21 @@ pub fn report(options: &ReportOptions) -> anyhow::Result<usize> {
         );
     }
     let page = crate::report::html::render(&report, &crate::report::html::Rendering::now())?;
+    let pdf = match &options.pdf {
+        Some(_) => Some(crate::report::pdf::print(&page)?),
+        None => None,
+    };
     let mut outputs = Outputs::new(&[("--from", &options.from)]);
-    outputs.stage("--html", &options.html, page.as_bytes())?;
+    if let Some(path) = &options.html {
+        outputs.stage("--html", path, page.as_bytes())?;
+    }
+    if let (Some(path), Some(bytes)) = (&options.pdf, &pdf) {
+        outputs.stage("--pdf", path, bytes)?;
+    }
     outputs.commit()?;
-    Ok(page.len())
+    Ok(if options.html.is_some() {
+        page.len()
+    } else {
+        pdf.map_or(0, |p| p.len())
+    })
 }

@@ -24,7 +24,11 @@ impl Rendering {
     pub fn now() -> Self {
         Self {
             date: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
-            software: format!("calib {}", env!("CARGO_PKG_VERSION")),
+            software: format!(
+                "calib {} (commit {})",
+                env!("CARGO_PKG_VERSION"),
+                env!("CALIB_COMMIT")
+            ),
         }
     }
 }
@@ -100,11 +104,40 @@ pub fn render(report: &Value, rendering: &Rendering) -> crate::Result<String> {
     settings(&mut page, report)?;
     writeln!(
         page,
-        "<h2 id=\"software\">Software</h2>\n<p>{} (robot geometric calibration toolkit); rendered {}.</p>\n</body>\n</html>",
+        "<h2 id=\"software\">Software</h2>\n<p>Calibrated by {} with the command line <code>{}</code>; rendered by {} (robot geometric calibration toolkit) {}.</p>\n{}</body>\n</html>",
+        text(&report["software"]),
+        (report["command_line"].as_array())
+            .filter(|a| !a.is_empty())
+            .map_or_else(
+                || "-".to_string(),
+                |a| a.iter().map(text).collect::<Vec<_>>().join(" ")
+            ),
         esc(&rendering.software),
-        esc(&rendering.date)
+        esc(&rendering.date),
+        inputs(&report["inputs"])
     )?;
     Ok(page)
+}
+
+/// The input files with their SHA-256 (`inputs`), as a table; nothing when the report has none.
+fn inputs(inputs: &Value) -> String {
+    let Some(files) = inputs.as_array().filter(|a| !a.is_empty()) else {
+        return String::new();
+    };
+    let rows: String = files
+        .iter()
+        .map(|f| {
+            format!(
+                "<tr><td>{}</td><td>{}</td><td><code>{}</code></td></tr>\n",
+                text(&f["flag"]),
+                text(&f["path"]),
+                text(&f["sha256"])
+            )
+        })
+        .collect();
+    format!(
+        "<table>\n<caption>Input files</caption>\n<tr><th>flag</th><th>path</th><th>SHA-256</th></tr>\n{rows}</table>\n"
+    )
 }
 
 /// When the report's calibration finished (its `calibrated_at`), or that a report written before
@@ -122,7 +155,7 @@ h1{border-bottom:2px solid #333}h2{margin-top:2em;border-bottom:1px solid #999}\
 table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #bbb;padding:0.2em 0.6em;text-align:right}\
 th{background:#eee}td:first-child,th:first-child,td[colspan]{text-align:left}\
 .note{color:#555}.bad{color:#a00;font-weight:bold}.pass{color:#060;border:2px solid #060;padding:0.4em}.fail{color:#a00;border:2px solid #a00;padding:0.4em}figure{margin:1em 0}svg{max-width:100%;height:auto}\
-@media print{body{max-width:none;margin:0}h2{break-after:avoid}figure,table{break-inside:avoid}.poses{font-size:8pt}}";
+@page{size:A4;margin:15mm}@media print{body{max-width:none;margin:0}h2{break-after:avoid}figure,table{break-inside:avoid}.poses{font-size:8pt}}";
 
 fn summary(page: &mut String, report: &Value, robot: &str, data: &str) -> crate::Result<()> {
     let stage = |name: &str| -> String {

@@ -1,7 +1,8 @@
 //! A calibration put in words and pictures: the text report, its Table 3 and truth tables, the
-//! HTML report rendered from the JSON report, and the plots in it.
+//! HTML report rendered from the JSON report (and printed to PDF), and the plots in it.
 
 pub mod html;
+pub mod pdf;
 pub mod plots;
 pub mod tables;
 mod text;
