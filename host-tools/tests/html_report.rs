@@ -88,6 +88,8 @@ fn the_html_report_holds_everything_and_nothing_external() {
             .iter()
             .any(|c| c.starts_with("Flagged held-out poses"))
     );
+    // The frames the data chose are shown as identified (not "-").
+    assert!(cells.contains(&"base+tool (chosen from the data)".to_string()));
     // Every parameter, with its value in the unit shown.
     let parameters = json["parameters"].as_object().unwrap();
     assert!(parameters.len() > 20);

@@ -192,8 +192,28 @@ fn the_predicted_95_percent_band_holds_95_percent_of_held_out_poses() {
             "0.97",
             "--report",
             common::arg(&report),
+            "--out",
+            common::arg(&d.join("identified.toml")),
         ]));
         let json: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+        // The identified file records the same covariance.
+        let file = host_tools::io::robot_file::RobotFile::read(&d.join("identified.toml")).unwrap();
+        let recorded = file.calibration.unwrap().covariance.unwrap();
+        assert_eq!(
+            serde_json::to_value(&recorded.parameters).unwrap(),
+            json["covariance"]["parameters"]
+        );
+        // (TOML's float text round-trips to within an ulp or two.)
+        for (row, json_row) in recorded
+            .matrix
+            .iter()
+            .zip(json["covariance"]["matrix"].as_array().unwrap())
+        {
+            for (v, w) in row.iter().zip(json_row.as_array().unwrap()) {
+                let w = w.as_f64().unwrap();
+                assert!((v - w).abs() <= 1e-14 * w.abs(), "{v} {w}");
+            }
+        }
         let u = &json["uncertainty"];
         assert_eq!(u["poses"], 1998);
         assert!((u["noise_mm"].as_f64().unwrap() - 0.05).abs() < 1e-12);

@@ -134,6 +134,27 @@ fn calibrate_command(mut options: CalibrateOptions) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `calib compensate`: compensates, writes, says how many targets were compensated.
+fn compensate(options: &host_tools::cli::compensate::CompensateOptions) -> anyhow::Result<()> {
+    let summary = host_tools::cli::compensate::compensate(options)?;
+    let extrapolated = if summary.extrapolated > 0 {
+        format!(
+            ", {} with a joint map extrapolated beyond its identified readings",
+            summary.extrapolated
+        )
+    } else {
+        String::new()
+    };
+    host_tools::cli::print_line(format_args!(
+        "compensated {} of {} targets ({} refused, see the status column{extrapolated}); wrote {}",
+        summary.ok,
+        summary.ok + summary.failed,
+        summary.failed,
+        options.out.display()
+    ))?;
+    Ok(())
+}
+
 /// Exit status of `calib calibrate` when an acceptance criterion (`--accept`) is not met.
 const ACCEPTANCE_FAILED: i32 = 3;
 
@@ -153,24 +174,7 @@ fn run(command: Command) -> anyhow::Result<()> {
                 settings.truth_out.display()
             ))?;
         }
-        Command::Compensate(options) => {
-            let summary = host_tools::cli::compensate::compensate(&options)?;
-            let extrapolated = if summary.extrapolated > 0 {
-                format!(
-                    ", {} with a joint map extrapolated beyond its identified readings",
-                    summary.extrapolated
-                )
-            } else {
-                String::new()
-            };
-            host_tools::cli::print_line(format_args!(
-                "compensated {} of {} targets ({} refused, see the status column{extrapolated}); wrote {}",
-                summary.ok,
-                summary.ok + summary.failed,
-                summary.failed,
-                options.out.display()
-            ))?;
-        }
+        Command::Compensate(options) => compensate(&options)?,
         Command::Export(options) => {
             let bytes = host_tools::cli::export::export(&options)?;
             host_tools::cli::print_line(format_args!(

@@ -171,6 +171,7 @@ fn accuracy_and_plausibility(
             &result.per_pose.validation_after_xyz,
         );
     }
+    record_covariance(&mut result, config);
     result.acceptance = crate::analysis::accuracy::Acceptance::judge(
         &config.acceptance,
         &result.per_pose.validation_after,
@@ -185,6 +186,24 @@ fn accuracy_and_plausibility(
         ));
     }
     Ok(result)
+}
+
+/// Records the identified parameters' covariance (the frames of the measurement setup included:
+/// the joint parameters are determined relative to them) in the identified file's
+/// `[calibration]`, for a calibration of the geometry.
+fn record_covariance(result: &mut CalibrationResult, config: &CalibrationConfig) {
+    let (Some(covariance), Identify::Geometry) = (&result.covariance, config.identify) else {
+        return;
+    };
+    let entry = crate::io::robot_file::CovarianceEntry {
+        parameters: result.names(),
+        matrix: (covariance.row_iter())
+            .map(|r| r.iter().copied().collect())
+            .collect(),
+    };
+    if let Some(c) = result.identified_robot.calibration.as_mut() {
+        c.covariance = Some(entry);
+    }
 }
 
 /// With only the base frame fitted, the probe identified with the robot file's model is kept as

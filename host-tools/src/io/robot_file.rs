@@ -249,6 +249,21 @@ pub struct CalibrationSection {
     /// data), with their SHA-256, for files written by `calib calibrate`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub inputs: Vec<crate::io::provenance::InputFile>,
+    /// The identified parameters' covariance from least squares, the frames of the measurement
+    /// setup included (`calib uncertainty` propagates it to any pose).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub covariance: Option<CovarianceEntry>,
+}
+
+/// A covariance in a robot file: the parameters (rows and columns, in order) and the matrix by
+/// rows, in their units (mm, rad) squared and crossed.
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct CovarianceEntry {
+    /// Parameter names (`da2`, `dtheta3`, ...).
+    pub parameters: Vec<String>,
+    /// The matrix by rows.
+    pub matrix: Vec<Vec<f64>>,
 }
 
 /// A robot file checked and converted to the core's units (mm, rad).
@@ -723,6 +738,7 @@ impl RobotFile {
             std_errors: std_table,
             calibrated_at: None,
             inputs: Vec::new(),
+            covariance: None,
         });
         out
     }

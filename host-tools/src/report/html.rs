@@ -667,6 +667,16 @@ fn settings(page: &mut String, report: &Value) -> crate::Result<()> {
     let mut rows = Vec::new();
     flatten("", &report["settings"], &mut rows);
     for (key, value) in rows {
+        // The frames setting is the choice asked for; absent, the data chose: show what was
+        // identified.
+        let value = if key == "frames" && value == "-" {
+            format!(
+                "{} (chosen from the data)",
+                text(&report["frames"]["identified"])
+            )
+        } else {
+            value
+        };
         writeln!(page, "<tr><td>{}</td><td>{value}</td></tr>", esc(&key))?;
     }
     page.push_str("</table>\n");
