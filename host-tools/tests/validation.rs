@@ -247,4 +247,57 @@ fn the_predicted_95_percent_band_holds_95_percent_of_held_out_poses() {
     }
     let mean = shares.iter().sum::<f64>() / shares.len() as f64;
     assert!((94.0..=96.0).contains(&mean), "{mean} %");
+    // `calib uncertainty` propagates the file's covariance (the fit's, at its residual sigma) at
+    // any configuration: on the held-out poses of the last seed it gives the calibration's own
+    // figures (the mean and the largest predicted RMS error), which were scaled to the
+    // instrument's 0.05 mm; a file without a covariance is refused.
+    let json: Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("r5.json")).unwrap()).unwrap();
+    let out = ok(&calib(&[
+        "uncertainty",
+        "--params",
+        common::arg(&d.join("identified.toml")),
+        "--joints",
+        common::arg(&d.join("sim5.csv")),
+        "--out",
+        common::arg(&d.join("u.csv")),
+    ]));
+    assert!(out.contains("of 2060 configurations"), "{out}");
+    let mut reader = csv::Reader::from_path(d.join("u.csv")).unwrap();
+    let sd_by_id: std::collections::HashMap<String, f64> = reader
+        .records()
+        .map(|r| {
+            let r = r.unwrap();
+            (r[0].to_string(), r[10].parse().unwrap())
+        })
+        .collect();
+    // Our simulated files name pose P<k> on line k + 4 (three comment lines and the header).
+    let held: Vec<f64> = (json["per_pose"]["validation_lines"]
+        .as_array()
+        .unwrap()
+        .iter())
+    .map(|l| sd_by_id[&format!("P{:03}", l.as_u64().unwrap() - 4)])
+    .collect();
+    let u = &json["uncertainty"];
+    let scale = 0.05 / json["least_squares"]["sigma_mm"].as_f64().unwrap();
+    let held: Vec<f64> = held.iter().map(|v| v * scale).collect();
+    let mean = held.iter().sum::<f64>() / held.len() as f64;
+    let stated = u["mean_model_rms_mm"].as_f64().unwrap();
+    // (To 1e-4: the file holds the frames with their identified errors applied, the fit's
+    // Jacobian was taken at the registration with the errors beside it; measured 3e-6.)
+    assert!((mean - stated).abs() < 1e-4 * stated, "{mean} {stated}");
+    let largest = held.iter().copied().fold(0.0, f64::max);
+    assert!((largest - u["max_model_rms_mm"].as_f64().unwrap()).abs() < 1e-4 * largest);
+    let out = calib(&[
+        "uncertainty",
+        "--params",
+        common::UR10,
+        "--joints",
+        common::arg(&d.join("sim5.csv")),
+        "--out",
+        common::arg(&d.join("v.csv")),
+    ]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("has no [calibration.covariance]"));
+    assert!(!d.join("v.csv").exists());
 }

@@ -261,3 +261,97 @@ impl Significance {
         text
     }
 }
+/// The parameters' covariance a robot file records (`[calibration.covariance]`), checked: every
+/// name a parameter of the robot, in canonical order, the matrix square, finite and symmetric,
+/// its diagonal not negative. Returns the parameter set (in the file's order) and the matrix.
+pub fn recorded_covariance(
+    file: &crate::io::robot_file::RobotFile,
+    path: &std::path::Path,
+) -> crate::Result<(ParameterSet<Dyn, Dyn>, DMatrix<f64>)> {
+    let entry = (file.calibration.as_ref())
+        .and_then(|c| c.covariance.as_ref())
+        .ok_or_else(|| {
+            crate::refused!(
+                "{}: has no [calibration.covariance]: give a robot file identified by calib calibrate with least squares \
+                 (--method lm or ipso+lm) on the geometry",
+                path.display()
+            )
+        })?;
+    let joints = file.joint.len();
+    let n = entry.parameters.len();
+    let bad = |why: String| crate::refused!("{}: [calibration.covariance]: {why}", path.display());
+    let mut mask = calib_core::ParameterMask::empty_for(
+        calib_core::model::joint_count(joints).ok_or_else(|| bad(format!("{joints} joints")))?,
+    );
+    let mut order = Vec::with_capacity(n);
+    for name in &entry.parameters {
+        let p = calib_core::Parameter::from_name(name, joints).ok_or_else(|| {
+            bad(format!(
+                "\"{name}\" is not a parameter of this {joints}-joint robot"
+            ))
+        })?;
+        mask.set(p, true);
+        order.push(p);
+    }
+    let set = ParameterSet::<Dyn, Dyn>::from_mask(&mask)?;
+    if set.parameters() != order.as_slice() {
+        return Err(bad(
+            "the parameters are not in canonical order (as calib calibrate writes them), or repeat"
+                .into(),
+        ));
+    }
+    if entry.matrix.len() != n || entry.matrix.iter().any(|r| r.len() != n) {
+        return Err(bad(format!("the matrix is not {n} x {n}")));
+    }
+    let matrix = DMatrix::from_fn(n, n, |i, j| entry.matrix[i][j]);
+    for i in 0..n {
+        if !(matrix[(i, i)].is_finite() && matrix[(i, i)] >= 0.0) {
+            return Err(bad(format!(
+                "the variance of {} is {}",
+                entry.parameters[i],
+                matrix[(i, i)]
+            )));
+        }
+        for j in 0..i {
+            let (a, b) = (matrix[(i, j)], matrix[(j, i)]);
+            if !(a.is_finite()
+                && (a - b).abs() <= 1e-9 * (matrix[(i, i)] * matrix[(j, j)]).sqrt() + 1e-300)
+            {
+                return Err(bad(format!(
+                    "not symmetric: {} / {} is {a} one way and {b} the other",
+                    entry.parameters[i], entry.parameters[j]
+                )));
+            }
+        }
+    }
+    Ok((set, matrix))
+}
+
+/// The predicted standard deviations of the identified model's pose at each of `poses` (joint
+/// readings, rad), from the parameters' covariance the identified file at `path` records, along
+/// and about the robot's base axes. The model is the one the calibration identified: in its
+/// measurement setup (the registered tracker and the probe, `[measurement]`), where the covariance
+/// holds; the joint parameters are determined relative to that registration, so a rigid
+/// placement of the whole robot, which no tracker data fix, is not part of it.
+pub fn at_poses(
+    file: &crate::io::robot_file::RobotFile,
+    path: &std::path::Path,
+    poses: &[Vec<f64>],
+) -> crate::Result<Vec<PoseSd>> {
+    let (set, covariance) = recorded_covariance(file, path)?;
+    let model = file.in_measurement_setup().to_model(path)?;
+    let kinematics = Kinematics::nominal(&model.robot)?;
+    let [roll, pitch, yaw] = model.robot.base.rpy;
+    let base = *nalgebra::Rotation3::from_euler_angles(roll, pitch, yaw).matrix();
+    let along_base = |c: Matrix3<f64>| base.transpose() * c * base;
+    poses
+        .iter()
+        .map(|q| {
+            let q = calib_core::model::JointVec::from_slice(q)
+                .ok_or_else(|| crate::refused!("more than 9 joints"))?;
+            let angles = JointAngles::new(&q)?;
+            let (position, orientation) = pose_covariance(&kinematics, &set, &covariance, &angles);
+            Ok(PoseSd::of(&(along_base(position), along_base(orientation))))
+        })
+        .collect()
+}

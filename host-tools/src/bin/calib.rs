@@ -68,6 +68,9 @@ enum Command {
     /// Convert a Universal Robots controller's factory calibration (calibration.conf) into a
     /// robot file: the same geometry in Hayati parameters.
     ImportUrCalibration(host_tools::cli::import_ur::ImportUrOptions),
+    /// The identified model's predicted uncertainty (1 sigma) at joint configurations, from the
+    /// parameters' covariance its robot file records.
+    Uncertainty(host_tools::cli::uncertainty::UncertaintyOptions),
     /// Merge a tracker's export of the measured points into the plan it measured (by id or by
     /// order, joints checked when the export has them): data that calibrate takes directly.
     Merge(host_tools::cli::merge::MergeOptions),
@@ -194,6 +197,10 @@ fn run(command: Command) -> anyhow::Result<()> {
             host_tools::cli::print_text(format_args!("{text}"))?;
         }
         Command::Merge(options) => merge(&options)?,
+        Command::Uncertainty(options) => {
+            let summary = host_tools::cli::uncertainty::uncertainty(&options)?;
+            host_tools::cli::print_text(format_args!("{}", summary.text(&options.out)))?;
+        }
         Command::Evaluate(options) => evaluate(&options)?,
         Command::Plan(options) => {
             let plan = host_tools::cli::plan::plan(&options)?;

@@ -1,0 +1,121 @@
+//! `calib uncertainty`: the identified model's predicted uncertainty at joint configurations
+//! ([`crate::analysis::uncertainty::at_poses`]): per pose the standard deviation of the position
+//! (of the measured point) along the robot's base axes and of the orientation about them, from
+//! the parameters' covariance the identified robot file records; the worst poses named.
+
+use crate::io::outputs::Outputs;
+use crate::io::profile::DataProfile;
+use crate::io::robot_file::RobotFile;
+use crate::io::tracker_data::TrackerData;
+use std::path::PathBuf;
+
+/// Options of `calib uncertainty`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct UncertaintyOptions {
+    /// The identified robot file (calib calibrate --out, least squares on the geometry), whose
+    /// `[calibration.covariance]` is propagated in its measurement setup (`[measurement]`).
+    #[arg(long, value_name = "FILE")]
+    pub params: PathBuf,
+    /// The joint configurations (CSV with q1_deg..qN_deg or _rad, optional id; any measurement
+    /// columns are ignored: a plan, a data file or a program's joint targets).
+    #[arg(long, value_name = "FILE")]
+    pub joints: PathBuf,
+    /// Data profile of the configurations file.
+    #[arg(long, value_name = "FILE")]
+    pub profile: Option<PathBuf>,
+    /// Output CSV: per configuration its id, joints, and the standard deviations sd_x_mm, sd_y_mm,
+    /// sd_z_mm, sd_mm (RMS of the position error), sd_rx_deg, sd_ry_deg, sd_rz_deg.
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+}
+
+/// What `calib uncertainty` found, for the summary.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Summary {
+    /// Configurations evaluated.
+    pub poses: usize,
+    /// Mean of the RMS position standard deviation, mm.
+    pub mean_mm: f64,
+    /// The largest, mm, with its configuration's id and file line.
+    pub worst: Vec<(String, u64, f64)>,
+}
+
+/// How many of the worst configurations the summary names.
+const WORST_NAMED: usize = 3;
+
+/// Runs `calib uncertainty`; writes `--out` and returns the summary.
+pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
+    let file = RobotFile::read(&options.params)?;
+    let profile = DataProfile::load(options.profile.as_deref())?;
+    let data = TrackerData::read_joints(&options.joints, &profile)?;
+    if data.joints != file.joint.len() {
+        anyhow::bail!(
+            "{}: has {} joint columns, the robot {} has {}",
+            options.joints.display(),
+            data.joints,
+            options.params.display(),
+            file.joint.len()
+        );
+    }
+    let q: Vec<Vec<f64>> = data.records.iter().map(|r| r.q.clone()).collect();
+    let sds = crate::analysis::uncertainty::at_poses(&file, &options.params, &q)?;
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    let mut header = vec!["id".to_string()];
+    header.extend((1..=data.joints).map(|j| format!("q{j}_deg")));
+    header.extend(
+        [
+            "sd_x_mm",
+            "sd_y_mm",
+            "sd_z_mm",
+            "sd_mm",
+            "sd_rx_deg",
+            "sd_ry_deg",
+            "sd_rz_deg",
+        ]
+        .map(String::from),
+    );
+    writer.write_record(&header)?;
+    for (r, sd) in data.records.iter().zip(&sds) {
+        let mut row = vec![r.id.clone()];
+        row.extend(r.q.iter().map(|v| v.to_degrees().to_string()));
+        row.extend(
+            (sd.position_mm.iter())
+                .chain([&sd.position_rms_mm])
+                .chain(&sd.orientation_deg)
+                .map(|v| format!("{v:e}")),
+        );
+        writer.write_record(&row)?;
+    }
+    let csv = writer
+        .into_inner()
+        .map_err(|e| anyhow::anyhow!("{}", e.error()))?;
+    let mut outputs = Outputs::new(&[("--params", &options.params), ("--joints", &options.joints)]);
+    outputs.stage("--out", &options.out, &csv)?;
+    outputs.commit()?;
+    let mut worst: Vec<(String, u64, f64)> = (data.records.iter().zip(&sds))
+        .map(|(r, sd)| (r.id.clone(), r.line, sd.position_rms_mm))
+        .collect();
+    worst.sort_by(|a, b| b.2.total_cmp(&a.2));
+    worst.truncate(WORST_NAMED);
+    Ok(Summary {
+        poses: sds.len(),
+        mean_mm: sds.iter().map(|s| s.position_rms_mm).sum::<f64>() / sds.len().max(1) as f64,
+        worst,
+    })
+}
+
+impl Summary {
+    /// The lines for people.
+    pub fn text(&self, out: &std::path::Path) -> String {
+        let worst: Vec<String> = (self.worst.iter())
+            .map(|(id, line, sd)| format!("{id} (line {line}) {sd:.4} mm"))
+            .collect();
+        format!(
+            "predicted position uncertainty (1 sigma, RMS over x, y, z) of {} configurations: mean {:.4} mm; largest: {}; wrote {}\n",
+            self.poses,
+            self.mean_mm,
+            worst.join(", "),
+            out.display()
+        )
+    }
+}
