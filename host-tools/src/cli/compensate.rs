@@ -172,19 +172,8 @@ fn nominal_poses_of(nominal: &RobotModel, path: &std::path::Path) -> anyhow::Res
     for record in &mut targets.records {
         let q = calib_core::model::JointVec::from_slice(&record.q)
             .ok_or_else(|| anyhow::anyhow!("{}: more than 9 joints", path.display()))?;
-        if let Some((i, (qi, limits))) = (q.iter().zip(&nominal.robot.limits).enumerate())
-            .find(|(_, (qi, limits))| !limits.contains(**qi))
-        {
-            bail!(
-                "{}:{}: q{} = {:.4} deg is outside the joint limits [{}, {}] deg of {}",
-                path.display(),
-                record.line,
-                i + 1,
-                qi.to_degrees(),
-                limits.lower.to_degrees(),
-                limits.upper.to_degrees(),
-                nominal.path.display()
-            );
+        if let Some(outside) = nominal.outside_limits(&record.q) {
+            bail!("{}:{}: {outside}", path.display(), record.line);
         }
         let pose = kinematics.forward(&q)?;
         record.position = pose.translation.vector.into();

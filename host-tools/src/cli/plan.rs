@@ -168,24 +168,14 @@ fn candidates(options: &PlanOptions, file: &RobotFile) -> anyhow::Result<Vec<(St
             }
             let profile = DataProfile::load(options.profile.as_deref())?;
             let records = TrackerData::read_joints(path, &profile)?.records;
-            let robot = file.to_model(&options.robot)?.robot;
+            let model = file.to_model(&options.robot)?;
             for r in &records {
-                let outside =
-                    r.q.iter()
-                        .zip(&robot.limits)
-                        .enumerate()
-                        .find(|(_, (q, l))| !l.contains(**q));
-                if let Some((j, (q, l))) = outside {
+                if let Some(outside) = model.outside_limits(&r.q) {
                     bail!(
-                        "{}:{}: candidate {}: q{} = {:.4} deg is outside the joint limits [{}, {}] deg of {}; remove it or correct the limits",
+                        "{}:{}: candidate {}: {outside}; remove it or correct the limits",
                         path.display(),
                         r.line,
-                        r.id,
-                        j + 1,
-                        q.to_degrees(),
-                        l.lower.to_degrees(),
-                        l.upper.to_degrees(),
-                        options.robot.display()
+                        r.id
                     );
                 }
             }

@@ -638,6 +638,22 @@ impl RobotModel {
     pub fn load(path: &Path) -> Result<Self, RobotFileError> {
         RobotFile::read(path)?.to_model(path)
     }
+
+    /// The first of the joint readings `q` (rad) outside this robot's limits, in words: `q3 =
+    /// 400.0000 deg is outside the joint limits [-360, 360] deg of FILE`; `None` when all are
+    /// within.
+    pub(crate) fn outside_limits(&self, q: &[f64]) -> Option<String> {
+        let (j, (q, l)) =
+            (q.iter().zip(&self.robot.limits).enumerate()).find(|(_, (q, l))| !l.contains(**q))?;
+        Some(format!(
+            "q{} = {:.4} deg is outside the joint limits [{}, {}] deg of {}",
+            j + 1,
+            q.to_degrees(),
+            l.lower.to_degrees(),
+            l.upper.to_degrees(),
+            self.path.display()
+        ))
+    }
 }
 
 impl RobotFile {
