@@ -616,6 +616,60 @@ fn series_b_certificate_figures_and_the_acceptance_statement() {
         "{text}"
     );
     assert_eq!(json["acceptance"]["pass"], true);
+    // ISO 9283-style figures from the held-out poses that repeat a commanded pose (joints equal
+    // to 0.01 deg), computed again from the data file's joints and the listed signed errors.
+    let data = host_tools::io::tracker_data::TrackerData::read_with(
+        Path::new(DATA),
+        &host_tools::io::profile::DataProfile::read(Path::new(FULL_POSE)).unwrap(),
+    )
+    .unwrap();
+    let mut groups: std::collections::HashMap<Vec<i64>, Vec<usize>> = Default::default();
+    for (i, line) in lines.iter().enumerate() {
+        let record = data.records.iter().find(|r| r.line == *line).unwrap();
+        let key = record
+            .q
+            .iter()
+            .map(|v| (v.to_degrees() / 0.01).round() as i64)
+            .collect();
+        groups.entry(key).or_default().push(i);
+    }
+    let (mut rps, mut aps) = (Vec::new(), Vec::new());
+    for g in groups.values().filter(|g| g.len() > 1) {
+        let n = g.len() as f64;
+        let c: Vec<f64> = (0..3)
+            .map(|k| g.iter().map(|i| xyz[*i][k]).sum::<f64>() / n)
+            .collect();
+        aps.push((c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt());
+        let l: Vec<f64> = g
+            .iter()
+            .map(|i| ((0..3).map(|k| (xyz[*i][k] - c[k]).powi(2)).sum::<f64>()).sqrt())
+            .collect();
+        let lm = l.iter().sum::<f64>() / n;
+        rps.push(lm + 3.0 * (l.iter().map(|v| (v - lm).powi(2)).sum::<f64>() / (n - 1.0)).sqrt());
+    }
+    let iso = &held["iso9283"];
+    assert_eq!(iso["groups"].as_u64().unwrap() as usize, rps.len());
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+    for (key, expected) in [
+        ("rp_mean_mm", mean(&rps)),
+        ("rp_max_mm", max(&rps)),
+        ("ap_mean_mm", mean(&aps)),
+        ("ap_max_mm", max(&aps)),
+    ] {
+        let stated = iso[key].as_f64().unwrap();
+        assert!(
+            (stated - expected).abs() < 1e-9,
+            "{key}: {stated} vs {expected}"
+        );
+    }
+    println!(
+        "ISO 9283-style: {} groups, RP mean {:.4} max {:.4} mm, AP mean {:.4} mm",
+        rps.len(),
+        mean(&rps),
+        max(&rps),
+        mean(&aps)
+    );
     // Traceability: the software's version and commit, the command line, the inputs' SHA-256.
     let software = json["software"].as_str().unwrap();
     let head = std::process::Command::new("git")

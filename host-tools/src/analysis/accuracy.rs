@@ -83,6 +83,9 @@ pub struct HeldOutAccuracy {
     pub flag_above_mm: f64,
     /// The held-out poses flagged, largest first (empty when none is).
     pub flagged: Vec<NamedPose>,
+    /// ISO 9283-style accuracy and repeatability from repeated held-out poses; `None`: not
+    /// measured (no pose repeats).
+    pub iso9283: Option<Iso9283>,
 }
 
 /// The `p`-quantile (0 to 1) of `sorted` (ascending, not empty), interpolated linearly between
@@ -165,6 +168,7 @@ impl HeldOutAccuracy {
             largest: all,
             flag_above_mm,
             flagged,
+            iso9283: None,
         })
     }
 
@@ -219,13 +223,14 @@ impl HeldOutAccuracy {
         format!(
             "\nheld-out accuracy ({} poses), |dp| percentiles (mm): before {}; after {}\n  \
              signed error along the robot's base axes, mean +- std (mm): before {}; after {}\n  \
-             largest held-out errors: {}\n  {flagged}\n",
+             largest held-out errors: {}\n  {flagged}\n{}",
             self.after.poses,
             percentiles(&self.before),
             percentiles(&self.after),
             axes(&self.before),
             axes(&self.after),
             list(&self.largest),
+            Iso9283::text(self.iso9283.as_ref()),
         )
     }
 }
@@ -430,5 +435,96 @@ impl Acceptance {
             if self.pass { "PASS" } else { "FAIL" },
             each.join("; ")
         )
+    }
+}
+
+/// Commanded joints closer than this (each joint, deg) are the same pose repeated.
+pub const REPEAT_TOLERANCE_DEG: f64 = 0.01;
+
+/// ISO 9283-style pose accuracy and repeatability (positions) from the held-out poses that repeat
+/// a commanded pose: per group of `n >= 2` poses with the same joints (each within
+/// [`REPEAT_TOLERANCE_DEG`], rounded to it), `AP = |mean(measured - predicted)|` and
+/// `RP = mean(l) + 3 S_l`, `l_j` each pose's distance from the group's barycentre (ISO 9283:
+/// 30 cycles per pose; with fewer repeats, as here, `RP` is only indicative).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Iso9283 {
+    /// Groups of repeated poses.
+    pub groups: usize,
+    /// Poses in them.
+    pub poses: usize,
+    /// Most repeats of one pose.
+    pub most_repeats: usize,
+    /// Mean and largest pose accuracy `AP` over the groups, mm.
+    pub ap_mean_mm: f64,
+    /// Largest `AP`, mm.
+    pub ap_max_mm: f64,
+    /// Mean of the groups' repeatability `RP`, mm.
+    pub rp_mean_mm: f64,
+    /// Largest `RP`, mm, and the lines of its group.
+    pub rp_max_mm: f64,
+    /// The data file's lines of the group of largest `RP`.
+    pub rp_max_lines: Vec<u64>,
+}
+
+impl Iso9283 {
+    /// Of the held-out poses with commanded joints `q` (rad), lines `lines` and signed errors
+    /// `after` (mm); `None` when no pose repeats.
+    pub fn of(q: &[Vec<f64>], lines: &[u64], after: &[[f64; 3]]) -> Option<Self> {
+        let step = REPEAT_TOLERANCE_DEG.to_radians();
+        let mut groups: std::collections::BTreeMap<Vec<i64>, Vec<usize>> = Default::default();
+        for (i, joints) in q.iter().enumerate() {
+            let key = joints.iter().map(|v| (v / step).round() as i64).collect();
+            groups.entry(key).or_default().push(i);
+        }
+        let repeated: Vec<&Vec<usize>> = groups.values().filter(|g| g.len() >= 2).collect();
+        if repeated.is_empty() || q.len() != after.len() || q.len() != lines.len() {
+            return None;
+        }
+        let (mut ap, mut rp) = (Vec::new(), Vec::new());
+        for group in &repeated {
+            let n = group.len() as f64;
+            let mean = [0, 1, 2].map(|k| group.iter().map(|i| after[*i][k]).sum::<f64>() / n);
+            ap.push((mean[0] * mean[0] + mean[1] * mean[1] + mean[2] * mean[2]).sqrt());
+            let l: Vec<f64> = (group.iter())
+                .map(|i| {
+                    let d = [0, 1, 2].map(|k| after[*i][k] - mean[k]);
+                    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+                })
+                .collect();
+            let l_mean = l.iter().sum::<f64>() / n;
+            let s = (l.iter().map(|v| (v - l_mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+            rp.push(l_mean + 3.0 * s);
+        }
+        let worst = (0..rp.len()).max_by(|a, b| rp[*a].total_cmp(&rp[*b]))?;
+        let count = repeated.len() as f64;
+        Some(Self {
+            groups: repeated.len(),
+            poses: repeated.iter().map(|g| g.len()).sum(),
+            most_repeats: repeated.iter().map(|g| g.len()).max().unwrap_or(0),
+            ap_mean_mm: ap.iter().sum::<f64>() / count,
+            ap_max_mm: ap.iter().copied().fold(0.0, f64::max),
+            rp_mean_mm: rp.iter().sum::<f64>() / count,
+            rp_max_mm: rp[worst],
+            rp_max_lines: repeated[worst].iter().map(|i| lines[*i]).collect(),
+        })
+    }
+
+    /// The line for people; `None` says the figures were not measured.
+    pub fn text(iso: Option<&Self>) -> String {
+        match iso {
+            None => "  ISO 9283 pose accuracy and repeatability: not measured (no held-out pose repeats a commanded pose)\n".to_string(),
+            Some(i) => format!(
+                "  ISO 9283-style, from {} held-out poses repeated in {} groups (at most {} times; ISO asks for 30 cycles): \
+                 accuracy AP mean {:.4} mm, max {:.4} mm; repeatability RP mean {:.4} mm, max {:.4} mm (lines {})\n",
+                i.poses,
+                i.groups,
+                i.most_repeats,
+                i.ap_mean_mm,
+                i.ap_max_mm,
+                i.rp_mean_mm,
+                i.rp_max_mm,
+                i.rp_max_lines.iter().map(ToString::to_string).collect::<Vec<_>>().join(", ")
+            ),
+        }
     }
 }

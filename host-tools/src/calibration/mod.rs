@@ -170,6 +170,14 @@ fn accuracy_and_plausibility(
             &result.per_pose.validation_before_xyz,
             &result.per_pose.validation_after_xyz,
         );
+        if let Some(held) = result.held_out.as_mut() {
+            let q: Vec<Vec<f64>> = v.data.records.iter().map(|r| r.q.clone()).collect();
+            held.iso9283 = crate::analysis::accuracy::Iso9283::of(
+                &q,
+                &result.per_pose.validation_lines,
+                &result.per_pose.validation_after_xyz,
+            );
+        }
     }
     record_covariance(&mut result, config);
     result.acceptance = crate::analysis::accuracy::Acceptance::judge(

@@ -323,6 +323,23 @@ fn accuracy(page: &mut String, report: &Value) -> crate::Result<()> {
         named_rows(&held["largest"])
     )?;
     uncertainty(page, &report["uncertainty"])?;
+    let iso = &held["iso9283"];
+    if iso.is_null() {
+        page.push_str("<p>ISO 9283 pose accuracy and repeatability: not measured (no held-out pose repeats a commanded pose).</p>\n");
+    } else {
+        writeln!(
+            page,
+            "<p>ISO 9283-style, from {} held-out poses repeated in {} groups (at most {} times; ISO asks for 30 cycles): accuracy AP mean {}&nbsp;mm, max {}&nbsp;mm; repeatability RP mean {}&nbsp;mm, max {}&nbsp;mm (lines {}).</p>",
+            text(&iso["poses"]),
+            text(&iso["groups"]),
+            text(&iso["most_repeats"]),
+            num(&iso["ap_mean_mm"], 4),
+            num(&iso["ap_max_mm"], 4),
+            num(&iso["rp_mean_mm"], 4),
+            num(&iso["rp_max_mm"], 4),
+            text(&iso["rp_max_lines"])
+        )?;
+    }
     let flagged = &held["flagged"];
     if flagged.as_array().is_none_or(Vec::is_empty) {
         writeln!(
