@@ -152,26 +152,26 @@ fn pairs_by_time<'a>(
         MatchBy::Order
     };
     let logged = pairs(plan, log.log, by)?;
-    let mut by_time: Vec<&Record> = measured.records.iter().collect();
-    by_time.sort_by(|a, b| a.time_s.unwrap_or(0.0).total_cmp(&b.time_s.unwrap_or(0.0)));
+    // Both files have a time column (checked above): every record has its time.
+    let time = |r: &Record| r.time_s.unwrap_or(0.0);
+    let mut by_time: Vec<(f64, &Record)> = measured.records.iter().map(|r| (time(r), r)).collect();
+    by_time.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut claimed = std::collections::HashMap::new();
     let mut out = Vec::with_capacity(logged.len());
     for (planned, entry) in logged {
         check_joints(planned, entry, log.log, tolerance_rad)?;
-        let t = entry.time_s.unwrap_or(0.0);
-        let after = by_time.partition_point(|p| p.time_s.unwrap_or(0.0) < t);
+        let t = time(entry);
+        let after = by_time.partition_point(|(s, _)| *s < t);
+        // The nearest point in time and how far it is, s.
         let nearest = [after.checked_sub(1), Some(after)]
             .into_iter()
             .flatten()
             .filter_map(|i| by_time.get(i))
-            .min_by(|a, b| {
-                (a.time_s.unwrap_or(0.0) - t)
-                    .abs()
-                    .total_cmp(&(b.time_s.unwrap_or(0.0) - t).abs())
-            })
-            .copied();
+            .map(|(s, p)| ((s - t).abs(), *p))
+            .min_by(|a, b| a.0.total_cmp(&b.0));
         let point = nearest
-            .filter(|p| (p.time_s.unwrap_or(0.0) - t).abs() <= log.tolerance_s)
+            .filter(|(away, _)| *away <= log.tolerance_s)
+            .map(|(_, p)| p)
             .ok_or_else(|| {
                 crate::refused!(
                     "{log_path}:{}: the robot stood at the planned pose {} at {t} s, but {data_path} has no point within \
@@ -179,10 +179,9 @@ fn pairs_by_time<'a>(
                     entry.line,
                     planned.id,
                     log.tolerance_s,
-                    nearest.map_or_else(String::new, |p| format!(
-                        " (the nearest, line {}, is {:.3} s away)",
-                        p.line,
-                        (p.time_s.unwrap_or(0.0) - t).abs()
+                    nearest.map_or_else(String::new, |(away, p)| format!(
+                        " (the nearest, line {}, is {away:.3} s away)",
+                        p.line
                     ))
                 )
             })?;
