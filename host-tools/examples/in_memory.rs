@@ -37,6 +37,7 @@ fn measure(real: &Kinematics<f64, Dyn>, count: usize, seed: u64) -> anyhow::Resu
                 role: None,
                 configuration: None,
                 time_s: None,
+                temperature_c: None,
             })
         })
         .collect()

@@ -176,6 +176,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
             role: None,
             configuration: None,
             time_s: None,
+            temperature_c: None,
         });
     }
     let settings = CompensationSettings {
@@ -234,6 +235,7 @@ fn compensation_reaches_random_targets_and_names_the_needed_correction() {
         role: None,
         configuration: None,
         time_s: None,
+        temperature_c: None,
     };
     let one = TrackerData {
         path: "targets".into(),

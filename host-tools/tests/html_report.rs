@@ -16,7 +16,7 @@ fn select(page: &Html, css: &str) -> Vec<String> {
 
 /// The README's real-data example (50 random poses of Series B, 6-DoF, the others held out)
 /// with `--html`: every section, the paper's Table 3 for calibration and held-out poses with the
-/// JSON report's numbers, every identified parameter, the four plots inline, no script and no
+/// JSON report's numbers, every identified parameter, the five plots inline, no script and no
 /// reference outside the file; `calib report --from` the JSON renders the same page.
 #[test]
 fn the_html_report_holds_everything_and_nothing_external() {
@@ -88,6 +88,34 @@ fn the_html_report_holds_everything_and_nothing_external() {
             .iter()
             .any(|c| c.starts_with("Flagged held-out poses"))
     );
+    // The measurement conditions: the payload of the robot file's [dynamics] tool, the air
+    // temperature range of the data's temperature column, what is not stated said so.
+    let t = &json["conditions"]["temperature"];
+    assert!(cells.contains(&format!(
+        "{:.2} to {:.2}\u{a0}\u{b0}C over 1495 poses",
+        t["min_c"].as_f64().unwrap(),
+        t["max_c"].as_f64().unwrap()
+    )));
+    assert!(cells.contains(&"1.500\u{a0}kg (the robot file's [dynamics] tool)".to_string()));
+    assert!(
+        cells
+            .iter()
+            .any(|c| c.starts_with("not stated (") && c.contains("[instrument]"))
+    );
+    // The caveats (here the held-out poses beyond the calibration poses' joint ranges) and the
+    // worst regions of the workspace, with the JSON report's numbers.
+    let caveat = select(&page, "ul.caveats li");
+    assert_eq!(caveat.len(), json["caveats"].as_array().unwrap().len());
+    assert!(
+        caveat[0].contains("held-out poses have a joint outside the range"),
+        "{caveat:?}"
+    );
+    let worst = &held["workspace"]["worst"][0];
+    assert!(cells.contains(&format!("{:.4}", worst["mean_mm"].as_f64().unwrap())));
+    assert!(cells.contains(&format!(
+        "{:.4}",
+        worst["predicted_rms_mm"].as_f64().unwrap()
+    )));
     // The frames the data chose are shown as identified (not "-").
     assert!(cells.contains(&"base+tool (chosen from the data)".to_string()));
     // Every parameter, with its value in the unit shown.
@@ -114,12 +142,13 @@ fn the_html_report_holds_everything_and_nothing_external() {
         .select(&Selector::parse("figure[id] > svg").unwrap())
         .map(|e| e.value().attr("width").unwrap_or("").to_string())
         .collect();
-    assert_eq!(figures.len(), 4, "{figures:?}");
+    assert_eq!(figures.len(), 5, "{figures:?}");
     for id in [
         "plot-position-error",
         "plot-orientation-error",
         "plot-convergence",
         "plot-validation-histogram",
+        "plot-workspace-error",
     ] {
         assert_eq!(select(&page, &format!("figure#{id} svg")).len(), 1, "{id}");
     }

@@ -750,3 +750,187 @@ fn series_b_certificate_figures_and_the_acceptance_statement() {
     ]);
     assert_eq!(out.status.code(), Some(2));
 }
+
+/// The Series B data file's rows by physical line: joints (rad), measured position (mm, tracker
+/// frame) and air temperature (deg C), read here with a plain split (independent of the data
+/// profile's reader).
+fn series_b_rows() -> std::collections::HashMap<u64, ([f64; 6], [f64; 3], f64)> {
+    let text = std::fs::read_to_string(DATA).unwrap();
+    let number = |s: &str| s.replace(',', ".").parse::<f64>().unwrap();
+    text.lines()
+        .enumerate()
+        .skip(1)
+        .map(|(i, line)| {
+            let f: Vec<&str> = line.split(';').collect();
+            let q = [7, 8, 9, 10, 11, 12].map(|c| number(f[c]));
+            let p = [14, 16, 18].map(|c| number(f[c]));
+            (i as u64 + 1, (q, p, number(f[13])))
+        })
+        .collect()
+}
+
+/// Issue 41: where the held-out error remains, the measurement conditions and the caveats of a
+/// Series B certificate, each recomputed from the data file and the per-pose errors.
+#[test]
+fn series_b_workspace_map_conditions_and_caveats() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("b.json");
+    let out = common::calib(&[
+        "calibrate",
+        "--robot",
+        ROBOT,
+        "--data",
+        DATA,
+        "--profile",
+        FULL_POSE,
+        "--validate",
+        "0.9666",
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    let text = common::ok(&out);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let per_pose = &json["per_pose"];
+    let floats = |v: &serde_json::Value| -> Vec<f64> {
+        (v.as_array().unwrap().iter())
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let lines_of = |v: &serde_json::Value| -> Vec<u64> {
+        (v.as_array().unwrap().iter())
+            .map(|x| x.as_u64().unwrap())
+            .collect()
+    };
+    let after = floats(&per_pose["validation_after"]);
+    let predicted = floats(&per_pose["validation_predicted_rms_mm"]);
+    let lines = lines_of(&per_pose["validation_lines"]);
+    let positions: Vec<Vec<f64>> = (per_pose["validation_position_mm"].as_array().unwrap())
+        .iter()
+        .map(floats)
+        .collect();
+    let xyz: Vec<Vec<f64>> = (per_pose["validation_after_xyz"].as_array().unwrap())
+        .iter()
+        .map(floats)
+        .collect();
+    assert_eq!((positions.len(), predicted.len()), (1445, 1445));
+    let rows = series_b_rows();
+    // The positions are the base-frame predictions: each plus its signed error is the measured
+    // point moved rigidly into the base frame, so distances between poses are the measured ones.
+    for (i, j) in [(0, 1), (5, 900), (17, 1444), (300, 1200)] {
+        let seen = |k: usize| -> Vec<f64> { (0..3).map(|a| positions[k][a] + xyz[k][a]).collect() };
+        let (a, b) = (seen(i), seen(j));
+        let (ma, mb) = (rows[&lines[i]].1, rows[&lines[j]].1);
+        let d_base = ((0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>()).sqrt();
+        let d_tracker = ((0..3).map(|k| (ma[k] - mb[k]).powi(2)).sum::<f64>()).sqrt();
+        assert!(
+            (d_base - d_tracker).abs() < 1e-6,
+            "{i} {j}: {d_base} vs {d_tracker}"
+        );
+    }
+    // Regions: the terciles of each coordinate, computed again.
+    let cut = |axis: usize| -> Vec<f64> {
+        let mut v: Vec<f64> = positions.iter().map(|p| p[axis]).collect();
+        v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        vec![v[v.len() / 3], v[2 * v.len() / 3]]
+    };
+    let cuts = [cut(0), cut(1), cut(2)];
+    let mut cells: std::collections::BTreeMap<[usize; 3], Vec<usize>> = Default::default();
+    for (k, p) in positions.iter().enumerate() {
+        let bin = |a: usize| cuts[a].iter().filter(|c| p[a] >= **c).count();
+        cells.entry([bin(0), bin(1), bin(2)]).or_default().push(k);
+    }
+    let map = &json["held_out"]["workspace"];
+    assert_eq!(map["regions"].as_array().unwrap().len(), cells.len());
+    let mut expected: Vec<(f64, f64, usize, f64)> = cells
+        .values()
+        .filter(|m| m.len() >= 3)
+        .map(|m| {
+            let n = m.len() as f64;
+            let mean = m.iter().map(|k| after[*k]).sum::<f64>() / n;
+            let max = m.iter().map(|k| after[*k]).fold(0.0, f64::max);
+            let predicted = m.iter().map(|k| predicted[*k]).sum::<f64>() / n;
+            (mean, max, m.len(), predicted)
+        })
+        .collect();
+    expected.sort_by(|a, b| b.0.partial_cmp(&a.0).unwrap());
+    for (region, (mean, max, poses, predicted)) in
+        map["worst"].as_array().unwrap().iter().zip(&expected)
+    {
+        assert!((region["mean_mm"].as_f64().unwrap() - mean).abs() < 1e-12);
+        assert_eq!(region["max_mm"].as_f64().unwrap(), *max);
+        assert_eq!(region["poses"].as_u64().unwrap(), *poses as u64);
+        assert!((region["predicted_rms_mm"].as_f64().unwrap() - predicted).abs() < 1e-12);
+    }
+    let worst = &map["worst"][0];
+    assert!(
+        text.contains(&format!(
+            "mean {:.4} mm over {} poses",
+            expected[0].0, expected[0].2
+        )),
+        "{text}"
+    );
+    println!(
+        "Series B worst region: {} poses, mean {:.4} mm, max {:.4} mm (line {}), predicted {:.4} mm RMS",
+        worst["poses"], expected[0].0, expected[0].1, worst["max_line"], expected[0].3
+    );
+    // Conditions: the temperature range of every row, the robot file's payload.
+    let temperatures: Vec<f64> = rows.values().map(|r| r.2).collect();
+    let t = &json["conditions"]["temperature"];
+    assert_eq!(t["poses"].as_u64().unwrap(), 1495);
+    assert_eq!(
+        t["min_c"].as_f64().unwrap(),
+        temperatures.iter().copied().fold(f64::INFINITY, f64::min)
+    );
+    assert_eq!(
+        t["max_c"].as_f64().unwrap(),
+        temperatures
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max)
+    );
+    assert_eq!(json["conditions"]["payload"]["mass_kg"], 1.5);
+    assert!(json["conditions"]["instrument"].is_null());
+    // Caveats: the held-out poses with a joint outside the calibration poses' range.
+    let calibration = lines_of(&per_pose["lines"]);
+    let range = |j: usize| {
+        calibration
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |r, l| {
+                (r.0.min(rows[l].0[j]), r.1.max(rows[l].0[j]))
+            })
+    };
+    let ranges: Vec<(f64, f64)> = (0..6).map(range).collect();
+    let outside: Vec<u64> = (lines.iter().copied())
+        .filter(|l| (0..6).any(|j| rows[l].0[j] < ranges[j].0 || rows[l].0[j] > ranges[j].1))
+        .collect();
+    let caveat = (json["caveats"].as_array().unwrap().iter())
+        .find(|c| c["kind"] == "extrapolation")
+        .unwrap();
+    assert_eq!(lines_of(&caveat["lines"]), outside);
+    println!(
+        "Series B: {} of 1445 held-out poses outside the calibrated joint ranges",
+        outside.len()
+    );
+    // A payload that contradicts the robot file's is refused, nothing written.
+    let refused = common::calib(&[
+        "calibrate",
+        "--robot",
+        ROBOT,
+        "--data",
+        DATA,
+        "--profile",
+        FULL_POSE,
+        "--validate",
+        "0.9666",
+        "--payload-kg",
+        "3",
+        "--report",
+        dir.path().join("c.json").to_str().unwrap(),
+    ]);
+    assert!(!refused.status.success());
+    assert!(
+        String::from_utf8_lossy(&refused.stderr).contains("--payload-kg 3 differs from the 1.5 kg")
+    );
+    assert!(!dir.path().join("c.json").exists());
+}

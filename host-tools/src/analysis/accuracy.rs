@@ -86,6 +86,8 @@ pub struct HeldOutAccuracy {
     /// ISO 9283-style accuracy and repeatability from repeated held-out poses; `None`: not
     /// measured (no pose repeats).
     pub iso9283: Option<Iso9283>,
+    /// Where in the workspace the held-out error after calibration is.
+    pub workspace: Option<crate::analysis::workspace::WorkspaceMap>,
 }
 
 /// The `p`-quantile (0 to 1) of `sorted` (ascending, not empty), interpolated linearly between
@@ -169,6 +171,7 @@ impl HeldOutAccuracy {
             flag_above_mm,
             flagged,
             iso9283: None,
+            workspace: None,
         })
     }
 
@@ -223,7 +226,7 @@ impl HeldOutAccuracy {
         format!(
             "\nheld-out accuracy ({} poses), |dp| percentiles (mm): before {}; after {}\n  \
              signed error along the robot's base axes, mean +- std (mm): before {}; after {}\n  \
-             largest held-out errors: {}\n  {flagged}\n{}",
+             largest held-out errors: {}\n  {flagged}\n{}{}",
             self.after.poses,
             percentiles(&self.before),
             percentiles(&self.after),
@@ -231,6 +234,10 @@ impl HeldOutAccuracy {
             axes(&self.after),
             list(&self.largest),
             Iso9283::text(self.iso9283.as_ref()),
+            self.workspace.as_ref().map_or(
+                String::new(),
+                crate::analysis::workspace::WorkspaceMap::text
+            ),
         )
     }
 }

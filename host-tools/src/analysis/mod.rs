@@ -1,13 +1,15 @@
 //! What a model and a dataset say beyond the fit: the accuracy on held-out poses as a certificate
-//! states it, the uncertainty of a prediction propagated from the parameters' covariance, the
+//! states it, where in the workspace the error remains and the caveats that limit it, the uncertainty of a prediction propagated from the parameters' covariance, the
 //! identifiability of the parameters, the
 //! evaluation of a model on new poses, the comparison against a known truth, and the verification
 //! of the core's calibration against the independent float64 reference.
 
 pub mod accuracy;
+pub mod caveats;
 pub mod evaluation;
 pub mod identifiability;
 pub mod reference;
 pub mod truth;
 pub mod uncertainty;
 pub mod verify;
+pub mod workspace;

@@ -75,6 +75,10 @@ pub struct Coverage {
     pub max_model_rms_mm: f64,
     /// The pose of that largest predicted error: its data file's line.
     pub max_model_rms_line: u64,
+    /// The predicted RMS position error from the parameters alone of every pose, in order, mm
+    /// (in the JSON report as `per_pose.validation_predicted_rms_mm`).
+    #[serde(skip)]
+    pub model_rms_mm: Vec<f64>,
 }
 
 /// One held-out pose for [`coverage`]: its joint angles, its position error `measured -
@@ -99,10 +103,12 @@ pub fn coverage(
     }
     let mut inside = 0;
     let (mut sum, mut max, mut max_line, mut noise_sum) = (0.0, 0.0, 0, 0.0);
+    let mut model_rms_mm = Vec::with_capacity(poses.len());
     for (angles, error, line, noise_mm) in poses {
         noise_sum += *noise_mm;
         let (position, _) = pose_covariance(kinematics, set, covariance, angles);
         let rms = position.trace().max(0.0).sqrt();
+        model_rms_mm.push(rms);
         sum += rms;
         if rms > max {
             (max, max_line) = (rms, *line);
@@ -124,6 +130,7 @@ pub fn coverage(
         mean_model_rms_mm: sum / poses.len() as f64,
         max_model_rms_mm: max,
         max_model_rms_line: max_line,
+        model_rms_mm,
     })
 }
 

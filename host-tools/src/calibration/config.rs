@@ -212,6 +212,10 @@ pub struct CalibrationConfig {
     /// Acceptance criteria judged on the held-out poses (`--accept`); empty: none stated.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub acceptance: Vec<crate::analysis::accuracy::Criterion>,
+    /// The mass the flange carried while measured, kg (`--payload-kg`): stated on the
+    /// certificate, not modelled. `None`: the robot file's `[dynamics] tool` mass, if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub payload_kg: Option<f64>,
     /// Show a progress bar on a terminal.
     #[serde(skip)]
     pub progress: bool,
@@ -233,6 +237,7 @@ impl Default for CalibrationConfig {
             keep_ill_conditioned: false,
             accept_implausible: false,
             acceptance: Vec::new(),
+            payload_kg: None,
             progress: false,
         }
     }

@@ -38,6 +38,7 @@
 //!             role: None,
 //!             configuration: None,
 //!             time_s: None,
+//!             temperature_c: None,
 //!         }
 //!     })
 //!     .collect();
@@ -101,6 +102,11 @@ pub fn calibrate(
     if config.model.maps() {
         maps::check_robot_file(&dataset, config)?;
     }
+    let conditions = crate::measurement::conditions::MeasurementConditions::of(
+        &dataset,
+        validation.as_ref(),
+        config.payload_kg,
+    )?;
     let frames = Frames::chosen(config.frames, &dataset.data);
     // With only the base fitted, the probe identified with the file's model stays the tool (as in
     // `evaluate --fit-frames base`); the file written keeps the given controller frames and
@@ -149,7 +155,81 @@ pub fn calibrate(
             m.flange_tool = probe;
         }
     }
-    accuracy_and_plausibility(result, validation.as_ref(), config)
+    result.conditions = Some(conditions);
+    let calibration_joints: Vec<Vec<f64>> =
+        dataset.data.records.iter().map(|r| r.q.clone()).collect();
+    accuracy_and_plausibility(result, (&calibration_joints, validation.as_ref()), config)
+}
+
+/// The caveats of the certificate ([`crate::analysis::caveats`]): the plan check's gap, a
+/// cross-validation worse than nominal, held-out poses outside the joint ranges of the
+/// calibration poses (`calibration_joints`, rad), held-out errors beyond the predicted band, an
+/// implausible result kept.
+fn caveats(
+    result: &CalibrationResult,
+    calibration_joints: &[Vec<f64>],
+    validation: Option<&Dataset>,
+) -> Vec<crate::analysis::caveats::Caveat> {
+    use crate::analysis::caveats::{
+        COVERAGE_BELOW_PERCENT, Caveat, CaveatKind, extrapolation, joint_ranges,
+    };
+    let whole = |kind, text: String| Caveat {
+        kind,
+        text,
+        lines: Vec::new(),
+    };
+    let mut out = Vec::new();
+    if let Some(check) = result.plan_check.as_ref().filter(|c| c.gap) {
+        out.push(whole(
+            CaveatKind::PlanCheck,
+            format!(
+                "the plan's {} verification poses measured {:.4} mm mean error, above the {:.4} mm the plan allowed: \
+                 the model misses an error the plan assumed absent",
+                check.poses, check.measured_mean_mm, check.predicted.high_mm
+            ),
+        ));
+    }
+    if let Some(cv) = result.cross_validation.filter(|cv| cv.worse_than_nominal()) {
+        out.push(whole(
+            CaveatKind::CrossValidation,
+            format!(
+                "cross-validation: the model identified from these poses predicts new ones worse ({:.4} mm) than the nominal model ({:.4} mm)",
+                cv.calibrated_mean_mm, cv.nominal_mean_mm
+            ),
+        ));
+    }
+    if let Some(v) = validation {
+        let held_out: Vec<Vec<f64>> = v.data.records.iter().map(|r| r.q.clone()).collect();
+        let lines: Vec<u64> = v.data.records.iter().map(|r| r.line).collect();
+        out.extend(extrapolation(
+            &joint_ranges(calibration_joints),
+            &held_out,
+            &lines,
+        ));
+    }
+    if let Some(u) = result
+        .uncertainty
+        .as_ref()
+        .filter(|u| u.percent_inside_95 < COVERAGE_BELOW_PERCENT)
+    {
+        out.push(whole(
+            CaveatKind::Uncertainty,
+            format!(
+                "only {:.1} % of the held-out errors lie inside their predicted 95 % band: the model or the stated instrument misses an error",
+                u.percent_inside_95
+            ),
+        ));
+    }
+    if !result.implausible.is_empty() {
+        out.push(whole(
+            CaveatKind::Implausible,
+            format!(
+                "the result is not plausible and was kept (--accept-implausible): {}",
+                result.implausible.join("; ")
+            ),
+        ));
+    }
+    out
 }
 
 /// The last stages: the accuracy on the held-out poses of `validation`, the acceptance criteria
@@ -157,7 +237,7 @@ pub fn calibrate(
 /// configuration accepts it).
 fn accuracy_and_plausibility(
     mut result: CalibrationResult,
-    validation: Option<&Dataset>,
+    (calibration_joints, validation): (&[Vec<f64>], Option<&Dataset>),
     config: &CalibrationConfig,
 ) -> crate::Result<CalibrationResult> {
     if let Some(v) = validation {
@@ -178,6 +258,7 @@ fn accuracy_and_plausibility(
                 &result.per_pose.validation_after_xyz,
             );
         }
+        map_the_workspace(&mut result, v)?;
     }
     record_covariance(&mut result, config);
     result.acceptance = crate::analysis::accuracy::Acceptance::judge(
@@ -193,7 +274,35 @@ fn accuracy_and_plausibility(
             plausibility::LIKELY_CAUSES
         ));
     }
+    result.caveats = caveats(&result, calibration_joints, validation);
     Ok(result)
+}
+
+/// The held-out poses of `validation` placed in the workspace (`per_pose.validation_position_mm`,
+/// with the predicted error of each when the covariance is known) and the map of their error
+/// after calibration (`held_out.workspace`).
+fn map_the_workspace(result: &mut CalibrationResult, validation: &Dataset) -> crate::Result<()> {
+    let actual = Kinematics::new(&validation.model.robot, &result.errors)?;
+    let per_pose = &mut result.per_pose;
+    per_pose.validation_position_mm = crate::measurement::statistics::base_positions(
+        &actual,
+        &validation.model.robot,
+        &validation.measurements,
+    );
+    per_pose.validation_predicted_rms_mm = (result.uncertainty.as_ref())
+        .map(|u| u.model_rms_mm.clone())
+        .unwrap_or_default();
+    if let Some(held) = result.held_out.as_mut() {
+        held.workspace = crate::analysis::workspace::WorkspaceMap::of(
+            &per_pose.validation_position_mm,
+            &per_pose.validation_after,
+            &per_pose.validation_lines,
+            Some(&per_pose.validation_predicted_rms_mm)
+                .filter(|p| !p.is_empty())
+                .map(|p| p.as_slice()),
+        );
+    }
+    Ok(())
 }
 
 /// Records the identified parameters' covariance (the frames of the measurement setup included:
@@ -454,6 +563,8 @@ fn solve(
         command_line: Vec::new(),
         uncertainty,
         significance,
+        conditions: None,
+        caveats: Vec::new(),
         covariance,
     })
 }
@@ -967,6 +1078,12 @@ fn evaluate(
         .collect();
     per_pose.before = before_poses;
     per_pose.after = after_poses;
+    per_pose.lines = dataset.data.records.iter().map(|r| r.line).collect();
+    per_pose.orientation_lines = (dataset.data.records.iter())
+        .zip(&dataset.measurements)
+        .filter(|(_, m)| m.rotation.is_some())
+        .map(|(r, _)| r.line)
+        .collect();
     let calibration = Stage {
         poses: dataset.measurements.len(),
         before,

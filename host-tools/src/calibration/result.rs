@@ -123,6 +123,11 @@ pub struct Outlier {
 /// Per-pose errors for plots: `|dp|` (mm) and orientation per axis (deg), before and after.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct PerPose {
+    /// The data file's line of each calibration pose.
+    pub lines: Vec<u64>,
+    /// The data file's line of each calibration pose with an orientation (the poses of
+    /// `orientation_before` and `orientation_after`).
+    pub orientation_lines: Vec<u64>,
     /// `|dp|` per calibration pose with the nominal model, mm.
     pub before: Vec<f64>,
     /// With the identified model.
@@ -142,6 +147,12 @@ pub struct PerPose {
     pub validation_after_xyz: Vec<[f64; 3]>,
     /// The data file's line of each validation pose.
     pub validation_lines: Vec<u64>,
+    /// The position of each validation pose in the robot's base frame as the identified model
+    /// predicts it, mm.
+    pub validation_position_mm: Vec<[f64; 3]>,
+    /// The RMS position error the parameters' covariance predicts at each validation pose, mm
+    /// (empty without a covariance).
+    pub validation_predicted_rms_mm: Vec<f64>,
 }
 
 /// Everything a calibration found.
@@ -217,6 +228,10 @@ pub struct CalibrationResult {
     /// The parameters smaller than twice their standard error and the strongly correlated pairs
     /// (from the covariance).
     pub significance: Option<crate::analysis::uncertainty::Significance>,
+    /// The conditions of the measurement: robot serial, payload, instrument, temperature.
+    pub conditions: Option<crate::measurement::conditions::MeasurementConditions>,
+    /// What limits the accuracy statement (empty: nothing found).
+    pub caveats: Vec<crate::analysis::caveats::Caveat>,
 }
 
 impl CalibrationResult {
@@ -293,6 +308,8 @@ impl CalibrationResult {
             acceptance: self.acceptance.as_ref(),
             uncertainty: self.uncertainty.as_ref(),
             significance: self.significance.as_ref(),
+            conditions: self.conditions.as_ref(),
+            caveats: &self.caveats,
             covariance: self.covariance.as_ref().map(|c| Covariance {
                 parameters: self.names(),
                 matrix: c.row_iter().map(|r| r.iter().copied().collect()).collect(),
@@ -429,6 +446,11 @@ pub struct Report<'a> {
     /// Parameters not shown to differ from zero, and strongly correlated pairs.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub significance: Option<&'a crate::analysis::uncertainty::Significance>,
+    /// The conditions of the measurement.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub conditions: Option<&'a crate::measurement::conditions::MeasurementConditions>,
+    /// What limits the accuracy statement (empty: nothing found).
+    pub caveats: &'a [crate::analysis::caveats::Caveat],
     /// The frames identified with the geometry and their values.
     pub frames: &'a FramesReport,
     /// Poses whose residual exceeds the robust loss scale (empty for l2).

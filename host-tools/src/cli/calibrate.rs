@@ -75,6 +75,10 @@ pub struct CalibrateOptions {
     /// Needs held-out poses (--validate, --holdout or a plan's verification poses).
     #[arg(long, value_name = "CRITERION")]
     pub accept: Vec<crate::analysis::accuracy::Criterion>,
+    /// The mass the flange carried while measured (probe or reflector, its mount, any load), kg:
+    /// stated on the certificate, not modelled (compliance takes the robot file's `[dynamics]`).
+    #[arg(long, value_name = "KG")]
+    pub payload_kg: Option<f64>,
     /// The command line, for the report (set by the `calib` binary; empty otherwise).
     #[arg(skip)]
     pub command_line: Vec<String>,
@@ -178,6 +182,7 @@ impl CalibrateOptions {
             keep_ill_conditioned: self.keep_ill_conditioned,
             accept_implausible: self.accept_implausible,
             acceptance: self.accept.clone(),
+            payload_kg: self.payload_kg,
             progress: !self.quiet,
         }
     }
@@ -502,12 +507,16 @@ pub fn write_outputs(
             &crate::report::plots::PlotData {
                 history,
                 title: "absolute position error per calibration pose",
+                lines: &per_pose.lines,
+                orientation_lines: &per_pose.orientation_lines,
                 before: &per_pose.before,
                 after: &per_pose.after,
                 orientation_before: &per_pose.orientation_before,
                 orientation_after: &per_pose.orientation_after,
                 validation_before: &per_pose.validation_before,
                 validation_after: &per_pose.validation_after,
+                validation_positions: &per_pose.validation_position_mm,
+                validation_predicted: &per_pose.validation_predicted_rms_mm,
                 joint_maps: calibration
                     .result
                     .joint_maps

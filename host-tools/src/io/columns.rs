@@ -24,6 +24,9 @@ pub(crate) enum Column {
     /// When the row was measured or logged: factor to seconds (`time_s`, `time_ms`; any epoch,
     /// the same in the files merged by time, `calib merge --by time`).
     Time(f64),
+    /// The air temperature at the instrument when the row was measured, deg C (`temperature_c`;
+    /// stated on the calibration certificate, not modelled).
+    Temperature,
     /// A source column the data profile does not map.
     Ignored,
 }
@@ -73,6 +76,7 @@ pub(crate) fn parse_column(name: &str) -> Option<Column> {
         "configuration" => Column::Configuration,
         "time_s" => Column::Time(1.0),
         "time_ms" => Column::Time(1e-3),
+        "temperature_c" => Column::Temperature,
         _ => return None,
     })
 }

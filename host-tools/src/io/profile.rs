@@ -187,6 +187,9 @@ pub struct Instrument {
     /// What measured the data (maker, model, probe).
     #[serde(default)]
     pub name: Option<String>,
+    /// The instrument's serial number (stated on the calibration certificate).
+    #[serde(default)]
+    pub serial: Option<String>,
     /// The constant part of the maximum permissible error, um.
     pub mpe_um: f64,
     /// The part that grows with the distance from the instrument, um per m.

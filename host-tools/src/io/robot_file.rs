@@ -134,6 +134,9 @@ pub struct FrameEntry {
 pub struct RobotFile {
     /// Human-readable robot name.
     pub name: String,
+    /// The robot's serial number, stated on its calibration certificate. Optional.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub serial: Option<String>,
     /// The manufacturer's pose repeatability (ISO 9283), mm: how closely the robot returns to a
     /// commanded pose. No model fits the robot better than it repeats: the plausibility check of
     /// a calibration allows a fit of twice this (at least 2 mm RMS). Optional.

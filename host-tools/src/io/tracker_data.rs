@@ -3,7 +3,8 @@
 //!
 //! Columns: joints `q1_deg..qN_deg` (or `_rad`), position `x_mm, y_mm, z_mm` (or `_m`), optional
 //! orientation as a unit quaternion `qw, qx, qy, qz` or fixed-axis angles `rx_deg, ry_deg, rz_deg`
-//! (`R = Rz Ry Rx`), optional `id`, `weight`, `role`, `configuration` and `time_s` (or `time_ms`).
+//! (`R = Rz Ry Rx`), optional `id`, `weight`, `role`, `configuration`, `time_s` (or `time_ms`) and `temperature_c`
+//! (the air temperature at the instrument, deg C, stated on the certificate).
 //! A comment line `# frame: base` says the
 //! measurements are in the robot's base frame. Line numbers in errors are the file's physical lines
 //! (the header, and any comment above it, count).
@@ -114,7 +115,13 @@ pub struct Record {
     /// When the row was measured or logged, s (the `time_s` or `time_ms` column), if the file
     /// has one.
     pub time_s: Option<f64>,
+    /// The air temperature when the row was measured, deg C (the `temperature_c` column), if the
+    /// file has one.
+    pub temperature_c: Option<f64>,
 }
+
+/// The air temperatures a `temperature_c` column may hold, deg C.
+pub const TEMPERATURE_C: std::ops::RangeInclusive<f64> = -40.0..=80.0;
 
 /// A pose's role in a measurement plan (`calib plan`; the `role` column of a data file).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
@@ -588,6 +595,7 @@ impl Layout {
             role: None,
             configuration: None,
             time_s: None,
+            temperature_c: None,
         };
         let mut quaternion = [0.0; 4];
         let mut angle = [0.0; 3];
@@ -673,6 +681,17 @@ impl Layout {
                     record.weight = value;
                 }
                 Column::Time(scale) => record.time_s = Some(value * scale),
+                Column::Temperature => {
+                    if !(TEMPERATURE_C.contains(&value)) {
+                        return Err(at(format!(
+                            "temperature {field} deg C is outside {} to {} deg C, the air of a measured robot cell; \
+                             check the column holds degrees Celsius",
+                            TEMPERATURE_C.start(),
+                            TEMPERATURE_C.end()
+                        )));
+                    }
+                    record.temperature_c = Some(value);
+                }
                 Column::Id | Column::Role | Column::Configuration | Column::Ignored => {}
             }
         }
@@ -757,7 +776,7 @@ fn columns_of(
         let column = parse_column(name).ok_or_else(|| {
             at(
                 Some(format!("{} (\"{source}\")", i + 1)),
-                "unknown column; expected q<i>_deg or q<i>_rad, x_mm/y_mm/z_mm (or _m), qw/qx/qy/qz, rx_deg/ry_deg/rz_deg, id, weight, role, configuration, time_s (or time_ms)".into(),
+                "unknown column; expected q<i>_deg or q<i>_rad, x_mm/y_mm/z_mm (or _m), qw/qx/qy/qz, rx_deg/ry_deg/rz_deg, id, weight, role, configuration, time_s (or time_ms), temperature_c".into(),
             )
         })?;
         columns.push(column);

@@ -1,8 +1,10 @@
 //! The measured poses and the set-up that measured them: a dataset (a robot and its tracker
 //! records), the frames that register the tracker and the probe, the error statistics of a model
 //! on a dataset, the check of the data's orientation convention, simulated measurements, and a
-//! tracker's export merged into the plan it measured.
+//! tracker's export merged into the plan it measured, and the conditions of the measurement as a
+//! certificate states them.
 
+pub mod conditions;
 pub mod dataset;
 pub mod frames;
 pub mod merge;

@@ -198,6 +198,7 @@ impl Simulated {
                 role: None,
                 configuration: None,
                 time_s: None,
+                temperature_c: None,
             })
             .collect()
     }

@@ -105,6 +105,25 @@ pub(crate) fn signed_errors<'a>(
         .collect()
 }
 
+/// The position (mm) `kinematics` predicts for each of `measurements`, in the robot's base frame:
+/// turned back by the model's base (for data in a tracker's frame, the registration).
+pub(crate) fn base_positions<'a>(
+    kinematics: &Kinematics<f64, Dyn>,
+    robot: &calib_core::Robot<f64, Dyn>,
+    measurements: impl IntoIterator<Item = &'a calib_core::identify::objective::Measurement<f64, Dyn>>,
+) -> Vec<[f64; 3]> {
+    let [roll, pitch, yaw] = robot.base.rpy;
+    let to_base = nalgebra::Rotation3::from_euler_angles(roll, pitch, yaw).inverse();
+    let origin = nalgebra::Vector3::from(robot.base.xyz);
+    measurements
+        .into_iter()
+        .map(|m| {
+            let p = to_base * (kinematics.forward_angles(&m.angles).translation.vector - origin);
+            [p.x, p.y, p.z]
+        })
+        .collect()
+}
+
 /// `|dr_x|, |dr_y|, |dr_z|` (deg) of `kinematics` for every pose of `dataset` that has an
 /// orientation, in file order.
 pub(crate) fn orientation_per_pose(

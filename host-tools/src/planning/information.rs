@@ -44,6 +44,7 @@ pub(super) fn information(
             role: None,
             configuration: None,
             time_s: None,
+            temperature_c: None,
         });
     }
     // In a tracker's frame (here the base frame itself), as the measured file will be.

@@ -35,8 +35,9 @@ impl Rendering {
 
 /// The section identifiers of the page, in order (each an `<h2 id>`); tests and readers rely on
 /// them.
-pub const SECTIONS: [&str; 11] = [
+pub const SECTIONS: [&str; 12] = [
     "summary",
+    "conditions",
     "accuracy",
     "table3",
     "parameters",
@@ -93,6 +94,7 @@ pub fn render(report: &Value, rendering: &Rendering) -> crate::Result<String> {
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>Calibration report: {robot}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n<h1>Robot calibration report</h1>"
     )?;
     summary(&mut page, report, &robot, &data)?;
+    conditions(&mut page, &report["conditions"])?;
     accuracy(&mut page, report)?;
     table3(&mut page, report)?;
     parameters(&mut page, report)?;
@@ -278,6 +280,132 @@ fn named_rows(poses: &Value) -> String {
         .unwrap_or_default()
 }
 
+/// The conditions of the measurement (`conditions`): robot serial, payload, instrument, air
+/// temperature; what the inputs do not state says so and how to state it.
+fn conditions(page: &mut String, c: &Value) -> crate::Result<()> {
+    page.push_str("<h2 id=\"conditions\">Measurement conditions</h2>\n");
+    if c.is_null() {
+        page.push_str("<p>Not recorded in this report.</p>\n");
+        return Ok(());
+    }
+    let not_stated = |how: &str| format!("<span class=\"note\">not stated ({how})</span>");
+    let serial = match c["robot_serial"].as_str() {
+        Some(s) => esc(s),
+        None => not_stated("<code>serial = \"...\"</code> in the robot file"),
+    };
+    let payload = &c["payload"];
+    let payload = if payload.is_null() {
+        not_stated("<code>--payload-kg</code>, or <code>[dynamics.tool]</code> in the robot file")
+    } else {
+        let source = match payload["source"].as_str() {
+            Some("option") => "--payload-kg",
+            _ => "the robot file's [dynamics] tool",
+        };
+        format!("{}&nbsp;kg ({source})", num(&payload["mass_kg"], 3))
+    };
+    let i = &c["instrument"];
+    let instrument = if i.is_null() {
+        not_stated("<code>[instrument]</code> in the data profile")
+    } else {
+        format!(
+            "{}{}: maximum permissible error {}&nbsp;&micro;m + {}&nbsp;&micro;m/m",
+            i["name"].as_str().map_or_else(|| "unnamed".to_owned(), esc),
+            i["serial"]
+                .as_str()
+                .map_or(String::new(), |s| format!(", serial {}", esc(s))),
+            num(&i["mpe_um"], 1),
+            num(&i["mpe_um_per_m"], 1)
+        )
+    };
+    let t = &c["temperature"];
+    let temperature = if t.is_null() {
+        not_stated("a <code>temperature_c</code> column in the data")
+    } else {
+        format!(
+            "{} to {}&nbsp;&deg;C over {} poses",
+            num(&t["min_c"], 2),
+            num(&t["max_c"], 2),
+            text(&t["poses"])
+        )
+    };
+    writeln!(
+        page,
+        "<table>\n<tr><td>robot serial</td><td>{serial}</td></tr>\n<tr><td>payload while measured</td><td>{payload}</td></tr>\n\
+         <tr><td>instrument</td><td>{instrument}</td></tr>\n<tr><td>air temperature</td><td>{temperature}</td></tr>\n</table>"
+    )?;
+    Ok(())
+}
+
+/// The certificate's caveats (`caveats`), or that none was found.
+fn caveats(page: &mut String, caveats: &Value) -> crate::Result<()> {
+    let Some(list) = caveats.as_array().filter(|l| !l.is_empty()) else {
+        page.push_str("<p>Caveats: none found (plan check, cross-validation, joint ranges of the held-out poses against the calibration poses', predicted band).</p>\n");
+        return Ok(());
+    };
+    page.push_str("<p>Caveats:</p>\n<ul class=\"caveats\">\n");
+    for c in list {
+        let lines: Vec<String> = (c["lines"].as_array().into_iter().flatten())
+            .map(text)
+            .collect();
+        let shown = lines
+            .iter()
+            .take(20)
+            .cloned()
+            .collect::<Vec<_>>()
+            .join(", ");
+        let more = lines.len().saturating_sub(20);
+        let lines = match (lines.is_empty(), more) {
+            (true, _) => String::new(),
+            (false, 0) => format!(" (lines {shown})"),
+            (false, more) => format!(" (lines {shown} and {more} more)"),
+        };
+        writeln!(page, "<li>{}{lines}</li>", text(&c["text"]))?;
+    }
+    page.push_str("</ul>\n");
+    Ok(())
+}
+
+/// The worst regions of the workspace map (`held_out.workspace`), measured and predicted.
+fn workspace_regions(page: &mut String, map: &Value) -> crate::Result<()> {
+    if map.is_null() {
+        return Ok(());
+    }
+    let range = |r: &Value| {
+        let n = numbers(r);
+        match n.as_slice() {
+            [lo, hi] => format!("{lo:.0}&nbsp;..&nbsp;{hi:.0}"),
+            _ => "-".to_owned(),
+        }
+    };
+    let row = |r: &Value, what: &str| {
+        format!(
+            "<tr><td>{what}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{} (line {})</td><td>{}</td></tr>\n",
+            range(&r["x_mm"]),
+            range(&r["y_mm"]),
+            range(&r["z_mm"]),
+            text(&r["poses"]),
+            num(&r["mean_mm"], 4),
+            num(&r["max_mm"], 4),
+            text(&r["max_line"]),
+            num(&r["predicted_rms_mm"], 4)
+        )
+    };
+    let mut rows: String = (map["worst"].as_array().into_iter().flatten())
+        .map(|r| row(r, "worst measured"))
+        .collect();
+    if !map["worst_predicted"].is_null() {
+        rows.push_str(&row(&map["worst_predicted"], "largest predicted"));
+    }
+    writeln!(
+        page,
+        "<table>\n<caption>Where the held-out error remains: {} poses in {} regions (terciles of x, y and z in the robot's base frame; the map is under Plots)</caption>\n\
+         <tr><th>region</th><th>x, mm</th><th>y, mm</th><th>z, mm</th><th>poses</th><th>mean |dp|, mm</th><th>max |dp|, mm</th><th>predicted RMS, mm</th></tr>\n{rows}</table>",
+        text(&map["poses"]),
+        map["regions"].as_array().map_or(0, Vec::len)
+    )?;
+    Ok(())
+}
+
 /// The accuracy on the held-out poses (`held_out`): the acceptance statement, the percentiles
 /// and the per-axis errors before and after, the largest and the flagged poses by line.
 fn accuracy(page: &mut String, report: &Value) -> crate::Result<()> {
@@ -288,6 +416,7 @@ fn accuracy(page: &mut String, report: &Value) -> crate::Result<()> {
         return Ok(());
     }
     acceptance_stamp(page, &report["acceptance"])?;
+    caveats(page, &report["caveats"])?;
     writeln!(
         page,
         "<table>\n<tr><th>model ({} poses)</th><th>50&nbsp;%</th><th>95&nbsp;%</th><th>99&nbsp;%</th><th>max</th><th>x mean &plusmn; std</th><th>y mean &plusmn; std</th><th>z mean &plusmn; std</th></tr>",
@@ -340,6 +469,7 @@ fn accuracy(page: &mut String, report: &Value) -> crate::Result<()> {
             text(&iso["rp_max_lines"])
         )?;
     }
+    workspace_regions(page, &held["workspace"])?;
     let flagged = &held["flagged"];
     if flagged.as_array().is_none_or(Vec::is_empty) {
         writeln!(
@@ -542,6 +672,12 @@ fn identifiability(page: &mut String, report: &Value) -> crate::Result<()> {
 
 fn plots(page: &mut String, report: &Value) -> crate::Result<()> {
     let per_pose = &report["per_pose"];
+    // Reports written before the lines were recorded have none: their poses are numbered.
+    let lines = |v: &Value| -> Vec<u64> {
+        v.as_array()
+            .map(|a| a.iter().filter_map(Value::as_u64).collect())
+            .unwrap_or_default()
+    };
     let axes = |v: &Value| -> Vec<[f64; 3]> {
         v.as_array()
             .map(|a| {
@@ -574,12 +710,16 @@ fn plots(page: &mut String, report: &Value) -> crate::Result<()> {
     let data = crate::report::plots::PlotData {
         history: &history,
         title: "absolute position error per calibration pose",
+        lines: &lines(&per_pose["lines"]),
+        orientation_lines: &lines(&per_pose["orientation_lines"]),
         before: &before,
         after: &after,
         orientation_before: &orientation_before,
         orientation_after: &orientation_after,
         validation_before: &validation_before,
         validation_after: &validation_after,
+        validation_positions: &axes(&per_pose["validation_position_mm"]),
+        validation_predicted: &numbers(&per_pose["validation_predicted_rms_mm"]),
         joint_maps: &[],
     };
     page.push_str("<h2 id=\"plots\">Plots</h2>\n");

@@ -1,6 +1,8 @@
 //! Plots of a calibration (SVG and PNG): the convergence curve of the swarm (paper Fig. 2), the
 //! absolute position error of every pose before and after calibration (paper Fig. 3 / Fig. 7),
-//! the orientation error per axis, and a histogram of the validation errors.
+//! the orientation error per axis (each pose a point at its data file line, never joined to
+//! unrelated poses), a histogram of the validation errors and the held-out error over the
+//! workspace (measured and predicted, top and side views).
 //! Text is drawn with the bundled DejaVu Sans font, so PNGs need no system fonts.
 
 use plotters::coord::Shift;
@@ -90,29 +92,47 @@ where
     Ok(())
 }
 
-/// Draws values per pose, before (red) and after (blue).
+/// The x value of each of `n` poses: its data file line from `lines` when there is one per
+/// pose, else its 1-based position; and the axis' name.
+fn pose_positions(lines: &[u64], n: usize) -> (Vec<f64>, &'static str) {
+    if lines.len() == n && n > 0 {
+        (lines.iter().map(|l| *l as f64).collect(), "data file line")
+    } else {
+        ((1..=n).map(|i| i as f64).collect(), "pose")
+    }
+}
+
+/// Poses labelled with their line in a per-pose plot: the largest values after calibration.
+const LABELLED: usize = 3;
+
+/// Draws values per pose as unconnected points at each pose's data file line (`lines`), before
+/// (red) and after (blue), the [`LABELLED`] largest after-values labelled with their line.
 fn per_pose<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
-    title: &str,
-    y_desc: &str,
+    (title, y_desc): (&str, &str),
+    lines: &[u64],
     before: &[f64],
     after: &[f64],
 ) -> crate::Result<()>
 where
     DB::ErrorType: 'static,
 {
-    let n = before.len().max(after.len()).max(1);
-    let hi = finite_max(before.iter().chain(after).copied()) * 1.1;
+    let n = before.len().max(after.len());
+    let (x, x_desc) = pose_positions(lines, n);
+    let lo = x.iter().copied().fold(f64::INFINITY, f64::min).min(1.0);
+    let x_hi = x.iter().copied().fold(1.0, f64::max);
+    let pad = ((x_hi - lo) * 0.02).max(0.5);
+    let hi = finite_max(before.iter().chain(after).copied()) * 1.15;
     let mut chart = ChartBuilder::on(area)
         .caption(title, (FONT, 20))
         .margin(10)
         .x_label_area_size(40)
         .y_label_area_size(70)
-        .build_cartesian_2d(0.5f64..n as f64 + 0.5, 0.0..hi)
+        .build_cartesian_2d(lo - pad..x_hi + pad, 0.0..hi)
         .map_err(crate::Error::plot)?;
     chart
         .configure_mesh()
-        .x_desc("pose")
+        .x_desc(x_desc)
         .y_desc(y_desc)
         .x_label_formatter(&|v| format!("{v:.0}"))
         .label_style((FONT, 14))
@@ -123,20 +143,25 @@ where
         (after, BLUE, "after calibration"),
     ];
     for (values, color, label) in series {
-        let points: Vec<(f64, f64)> = values
-            .iter()
-            .enumerate()
-            .map(|(i, v)| ((i + 1) as f64, *v))
-            .collect();
-        chart
-            .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))
-            .map_err(crate::Error::plot)?
-            .label(label)
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-            });
+        let points: Vec<(f64, f64)> = x.iter().copied().zip(values.iter().copied()).collect();
         chart
             .draw_series(points.iter().map(|p| Circle::new(*p, 3, color.filled())))
+            .map_err(crate::Error::plot)?
+            .label(label)
+            .legend(move |(x, y)| Circle::new((x + 10, y), 3, color.filled()));
+    }
+    if x_desc == "data file line" {
+        let mut largest: Vec<(f64, f64)> = x.iter().copied().zip(after.iter().copied()).collect();
+        largest.sort_by(|a, b| b.1.total_cmp(&a.1));
+        largest.truncate(LABELLED);
+        chart
+            .draw_series(largest.iter().map(|(line, value)| {
+                Text::new(
+                    format!("line {line:.0}"),
+                    (*line, *value + hi * 0.02),
+                    (FONT, 13).into_font().color(&BLUE),
+                )
+            }))
             .map_err(crate::Error::plot)?;
     }
     chart
@@ -160,8 +185,8 @@ where
     area.fill(&WHITE).map_err(crate::Error::plot)?;
     per_pose(
         area,
-        plots.title,
-        "absolute position error |dp| (mm)",
+        (plots.title, "absolute position error |dp| (mm)"),
+        plots.lines,
         plots.before,
         plots.after,
     )?;
@@ -172,6 +197,7 @@ where
 /// Draws the orientation error per axis (three panels) before and after.
 fn orientation_errors<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
+    lines: &[u64],
     before: &[[f64; 3]],
     after: &[[f64; 3]],
 ) -> crate::Result<()>
@@ -184,10 +210,130 @@ where
         let name = ["x", "y", "z"][axis];
         per_pose(
             panel,
-            &format!("orientation error about {name} per calibration pose"),
-            &format!("|dr_{name}| (deg)"),
+            (
+                &format!("orientation error about {name} per calibration pose"),
+                &format!("|dr_{name}| (deg)"),
+            ),
+            lines,
             &pick(before),
             &pick(after),
+        )?;
+    }
+    area.present().map_err(crate::Error::plot)?;
+    Ok(())
+}
+
+/// A colour from blue (0) to red (`t` = 1) for a value's share `t` of the largest.
+fn heat(t: f64) -> HSLColor {
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    HSLColor(0.66 * (1.0 - t), 0.9, 0.45)
+}
+
+/// Draws the held-out poses at their base-frame positions coloured by `values` (blue 0 to red
+/// at the largest): a top view (x, y) and a side view (x, z) side by side in `area`.
+fn workspace_views<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    what: &str,
+    positions: &[[f64; 3]],
+    values: &[f64],
+) -> crate::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let hi = finite_max(values.iter().copied());
+    // The largest values drawn last, on top.
+    let mut order: Vec<usize> = (0..positions.len().min(values.len())).collect();
+    order.sort_by(|a, b| values[*a].total_cmp(&values[*b]));
+    let range = |axis: usize| {
+        let (lo, hi) = positions
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |r, p| {
+                (r.0.min(p[axis]), r.1.max(p[axis]))
+            });
+        let pad = ((hi - lo) * 0.05).max(1.0);
+        if lo.is_finite() && hi.is_finite() {
+            lo - pad..hi + pad
+        } else {
+            -1.0..1.0
+        }
+    };
+    for (panel, (vertical, view)) in area
+        .split_evenly((1, 2))
+        .iter()
+        .zip([(1, "top view"), (2, "side view")])
+    {
+        let name = ["x", "y", "z"][vertical];
+        let mut chart = ChartBuilder::on(panel)
+            .caption(format!("{what}, {view}"), (FONT, 17))
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(range(0), range(vertical))
+            .map_err(crate::Error::plot)?;
+        chart
+            .configure_mesh()
+            .x_desc("x, base frame (mm)")
+            .y_desc(format!("{name}, base frame (mm)"))
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .y_label_formatter(&|v| format!("{v:.0}"))
+            .label_style((FONT, 13))
+            .draw()
+            .map_err(crate::Error::plot)?;
+        chart
+            .draw_series(order.iter().map(|i| {
+                let p = positions[*i];
+                Circle::new((p[0], p[vertical]), 3, heat(values[*i] / hi).filled())
+            }))
+            .map_err(crate::Error::plot)?;
+    }
+    Ok(())
+}
+
+/// Draws the held-out error over the workspace: the measured error after calibration and, when
+/// known, the error the parameters' covariance predicts, each in a top and a side view.
+fn workspace<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    plots: &PlotData<'_>,
+) -> crate::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    area.fill(&WHITE).map_err(crate::Error::plot)?;
+    let scale = |values: &[f64]| {
+        format!(
+            "(blue 0 to red {:.3} mm)",
+            finite_max(values.iter().copied())
+        )
+    };
+    let measured = format!(
+        "held-out |dp| after calibration {}",
+        scale(plots.validation_after)
+    );
+    let predicted = format!("predicted RMS error {}", scale(plots.validation_predicted));
+    if plots.validation_predicted.len() == plots.validation_positions.len() {
+        let rows = area.split_evenly((2, 1));
+        workspace_views(
+            &rows[0],
+            &measured,
+            plots.validation_positions,
+            plots.validation_after,
+        )?;
+        workspace_views(
+            &rows[1],
+            &predicted,
+            plots.validation_positions,
+            plots.validation_predicted,
+        )?;
+    } else {
+        workspace_views(
+            area,
+            &measured,
+            plots.validation_positions,
+            plots.validation_after,
         )?;
     }
     area.present().map_err(crate::Error::plot)?;
@@ -336,6 +482,10 @@ pub(crate) struct PlotData<'a> {
     pub history: &'a [(u32, f64)],
     /// Title of the position error plot.
     pub title: &'a str,
+    /// The data file's line of each calibration pose (empty: poses are numbered).
+    pub lines: &'a [u64],
+    /// The data file's line of each calibration pose with an orientation.
+    pub orientation_lines: &'a [u64],
     /// `|dp|` per calibration pose before and after, mm.
     pub before: &'a [f64],
     /// After calibration.
@@ -349,13 +499,25 @@ pub(crate) struct PlotData<'a> {
     pub validation_before: &'a [f64],
     /// After calibration.
     pub validation_after: &'a [f64],
+    /// The base-frame position of each validation pose, mm (empty: no workspace map).
+    pub validation_positions: &'a [[f64; 3]],
+    /// The predicted RMS error at each validation pose, mm (empty without a covariance).
+    pub validation_predicted: &'a [f64],
     /// The identified joint maps (empty for a geometric calibration).
     pub joint_maps: &'a [crate::calibration::maps::MapCurve],
 }
 
+impl PlotData<'_> {
+    /// `true` when the validation poses have positions to map.
+    fn has_workspace(&self) -> bool {
+        !self.validation_positions.is_empty()
+            && self.validation_positions.len() == self.validation_after.len()
+    }
+}
+
 /// Stages into `dir` (see [`crate::io::outputs::Outputs`]), each as SVG and PNG: `convergence` (with
 /// the swarm), `position-error`, `orientation-error` (with orientation data) and
-/// `validation-histogram` (with validation poses) and `joint-maps` (with joint maps). Nothing is replaced until the outputs are
+/// `validation-histogram` and `workspace-error` (with validation poses) and `joint-maps` (with joint maps). Nothing is replaced until the outputs are
 /// committed.
 pub(crate) fn stage_plots(
     outputs: &mut crate::io::outputs::Outputs,
@@ -397,7 +559,12 @@ pub(crate) fn stage_plots(
     both!("position-error", SIZE, |area| position_errors(&area, plots));
     if !plots.orientation_after.is_empty() {
         both!("orientation-error", (SIZE.0, SIZE.1 * 2), |area| {
-            orientation_errors(&area, plots.orientation_before, plots.orientation_after)
+            orientation_errors(
+                &area,
+                plots.orientation_lines,
+                plots.orientation_before,
+                plots.orientation_after,
+            )
         });
     }
     if !plots.joint_maps.is_empty() {
@@ -412,6 +579,11 @@ pub(crate) fn stage_plots(
             plots.validation_before,
             plots.validation_after
         ));
+    }
+    if plots.has_workspace() {
+        both!("workspace-error", (SIZE.0 + 300, SIZE.1 * 2), |area| {
+            workspace(&area, plots)
+        });
     }
     Ok(())
 }
@@ -450,7 +622,14 @@ pub(crate) fn svg_plots(
             "orientation-error",
             "Orientation error per axis of every calibration pose.",
             (SIZE.0, SIZE.1 * 2),
-            &|area| orientation_errors(area, plots.orientation_before, plots.orientation_after),
+            &|area| {
+                orientation_errors(
+                    area,
+                    plots.orientation_lines,
+                    plots.orientation_before,
+                    plots.orientation_after,
+                )
+            },
         )?;
     }
     if !plots.history.is_empty() {
@@ -467,6 +646,14 @@ pub(crate) fn svg_plots(
             "Position errors of the held-out validation poses, nominal and identified model.",
             SIZE,
             &|area| histogram(area, plots.validation_before, plots.validation_after),
+        )?;
+    }
+    if plots.has_workspace() {
+        draw(
+            "workspace-error",
+            "Held-out poses over the workspace, seen from above and from the side: the measured error after calibration and the error the parameters' covariance predicts.",
+            (SIZE.0 + 300, SIZE.1 * 2),
+            &|area| workspace(area, plots),
         )?;
     }
     Ok(out)

@@ -118,6 +118,12 @@ impl CalibrationResult {
         if let Some(held_out) = &self.held_out {
             text.push_str(&held_out.text());
         }
+        if let Some(conditions) = &self.conditions {
+            text.push_str(&conditions.text());
+        }
+        if self.validation.is_some() {
+            text.push_str(&caveats_text(&self.caveats));
+        }
         if let Some(uncertainty) = &self.uncertainty {
             text.push_str("  ");
             text.push_str(&uncertainty.text());
@@ -271,4 +277,16 @@ impl CalibrationResult {
         }
         text
     }
+}
+
+/// The certificate's caveats, one per line; a line saying none was found when there is none.
+fn caveats_text(caveats: &[crate::analysis::caveats::Caveat]) -> String {
+    if caveats.is_empty() {
+        return "caveats: none (plan check, cross-validation, joint ranges of the held-out poses, predicted band)\n".to_owned();
+    }
+    let mut text = String::from("caveats:\n");
+    for c in caveats {
+        text.push_str(&format!("  - {}\n", c.line()));
+    }
+    text
 }
