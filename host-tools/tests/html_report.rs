@@ -116,6 +116,19 @@ fn the_html_report_holds_everything_and_nothing_external() {
         "{:.4}",
         worst["predicted_rms_mm"].as_f64().unwrap()
     )));
+    // No plan: the plan check is not made; the cross-validation, better than nominal, is stated.
+    let paragraphs = select(&page, "p");
+    assert!(
+        paragraphs
+            .iter()
+            .any(|p| p.starts_with("Plan check: not made"))
+    );
+    let cv = &json["cross_validation"];
+    assert!(paragraphs.iter().any(|p| p.contains(&format!(
+        "{:.4}\u{a0}mm mean error predicted by the calibration, {:.4}\u{a0}mm by the nominal model: better than nominal",
+        cv["calibrated_mean_mm"].as_f64().unwrap(),
+        cv["nominal_mean_mm"].as_f64().unwrap()
+    ))), "{paragraphs:?}");
     // The frames the data chose are shown as identified (not "-").
     assert!(cells.contains(&"base+tool (chosen from the data)".to_string()));
     // Every parameter, with its value in the unit shown.

@@ -368,6 +368,24 @@ fn plan_measure_calibrate_end_to_end() {
         c.text
     );
     assert!(c.text.contains("largest leverage:") && c.text.contains("largest residual:"));
+    // The certificate's caveats carry the gap too (issue 41).
+    let caveat = (c.result.caveats.iter())
+        .find(|k| k.kind == host_tools::analysis::caveats::CaveatKind::PlanCheck)
+        .unwrap();
+    assert!(
+        caveat.text.starts_with(&format!(
+            "the plan's 15 verification poses measured {:.4} mm mean error, above the {:.4} mm",
+            check.measured_mean_mm, check.predicted.high_mm
+        )),
+        "{}",
+        caveat.text
+    );
+    assert!(
+        c.text
+            .contains("caveats:\n  - the plan's 15 verification poses"),
+        "{}",
+        c.text
+    );
     // The poses listed by residual are the fitted poses of the largest residuals.
     let mut residuals: Vec<f64> = c.result.poses.iter().map(|p| p.after_mm).collect();
     residuals.sort_by(|a, b| b.total_cmp(a));

@@ -264,13 +264,62 @@ fn the_predicted_95_percent_band_holds_95_percent_of_held_out_poses() {
     ]));
     assert!(out.contains("of 2060 configurations"), "{out}");
     let mut reader = csv::Reader::from_path(d.join("u.csv")).unwrap();
-    let sd_by_id: std::collections::HashMap<String, f64> = reader
+    let rows: Vec<(String, f64, [f64; 3])> = reader
         .records()
         .map(|r| {
             let r = r.unwrap();
-            (r[0].to_string(), r[10].parse().unwrap())
+            let xyz = [14, 15, 16].map(|c| r[c].parse::<f64>().unwrap());
+            (r[0].to_string(), r[10].parse().unwrap(), xyz)
         })
         .collect();
+    let sd_by_id: std::collections::HashMap<String, f64> =
+        rows.iter().map(|(id, sd, _)| (id.clone(), *sd)).collect();
+    // The positions are the identified file's nominal pose at the row's joints, as `calib fk`
+    // prints it (the file's base is the robot's: no transform).
+    let mut reader = csv::Reader::from_path(d.join("u.csv")).unwrap();
+    let first = reader.records().next().unwrap().unwrap();
+    let joints: Vec<&str> = (1..7).map(|c| &first[c]).collect();
+    let fk: Value = serde_json::from_str(&ok(&calib(&[
+        "fk",
+        "--robot",
+        common::arg(&d.join("identified.toml")),
+        "--joints-deg",
+        &joints.join(","),
+        "--json",
+    ])))
+    .unwrap();
+    for a in 0..3 {
+        let expected = fk["position_mm"][a].as_f64().unwrap();
+        assert!(
+            (rows[0].2[a] - expected).abs() < 1e-6,
+            "{a}: {} vs {expected}",
+            rows[0].2[a]
+        );
+    }
+    // The region of largest mean predicted uncertainty, from the file's positions and standard
+    // deviations: terciles of x, y and z, computed again.
+    let cut = |a: usize| {
+        let mut v: Vec<f64> = rows.iter().map(|r| r.2[a]).collect();
+        v.sort_by(|x, y| x.partial_cmp(y).unwrap());
+        [v[v.len() / 3], v[2 * v.len() / 3]]
+    };
+    let cuts = [cut(0), cut(1), cut(2)];
+    let mut cells: std::collections::BTreeMap<[usize; 3], Vec<f64>> = Default::default();
+    for (_, sd, p) in &rows {
+        let bin = |a: usize| cuts[a].iter().filter(|c| p[a] >= **c).count();
+        cells.entry([bin(0), bin(1), bin(2)]).or_default().push(*sd);
+    }
+    let worst = (cells.values())
+        .filter(|v| v.len() >= 3)
+        .map(|v| (v.iter().sum::<f64>() / v.len() as f64, v.len()))
+        .fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
+    assert!(
+        out.contains(&format!(
+            "mean {:.4} mm over {} configurations",
+            worst.0, worst.1
+        )),
+        "{out} {worst:?}"
+    );
     // Our simulated files name pose P<k> on line k + 4 (three comment lines and the header).
     let held: Vec<f64> = (json["per_pose"]["validation_lines"]
         .as_array()

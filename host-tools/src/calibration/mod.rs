@@ -161,8 +161,8 @@ pub fn calibrate(
     accuracy_and_plausibility(result, (&calibration_joints, validation.as_ref()), config)
 }
 
-/// The caveats of the certificate ([`crate::analysis::caveats`]): the plan check's gap, a
-/// cross-validation worse than nominal, held-out poses outside the joint ranges of the
+/// The caveats of the certificate ([`crate::analysis::caveats`]; `calib calibrate` adds the plan
+/// check's gap, [`crate::planning::PlanCheck::caveat`]): a cross-validation worse than nominal, held-out poses outside the joint ranges of the
 /// calibration poses (`calibration_joints`, rad), held-out errors beyond the predicted band, an
 /// implausible result kept.
 fn caveats(
@@ -179,16 +179,6 @@ fn caveats(
         lines: Vec::new(),
     };
     let mut out = Vec::new();
-    if let Some(check) = result.plan_check.as_ref().filter(|c| c.gap) {
-        out.push(whole(
-            CaveatKind::PlanCheck,
-            format!(
-                "the plan's {} verification poses measured {:.4} mm mean error, above the {:.4} mm the plan allowed: \
-                 the model misses an error the plan assumed absent",
-                check.poses, check.measured_mean_mm, check.predicted.high_mm
-            ),
-        ));
-    }
     if let Some(cv) = result.cross_validation.filter(|cv| cv.worse_than_nominal()) {
         out.push(whole(
             CaveatKind::CrossValidation,

@@ -347,7 +347,7 @@ fn with_plan_check(
         .zip(&result.poses)
         .map(|(r, p)| (r.id.clone(), r.q.clone(), p.after_mm))
         .collect();
-    result.plan_check = Some(crate::planning::check_plan(
+    let check = crate::planning::check_plan(
         predicted,
         validation.after.position_mm.mean,
         validation.poses,
@@ -356,7 +356,9 @@ fn with_plan_check(
         &poses,
         measure,
         config.k,
-    ));
+    );
+    result.caveats.extend(check.caveat());
+    result.plan_check = Some(check);
     result
 }
 

@@ -24,7 +24,8 @@ pub struct UncertaintyOptions {
     #[arg(long, value_name = "FILE")]
     pub profile: Option<PathBuf>,
     /// Output CSV: per configuration its id, joints, and the standard deviations sd_x_mm, sd_y_mm,
-    /// sd_z_mm, sd_mm (RMS of the position error), sd_rx_deg, sd_ry_deg, sd_rz_deg.
+    /// sd_z_mm, sd_mm (RMS of the position error), sd_rx_deg, sd_ry_deg, sd_rz_deg, then the
+    /// nominal position x_mm, y_mm, z_mm in the robot's base frame.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
 }
@@ -38,10 +39,36 @@ pub struct Summary {
     pub mean_mm: f64,
     /// The largest, mm, with its configuration's id and file line.
     pub worst: Vec<(String, u64, f64)>,
+    /// The regions of the workspace (terciles of the configurations' nominal positions in the
+    /// robot's base frame, [`crate::analysis::workspace`]) of largest mean predicted uncertainty:
+    /// their `mean_mm` and `max_mm` are the predicted RMS standard deviation, mm.
+    pub worst_regions: Vec<crate::analysis::workspace::Region>,
 }
 
 /// How many of the worst configurations the summary names.
 const WORST_NAMED: usize = 3;
+
+/// The position (mm) of the robot file's nominal model at each of `q` (rad), in the robot's base
+/// frame: where in the workspace each configuration puts the tool.
+fn nominal_positions(
+    file: &RobotFile,
+    path: &std::path::Path,
+    q: &[Vec<f64>],
+) -> anyhow::Result<Vec<[f64; 3]>> {
+    let model = file.to_model(path)?;
+    let kinematics = calib_core::Kinematics::nominal(&model.robot)?;
+    let [roll, pitch, yaw] = model.robot.base.rpy;
+    let to_base = nalgebra::Rotation3::from_euler_angles(roll, pitch, yaw).inverse();
+    let origin = nalgebra::Vector3::from(model.robot.base.xyz);
+    q.iter()
+        .map(|q| {
+            let q = calib_core::model::JointVec::from_slice(q)
+                .ok_or_else(|| anyhow::anyhow!("more than 9 joints"))?;
+            let p = to_base * (kinematics.forward(&q)?.translation.vector - origin);
+            Ok([p.x, p.y, p.z])
+        })
+        .collect()
+}
 
 /// Runs `calib uncertainty`; writes `--out` and returns the summary.
 pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
@@ -59,6 +86,7 @@ pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
     }
     let q: Vec<Vec<f64>> = data.records.iter().map(|r| r.q.clone()).collect();
     let sds = crate::analysis::uncertainty::at_poses(&file, &options.params, &q)?;
+    let positions = nominal_positions(&file, &options.params, &q)?;
     let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header = vec!["id".to_string()];
     header.extend((1..=data.joints).map(|j| format!("q{j}_deg")));
@@ -71,17 +99,21 @@ pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
             "sd_rx_deg",
             "sd_ry_deg",
             "sd_rz_deg",
+            "x_mm",
+            "y_mm",
+            "z_mm",
         ]
         .map(String::from),
     );
     writer.write_record(&header)?;
-    for (r, sd) in data.records.iter().zip(&sds) {
+    for ((r, sd), p) in data.records.iter().zip(&sds).zip(&positions) {
         let mut row = vec![r.id.clone()];
         row.extend(r.q.iter().map(|v| v.to_degrees().to_string()));
         row.extend(
             (sd.position_mm.iter())
                 .chain([&sd.position_rms_mm])
                 .chain(&sd.orientation_deg)
+                .chain(p)
                 .map(|v| format!("{v:e}")),
         );
         writer.write_record(&row)?;
@@ -97,7 +129,14 @@ pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
         .collect();
     worst.sort_by(|a, b| b.2.total_cmp(&a.2));
     worst.truncate(WORST_NAMED);
+    let rms: Vec<f64> = sds.iter().map(|s| s.position_rms_mm).collect();
+    let lines: Vec<u64> = data.records.iter().map(|r| r.line).collect();
+    let worst_regions =
+        crate::analysis::workspace::WorkspaceMap::of(&positions, &rms, &lines, None)
+            .map(|m| m.worst)
+            .unwrap_or_default();
     Ok(Summary {
+        worst_regions,
         poses: sds.len(),
         mean_mm: sds.iter().map(|s| s.position_rms_mm).sum::<f64>() / sds.len().max(1) as f64,
         worst,
@@ -110,12 +149,26 @@ impl Summary {
         let worst: Vec<String> = (self.worst.iter())
             .map(|(id, line, sd)| format!("{id} (line {line}) {sd:.4} mm"))
             .collect();
-        format!(
-            "predicted position uncertainty (1 sigma, RMS over x, y, z) of {} configurations: mean {:.4} mm; largest: {}; wrote {}\n",
+        let mut text = format!(
+            "predicted position uncertainty (1 sigma, RMS over x, y, z) of {} configurations: mean {:.4} mm; largest: {}\n",
             self.poses,
             self.mean_mm,
             worst.join(", "),
-            out.display()
-        )
+        );
+        if !self.worst_regions.is_empty() {
+            text.push_str("regions of largest predicted uncertainty (terciles of x, y and z in the base frame):\n");
+        }
+        for r in &self.worst_regions {
+            text.push_str(&format!(
+                "  {}: mean {:.4} mm over {} configurations, max {:.4} mm (line {})\n",
+                r.bounds_text(),
+                r.mean_mm,
+                r.poses,
+                r.max_mm,
+                r.max_line
+            ));
+        }
+        text.push_str(&format!("wrote {}\n", out.display()));
+        text
     }
 }

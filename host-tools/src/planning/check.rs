@@ -28,6 +28,19 @@ impl PlanCheck {
     /// Poses listed in each of the two lists.
     pub(crate) const LISTED: usize = 3;
 
+    /// The certificate's caveat when the verification poses missed the prediction (`gap`).
+    pub fn caveat(&self) -> Option<crate::analysis::caveats::Caveat> {
+        self.gap.then(|| crate::analysis::caveats::Caveat {
+            kind: crate::analysis::caveats::CaveatKind::PlanCheck,
+            text: format!(
+                "the plan's {} verification poses measured {:.4} mm mean error, above the {:.4} mm the plan allowed: \
+                 the model misses an error the plan assumed absent",
+                self.poses, self.measured_mean_mm, self.predicted.high_mm
+            ),
+            lines: Vec::new(),
+        })
+    }
+
     /// Text for people.
     pub fn text(&self) -> String {
         let p = &self.predicted;

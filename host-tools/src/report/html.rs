@@ -336,6 +336,48 @@ fn conditions(page: &mut String, c: &Value) -> crate::Result<()> {
     Ok(())
 }
 
+/// The plan check (`plan_check`) and the cross-validation (`cross_validation`) as the
+/// certificate states them, passed or not.
+fn checks(page: &mut String, report: &Value) -> crate::Result<()> {
+    let check = &report["plan_check"];
+    if check.is_null() {
+        page.push_str("<p>Plan check: not made (the data are not a measured plan with verification poses).</p>\n");
+    } else {
+        let p = &check["predicted"];
+        writeln!(
+            page,
+            "<p>Plan check: {} verification poses measured {}&nbsp;mm mean error; the plan predicted {}&nbsp;mm (95&nbsp;% range {} to {}&nbsp;mm): {}.</p>",
+            text(&check["poses"]),
+            num(&check["measured_mean_mm"], 4),
+            num(&p["mean_mm"], 4),
+            num(&p["low_mm"], 4),
+            num(&p["high_mm"], 4),
+            if check["gap"] == true {
+                "<strong>above the range</strong>"
+            } else {
+                "within the prediction"
+            }
+        )?;
+    }
+    let cv = &report["cross_validation"];
+    if !cv.is_null() {
+        let worse = cv["calibrated_mean_mm"].as_f64() > cv["nominal_mean_mm"].as_f64();
+        writeln!(
+            page,
+            "<p>Cross-validation ({} folds of the calibration poses): {}&nbsp;mm mean error predicted by the calibration, {}&nbsp;mm by the nominal model: {}.</p>",
+            text(&cv["folds"]),
+            num(&cv["calibrated_mean_mm"], 4),
+            num(&cv["nominal_mean_mm"], 4),
+            if worse {
+                "<strong>worse than nominal</strong>"
+            } else {
+                "better than nominal"
+            }
+        )?;
+    }
+    Ok(())
+}
+
 /// The certificate's caveats (`caveats`), or that none was found.
 fn caveats(page: &mut String, caveats: &Value) -> crate::Result<()> {
     let Some(list) = caveats.as_array().filter(|l| !l.is_empty()) else {
@@ -470,6 +512,7 @@ fn accuracy(page: &mut String, report: &Value) -> crate::Result<()> {
         )?;
     }
     workspace_regions(page, &held["workspace"])?;
+    checks(page, report)?;
     let flagged = &held["flagged"];
     if flagged.as_array().is_none_or(Vec::is_empty) {
         writeln!(
@@ -657,15 +700,6 @@ fn identifiability(page: &mut String, report: &Value) -> crate::Result<()> {
              with --auto-mask), then, while the pose set is ill-conditioned (scaled condition number \
              above 1000), the parameter with the largest share of the least determined direction.</p>\n",
         );
-    }
-    if let Some(cv) = report["cross_validation"].as_object() {
-        writeln!(
-            page,
-            "<p>Cross-validation ({} folds of the calibration poses): mean error {} mm predicted by the calibration, {} mm by the nominal model.</p>",
-            text(&cv["folds"].clone()),
-            num(&cv["calibrated_mean_mm"].clone(), 4),
-            num(&cv["nominal_mean_mm"].clone(), 4)
-        )?;
     }
     Ok(())
 }
