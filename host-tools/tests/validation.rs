@@ -327,6 +327,32 @@ fn the_predicted_95_percent_band_holds_95_percent_of_held_out_poses() {
         .iter())
     .map(|l| sd_by_id[&format!("P{:03}", l.as_u64().unwrap() - 4)])
     .collect();
+    // With an instrument stated (MPE 50 um, read as 2 sigma; the file has no tracker, so at its
+    // constant part): each row adds its noise, and the RMS a measurement would show.
+    std::fs::write(
+        d.join("instrument.toml"),
+        "[instrument]\nname = \"test\"\nmpe_um = 50\n",
+    )
+    .unwrap();
+    ok(&calib(&[
+        "uncertainty",
+        "--params",
+        common::arg(&d.join("identified.toml")),
+        "--joints",
+        common::arg(&d.join("sim5.csv")),
+        "--profile",
+        common::arg(&d.join("instrument.toml")),
+        "--out",
+        common::arg(&d.join("w.csv")),
+    ]));
+    let mut reader = csv::Reader::from_path(d.join("w.csv")).unwrap();
+    assert_eq!(&reader.headers().unwrap()[17], "sd_instrument_mm");
+    for (r, (_, sd, _)) in reader.records().zip(&rows) {
+        let r = r.unwrap();
+        let (noise, measured): (f64, f64) = (r[17].parse().unwrap(), r[18].parse().unwrap());
+        assert!((noise - 0.025).abs() < 1e-15);
+        assert!((measured - (sd * sd + 3.0 * 0.025 * 0.025).sqrt()).abs() < 1e-12);
+    }
     let u = &json["uncertainty"];
     let scale = 0.05 / json["least_squares"]["sigma_mm"].as_f64().unwrap();
     let held: Vec<f64> = held.iter().map(|v| v * scale).collect();

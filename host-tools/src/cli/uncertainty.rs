@@ -1,7 +1,9 @@
 //! `calib uncertainty`: the identified model's predicted uncertainty at joint configurations
 //! ([`crate::analysis::uncertainty::at_poses`]): per pose the standard deviation of the position
 //! (of the measured point) along the robot's base axes and of the orientation about them, from
-//! the parameters' covariance the identified robot file records; the worst poses named.
+//! the parameters' covariance the identified robot file records, and with the instrument a data
+//! profile states (`[instrument]`) what a measurement of the pose would show; the worst poses and
+//! the regions of the workspace of largest uncertainty named.
 
 use crate::io::outputs::Outputs;
 use crate::io::profile::DataProfile;
@@ -20,12 +22,16 @@ pub struct UncertaintyOptions {
     /// columns are ignored: a plan, a data file or a program's joint targets).
     #[arg(long, value_name = "FILE")]
     pub joints: PathBuf,
-    /// Data profile of the configurations file.
+    /// Data profile of the configurations file; its `[instrument]` adds the measurement's noise
+    /// (sd_instrument_mm, sd_measured_mm).
     #[arg(long, value_name = "FILE")]
     pub profile: Option<PathBuf>,
     /// Output CSV: per configuration its id, joints, and the standard deviations sd_x_mm, sd_y_mm,
     /// sd_z_mm, sd_mm (RMS of the position error), sd_rx_deg, sd_ry_deg, sd_rz_deg, then the
-    /// nominal position x_mm, y_mm, z_mm in the robot's base frame.
+    /// nominal position x_mm, y_mm, z_mm in the robot's base frame; with an instrument in the data
+    /// profile also sd_instrument_mm (its noise per coordinate at the pose's distance from the
+    /// tracker) and sd_measured_mm (the RMS a measurement of the pose would show: model and
+    /// instrument).
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
 }
@@ -70,6 +76,30 @@ fn nominal_positions(
         .collect()
 }
 
+/// The instrument's noise (1 sigma per coordinate, mm) at each of `q` (rad): at the distance of
+/// the identified model's point from the tracker (the file's measurement setup), or its constant
+/// part for a file without one (data in the base frame).
+fn instrument_sd(
+    instrument: &crate::io::profile::Instrument,
+    file: &RobotFile,
+    path: &std::path::Path,
+    q: &[Vec<f64>],
+) -> anyhow::Result<Vec<f64>> {
+    if file.measurement.is_none() {
+        return Ok(vec![instrument.sigma_mm(0.0); q.len()]);
+    }
+    let model = file.in_measurement_setup().to_model(path)?;
+    let kinematics = calib_core::Kinematics::nominal(&model.robot)?;
+    q.iter()
+        .map(|q| {
+            let q = calib_core::model::JointVec::from_slice(q)
+                .ok_or_else(|| anyhow::anyhow!("more than 9 joints"))?;
+            let distance = kinematics.forward(&q)?.translation.vector.norm();
+            Ok(instrument.sigma_mm(distance))
+        })
+        .collect()
+}
+
 /// Runs `calib uncertainty`; writes `--out` and returns the summary.
 pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
     let file = RobotFile::read(&options.params)?;
@@ -87,6 +117,10 @@ pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
     let q: Vec<Vec<f64>> = data.records.iter().map(|r| r.q.clone()).collect();
     let sds = crate::analysis::uncertainty::at_poses(&file, &options.params, &q)?;
     let positions = nominal_positions(&file, &options.params, &q)?;
+    let instrument = match &profile.instrument {
+        Some(i) => Some(instrument_sd(i, &file, &options.params, &q)?),
+        None => None,
+    };
     let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header = vec!["id".to_string()];
     header.extend((1..=data.joints).map(|j| format!("q{j}_deg")));
@@ -105,8 +139,11 @@ pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
         ]
         .map(String::from),
     );
+    if instrument.is_some() {
+        header.extend(["sd_instrument_mm", "sd_measured_mm"].map(String::from));
+    }
     writer.write_record(&header)?;
-    for ((r, sd), p) in data.records.iter().zip(&sds).zip(&positions) {
+    for (i, ((r, sd), p)) in data.records.iter().zip(&sds).zip(&positions).enumerate() {
         let mut row = vec![r.id.clone()];
         row.extend(r.q.iter().map(|v| v.to_degrees().to_string()));
         row.extend(
@@ -116,6 +153,10 @@ pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
                 .chain(p)
                 .map(|v| format!("{v:e}")),
         );
+        if let Some(noise) = instrument.as_ref().and_then(|n| n.get(i)) {
+            let measured = (sd.position_rms_mm.powi(2) + 3.0 * noise * noise).sqrt();
+            row.extend([format!("{noise:e}"), format!("{measured:e}")]);
+        }
         writer.write_record(&row)?;
     }
     let csv = writer
