@@ -117,3 +117,91 @@ pub fn forward_deg_compliant(
     pose.rotation = Rotation3::new(nalgebra::Vector3::new(d[3], d[4], d[5])) * pose.rotation;
     Ok(FkOutput::from_pose(&pose))
 }
+
+/// A robot file's whole model at many joint configurations: its geometry, its joint maps (each
+/// reading corrected by its map) and its gravity compliance (the pose moved by its displacement),
+/// as `calib fk` evaluates one configuration; the model is prepared once. For the Python
+/// package's `Robot.fk` and any caller with many configurations.
+pub struct FileKinematics {
+    model: RobotModel,
+    kinematics: Kinematics<f64, nalgebra::Dyn>,
+    maps: Option<crate::model::joint_maps::JointMaps>,
+    compliance: Option<crate::model::compliance::FileCompliance>,
+}
+
+impl FileKinematics {
+    /// The model of `file` (read from `path`, which names it in errors).
+    pub fn new(
+        file: &crate::io::robot_file::RobotFile,
+        path: &std::path::Path,
+    ) -> crate::Result<Self> {
+        let model = file.to_model(path)?;
+        let kinematics = Kinematics::nominal(&model.robot)
+            .with_context(|| format!("robot file {}", path.display()))?;
+        Ok(Self {
+            maps: file.joint_maps(path)?,
+            compliance: file.gravity_compliance(path)?,
+            model,
+            kinematics,
+        })
+    }
+
+    /// The joint count.
+    pub fn joints(&self) -> usize {
+        self.model.robot.joints.len()
+    }
+
+    /// The end pose (mm, the robot's base frame) at the joint readings `q_rad` (rad, one per
+    /// joint). Refused, naming `what` (such as `row 3`): a count that differs from the joints, a
+    /// reading that is not finite or beyond ten turns, one outside the joint limits.
+    pub fn pose(&self, q_rad: &[f64], what: &str) -> crate::Result<Pose<f64>> {
+        let joints = self.joints();
+        if q_rad.len() != joints {
+            return Err(crate::refused!(
+                "{what}: {} joint values, the robot {} has {joints} joints",
+                q_rad.len(),
+                self.model.name
+            ));
+        }
+        for (i, (q, limits)) in q_rad.iter().zip(&self.model.robot.limits).enumerate() {
+            if !q.is_finite() {
+                return Err(crate::refused!(
+                    "{what}: q{} = {q} is not a finite number",
+                    i + 1
+                ));
+            }
+            if q.to_degrees().abs() > crate::io::tracker_data::MAX_JOINT_DEG {
+                return Err(crate::refused!(
+                    "{what}: q{} = {q:e} rad is beyond ten turns; give the joint readings in radians",
+                    i + 1
+                ));
+            }
+            if !limits.contains(*q) {
+                return Err(crate::refused!(
+                    "{what}: q{} = {} deg is outside the joint limits [{}, {}] deg of {}",
+                    i + 1,
+                    q.to_degrees(),
+                    limits.lower.to_degrees(),
+                    limits.upper.to_degrees(),
+                    self.model.path.display()
+                ));
+            }
+        }
+        let readings = JointVec::<f64>::from_fn(joints, |j| q_rad[j]);
+        let q = self.maps.as_ref().map_or(readings, |m| m.apply(&readings));
+        let mut pose = self.kinematics.forward(&q)?;
+        if let Some(c) = &self.compliance {
+            let columns = crate::model::compliance::columns(
+                &c.gravity,
+                &self.model.robot,
+                &calib_core::ParameterErrors::zeros_for(self.model.robot.joint_count()),
+                &q,
+            )?;
+            let d = crate::model::compliance::displacement(&columns, &c.gains);
+            pose.translation.vector += nalgebra::Vector3::new(d[0], d[1], d[2]);
+            pose.rotation =
+                Rotation3::new(nalgebra::Vector3::new(d[3], d[4], d[5])) * pose.rotation;
+        }
+        Ok(pose)
+    }
+}

@@ -1,0 +1,97 @@
+"""Type stubs of the extension module (python/src/lib.rs). Units are in the names: mm, rad."""
+
+from os import PathLike
+from typing import Optional, Sequence, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+class CalibError(Exception):
+    """Any error of the toolkit; the message is the command line's."""
+
+class InputError(CalibError):
+    """An input refused (a file, an array's shape, NaN, units, an option), with how to fix it."""
+
+class NumericalError(CalibError):
+    """A computation that cannot stand behind its result."""
+
+_Path = Union[str, PathLike]
+
+class Robot:
+    """A robot model: its robot file (TOML)."""
+
+    @staticmethod
+    def from_file(path: _Path) -> "Robot": ...
+    @staticmethod
+    def from_toml(text: str, name: str = "<memory>") -> "Robot": ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def joints(self) -> int: ...
+    @property
+    def path(self) -> str: ...
+    def to_toml(self) -> str: ...
+    def to_file(self, path: _Path) -> None: ...
+    def fk(self, joints_rad: npt.ArrayLike) -> npt.NDArray[np.float64]:
+        """Forward kinematics (geometry, joint maps, compliance) as ``calib fk``: joints in rad,
+        shape (joints,) or (n, joints); homogeneous transforms in mm, (4, 4) or (n, 4, 4)."""
+
+class Dataset:
+    """Measured poses of a robot, checked against it."""
+
+    @staticmethod
+    def from_file(robot: Robot, path: _Path, profile: Optional[_Path] = None) -> "Dataset": ...
+    @staticmethod
+    def from_arrays(
+        robot: Robot,
+        joints_rad: npt.NDArray[np.float64],
+        positions_mm: npt.NDArray[np.float64],
+        rotations: Optional[npt.NDArray[np.float64]] = None,
+        quaternions_wxyz: Optional[npt.NDArray[np.float64]] = None,
+        weights: Optional[npt.NDArray[np.float64]] = None,
+        frame: str = "base",
+    ) -> "Dataset":
+        """``joints_rad`` (n, joints) rad, ``positions_mm`` (n, 3) mm, orientations as ``rotations``
+        (n, 3, 3) or ``quaternions_wxyz`` (n, 4); ``frame`` "base" or "tracker"."""
+    def __len__(self) -> int: ...
+    @property
+    def joints_rad(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def positions_mm(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def rotations(self) -> Optional[npt.NDArray[np.float64]]: ...
+    @property
+    def lines(self) -> list[int]: ...
+
+class CalibrationResult:
+    """What a calibration found."""
+
+    def report(self) -> dict:
+        """The JSON report as a dict: the keys of ``calib calibrate --report``."""
+    def report_json(self) -> str: ...
+    def html(self) -> str:
+        """The certificate as one self-contained HTML page."""
+    @property
+    def text(self) -> str: ...
+    @property
+    def robot(self) -> Robot:
+        """The identified robot."""
+    @property
+    def robot_toml(self) -> str: ...
+    @property
+    def parameter_names(self) -> list[str]: ...
+    @property
+    def parameter_values(self) -> npt.NDArray[np.float64]:
+        """Identified errors: mm for lengths, rad for angles."""
+    @property
+    def standard_errors(self) -> npt.NDArray[np.float64]:
+        """Their standard errors (NaN where least squares gave none)."""
+    @property
+    def accepted(self) -> Optional[bool]: ...
+
+def calibrate(
+    robot: Robot, data: Dataset, holdout: Optional[Dataset] = None, **options: Union[str, float, int, bool, Sequence[str]]
+) -> CalibrationResult:
+    """``calib calibrate`` with its options as keyword arguments and the same defaults."""

@@ -1,0 +1,682 @@
+//! `calib._calib`: the host library for Python (PyO3, the stable ABI from Python 3.9). The
+//! package `calib` (python/calib/__init__.py) re-exports it; python/calib/_calib.pyi documents
+//! it. Robots and data come from files or numpy arrays; a calibration takes the options of
+//! `calib calibrate` as keyword arguments, parsed by the same command-line definition, so that
+//! defaults, checks and messages are the command's. Computation runs with the GIL released.
+
+use host_tools::cli::calibrate::{CalibrateOptions, Calibration};
+use host_tools::io::robot_file::RobotFile;
+use host_tools::io::tracker_data::Record;
+use host_tools::measurement::dataset::Dataset as HostDataset;
+use numpy::PyUntypedArrayMethods;
+use numpy::ndarray::{Array2, Array3};
+use numpy::{IntoPyArray, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3};
+use pyo3::exceptions::PyException;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyTuple};
+use std::path::PathBuf;
+
+pyo3::create_exception!(
+    _calib,
+    CalibError,
+    PyException,
+    "Any error of the calibration toolkit; the message is the command line's."
+);
+pyo3::create_exception!(
+    _calib,
+    InputError,
+    CalibError,
+    "An input the toolkit refuses: a file, an array (shape, NaN, units), an option; the message says how to fix it."
+);
+pyo3::create_exception!(
+    _calib,
+    NumericalError,
+    CalibError,
+    "A computation that cannot stand behind its result (singular, not converged, implausible)."
+);
+
+/// The Python exception of a host error: its message and causes as `calib` prints them.
+fn py_error(error: anyhow::Error) -> PyErr {
+    let mut message = error.to_string();
+    let causes: Vec<String> = error.chain().skip(1).map(ToString::to_string).collect();
+    if !causes.is_empty() {
+        message.push_str("\n\nCaused by:\n");
+        for cause in causes {
+            message.push_str(&format!("    {cause}\n"));
+        }
+    }
+    use host_tools::Error as E;
+    let numerical = error.chain().any(|c| {
+        matches!(
+            c.downcast_ref::<E>(),
+            Some(
+                E::Numerical(_)
+                    | E::Kinematics(_)
+                    | E::Problem(_)
+                    | E::LeastSquares(_)
+                    | E::Swarm(_)
+            )
+        )
+    });
+    if numerical {
+        NumericalError::new_err(message)
+    } else if error.chain().any(|c| c.downcast_ref::<E>().is_some())
+        || error
+            .chain()
+            .any(|c| c.downcast_ref::<clap::Error>().is_some())
+    {
+        InputError::new_err(message)
+    } else {
+        CalibError::new_err(message)
+    }
+}
+
+/// `Err(InputError(message))`.
+fn input<T>(message: String) -> PyResult<T> {
+    Err(InputError::new_err(message))
+}
+
+/// A robot: its file (TOML) as read, and the path that names it.
+#[pyclass(module = "calib", name = "Robot", frozen)]
+#[derive(Clone)]
+struct Robot {
+    file: RobotFile,
+    path: PathBuf,
+    /// `true` when read from `path` (a calibration from files can then run as the command does).
+    on_disk: bool,
+}
+
+#[pymethods]
+impl Robot {
+    /// Reads a robot file (TOML).
+    #[staticmethod]
+    fn from_file(path: PathBuf) -> PyResult<Self> {
+        let file = RobotFile::read(&path).map_err(|e| py_error(e.into()))?;
+        Ok(Self {
+            file,
+            path,
+            on_disk: true,
+        })
+    }
+
+    /// A robot from robot-file text; `name` names it in messages.
+    #[staticmethod]
+    #[pyo3(signature = (text, name = "<memory>"))]
+    fn from_toml(text: &str, name: &str) -> PyResult<Self> {
+        let path = PathBuf::from(name);
+        let file = RobotFile::parse(text, &path).map_err(|e| py_error(e.into()))?;
+        Ok(Self {
+            file,
+            path,
+            on_disk: false,
+        })
+    }
+
+    /// The robot's name.
+    #[getter]
+    fn name(&self) -> String {
+        self.file.name.clone()
+    }
+
+    /// The number of joints.
+    #[getter]
+    fn joints(&self) -> usize {
+        self.file.joint.len()
+    }
+
+    /// The file it came from (or the name given to `from_toml`).
+    #[getter]
+    fn path(&self) -> String {
+        self.path.display().to_string()
+    }
+
+    /// The robot file as TOML text.
+    fn to_toml(&self) -> PyResult<String> {
+        toml::to_string(&self.file).map_err(|e| py_error(e.into()))
+    }
+
+    /// Writes the robot file (TOML) to `path`, replacing it atomically.
+    fn to_file(&self, path: PathBuf) -> PyResult<()> {
+        let text = self.to_toml()?;
+        let mut outputs = host_tools::io::outputs::Outputs::new(&[]);
+        outputs
+            .stage("path", &path, text.as_bytes())
+            .and_then(|()| outputs.commit().map(|_| ()))
+            .map_err(|e| py_error(e.into()))
+    }
+
+    /// Forward kinematics of the whole model (geometry, joint maps, gravity compliance), as
+    /// `calib fk`: joint readings in rad, shape (joints,) or (n, joints), to homogeneous
+    /// transforms in mm, shape (4, 4) or (n, 4, 4).
+    fn fk<'py>(
+        &self,
+        py: Python<'py>,
+        joints_rad: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let array =
+            numpy::PyArrayLike2::<f64, numpy::AllowTypeChange>::extract(joints_rad.as_borrowed());
+        let (rows, single) = match array {
+            Ok(a) => (a.as_array().to_owned(), false),
+            Err(_) => {
+                let one = numpy::PyArrayLike1::<f64, numpy::AllowTypeChange>::extract(
+                    joints_rad.as_borrowed(),
+                )
+                .or_else(|_| {
+                    input(
+                        "joints_rad: expected an array of shape (joints,) or (n, joints), in rad"
+                            .into(),
+                    )
+                })?;
+                let v = one.as_array().to_owned();
+                (
+                    v.clone()
+                        .into_shape_with_order((1, v.len()))
+                        .map_err(|e| InputError::new_err(e.to_string()))?,
+                    true,
+                )
+            }
+        };
+        let kinematics = host_tools::kinematics::fk::FileKinematics::new(&self.file, &self.path)
+            .map_err(|e| py_error(e.into()))?;
+        let joints = kinematics.joints();
+        if rows.ncols() != joints {
+            return input(format!(
+                "joints_rad: shape {:?}: the robot {} has {joints} joints (one column per joint, in rad)",
+                rows.shape(),
+                self.file.name
+            ));
+        }
+        let out = py.detach(|| -> Result<Array3<f64>, host_tools::Error> {
+            let mut out = Array3::<f64>::zeros((rows.nrows(), 4, 4));
+            for (i, row) in rows.rows().into_iter().enumerate() {
+                let q: Vec<f64> = row.iter().copied().collect();
+                let m = kinematics
+                    .pose(&q, &format!("joints_rad row {i}"))?
+                    .to_homogeneous();
+                for r in 0..4 {
+                    for c in 0..4 {
+                        out[(i, r, c)] = m[(r, c)];
+                    }
+                }
+            }
+            Ok(out)
+        });
+        let out = out.map_err(|e| py_error(e.into()))?;
+        if single {
+            let m: Array2<f64> = out.index_axis(numpy::ndarray::Axis(0), 0).to_owned();
+            Ok(m.into_pyarray(py).into_any())
+        } else {
+            Ok(out.into_pyarray(py).into_any())
+        }
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Robot(name={:?}, joints={}, path={:?})",
+            self.file.name,
+            self.file.joint.len(),
+            self.path.display().to_string()
+        )
+    }
+}
+
+/// Where a dataset came from: files (a calibration can then run as the command does) or memory.
+#[derive(Clone)]
+enum Source {
+    Files {
+        data: PathBuf,
+        profile: Option<PathBuf>,
+    },
+    Memory,
+}
+
+/// Measured poses of a robot, checked against it.
+#[pyclass(module = "calib", name = "Dataset", frozen)]
+#[derive(Clone)]
+struct Dataset {
+    dataset: HostDataset,
+    robot: Robot,
+    source: Source,
+}
+
+#[pymethods]
+impl Dataset {
+    /// Reads a tracker data file (CSV) of `robot`, through a data profile (TOML) when given.
+    #[staticmethod]
+    #[pyo3(signature = (robot, path, profile = None))]
+    fn from_file(
+        py: Python<'_>,
+        robot: &Robot,
+        path: PathBuf,
+        profile: Option<PathBuf>,
+    ) -> PyResult<Self> {
+        let dataset = py
+            .detach(|| -> anyhow::Result<HostDataset> {
+                let p = host_tools::io::profile::DataProfile::load(profile.as_deref())?;
+                if robot.on_disk {
+                    Ok(HostDataset::load_with(&robot.path, &path, &p)?)
+                } else {
+                    let data = host_tools::io::tracker_data::TrackerData::read_with(&path, &p)?;
+                    Ok(HostDataset::from_records(
+                        robot.file.clone(),
+                        data.records,
+                        data.base_frame,
+                    )?)
+                }
+            })
+            .map_err(py_error)?;
+        Ok(Self {
+            dataset,
+            robot: robot.clone(),
+            source: Source::Files {
+                data: path,
+                profile,
+            },
+        })
+    }
+
+    /// Poses from arrays: `joints_rad` (n, joints) in rad, `positions_mm` (n, 3) in mm, optional
+    /// orientations as `rotations` (n, 3, 3) rotation matrices or `quaternions_wxyz` (n, 4), optional
+    /// `weights` (n,); `frame` is "base" (the robot's base frame) or "tracker" (a tracker's
+    /// frame, registered by the calibration).
+    #[staticmethod]
+    #[pyo3(signature = (robot, joints_rad, positions_mm, rotations = None, quaternions_wxyz = None, weights = None, frame = "base"))]
+    #[allow(clippy::too_many_arguments)]
+    fn from_arrays(
+        robot: &Robot,
+        joints_rad: PyReadonlyArray2<'_, f64>,
+        positions_mm: PyReadonlyArray2<'_, f64>,
+        rotations: Option<PyReadonlyArray3<'_, f64>>,
+        quaternions_wxyz: Option<PyReadonlyArray2<'_, f64>>,
+        weights: Option<PyReadonlyArray1<'_, f64>>,
+        frame: &str,
+    ) -> PyResult<Self> {
+        let base_frame = match frame {
+            "base" => true,
+            "tracker" => false,
+            other => {
+                return input(format!(
+                    "frame = {other:?}: expected \"base\" or \"tracker\""
+                ));
+            }
+        };
+        let q = joints_rad.as_array();
+        let p = positions_mm.as_array();
+        let n = q.nrows();
+        if p.shape() != [n, 3] {
+            return input(format!(
+                "positions_mm: shape {:?}, expected ({n}, 3): one x, y, z row in mm per row of joints_rad",
+                p.shape()
+            ));
+        }
+        if q.ncols() != robot.file.joint.len() {
+            return input(format!(
+                "joints_rad: shape {:?}: the robot {} has {} joints (one column per joint, in rad)",
+                q.shape(),
+                robot.file.name,
+                robot.file.joint.len()
+            ));
+        }
+        let rotations = orientations(n, rotations, quaternions_wxyz)?;
+        let weights = match weights {
+            Some(w) if w.len() != n => {
+                return input(format!("weights: {} values for {n} poses", w.len()));
+            }
+            Some(w) => w.as_array().to_vec(),
+            None => vec![1.0; n],
+        };
+        let mut records = Vec::with_capacity(n);
+        for i in 0..n {
+            let row: Vec<f64> = q.row(i).to_vec();
+            let position = [p[(i, 0)], p[(i, 1)], p[(i, 2)]];
+            if let Some(v) = row.iter().chain(&position).find(|v| !v.is_finite()) {
+                return input(format!(
+                    "row {i}: {v} is not a finite number (joints_rad, positions_mm)"
+                ));
+            }
+            records.push(Record {
+                line: i as u64 + 1,
+                id: (i + 1).to_string(),
+                q: row,
+                position,
+                rotation: rotations.as_ref().map(|r| r[i]),
+                weight: weights[i],
+                role: None,
+                configuration: None,
+                time_s: None,
+                temperature_c: None,
+            });
+        }
+        let dataset = HostDataset::from_records(robot.file.clone(), records, base_frame)
+            .map_err(|e| py_error(e.into()))?;
+        Ok(Self {
+            dataset,
+            robot: robot.clone(),
+            source: Source::Memory,
+        })
+    }
+
+    /// The number of poses.
+    fn __len__(&self) -> usize {
+        self.dataset.data.records.len()
+    }
+
+    /// The joint readings, (n, joints), rad.
+    #[getter]
+    fn joints_rad<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let r = &self.dataset.data.records;
+        let j = self.dataset.data.joints;
+        Array2::from_shape_fn((r.len(), j), |(i, k)| r[i].q[k]).into_pyarray(py)
+    }
+
+    /// The measured positions, (n, 3), mm.
+    #[getter]
+    fn positions_mm<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let r = &self.dataset.data.records;
+        Array2::from_shape_fn((r.len(), 3), |(i, k)| r[i].position[k]).into_pyarray(py)
+    }
+
+    /// The measured orientations as rotation matrices, (n, 3, 3); `None` for position-only data.
+    #[getter]
+    fn rotations<'py>(&self, py: Python<'py>) -> Option<Bound<'py, numpy::PyArray3<f64>>> {
+        let r = &self.dataset.data.records;
+        if r.iter().any(|r| r.rotation.is_none()) {
+            return None;
+        }
+        let m: Vec<nalgebra::Matrix3<f64>> = r.iter().filter_map(|r| r.rotation).collect();
+        Some(Array3::from_shape_fn((m.len(), 3, 3), |(i, a, b)| m[i][(a, b)]).into_pyarray(py))
+    }
+
+    /// The data file's line of each pose (1-based rows for arrays).
+    #[getter]
+    fn lines(&self) -> Vec<u64> {
+        self.dataset.data.records.iter().map(|r| r.line).collect()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Dataset(poses={}, robot={:?}, source={:?})",
+            self.dataset.data.records.len(),
+            self.robot.file.name,
+            match &self.source {
+                Source::Files { data, .. } => data.display().to_string(),
+                Source::Memory => "arrays".to_string(),
+            }
+        )
+    }
+}
+
+/// The orientations of `n` poses from rotation matrices or quaternions (w, x, y, z), checked.
+fn orientations(
+    n: usize,
+    rotations: Option<PyReadonlyArray3<'_, f64>>,
+    quaternions: Option<PyReadonlyArray2<'_, f64>>,
+) -> PyResult<Option<Vec<nalgebra::Matrix3<f64>>>> {
+    match (rotations, quaternions) {
+        (Some(_), Some(_)) => input("give rotations or quaternions_wxyz, not both".into()),
+        (None, None) => Ok(None),
+        (Some(r), None) => {
+            let r = r.as_array();
+            if r.shape() != [n, 3, 3] {
+                return input(format!(
+                    "rotations: shape {:?}, expected ({n}, 3, 3)",
+                    r.shape()
+                ));
+            }
+            let mut out = Vec::with_capacity(n);
+            for i in 0..n {
+                let m = nalgebra::Matrix3::from_fn(|a, b| r[(i, a, b)]);
+                let orthonormal = (m.transpose() * m - nalgebra::Matrix3::identity()).norm() < 1e-6
+                    && (m.determinant() - 1.0).abs() < 1e-6;
+                if !orthonormal {
+                    return input(format!(
+                        "rotations[{i}] is not a rotation matrix (orthonormal, determinant 1, to 1e-6)"
+                    ));
+                }
+                out.push(m);
+            }
+            Ok(Some(out))
+        }
+        (None, Some(q)) => {
+            let q = q.as_array();
+            if q.shape() != [n, 4] {
+                return input(format!(
+                    "quaternions_wxyz: shape {:?}, expected ({n}, 4)",
+                    q.shape()
+                ));
+            }
+            let mut out = Vec::with_capacity(n);
+            for i in 0..n {
+                let v = nalgebra::Quaternion::new(q[(i, 0)], q[(i, 1)], q[(i, 2)], q[(i, 3)]);
+                if !v.norm().is_finite() || (v.norm() - 1.0).abs() >= 1e-6 {
+                    return input(format!(
+                        "quaternions_wxyz[{i}] has norm {}, not a unit quaternion (to 1e-6)",
+                        v.norm()
+                    ));
+                }
+                out.push(
+                    *nalgebra::UnitQuaternion::from_quaternion(v)
+                        .to_rotation_matrix()
+                        .matrix(),
+                );
+            }
+            Ok(Some(out))
+        }
+    }
+}
+
+/// `calib calibrate`'s options parsed from command-line words.
+#[derive(clap::Parser)]
+#[command(name = "calibrate", no_binary_name = false)]
+struct Options {
+    #[command(flatten)]
+    inner: CalibrateOptions,
+}
+
+/// Keyword arguments as command-line words: `name=value` is `--name value` (underscores as
+/// dashes), `True` a flag, `False` and `None` nothing, a list or tuple the option repeated.
+fn option_words(options: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<String>> {
+    let mut words = Vec::new();
+    let Some(options) = options else {
+        return Ok(words);
+    };
+    for (key, value) in options.iter() {
+        let key: String = key.extract()?;
+        if matches!(
+            key.as_str(),
+            "robot" | "data" | "profile" | "out" | "report" | "html" | "plot" | "truth" | "quiet"
+        ) {
+            return input(format!(
+                "calibrate(): {key}= is not an option here: robot and data are the first arguments; \
+                 the result has .robot.to_file(), .report() and .html() instead of files"
+            ));
+        }
+        let flag = format!("--{}", key.replace('_', "-"));
+        let values: Vec<Bound<'_, PyAny>> =
+            if value.is_instance_of::<PyList>() || value.is_instance_of::<PyTuple>() {
+                value.try_iter()?.collect::<PyResult<_>>()?
+            } else {
+                vec![value]
+            };
+        for v in values {
+            if v.is_none() {
+                continue;
+            }
+            if let Ok(b) = v.cast::<pyo3::types::PyBool>() {
+                if b.is_true() {
+                    words.push(flag.clone());
+                }
+                continue;
+            }
+            words.push(flag.clone());
+            words.push(v.str()?.to_string());
+        }
+    }
+    Ok(words)
+}
+
+/// A calibration's result.
+#[pyclass(module = "calib", name = "CalibrationResult", frozen)]
+struct CalibrationResult {
+    calibration: Calibration,
+}
+
+#[pymethods]
+impl CalibrationResult {
+    /// The JSON report (the keys of `calib calibrate --report`) as text.
+    fn report_json(&self) -> PyResult<String> {
+        serde_json::to_string_pretty(&self.calibration.report()).map_err(|e| py_error(e.into()))
+    }
+
+    /// The certificate as one self-contained HTML page (`calib calibrate --html`).
+    fn html(&self) -> PyResult<String> {
+        let report =
+            serde_json::to_value(self.calibration.report()).map_err(|e| py_error(e.into()))?;
+        host_tools::report::html::render(&report, &host_tools::report::html::Rendering::now())
+            .map_err(|e| py_error(e.into()))
+    }
+
+    /// The text `calib calibrate` prints.
+    #[getter]
+    fn text(&self) -> String {
+        self.calibration.text.clone()
+    }
+
+    /// The identified robot (its file as `calib calibrate --out` writes it).
+    #[getter]
+    fn robot(&self) -> PyResult<Robot> {
+        Robot::from_toml(&self.calibration.robot_toml, "<identified robot>")
+    }
+
+    /// The identified robot file's text, as `calib calibrate --out` writes it.
+    #[getter]
+    fn robot_toml(&self) -> String {
+        self.calibration.robot_toml.clone()
+    }
+
+    /// The identified parameters' names, in canonical order.
+    #[getter]
+    fn parameter_names(&self) -> Vec<String> {
+        self.calibration.result.names()
+    }
+
+    /// The identified parameters' values (mm for lengths, rad for angles), in the order of
+    /// `parameter_names`.
+    #[getter]
+    fn parameter_values<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray1<f64>> {
+        let v: Vec<f64> = self
+            .calibration
+            .result
+            .parameters
+            .iter()
+            .map(|p| p.value)
+            .collect();
+        v.into_pyarray(py)
+    }
+
+    /// Their standard errors (same units; NaN where least squares gave none).
+    #[getter]
+    fn standard_errors<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray1<f64>> {
+        let v: Vec<f64> = (self.calibration.result.parameters.iter())
+            .map(|p| p.std_error.unwrap_or(f64::NAN))
+            .collect();
+        v.into_pyarray(py)
+    }
+
+    /// With acceptance criteria (`accept=`): whether all are met; `None` without.
+    #[getter]
+    fn accepted(&self) -> Option<bool> {
+        self.calibration.result.acceptance.as_ref().map(|a| a.pass)
+    }
+}
+
+/// Calibrates `robot` on `data` with the options of `calib calibrate` as keyword arguments
+/// (`method="lm"`, `validate=0.3`, `accept=["95% <= 0.5 mm"]`, ...), the same defaults; `holdout`
+/// is a Dataset held out for validation. From files the calibration runs as the command does
+/// (provenance, a measured plan's check).
+#[pyfunction]
+#[pyo3(signature = (robot, data, holdout = None, **options))]
+fn calibrate(
+    py: Python<'_>,
+    robot: &Robot,
+    data: &Dataset,
+    holdout: Option<&Dataset>,
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<CalibrationResult> {
+    let mut words: Vec<String> = vec![
+        "calibrate".into(),
+        "--robot".into(),
+        robot.path().clone(),
+        "--data".into(),
+    ];
+    let from_files = match (&data.source, holdout.map(|h| &h.source)) {
+        (
+            Source::Files {
+                data: path,
+                profile,
+            },
+            None | Some(Source::Files { .. }),
+        ) if robot.on_disk => {
+            words.push(path.display().to_string());
+            if let Some(p) = profile {
+                words.extend(["--profile".into(), p.display().to_string()]);
+            }
+            if let Some(Source::Files { data: h, .. }) = holdout.map(|h| &h.source) {
+                words.extend(["--holdout".into(), h.display().to_string()]);
+            }
+            true
+        }
+        _ => {
+            words.push("<arrays>".into());
+            false
+        }
+    };
+    words.extend(option_words(options)?);
+    let mut parsed = <Options as clap::Parser>::try_parse_from(&words)
+        .map_err(|e| InputError::new_err(e.render().to_string().trim_end().to_string()))?
+        .inner;
+    parsed.quiet = true;
+    let mut line = vec!["calib".to_string()];
+    line.extend(words.iter().cloned());
+    parsed.command_line = line;
+    let calibration = py
+        .detach(|| -> anyhow::Result<Calibration> {
+            if from_files {
+                return host_tools::cli::calibrate::calibrate(&parsed);
+            }
+            let config = parsed.config();
+            config.check()?;
+            let all = data.dataset.clone();
+            let (dataset, validation) = match (holdout, parsed.validate) {
+                (Some(_), Some(_)) => anyhow::bail!("use either --validate or --holdout, not both"),
+                (Some(h), None) => (all, Some(h.dataset.clone())),
+                (None, Some(fraction)) => {
+                    let (c, v) = host_tools::measurement::dataset::split(
+                        &all,
+                        fraction,
+                        parsed.validate_seed,
+                    )?;
+                    (c, Some(v))
+                }
+                (None, None) => (all, None),
+            };
+            let result = host_tools::calibration::calibrate(dataset, validation, &config)?;
+            Calibration::new(result, parsed.hold_out(), None)
+        })
+        .map_err(py_error)?;
+    Ok(CalibrationResult { calibration })
+}
+
+/// The module.
+#[pymodule]
+fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Robot>()?;
+    m.add_class::<Dataset>()?;
+    m.add_class::<CalibrationResult>()?;
+    m.add_function(wrap_pyfunction!(calibrate, m)?)?;
+    m.add("CalibError", m.py().get_type::<CalibError>())?;
+    m.add("InputError", m.py().get_type::<InputError>())?;
+    m.add("NumericalError", m.py().get_type::<NumericalError>())?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

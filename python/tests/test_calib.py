@@ -1,0 +1,176 @@
+"""The Python package against the command line and an independent numpy model (issue 42).
+
+Run after ``pip install ./python pytest`` with the ``calib`` binary of the same checkout built
+(``cargo build --release``; ``CALIB_BIN`` names another).
+"""
+
+import json
+import math
+import os
+import pathlib
+import subprocess
+
+import numpy as np
+import pytest
+
+import calib
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+UR10 = ROOT / "host-tools/robots/ur10.toml"
+SERIES_B = ROOT / "host-tools/data/ipa-ur10-lasertracker/series-b-joint-configurations.csv"
+PROFILE = ROOT / "host-tools/profiles/ipa-ur10-lasertracker.toml"
+CALIB = os.environ.get("CALIB_BIN", str(ROOT / "target/release/calib"))
+
+
+def run_calib(*args):
+    return subprocess.run([CALIB, *map(str, args)], capture_output=True, text=True)
+
+
+# A 6-joint arm with a twist (beta), base and tool frames: the file and, below, the same model
+# written out in numpy from docs/ARCHITECTURE.md (A_i = Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta)).
+ARM = [  # a_mm, alpha_deg, theta_offset_deg, d_mm, beta_deg
+    (150.0, -90.0, 0.0, 450.0, 0.0),
+    (600.0, 0.0, -90.0, 0.0, 0.2),
+    (120.0, -90.0, 0.0, 0.0, 0.0),
+    (0.0, 90.0, 0.0, 640.0, 0.0),
+    (0.0, -90.0, 0.0, 0.0, 0.0),
+    (0.0, 0.0, 0.0, 100.0, 0.0),
+]
+BASE = ([10.0, -20.0, 30.0], [1.0, -2.0, 30.0])
+TOOL = ([0.5, 1.0, 93.0], [0.0, 0.0, -90.0])
+
+
+def arm_toml():
+    joints = "".join(
+        f"[[joint]]\na_mm = {a}\nalpha_deg = {al}\ntheta_offset_deg = {th}\nd_mm = {d}\nbeta_deg = {b}\n"
+        "limits_deg = [-360.0, 360.0]\n\n"
+        for a, al, th, d, b in ARM
+    )
+    frame = lambda name, f: f"[{name}]\nxyz_mm = {f[0]}\nrpy_deg = {f[1]}\n\n"
+    return 'name = "test arm"\n\n' + joints + frame("base", BASE) + frame("tool", TOOL)
+
+
+def rot(axis, angle):
+    c, s = math.cos(angle), math.sin(angle)
+    m = {"x": [[1, 0, 0], [0, c, -s], [0, s, c]], "y": [[c, 0, s], [0, 1, 0], [-s, 0, c]], "z": [[c, -s, 0], [s, c, 0], [0, 0, 1]]}[axis]
+    t = np.eye(4)
+    t[:3, :3] = m
+    return t
+
+
+def trans(x, y, z):
+    t = np.eye(4)
+    t[:3, 3] = [x, y, z]
+    return t
+
+
+def frame(xyz, rpy_deg):
+    r, p, y = np.radians(rpy_deg)
+    return trans(*xyz) @ rot("z", y) @ rot("y", p) @ rot("x", r)
+
+
+def numpy_fk(q):
+    t = frame(*BASE)
+    for qi, (a, al, th, d, b) in zip(q, ARM):
+        t = t @ rot("z", qi + math.radians(th)) @ trans(0, 0, d) @ trans(a, 0, 0) @ rot("x", math.radians(al)) @ rot("y", math.radians(b))
+    return t @ frame(*TOOL)
+
+
+def test_forward_kinematics_equals_an_independent_numpy_model():
+    robot = calib.Robot.from_toml(arm_toml())
+    assert (robot.name, robot.joints) == ("test arm", 6)
+    q = np.random.default_rng(1).uniform(-3.0, 3.0, (200, 6))
+    poses = robot.fk(q)
+    assert poses.shape == (200, 4, 4)
+    for qi, pose in zip(q, poses):
+        assert np.abs(pose - numpy_fk(qi)).max() < 1e-9
+    assert robot.fk(q[0]).shape == (4, 4)
+    # As `calib fk` prints it.
+    out = run_calib("fk", "--robot", UR10, "--joints-deg", "10,-20,30,-40,50,-60", "--json")
+    printed = json.loads(out.stdout)["position_mm"]
+    pose = calib.Robot.from_file(UR10).fk(np.radians([10, -20, 30, -40, 50, -60]))
+    assert np.abs(pose[:3, 3] - printed).max() < 1e-9
+
+
+def test_calibrate_from_files_equals_the_command_line(tmp_path):
+    report = tmp_path / "r.json"
+    out = run_calib("calibrate", "--robot", UR10, "--data", SERIES_B, "--profile", PROFILE,
+                    "--validate", "0.9666", "--accept", "95% <= 1 mm", "--report", report)
+    assert out.returncode == 0, out.stderr
+    cli = json.loads(report.read_text())
+    robot = calib.Robot.from_file(UR10)
+    data = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
+    assert len(data) == 1495
+    result = calib.calibrate(robot, data, validate=0.9666, accept=["95% <= 1 mm"])
+    py = result.report()
+    assert set(py) == set(cli)
+    assert result.accepted is True
+    assert list(py["parameters"]) == list(cli["parameters"]) == result.parameter_names
+    for name, value, se in zip(result.parameter_names, result.parameter_values, result.standard_errors):
+        assert abs(value - cli["parameters"][name]["value"]) < 1e-9
+        assert abs(se - cli["parameters"][name]["std_error"]) < 1e-9
+    for key in ("p50_mm", "p95_mm", "max_mm"):
+        assert abs(py["held_out"]["after"]["position"][key] - cli["held_out"]["after"]["position"][key]) < 1e-9
+    # The identified robot: the same geometry as the command's file.
+    identified = result.robot
+    q = data.joints_rad[:5]
+    out_file = tmp_path / "identified.toml"
+    identified.to_file(out_file)
+    assert np.abs(calib.Robot.from_file(out_file).fk(q) - identified.fk(q)).max() == 0.0
+    assert "<!DOCTYPE html>" in result.html()
+
+
+def test_a_dataset_from_arrays_calibrates_as_its_file():
+    robot = calib.Robot.from_file(UR10)
+    files = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
+    arrays = calib.Dataset.from_arrays(robot, joints_rad=files.joints_rad, positions_mm=files.positions_mm,
+                                       rotations=files.rotations, frame="tracker")
+    a = calib.calibrate(robot, files, method="lm")
+    b = calib.calibrate(robot, arrays, method="lm")
+    assert a.parameter_names == b.parameter_names
+    assert np.abs(a.parameter_values - b.parameter_values).max() < 1e-9
+    # Quaternions give the same poses.
+    rotations = files.rotations
+    quaternions = np.array([_quaternion(m) for m in rotations])
+    c = calib.calibrate(robot, calib.Dataset.from_arrays(robot, files.joints_rad, files.positions_mm,
+                                                         quaternions_wxyz=quaternions, frame="tracker"), method="lm")
+    assert np.abs(a.parameter_values - c.parameter_values).max() < 1e-6
+
+
+def _quaternion(m):
+    w = math.sqrt(max(0.0, 1.0 + m[0, 0] + m[1, 1] + m[2, 2])) / 2.0
+    x = math.copysign(math.sqrt(max(0.0, 1.0 + m[0, 0] - m[1, 1] - m[2, 2])) / 2.0, m[2, 1] - m[1, 2])
+    y = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] + m[1, 1] - m[2, 2])) / 2.0, m[0, 2] - m[2, 0])
+    z = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] - m[1, 1] + m[2, 2])) / 2.0, m[1, 0] - m[0, 1])
+    return [w, x, y, z]
+
+
+def test_bad_inputs_raise_the_documented_exceptions():
+    robot = calib.Robot.from_file(UR10)
+    with pytest.raises(calib.InputError, match=r"joints_rad: shape \[3, 5\]: the robot Universal Robots UR10 has 6 joints"):
+        calib.Dataset.from_arrays(robot, np.zeros((3, 5)), np.zeros((3, 3)))
+    with pytest.raises(calib.InputError, match=r"positions_mm: shape \[3, 2\], expected \(3, 3\)"):
+        calib.Dataset.from_arrays(robot, np.zeros((3, 6)), np.zeros((3, 2)))
+    q = np.zeros((3, 6))
+    q[1, 2] = np.nan
+    with pytest.raises(calib.InputError, match="row 1: NaN is not a finite number"):
+        calib.Dataset.from_arrays(robot, q, np.zeros((3, 3)))
+    with pytest.raises(calib.InputError, match="not a unit quaternion"):
+        calib.Dataset.from_arrays(robot, np.zeros((3, 6)), np.zeros((3, 3)), quaternions_wxyz=np.ones((3, 4)))
+    with pytest.raises(calib.InputError, match="beyond ten turns"):
+        robot.fk(np.full(6, 100.0))
+    with pytest.raises(calib.InputError, match="frame"):
+        calib.Dataset.from_arrays(robot, np.zeros((3, 6)), np.zeros((3, 3)), frame="world")
+    with pytest.raises(calib.CalibError):
+        calib.Robot.from_file(ROOT / "no-such-robot.toml")
+    data = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
+    with pytest.raises(calib.InputError, match="report= is not an option here"):
+        calib.calibrate(robot, data, report="r.json")
+    with pytest.raises(calib.InputError, match="unexpected argument '--no-such-option'"):
+        calib.calibrate(robot, data, no_such_option=1)
+    # The same refusal, in the same words, as the command line.
+    out = run_calib("calibrate", "--robot", UR10, "--data", SERIES_B, "--profile", PROFILE, "--accept", "95% <= 1 mm")
+    first = out.stderr.splitlines()[0].removeprefix("Error: ")
+    with pytest.raises(calib.InputError) as refused:
+        calib.calibrate(robot, data, accept=["95% <= 1 mm"])
+    assert str(refused.value).splitlines()[0] == first
