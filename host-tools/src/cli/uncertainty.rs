@@ -100,27 +100,15 @@ fn instrument_sd(
         .collect()
 }
 
-/// Runs `calib uncertainty`; writes `--out` and returns the summary.
-pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
-    let file = RobotFile::read(&options.params)?;
-    let profile = DataProfile::load(options.profile.as_deref())?;
-    let data = TrackerData::read_joints(&options.joints, &profile)?;
-    if data.joints != file.joint.len() {
-        anyhow::bail!(
-            "{}: has {} joint columns, the robot {} has {}",
-            options.joints.display(),
-            data.joints,
-            options.params.display(),
-            file.joint.len()
-        );
-    }
-    let q: Vec<Vec<f64>> = data.records.iter().map(|r| r.q.clone()).collect();
-    let sds = crate::analysis::uncertainty::at_poses(&file, &options.params, &q)?;
-    let positions = nominal_positions(&file, &options.params, &q)?;
-    let instrument = match &profile.instrument {
-        Some(i) => Some(instrument_sd(i, &file, &options.params, &q)?),
-        None => None,
-    };
+/// The `--out` table: per configuration its id, joints (deg), standard deviations, nominal
+/// position and, with `instrument` (its noise per configuration, mm), the noise and what a
+/// measurement would show.
+fn table(
+    data: &TrackerData,
+    sds: &[crate::analysis::uncertainty::PoseSd],
+    positions: &[[f64; 3]],
+    instrument: Option<&[f64]>,
+) -> anyhow::Result<Vec<u8>> {
     let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header = vec!["id".to_string()];
     header.extend((1..=data.joints).map(|j| format!("q{j}_deg")));
@@ -143,7 +131,7 @@ pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
         header.extend(["sd_instrument_mm", "sd_measured_mm"].map(String::from));
     }
     writer.write_record(&header)?;
-    for (i, ((r, sd), p)) in data.records.iter().zip(&sds).zip(&positions).enumerate() {
+    for (i, ((r, sd), p)) in data.records.iter().zip(sds).zip(positions).enumerate() {
         let mut row = vec![r.id.clone()];
         row.extend(r.q.iter().map(|v| v.to_degrees().to_string()));
         row.extend(
@@ -153,7 +141,7 @@ pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
                 .chain(p)
                 .map(|v| format!("{v:e}")),
         );
-        if let Some(noise) = instrument.as_ref().and_then(|n| n.get(i)) {
+        if let Some(noise) = instrument.and_then(|n| n.get(i)) {
             let measured = (sd.position_rms_mm.powi(2) + 3.0 * noise * noise).sqrt();
             row.extend([format!("{noise:e}"), format!("{measured:e}")]);
         }
@@ -162,6 +150,31 @@ pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
     let csv = writer
         .into_inner()
         .map_err(|e| anyhow::anyhow!("{}", e.error()))?;
+    Ok(csv)
+}
+
+/// Runs `calib uncertainty`; writes `--out` and returns the summary.
+pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
+    let file = RobotFile::read(&options.params)?;
+    let profile = DataProfile::load(options.profile.as_deref())?;
+    let data = TrackerData::read_joints(&options.joints, &profile)?;
+    if data.joints != file.joint.len() {
+        anyhow::bail!(
+            "{}: has {} joint columns, the robot {} has {}",
+            options.joints.display(),
+            data.joints,
+            options.params.display(),
+            file.joint.len()
+        );
+    }
+    let q: Vec<Vec<f64>> = data.records.iter().map(|r| r.q.clone()).collect();
+    let sds = crate::analysis::uncertainty::at_poses(&file, &options.params, &q)?;
+    let positions = nominal_positions(&file, &options.params, &q)?;
+    let instrument = match &profile.instrument {
+        Some(i) => Some(instrument_sd(i, &file, &options.params, &q)?),
+        None => None,
+    };
+    let csv = table(&data, &sds, &positions, instrument.as_deref())?;
     let mut outputs = Outputs::new(&[("--params", &options.params), ("--joints", &options.joints)]);
     outputs.stage("--out", &options.out, &csv)?;
     outputs.commit()?;
