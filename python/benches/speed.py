@@ -46,5 +46,5 @@ for _ in range(rounds):
     start = time.perf_counter()
     robot.fk(joints)
     times.append(time.perf_counter() - start)
-print(f"forward kinematics of 1,000,000 configurations (UR10 with its compliance), median of {rounds}: "
+print(f"forward kinematics of 1,000,000 configurations (UR10), median of {rounds}: "
       f"{statistics.median(times):.3f} s")

@@ -26,6 +26,21 @@ class Robot:
     def from_file(path: _Path) -> "Robot": ...
     @staticmethod
     def from_toml(text: str, name: str = "<memory>") -> "Robot": ...
+    @staticmethod
+    def from_dh(
+        name: str,
+        a_mm: Sequence[float],
+        alpha_rad: Sequence[float],
+        theta_offset_rad: Sequence[float],
+        d_mm: Sequence[float],
+        beta_rad: Optional[Sequence[float]] = None,
+        limits_rad: Optional[Sequence[Sequence[float]]] = None,
+        base_xyz_mm: Optional[Sequence[float]] = None,
+        base_rpy_rad: Optional[Sequence[float]] = None,
+        tool_xyz_mm: Optional[Sequence[float]] = None,
+        tool_rpy_rad: Optional[Sequence[float]] = None,
+    ) -> "Robot":
+        """A robot from arrays of its modified DH parameters (mm, rad), one value per joint."""
     @property
     def name(self) -> str: ...
     @property
@@ -34,6 +49,9 @@ class Robot:
     def path(self) -> str: ...
     def to_toml(self) -> str: ...
     def to_file(self, path: _Path) -> None: ...
+    def export(self, format: str, **options: Union[str, int, bool, Sequence[str]]) -> bytes:
+        """What ``calib export --format FORMAT`` writes: "block", "toml", "json", "urdf",
+        "ur-kinematics-yaml"; its other options as keyword arguments."""
     def fk(self, joints_rad: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Forward kinematics (geometry, joint maps, compliance) as ``calib fk``: joints in rad,
         shape (joints,) or (n, joints); homogeneous transforms in mm, (4, 4) or (n, 4, 4)."""
@@ -94,4 +112,8 @@ class CalibrationResult:
 def calibrate(
     robot: Robot, data: Dataset, holdout: Optional[Dataset] = None, **options: Union[str, float, int, bool, Sequence[str]]
 ) -> CalibrationResult:
-    """``calib calibrate`` with its options as keyword arguments and the same defaults."""
+    """``calib calibrate`` with its options as keyword arguments and the same defaults; Ctrl-C
+    stops it (KeyboardInterrupt) within a swarm generation."""
+
+def evaluate_json(robot: Robot, data: Dataset, **options: Union[str, float, int, bool]) -> str:
+    """``calib evaluate --json`` (the package's ``calib.evaluate`` returns the dict)."""

@@ -71,6 +71,35 @@ fn py_error(error: anyhow::Error) -> PyErr {
     }
 }
 
+/// Runs `work` on a thread of its own while this thread, with the GIL released between looks,
+/// checks for Python signals every 20 ms: on Ctrl-C (or any signal handler's exception) `cancel`
+/// asks the work to stop, and once it has, the exception is raised.
+fn interruptible<T: Send + 'static>(
+    py: Python<'_>,
+    cancel: &host_tools::calibration::Cancel,
+    work: impl FnOnce() -> T + Send + 'static,
+) -> PyResult<T> {
+    let handle = std::thread::spawn(work);
+    loop {
+        let finished = py.detach(|| {
+            std::thread::sleep(std::time::Duration::from_millis(20));
+            handle.is_finished()
+        });
+        if finished {
+            return handle.join().map_err(|_| {
+                CalibError::new_err(
+                    "the computation stopped unexpectedly (a panic): please report it",
+                )
+            });
+        }
+        if let Err(signal) = py.check_signals() {
+            cancel.cancel();
+            let _ = py.detach(|| handle.join());
+            return Err(signal);
+        }
+    }
+}
+
 /// `Err(InputError(message))`.
 fn input<T>(message: String) -> PyResult<T> {
     Err(InputError::new_err(message))
@@ -208,6 +237,35 @@ impl Robot {
         } else {
             Ok(out.into_pyarray(py).into_any())
         }
+    }
+
+    /// The robot as `calib export --format FORMAT` writes it, as bytes: "block" (the controller's
+    /// parameter block), "toml", "json", "urdf", "ur-kinematics-yaml"; the other options of `calib
+    /// export` as keyword arguments (`scalar="f64"`, `geometry_only=True`, ...).
+    #[pyo3(signature = (format, **options))]
+    fn export<'py>(
+        &self,
+        py: Python<'py>,
+        format: &str,
+        options: Option<&Bound<'py, PyDict>>,
+    ) -> PyResult<Bound<'py, pyo3::types::PyBytes>> {
+        let mut words: Vec<String> = [
+            "export",
+            "--params",
+            &self.path(),
+            "--out",
+            "-",
+            "--format",
+            format,
+        ]
+        .map(String::from)
+        .to_vec();
+        words.extend(option_words(options, &["params", "out", "format"])?);
+        let parsed = <ExportCommand as clap::Parser>::try_parse_from(&words)
+            .map_err(|e| InputError::new_err(e.render().to_string().trim_end().to_string()))?
+            .inner;
+        let bytes = host_tools::cli::export::export_bytes(&parsed, &self.file).map_err(py_error)?;
+        Ok(pyo3::types::PyBytes::new(py, &bytes))
     }
 
     fn __repr__(&self) -> String {
@@ -465,6 +523,14 @@ fn orientations(
     }
 }
 
+/// `calib export`'s options parsed from command-line words.
+#[derive(clap::Parser)]
+#[command(name = "export")]
+struct ExportCommand {
+    #[command(flatten)]
+    inner: host_tools::cli::export::ExportOptions,
+}
+
 /// `calib calibrate`'s options parsed from command-line words.
 #[derive(clap::Parser)]
 #[command(name = "calibrate", no_binary_name = false)]
@@ -475,20 +541,17 @@ struct Options {
 
 /// Keyword arguments as command-line words: `name=value` is `--name value` (underscores as
 /// dashes), `True` a flag, `False` and `None` nothing, a list or tuple the option repeated.
-fn option_words(options: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<String>> {
+fn option_words(options: Option<&Bound<'_, PyDict>>, taken: &[&str]) -> PyResult<Vec<String>> {
     let mut words = Vec::new();
     let Some(options) = options else {
         return Ok(words);
     };
     for (key, value) in options.iter() {
         let key: String = key.extract()?;
-        if matches!(
-            key.as_str(),
-            "robot" | "data" | "profile" | "out" | "report" | "html" | "plot" | "truth" | "quiet"
-        ) {
+        if taken.contains(&key.as_str()) {
             return input(format!(
-                "calibrate(): {key}= is not an option here: robot and data are the first arguments; \
-                 the result has .robot.to_file(), .report() and .html() instead of files"
+                "{key}= is not an option here: the robot and the data are the arguments, and what \
+                 the command writes is returned (.robot.to_file(), .report(), .html(), bytes)"
             ));
         }
         let flag = format!("--{}", key.replace('_', "-"));
@@ -631,7 +694,13 @@ fn calibrate(
             false
         }
     };
-    words.extend(option_words(options)?);
+    words.extend(option_words(
+        options,
+        &[
+            "robot", "data", "profile", "holdout", "out", "report", "html", "plot", "truth",
+            "quiet",
+        ],
+    )?);
     let mut parsed = <Options as clap::Parser>::try_parse_from(&words)
         .map_err(|e| InputError::new_err(e.render().to_string().trim_end().to_string()))?
         .inner;
@@ -639,32 +708,85 @@ fn calibrate(
     let mut line = vec!["calib".to_string()];
     line.extend(words.iter().cloned());
     parsed.command_line = line;
-    let calibration = py
-        .detach(|| -> anyhow::Result<Calibration> {
-            if from_files {
-                return host_tools::cli::calibrate::calibrate(&parsed);
+    let cancel = host_tools::calibration::Cancel::default();
+    let (data, holdout) = (data.dataset.clone(), holdout.map(|h| h.dataset.clone()));
+    let stop = cancel.clone();
+    let calibration = interruptible(py, &cancel, move || -> anyhow::Result<Calibration> {
+        let mut config = parsed.config();
+        config.cancel = stop;
+        if from_files {
+            return host_tools::cli::calibrate::calibrate_with(&parsed, config);
+        }
+        config.check()?;
+        let all = data;
+        let (dataset, validation) = match (holdout, parsed.validate) {
+            (Some(_), Some(_)) => anyhow::bail!("use either --validate or --holdout, not both"),
+            (Some(h), None) => (all, Some(h)),
+            (None, Some(fraction)) => {
+                let (c, v) =
+                    host_tools::measurement::dataset::split(&all, fraction, parsed.validate_seed)?;
+                (c, Some(v))
             }
-            let config = parsed.config();
-            config.check()?;
-            let all = data.dataset.clone();
-            let (dataset, validation) = match (holdout, parsed.validate) {
-                (Some(_), Some(_)) => anyhow::bail!("use either --validate or --holdout, not both"),
-                (Some(h), None) => (all, Some(h.dataset.clone())),
-                (None, Some(fraction)) => {
-                    let (c, v) = host_tools::measurement::dataset::split(
-                        &all,
-                        fraction,
-                        parsed.validate_seed,
-                    )?;
-                    (c, Some(v))
-                }
-                (None, None) => (all, None),
-            };
-            let result = host_tools::calibration::calibrate(dataset, validation, &config)?;
-            Calibration::new(result, parsed.hold_out(), None)
-        })
-        .map_err(py_error)?;
+            (None, None) => (all, None),
+        };
+        let result = host_tools::calibration::calibrate(dataset, validation, &config)?;
+        Calibration::new(result, parsed.hold_out(), None)
+    })?
+    .map_err(py_error)?;
     Ok(CalibrationResult { calibration })
+}
+
+/// `calib evaluate`'s options parsed from command-line words.
+#[derive(clap::Parser)]
+#[command(name = "evaluate")]
+struct EvaluateCommand {
+    #[command(flatten)]
+    inner: host_tools::cli::evaluate::EvaluateOptions,
+}
+
+/// Table 3 statistics of `robot` (any model, nominal or identified) on `data`, as `calib evaluate
+/// --json` gives them (JSON text; the package's `evaluate` returns the dict), its options as
+/// keyword arguments (`fit_frames="base"`, `fit_poses=30`, `stored_registration=True`, ...). The
+/// robot and the data must have been read from files.
+#[pyfunction]
+#[pyo3(signature = (robot, data, **options))]
+fn evaluate_json(
+    py: Python<'_>,
+    robot: &Robot,
+    data: &Dataset,
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<String> {
+    let Source::Files {
+        data: path,
+        profile,
+    } = &data.source
+    else {
+        return input("evaluate() needs the data read from a file (Dataset.from_file)".into());
+    };
+    if !robot.on_disk {
+        return input("evaluate() needs the robot read from a file (Robot.from_file)".into());
+    }
+    let mut words: Vec<String> = vec![
+        "evaluate".into(),
+        "--robot".into(),
+        robot.path(),
+        "--data".into(),
+        path.display().to_string(),
+    ];
+    if let Some(p) = profile {
+        words.extend(["--profile".into(), p.display().to_string()]);
+    }
+    words.extend(option_words(
+        options,
+        &["robot", "data", "profile", "json"],
+    )?);
+    let parsed = <EvaluateCommand as clap::Parser>::try_parse_from(&words)
+        .map_err(|e| InputError::new_err(e.render().to_string().trim_end().to_string()))?
+        .inner;
+    let evaluation = py
+        .detach(|| host_tools::cli::evaluate::evaluate(&parsed))
+        .map_err(py_error)?;
+    serde_json::to_string(&evaluation).map_err(|e| py_error(e.into()))
 }
 
 /// The module.
@@ -674,6 +796,7 @@ fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Dataset>()?;
     m.add_class::<CalibrationResult>()?;
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate_json, m)?)?;
     m.add("CalibError", m.py().get_type::<CalibError>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;
     m.add("NumericalError", m.py().get_type::<NumericalError>())?;

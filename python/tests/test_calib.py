@@ -85,6 +85,16 @@ def test_forward_kinematics_equals_an_independent_numpy_model():
     for qi, pose in zip(q, poses):
         assert np.abs(pose - numpy_fk(qi)).max() < 1e-9
     assert robot.fk(q[0]).shape == (4, 4)
+    # The same arm from arrays (mm, rad).
+    arrays = calib.Robot.from_dh(
+        "test arm", a_mm=[j[0] for j in ARM], alpha_rad=[math.radians(j[1]) for j in ARM],
+        theta_offset_rad=[math.radians(j[2]) for j in ARM], d_mm=[j[3] for j in ARM],
+        beta_rad=[math.radians(j[4]) for j in ARM], limits_rad=[[-2 * math.pi, 2 * math.pi]] * 6,
+        base_xyz_mm=BASE[0], base_rpy_rad=np.radians(BASE[1]), tool_xyz_mm=TOOL[0],
+        tool_rpy_rad=np.radians(TOOL[1]))
+    assert np.abs(arrays.fk(q) - poses).max() < 1e-9
+    with pytest.raises(calib.InputError, match="every parameter needs 6 values"):
+        calib.Robot.from_dh("bad", [0.0] * 6, [0.0] * 6, [0.0] * 6, [0.0] * 5)
     # As `calib fk` prints it.
     out = run_calib("fk", "--robot", UR10, "--joints-deg", "10,-20,30,-40,50,-60", "--json")
     printed = json.loads(out.stdout)["position_mm"]
@@ -174,3 +184,52 @@ def test_bad_inputs_raise_the_documented_exceptions():
     with pytest.raises(calib.InputError) as refused:
         calib.calibrate(robot, data, accept=["95% <= 1 mm"])
     assert str(refused.value).splitlines()[0] == first
+
+
+def test_export_gives_the_bytes_calib_export_writes(tmp_path):
+    robot = calib.Robot.from_file(UR10)
+    for fmt, extra in (("block", []), ("toml", []), ("urdf", []), ("ur-kinematics-yaml", ["--scalar", "f64"])):
+        out = tmp_path / f"ur10.{fmt}"
+        done = run_calib("export", "--params", UR10, "--format", fmt, "--out", out, *extra)
+        assert done.returncode == 0, done.stderr
+        kwargs = {"scalar": "f64"} if extra else {}
+        assert robot.export(fmt, **kwargs) == out.read_bytes(), fmt
+    # Two joint names for six joints: refused in the command's words.
+    done = run_calib("export", "--params", UR10, "--format", "urdf", "--joint-names", "a,b", "--out", tmp_path / "x.urdf")
+    with pytest.raises(calib.InputError) as refused:
+        robot.export("urdf", joint_names="a,b")
+    assert str(refused.value).splitlines()[0] == done.stderr.splitlines()[0].removeprefix("Error: ")
+    with pytest.raises(calib.InputError, match="invalid value 'pdf'"):
+        robot.export("pdf")
+
+
+def test_ctrl_c_stops_a_long_calibration():
+    import signal
+    import threading
+    import time
+
+    robot = calib.Robot.from_file(UR10)
+    data = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    start = time.perf_counter()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        # About two minutes of swarm without the interrupt.
+        calib.calibrate(robot, data, method="ipso", generations=200000)
+    assert time.perf_counter() - start < 3.0
+
+
+def test_evaluate_equals_calib_evaluate(tmp_path):
+    identified = tmp_path / "b.toml"
+    done = run_calib("calibrate", "--robot", UR10, "--data", SERIES_B, "--profile", PROFILE,
+                     "--validate", "0.9666", "--method", "lm", "--out", identified)
+    assert done.returncode == 0, done.stderr
+    out = run_calib("evaluate", "--robot", identified, "--data", SERIES_B, "--profile", PROFILE,
+                    "--fit-frames", "base", "--json")
+    cli = json.loads(out.stdout)
+    robot = calib.Robot.from_file(identified)
+    py = calib.evaluate(robot, calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE), fit_frames="base")
+    assert py == cli
+    with pytest.raises(calib.InputError, match="needs the data read from a file"):
+        data = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
+        calib.evaluate(robot, calib.Dataset.from_arrays(robot, data.joints_rad, data.positions_mm, frame="tracker"))

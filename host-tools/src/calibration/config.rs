@@ -219,6 +219,33 @@ pub struct CalibrationConfig {
     /// Show a progress bar on a terminal.
     #[serde(skip)]
     pub progress: bool,
+    /// Set from another thread to stop the calibration early (the Python package's Ctrl-C).
+    #[serde(skip)]
+    pub cancel: Cancel,
+}
+
+/// A flag another thread sets to stop a calibration: the swarm stops at its next generation and
+/// the calibration is refused as cancelled. Clones share the flag; every flag compares equal (it
+/// is not a setting).
+#[derive(Clone, Debug, Default)]
+pub struct Cancel(std::sync::Arc<std::sync::atomic::AtomicBool>);
+
+impl Cancel {
+    /// Asks the calibration holding a clone of this flag to stop.
+    pub fn cancel(&self) {
+        self.0.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// `true` once [`Cancel::cancel`] was called.
+    pub fn is_cancelled(&self) -> bool {
+        self.0.load(std::sync::atomic::Ordering::Relaxed)
+    }
+}
+
+impl PartialEq for Cancel {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }
 
 impl Default for CalibrationConfig {
@@ -239,6 +266,7 @@ impl Default for CalibrationConfig {
             acceptance: Vec::new(),
             payload_kg: None,
             progress: false,
+            cancel: Cancel::default(),
         }
     }
 }

@@ -59,8 +59,8 @@ pub mod plausibility;
 mod result;
 
 pub use config::{
-    CalibrationConfig, ErrorModel, Identify, LossChoice, Method, SWARM_SIZES, ScramblingChoice,
-    SwarmConfig,
+    CalibrationConfig, Cancel, ErrorModel, Identify, LossChoice, Method, SWARM_SIZES,
+    ScramblingChoice, SwarmConfig,
 };
 pub use result::{
     CalibrationResult, HoldOut, IdentifiedParameter, LeastSquaresReport, ObjectiveValues, Outlier,
@@ -154,6 +154,9 @@ pub fn calibrate(
         if let Some(m) = file.measurement.as_mut() {
             m.flange_tool = probe;
         }
+    }
+    if config.cancel.is_cancelled() {
+        return Err(crate::refused!("the calibration was cancelled"));
     }
     result.conditions = Some(conditions);
     let calibration_joints: Vec<Vec<f64>> =
@@ -795,6 +798,9 @@ fn run_swarm(
         if generation.is_multiple_of(20) {
             bar.set_position(u64::from(generation));
             bar.set_message(format!("{best:.6e}"));
+        }
+        if config.cancel.is_cancelled() {
+            return Control::Cancel;
         }
         Control::Continue
     };

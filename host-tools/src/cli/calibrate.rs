@@ -183,6 +183,7 @@ impl CalibrateOptions {
             accept_implausible: self.accept_implausible,
             acceptance: self.accept.clone(),
             payload_kg: self.payload_kg,
+            cancel: crate::calibration::Cancel::default(),
             progress: !self.quiet,
         }
     }
@@ -243,7 +244,15 @@ pub struct Written {
 /// Runs `calib calibrate` without writing anything: reads the files,
 /// calibrates, renders.
 pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
-    let config = options.config();
+    calibrate_with(options, options.config())
+}
+
+/// [`calibrate`] with the library configuration `config` (that of `options`, with what the
+/// command line does not set: a [`crate::calibration::Cancel`] flag).
+pub fn calibrate_with(
+    options: &CalibrateOptions,
+    config: CalibrationConfig,
+) -> anyhow::Result<Calibration> {
     config.check()?; // bad settings are reported before any file is read
     let (profile, all) = options.input.load()?;
     // A measured plan (calib plan): its verification poses are the hold-out.

@@ -56,13 +56,19 @@ pub struct ExportOptions {
 /// maps, gravity compliance and the UR kinematics file for 6-joint robots.
 pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
     let file = RobotFile::read(&options.params)?;
-    let urdf = urdf_settings(options, &file);
-    crate::model::counts::joint_count(file.joint.len())?;
-    let bytes = exported(options, &file, &urdf)?;
+    let bytes = export_bytes(options, &file)?;
     let mut outputs = Outputs::new(&[("--params", &options.params)]);
     outputs.stage("--out", &options.out, &bytes)?;
     outputs.commit()?;
     Ok(bytes.len())
+}
+
+/// The bytes `calib export` writes for `file` (read from `options.params`, which names it in
+/// messages); `options.out` is not used.
+pub fn export_bytes(options: &ExportOptions, file: &RobotFile) -> anyhow::Result<Vec<u8>> {
+    let urdf = urdf_settings(options, file);
+    crate::model::counts::joint_count(file.joint.len())?;
+    exported(options, file, &urdf)
 }
 
 /// The bytes `calib export` writes for `file`.
