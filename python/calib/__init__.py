@@ -15,6 +15,7 @@ from ._calib import (
     CalibError,
     CalibrationResult,
     Dataset,
+    Plan,
     InputError,
     NumericalError,
     Robot,
@@ -22,6 +23,7 @@ from ._calib import (
 )
 from ._calib import calibrate as _calibrate
 from ._calib import evaluate_json as _evaluate_json
+from ._calib import plan
 
 
 def _report(self):
@@ -30,6 +32,7 @@ def _report(self):
 
 
 CalibrationResult.report = _report
+Plan.report = _report
 
 
 def _from_dh(name, a_mm, alpha_rad, theta_offset_rad, d_mm, beta_rad=None, limits_rad=None,
@@ -92,9 +95,11 @@ __all__ = [
     "CalibrationResult",
     "Dataset",
     "InputError",
+    "Plan",
     "NumericalError",
     "Robot",
     "calibrate",
     "evaluate",
+    "plan",
     "__version__",
 ]

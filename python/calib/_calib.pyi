@@ -117,3 +117,24 @@ def calibrate(
 
 def evaluate_json(robot: Robot, data: Dataset, **options: Union[str, float, int, bool]) -> str:
     """``calib evaluate --json`` (the package's ``calib.evaluate`` returns the dict)."""
+
+class Plan:
+    """A measurement plan: the poses to measure in order, their roles, the prediction."""
+
+    @property
+    def joints_rad(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def roles(self) -> list[str]: ...
+    @property
+    def ids(self) -> list[str]: ...
+    @property
+    def text(self) -> str: ...
+    def report(self) -> dict:
+        """The plan as ``calib plan --report`` writes it."""
+    def report_json(self) -> str: ...
+    def __len__(self) -> int: ...
+
+def plan(
+    robot: Robot, candidates: Optional[_Path] = None, profile: Optional[_Path] = None, **options: Union[str, float, int, bool]
+) -> Plan:
+    """``calib plan`` (its options as keyword arguments, the same defaults); nothing is written."""

@@ -789,6 +789,100 @@ fn evaluate_json(
     serde_json::to_string(&evaluation).map_err(|e| py_error(e.into()))
 }
 
+/// `calib plan`'s options parsed from command-line words.
+#[derive(clap::Parser)]
+#[command(name = "plan")]
+struct PlanCommand {
+    #[command(flatten)]
+    inner: host_tools::cli::plan::PlanOptions,
+}
+
+/// A measurement plan (`calib plan`): the poses to measure in order, their roles, the prediction.
+#[pyclass(module = "calib", name = "Plan", frozen)]
+struct Plan {
+    plan: host_tools::planning::Plan,
+}
+
+#[pymethods]
+impl Plan {
+    /// The poses' joints in measurement order, (n, joints), rad.
+    #[getter]
+    fn joints_rad<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let p = &self.plan.poses;
+        let j = p.first().map_or(0, |p| p.q.len());
+        Array2::from_shape_fn((p.len(), j), |(i, k)| p[i].q[k]).into_pyarray(py)
+    }
+
+    /// Each pose's role: "core", "fill" or "verify".
+    #[getter]
+    fn roles(&self) -> PyResult<Vec<String>> {
+        (self.plan.poses.iter())
+            .map(|p| {
+                serde_json::to_value(p.role)
+                    .map(|v| v.as_str().unwrap_or_default().to_owned())
+                    .map_err(|e| py_error(e.into()))
+            })
+            .collect()
+    }
+
+    /// Each pose's id.
+    #[getter]
+    fn ids(&self) -> Vec<String> {
+        self.plan.poses.iter().map(|p| p.id.clone()).collect()
+    }
+
+    /// The text `calib plan` prints.
+    #[getter]
+    fn text(&self) -> String {
+        self.plan.text()
+    }
+
+    /// The plan as `calib plan --report` writes it (JSON text; `report()` gives the dict).
+    fn report_json(&self) -> PyResult<String> {
+        serde_json::to_string_pretty(&self.plan).map_err(|e| py_error(e.into()))
+    }
+
+    fn __len__(&self) -> usize {
+        self.plan.poses.len()
+    }
+}
+
+/// Plans the poses to measure for `robot` (`calib plan`): from the candidate configurations of
+/// the file `candidates` (through `profile`), or with `generate=N` candidates within the joint
+/// limits; the other options of `calib plan` as keyword arguments (`poses=30`, `verify=10`,
+/// `measure="position"`, `noise_mm=0.05`, `seed=0`, ...). Nothing is written.
+#[pyfunction]
+#[pyo3(signature = (robot, candidates = None, profile = None, **options))]
+fn plan(
+    py: Python<'_>,
+    robot: &Robot,
+    candidates: Option<PathBuf>,
+    profile: Option<PathBuf>,
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<Plan> {
+    let mut words: Vec<String> = ["plan", "--robot", &robot.path(), "--out", "-"]
+        .map(String::from)
+        .to_vec();
+    if let Some(c) = &candidates {
+        words.extend(["--candidates".into(), c.display().to_string()]);
+    }
+    if let Some(p) = &profile {
+        words.extend(["--profile".into(), p.display().to_string()]);
+    }
+    words.extend(option_words(
+        options,
+        &["robot", "out", "report", "urscript", "joint_targets"],
+    )?);
+    let parsed = <PlanCommand as clap::Parser>::try_parse_from(&words)
+        .map_err(|e| InputError::new_err(e.render().to_string().trim_end().to_string()))?
+        .inner;
+    let file = robot.file.clone();
+    let planned = py
+        .detach(|| host_tools::cli::plan::planned(&parsed, &file))
+        .map_err(py_error)?;
+    Ok(Plan { plan: planned })
+}
+
 /// The module.
 #[pymodule]
 fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -797,6 +891,8 @@ fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<CalibrationResult>()?;
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate_json, m)?)?;
+    m.add_function(wrap_pyfunction!(plan, m)?)?;
+    m.add_class::<Plan>()?;
     m.add("CalibError", m.py().get_type::<CalibError>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;
     m.add("NumericalError", m.py().get_type::<NumericalError>())?;

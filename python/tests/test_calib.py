@@ -233,3 +233,18 @@ def test_evaluate_equals_calib_evaluate(tmp_path):
     with pytest.raises(calib.InputError, match="needs the data read from a file"):
         data = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
         calib.evaluate(robot, calib.Dataset.from_arrays(robot, data.joints_rad, data.positions_mm, frame="tracker"))
+
+
+def test_plan_equals_calib_plan(tmp_path):
+    out, report = tmp_path / "plan.csv", tmp_path / "plan.json"
+    done = run_calib("plan", "--robot", UR10, "--candidates", SERIES_B, "--profile", PROFILE, "--poses", "30",
+                     "--measure", "position", "--noise-mm", "0.05", "--out", out, "--report", report)
+    assert done.returncode == 0, done.stderr
+    cli = json.loads(report.read_text())
+    robot = calib.Robot.from_file(UR10)
+    p = calib.plan(robot, candidates=SERIES_B, profile=PROFILE, poses=30, measure="position", noise_mm=0.05)
+    assert p.report() == cli
+    assert len(p) == len(cli["poses"]) and p.roles == [q["role"] for q in cli["poses"]]
+    assert np.abs(p.joints_rad - np.array([q["q"] for q in cli["poses"]])).max() == 0.0
+    with pytest.raises(calib.InputError, match="required"):
+        calib.plan(robot)

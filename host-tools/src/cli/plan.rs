@@ -211,7 +211,15 @@ fn candidates(options: &PlanOptions, file: &RobotFile) -> anyhow::Result<Vec<(St
 /// `calib plan`: plans, writes the plan (and the report) together, returns the plan.
 pub fn plan(options: &PlanOptions) -> anyhow::Result<Plan> {
     let file = RobotFile::read(&options.robot)?;
-    let candidates = candidates(options, &file)?;
+    let plan = planned(options, &file)?;
+    write(options, &file, &plan)?;
+    Ok(plan)
+}
+
+/// The plan `calib plan` makes for the robot `file` (read from `options.robot`), written nowhere
+/// (`options.out` is not used).
+pub fn planned(options: &PlanOptions, file: &RobotFile) -> anyhow::Result<Plan> {
+    let candidates = candidates(options, file)?;
     let rows = options.measure.rows();
     let (noise_mm, noise_deg) = options.noise()?;
     let settings = PlanSettings {
@@ -230,12 +238,12 @@ pub fn plan(options: &PlanOptions) -> anyhow::Result<Plan> {
         k: options.k,
         seed: options.seed,
     };
-    let mut plan = planning::plan(&file, &options.robot, &candidates, &settings)?;
+    let mut plan = planning::plan(file, &options.robot, &candidates, &settings)?;
     // Too few core poses to determine the parameters alone: make the core large enough.
     let needed = plan.parameters.len().div_ceil(rows);
     if options.core.is_none() && settings.core < needed && needed <= options.poses {
         plan = planning::plan(
-            &file,
+            file,
             &options.robot,
             &candidates,
             &PlanSettings {
@@ -244,6 +252,11 @@ pub fn plan(options: &PlanOptions) -> anyhow::Result<Plan> {
             },
         )?;
     }
+    Ok(plan)
+}
+
+/// Writes `plan` of the robot `file` where `options` ask, all files together.
+fn write(options: &PlanOptions, file: &RobotFile, plan: &Plan) -> anyhow::Result<()> {
     let source = match (&options.candidates, options.generate) {
         (Some(path), _) => format!("candidates {}", path.display()),
         (_, n) => format!("{} generated candidates", n.unwrap_or(0)),
@@ -275,15 +288,15 @@ pub fn plan(options: &PlanOptions) -> anyhow::Result<Plan> {
             acceleration_rad_s2: options.acceleration_rad_s2,
             settle_s: options.settle_s,
         };
-        let program = planning::program::urscript(&plan, &file.name, &motion)?;
+        let program = planning::program::urscript(plan, &file.name, &motion)?;
         outputs.stage("--urscript", path, program.as_bytes())?;
     }
     if let Some(path) = &options.joint_targets {
-        let targets = planning::program::joint_targets(&plan)?;
+        let targets = planning::program::joint_targets(plan)?;
         outputs.stage("--joint-targets", path, targets.as_bytes())?;
     }
     outputs.commit()?;
-    Ok(plan)
+    Ok(())
 }
 
 /// Most candidates `calib plan` takes (the greedy selection's time grows with their number).
