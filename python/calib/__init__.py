@@ -8,6 +8,8 @@ rad. Errors are ``CalibError`` (``InputError``: an input refused, with how to fi
 ``NumericalError``: a computation that cannot stand behind its result).
 """
 
+import csv as _csv
+import io as _io
 import json as _json
 import math as _math
 
@@ -22,6 +24,7 @@ from ._calib import (
     __version__,
 )
 from ._calib import calibrate as _calibrate
+from ._calib import compensate_csv as _compensate_csv
 from ._calib import evaluate_json as _evaluate_json
 from ._calib import plan
 
@@ -90,6 +93,26 @@ def evaluate(robot, data, **options):
     return _json.loads(_evaluate_json(robot, data, **options))
 
 
+def compensate(robot, params, targets, **options):
+    """The joints that put the identified robot ``params`` on each target pose of the file
+    ``targets`` (``calib compensate``), for a controller that plans with the nominal ``robot``;
+    its options as keyword arguments (``targets_frame``, ``joint_targets``, ``max_correction_mm``,
+    ``near_deg``, ``branch``, ...). Both robots read from files. Returns the output table as a
+    dict: column name to list, one entry per target in file order (numbers as float, empty
+    cells as None); rows whose ``status`` is not ``ok`` carry the reason."""
+    text = _compensate_csv(robot, params, targets, **options)
+    rows = list(_csv.reader(line for line in _io.StringIO(text) if not line.startswith("#")))
+    header, body = rows[0], rows[1:]
+
+    def value(cell):
+        try:
+            return float(cell)
+        except ValueError:
+            return cell if cell != "" else None
+
+    return {name: [value(row[i]) if i < len(row) else None for row in body] for i, name in enumerate(header)}
+
+
 __all__ = [
     "CalibError",
     "CalibrationResult",
@@ -99,6 +122,7 @@ __all__ = [
     "NumericalError",
     "Robot",
     "calibrate",
+    "compensate",
     "evaluate",
     "plan",
     "__version__",

@@ -138,3 +138,6 @@ def plan(
     robot: Robot, candidates: Optional[_Path] = None, profile: Optional[_Path] = None, **options: Union[str, float, int, bool]
 ) -> Plan:
     """``calib plan`` (its options as keyword arguments, the same defaults); nothing is written."""
+
+def compensate_csv(robot: Robot, params: Robot, targets: _Path, **options: Union[str, float, int, bool, Sequence[str]]) -> str:
+    """The table ``calib compensate`` writes, as CSV text (``calib.compensate`` returns its columns)."""

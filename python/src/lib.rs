@@ -883,6 +883,57 @@ fn plan(
     Ok(Plan { plan: planned })
 }
 
+/// `calib compensate`'s options parsed from command-line words.
+#[derive(clap::Parser)]
+#[command(name = "compensate")]
+struct CompensateCommand {
+    #[command(flatten)]
+    inner: host_tools::cli::compensate::CompensateOptions,
+}
+
+/// The table `calib compensate` writes (CSV text; the package's `compensate` returns its
+/// columns): the joints that put the identified robot `params` on each target of the file
+/// `targets`, for a controller planning with the nominal `robot`; its options as keyword
+/// arguments (`targets_frame="tracker"`, `joint_targets=True`, `max_correction_mm=15`, ...).
+/// Both robots must have been read from files. Nothing is written.
+#[pyfunction]
+#[pyo3(signature = (robot, params, targets, **options))]
+fn compensate_csv(
+    py: Python<'_>,
+    robot: &Robot,
+    params: &Robot,
+    targets: PathBuf,
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<String> {
+    if !(robot.on_disk && params.on_disk) {
+        return input(
+            "compensate() needs both robots read from files (Robot.from_file; to_file() writes one)".into(),
+        );
+    }
+    let mut words: Vec<String> = vec![
+        "compensate".into(),
+        "--robot".into(),
+        robot.path(),
+        "--params".into(),
+        params.path(),
+        "--targets".into(),
+        targets.display().to_string(),
+        "--out".into(),
+        "-".into(),
+    ];
+    words.extend(option_words(
+        options,
+        &["robot", "params", "targets", "out"],
+    )?);
+    let parsed = <CompensateCommand as clap::Parser>::try_parse_from(&words)
+        .map_err(|e| InputError::new_err(e.render().to_string().trim_end().to_string()))?
+        .inner;
+    let (csv, _) = py
+        .detach(|| host_tools::cli::compensate::compensated_table(&parsed))
+        .map_err(py_error)?;
+    String::from_utf8(csv).map_err(|e| CalibError::new_err(e.to_string()))
+}
+
 /// The module.
 #[pymodule]
 fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -892,6 +943,7 @@ fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate_json, m)?)?;
     m.add_function(wrap_pyfunction!(plan, m)?)?;
+    m.add_function(wrap_pyfunction!(compensate_csv, m)?)?;
     m.add_class::<Plan>()?;
     m.add("CalibError", m.py().get_type::<CalibError>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;

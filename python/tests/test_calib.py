@@ -248,3 +248,29 @@ def test_plan_equals_calib_plan(tmp_path):
     assert np.abs(p.joints_rad - np.array([q["q"] for q in cli["poses"]])).max() == 0.0
     with pytest.raises(calib.InputError, match="required"):
         calib.plan(robot)
+
+
+def test_compensate_equals_calib_compensate(tmp_path):
+    identified = tmp_path / "b.toml"
+    done = run_calib("calibrate", "--robot", UR10, "--data", SERIES_B, "--profile", PROFILE,
+                     "--validate", "0.9666", "--method", "lm", "--out", identified)
+    assert done.returncode == 0, done.stderr
+    robot = calib.Robot.from_file(UR10)
+    q = np.degrees(calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE).joints_rad[:12])
+    targets = tmp_path / "targets.csv"
+    targets.write_text("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n" + "".join(",".join(repr(float(v)) for v in row) + "\n" for row in q))
+    out = tmp_path / "c.csv"
+    done = run_calib("compensate", "--robot", UR10, "--params", identified, "--targets", targets,
+                     "--joint-targets", "--max-correction-mm", "15", "--out", out)
+    assert done.returncode == 0, done.stderr
+    import csv
+    rows = list(csv.reader(line for line in out.read_text().splitlines() if not line.startswith("#")))
+    py = calib.compensate(robot, calib.Robot.from_file(identified), targets, joint_targets=True, max_correction_mm=15)
+    assert list(py) == rows[0]
+    for i, name in enumerate(rows[0]):
+        for cell, value in zip((r[i] for r in rows[1:]), py[name]):
+            try:
+                assert value == float(cell)
+            except ValueError:
+                assert value == (cell or None)
+    assert len(py["status"]) == 12 and py["status"].count("ok") >= 10, py["status"]

@@ -6,6 +6,7 @@ use crate::io::outputs::Outputs;
 use crate::io::robot_file::RobotFile;
 use crate::io::robot_file::RobotModel;
 use crate::io::tracker_data::TrackerData;
+use crate::kinematics::compensate::TargetOutcome;
 use crate::kinematics::compensate::{
     Configuration, Request, Summary, compensate_targets, compensate_targets_of, to_csv,
 };
@@ -203,6 +204,19 @@ const MIN_JOINTS: usize = 6;
 /// Runs `calib compensate` for the robot file's joint count (6 to 9 joints, fewer are refused
 /// with the reason; joint maps for every count, gravity compliance for 6-joint robots).
 pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
+    let (outcomes, joints) = compensated(options)?;
+    finish(options, &outcomes, joints)
+}
+
+/// The table `calib compensate` writes to `--out` (CSV, one row per target), computed and
+/// written nowhere, with its summary.
+pub fn compensated_table(options: &CompensateOptions) -> anyhow::Result<(Vec<u8>, Summary)> {
+    let (outcomes, joints) = compensated(options)?;
+    Ok((to_csv(&outcomes, joints)?, Summary::of(&outcomes)))
+}
+
+/// The outcome of every target of `calib compensate`, and the joint count.
+fn compensated(options: &CompensateOptions) -> anyhow::Result<(Vec<TargetOutcome>, usize)> {
     let file = RobotFile::read(&options.robot)?;
     file.refuse_joint_maps(
         &options.robot,
@@ -240,10 +254,12 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
         })
         .collect();
     let request = options.request(map_ranges, file.compensation.as_ref())?;
-    if maps.is_none() && compliance.is_none() {
-        return compensate_geometric(options, &request);
-    }
-    compensate_model(options, (maps.as_ref(), compliance.as_ref()), &request)
+    let outcomes = if maps.is_none() && compliance.is_none() {
+        compensate_geometric(options, &request)?
+    } else {
+        compensate_model(options, (maps.as_ref(), compliance.as_ref()), &request)?
+    };
+    Ok((outcomes, file.joint.len()))
 }
 
 /// `calib compensate` of a model with joint maps or gravity compliance (the
@@ -256,19 +272,32 @@ fn compensate_model(
         Option<&crate::model::compliance::FileCompliance>,
     ),
     request: &Request,
-) -> anyhow::Result<Summary> {
+) -> anyhow::Result<Vec<TargetOutcome>> {
     let (nominal, actual, targets, settings) = inputs(options)?;
     let model = controller_model(actual.robot, maps, compliance)?;
     let real = model.kinematics()?;
-    let outcomes = compensate_targets_of(&nominal.robot, &real, &targets, &settings, request)?;
-    finish(options, &outcomes, nominal.robot.joints.len())
+    Ok(compensate_targets_of(
+        &nominal.robot,
+        &real,
+        &targets,
+        &settings,
+        request,
+    )?)
 }
 
 /// `calib compensate` of a geometric model.
-fn compensate_geometric(options: &CompensateOptions, request: &Request) -> anyhow::Result<Summary> {
+fn compensate_geometric(
+    options: &CompensateOptions,
+    request: &Request,
+) -> anyhow::Result<Vec<TargetOutcome>> {
     let (nominal, actual, targets, settings) = inputs(options)?;
-    let outcomes = compensate_targets(&nominal.robot, &actual.robot, &targets, &settings, request)?;
-    finish(options, &outcomes, nominal.robot.joints.len())
+    Ok(compensate_targets(
+        &nominal.robot,
+        &actual.robot,
+        &targets,
+        &settings,
+        request,
+    )?)
 }
 
 /// The nominal and identified robots, the targets and the settings, checked.
