@@ -533,7 +533,7 @@ struct ExportCommand {
 
 /// `calib calibrate`'s options parsed from command-line words.
 #[derive(clap::Parser)]
-#[command(name = "calibrate", no_binary_name = false)]
+#[command(name = "calibrate")]
 struct Options {
     #[command(flatten)]
     inner: CalibrateOptions,

@@ -63,15 +63,12 @@ fn nominal_positions(
 ) -> anyhow::Result<Vec<[f64; 3]>> {
     let model = file.to_model(path)?;
     let kinematics = calib_core::Kinematics::nominal(&model.robot)?;
-    let [roll, pitch, yaw] = model.robot.base.rpy;
-    let to_base = nalgebra::Rotation3::from_euler_angles(roll, pitch, yaw).inverse();
-    let origin = nalgebra::Vector3::from(model.robot.base.xyz);
+    let base = crate::measurement::statistics::BaseFrame::of(&model.robot);
     q.iter()
         .map(|q| {
             let q = calib_core::model::JointVec::from_slice(q)
                 .ok_or_else(|| anyhow::anyhow!("more than 9 joints"))?;
-            let p = to_base * (kinematics.forward(&q)?.translation.vector - origin);
-            Ok([p.x, p.y, p.z])
+            Ok(base.point(&kinematics.forward(&q)?.translation.vector))
         })
         .collect()
 }

@@ -86,6 +86,35 @@ pub(crate) fn table3<'a>(
     (Table3::from_statistics(&stats), per_pose)
 }
 
+/// A model's base frame seen from the frame its poses are measured in (for data in a tracker's
+/// frame, the registration): points and directions of that frame along the robot's own axes.
+pub(crate) struct BaseFrame {
+    to_base: nalgebra::Rotation3<f64>,
+    origin: nalgebra::Vector3<f64>,
+}
+
+impl BaseFrame {
+    /// The base frame of `robot` (its `base`).
+    pub(crate) fn of(robot: &calib_core::Robot<f64, Dyn>) -> Self {
+        let [roll, pitch, yaw] = robot.base.rpy;
+        Self {
+            to_base: nalgebra::Rotation3::from_euler_angles(roll, pitch, yaw).inverse(),
+            origin: nalgebra::Vector3::from(robot.base.xyz),
+        }
+    }
+
+    /// A point (mm) in the base frame.
+    pub(crate) fn point(&self, p: &nalgebra::Vector3<f64>) -> [f64; 3] {
+        self.direction(&(p - self.origin))
+    }
+
+    /// A direction (or difference, mm) along the base axes.
+    pub(crate) fn direction(&self, v: &nalgebra::Vector3<f64>) -> [f64; 3] {
+        let v = self.to_base * v;
+        [v.x, v.y, v.z]
+    }
+}
+
 /// `measured - predicted` position (mm) of `kinematics` for each of `measurements`, along the
 /// axes of the robot's base frame: turned back by the rotation of the model's base (for data in a
 /// tracker's frame, the registration), so that x, y and z are the robot's.
@@ -94,14 +123,10 @@ pub(crate) fn signed_errors<'a>(
     robot: &calib_core::Robot<f64, Dyn>,
     measurements: impl IntoIterator<Item = &'a calib_core::identify::objective::Measurement<f64, Dyn>>,
 ) -> Vec<[f64; 3]> {
-    let [roll, pitch, yaw] = robot.base.rpy;
-    let to_base = nalgebra::Rotation3::from_euler_angles(roll, pitch, yaw).inverse();
+    let base = BaseFrame::of(robot);
     measurements
         .into_iter()
-        .map(|m| {
-            let e = to_base * m.error_of(&kinematics.forward_angles(&m.angles)).position;
-            [e.x, e.y, e.z]
-        })
+        .map(|m| base.direction(&m.error_of(&kinematics.forward_angles(&m.angles)).position))
         .collect()
 }
 
@@ -112,15 +137,10 @@ pub(crate) fn base_positions<'a>(
     robot: &calib_core::Robot<f64, Dyn>,
     measurements: impl IntoIterator<Item = &'a calib_core::identify::objective::Measurement<f64, Dyn>>,
 ) -> Vec<[f64; 3]> {
-    let [roll, pitch, yaw] = robot.base.rpy;
-    let to_base = nalgebra::Rotation3::from_euler_angles(roll, pitch, yaw).inverse();
-    let origin = nalgebra::Vector3::from(robot.base.xyz);
+    let base = BaseFrame::of(robot);
     measurements
         .into_iter()
-        .map(|m| {
-            let p = to_base * (kinematics.forward_angles(&m.angles).translation.vector - origin);
-            [p.x, p.y, p.z]
-        })
+        .map(|m| base.point(&kinematics.forward_angles(&m.angles).translation.vector))
         .collect()
 }
 
