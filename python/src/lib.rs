@@ -218,9 +218,17 @@ impl Robot {
         let out = py.detach(|| -> Result<Array3<f64>, host_tools::Error> {
             let mut out = Array3::<f64>::zeros((rows.nrows(), 4, 4));
             for (i, row) in rows.rows().into_iter().enumerate() {
-                let q: Vec<f64> = row.iter().copied().collect();
+                // `rows` is an owned array in standard layout: each row is one slice.
+                let owned: Vec<f64>;
+                let q = match row.as_slice() {
+                    Some(q) => q,
+                    None => {
+                        owned = row.to_vec();
+                        &owned
+                    }
+                };
                 let m = kinematics
-                    .pose(&q, &format!("joints_rad row {i}"))?
+                    .pose(q, &|| format!("joints_rad row {i}"))?
                     .to_homogeneous();
                 for r in 0..4 {
                     for c in 0..4 {

@@ -105,17 +105,31 @@ pub fn forward_deg_compliant(
 ) -> crate::Result<FkOutput> {
     forward_deg(model, joints_deg)?;
     let q = JointVec::<f64>::from_fn(joints_deg.len(), |j| joints_deg[j].to_radians());
-    let mut pose = Kinematics::nominal(&model.robot)?.forward(&q)?;
+    let pose = Kinematics::nominal(&model.robot)?.forward(&q)?;
+    Ok(FkOutput::from_pose(&deflected(
+        pose, model, gravity, gains, &q,
+    )?))
+}
+
+/// `pose` (of `model`'s nominal geometry at the kinematic angles `q`, rad) moved by the gravity
+/// compliance displacement of `gains` under `gravity` there.
+fn deflected(
+    mut pose: Pose<f64>,
+    model: &RobotModel,
+    gravity: &crate::model::compliance::Gravity,
+    gains: &[f64; crate::model::compliance::GAIN_COUNT],
+    q: &JointVec<f64>,
+) -> crate::Result<Pose<f64>> {
     let columns = crate::model::compliance::columns(
         gravity,
         &model.robot,
         &calib_core::ParameterErrors::zeros_for(model.robot.joint_count()),
-        &q,
+        q,
     )?;
     let d = crate::model::compliance::displacement(&columns, gains);
     pose.translation.vector += nalgebra::Vector3::new(d[0], d[1], d[2]);
     pose.rotation = Rotation3::new(nalgebra::Vector3::new(d[3], d[4], d[5])) * pose.rotation;
-    Ok(FkOutput::from_pose(&pose))
+    Ok(pose)
 }
 
 /// A robot file's whole model at many joint configurations: its geometry, its joint maps (each
@@ -154,54 +168,41 @@ impl FileKinematics {
     /// The end pose (mm, the robot's base frame) at the joint readings `q_rad` (rad, one per
     /// joint). Refused, naming `what` (such as `row 3`): a count that differs from the joints, a
     /// reading that is not finite or beyond ten turns, one outside the joint limits.
-    pub fn pose(&self, q_rad: &[f64], what: &str) -> crate::Result<Pose<f64>> {
+    pub fn pose(&self, q_rad: &[f64], what: &dyn Fn() -> String) -> crate::Result<Pose<f64>> {
         let joints = self.joints();
         if q_rad.len() != joints {
             return Err(crate::refused!(
-                "{what}: {} joint values, the robot {} has {joints} joints",
+                "{}: {} joint values, the robot {} has {joints} joints",
+                what(),
                 q_rad.len(),
                 self.model.name
             ));
         }
-        for (i, (q, limits)) in q_rad.iter().zip(&self.model.robot.limits).enumerate() {
+        for (i, q) in q_rad.iter().enumerate() {
             if !q.is_finite() {
                 return Err(crate::refused!(
-                    "{what}: q{} = {q} is not a finite number",
+                    "{}: q{} = {q} is not a finite number",
+                    what(),
                     i + 1
                 ));
             }
             if q.to_degrees().abs() > crate::io::tracker_data::MAX_JOINT_DEG {
                 return Err(crate::refused!(
-                    "{what}: q{} = {q:e} rad is beyond ten turns; give the joint readings in radians",
+                    "{}: q{} = {q:e} rad is beyond ten turns; give the joint readings in radians",
+                    what(),
                     i + 1
                 ));
             }
-            if !limits.contains(*q) {
-                return Err(crate::refused!(
-                    "{what}: q{} = {} deg is outside the joint limits [{}, {}] deg of {}",
-                    i + 1,
-                    q.to_degrees(),
-                    limits.lower.to_degrees(),
-                    limits.upper.to_degrees(),
-                    self.model.path.display()
-                ));
-            }
+        }
+        if let Some(outside) = self.model.outside_limits(q_rad) {
+            return Err(crate::refused!("{}: {outside}", what()));
         }
         let readings = JointVec::<f64>::from_fn(joints, |j| q_rad[j]);
         let q = self.maps.as_ref().map_or(readings, |m| m.apply(&readings));
-        let mut pose = self.kinematics.forward(&q)?;
-        if let Some(c) = &self.compliance {
-            let columns = crate::model::compliance::columns(
-                &c.gravity,
-                &self.model.robot,
-                &calib_core::ParameterErrors::zeros_for(self.model.robot.joint_count()),
-                &q,
-            )?;
-            let d = crate::model::compliance::displacement(&columns, &c.gains);
-            pose.translation.vector += nalgebra::Vector3::new(d[0], d[1], d[2]);
-            pose.rotation =
-                Rotation3::new(nalgebra::Vector3::new(d[3], d[4], d[5])) * pose.rotation;
+        let pose = self.kinematics.forward(&q)?;
+        match &self.compliance {
+            Some(c) => deflected(pose, &self.model, &c.gravity, &c.gains, &q),
+            None => Ok(pose),
         }
-        Ok(pose)
     }
 }
