@@ -11,7 +11,10 @@ rad. Errors are ``CalibError`` (``InputError``: an input refused, with how to fi
 import csv as _csv
 import io as _io
 import json as _json
-import math as _math
+from os import PathLike as _PathLike
+from typing import Any as _Any
+from typing import Optional as _Optional
+from typing import Union as _Union
 
 from ._calib import (
     CalibError,
@@ -29,51 +32,7 @@ from ._calib import evaluate_json as _evaluate_json
 from ._calib import plan
 
 
-def _report(self):
-    """The JSON report as a dict: the keys of ``calib calibrate --report``."""
-    return _json.loads(self.report_json())
-
-
-CalibrationResult.report = _report
-Plan.report = _report
-
-
-def _from_dh(name, a_mm, alpha_rad, theta_offset_rad, d_mm, beta_rad=None, limits_rad=None,
-             base_xyz_mm=None, base_rpy_rad=None, tool_xyz_mm=None, tool_rpy_rad=None):
-    """A robot from arrays of its Hayati-modified DH parameters, one value per joint (docs/
-    ARCHITECTURE.md: ``A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i) Ry(beta_i)``, ``theta_i = q_i +
-    theta_offset_i``): lengths in mm, angles in rad; ``limits_rad`` (joints, 2); the base and tool
-    frames as xyz (mm) and roll, pitch, yaw (rad, ``R = Rz(yaw) Ry(pitch) Rx(roll)``). The robot
-    file it makes is checked as a file is."""
-    columns = [list(map(float, c)) for c in (a_mm, alpha_rad, theta_offset_rad, d_mm)]
-    joints = len(columns[0])
-    beta = [0.0] * joints if beta_rad is None else list(map(float, beta_rad))
-    if any(len(c) != joints for c in columns + [beta]):
-        raise InputError(f"from_dh: every parameter needs {joints} values, one per joint")
-    number = lambda v: repr(float(v))
-    lines = [f"name = {_json.dumps(str(name))}", ""]
-    for j in range(joints):
-        lines += ["[[joint]]", f"a_mm = {number(columns[0][j])}",
-                  f"alpha_deg = {number(_math.degrees(columns[1][j]))}",
-                  f"theta_offset_deg = {number(_math.degrees(columns[2][j]))}",
-                  f"d_mm = {number(columns[3][j])}", f"beta_deg = {number(_math.degrees(beta[j]))}"]
-        if limits_rad is not None:
-            low, high = limits_rad[j]
-            lines.append(f"limits_deg = [{number(_math.degrees(low))}, {number(_math.degrees(high))}]")
-        lines.append("")
-    for section, xyz, rpy in (("base", base_xyz_mm, base_rpy_rad), ("tool", tool_xyz_mm, tool_rpy_rad)):
-        if xyz is not None or rpy is not None:
-            xyz = [0.0, 0.0, 0.0] if xyz is None else xyz
-            rpy = [0.0, 0.0, 0.0] if rpy is None else rpy
-            lines += [f"[{section}]", "xyz_mm = [" + ", ".join(number(v) for v in xyz) + "]",
-                      "rpy_deg = [" + ", ".join(number(_math.degrees(v)) for v in rpy) + "]", ""]
-    return Robot.from_toml("\n".join(lines), name=f"<{name}>")
-
-
-Robot.from_dh = staticmethod(_from_dh)
-
-
-def calibrate(robot, data, holdout=None, **options):
+def calibrate(robot: Robot, data: Dataset, holdout: _Optional[Dataset] = None, **options: _Any) -> CalibrationResult:
     """Calibrates ``robot`` (a Robot) on ``data`` (a Dataset).
 
     ``options`` are those of ``calib calibrate`` with underscores for dashes and the same
@@ -86,25 +45,30 @@ def calibrate(robot, data, holdout=None, **options):
     return _calibrate(robot, data, holdout, **options)
 
 
-def evaluate(robot, data, **options):
+def evaluate(robot: Robot, data: Dataset, **options: _Any) -> dict[str, _Any]:
     """Table 3 statistics of ``robot`` (nominal or identified) on ``data`` as a dict, as
     ``calib evaluate --json`` prints them; its options as keyword arguments (``fit_frames``,
-    ``fit_poses``, ``seed``, ``stored_registration``). Robot and data read from files."""
-    return _json.loads(_evaluate_json(robot, data, **options))
+    ``fit_poses``, ``seed``, ``stored_registration``). The data, from a file or arrays, are
+    checked against ``robot`` (a file, ``Robot.from_dh`` or ``CalibrationResult.robot``)."""
+    evaluation: dict[str, _Any] = _json.loads(_evaluate_json(robot, data, **options))
+    return evaluation
 
 
-def compensate(robot, params, targets, **options):
+def compensate(
+    robot: Robot, params: Robot, targets: _Union[str, "_PathLike[str]"], **options: _Any
+) -> dict[str, list[_Union[float, str, None]]]:
     """The joints that put the identified robot ``params`` on each target pose of the file
     ``targets`` (``calib compensate``), for a controller that plans with the nominal ``robot``;
     its options as keyword arguments (``targets_frame``, ``joint_targets``, ``max_correction_mm``,
-    ``near_deg``, ``branch``, ...). Both robots read from files. Returns the output table as a
+    ``near_deg``, ``branch``, ...). Either robot may come from a file or from memory
+    (``CalibrationResult.robot``); ``targets`` is a file (CSV). Returns the output table as a
     dict: column name to list, one entry per target in file order (numbers as float, empty
     cells as None); rows whose ``status`` is not ``ok`` carry the reason."""
     text = _compensate_csv(robot, params, targets, **options)
     rows = list(_csv.reader(line for line in _io.StringIO(text) if not line.startswith("#")))
     header, body = rows[0], rows[1:]
 
-    def value(cell):
+    def value(cell: str) -> _Union[float, str, None]:
         try:
             return float(cell)
         except ValueError:

@@ -1,12 +1,26 @@
 """Type stubs of the extension module (python/src/lib.rs). Units are in the names: mm, rad."""
 
 from os import PathLike
-from typing import Optional, Sequence, Union
+from typing import Any, Optional, Sequence, Union, final
 
 import numpy as np
 import numpy.typing as npt
 
 __version__: str
+__all__ = [
+    "CalibError",
+    "CalibrationResult",
+    "Dataset",
+    "InputError",
+    "NumericalError",
+    "Plan",
+    "Robot",
+    "__version__",
+    "calibrate",
+    "compensate_csv",
+    "evaluate_json",
+    "plan",
+]
 
 class CalibError(Exception):
     """Any error of the toolkit; the message is the command line's."""
@@ -17,8 +31,9 @@ class InputError(CalibError):
 class NumericalError(CalibError):
     """A computation that cannot stand behind its result."""
 
-_Path = Union[str, PathLike]
+_Path = Union[str, "PathLike[str]"]
 
+@final
 class Robot:
     """A robot model: its robot file (TOML)."""
 
@@ -56,6 +71,7 @@ class Robot:
         """Forward kinematics (geometry, joint maps, compliance) as ``calib fk``: joints in rad,
         shape (joints,) or (n, joints); homogeneous transforms in mm, (4, 4) or (n, 4, 4)."""
 
+@final
 class Dataset:
     """Measured poses of a robot, checked against it."""
 
@@ -64,15 +80,16 @@ class Dataset:
     @staticmethod
     def from_arrays(
         robot: Robot,
-        joints_rad: npt.NDArray[np.float64],
-        positions_mm: npt.NDArray[np.float64],
-        rotations: Optional[npt.NDArray[np.float64]] = None,
-        quaternions_wxyz: Optional[npt.NDArray[np.float64]] = None,
-        weights: Optional[npt.NDArray[np.float64]] = None,
+        joints_rad: npt.ArrayLike,
+        positions_mm: npt.ArrayLike,
+        rotations: Optional[npt.ArrayLike] = None,
+        quaternions_wxyz: Optional[npt.ArrayLike] = None,
+        weights: Optional[npt.ArrayLike] = None,
         frame: str = "base",
     ) -> "Dataset":
         """``joints_rad`` (n, joints) rad, ``positions_mm`` (n, 3) mm, orientations as ``rotations``
-        (n, 3, 3) or ``quaternions_wxyz`` (n, 4); ``frame`` "base" or "tracker"."""
+        (n, 3, 3) or ``quaternions_wxyz`` (n, 4); ``frame`` "base" or "tracker". Any array-like
+        of numbers (numpy arrays, pandas frames, nested lists)."""
     def __len__(self) -> int: ...
     @property
     def joints_rad(self) -> npt.NDArray[np.float64]: ...
@@ -83,10 +100,11 @@ class Dataset:
     @property
     def lines(self) -> list[int]: ...
 
+@final
 class CalibrationResult:
     """What a calibration found."""
 
-    def report(self) -> dict:
+    def report(self) -> dict[str, Any]:
         """The JSON report as a dict: the keys of ``calib calibrate --report``."""
     def report_json(self) -> str: ...
     def html(self) -> str:
@@ -118,6 +136,7 @@ def calibrate(
 def evaluate_json(robot: Robot, data: Dataset, **options: Union[str, float, int, bool]) -> str:
     """``calib evaluate --json`` (the package's ``calib.evaluate`` returns the dict)."""
 
+@final
 class Plan:
     """A measurement plan: the poses to measure in order, their roles, the prediction."""
 
@@ -129,7 +148,7 @@ class Plan:
     def ids(self) -> list[str]: ...
     @property
     def text(self) -> str: ...
-    def report(self) -> dict:
+    def report(self) -> dict[str, Any]:
         """The plan as ``calib plan --report`` writes it."""
     def report_json(self) -> str: ...
     def __len__(self) -> int: ...

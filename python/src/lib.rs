@@ -10,7 +10,7 @@ use host_tools::io::tracker_data::Record;
 use host_tools::measurement::dataset::Dataset as HostDataset;
 use numpy::PyUntypedArrayMethods;
 use numpy::ndarray::{Array2, Array3};
-use numpy::{IntoPyArray, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3};
+use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
@@ -71,26 +71,39 @@ fn py_error(error: anyhow::Error) -> PyErr {
     }
 }
 
-/// Runs `work` on a thread of its own while this thread, with the GIL released between looks,
+/// Runs `work` on a thread of its own while this thread, with the GIL released while it waits,
 /// checks for Python signals every 20 ms: on Ctrl-C (or any signal handler's exception) `cancel`
-/// asks the work to stop, and once it has, the exception is raised.
+/// asks the work to stop, and once it has, the exception is raised. The result is taken the
+/// moment the work sends it (no wait for the next look).
 fn interruptible<T: Send + 'static>(
     py: Python<'_>,
     cancel: &host_tools::calibration::Cancel,
     work: impl FnOnce() -> T + Send + 'static,
 ) -> PyResult<T> {
-    let handle = std::thread::spawn(work);
+    use std::sync::mpsc::RecvTimeoutError;
+    let (send, receive) = std::sync::mpsc::channel();
+    let handle = std::thread::spawn(move || {
+        let _ = send.send(work());
+    });
+    let mut receive = receive;
     loop {
-        let finished = py.detach(|| {
-            std::thread::sleep(std::time::Duration::from_millis(20));
-            handle.is_finished()
+        // The receiver goes to the detached closure and back (it is Send, not Sync).
+        let (back, look) = py.detach(move || {
+            let look = receive.recv_timeout(std::time::Duration::from_millis(20));
+            (receive, look)
         });
-        if finished {
-            return handle.join().map_err(|_| {
-                CalibError::new_err(
+        receive = back;
+        match look {
+            Ok(value) => {
+                let _ = py.detach(|| handle.join());
+                return Ok(value);
+            }
+            Err(RecvTimeoutError::Disconnected) => {
+                return Err(CalibError::new_err(
                     "the computation stopped unexpectedly (a panic): please report it",
-                )
-            });
+                ));
+            }
+            Err(RecvTimeoutError::Timeout) => {}
         }
         if let Err(signal) = py.check_signals() {
             cancel.cancel();
@@ -98,6 +111,36 @@ fn interruptible<T: Send + 'static>(
             return Err(signal);
         }
     }
+}
+
+/// The array-like `value` (a numpy array, a pandas frame or series, nested lists) as an array
+/// of `f64` of dimension `D`: `numpy.asarray(value, dtype=float64)`, so numbers of other types
+/// are converted and anything else (text, a mapping, the wrong number of axes) is an
+/// `InputError` naming the argument `name`. (numpy's own `PyArrayLike` would read a one-axis
+/// argument by iteration, and a frame iterates over its column labels.)
+fn numbers<'py, D: numpy::ndarray::Dimension + 'py>(
+    name: &str,
+    value: &Bound<'py, PyAny>,
+) -> PyResult<numpy::PyReadonlyArray<'py, f64, D>> {
+    let py = value.py();
+    let refused = |why: String| {
+        let axes = D::NDIM.map_or("any number of".to_string(), |n| n.to_string());
+        InputError::new_err(format!(
+            "{name}: not an array of numbers with {axes} axes ({why})"
+        ))
+    };
+    let array = (numpy::get_array_module(py)?)
+        .call_method1("asarray", (value, numpy::dtype::<f64>(py)))
+        .map_err(|e| refused(e.to_string()))?;
+    let array = array
+        .cast_into::<numpy::PyArray<f64, D>>()
+        .map_err(|_| refused("a different number of axes".to_string()))?;
+    Ok(numpy::PyArrayMethods::readonly(&array))
+}
+
+/// The JSON `text` as Python objects (`json.loads`).
+fn json_loads<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
+    py.import("json")?.call_method1("loads", (text,))
 }
 
 /// `Err(InputError(message))`.
@@ -141,6 +184,71 @@ impl Robot {
         })
     }
 
+    /// A robot from arrays of its Hayati-modified DH parameters, one value per joint
+    /// (docs/ARCHITECTURE.md: `A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i) Ry(beta_i)`,
+    /// `theta_i = q_i + theta_offset_i`): lengths in mm, angles in rad; `limits_rad` (joints, 2);
+    /// the base and tool frames as xyz (mm) and roll, pitch, yaw (rad, `R = Rz(yaw) Ry(pitch)
+    /// Rx(roll)`). The robot file it makes is checked as a file is.
+    #[staticmethod]
+    #[pyo3(signature = (name, a_mm, alpha_rad, theta_offset_rad, d_mm, beta_rad = None, limits_rad = None, base_xyz_mm = None, base_rpy_rad = None, tool_xyz_mm = None, tool_rpy_rad = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn from_dh(
+        name: &str,
+        a_mm: Vec<f64>,
+        alpha_rad: Vec<f64>,
+        theta_offset_rad: Vec<f64>,
+        d_mm: Vec<f64>,
+        beta_rad: Option<Vec<f64>>,
+        limits_rad: Option<Vec<[f64; 2]>>,
+        base_xyz_mm: Option<[f64; 3]>,
+        base_rpy_rad: Option<[f64; 3]>,
+        tool_xyz_mm: Option<[f64; 3]>,
+        tool_rpy_rad: Option<[f64; 3]>,
+    ) -> PyResult<Self> {
+        let joints = a_mm.len();
+        let beta_rad = beta_rad.unwrap_or_else(|| vec![0.0; joints]);
+        let columns = [&alpha_rad, &theta_offset_rad, &d_mm, &beta_rad];
+        if columns.iter().any(|c| c.len() != joints)
+            || limits_rad.as_ref().is_some_and(|l| l.len() != joints)
+        {
+            return input(format!(
+                "from_dh: every parameter needs {joints} values, one per joint"
+            ));
+        }
+        let mut text = format!("name = {}\n\n", toml::Value::from(name));
+        for j in 0..joints {
+            text += &format!(
+                "[[joint]]\na_mm = {:?}\nalpha_deg = {:?}\ntheta_offset_deg = {:?}\nd_mm = {:?}\nbeta_deg = {:?}\n",
+                a_mm[j],
+                alpha_rad[j].to_degrees(),
+                theta_offset_rad[j].to_degrees(),
+                d_mm[j],
+                beta_rad[j].to_degrees()
+            );
+            if let Some(l) = &limits_rad {
+                text += &format!(
+                    "limits_deg = [{:?}, {:?}]\n",
+                    l[j][0].to_degrees(),
+                    l[j][1].to_degrees()
+                );
+            }
+            text += "\n";
+        }
+        for (section, xyz, rpy) in [
+            ("base", base_xyz_mm, base_rpy_rad),
+            ("tool", tool_xyz_mm, tool_rpy_rad),
+        ] {
+            if xyz.is_some() || rpy.is_some() {
+                let [x, y, z] = xyz.unwrap_or_default();
+                let [r, p, w] = rpy.unwrap_or_default().map(f64::to_degrees);
+                text += &format!(
+                    "[{section}]\nxyz_mm = [{x:?}, {y:?}, {z:?}]\nrpy_deg = [{r:?}, {p:?}, {w:?}]\n\n"
+                );
+            }
+        }
+        Self::from_toml(&text, &format!("<{name}>"))
+    }
+
     /// The robot's name.
     #[getter]
     fn name(&self) -> String {
@@ -182,29 +290,22 @@ impl Robot {
         py: Python<'py>,
         joints_rad: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let array =
-            numpy::PyArrayLike2::<f64, numpy::AllowTypeChange>::extract(joints_rad.as_borrowed());
-        let (rows, single) = match array {
-            Ok(a) => (a.as_array().to_owned(), false),
-            Err(_) => {
-                let one = numpy::PyArrayLike1::<f64, numpy::AllowTypeChange>::extract(
-                    joints_rad.as_borrowed(),
-                )
-                .or_else(|_| {
-                    input(
-                        "joints_rad: expected an array of shape (joints,) or (n, joints), in rad"
-                            .into(),
-                    )
-                })?;
-                let v = one.as_array().to_owned();
-                (
-                    v.clone()
-                        .into_shape_with_order((1, v.len()))
-                        .map_err(|e| InputError::new_err(e.to_string()))?,
-                    true,
-                )
+        let array = numbers::<numpy::IxDyn>("joints_rad", joints_rad)?;
+        let array = array.as_array();
+        let single = array.ndim() == 1;
+        let rows = match array.ndim() {
+            1 => array.to_shape((1, array.len())).map(|a| a.to_owned()),
+            2 => array
+                .to_shape((array.shape()[0], array.shape()[1]))
+                .map(|a| a.to_owned()),
+            _ => {
+                return input(format!(
+                    "joints_rad: shape {:?}: expected (joints,) or (n, joints), in rad",
+                    array.shape()
+                ));
             }
-        };
+        }
+        .map_err(|e| InputError::new_err(e.to_string()))?;
         let kinematics = host_tools::kinematics::fk::FileKinematics::new(&self.file, &self.path)
             .map_err(|e| py_error(e.into()))?;
         let joints = kinematics.joints();
@@ -305,6 +406,18 @@ struct Dataset {
     source: Source,
 }
 
+impl Dataset {
+    /// The poses checked against `robot`: the dataset itself when it was read for that robot,
+    /// else the same poses bound to it (a model identified on them, one built in memory), with
+    /// the same checks (joint count, limits).
+    fn against(&self, robot: &Robot) -> anyhow::Result<HostDataset> {
+        if self.robot.path == robot.path && self.robot.file == robot.file {
+            return Ok(self.dataset.clone());
+        }
+        Ok(self.dataset.for_robot(robot.file.clone(), &robot.path)?)
+    }
+}
+
 #[pymethods]
 impl Dataset {
     /// Reads a tracker data file (CSV) of `robot`, through a data profile (TOML) when given.
@@ -319,16 +432,15 @@ impl Dataset {
         let dataset = py
             .detach(|| -> anyhow::Result<HostDataset> {
                 let p = host_tools::io::profile::DataProfile::load(profile.as_deref())?;
-                if robot.on_disk {
-                    Ok(HostDataset::load_with(&robot.path, &path, &p)?)
+                let dataset = if robot.on_disk {
+                    HostDataset::load_with(&robot.path, &path, &p)?
                 } else {
                     let data = host_tools::io::tracker_data::TrackerData::read_with(&path, &p)?;
-                    Ok(HostDataset::from_records(
-                        robot.file.clone(),
-                        data.records,
-                        data.base_frame,
-                    )?)
-                }
+                    HostDataset::from_records(robot.file.clone(), data.records, data.base_frame)?
+                };
+                // The check `calib` makes of every data file it reads (Euler conventions).
+                host_tools::measurement::orientation_check::check(&dataset, &p.euler)?;
+                Ok(dataset)
             })
             .map_err(py_error)?;
         Ok(Self {
@@ -350,13 +462,23 @@ impl Dataset {
     #[allow(clippy::too_many_arguments)]
     fn from_arrays(
         robot: &Robot,
-        joints_rad: PyReadonlyArray2<'_, f64>,
-        positions_mm: PyReadonlyArray2<'_, f64>,
-        rotations: Option<PyReadonlyArray3<'_, f64>>,
-        quaternions_wxyz: Option<PyReadonlyArray2<'_, f64>>,
-        weights: Option<PyReadonlyArray1<'_, f64>>,
+        joints_rad: &Bound<'_, PyAny>,
+        positions_mm: &Bound<'_, PyAny>,
+        rotations: Option<&Bound<'_, PyAny>>,
+        quaternions_wxyz: Option<&Bound<'_, PyAny>>,
+        weights: Option<&Bound<'_, PyAny>>,
         frame: &str,
     ) -> PyResult<Self> {
+        let joints_rad = numbers::<numpy::Ix2>("joints_rad", joints_rad)?;
+        let positions_mm = numbers::<numpy::Ix2>("positions_mm", positions_mm)?;
+        let rotations = rotations
+            .map(|r| numbers::<numpy::Ix3>("rotations", r))
+            .transpose()?;
+        let quaternions_wxyz =
+            (quaternions_wxyz.map(|r| numbers::<numpy::Ix2>("quaternions_wxyz", r))).transpose()?;
+        let weights = weights
+            .map(|r| numbers::<numpy::Ix1>("weights", r))
+            .transpose()?;
         let base_frame = match frame {
             "base" => true,
             "tracker" => false,
@@ -383,7 +505,7 @@ impl Dataset {
                 robot.file.joint.len()
             ));
         }
-        let rotations = orientations(n, rotations, quaternions_wxyz)?;
+        let rotations = orientations(n, rotations.as_ref(), quaternions_wxyz.as_ref())?;
         let weights = match weights {
             Some(w) if w.len() != n => {
                 return input(format!("weights: {} values for {n} poses", w.len()));
@@ -475,8 +597,8 @@ impl Dataset {
 /// The orientations of `n` poses from rotation matrices or quaternions (w, x, y, z), checked.
 fn orientations(
     n: usize,
-    rotations: Option<PyReadonlyArray3<'_, f64>>,
-    quaternions: Option<PyReadonlyArray2<'_, f64>>,
+    rotations: Option<&PyReadonlyArray3<'_, f64>>,
+    quaternions: Option<&PyReadonlyArray2<'_, f64>>,
 ) -> PyResult<Option<Vec<nalgebra::Matrix3<f64>>>> {
     match (rotations, quaternions) {
         (Some(_), Some(_)) => input("give rotations or quaternions_wxyz, not both".into()),
@@ -599,6 +721,11 @@ impl CalibrationResult {
         serde_json::to_string_pretty(&self.calibration.report()).map_err(|e| py_error(e.into()))
     }
 
+    /// The JSON report as a dict: the keys of `calib calibrate --report`.
+    fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        json_loads(py, &self.report_json()?)
+    }
+
     /// The certificate as one self-contained HTML page (`calib calibrate --html`).
     fn html(&self) -> PyResult<String> {
         let report =
@@ -717,13 +844,14 @@ fn calibrate(
     line.extend(words.iter().cloned());
     parsed.command_line = line;
     let cancel = host_tools::calibration::Cancel::default();
-    let (data, holdout) = (data.dataset.clone(), holdout.map(|h| h.dataset.clone()));
+    let data = data.against(robot).map_err(py_error)?;
+    let holdout = (holdout.map(|h| h.against(robot)).transpose()).map_err(py_error)?;
     let stop = cancel.clone();
     let calibration = interruptible(py, &cancel, move || -> anyhow::Result<Calibration> {
         let mut config = parsed.config();
         config.cancel = stop;
         if from_files {
-            return host_tools::cli::calibrate::calibrate_with(&parsed, config);
+            return host_tools::cli::calibrate::calibrate_datasets(&parsed, config, data, holdout);
         }
         config.check()?;
         let all = data;
@@ -754,8 +882,8 @@ struct EvaluateCommand {
 
 /// Table 3 statistics of `robot` (any model, nominal or identified) on `data`, as `calib evaluate
 /// --json` gives them (JSON text; the package's `evaluate` returns the dict), its options as
-/// keyword arguments (`fit_frames="base"`, `fit_poses=30`, `stored_registration=True`, ...). The
-/// robot and the data must have been read from files.
+/// keyword arguments (`fit_frames="base"`, `fit_poses=30`, `stored_registration=True`, ...); the
+/// data, from a file or arrays, are checked against `robot`.
 #[pyfunction]
 #[pyo3(signature = (robot, data, **options))]
 fn evaluate_json(
@@ -764,25 +892,20 @@ fn evaluate_json(
     data: &Dataset,
     options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<String> {
-    let Source::Files {
-        data: path,
-        profile,
-    } = &data.source
-    else {
-        return input("evaluate() needs the data read from a file (Dataset.from_file)".into());
-    };
-    if !robot.on_disk {
-        return input("evaluate() needs the robot read from a file (Robot.from_file)".into());
-    }
     let mut words: Vec<String> = vec![
         "evaluate".into(),
         "--robot".into(),
         robot.path(),
         "--data".into(),
-        path.display().to_string(),
     ];
-    if let Some(p) = profile {
-        words.extend(["--profile".into(), p.display().to_string()]);
+    match &data.source {
+        Source::Files { data, profile } => {
+            words.push(data.display().to_string());
+            if let Some(p) = profile {
+                words.extend(["--profile".into(), p.display().to_string()]);
+            }
+        }
+        Source::Memory => words.push("<arrays>".into()),
     }
     words.extend(option_words(
         options,
@@ -791,8 +914,9 @@ fn evaluate_json(
     let parsed = <EvaluateCommand as clap::Parser>::try_parse_from(&words)
         .map_err(|e| InputError::new_err(e.render().to_string().trim_end().to_string()))?
         .inner;
+    let dataset = data.against(robot).map_err(py_error)?;
     let evaluation = py
-        .detach(|| host_tools::cli::evaluate::evaluate(&parsed))
+        .detach(|| host_tools::cli::evaluate::evaluate_dataset(&parsed, dataset))
         .map_err(py_error)?;
     serde_json::to_string(&evaluation).map_err(|e| py_error(e.into()))
 }
@@ -850,6 +974,11 @@ impl Plan {
         serde_json::to_string_pretty(&self.plan).map_err(|e| py_error(e.into()))
     }
 
+    /// The plan as `calib plan --report` writes it, as a dict.
+    fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        json_loads(py, &self.report_json()?)
+    }
+
     fn __len__(&self) -> usize {
         self.plan.poses.len()
     }
@@ -903,7 +1032,8 @@ struct CompensateCommand {
 /// columns): the joints that put the identified robot `params` on each target of the file
 /// `targets`, for a controller planning with the nominal `robot`; its options as keyword
 /// arguments (`targets_frame="tracker"`, `joint_targets=True`, `max_correction_mm=15`, ...).
-/// Both robots must have been read from files. Nothing is written.
+/// Either robot may be read from a file or built in memory (`CalibrationResult.robot`). Nothing
+/// is written.
 #[pyfunction]
 #[pyo3(signature = (robot, params, targets, **options))]
 fn compensate_csv(
@@ -913,11 +1043,6 @@ fn compensate_csv(
     targets: PathBuf,
     options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<String> {
-    if !(robot.on_disk && params.on_disk) {
-        return input(
-            "compensate() needs both robots read from files (Robot.from_file; to_file() writes one)".into(),
-        );
-    }
     let mut words: Vec<String> = vec![
         "compensate".into(),
         "--robot".into(),
@@ -936,8 +1061,9 @@ fn compensate_csv(
     let parsed = <CompensateCommand as clap::Parser>::try_parse_from(&words)
         .map_err(|e| InputError::new_err(e.render().to_string().trim_end().to_string()))?
         .inner;
+    let (file, identified) = (robot.file.clone(), params.file.clone());
     let (csv, _) = py
-        .detach(|| host_tools::cli::compensate::compensated_table(&parsed))
+        .detach(|| host_tools::cli::compensate::compensated_table_of(&parsed, file, identified))
         .map_err(py_error)?;
     String::from_utf8(csv).map_err(|e| CalibError::new_err(e.to_string()))
 }

@@ -1,6 +1,6 @@
 """The Python package against the command line and an independent numpy model (issue 42).
 
-Run after ``pip install ./python pytest`` with the ``calib`` binary of the same checkout built
+Run after ``pip install ./python pytest pandas`` with the ``calib`` binary of the same checkout built
 (``cargo build --release``; ``CALIB_BIN`` names another).
 """
 
@@ -228,11 +228,21 @@ def test_evaluate_equals_calib_evaluate(tmp_path):
                     "--fit-frames", "base", "--json")
     cli = json.loads(out.stdout)
     robot = calib.Robot.from_file(identified)
-    py = calib.evaluate(robot, calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE), fit_frames="base")
+    data = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
+    py = calib.evaluate(robot, data, fit_frames="base")
     assert py == cli
-    with pytest.raises(calib.InputError, match="needs the data read from a file"):
-        data = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
-        calib.evaluate(robot, calib.Dataset.from_arrays(robot, data.joints_rad, data.positions_mm, frame="tracker"))
+    # Data read for the nominal robot, or given as arrays, are checked against the robot given:
+    # the same statistics.
+    nominal = calib.Robot.from_file(UR10)
+    assert calib.evaluate(robot, calib.Dataset.from_file(nominal, SERIES_B, profile=PROFILE), fit_frames="base") == cli
+    arrays = calib.Dataset.from_arrays(nominal, data.joints_rad, data.positions_mm, rotations=data.rotations,
+                                       frame="tracker")
+    assert calib.evaluate(robot, arrays, fit_frames="base") == cli
+    # A robot whose limits the data leave: the command's refusal.
+    narrow = calib.Robot.from_toml(UR10.read_text().replace("limits_deg = [-360.0, 360.0]", "limits_deg = [-10.0, 10.0]", 1),
+                                   name="narrow")
+    with pytest.raises(calib.InputError, match="outside the joint limits"):
+        calib.evaluate(narrow, data)
 
 
 def test_plan_equals_calib_plan(tmp_path):
@@ -274,3 +284,74 @@ def test_compensate_equals_calib_compensate(tmp_path):
             except ValueError:
                 assert value == (cell or None)
     assert len(py["status"]) == 12 and py["status"].count("ok") >= 10, py["status"]
+    # The identified robot straight from a calibration in Python, never written to a file: the
+    # same table.
+    result = calib.calibrate(robot, calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE),
+                             validate=0.9666, method="lm")
+    assert calib.compensate(robot, result.robot, targets, joint_targets=True, max_correction_mm=15) == py
+
+
+def test_a_pandas_frame_of_the_tracker_file_calibrates_as_the_file():
+    """Series B read with pandas, its orientations turned into matrices here (intrinsic XYZ Euler
+    angles in degrees, R = Rx Ry Rz, as the data profile states): the parameters of the file."""
+    import pandas as pd
+    frame = pd.read_csv(SERIES_B, sep=";", decimal=",")
+    joints = frame[["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint",
+                    "wrist_2_joint", "wrist_3_joint"]]
+    angles = np.radians(frame[["measurement_rx", "measurement_ry", "measurement_rz"]].to_numpy())
+    rotations = np.array([(rot("x", a) @ rot("y", b) @ rot("z", c))[:3, :3] for a, b, c in angles])
+    positions = frame[["measurement_x", "measurement_y", "measurement_z"]]
+    robot = calib.Robot.from_file(UR10)
+    files = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
+    # The file's rotations with the frame's joints and positions: the same parameters to 1e-9.
+    arrays = calib.Dataset.from_arrays(robot, joints, positions, rotations=files.rotations, frame="tracker")
+    assert len(arrays) == len(files) == 1495
+    assert np.array_equal(arrays.joints_rad, files.joints_rad) and np.array_equal(arrays.positions_mm, files.positions_mm)
+    a = calib.calibrate(robot, files, method="lm", validate=0.9666)
+    b = calib.calibrate(robot, arrays, method="lm", validate=0.9666)
+    assert a.parameter_names == b.parameter_names
+    assert np.abs(a.parameter_values - b.parameter_values).max() < 1e-9
+    # The rotations made here differ from the profile's in the last bit (1e-16); the 50 fitted
+    # poses amplify that to under 1e-6 (mm, rad), far below the standard errors.
+    assert np.abs(rotations - files.rotations).max() < 1e-12
+    c = calib.calibrate(robot, calib.Dataset.from_arrays(robot, joints, positions, rotations=rotations, frame="tracker"),
+                        method="lm", validate=0.9666)
+    assert np.abs(a.parameter_values - c.parameter_values).max() < 1e-6
+    assert np.all(np.abs(a.parameter_values - c.parameter_values) < 1e-4 * a.standard_errors)
+    assert np.abs(robot.fk(joints) - robot.fk(files.joints_rad)).max() == 0.0
+    text = pd.DataFrame([["0.1", "zero", "0"]])
+    with pytest.raises(calib.InputError, match="joints_rad: not an array of numbers .*zero"):
+        robot.fk(pd.concat([text, text], axis=1))
+    with pytest.raises(calib.InputError, match="positions_mm: not an array of numbers with 2 axes"):
+        calib.Dataset.from_arrays(robot, joints[:1], text)
+
+
+def test_joint_maps_and_a_re_registration_equal_the_command_line(tmp_path):
+    """The paper's richest model (joint maps and gravity compliance) and then a re-registration of
+    the tracker on the identified file (--identify frames): parameters equal to 1e-9."""
+    maps, report = tmp_path / "maps.toml", tmp_path / "maps.json"
+    options = ["--model", "joint-maps+compliance", "--validate", "0.8", "--method", "lm"]
+    done = run_calib("calibrate", "--robot", UR10, "--data", SERIES_B, "--profile", PROFILE, *options,
+                     "--out", maps, "--report", report)
+    assert done.returncode == 0, done.stderr
+    cli = json.loads(report.read_text())
+    robot = calib.Robot.from_file(UR10)
+    data = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
+    result = calib.calibrate(robot, data, model="joint-maps+compliance", validate=0.8, method="lm")
+    assert result.parameter_names == list(cli["parameters"])
+    for name, value in zip(result.parameter_names, result.parameter_values):
+        assert abs(value - cli["parameters"][name]["value"]) < 1e-9, name
+    # Re-registration: the geometry, maps and compliance of the file kept, the frames fitted.
+    again = tmp_path / "again.json"
+    done = run_calib("calibrate", "--robot", maps, "--data", SERIES_B, "--profile", PROFILE,
+                     "--identify", "frames", "--method", "lm", "--validate", "0.8", "--report", again)
+    assert done.returncode == 0, done.stderr
+    cli = json.loads(again.read_text())
+    identified = calib.Robot.from_file(maps)
+    frames = calib.calibrate(identified, data, identify="frames", method="lm", validate=0.8)
+    assert frames.parameter_names == list(cli["parameters"]) and len(frames.parameter_names) > 0
+    for name, value in zip(frames.parameter_names, frames.parameter_values):
+        assert abs(value - cli["parameters"][name]["value"]) < 1e-9, name
+    py = frames.report()["held_out"]["after"]["position"]
+    assert abs(py["p95_mm"] - cli["held_out"]["after"]["position"]["p95_mm"]) < 1e-9
+

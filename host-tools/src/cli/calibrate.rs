@@ -255,6 +255,30 @@ pub fn calibrate_with(
 ) -> anyhow::Result<Calibration> {
     config.check()?; // bad settings are reported before any file is read
     let (profile, all) = options.input.load()?;
+    if options.holdout.is_some() && options.validate.is_some() {
+        bail!("use either --validate or --holdout, not both");
+    }
+    let holdout = match &options.holdout {
+        Some(path) => {
+            let held = Dataset::load_with(&options.input.robot, path, &profile)?;
+            crate::measurement::orientation_check::check(&held, &profile.euler)?;
+            Some(held)
+        }
+        None => None,
+    };
+    calibrate_datasets(options, config, all, holdout)
+}
+
+/// [`calibrate_with`] on the data already read: `all` from `options`' data file (through its
+/// profile, checked as [`super::InputFiles::load`] checks it) and `holdout` from its `--holdout`
+/// file, so that a caller holding them (the Python package) does not read the files again.
+pub fn calibrate_datasets(
+    options: &CalibrateOptions,
+    config: CalibrationConfig,
+    all: Dataset,
+    holdout: Option<Dataset>,
+) -> anyhow::Result<Calibration> {
+    config.check()?;
     // A measured plan (calib plan): its verification poses are the hold-out.
     let verify: Vec<usize> = (all.data.records.iter().enumerate())
         .filter(|(_, r)| r.role == Some(Role::Verify))
@@ -280,12 +304,9 @@ pub fn calibrate_with(
         };
         return Calibration::new(result, hold_out, options.truth.as_deref());
     }
-    let (dataset, validation) = match (&options.holdout, options.validate) {
+    let (dataset, validation) = match (holdout, options.validate) {
         (Some(_), Some(_)) => bail!("use either --validate or --holdout, not both"),
-        (Some(path), None) => (
-            all,
-            Some(Dataset::load_with(&options.input.robot, path, &profile)?),
-        ),
+        (Some(held), None) => (all, Some(held)),
         (None, Some(fraction)) => {
             let (calibration, held) =
                 crate::measurement::dataset::split(&all, fraction, options.validate_seed)?;

@@ -127,7 +127,7 @@ pub enum TargetsFrame {
 /// `# frame: base`.
 fn targets_into_base(
     targets: &mut TrackerData,
-    params: &std::path::Path,
+    (params, params_path): (&RobotFile, &std::path::Path),
     targets_path: &std::path::Path,
 ) -> anyhow::Result<()> {
     if targets.base_frame {
@@ -136,11 +136,11 @@ fn targets_into_base(
             targets_path.display()
         );
     }
-    let Some(measurement) = RobotFile::read(params)?.measurement else {
+    let Some(measurement) = &params.measurement else {
         bail!(
             "{}: has no [measurement] section, the registration of the tracker that --targets-frame tracker maps the targets \
              through: give a file calibrated on data in the tracker's frame, or targets in the base frame",
-            params.display()
+            params_path.display()
         );
     };
     let base = measurement.tracker_base.isometry();
@@ -204,20 +204,39 @@ const MIN_JOINTS: usize = 6;
 /// Runs `calib compensate` for the robot file's joint count (6 to 9 joints, fewer are refused
 /// with the reason; joint maps for every count, gravity compliance for 6-joint robots).
 pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
-    let (outcomes, joints) = compensated(options)?;
+    let file = RobotFile::read(&options.robot)?;
+    let params = RobotFile::read(&options.params)?;
+    let (outcomes, joints) = compensated(options, file, params)?;
     finish(options, &outcomes, joints)
 }
 
 /// The table `calib compensate` writes to `--out` (CSV, one row per target), computed and
 /// written nowhere, with its summary.
 pub fn compensated_table(options: &CompensateOptions) -> anyhow::Result<(Vec<u8>, Summary)> {
-    let (outcomes, joints) = compensated(options)?;
+    let file = RobotFile::read(&options.robot)?;
+    let params = RobotFile::read(&options.params)?;
+    compensated_table_of(options, file, params)
+}
+
+/// [`compensated_table`] with the robots already read (the Python package's `compensate`, whose
+/// robots may be built in memory): `file` the nominal robot, `params` the identified one;
+/// `options`' robot paths name them in messages only.
+pub fn compensated_table_of(
+    options: &CompensateOptions,
+    file: RobotFile,
+    params: RobotFile,
+) -> anyhow::Result<(Vec<u8>, Summary)> {
+    let (outcomes, joints) = compensated(options, file, params)?;
     Ok((to_csv(&outcomes, joints)?, Summary::of(&outcomes)))
 }
 
-/// The outcome of every target of `calib compensate`, and the joint count.
-fn compensated(options: &CompensateOptions) -> anyhow::Result<(Vec<TargetOutcome>, usize)> {
-    let file = RobotFile::read(&options.robot)?;
+/// The outcome of every target of `calib compensate` of the nominal robot `file` and the
+/// identified `params`, and the joint count.
+fn compensated(
+    options: &CompensateOptions,
+    file: RobotFile,
+    params: RobotFile,
+) -> anyhow::Result<(Vec<TargetOutcome>, usize)> {
     file.refuse_joint_maps(
         &options.robot,
         "calib compensate's --robot (the nominal model the controller plans with)",
@@ -232,7 +251,6 @@ fn compensated(options: &CompensateOptions) -> anyhow::Result<(Vec<TargetOutcome
             file.joint.len()
         );
     }
-    let params = RobotFile::read(&options.params)?;
     params.expect_joints(
         &options.params,
         file.joint.len(),
@@ -254,10 +272,16 @@ fn compensated(options: &CompensateOptions) -> anyhow::Result<(Vec<TargetOutcome
         })
         .collect();
     let request = options.request(map_ranges, file.compensation.as_ref())?;
+    let robots = (&file, &params);
     let outcomes = if maps.is_none() && compliance.is_none() {
-        compensate_geometric(options, &request)?
+        compensate_geometric(options, robots, &request)?
     } else {
-        compensate_model(options, (maps.as_ref(), compliance.as_ref()), &request)?
+        compensate_model(
+            options,
+            robots,
+            (maps.as_ref(), compliance.as_ref()),
+            &request,
+        )?
     };
     Ok((outcomes, file.joint.len()))
 }
@@ -267,13 +291,14 @@ fn compensated(options: &CompensateOptions) -> anyhow::Result<(Vec<TargetOutcome
 /// without) and compliance (none without).
 fn compensate_model(
     options: &CompensateOptions,
+    robots: (&RobotFile, &RobotFile),
     (maps, compliance): (
         Option<&crate::model::joint_maps::JointMaps>,
         Option<&crate::model::compliance::FileCompliance>,
     ),
     request: &Request,
 ) -> anyhow::Result<Vec<TargetOutcome>> {
-    let (nominal, actual, targets, settings) = inputs(options)?;
+    let (nominal, actual, targets, settings) = inputs(options, robots)?;
     let model = controller_model(actual.robot, maps, compliance)?;
     let real = model.kinematics()?;
     Ok(compensate_targets_of(
@@ -288,9 +313,10 @@ fn compensate_model(
 /// `calib compensate` of a geometric model.
 fn compensate_geometric(
     options: &CompensateOptions,
+    robots: (&RobotFile, &RobotFile),
     request: &Request,
 ) -> anyhow::Result<Vec<TargetOutcome>> {
-    let (nominal, actual, targets, settings) = inputs(options)?;
+    let (nominal, actual, targets, settings) = inputs(options, robots)?;
     Ok(compensate_targets(
         &nominal.robot,
         &actual.robot,
@@ -300,17 +326,19 @@ fn compensate_geometric(
     )?)
 }
 
-/// The nominal and identified robots, the targets and the settings, checked.
+/// The nominal and identified robots (`robots`: the files of `--robot` and `--params`), the
+/// targets and the settings, checked.
 fn inputs(
     options: &CompensateOptions,
+    (file, params): (&RobotFile, &RobotFile),
 ) -> anyhow::Result<(
     RobotModel,
     RobotModel,
     TrackerData,
     CompensationSettings<f64>,
 )> {
-    let nominal: RobotModel = RobotModel::load(&options.robot)?;
-    let actual: RobotModel = RobotModel::load(&options.params)?;
+    let nominal: RobotModel = file.to_model(&options.robot)?;
+    let actual: RobotModel = params.to_model(&options.params)?;
     let mut targets = if options.joint_targets {
         if options.targets_frame == TargetsFrame::Tracker {
             bail!(
@@ -322,7 +350,7 @@ fn inputs(
         TrackerData::read_targets(&options.targets)?
     };
     if options.targets_frame == TargetsFrame::Tracker {
-        targets_into_base(&mut targets, &options.params, &options.targets)?;
+        targets_into_base(&mut targets, (params, &options.params), &options.targets)?;
     }
     if targets.rows_without_orientation() {
         bail!(

@@ -36,7 +36,17 @@ pub struct EvaluateOptions {
 /// Runs `calib evaluate`.
 pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
     crate::model::counts::joint_count(options.input.joints()?)?;
-    let (_, mut dataset) = options.input.load()?;
+    let (_, dataset) = options.input.load()?;
+    evaluate_dataset(options, dataset)
+}
+
+/// [`evaluate`] on the data already read and checked against the robot (`dataset`; the
+/// Python package's `evaluate`): `options`' paths name the robot and data in messages only.
+pub fn evaluate_dataset(
+    options: &EvaluateOptions,
+    mut dataset: crate::measurement::dataset::Dataset,
+) -> anyhow::Result<Evaluation> {
+    crate::model::counts::joint_count(dataset.file.joint.len())?;
     let frames = if options.stored_registration {
         if dataset.file.measurement.is_none() {
             anyhow::bail!(

@@ -79,6 +79,12 @@ impl Dataset {
         Self::from_parts(file, robot, data_file)
     }
 
+    /// The same poses checked against another robot: `file`, named `robot` in messages (a
+    /// model identified on these data, or one built in memory).
+    pub fn for_robot(&self, file: RobotFile, robot: &Path) -> crate::Result<Self> {
+        Self::from_parts(file, robot, self.data.clone())
+    }
+
     /// Checks the data against the robot and converts them for the core.
     fn from_parts(file: RobotFile, robot: &Path, data_file: TrackerData) -> crate::Result<Self> {
         let model: RobotModel = file.to_model(robot)?;
