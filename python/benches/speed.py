@@ -33,7 +33,7 @@ for _ in range(rounds):
     process.append(time.perf_counter() - start)
     start = time.perf_counter()
     robot = calib.Robot.from_file(ur10)
-    result = calib.calibrate(robot, calib.Dataset.from_file(robot, data, profile=profile),
+    result = calib.calibrate(robot, calib.Dataset.from_file(data, profile=profile, robot=robot),
                              method="ipso", validate=0.9666)
     python.append(time.perf_counter() - start)
 p, q = statistics.median(process), statistics.median(python)

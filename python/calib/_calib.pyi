@@ -73,19 +73,21 @@ class Robot:
 
 @final
 class Dataset:
-    """Measured poses of a robot, checked against it."""
+    """Measured poses: joint readings (rad) with the tracker's positions (mm) and orientations."""
 
     @staticmethod
-    def from_file(robot: Robot, path: _Path, profile: Optional[_Path] = None) -> "Dataset": ...
+    def from_file(path: _Path, profile: Optional[_Path] = None, robot: Optional[Robot] = None) -> "Dataset":
+        """A tracker data file (CSV) through a data profile (TOML); checked against ``robot`` now
+        when given, and against every robot it is used with."""
     @staticmethod
     def from_arrays(
-        robot: Robot,
         joints_rad: npt.ArrayLike,
         positions_mm: npt.ArrayLike,
         rotations: Optional[npt.ArrayLike] = None,
         quaternions_wxyz: Optional[npt.ArrayLike] = None,
         weights: Optional[npt.ArrayLike] = None,
         frame: str = "base",
+        robot: Optional[Robot] = None,
     ) -> "Dataset":
         """``joints_rad`` (n, joints) rad, ``positions_mm`` (n, 3) mm, orientations as ``rotations``
         (n, 3, 3) or ``quaternions_wxyz`` (n, 4); ``frame`` "base" or "tracker". Any array-like

@@ -14,7 +14,6 @@ import calib
 root = pathlib.Path(__file__).resolve().parents[2]
 robot = calib.Robot.from_file(root / "host-tools/robots/ur10.toml")
 data = calib.Dataset.from_file(
-    robot,
     root / "host-tools/data/ipa-ur10-lasertracker/series-b-joint-configurations.csv",
     profile=root / "host-tools/profiles/ipa-ur10-lasertracker.toml",
 )

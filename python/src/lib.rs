@@ -6,7 +6,7 @@
 
 use host_tools::cli::calibrate::{CalibrateOptions, Calibration};
 use host_tools::io::robot_file::RobotFile;
-use host_tools::io::tracker_data::Record;
+use host_tools::io::tracker_data::{Record, TrackerData};
 use host_tools::measurement::dataset::Dataset as HostDataset;
 use numpy::PyUntypedArrayMethods;
 use numpy::ndarray::{Array2, Array3};
@@ -397,77 +397,100 @@ enum Source {
     Memory,
 }
 
-/// Measured poses of a robot, checked against it.
+/// Measured poses: joint readings with the tracker's positions (and orientations), read from a
+/// file or given as arrays. They are checked against a robot (joint count, limits, the profile's
+/// orientation convention) when one is given, and again against every robot they are used with.
 #[pyclass(module = "calib", name = "Dataset", frozen)]
 #[derive(Clone)]
 struct Dataset {
-    dataset: HostDataset,
-    robot: Robot,
+    data: TrackerData,
+    /// The data profile's orientation convention, checked against each robot (files only).
+    euler: Option<host_tools::io::profile::EulerConvention>,
     source: Source,
+    /// The poses checked against the robot given when they were read.
+    bound: Option<(Robot, HostDataset)>,
 }
 
 impl Dataset {
-    /// The poses checked against `robot`: the dataset itself when it was read for that robot,
-    /// else the same poses bound to it (a model identified on them, one built in memory), with
-    /// the same checks (joint count, limits).
-    fn against(&self, robot: &Robot) -> anyhow::Result<HostDataset> {
-        if self.robot.path == robot.path && self.robot.file == robot.file {
-            return Ok(self.dataset.clone());
+    /// `data` read from `source`, checked against `robot` when given.
+    fn new(
+        data: TrackerData,
+        euler: Option<host_tools::io::profile::EulerConvention>,
+        source: Source,
+        robot: Option<&Robot>,
+    ) -> anyhow::Result<Self> {
+        let mut dataset = Self {
+            data,
+            euler,
+            source,
+            bound: None,
+        };
+        if let Some(robot) = robot {
+            dataset.bound = Some((robot.clone(), dataset.against(robot)?));
         }
-        Ok(self.dataset.for_robot(robot.file.clone(), &robot.path)?)
+        Ok(dataset)
+    }
+
+    /// The poses checked against `robot` (joint count, limits, the profile's orientation
+    /// convention) and converted for the core: those checked when the data were read when that
+    /// was the robot, else checked now (a model identified on them, one built in memory).
+    fn against(&self, robot: &Robot) -> anyhow::Result<HostDataset> {
+        if let Some((r, bound)) = &self.bound
+            && r.path == robot.path
+            && r.file == robot.file
+        {
+            return Ok(bound.clone());
+        }
+        let dataset = HostDataset::from_data(robot.file.clone(), &robot.path, self.data.clone())?;
+        if let Some(euler) = &self.euler {
+            // The check `calib` makes of every data file it reads (Euler conventions).
+            host_tools::measurement::orientation_check::check(&dataset, euler)?;
+        }
+        Ok(dataset)
     }
 }
 
 #[pymethods]
 impl Dataset {
-    /// Reads a tracker data file (CSV) of `robot`, through a data profile (TOML) when given.
+    /// Reads a tracker data file (CSV), through a data profile (TOML) when given; checked
+    /// against `robot` now when given, else against the robot it is used with.
     #[staticmethod]
-    #[pyo3(signature = (robot, path, profile = None))]
+    #[pyo3(signature = (path, profile = None, robot = None))]
     fn from_file(
         py: Python<'_>,
-        robot: &Robot,
         path: PathBuf,
         profile: Option<PathBuf>,
+        robot: Option<&Robot>,
     ) -> PyResult<Self> {
-        let dataset = py
-            .detach(|| -> anyhow::Result<HostDataset> {
-                let p = host_tools::io::profile::DataProfile::load(profile.as_deref())?;
-                let dataset = if robot.on_disk {
-                    HostDataset::load_with(&robot.path, &path, &p)?
-                } else {
-                    let data = host_tools::io::tracker_data::TrackerData::read_with(&path, &p)?;
-                    HostDataset::from_records(robot.file.clone(), data.records, data.base_frame)?
-                };
-                // The check `calib` makes of every data file it reads (Euler conventions).
-                host_tools::measurement::orientation_check::check(&dataset, &p.euler)?;
-                Ok(dataset)
-            })
-            .map_err(py_error)?;
-        Ok(Self {
-            dataset,
-            robot: robot.clone(),
-            source: Source::Files {
-                data: path,
-                profile,
-            },
+        py.detach(|| -> anyhow::Result<Self> {
+            let p = host_tools::io::profile::DataProfile::load(profile.as_deref())?;
+            let data = TrackerData::read_with(&path, &p)?;
+            let source = Source::Files {
+                data: path.clone(),
+                profile: profile.clone(),
+            };
+            Self::new(data, Some(p.euler), source, robot)
         })
+        .map_err(py_error)
     }
 
     /// Poses from arrays: `joints_rad` (n, joints) in rad, `positions_mm` (n, 3) in mm, optional
     /// orientations as `rotations` (n, 3, 3) rotation matrices or `quaternions_wxyz` (n, 4), optional
     /// `weights` (n,); `frame` is "base" (the robot's base frame) or "tracker" (a tracker's
-    /// frame, registered by the calibration).
+    /// frame, registered by the calibration). Each array may be a numpy array, a pandas frame
+    /// or series (columns in that order) or nested lists. Checked against `robot` now when
+    /// given, else against the robot it is used with.
     #[staticmethod]
-    #[pyo3(signature = (robot, joints_rad, positions_mm, rotations = None, quaternions_wxyz = None, weights = None, frame = "base"))]
+    #[pyo3(signature = (joints_rad, positions_mm, rotations = None, quaternions_wxyz = None, weights = None, frame = "base", robot = None))]
     #[allow(clippy::too_many_arguments)]
     fn from_arrays(
-        robot: &Robot,
         joints_rad: &Bound<'_, PyAny>,
         positions_mm: &Bound<'_, PyAny>,
         rotations: Option<&Bound<'_, PyAny>>,
         quaternions_wxyz: Option<&Bound<'_, PyAny>>,
         weights: Option<&Bound<'_, PyAny>>,
         frame: &str,
+        robot: Option<&Robot>,
     ) -> PyResult<Self> {
         let joints_rad = numbers::<numpy::Ix2>("joints_rad", joints_rad)?;
         let positions_mm = numbers::<numpy::Ix2>("positions_mm", positions_mm)?;
@@ -497,7 +520,9 @@ impl Dataset {
                 p.shape()
             ));
         }
-        if q.ncols() != robot.file.joint.len() {
+        if let Some(robot) = robot
+            && q.ncols() != robot.file.joint.len()
+        {
             return input(format!(
                 "joints_rad: shape {:?}: the robot {} has {} joints (one column per joint, in rad)",
                 q.shape(),
@@ -535,39 +560,35 @@ impl Dataset {
                 temperature_c: None,
             });
         }
-        let dataset = HostDataset::from_records(robot.file.clone(), records, base_frame)
-            .map_err(|e| py_error(e.into()))?;
-        Ok(Self {
-            dataset,
-            robot: robot.clone(),
-            source: Source::Memory,
-        })
+        let data =
+            TrackerData::from_records(records, base_frame).map_err(|e| py_error(e.into()))?;
+        Self::new(data, None, Source::Memory, robot).map_err(py_error)
     }
 
     /// The number of poses.
     fn __len__(&self) -> usize {
-        self.dataset.data.records.len()
+        self.data.records.len()
     }
 
     /// The joint readings, (n, joints), rad.
     #[getter]
     fn joints_rad<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
-        let r = &self.dataset.data.records;
-        let j = self.dataset.data.joints;
+        let r = &self.data.records;
+        let j = self.data.joints;
         Array2::from_shape_fn((r.len(), j), |(i, k)| r[i].q[k]).into_pyarray(py)
     }
 
     /// The measured positions, (n, 3), mm.
     #[getter]
     fn positions_mm<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
-        let r = &self.dataset.data.records;
+        let r = &self.data.records;
         Array2::from_shape_fn((r.len(), 3), |(i, k)| r[i].position[k]).into_pyarray(py)
     }
 
     /// The measured orientations as rotation matrices, (n, 3, 3); `None` for position-only data.
     #[getter]
     fn rotations<'py>(&self, py: Python<'py>) -> Option<Bound<'py, numpy::PyArray3<f64>>> {
-        let r = &self.dataset.data.records;
+        let r = &self.data.records;
         if r.iter().any(|r| r.rotation.is_none()) {
             return None;
         }
@@ -578,14 +599,14 @@ impl Dataset {
     /// The data file's line of each pose (1-based rows for arrays).
     #[getter]
     fn lines(&self) -> Vec<u64> {
-        self.dataset.data.records.iter().map(|r| r.line).collect()
+        self.data.records.iter().map(|r| r.line).collect()
     }
 
     fn __repr__(&self) -> String {
         format!(
             "Dataset(poses={}, robot={:?}, source={:?})",
-            self.dataset.data.records.len(),
-            self.robot.file.name,
+            self.data.records.len(),
+            self.bound.as_ref().map(|(r, _)| r.file.name.clone()),
             match &self.source {
                 Source::Files { data, .. } => data.display().to_string(),
                 Source::Memory => "arrays".to_string(),

@@ -109,7 +109,7 @@ def test_calibrate_from_files_equals_the_command_line(tmp_path):
     assert out.returncode == 0, out.stderr
     cli = json.loads(report.read_text())
     robot = calib.Robot.from_file(UR10)
-    data = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
+    data = calib.Dataset.from_file(SERIES_B, profile=PROFILE)  # checked against the robot it is used with
     assert len(data) == 1495
     result = calib.calibrate(robot, data, validate=0.9666, accept=["95% <= 1 mm"])
     py = result.report()
@@ -132,8 +132,8 @@ def test_calibrate_from_files_equals_the_command_line(tmp_path):
 
 def test_a_dataset_from_arrays_calibrates_as_its_file():
     robot = calib.Robot.from_file(UR10)
-    files = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
-    arrays = calib.Dataset.from_arrays(robot, joints_rad=files.joints_rad, positions_mm=files.positions_mm,
+    files = calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=robot)
+    arrays = calib.Dataset.from_arrays(joints_rad=files.joints_rad, positions_mm=files.positions_mm,
                                        rotations=files.rotations, frame="tracker")
     a = calib.calibrate(robot, files, method="lm")
     b = calib.calibrate(robot, arrays, method="lm")
@@ -142,7 +142,7 @@ def test_a_dataset_from_arrays_calibrates_as_its_file():
     # Quaternions give the same poses.
     rotations = files.rotations
     quaternions = np.array([_quaternion(m) for m in rotations])
-    c = calib.calibrate(robot, calib.Dataset.from_arrays(robot, files.joints_rad, files.positions_mm,
+    c = calib.calibrate(robot, calib.Dataset.from_arrays(files.joints_rad, files.positions_mm, robot=robot,
                                                          quaternions_wxyz=quaternions, frame="tracker"), method="lm")
     assert np.abs(a.parameter_values - c.parameter_values).max() < 1e-6
 
@@ -158,22 +158,25 @@ def _quaternion(m):
 def test_bad_inputs_raise_the_documented_exceptions():
     robot = calib.Robot.from_file(UR10)
     with pytest.raises(calib.InputError, match=r"joints_rad: shape \[3, 5\]: the robot Universal Robots UR10 has 6 joints"):
-        calib.Dataset.from_arrays(robot, np.zeros((3, 5)), np.zeros((3, 3)))
+        calib.Dataset.from_arrays(np.zeros((3, 5)), np.zeros((3, 3)), robot=robot)
+    # Without a robot, the joint count is checked against the robot the data are used with.
+    with pytest.raises(calib.InputError, match="has 5 joint columns, the robot Universal Robots UR10 has 6 joints"):
+        calib.calibrate(robot, calib.Dataset.from_arrays(np.zeros((3, 5)), np.zeros((3, 3))))
     with pytest.raises(calib.InputError, match=r"positions_mm: shape \[3, 2\], expected \(3, 3\)"):
-        calib.Dataset.from_arrays(robot, np.zeros((3, 6)), np.zeros((3, 2)))
+        calib.Dataset.from_arrays(np.zeros((3, 6)), np.zeros((3, 2)), robot=robot)
     q = np.zeros((3, 6))
     q[1, 2] = np.nan
     with pytest.raises(calib.InputError, match="row 1: NaN is not a finite number"):
-        calib.Dataset.from_arrays(robot, q, np.zeros((3, 3)))
+        calib.Dataset.from_arrays(q, np.zeros((3, 3)), robot=robot)
     with pytest.raises(calib.InputError, match="not a unit quaternion"):
-        calib.Dataset.from_arrays(robot, np.zeros((3, 6)), np.zeros((3, 3)), quaternions_wxyz=np.ones((3, 4)))
+        calib.Dataset.from_arrays(np.zeros((3, 6)), np.zeros((3, 3)), quaternions_wxyz=np.ones((3, 4)))
     with pytest.raises(calib.InputError, match="beyond ten turns"):
         robot.fk(np.full(6, 100.0))
     with pytest.raises(calib.InputError, match="frame"):
-        calib.Dataset.from_arrays(robot, np.zeros((3, 6)), np.zeros((3, 3)), frame="world")
+        calib.Dataset.from_arrays(np.zeros((3, 6)), np.zeros((3, 3)), frame="world")
     with pytest.raises(calib.CalibError):
         calib.Robot.from_file(ROOT / "no-such-robot.toml")
-    data = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
+    data = calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=robot)
     with pytest.raises(calib.InputError, match="report= is not an option here"):
         calib.calibrate(robot, data, report="r.json")
     with pytest.raises(calib.InputError, match="unexpected argument '--no-such-option'"):
@@ -209,7 +212,7 @@ def test_ctrl_c_stops_a_long_calibration():
     import time
 
     robot = calib.Robot.from_file(UR10)
-    data = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
+    data = calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=robot)
     timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
     start = time.perf_counter()
     timer.start()
@@ -228,14 +231,14 @@ def test_evaluate_equals_calib_evaluate(tmp_path):
                     "--fit-frames", "base", "--json")
     cli = json.loads(out.stdout)
     robot = calib.Robot.from_file(identified)
-    data = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
+    data = calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=robot)
     py = calib.evaluate(robot, data, fit_frames="base")
     assert py == cli
     # Data read for the nominal robot, or given as arrays, are checked against the robot given:
     # the same statistics.
     nominal = calib.Robot.from_file(UR10)
-    assert calib.evaluate(robot, calib.Dataset.from_file(nominal, SERIES_B, profile=PROFILE), fit_frames="base") == cli
-    arrays = calib.Dataset.from_arrays(nominal, data.joints_rad, data.positions_mm, rotations=data.rotations,
+    assert calib.evaluate(robot, calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=nominal), fit_frames="base") == cli
+    arrays = calib.Dataset.from_arrays(data.joints_rad, data.positions_mm, rotations=data.rotations,
                                        frame="tracker")
     assert calib.evaluate(robot, arrays, fit_frames="base") == cli
     # A robot whose limits the data leave: the command's refusal.
@@ -266,7 +269,7 @@ def test_compensate_equals_calib_compensate(tmp_path):
                      "--validate", "0.9666", "--method", "lm", "--out", identified)
     assert done.returncode == 0, done.stderr
     robot = calib.Robot.from_file(UR10)
-    q = np.degrees(calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE).joints_rad[:12])
+    q = np.degrees(calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=robot).joints_rad[:12])
     targets = tmp_path / "targets.csv"
     targets.write_text("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n" + "".join(",".join(repr(float(v)) for v in row) + "\n" for row in q))
     out = tmp_path / "c.csv"
@@ -286,7 +289,7 @@ def test_compensate_equals_calib_compensate(tmp_path):
     assert len(py["status"]) == 12 and py["status"].count("ok") >= 10, py["status"]
     # The identified robot straight from a calibration in Python, never written to a file: the
     # same table.
-    result = calib.calibrate(robot, calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE),
+    result = calib.calibrate(robot, calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=robot),
                              validate=0.9666, method="lm")
     assert calib.compensate(robot, result.robot, targets, joint_targets=True, max_correction_mm=15) == py
 
@@ -302,9 +305,9 @@ def test_a_pandas_frame_of_the_tracker_file_calibrates_as_the_file():
     rotations = np.array([(rot("x", a) @ rot("y", b) @ rot("z", c))[:3, :3] for a, b, c in angles])
     positions = frame[["measurement_x", "measurement_y", "measurement_z"]]
     robot = calib.Robot.from_file(UR10)
-    files = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
+    files = calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=robot)
     # The file's rotations with the frame's joints and positions: the same parameters to 1e-9.
-    arrays = calib.Dataset.from_arrays(robot, joints, positions, rotations=files.rotations, frame="tracker")
+    arrays = calib.Dataset.from_arrays(joints, positions, rotations=files.rotations, frame="tracker")
     assert len(arrays) == len(files) == 1495
     assert np.array_equal(arrays.joints_rad, files.joints_rad) and np.array_equal(arrays.positions_mm, files.positions_mm)
     a = calib.calibrate(robot, files, method="lm", validate=0.9666)
@@ -314,7 +317,7 @@ def test_a_pandas_frame_of_the_tracker_file_calibrates_as_the_file():
     # The rotations made here differ from the profile's in the last bit (1e-16); the 50 fitted
     # poses amplify that to under 1e-6 (mm, rad), far below the standard errors.
     assert np.abs(rotations - files.rotations).max() < 1e-12
-    c = calib.calibrate(robot, calib.Dataset.from_arrays(robot, joints, positions, rotations=rotations, frame="tracker"),
+    c = calib.calibrate(robot, calib.Dataset.from_arrays(joints, positions, rotations=rotations, frame="tracker"),
                         method="lm", validate=0.9666)
     assert np.abs(a.parameter_values - c.parameter_values).max() < 1e-6
     assert np.all(np.abs(a.parameter_values - c.parameter_values) < 1e-4 * a.standard_errors)
@@ -323,7 +326,7 @@ def test_a_pandas_frame_of_the_tracker_file_calibrates_as_the_file():
     with pytest.raises(calib.InputError, match="joints_rad: not an array of numbers .*zero"):
         robot.fk(pd.concat([text, text], axis=1))
     with pytest.raises(calib.InputError, match="positions_mm: not an array of numbers with 2 axes"):
-        calib.Dataset.from_arrays(robot, joints[:1], text)
+        calib.Dataset.from_arrays(joints[:1], text)
 
 
 def test_joint_maps_and_a_re_registration_equal_the_command_line(tmp_path):
@@ -336,7 +339,7 @@ def test_joint_maps_and_a_re_registration_equal_the_command_line(tmp_path):
     assert done.returncode == 0, done.stderr
     cli = json.loads(report.read_text())
     robot = calib.Robot.from_file(UR10)
-    data = calib.Dataset.from_file(robot, SERIES_B, profile=PROFILE)
+    data = calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=robot)
     result = calib.calibrate(robot, data, model="joint-maps+compliance", validate=0.8, method="lm")
     assert result.parameter_names == list(cli["parameters"])
     for name, value in zip(result.parameter_names, result.parameter_values):

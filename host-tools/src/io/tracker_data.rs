@@ -266,6 +266,38 @@ pub struct TrackerData {
 }
 
 impl TrackerData {
+    /// Poses held in memory (joints in rad, positions in mm, rotations as matrices), named
+    /// `<memory>`; `base_frame` says the positions are already in the robot's base frame. Either
+    /// every pose has an orientation or none has.
+    pub fn from_records(records: Vec<Record>, base_frame: bool) -> crate::Result<Self> {
+        let joints = records.first().map_or(0, |r| r.q.len());
+        let orientation = if records.iter().any(|r| r.rotation.is_some()) {
+            OrientationColumns::Quaternion
+        } else {
+            OrientationColumns::None
+        };
+        if records
+            .iter()
+            .any(|r| r.rotation.is_some() != (orientation != OrientationColumns::None))
+        {
+            return Err(crate::refused!(
+                "either every pose has an orientation or none has"
+            ));
+        }
+        Ok(TrackerData {
+            path: PathBuf::from("<memory>"),
+            base_frame,
+            header_line: 0,
+            joints,
+            orientation,
+            records,
+            planned: None,
+            has_ids: true,
+            has_times: false,
+            instrument: None,
+        })
+    }
+
     /// Reads and checks a tracker data file in our format (docs/ARCHITECTURE.md).
     pub fn read(path: &Path) -> Result<Self, DataError> {
         Self::read_with(path, &DataProfile::default())

@@ -6,13 +6,13 @@ use crate::JOINTS;
 use crate::error::Context;
 use crate::io::profile::DataProfile;
 use crate::io::robot_file::{RobotFile, RobotModel};
-use crate::io::tracker_data::{OrientationColumns, Record, TrackerData};
+use crate::io::tracker_data::{Record, TrackerData};
 use calib_core::identify::objective::Measurement;
 use calib_core::model::JointVec;
 use nalgebra::Dyn;
 use nalgebra::Vector3;
 use rand_core::{Rng, SeedableRng};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// A robot file, a data file and the measurements prepared for the core.
 ///
@@ -38,32 +38,7 @@ impl Dataset {
         records: Vec<Record>,
         base_frame: bool,
     ) -> crate::Result<Self> {
-        let joints = records.first().map_or(0, |r| r.q.len());
-        let orientation = if records.iter().any(|r| r.rotation.is_some()) {
-            OrientationColumns::Quaternion
-        } else {
-            OrientationColumns::None
-        };
-        if records
-            .iter()
-            .any(|r| r.rotation.is_some() != (orientation != OrientationColumns::None))
-        {
-            return Err(crate::refused!(
-                "either every pose has an orientation or none has"
-            ));
-        }
-        let data = TrackerData {
-            path: PathBuf::from("<memory>"),
-            base_frame,
-            header_line: 0,
-            joints,
-            orientation,
-            records,
-            planned: None,
-            has_ids: true,
-            has_times: false,
-            instrument: None,
-        };
+        let data = TrackerData::from_records(records, base_frame)?;
         Self::from_parts(file, Path::new("<memory>"), data)
     }
 
@@ -79,10 +54,10 @@ impl Dataset {
         Self::from_parts(file, robot, data_file)
     }
 
-    /// The same poses checked against another robot: `file`, named `robot` in messages (a
-    /// model identified on these data, or one built in memory).
-    pub fn for_robot(&self, file: RobotFile, robot: &Path) -> crate::Result<Self> {
-        Self::from_parts(file, robot, self.data.clone())
+    /// The poses `data`, read or built before a robot was chosen, checked against the robot file
+    /// `file` (named `robot` in messages) and converted for the core, as a file is read.
+    pub fn from_data(file: RobotFile, robot: &Path, data: TrackerData) -> crate::Result<Self> {
+        Self::from_parts(file, robot, data)
     }
 
     /// Checks the data against the robot and converts them for the core.
