@@ -351,6 +351,12 @@ def test_joint_maps_and_a_re_registration_equal_the_command_line(tmp_path):
     assert done.returncode == 0, done.stderr
     cli = json.loads(again.read_text())
     identified = calib.Robot.from_file(maps)
+    # The whole model (geometry, maps, compliance) is evaluated by one code path: `calib fk` prints
+    # the position Robot.fk computes, to the bit.
+    q = [10.0, -20.0, 30.0, -40.0, 50.0, -60.0]
+    out = run_calib("fk", "--robot", maps, "--joints-deg", ",".join(map(str, q)), "--json")
+    assert out.returncode == 0, out.stderr
+    assert identified.fk(np.radians(q))[:3, 3].tolist() == json.loads(out.stdout)["position_mm"]
     frames = calib.calibrate(identified, data, identify="frames", method="lm", validate=0.8)
     assert frames.parameter_names == list(cli["parameters"]) and len(frames.parameter_names) > 0
     for name, value in zip(frames.parameter_names, frames.parameter_values):

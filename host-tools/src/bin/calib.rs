@@ -1,7 +1,6 @@
 //! `calib`: robot geometric calibration from laser-tracker data.
 
 use anyhow::Context;
-use calib_core::model::JointVec;
 use clap::{Parser, Subcommand};
 use host_tools::cli::calibrate::{self, CalibrateOptions};
 use host_tools::cli::check::{self, CheckOptions};
@@ -9,7 +8,6 @@ use host_tools::cli::compensate::CompensateOptions;
 use host_tools::cli::export::ExportOptions;
 use host_tools::cli::print;
 use host_tools::cli::simulate::{self, Simulation};
-use host_tools::io::robot_file::RobotModel;
 use host_tools::kinematics::fk;
 use std::path::{Path, PathBuf};
 
@@ -246,7 +244,9 @@ fn print_json_or_text<T: serde::Serialize>(
 fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::Result<()> {
     let file = host_tools::io::robot_file::RobotFile::read(robot)?;
     host_tools::model::counts::joint_count(file.joint.len())?;
-    let (name, pose) = pose_of_file(&file, robot, joints_deg)?;
+    let kinematics = fk::FileKinematics::new(&file, robot)?;
+    let pose = fk::forward_deg(&kinematics, joints_deg)?;
+    let name = kinematics.name();
     if json {
         host_tools::cli::print_line(format_args!(
             "{}",
@@ -257,37 +257,6 @@ fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::R
         host_tools::cli::print_text(format_args!("{}", pose.to_text()))?;
     }
     Ok(())
-}
-
-/// A robot file at `joints_deg` (one value per joint), with its joint maps and gravity compliance.
-fn pose_of_file(
-    file: &host_tools::io::robot_file::RobotFile,
-    robot: &Path,
-    joints_deg: &[f64],
-) -> anyhow::Result<(String, fk::FkOutput)> {
-    let model: RobotModel = file.to_model(robot)?;
-    // Joint maps are part of the model: the kinematics sees each reading with its angle error.
-    let joints_deg: Vec<f64> = match file.joint_maps(robot)? {
-        Some(maps) if joints_deg.len() == model.robot.joints.len() => {
-            let q = JointVec::<f64>::from_fn(joints_deg.len(), |j| joints_deg[j].to_radians());
-            maps.apply(&q).iter().map(|q| q.to_degrees()).collect()
-        }
-        _ => joints_deg.to_vec(),
-    };
-    // So is gravity compliance: the pose moves by its displacement there.
-    let pose = match (&file.compliance, &file.dynamics) {
-        (Some(compliance), Some(dynamics)) => {
-            let at = |e: String| anyhow::anyhow!("{}: {e}", robot.display());
-            fk::forward_deg_compliant(
-                &model,
-                &joints_deg,
-                &dynamics.to_gravity().map_err(at)?,
-                &compliance.to_gains().map_err(at)?,
-            )?
-        }
-        _ => fk::forward_deg(&model, &joints_deg)?,
-    };
-    Ok((model.name, pose))
 }
 
 /// `calib evaluate`: Table 3 of a robot file on a data file.

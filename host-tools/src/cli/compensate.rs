@@ -6,6 +6,7 @@ use crate::io::outputs::Outputs;
 use crate::io::robot_file::RobotFile;
 use crate::io::robot_file::RobotModel;
 use crate::io::tracker_data::TrackerData;
+use crate::kinematics::actual::ActualRobot;
 use crate::kinematics::compensate::TargetOutcome;
 use crate::kinematics::compensate::{
     Configuration, Request, Summary, compensate_targets, compensate_targets_of, to_csv,
@@ -256,8 +257,7 @@ fn compensated(
         file.joint.len(),
         "the nominal robot of --robot",
     )?;
-    let maps = params.joint_maps(&options.params)?;
-    let compliance = params.gravity_compliance(&options.params)?;
+    let actual = ActualRobot::from_file(&params, &options.params)?;
     crate::model::counts::joint_count(file.joint.len())?;
     // The readings each non-zero map was identified on.
     let ranges = params
@@ -267,39 +267,36 @@ fn compensated(
         .unwrap_or_default();
     let map_ranges = (0..file.joint.len())
         .map(|j| {
-            let mapped = maps.as_ref().is_some_and(|m| !m.is_zero(j));
+            let mapped = actual.maps.as_ref().is_some_and(|m| !m.is_zero(j));
             ranges.get(j).copied().filter(|_| mapped)
         })
         .collect();
     let request = options.request(map_ranges, file.compensation.as_ref())?;
-    let robots = (&file, &params);
-    let outcomes = if maps.is_none() && compliance.is_none() {
-        compensate_geometric(options, robots, &request)?
+    let nominal = file.to_model(&options.robot)?;
+    let outcomes = if actual.maps.is_none() && actual.compliance.is_none() {
+        compensate_geometric(options, (nominal, &actual), &params, &request)?
     } else {
-        compensate_model(
-            options,
-            robots,
-            (maps.as_ref(), compliance.as_ref()),
-            &request,
-        )?
+        compensate_model(options, (nominal, &actual), &params, &request)?
     };
     Ok((outcomes, file.joint.len()))
 }
 
-/// `calib compensate` of a model with joint maps or gravity compliance (the
-/// compliance a 6R arm's, refused for other counts): the controller's model, geometry, maps (zero
-/// without) and compliance (none without).
+/// `calib compensate` of a model with joint maps or gravity compliance (the compliance a 6R
+/// arm's, refused for other counts): the controller's model, geometry, maps (zero without) and
+/// compliance (none without), of the identified robot `actual` (the file `params`); `nominal` the
+/// model the controller plans with.
 fn compensate_model(
     options: &CompensateOptions,
-    robots: (&RobotFile, &RobotFile),
-    (maps, compliance): (
-        Option<&crate::model::joint_maps::JointMaps>,
-        Option<&crate::model::compliance::FileCompliance>,
-    ),
+    (nominal, actual): (RobotModel, &ActualRobot),
+    params: &RobotFile,
     request: &Request,
 ) -> anyhow::Result<Vec<TargetOutcome>> {
-    let (nominal, actual, targets, settings) = inputs(options, robots)?;
-    let model = controller_model(actual.robot, maps, compliance)?;
+    let (targets, settings) = inputs(options, &nominal, params)?;
+    let model = controller_model(
+        actual.model.robot,
+        actual.maps.as_ref(),
+        actual.compliance.as_ref(),
+    )?;
     let real = model.kinematics()?;
     Ok(compensate_targets_of(
         &nominal.robot,
@@ -310,42 +307,37 @@ fn compensate_model(
     )?)
 }
 
-/// `calib compensate` of a geometric model.
+/// `calib compensate` of a geometric model (`actual`, of the file `params`).
 fn compensate_geometric(
     options: &CompensateOptions,
-    robots: (&RobotFile, &RobotFile),
+    (nominal, actual): (RobotModel, &ActualRobot),
+    params: &RobotFile,
     request: &Request,
 ) -> anyhow::Result<Vec<TargetOutcome>> {
-    let (nominal, actual, targets, settings) = inputs(options, robots)?;
+    let (targets, settings) = inputs(options, &nominal, params)?;
     Ok(compensate_targets(
         &nominal.robot,
-        &actual.robot,
+        &actual.model.robot,
         &targets,
         &settings,
         request,
     )?)
 }
 
-/// The nominal and identified robots (`robots`: the files of `--robot` and `--params`), the
-/// targets and the settings, checked.
+/// The targets (through the registration of the identified file `params` for targets in the
+/// tracker's frame; the nominal poses of `nominal` for joint targets) and the settings, checked.
 fn inputs(
     options: &CompensateOptions,
-    (file, params): (&RobotFile, &RobotFile),
-) -> anyhow::Result<(
-    RobotModel,
-    RobotModel,
-    TrackerData,
-    CompensationSettings<f64>,
-)> {
-    let nominal: RobotModel = file.to_model(&options.robot)?;
-    let actual: RobotModel = params.to_model(&options.params)?;
+    nominal: &RobotModel,
+    params: &RobotFile,
+) -> anyhow::Result<(TrackerData, CompensationSettings<f64>)> {
     let mut targets = if options.joint_targets {
         if options.targets_frame == TargetsFrame::Tracker {
             bail!(
                 "--joint-targets: the targets are the nominal poses of the joints, in the base frame; drop --targets-frame tracker"
             );
         }
-        nominal_poses_of(&nominal, &options.targets)?
+        nominal_poses_of(nominal, &options.targets)?
     } else {
         TrackerData::read_targets(&options.targets)?
     };
@@ -384,7 +376,7 @@ fn inputs(
         max_joint_correction_rad: options.max_joint_correction_deg.to_radians(),
         ..CompensationSettings::default()
     };
-    Ok((nominal, actual, targets, settings))
+    Ok((targets, settings))
 }
 
 /// Writes the outcomes (all or nothing) and counts them.

@@ -148,13 +148,20 @@ pub fn export(
         ))
     };
     Ok(match format {
-        ExportFormat::Block => parameter_block(
-            &model.robot,
-            file.joint_maps(&model.path)?.as_ref(),
-            file.gravity_compliance(&model.path)?.as_ref(),
-            scalar,
-            sequence,
-        )?,
+        ExportFormat::Block => {
+            let actual = crate::kinematics::actual::ActualRobot::from_model(
+                model.clone(),
+                file,
+                &model.path,
+            )?;
+            parameter_block(
+                &actual.model.robot,
+                actual.maps.as_ref(),
+                actual.compliance.as_ref(),
+                scalar,
+                sequence,
+            )?
+        }
         ExportFormat::UrKinematicsYaml => {
             let joints = model.robot.joints.len();
             if joints != JOINTS {

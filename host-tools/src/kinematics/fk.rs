@@ -1,7 +1,7 @@
 //! `calib fk`: the end pose of a robot model for given joint readings.
 
 use crate::error::Context;
-use crate::io::robot_file::RobotModel;
+use crate::kinematics::actual::ActualRobot;
 use calib_core::math::so3;
 use calib_core::model::JointVec;
 use calib_core::{Kinematics, Pose};
@@ -48,8 +48,11 @@ impl FkOutput {
     }
 }
 
-/// Forward kinematics of the nominal model in `model` for joint readings in degrees.
-pub fn forward_deg(model: &RobotModel, joints_deg: &[f64]) -> crate::Result<FkOutput> {
+/// `calib fk`: the end pose of the robot file's whole model (`kinematics`: geometry, joint maps,
+/// compliance) at the joint readings `joints_deg` (degrees, one per joint), each checked: the
+/// count, finite, within ten turns, within the joint limits.
+pub fn forward_deg(kinematics: &FileKinematics, joints_deg: &[f64]) -> crate::Result<FkOutput> {
+    let model = &kinematics.actual.model;
     let joints = model.robot.joints.len();
     if joints_deg.len() != joints {
         return Err(crate::refused!(
@@ -58,7 +61,7 @@ pub fn forward_deg(model: &RobotModel, joints_deg: &[f64]) -> crate::Result<FkOu
             model.name
         ));
     }
-    let mut q = JointVec::<f64>::from_fn(joints, |_| 0.0);
+    let mut q = vec![0.0; joints];
     for (i, (qi, deg)) in q.iter_mut().zip(joints_deg).enumerate() {
         if !deg.is_finite() {
             return Err(crate::refused!(
@@ -89,58 +92,17 @@ pub fn forward_deg(model: &RobotModel, joints_deg: &[f64]) -> crate::Result<FkOu
             ));
         }
     }
-    let kinematics = Kinematics::nominal(&model.robot)
-        .with_context(|| format!("robot file {}", model.path.display()))?;
-    Ok(FkOutput::from_pose(&kinematics.forward(&q)?))
-}
-
-/// [`forward_deg`] of a model with gravity compliance: the end pose moved by the displacement of
-/// `gains` (urad/(N m)) under `gravity` ([`crate::model::compliance`]) at the same joint angles (degrees;
-/// the kinematic angles when the model has joint maps).
-pub fn forward_deg_compliant(
-    model: &RobotModel,
-    joints_deg: &[f64],
-    gravity: &crate::model::compliance::Gravity,
-    gains: &[f64; crate::model::compliance::GAIN_COUNT],
-) -> crate::Result<FkOutput> {
-    forward_deg(model, joints_deg)?;
-    let q = JointVec::<f64>::from_fn(joints_deg.len(), |j| joints_deg[j].to_radians());
-    let pose = Kinematics::nominal(&model.robot)?.forward(&q)?;
-    Ok(FkOutput::from_pose(&deflected(
-        pose, model, gravity, gains, &q,
-    )?))
-}
-
-/// `pose` (of `model`'s nominal geometry at the kinematic angles `q`, rad) moved by the gravity
-/// compliance displacement of `gains` under `gravity` there.
-fn deflected(
-    mut pose: Pose<f64>,
-    model: &RobotModel,
-    gravity: &crate::model::compliance::Gravity,
-    gains: &[f64; crate::model::compliance::GAIN_COUNT],
-    q: &JointVec<f64>,
-) -> crate::Result<Pose<f64>> {
-    let columns = crate::model::compliance::columns(
-        gravity,
-        &model.robot,
-        &calib_core::ParameterErrors::zeros_for(model.robot.joint_count()),
-        q,
-    )?;
-    let d = crate::model::compliance::displacement(&columns, gains);
-    pose.translation.vector += nalgebra::Vector3::new(d[0], d[1], d[2]);
-    pose.rotation = Rotation3::new(nalgebra::Vector3::new(d[3], d[4], d[5])) * pose.rotation;
-    Ok(pose)
+    let pose = kinematics.pose(&q, &|| "--joints-deg".to_string())?;
+    Ok(FkOutput::from_pose(&pose))
 }
 
 /// A robot file's whole model at many joint configurations: its geometry, its joint maps (each
 /// reading corrected by its map) and its gravity compliance (the pose moved by its displacement),
-/// as `calib fk` evaluates one configuration; the model is prepared once. For the Python
-/// package's `Robot.fk` and any caller with many configurations.
+/// the [`ActualRobot`] with its kinematics prepared once. `calib fk`, the Python package's
+/// `Robot.fk` and any caller with many configurations.
 pub struct FileKinematics {
-    model: RobotModel,
+    actual: ActualRobot,
     kinematics: Kinematics<f64, nalgebra::Dyn>,
-    maps: Option<crate::model::joint_maps::JointMaps>,
-    compliance: Option<crate::model::compliance::FileCompliance>,
 }
 
 impl FileKinematics {
@@ -149,20 +111,20 @@ impl FileKinematics {
         file: &crate::io::robot_file::RobotFile,
         path: &std::path::Path,
     ) -> crate::Result<Self> {
-        let model = file.to_model(path)?;
-        let kinematics = Kinematics::nominal(&model.robot)
+        let actual = ActualRobot::from_file(file, path)?;
+        let kinematics = Kinematics::nominal(&actual.model.robot)
             .with_context(|| format!("robot file {}", path.display()))?;
-        Ok(Self {
-            maps: file.joint_maps(path)?,
-            compliance: file.gravity_compliance(path)?,
-            model,
-            kinematics,
-        })
+        Ok(Self { actual, kinematics })
+    }
+
+    /// The robot's name.
+    pub fn name(&self) -> &str {
+        &self.actual.model.name
     }
 
     /// The joint count.
     pub fn joints(&self) -> usize {
-        self.model.robot.joints.len()
+        self.actual.model.robot.joints.len()
     }
 
     /// The end pose (mm, the robot's base frame) at the joint readings `q_rad` (rad, one per
@@ -175,7 +137,7 @@ impl FileKinematics {
                 "{}: {} joint values, the robot {} has {joints} joints",
                 what(),
                 q_rad.len(),
-                self.model.name
+                self.actual.model.name
             ));
         }
         for (i, q) in q_rad.iter().enumerate() {
@@ -194,15 +156,12 @@ impl FileKinematics {
                 ));
             }
         }
-        if let Some(outside) = self.model.outside_limits(q_rad) {
+        if let Some(outside) = self.actual.model.outside_limits(q_rad) {
             return Err(crate::refused!("{}: {outside}", what()));
         }
         let readings = JointVec::<f64>::from_fn(joints, |j| q_rad[j]);
-        let q = self.maps.as_ref().map_or(readings, |m| m.apply(&readings));
+        let q = self.actual.kinematic_angles(&readings);
         let pose = self.kinematics.forward(&q)?;
-        match &self.compliance {
-            Some(c) => deflected(pose, &self.model, &c.gravity, &c.gains, &q),
-            None => Ok(pose),
-        }
+        self.actual.deflected(pose, &q)
     }
 }

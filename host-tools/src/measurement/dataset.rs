@@ -116,10 +116,15 @@ impl Dataset {
         };
         // Joint maps of the robot file are part of the model: the kinematics sees the readings
         // with each joint's angle error added.
-        match dataset.file.joint_maps(robot)? {
+        let actual = crate::kinematics::actual::ActualRobot::from_model(
+            dataset.model.clone(),
+            &dataset.file,
+            robot,
+        )?;
+        match &actual.maps {
             Some(maps) => {
-                dataset.warn_extrapolated(&maps, robot);
-                dataset.with_maps(&maps)
+                dataset.warn_extrapolated(maps, robot);
+                dataset.with_maps(maps)
             }
             None => Ok(dataset),
         }
@@ -179,14 +184,18 @@ impl Dataset {
         robot: &calib_core::Robot<f64, Dyn>,
         errors: &calib_core::ParameterErrors<f64, Dyn>,
     ) -> crate::Result<Self> {
-        let Some(compliance) = self.file.gravity_compliance(&self.model.path)? else {
+        let actual = crate::kinematics::actual::ActualRobot::from_model(
+            self.model.clone(),
+            &self.file,
+            &self.model.path,
+        )?;
+        let Some(compliance) = &actual.compliance else {
             return Ok(self.clone());
         };
-        let maps = self.file.joint_maps(&self.model.path)?;
         self.without_compliance(
             robot,
             errors,
-            maps.as_ref(),
+            actual.maps.as_ref(),
             &compliance.gravity,
             &compliance.gains,
         )
