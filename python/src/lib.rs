@@ -60,11 +60,17 @@ fn py_error(error: anyhow::Error) -> PyErr {
     });
     if numerical {
         NumericalError::new_err(message)
-    } else if error.chain().any(|c| c.downcast_ref::<E>().is_some())
-        || error
-            .chain()
-            .any(|c| c.downcast_ref::<clap::Error>().is_some())
-    {
+    } else if error.chain().any(|c| {
+        // A refusal of the library, of an input file's reader or of the options' parser.
+        c.downcast_ref::<E>().is_some()
+            || c.downcast_ref::<host_tools::io::robot_file::RobotFileError>()
+                .is_some()
+            || c.downcast_ref::<host_tools::io::tracker_data::DataError>()
+                .is_some()
+            || c.downcast_ref::<host_tools::io::profile::ProfileError>()
+                .is_some()
+            || c.downcast_ref::<clap::Error>().is_some()
+    }) {
         InputError::new_err(message)
     } else {
         CalibError::new_err(message)
@@ -164,6 +170,9 @@ impl Robot {
     #[staticmethod]
     fn from_file(path: PathBuf) -> PyResult<Self> {
         let file = RobotFile::read(&path).map_err(|e| py_error(e.into()))?;
+        // Checked whole now (finite values, limits, frames, maps, compliance), not at first use.
+        host_tools::kinematics::actual::ActualRobot::from_file(&file, &path)
+            .map_err(|e| py_error(e.into()))?;
         Ok(Self {
             file,
             path,
@@ -177,6 +186,8 @@ impl Robot {
     fn from_toml(text: &str, name: &str) -> PyResult<Self> {
         let path = PathBuf::from(name);
         let file = RobotFile::parse(text, &path).map_err(|e| py_error(e.into()))?;
+        host_tools::kinematics::actual::ActualRobot::from_file(&file, &path)
+            .map_err(|e| py_error(e.into()))?;
         Ok(Self {
             file,
             path,
@@ -214,6 +225,41 @@ impl Robot {
             return input(format!(
                 "from_dh: every parameter needs {joints} values, one per joint"
             ));
+        }
+        let named = [
+            ("a_mm", &a_mm),
+            ("alpha_rad", &alpha_rad),
+            ("theta_offset_rad", &theta_offset_rad),
+            ("d_mm", &d_mm),
+            ("beta_rad", &beta_rad),
+        ];
+        let frames = [
+            ("base_xyz_mm", base_xyz_mm),
+            ("base_rpy_rad", base_rpy_rad),
+            ("tool_xyz_mm", tool_xyz_mm),
+            ("tool_rpy_rad", tool_rpy_rad),
+        ];
+        let every =
+            (named.iter())
+                .flat_map(|(n, v)| {
+                    v.iter()
+                        .enumerate()
+                        .map(move |(i, x)| (*n, i.to_string(), *x))
+                })
+                .chain(frames.iter().flat_map(|(n, v)| {
+                    (v.iter().flatten().enumerate()).map(move |(i, x)| (*n, i.to_string(), *x))
+                }))
+                .chain(
+                    limits_rad.iter().flatten().enumerate().flat_map(|(j, l)| {
+                        [0, 1].map(|k| ("limits_rad", format!("{j}][{k}"), l[k]))
+                    }),
+                );
+        for (argument, at, value) in every {
+            if !value.is_finite() {
+                return input(format!(
+                    "from_dh: {argument}[{at}] = {value} is not a finite number"
+                ));
+            }
         }
         let mut text = format!("name = {}\n\n", toml::Value::from(name));
         for j in 0..joints {

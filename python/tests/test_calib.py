@@ -95,6 +95,15 @@ def test_forward_kinematics_equals_an_independent_numpy_model():
     assert np.abs(arrays.fk(q) - poses).max() < 1e-9
     with pytest.raises(calib.InputError, match="every parameter needs 6 values"):
         calib.Robot.from_dh("bad", [0.0] * 6, [0.0] * 6, [0.0] * 6, [0.0] * 5)
+    with pytest.raises(calib.InputError, match=r"from_dh: d_mm\[2\] = NaN is not a finite number"):
+        calib.Robot.from_dh("bad", [0.0] * 6, [0.0] * 6, [0.0] * 6, [0.0, 0.0, math.nan, 0.0, 0.0, 0.0])
+    with pytest.raises(calib.InputError, match=r"from_dh: limits_rad\[1\]\[0\] = -inf is not a finite number"):
+        calib.Robot.from_dh("bad", [0.0] * 6, [0.0] * 6, [0.0] * 6, [0.0] * 6,
+                            limits_rad=[[-1.0, 1.0], [-math.inf, 1.0]] + [[-1.0, 1.0]] * 4)
+    # A robot file is checked whole when it is read, in the command's words, as an InputError.
+    text = arm_toml().replace("a_mm = 150.0", "a_mm = inf")
+    with pytest.raises(calib.InputError, match="joint 1: a_mm = inf is not a finite number"):
+        calib.Robot.from_toml(text)
     # As `calib fk` prints it.
     out = run_calib("fk", "--robot", UR10, "--joints-deg", "10,-20,30,-40,50,-60", "--json")
     printed = json.loads(out.stdout)["position_mm"]
@@ -176,6 +185,11 @@ def test_bad_inputs_raise_the_documented_exceptions():
         calib.Dataset.from_arrays(np.zeros((3, 6)), np.zeros((3, 3)), frame="world")
     with pytest.raises(calib.CalibError):
         calib.Robot.from_file(ROOT / "no-such-robot.toml")
+    # A file the data reader refuses (a robot file given as data): InputError with the reason.
+    out = run_calib("check", "--robot", UR10, "--data", UR10)
+    with pytest.raises(calib.InputError) as refused:
+        calib.Dataset.from_file(UR10)
+    assert str(refused.value).splitlines()[0] == out.stderr.splitlines()[0].removeprefix("Error: ")
     data = calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=robot)
     with pytest.raises(calib.InputError, match="report= is not an option here"):
         calib.calibrate(robot, data, report="r.json")
