@@ -338,42 +338,31 @@ impl Robot {
     ) -> PyResult<Bound<'py, PyAny>> {
         let array = numbers::<numpy::IxDyn>("joints_rad", joints_rad)?;
         let array = array.as_array();
-        let single = array.ndim() == 1;
-        let rows = match array.ndim() {
-            1 => array.to_shape((1, array.len())).map(|a| a.to_owned()),
-            2 => array
-                .to_shape((array.shape()[0], array.shape()[1]))
-                .map(|a| a.to_owned()),
-            _ => {
+        let (count, columns, single) = match *array.shape() {
+            [columns] => (1, columns, true),
+            [count, columns] => (count, columns, false),
+            ref shape => {
                 return input(format!(
-                    "joints_rad: shape {:?}: expected (joints,) or (n, joints), in rad",
-                    array.shape()
+                    "joints_rad: shape {shape:?}: expected (joints,) or (n, joints), in rad"
                 ));
             }
-        }
-        .map_err(|e| InputError::new_err(e.to_string()))?;
+        };
+        // A copy, row after row (whatever the input's memory order: a pandas frame's is often
+        // by column), that no Python thread can change while the GIL is released.
+        let all: Vec<f64> = array.iter().copied().collect();
         let kinematics = host_tools::kinematics::fk::FileKinematics::new(&self.file, &self.path)
             .map_err(|e| py_error(e.into()))?;
         let joints = kinematics.joints();
-        if rows.ncols() != joints {
+        if columns != joints {
             return input(format!(
                 "joints_rad: shape {:?}: the robot {} has {joints} joints (one column per joint, in rad)",
-                rows.shape(),
+                array.shape(),
                 self.file.name
             ));
         }
         let out = py.detach(|| -> Result<Array3<f64>, host_tools::Error> {
-            let mut out = Array3::<f64>::zeros((rows.nrows(), 4, 4));
-            for (i, row) in rows.rows().into_iter().enumerate() {
-                // `rows` is an owned array in standard layout: each row is one slice.
-                let owned: Vec<f64>;
-                let q = match row.as_slice() {
-                    Some(q) => q,
-                    None => {
-                        owned = row.to_vec();
-                        &owned
-                    }
-                };
+            let mut out = Array3::<f64>::zeros((count, 4, 4));
+            for (i, q) in all.chunks_exact(columns).enumerate() {
                 let m = kinematics
                     .pose(q, &|| format!("joints_rad row {i}"))?
                     .to_homogeneous();
@@ -416,9 +405,7 @@ impl Robot {
         .map(String::from)
         .to_vec();
         words.extend(option_words(options, &["params", "out", "format"])?);
-        let parsed = <ExportCommand as clap::Parser>::try_parse_from(&words)
-            .map_err(|e| InputError::new_err(e.render().to_string().trim_end().to_string()))?
-            .inner;
+        let parsed = parse_words::<host_tools::cli::export::ExportOptions>(&words)?;
         let bytes = host_tools::cli::export::export_bytes(&parsed, &self.file).map_err(py_error)?;
         Ok(pyo3::types::PyBytes::new(py, &bytes))
     }
@@ -720,20 +707,19 @@ fn orientations(
     }
 }
 
-/// `calib export`'s options parsed from command-line words.
-#[derive(clap::Parser)]
-#[command(name = "export")]
-struct ExportCommand {
-    #[command(flatten)]
-    inner: host_tools::cli::export::ExportOptions,
-}
-
-/// `calib calibrate`'s options parsed from command-line words.
-#[derive(clap::Parser)]
-#[command(name = "calibrate")]
-struct Options {
-    #[command(flatten)]
-    inner: CalibrateOptions,
+/// A command's options (`calib calibrate`'s, `calib export`'s, ...) parsed from the command-line
+/// words `words` (the command's name first), by the command's own definition: its defaults,
+/// checks and messages; a refusal is an `InputError` with clap's message.
+fn parse_words<A: clap::Args>(words: &[String]) -> PyResult<A> {
+    /// The options as a whole command line.
+    #[derive(clap::Parser)]
+    struct Words<A: clap::Args> {
+        #[command(flatten)]
+        inner: A,
+    }
+    <Words<A> as clap::Parser>::try_parse_from(words)
+        .map(|w| w.inner)
+        .map_err(|e| InputError::new_err(e.render().to_string().trim_end().to_string()))
 }
 
 /// Keyword arguments as command-line words: `name=value` is `--name value` (underscores as
@@ -903,9 +889,7 @@ fn calibrate(
             "quiet",
         ],
     )?);
-    let mut parsed = <Options as clap::Parser>::try_parse_from(&words)
-        .map_err(|e| InputError::new_err(e.render().to_string().trim_end().to_string()))?
-        .inner;
+    let mut parsed = parse_words::<CalibrateOptions>(&words)?;
     parsed.quiet = true;
     let mut line = vec!["calib".to_string()];
     line.extend(words.iter().cloned());
@@ -918,33 +902,13 @@ fn calibrate(
         let mut config = parsed.config();
         config.cancel = stop;
         if from_files {
-            return host_tools::cli::calibrate::calibrate_datasets(&parsed, config, data, holdout);
+            host_tools::cli::calibrate::calibrate_datasets(&parsed, config, data, holdout)
+        } else {
+            host_tools::cli::calibrate::calibrate_in_memory(&parsed, config, data, holdout)
         }
-        config.check()?;
-        let all = data;
-        let (dataset, validation) = match (holdout, parsed.validate) {
-            (Some(_), Some(_)) => anyhow::bail!("use either --validate or --holdout, not both"),
-            (Some(h), None) => (all, Some(h)),
-            (None, Some(fraction)) => {
-                let (c, v) =
-                    host_tools::measurement::dataset::split(&all, fraction, parsed.validate_seed)?;
-                (c, Some(v))
-            }
-            (None, None) => (all, None),
-        };
-        let result = host_tools::calibration::calibrate(dataset, validation, &config)?;
-        Calibration::new(result, parsed.hold_out(), None)
     })?
     .map_err(py_error)?;
     Ok(CalibrationResult { calibration })
-}
-
-/// `calib evaluate`'s options parsed from command-line words.
-#[derive(clap::Parser)]
-#[command(name = "evaluate")]
-struct EvaluateCommand {
-    #[command(flatten)]
-    inner: host_tools::cli::evaluate::EvaluateOptions,
 }
 
 /// Table 3 statistics of `robot` (any model, nominal or identified) on `data`, as `calib evaluate
@@ -978,22 +942,12 @@ fn evaluate_json(
         options,
         &["robot", "data", "profile", "json"],
     )?);
-    let parsed = <EvaluateCommand as clap::Parser>::try_parse_from(&words)
-        .map_err(|e| InputError::new_err(e.render().to_string().trim_end().to_string()))?
-        .inner;
+    let parsed = parse_words::<host_tools::cli::evaluate::EvaluateOptions>(&words)?;
     let dataset = data.against(robot).map_err(py_error)?;
     let evaluation = py
         .detach(|| host_tools::cli::evaluate::evaluate_dataset(&parsed, dataset))
         .map_err(py_error)?;
     serde_json::to_string(&evaluation).map_err(|e| py_error(e.into()))
-}
-
-/// `calib plan`'s options parsed from command-line words.
-#[derive(clap::Parser)]
-#[command(name = "plan")]
-struct PlanCommand {
-    #[command(flatten)]
-    inner: host_tools::cli::plan::PlanOptions,
 }
 
 /// A measurement plan (`calib plan`): the poses to measure in order, their roles, the prediction.
@@ -1077,22 +1031,12 @@ fn plan(
         options,
         &["robot", "out", "report", "urscript", "joint_targets"],
     )?);
-    let parsed = <PlanCommand as clap::Parser>::try_parse_from(&words)
-        .map_err(|e| InputError::new_err(e.render().to_string().trim_end().to_string()))?
-        .inner;
+    let parsed = parse_words::<host_tools::cli::plan::PlanOptions>(&words)?;
     let file = robot.file.clone();
     let planned = py
         .detach(|| host_tools::cli::plan::planned(&parsed, &file))
         .map_err(py_error)?;
     Ok(Plan { plan: planned })
-}
-
-/// `calib compensate`'s options parsed from command-line words.
-#[derive(clap::Parser)]
-#[command(name = "compensate")]
-struct CompensateCommand {
-    #[command(flatten)]
-    inner: host_tools::cli::compensate::CompensateOptions,
 }
 
 /// The table `calib compensate` writes (CSV text; the package's `compensate` returns its
@@ -1125,9 +1069,7 @@ fn compensate_csv(
         options,
         &["robot", "params", "targets", "out"],
     )?);
-    let parsed = <CompensateCommand as clap::Parser>::try_parse_from(&words)
-        .map_err(|e| InputError::new_err(e.render().to_string().trim_end().to_string()))?
-        .inner;
+    let parsed = parse_words::<host_tools::cli::compensate::CompensateOptions>(&words)?;
     let (file, identified) = (robot.file.clone(), params.file.clone());
     let (csv, _) = py
         .detach(|| host_tools::cli::compensate::compensated_table_of(&parsed, file, identified))

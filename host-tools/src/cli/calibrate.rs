@@ -278,7 +278,37 @@ pub fn calibrate_datasets(
     all: Dataset,
     holdout: Option<Dataset>,
 ) -> anyhow::Result<Calibration> {
+    calibrate_loaded(options, config, (all, holdout), true)
+}
+
+/// [`calibrate_datasets`] of poses that come from no file (the Python package's arrays): the
+/// same hold-out (`holdout` or `--validate`) and calibration; the identified robot file records
+/// no input files.
+pub fn calibrate_in_memory(
+    options: &CalibrateOptions,
+    config: CalibrationConfig,
+    all: Dataset,
+    holdout: Option<Dataset>,
+) -> anyhow::Result<Calibration> {
+    calibrate_loaded(options, config, (all, holdout), false)
+}
+
+/// The calibration of `all` with the hold-out `holdout`, `--validate` or a measured plan's verify
+/// poses; `from_files`: the input files of `options` are recorded with their SHA-256.
+fn calibrate_loaded(
+    options: &CalibrateOptions,
+    config: CalibrationConfig,
+    (all, holdout): (Dataset, Option<Dataset>),
+    from_files: bool,
+) -> anyhow::Result<Calibration> {
     config.check()?;
+    let stamped = |result| {
+        if from_files {
+            with_provenance(result, options)
+        } else {
+            Ok(result)
+        }
+    };
     // A measured plan (calib plan): its verification poses are the hold-out.
     let verify: Vec<usize> = (all.data.records.iter().enumerate())
         .filter(|(_, r)| r.role == Some(Role::Verify))
@@ -294,7 +324,7 @@ pub fn calibrate_datasets(
         }
         let (fitted, held) = all.partition(&verify);
         let result = calibration::calibrate(fitted.clone(), Some(held), &config)?;
-        let result = with_provenance(with_plan_check(result, &fitted, &config), options)?;
+        let result = stamped(with_plan_check(result, &fitted, &config))?;
         let hold_out = HoldOut {
             holdout: Some(format!(
                 "{} (the plan's verify poses)",
@@ -314,10 +344,7 @@ pub fn calibrate_datasets(
         }
         (None, None) => (all, None),
     };
-    let result = with_provenance(
-        calibration::calibrate(dataset, validation, &config)?,
-        options,
-    )?;
+    let result = stamped(calibration::calibrate(dataset, validation, &config)?)?;
     Calibration::new(result, options.hold_out(), options.truth.as_deref())
 }
 
