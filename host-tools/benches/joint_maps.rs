@@ -46,7 +46,7 @@ fn joint_maps(c: &mut Criterion) {
             b.iter(|| {
                 // As `calib calibrate --validate` runs: the file read, the poses drawn.
                 let all = Dataset::load_with(robot, data, &profile).unwrap();
-                let n = all.measurements.len();
+                let n = all.readings.len();
                 let (calibration, _) = split(&all, (n - poses) as f64 / n as f64, 0).unwrap();
                 calibrate(calibration, None, &config).unwrap()
             })

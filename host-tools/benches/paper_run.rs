@@ -33,7 +33,7 @@ fn paper_run(c: &mut Criterion) {
         "/robots/er10l-c10.toml"
     ));
     let dataset = Dataset::load(robot_file, path).unwrap();
-    let (measurements, robot) = (dataset.measurements, dataset.model.robot);
+    let (measurements, robot) = (dataset.readings, dataset.robot.model.robot);
     // The counts at run time, as `calibrate` has them.
     let set = ParameterSet::<Dyn, Dyn>::default_for(&robot).unwrap();
     let problem = Problem::new(

@@ -129,9 +129,9 @@ fn n12_large_geometric_errors_in_the_base_frame_are_not_refused() {
     let data = concat!(env!("CARGO_MANIFEST_DIR"), "/data/er10l-c10-sim32.csv");
     let dataset =
         host_tools::measurement::dataset::Dataset::load(Path::new(ROBOT), Path::new(data)).unwrap();
-    let nominal = Kinematics::nominal(&dataset.model.robot).unwrap();
+    let nominal = Kinematics::nominal(&dataset.robot.model.robot).unwrap();
     let mut misses: Vec<(f64, u64)> = dataset
-        .measurements
+        .readings
         .iter()
         .zip(&dataset.data.records)
         .map(|(m, r)| {

@@ -93,7 +93,7 @@ fn split(dataset: &Dataset, seed: u64) -> Split {
         .iter()
         .map(|r| (r.id.clone(), r.q.clone()))
         .collect();
-    let file = pool.file.clone();
+    let file = pool.robot.file.clone();
     let mut planned = [0.0; 3];
     let mut verification = Vec::new();
     for (slot, poses) in [12, 30, 50].into_iter().enumerate() {
@@ -121,7 +121,7 @@ fn split(dataset: &Dataset, seed: u64) -> Split {
         let v = p.prediction.verification.unwrap();
         verification.push((v.mean_mm, (v.low_mm, v.high_mm), measured));
     }
-    let order = host_tools::measurement::dataset::shuffled(pool.measurements.len(), seed + 1000);
+    let order = host_tools::measurement::dataset::shuffled(pool.readings.len(), seed + 1000);
     let random = [12, 50].map(|n| {
         let mut indices = order[..n].to_vec();
         indices.sort_unstable();
@@ -468,7 +468,8 @@ fn series_b_plan_for_joint_maps() {
                 k: calib_core::identify::objective::DEFAULT_K,
                 seed,
             };
-            let p = planning::plan(&pool.file, Path::new(ROBOT), &candidates, &settings).unwrap();
+            let p =
+                planning::plan(&pool.robot.file, Path::new(ROBOT), &candidates, &settings).unwrap();
             let mut fitted: Vec<usize> = (p.poses.iter())
                 .filter(|q| q.role != Role::Verify)
                 .map(|q| q.candidate)
@@ -479,8 +480,7 @@ fn series_b_plan_for_joint_maps() {
                 coverage_gap(&pool, &fitted),
             ));
         }
-        let order =
-            host_tools::measurement::dataset::shuffled(pool.measurements.len(), seed + 1000);
+        let order = host_tools::measurement::dataset::shuffled(pool.readings.len(), seed + 1000);
         let mut random = order[..50].to_vec();
         random.sort_unstable();
         row.push((
@@ -589,7 +589,7 @@ fn leverages_sum_to_the_parameter_count() {
         .collect();
     for (measure, parameters) in [(Measure::Pose, 30.0), (Measure::Position, 25.0)] {
         let k = calib_core::identify::objective::DEFAULT_K;
-        let h = planning::leverages(&dataset.file, Path::new(ROBOT), &q, measure, k).unwrap();
+        let h = planning::leverages(&dataset.robot.file, Path::new(ROBOT), &q, measure, k).unwrap();
         let sum: f64 = h.iter().sum();
         println!("{measure:?}: 40 poses, leverages sum to {sum:.12}");
         assert!((sum - parameters).abs() < 1e-9, "{sum}");

@@ -171,7 +171,7 @@ impl Robot {
     fn from_file(path: PathBuf) -> PyResult<Self> {
         let file = RobotFile::read(&path).map_err(|e| py_error(e.into()))?;
         // Checked whole now (finite values, limits, frames, maps, compliance), not at first use.
-        host_tools::kinematics::actual::ActualRobot::from_file(&file, &path)
+        host_tools::kinematics::actual::ActualRobot::from_file(file.clone(), &path)
             .map_err(|e| py_error(e.into()))?;
         Ok(Self {
             file,
@@ -186,7 +186,7 @@ impl Robot {
     fn from_toml(text: &str, name: &str) -> PyResult<Self> {
         let path = PathBuf::from(name);
         let file = RobotFile::parse(text, &path).map_err(|e| py_error(e.into()))?;
-        host_tools::kinematics::actual::ActualRobot::from_file(&file, &path)
+        host_tools::kinematics::actual::ActualRobot::from_file(file.clone(), &path)
             .map_err(|e| py_error(e.into()))?;
         Ok(Self {
             file,

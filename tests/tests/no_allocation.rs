@@ -62,13 +62,13 @@ fn an_objective_evaluation_and_a_swarm_generation_allocate_nothing_with_run_time
         &calib_tests::repo("host-tools/data/er10l-c10-sim32.csv"),
     )
     .unwrap();
-    let robot = &dataset.model.robot;
+    let robot = &dataset.robot.model.robot;
     let set = ParameterSet::<Dyn, Dyn>::default_for(robot).unwrap();
     let problem = Problem::new(
         robot,
         &ParameterErrors::zeros_for(robot.joint_count()),
         set,
-        &dataset.measurements,
+        &dataset.readings,
         DEFAULT_K,
     )
     .unwrap();

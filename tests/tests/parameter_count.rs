@@ -23,7 +23,7 @@ fn paper_measurements(position_only: bool) -> Vec<Measurement<f64, Dyn>> {
         &calib_tests::repo("host-tools/data/er10l-c10-sim32.csv"),
     )
     .expect("bundled files")
-    .measurements;
+    .readings;
     if position_only {
         for m in &mut measurements {
             m.rotation = None;

@@ -3,7 +3,8 @@
 //! and the reflector or probe) when the data are in a tracker's frame. The geometry is never
 //! changed. Poses used to fit the frames can be kept out of the statistics.
 
-use crate::measurement::dataset::Dataset;
+use crate::kinematics::actual::ActualRobot;
+use crate::measurement::dataset::{Dataset, Seen};
 use crate::measurement::frames::{Frames, FramesReport};
 use crate::measurement::statistics::{Table3, table3};
 use calib_core::Kinematics;
@@ -25,38 +26,34 @@ pub struct Evaluation {
     pub fitted_poses_evaluated: bool,
 }
 
-/// Evaluates the dataset's robot on its poses. With `frames` `base` or `base+tool`, the frames
+/// Evaluates the model `robot` (the dataset's own, or that robot in its measurement setup) on
+/// the poses of `dataset`. With `frames` `base` or `base+tool`, the frames
 /// are registered and fitted first with the geometry fixed: on `fit_poses` poses chosen at random
 /// with `seed` as `calib calibrate --validate` chooses its calibration poses (then kept out of the
 /// statistics), or on all poses (then the statistics include
 /// them, which flatters the model). With only the base fitted, an identified file's probe stays
 /// the tool (`probe_kept`).
 pub fn evaluate(
+    robot: &ActualRobot,
     dataset: &Dataset,
     frames: Frames,
     fit_poses: Option<usize>,
     seed: u64,
 ) -> crate::Result<Evaluation> {
     let k = calib_core::identify::objective::DEFAULT_K;
-    let zero = calib_core::ParameterErrors::zeros_for(dataset.model.robot.joint_count());
-    let n = dataset.measurements.len();
-    let with_probe;
-    let dataset = match crate::measurement::frames::with_identified_probe(dataset, frames)? {
-        Some(kept) => {
-            with_probe = kept;
-            &with_probe
-        }
-        None => dataset,
-    };
+    let n = dataset.readings.len();
+    let setup = crate::measurement::frames::with_identified_probe(robot, frames)?
+        .unwrap_or_else(|| robot.clone());
     if frames == Frames::None {
         if fit_poses.is_some() {
             return Err(crate::refused!(
                 "--fit-poses needs frames to fit: the data are evaluated in the base frame (--fit-frames none)"
             ));
         }
-        return in_the_base_frame(dataset);
+        return in_the_base_frame(&setup, dataset);
     }
-    let (mut fitting, mut evaluated, separate) = match fit_poses {
+    let parts;
+    let (fitting, evaluated, separate) = match fit_poses {
         Some(count) => {
             if count < 3 || count >= n {
                 return Err(crate::refused!(
@@ -64,62 +61,59 @@ pub fn evaluate(
                 ));
             }
             // The same choice as `calib calibrate --validate (n - count) / n --validate-seed seed`.
-            let (fitting, evaluated) =
+            parts =
                 crate::measurement::dataset::split(dataset, (n - count) as f64 / n as f64, seed)?;
-            (fitting, evaluated, true)
+            (&parts.0, &parts.1, true)
         }
-        None => (dataset.clone(), dataset.clone(), false),
+        None => (dataset, dataset, false),
     };
-    let (mut report, _) =
-        crate::measurement::frames::prepare(frames, &mut fitting, &mut [&mut evaluated], k)?;
-    if dataset.file.compliance.is_some() {
-        // The frames again, on the poses with the compliance taken off (evaluated in the frames
-        // just fitted: its direction of gravity and lever arms), so that they do not absorb it.
-        let robot = fitting.model.robot;
-        let (mut fitting_seen, mut evaluated_seen) = match fit_poses {
-            Some(count) => crate::measurement::dataset::split(
-                &dataset.without_file_compliance(&robot, &zero)?,
-                (n - count) as f64 / n as f64,
-                seed,
-            )?,
-            None => {
-                let seen = dataset.without_file_compliance(&robot, &zero)?;
-                (seen.clone(), seen)
-            }
+    let (robot, report, _) =
+        crate::measurement::frames::prepare(frames, &fitting.seen_by(&setup)?, k)?;
+    let (robot, report, seen) = if robot.compliance.is_some() {
+        // The frames again, from the given ones, on the poses with the compliance taken off
+        // (evaluated in the frames just fitted: its direction of gravity and lever arms), so that
+        // they do not absorb it.
+        let zero = calib_core::ParameterErrors::zeros_for(robot.model.robot.joint_count());
+        let without = fitting.seen_by_geometry(&robot, &zero)?;
+        let again = Seen {
+            robot: &setup,
+            data: without.data,
+            measurements: without.measurements,
         };
-        report = crate::measurement::frames::prepare(
-            frames,
-            &mut fitting_seen,
-            &mut [&mut evaluated_seen],
-            k,
-        )?
-        .0;
-        (fitting, evaluated) = (fitting_seen, evaluated_seen);
-    }
-    let kinematics = Kinematics::nominal(&evaluated.model.robot)?;
+        let (refitted, report, _) = crate::measurement::frames::prepare(frames, &again, k)?;
+        let seen = evaluated
+            .seen_by_geometry(&robot, &zero)?
+            .measurements
+            .into_owned();
+        (refitted, report, seen)
+    } else {
+        let seen = evaluated.seen_by(&robot)?.measurements.into_owned();
+        (robot, report, seen)
+    };
+    let kinematics = Kinematics::nominal(&robot.model.robot)?;
     Ok(Evaluation {
-        table: table3(&kinematics, &evaluated.measurements).0,
+        table: table3(&kinematics, &seen).0,
         frames: report,
-        fitted_poses: fitting.measurements.len(),
-        evaluated_poses: evaluated.measurements.len(),
+        fitted_poses: fitting.readings.len(),
+        evaluated_poses: evaluated.readings.len(),
         fitted_poses_evaluated: !separate,
     })
 }
 
 /// The evaluation of data in the robot's base frame: nothing fitted, every pose evaluated (the
-/// robot file's gravity compliance, if any, taken off the measured poses).
-fn in_the_base_frame(dataset: &Dataset) -> crate::Result<Evaluation> {
+/// gravity compliance of `robot`, if any, taken off the measured poses).
+fn in_the_base_frame(robot: &ActualRobot, dataset: &Dataset) -> crate::Result<Evaluation> {
     let k = calib_core::identify::objective::DEFAULT_K;
-    let zero = calib_core::ParameterErrors::zeros_for(dataset.model.robot.joint_count());
-    let (report, _) =
-        crate::measurement::frames::prepare(Frames::None, &mut dataset.clone(), &mut [], k)?;
-    let kinematics = Kinematics::nominal(&dataset.model.robot)?;
-    let seen = dataset.without_file_compliance(&dataset.model.robot, &zero)?;
+    let zero = calib_core::ParameterErrors::zeros_for(robot.model.robot.joint_count());
+    let (_, report, _) =
+        crate::measurement::frames::prepare(Frames::None, &dataset.seen_by(robot)?, k)?;
+    let kinematics = Kinematics::nominal(&robot.model.robot)?;
+    let seen = dataset.seen_by_geometry(robot, &zero)?;
     Ok(Evaluation {
-        table: table3(&kinematics, &seen.measurements).0,
+        table: table3(&kinematics, seen.measurements.as_ref()).0,
         frames: report,
         fitted_poses: 0,
-        evaluated_poses: dataset.measurements.len(),
+        evaluated_poses: dataset.readings.len(),
         fitted_poses_evaluated: false,
     })
 }

@@ -3,7 +3,7 @@
 //! are confounded with (the core's [`Identifiability`]), and the least determined direction of an
 //! ill-conditioned pose set.
 
-use crate::measurement::dataset::Dataset;
+use crate::measurement::dataset::{Dataset, Seen};
 
 use calib_core::identify::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability, Status};
 use calib_core::identify::lm::LeastSquares;
@@ -75,7 +75,7 @@ impl ReflectorOnAxis {
 /// `dtheta6`, which then act like `dd6` and `da6`). The one rule `calibrate`, `check` and
 /// `verify` share; the analysis itself is private, so no caller can find it and not apply it.
 pub(crate) fn default_mask(
-    dataset: &Dataset,
+    dataset: &Seen<'_>,
     mut mask: ParameterMask<Dyn>,
     k: f64,
 ) -> crate::Result<(ParameterMask<Dyn>, Option<ReflectorOnAxis>)> {
@@ -98,14 +98,14 @@ pub(crate) fn default_mask(
 /// `None`: 6-DoF data (orientations tell them apart), no such parameter, or the reflector
 /// farther from the axis.
 fn reflector_on_last_axis(
-    dataset: &Dataset,
+    dataset: &Seen<'_>,
     mask: &ParameterMask<Dyn>,
     k: f64,
 ) -> crate::Result<Option<ReflectorOnAxis>> {
-    if dataset.measurements.iter().any(|m| m.rotation.is_some()) {
+    if dataset.measurements().iter().any(|m| m.rotation.is_some()) {
         return Ok(None);
     }
-    let robot = &dataset.model.robot;
+    let robot = &dataset.robot.model.robot;
     let with_tool = Kinematics::nominal(robot)?;
     let mut flange = *robot;
     flange.tool = calib_core::FramePose::identity();
@@ -130,8 +130,12 @@ fn reflector_on_last_axis(
         *last = 0.0;
     }
     let on_axis = flange.forward(&q)?.inverse_transform_point(&centre.into());
-    let mut projected = dataset.clone();
-    projected.model.robot.tool.xyz = [on_axis.x, on_axis.y, on_axis.z];
+    let mut projected_robot = dataset.robot.clone();
+    projected_robot.model.robot.tool.xyz = [on_axis.x, on_axis.y, on_axis.z];
+    let projected = Seen {
+        robot: &projected_robot,
+        ..dataset.clone()
+    };
     let analysis = analyse(&projected, mask, k)?;
     if analysis.undetermined.is_empty() {
         return Ok(None);
@@ -286,21 +290,22 @@ impl IdentifiabilityReport {
 /// The identifiability of the robot's identified parameters on `dataset`, with the frames
 /// identified as a calibration would (`frames`: `None` chooses from the data), at the nominal model.
 pub fn check(
-    mut dataset: Dataset,
+    dataset: &Dataset,
     frames: Option<crate::measurement::frames::Frames>,
     k: f64,
 ) -> crate::Result<IdentifiabilityReport> {
     let frames = crate::measurement::frames::Frames::chosen(frames, &dataset.data);
-    let (_, mask) = crate::measurement::frames::prepare(frames, &mut dataset, &mut [], k)?;
-    let (mask, reflector) = default_mask(&dataset, mask, k)?;
-    let mut report = analyse(&dataset, &mask, k)?;
+    let (robot, _, mask) = crate::measurement::frames::prepare(frames, &dataset.as_given()?, k)?;
+    let seen = dataset.seen_by(&robot)?;
+    let (mask, reflector) = default_mask(&seen, mask, k)?;
+    let mut report = analyse(&seen, &mask, k)?;
     report.reflector_on_last_axis = reflector;
     Ok(report)
 }
 
 /// The identifiability of the parameters selected by `mask` at the nominal model.
 pub(crate) fn analyse(
-    dataset: &Dataset,
+    dataset: &Seen<'_>,
     mask: &ParameterMask<Dyn>,
     k: f64,
 ) -> crate::Result<IdentifiabilityReport> {
@@ -309,21 +314,21 @@ pub(crate) fn analyse(
     if dataset.rows() < count {
         return Err(crate::refused!(
             "{} poses give {} equations, fewer than the {count} identified parameters",
-            dataset.measurements.len(),
+            dataset.measurements().len(),
             dataset.rows()
         ));
     }
     let problem = Problem::new(
-        &dataset.model.robot,
-        &ParameterErrors::zeros_for(dataset.model.robot.joint_count()),
+        &dataset.robot.model.robot,
+        &ParameterErrors::zeros_for(dataset.robot.model.robot.joint_count()),
         set,
-        &dataset.measurements,
+        dataset.measurements(),
         k,
     )?;
     let set = problem.set();
     let least_squares = LeastSquares::new(&problem);
     let r = least_squares.jacobian_factor(&set.zeros());
-    let id = Identifiability::from_factor(&r, dataset.measurements.len(), DEFAULT_RANK_TOLERANCE);
+    let id = Identifiability::from_factor(&r, dataset.measurements().len(), DEFAULT_RANK_TOLERANCE);
     let names = set.parameters().to_vec();
     let mut undetermined = Vec::new();
     for index in id.pivots.iter().skip(id.rank) {

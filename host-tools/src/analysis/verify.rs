@@ -6,7 +6,7 @@
 //! frames registered and fitted, as `calib calibrate` prepares it) by least squares.
 
 use crate::error::Context;
-use crate::measurement::dataset::Dataset;
+use crate::measurement::dataset::{Dataset, Seen};
 use crate::measurement::frames::Frames;
 use calib_core::Problem;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
@@ -132,28 +132,30 @@ impl Verification {
 /// the reference optimiser (frames prepared as a calibration does; `frames`: `None` chooses from
 /// the data) and compares the three, also on the held-out `validation` poses.
 pub fn verify(
-    mut calibration: Dataset,
-    mut validation: Dataset,
+    calibration: &Dataset,
+    validation: &Dataset,
     frames: Option<Frames>,
     k: f64,
 ) -> crate::Result<Verification> {
     let frames = Frames::chosen(frames, &calibration.data);
-    let (_, mask) =
-        crate::measurement::frames::prepare(frames, &mut calibration, &mut [&mut validation], k)?;
-    let (mask, _) = crate::analysis::identifiability::default_mask(&calibration, mask, k)?;
+    let (robot, _, mask) =
+        crate::measurement::frames::prepare(frames, &calibration.as_given()?, k)?;
+    let (mask, _) =
+        crate::analysis::identifiability::default_mask(&calibration.seen_by(&robot)?, mask, k)?;
     // A robot file's gravity compliance is held fixed and taken off the measured poses at the
     // registered frames: all three fit the same geometry to the same poses.
     let zero = ParameterErrors::zeros_for(mask.joint_count());
-    let (calibration, validation) = (
-        calibration.without_file_compliance(&calibration.model.robot, &zero)?,
-        validation.without_file_compliance(&validation.model.robot, &zero)?,
-    );
-    run(&calibration, &validation, &mask, k)
+    run(
+        &calibration.seen_by_geometry(&robot, &zero)?,
+        &validation.seen_by_geometry(&robot, &zero)?,
+        &mask,
+        k,
+    )
 }
 
 fn run(
-    calibration: &Dataset,
-    validation: &Dataset,
+    calibration: &Seen<'_>,
+    validation: &Seen<'_>,
     mask: &ParameterMask<Dyn>,
     k: f64,
 ) -> crate::Result<Verification> {
@@ -164,10 +166,10 @@ fn run(
     let settings = LmSettings::default();
     // f64 core.
     let problem = Problem::new(
-        &calibration.model.robot,
-        &ParameterErrors::zeros_for(calibration.model.robot.joint_count()),
+        &calibration.robot.model.robot,
+        &ParameterErrors::zeros_for(calibration.robot.model.robot.joint_count()),
         set.clone(),
-        &calibration.measurements,
+        calibration.measurements(),
         k,
     )?;
     let least_squares = LeastSquares::new(&problem);
@@ -179,18 +181,18 @@ fn run(
     // Reference optimiser.
     let names: Vec<String> = set.parameters().iter().map(ToString::to_string).collect();
     let fit = crate::analysis::reference::fit(
-        &calibration.file,
+        &calibration.robot.file,
         &names,
-        &calibration.as_seen_by_the_geometry(),
+        &calibration.as_tracker_data(),
         k,
         &vec![0.0; parameters],
     )?;
     let xref: Vec<f64> = fit.errors.iter().map(|(_, v)| *v).collect();
 
     let rms = |x: &DVector<f64>| -> crate::Result<f64> {
-        let kinematics = Kinematics::new(&validation.model.robot, &set.unpack(x))?;
+        let kinematics = Kinematics::new(&validation.robot.model.robot, &set.unpack(x))?;
         let (table, _) =
-            crate::measurement::statistics::table3(&kinematics, &validation.measurements);
+            crate::measurement::statistics::table3(&kinematics, validation.measurements());
         Ok(table.position_mm.rms)
     };
     let x32_64 = x32.map(f64::from);
@@ -219,8 +221,8 @@ fn run(
     Ok(Verification {
         parameters,
         poses: (
-            calibration.measurements.len(),
-            validation.measurements.len(),
+            calibration.measurements().len(),
+            validation.measurements().len(),
         ),
         validation_rms_mm,
         f64_length,
@@ -234,15 +236,15 @@ fn run(
 
 /// The least-squares solution of the f32 core (the controller's), from zero errors.
 fn solve_f32(
-    calibration: &Dataset,
+    calibration: &Seen<'_>,
     set: ParameterSet<Dyn, Dyn>,
     k: f64,
 ) -> crate::Result<DVector<f32>> {
-    let robot32 = crate::formats::export::to_f32(&calibration.model.robot);
+    let robot32 = crate::formats::export::to_f32(&calibration.robot.model.robot);
     // The kinematic angles (with the maps), rounded to f32 as a controller holds them.
-    let seen = calibration.as_seen_by_the_geometry();
+    let seen = calibration.as_tracker_data();
     let measurements32 = calibration
-        .measurements
+        .measurements()
         .iter()
         .zip(&seen.records)
         .map(|(m, r)| {

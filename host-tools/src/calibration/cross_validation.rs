@@ -5,7 +5,7 @@
 //! model's is flagged: its calibration is likely to make the robot less accurate.
 
 use super::CalibrationConfig;
-use crate::measurement::dataset::Dataset;
+use crate::measurement::dataset::Seen;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
 use calib_core::{Kinematics, ParameterErrors, ParameterSet, Problem};
 use nalgebra::Dyn;
@@ -47,18 +47,18 @@ impl CrossValidation {
 /// Cross-validates the least-squares identification of `set` on `dataset`; `None` with fewer
 /// than 3 poses.
 pub fn cross_validate(
-    dataset: &Dataset,
+    dataset: &Seen<'_>,
     set: &ParameterSet<Dyn, Dyn>,
     config: &CalibrationConfig,
 ) -> Option<CrossValidation> {
-    let n = dataset.measurements.len();
+    let n = dataset.measurements().len();
     if n < 3 {
         return None;
     }
     let folds = if n <= LEAVE_ONE_OUT_UP_TO { n } else { FOLDS };
     // Poses shuffled with a fixed seed, then dealt into the folds.
     let order = crate::measurement::dataset::shuffled(n, 0);
-    let nominal = Kinematics::nominal(&dataset.model.robot).ok()?;
+    let nominal = Kinematics::nominal(&dataset.robot.model.robot).ok()?;
     let settings = LmSettings {
         max_iterations: config.lm_iterations,
         ..LmSettings::default()
@@ -70,12 +70,12 @@ pub fn cross_validate(
         // The fold's poses left out of the least squares by a mask, not a copy of the others:
         // a fold costs 9 bytes per pose, not the measurements again.
         let held = crate::measurement::dataset::mask(n, &held);
-        let robot = &dataset.model.robot;
+        let robot = &dataset.robot.model.robot;
         let problem = Problem::new(
             robot,
             &ParameterErrors::zeros_for(robot.joint_count()),
             set.clone(),
-            &dataset.measurements,
+            dataset.measurements(),
             config.k,
         )
         .ok()?;
@@ -90,7 +90,7 @@ pub fn cross_validate(
         let model = Kinematics::new(robot, &set.unpack(&x)).ok()?;
         let predicted = || {
             dataset
-                .measurements
+                .measurements()
                 .iter()
                 .zip(&held)
                 .filter(|(_, h)| **h)

@@ -10,7 +10,8 @@ pub mod evidence;
 use super::ErrorModel;
 use super::{CalibrationConfig, CalibrationResult, Stage};
 use crate::JOINTS;
-use crate::measurement::dataset::Dataset;
+use crate::kinematics::actual::ActualRobot;
+use crate::measurement::dataset::{Dataset, Seen};
 use crate::measurement::statistics::table3;
 use crate::model::compliance::{self, Gravity};
 use crate::model::joint_maps::{JointMapsSection, NEGLIGIBLE_AMPLITUDE_RAD};
@@ -124,13 +125,13 @@ pub struct MapsCrossValidation {
 /// each fold's complement within `poses` (`kept[i]` is the dataset index of `poses[i]`; the
 /// outliers left out of `poses` are predicted but never train). `None` when a fold fails.
 fn maps_cross_validation(
-    dataset: &Dataset,
+    dataset: &Seen<'_>,
     kept: &[usize],
     problem: &evidence::MapsProblem<'_>,
     harmonics: usize,
 ) -> Option<(usize, f64)> {
     let (poses, gravity) = (problem.poses, problem.gravity);
-    let n = dataset.measurements.len();
+    let n = dataset.measurements().len();
     if n < 3 {
         return None;
     }
@@ -140,7 +141,7 @@ fn maps_cross_validation(
         super::cross_validation::FOLDS
     };
     let order = crate::measurement::dataset::shuffled(n, 0);
-    let robot = &dataset.model.robot;
+    let robot = &dataset.robot.model.robot;
     let mut errors = Vec::with_capacity(n);
     for fold in 0..folds {
         let held: std::collections::BTreeSet<usize> =
@@ -181,9 +182,9 @@ fn maps_cross_validation(
 /// The weight of orientation rows in the maps, mm per rad: the ratio of the geometric fit's RMS
 /// position residual to its RMS orientation residual, so that both kinds of row carry the noise
 /// level of the position rows; 0 for position-only data.
-fn orientation_scale(dataset: &Dataset, geometric: &Kinematics<f64, Dyn>) -> f64 {
+fn orientation_scale(dataset: &Seen<'_>, geometric: &Kinematics<f64, Dyn>) -> f64 {
     let (mut position, mut rotation) = (0.0, 0.0);
-    for m in &dataset.measurements {
+    for m in dataset.measurements() {
         let Some(measured) = m.rotation else {
             return 0.0;
         };
@@ -199,15 +200,18 @@ fn orientation_scale(dataset: &Dataset, geometric: &Kinematics<f64, Dyn>) -> f64
     }
 }
 
-/// Refuses a robot file that already has joint maps as the start of a joint-maps calibration:
-/// its maps would be applied to the data and new ones identified on top.
-pub(crate) fn check_robot_file(dataset: &Dataset, config: &CalibrationConfig) -> crate::Result<()> {
-    gravity(dataset, config)?;
-    if dataset.file.joint_maps.is_some() || dataset.file.compliance.is_some() {
+/// Refuses a robot that already has joint maps as the start of a joint-maps calibration: its maps
+/// would be applied to the data and new ones identified on top.
+pub(crate) fn check_robot_file(
+    robot: &ActualRobot,
+    config: &CalibrationConfig,
+) -> crate::Result<()> {
+    gravity(robot, config)?;
+    if robot.file.joint_maps.is_some() || robot.file.compliance.is_some() {
         return Err(crate::refused!(
             "{}: the robot file already has joint maps or compliance; identify new ones from the nominal robot file or the \
              geometric calibration's file (to keep its model and re-fit only the frames: --identify frames)",
-            dataset.model.path.display()
+            robot.model.path.display()
         ));
     }
     Ok(())
@@ -215,74 +219,75 @@ pub(crate) fn check_robot_file(dataset: &Dataset, config: &CalibrationConfig) ->
 
 /// The masses of the robot file for `--model joint-maps+compliance` (`None` for the other models);
 /// an error says what the file lacks.
-fn gravity(dataset: &Dataset, config: &CalibrationConfig) -> crate::Result<Option<Gravity>> {
+fn gravity(robot: &ActualRobot, config: &CalibrationConfig) -> crate::Result<Option<Gravity>> {
     if config.model != ErrorModel::JointMapsCompliance {
         return Ok(None);
     }
-    let joints = dataset.model.robot.joints.len();
+    let joints = robot.model.robot.joints.len();
     if joints != JOINTS {
         return Err(crate::refused!(
             "--model joint-maps+compliance: gravity compliance is modelled for {JOINTS}-joint robots (the torsion and \
              tilt gains of joints 1 to 4 of a 6R arm); this robot has {joints} joints: calibrate with --model joint-maps"
         ));
     }
-    let Some(dynamics) = &dataset.file.dynamics else {
+    let Some(dynamics) = &robot.file.dynamics else {
         return Err(crate::refused!(
             "{}: --model joint-maps+compliance needs the robot's link masses and centres of mass: add a [dynamics] \
              section (gravity_mps2, one [[dynamics.link]] per joint with mass_kg and com_mm, and [dynamics.tool] for \
              the probe or reflector; host-tools/robots/ur10.toml has the UR10's)",
-            dataset.model.path.display()
+            robot.model.path.display()
         ));
     };
     dynamics
         .to_gravity()
         .map(Some)
-        .map_err(|e| crate::refused!("{}: {e}", dataset.model.path.display()))
+        .map_err(|e| crate::refused!("{}: {e}", robot.model.path.display()))
 }
 
-/// `dataset` as the model with maps and compliance sees it: the maps added to the readings, the
-/// compliance's displacement taken off the measured poses (so that the geometry's error on it is
-/// the whole model's error).
-pub(crate) fn model_view(
-    dataset: &Dataset,
+/// `robot` (its frames registered) with the joint maps and compliance `found` (the compliance
+/// with the masses `gravity`): the model whose geometry's error on the poses it sees
+/// ([`Dataset::seen_by_geometry`] at `found.errors`) is the whole model's error.
+fn found_model(
+    robot: &ActualRobot,
     found: &evidence::MapIdentification,
     gravity: Option<&Gravity>,
-) -> crate::Result<Dataset> {
-    let mapped = dataset.with_maps(&found.maps)?;
-    match (gravity, &found.compliance) {
-        (Some(gravity), Some(c)) => mapped.without_compliance(
-            &dataset.model.robot,
-            &found.errors,
-            Some(&found.maps),
-            gravity,
-            &c.gains,
-        ),
-        _ => Ok(mapped),
+) -> ActualRobot {
+    ActualRobot {
+        maps: Some(found.maps.clone()),
+        compliance: match (gravity, &found.compliance) {
+            (Some(gravity), Some(c)) => Some(compliance::FileCompliance {
+                gravity: *gravity,
+                gains: c.gains,
+            }),
+            _ => None,
+        },
+        ..robot.clone()
     }
 }
 
-/// Adds the joint maps to the geometric calibration `result` of `dataset` (prepared: frames
-/// fitted), validated on `validation`.
+/// The joint maps stage: adds the joint maps to the geometric calibration `result` of `robot` (its
+/// frames registered; the given robot passed [`check_robot_file`]) on `dataset`, validated on
+/// `validation`.
 pub(crate) fn add_joint_maps(
     mut result: CalibrationResult,
-    dataset: &Dataset,
-    validation: Option<&Dataset>,
+    robot: &ActualRobot,
+    (dataset, validation): (&Dataset, Option<&Dataset>),
     config: &CalibrationConfig,
 ) -> crate::Result<CalibrationResult> {
-    check_robot_file(dataset, config)?;
-    let geometric = Kinematics::new(&dataset.model.robot, &result.errors)?;
+    let geometric = Kinematics::new(&robot.model.robot, &result.errors)?;
+    let seen = dataset.seen_by(robot)?;
     let Screened {
         poses,
         kept,
         left_out_lines,
-    } = screened(dataset, &geometric);
+    } = screened(&seen, &geometric);
     // 6-DoF data: the orientation rows too (position rows alone cannot determine the geometry
     // identified from full poses, such as the probe's rotation).
-    let orientation_scale_mm = orientation_scale(dataset, &geometric);
+    let orientation_scale_mm = orientation_scale(&seen, &geometric);
     let parameters: Vec<_> = result.parameters.iter().map(|p| p.parameter).collect();
-    let gravity = gravity(dataset, config)?;
+    let gravity = gravity(robot, config)?;
     let problem = evidence::MapsProblem {
-        robot: &dataset.model.robot,
+        robot: &robot.model.robot,
         start: &result.errors,
         parameters: &parameters,
         poses: &poses,
@@ -292,7 +297,7 @@ pub(crate) fn add_joint_maps(
     let (mut found, evidence) = evidence::identify_best(&problem)?;
     let cross_validation = result.cross_validation.and_then(|geometric| {
         let (folds, maps_mean_mm) =
-            maps_cross_validation(dataset, &kept, &problem, found.maps.harmonics)?;
+            maps_cross_validation(&seen, &kept, &problem, found.maps.harmonics)?;
         Some(MapsCrossValidation {
             folds,
             maps_mean_mm,
@@ -301,7 +306,7 @@ pub(crate) fn add_joint_maps(
                 >= (1.0 - CROSS_VALIDATION_MARGIN) * geometric.calibrated_mean_mm,
         })
     });
-    let ranges = reading_ranges(&poses, dataset.model.robot.joints.len());
+    let ranges = reading_ranges(&poses, robot.model.robot.joints.len());
     // Maps that could not be cross-validated show nothing: kept at zero like maps that do not help.
     let kept_at_zero = cross_validation.is_none_or(|c| c.kept_at_zero);
     let geometric_calibration = result.calibration;
@@ -312,8 +317,8 @@ pub(crate) fn add_joint_maps(
     } else {
         result = with_maps(
             result,
-            dataset,
-            validation,
+            robot,
+            (dataset, validation),
             config,
             &parameters,
             (&found, gravity.as_ref()),
@@ -354,9 +359,9 @@ struct Screened {
     left_out_lines: Vec<u64>,
 }
 
-fn screened(dataset: &Dataset, geometric: &Kinematics<f64, Dyn>) -> Screened {
+fn screened(dataset: &Seen<'_>, geometric: &Kinematics<f64, Dyn>) -> Screened {
     let residuals: Vec<f64> = dataset
-        .measurements
+        .measurements()
         .iter()
         .map(|m| (m.position - geometric.forward_angles(&m.angles).translation.vector).norm())
         .collect();
@@ -450,20 +455,22 @@ fn map_curves(found: &MapIdentification, poses: &[Pose], joints: usize) -> Vec<M
 
 /// `result` (the geometric calibration) replaced by the model with the maps `found`: statistics,
 /// parameters and the identified robot file with its `[joint_maps]`, the maps identified on
-/// readings within `ranges`.
+/// readings within `ranges`, the compliance with the masses `gravity`; `robot` has the frames
+/// registered.
 fn with_maps(
     mut result: CalibrationResult,
-    dataset: &Dataset,
-    validation: Option<&Dataset>,
+    robot: &ActualRobot,
+    (dataset, validation): (&Dataset, Option<&Dataset>),
     config: &CalibrationConfig,
     parameters: &[calib_core::Parameter],
     (found, gravity): (&evidence::MapIdentification, Option<&Gravity>),
     ranges: &[[f64; 2]],
 ) -> crate::Result<CalibrationResult> {
     // The statistics of the model with the maps (and the compliance).
-    let actual = Kinematics::new(&dataset.model.robot, &found.errors)?;
-    let mapped = model_view(dataset, found, gravity)?;
-    let (after, after_poses) = table3(&actual, &mapped.measurements);
+    let robot = &found_model(robot, found, gravity);
+    let actual = Kinematics::new(&robot.model.robot, &found.errors)?;
+    let mapped = dataset.seen_by_geometry(robot, &found.errors)?;
+    let (after, after_poses) = table3(&actual, mapped.measurements());
     result.calibration.after = after;
     for (pose, after) in result.poses.iter_mut().zip(&after_poses) {
         pose.after_mm = *after;
@@ -472,14 +479,14 @@ fn with_maps(
     result.per_pose.orientation_after =
         crate::measurement::statistics::orientation_per_pose(&actual, &mapped);
     if let (Some(v), Some(stage)) = (validation, result.validation.as_mut()) {
-        let seen = model_view(v, found, gravity)?;
-        let (after, per_pose) = table3(&actual, &seen.measurements);
+        let seen = v.seen_by_geometry(robot, &found.errors)?;
+        let (after, per_pose) = table3(&actual, seen.measurements());
         stage.after = after;
         result.per_pose.validation_after = per_pose;
         result.per_pose.validation_after_xyz = crate::measurement::statistics::signed_errors(
             &actual,
-            &seen.model.robot,
-            &seen.measurements,
+            &seen.robot.model.robot,
+            seen.measurements(),
         );
     }
     for p in &mut result.parameters {
@@ -493,7 +500,7 @@ fn with_maps(
     (result.uncertainty, result.covariance, result.significance) = (None, None, None);
     let mut frames = result.frames.clone();
     let mut file = super::identified_robot(
-        dataset,
+        &mapped,
         config,
         &result.parameters,
         &result.errors,
@@ -501,7 +508,7 @@ fn with_maps(
     );
     let section = JointMapsSection::new(&found.maps, ranges);
     // Never write a file that its own reader refuses.
-    section.to_maps(dataset.model.robot.joints.len()).map_err(|problem| {
+    section.to_maps(robot.model.robot.joints.len()).map_err(|problem| {
         crate::refused!(
             "the identified joint maps are not plausible ({problem}); nothing was written. The poses may not move \
              that joint enough, or hold an outlier: calibrate with --model geometric, or measure more varied poses"

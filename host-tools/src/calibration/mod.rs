@@ -68,7 +68,8 @@ pub use result::{
 };
 
 use crate::analysis::identifiability::{IdentifiabilityReport, analyse};
-use crate::measurement::dataset::Dataset;
+use crate::kinematics::actual::ActualRobot;
+use crate::measurement::dataset::{Dataset, Seen};
 use crate::measurement::frames::{Frames, FramesReport};
 use crate::runtime::swarm_team::{LaneObjective, SwarmTeam};
 
@@ -86,9 +87,17 @@ const COMPLIANCE_ROUNDS: usize = 2;
 
 /// Calibrates `dataset` (its robot's identification mask plus the frames of `config`), validating
 /// on `validation` when given (poses in the same tracker frame, not used to identify).
+///
+/// The stages, each taking the model of the robot ([`ActualRobot`]) the one before returned:
+/// the measurement setup (an identified probe kept with `--frames base`), the frames
+/// ([`crate::measurement::frames::prepare`]), the selection ([`select_parameters`]), the stored
+/// probe's parameters the data cannot determine held (`frames::hold_dropped_probe_parameters`),
+/// the solve (`solve_geometry`), the joint maps (`maps::add_joint_maps`), the held-out accuracy
+/// and the plausibility (`accuracy_and_plausibility`). The datasets are read once and not
+/// changed: each stage sees their poses through its model ([`Dataset::seen_by`]).
 pub fn calibrate(
-    mut dataset: Dataset,
-    mut validation: Option<Dataset>,
+    dataset: Dataset,
+    validation: Option<Dataset>,
     config: &CalibrationConfig,
 ) -> crate::Result<CalibrationResult> {
     config.check()?;
@@ -100,7 +109,7 @@ pub fn calibrate(
         ));
     }
     if config.model.maps() {
-        maps::check_robot_file(&dataset, config)?;
+        maps::check_robot_file(&dataset.robot, config)?;
     }
     let conditions = crate::measurement::conditions::MeasurementConditions::of(
         &dataset,
@@ -111,46 +120,39 @@ pub fn calibrate(
     // With only the base fitted, the probe identified with the file's model stays the tool (as in
     // `evaluate --fit-frames base`); the file written keeps the given controller frames and
     // records the probe in its measurement setup.
-    let given = dataset.file.clone();
-    let probe = dataset.identified_probe().cloned();
-    let probe_kept = keep_identified_probe(&mut dataset, validation.as_mut(), frames)?;
-    let (mut frames_report, mask) = {
-        let mut others: Vec<&mut Dataset> = validation.iter_mut().collect();
-        crate::measurement::frames::prepare(frames, &mut dataset, &mut others, config.k)?
-    };
+    let given = &dataset.robot;
+    let probe = given.identified_probe().cloned();
+    let setup = crate::measurement::frames::with_identified_probe(given, frames)?;
+    let probe_kept = setup.is_some();
+    let setup = setup.unwrap_or_else(|| given.clone());
+    let (robot, mut frames_report, mask) =
+        crate::measurement::frames::prepare(frames, &dataset.seen_by(&setup)?, config.k)?;
     let mask = identified_mask(mask, frames, config)?;
-    let selection = select_parameters(&dataset, mask, config)?;
-    if let Some(stored) = probe.as_ref().filter(|_| frames.tool()) {
-        let mut others: Vec<&mut Dataset> = validation.iter_mut().collect();
-        let held = crate::measurement::frames::hold_dropped_probe_parameters(
-            &mut dataset,
-            &mut others,
+    let selection = select_parameters(&dataset.seen_by(&robot)?, mask, config)?;
+    let held = match probe.as_ref().filter(|_| frames.tool()) {
+        Some(stored) => crate::measurement::frames::hold_dropped_probe_parameters(
+            &dataset.seen_by(&robot)?,
             (&selection.dropped, &selection.mask),
             stored,
             config.k,
-        )?;
-        frames_report.held_at_stored_probe = held.iter().map(ToString::to_string).collect();
-    }
-    let solved = |dataset: &Dataset, validation: Option<&Dataset>| {
-        solve(
-            dataset,
-            validation,
-            config,
-            selection.clone(),
-            frames_report.clone(),
-        )
+        )?,
+        None => None,
     };
-    let mut result = if dataset.file.compliance.is_some() {
-        with_file_compliance(&dataset, validation.as_ref(), solved)?
-    } else {
-        solved(&dataset, validation.as_ref())?
+    let robot = match held {
+        Some((held_robot, held)) => {
+            frames_report.held_at_stored_probe = held.iter().map(ToString::to_string).collect();
+            held_robot
+        }
+        None => robot,
     };
+    let inputs = (&dataset, validation.as_ref());
+    let mut result = solve_geometry(&robot, inputs, config, &selection, &frames_report)?;
     if config.model.maps() {
-        result = maps::add_joint_maps(result, &dataset, validation.as_ref(), config)?;
+        result = maps::add_joint_maps(result, &robot, inputs, config)?;
     }
     if probe_kept {
         let file = &mut result.identified_robot;
-        (file.base, file.tool) = (given.base.clone(), given.tool.clone());
+        (file.base, file.tool) = (given.file.base.clone(), given.file.tool.clone());
         if let Some(m) = file.measurement.as_mut() {
             m.flange_tool = probe;
         }
@@ -161,7 +163,8 @@ pub fn calibrate(
     result.conditions = Some(conditions);
     let calibration_joints: Vec<Vec<f64>> =
         dataset.data.records.iter().map(|r| r.q.clone()).collect();
-    accuracy_and_plausibility(result, (&calibration_joints, validation.as_ref()), config)
+    let held_out = validation.as_ref().map(|v| v.seen_by(&robot)).transpose()?;
+    accuracy_and_plausibility(result, (&calibration_joints, held_out.as_ref()), config)
 }
 
 /// The caveats of the certificate ([`crate::analysis::caveats`]; `calib calibrate` adds the plan
@@ -171,7 +174,7 @@ pub fn calibrate(
 fn caveats(
     result: &CalibrationResult,
     calibration_joints: &[Vec<f64>],
-    validation: Option<&Dataset>,
+    validation: Option<&Seen<'_>>,
 ) -> Vec<crate::analysis::caveats::Caveat> {
     use crate::analysis::caveats::{
         COVERAGE_BELOW_PERCENT, Caveat, CaveatKind, extrapolation, joint_ranges,
@@ -230,7 +233,7 @@ fn caveats(
 /// configuration accepts it).
 fn accuracy_and_plausibility(
     mut result: CalibrationResult,
-    (calibration_joints, validation): (&[Vec<f64>], Option<&Dataset>),
+    (calibration_joints, validation): (&[Vec<f64>], Option<&Seen<'_>>),
     config: &CalibrationConfig,
 ) -> crate::Result<CalibrationResult> {
     if let Some(v) = validation {
@@ -274,13 +277,13 @@ fn accuracy_and_plausibility(
 /// The held-out poses of `validation` placed in the workspace (`per_pose.validation_position_mm`,
 /// with the predicted error of each when the covariance is known) and the map of their error
 /// after calibration (`held_out.workspace`).
-fn map_the_workspace(result: &mut CalibrationResult, validation: &Dataset) -> crate::Result<()> {
-    let actual = Kinematics::new(&validation.model.robot, &result.errors)?;
+fn map_the_workspace(result: &mut CalibrationResult, validation: &Seen<'_>) -> crate::Result<()> {
+    let actual = Kinematics::new(&validation.robot.model.robot, &result.errors)?;
     let per_pose = &mut result.per_pose;
     per_pose.validation_position_mm = crate::measurement::statistics::base_positions(
         &actual,
-        &validation.model.robot,
-        &validation.measurements,
+        &validation.robot.model.robot,
+        validation.measurements(),
     );
     per_pose.validation_predicted_rms_mm = (result.uncertainty.as_ref())
         .map(|u| u.model_rms_mm.clone())
@@ -316,25 +319,6 @@ fn record_covariance(result: &mut CalibrationResult, config: &CalibrationConfig)
     }
 }
 
-/// With only the base frame fitted, the probe identified with the robot file's model is kept as
-/// the tool of `dataset` and `validation`; returns whether it was.
-fn keep_identified_probe(
-    dataset: &mut Dataset,
-    validation: Option<&mut Dataset>,
-    frames: Frames,
-) -> crate::Result<bool> {
-    let Some(kept) = crate::measurement::frames::with_identified_probe(dataset, frames)? else {
-        return Ok(false);
-    };
-    *dataset = kept;
-    if let Some(v) = validation
-        && let Some(kept) = crate::measurement::frames::with_identified_probe(v, frames)?
-    {
-        *v = kept;
-    }
-    Ok(true)
-}
-
 /// The parameters to identify of `mask` (the robot's and the frames'): all of them, or with
 /// `--identify frames` only the frames' (which needs data in a tracker's frame).
 fn identified_mask(
@@ -359,23 +343,36 @@ fn identified_mask(
     }
 }
 
-/// The fit (`solved`) of a robot file with gravity compliance, which is part of the model and
-/// held fixed: the geometry (or the frames) is fitted to the measured poses with its deflection
-/// taken off, evaluated at the registered frames, then again at the first fit's errors (the
-/// deflection depends on the geometry only through its small change).
-fn with_file_compliance(
-    dataset: &Dataset,
-    validation: Option<&Dataset>,
-    solved: impl Fn(&Dataset, Option<&Dataset>) -> crate::Result<CalibrationResult>,
+/// The solve stage: the errors of `selection` identified for the geometry of `robot` (its frames
+/// registered) from the poses of `dataset`, evaluated there and on `validation`. A robot's
+/// gravity compliance is part of the model and held fixed: the geometry is fitted to the measured
+/// poses with its deflection taken off, evaluated at the registered frames, then again at the
+/// first fit's errors (the deflection depends on the geometry only through its small change).
+fn solve_geometry(
+    robot: &ActualRobot,
+    (dataset, validation): (&Dataset, Option<&Dataset>),
+    config: &CalibrationConfig,
+    selection: &Selection,
+    frames: &FramesReport,
 ) -> crate::Result<CalibrationResult> {
-    let mut errors = ParameterErrors::zeros_for(dataset.model.robot.joint_count());
+    let solved = |calibration: &Seen<'_>, held_out: Option<&Seen<'_>>| {
+        solve(
+            calibration,
+            held_out,
+            config,
+            selection.clone(),
+            frames.clone(),
+        )
+    };
+    if robot.compliance.is_none() {
+        let held_out = validation.map(|v| v.seen_by(robot)).transpose()?;
+        return solved(&dataset.seen_by(robot)?, held_out.as_ref());
+    }
+    let mut errors = ParameterErrors::zeros_for(robot.model.robot.joint_count());
     let mut result = None;
     for _ in 0..COMPLIANCE_ROUNDS {
-        let calibration = dataset.without_file_compliance(&dataset.model.robot, &errors)?;
-        let held_out = match validation {
-            Some(v) => Some(v.without_file_compliance(&v.model.robot, &errors)?),
-            None => None,
-        };
+        let calibration = dataset.seen_by_geometry(robot, &errors)?;
+        let held_out = (validation.map(|v| v.seen_by_geometry(robot, &errors))).transpose()?;
         let round = solved(&calibration, held_out.as_ref())?;
         errors = round.errors;
         result = Some(round);
@@ -399,7 +396,7 @@ pub struct Selection {
 /// or with `auto_mask` drops it; then, unless `keep_ill_conditioned`, drops while the pose set is
 /// ill-conditioned the parameter with the largest share of the least determined direction.
 pub fn select_parameters(
-    dataset: &Dataset,
+    dataset: &Seen<'_>,
     mask: ParameterMask<Dyn>,
     config: &CalibrationConfig,
 ) -> crate::Result<Selection> {
@@ -456,7 +453,7 @@ fn identify_errors(
     config: &CalibrationConfig,
     problem: &Problem<'_, f64, Dyn, Dyn>,
     objective: &Objective<'_, f64, Dyn, Dyn>,
-    dataset: &Dataset,
+    dataset: &Seen<'_>,
 ) -> crate::Result<(Option<SwarmRun>, Option<Fit>, DVector<f64>)> {
     let swarm = if config.method.swarm() {
         Some(run_swarm(config, objective, problem.set())?)
@@ -482,18 +479,18 @@ fn identify_errors(
 
 /// Identifies the parameters of `selection` and evaluates the result.
 fn solve(
-    dataset: &Dataset,
-    validation: Option<&Dataset>,
+    dataset: &Seen<'_>,
+    validation: Option<&Seen<'_>>,
     config: &CalibrationConfig,
     selection: Selection,
     mut frames: FramesReport,
 ) -> crate::Result<CalibrationResult> {
     let set = crate::model::counts::solvable_set(&selection.mask)?;
     let problem = Problem::new(
-        &dataset.model.robot,
-        &ParameterErrors::zeros_for(dataset.model.robot.joint_count()),
+        &dataset.robot.model.robot,
+        &ParameterErrors::zeros_for(dataset.robot.model.robot.joint_count()),
         set,
-        &dataset.measurements,
+        dataset.measurements(),
         config.k,
     )?;
     let set = problem.set();
@@ -521,8 +518,8 @@ fn solve(
     let cross_validation = cross_validation::cross_validate(dataset, set, &cv_config);
     let initial = objective.value(&zero);
     Ok(CalibrationResult {
-        robot: dataset.model.name.clone(),
-        robot_path: dataset.model.path.clone(),
+        robot: dataset.robot.model.name.clone(),
+        robot_path: dataset.robot.model.path.clone(),
         data_path: dataset.data.path.clone(),
         config: config.clone(),
         objective: ObjectiveValues {
@@ -572,7 +569,7 @@ type CovarianceFindings = (
 
 /// [`CovarianceFindings`] of the fit of `set` (values `best`, errors `errors`) on `dataset`.
 fn covariance_findings(
-    (dataset, validation): (&Dataset, Option<&Dataset>),
+    (dataset, validation): (&Seen<'_>, Option<&Seen<'_>>),
     set: &ParameterSet<Dyn, Dyn>,
     fit: Option<&Fit>,
     best: &DVector<f64>,
@@ -602,7 +599,7 @@ fn covariance_findings(
 /// scaled from the fit's residual sigma to the instrument's noise on the calibration poses of
 /// `dataset`), else the fit's residual sigma.
 fn held_out_coverage(
-    (dataset, validation): (&Dataset, &Dataset),
+    (dataset, validation): (&Seen<'_>, &Seen<'_>),
     set: &ParameterSet<Dyn, Dyn>,
     covariance: &nalgebra::DMatrix<f64>,
     errors: &ParameterErrors<f64, Dyn>,
@@ -610,7 +607,7 @@ fn held_out_coverage(
 ) -> crate::Result<Option<crate::analysis::uncertainty::Coverage>> {
     let instrument = validation.data.instrument.as_ref();
     // Distances from the instrument are known in its own frame only.
-    let noise = |data: &Dataset, m: &calib_core::identify::objective::Measurement<f64, Dyn>| {
+    let noise = |data: &Seen<'_>, m: &calib_core::identify::objective::Measurement<f64, Dyn>| {
         instrument.map_or(sigma_mm, |i| {
             i.sigma_mm(if data.data.base_frame {
                 0.0
@@ -625,8 +622,8 @@ fn held_out_coverage(
             "from the fit's residual sigma".to_string(),
         ),
         Some(i) => {
-            let n = dataset.measurements.len().max(1) as f64;
-            let rms = (dataset.measurements.iter())
+            let n = dataset.measurements().len().max(1) as f64;
+            let rms = (dataset.measurements().iter())
                 .map(|m| noise(dataset, m).powi(2))
                 .sum::<f64>()
                 / n;
@@ -641,8 +638,8 @@ fn held_out_coverage(
             )
         }
     };
-    let actual = Kinematics::new(&validation.model.robot, errors)?;
-    let poses: Vec<_> = (validation.measurements.iter())
+    let actual = Kinematics::new(&validation.robot.model.robot, errors)?;
+    let poses: Vec<_> = (validation.measurements().iter())
         .zip(&validation.data.records)
         .map(|(m, r)| {
             let error = m.error_of(&actual.forward_angles(&m.angles)).position;
@@ -679,7 +676,7 @@ fn identified_parameters(
 /// robot file given); frames identified from tracker data are the measurement setup and go to
 /// its `[measurement]` section and the report, never into `[base]` and `[tool]`.
 pub(crate) fn identified_robot(
-    dataset: &Dataset,
+    dataset: &Seen<'_>,
     config: &CalibrationConfig,
     parameters: &[IdentifiedParameter],
     errors: &ParameterErrors<f64, Dyn>,
@@ -690,8 +687,8 @@ pub(crate) fn identified_robot(
         .filter_map(|p| p.std_error.map(|s| (p.parameter, s)))
         .collect();
     let method = config.method.name();
-    let nominal = dataset.model.path.display().to_string();
-    let mut file = dataset.file.with_errors(
+    let nominal = dataset.robot.model.path.display().to_string();
+    let mut file = dataset.robot.file.with_errors(
         errors,
         parameters.iter().map(|p| p.parameter),
         &std_errors,
@@ -710,7 +707,7 @@ pub(crate) fn identified_robot(
     let mut joint_errors = *errors;
     joint_errors.base = calib_core::FrameErrors::default();
     joint_errors.tool = calib_core::FrameErrors::default();
-    file = dataset.file.with_errors(
+    file = dataset.robot.file.with_errors(
         &joint_errors,
         parameters.iter().map(|p| p.parameter).filter(is_joint),
         &std_errors
@@ -848,14 +845,14 @@ fn least_squares(
     config: &CalibrationConfig,
     least_squares: &LeastSquares<'_, f64, Dyn, Dyn>,
     start: &DVector<f64>,
-    dataset: &Dataset,
+    dataset: &Seen<'_>,
 ) -> crate::Result<Fit> {
     let set = least_squares.problem().set();
     let settings = LmSettings {
         max_iterations: config.lm_iterations,
         ..LmSettings::default()
     };
-    let mut weights = vec![1.0; dataset.measurements.len()];
+    let mut weights = vec![1.0; dataset.measurements().len()];
     let estimated = match (config.loss, config.loss_scale_mm) {
         (LossChoice::L2, _) | (_, Some(_)) => None,
         (_, None) => Some(robust_scale(least_squares, start, &settings, config.k)?),
@@ -870,11 +867,11 @@ fn least_squares(
         .map_err(|e| lm_error(e, set))?;
     let mut outliers = Vec::new();
     if config.loss != LossChoice::L2 {
-        let mut norms = vec![0.0; dataset.measurements.len()];
+        let mut norms = vec![0.0; dataset.measurements().len()];
         least_squares.pose_residual_norms(&robust.result.x, &mut norms);
         let fitted = least_squares.problem().kinematics(&robust.result.x);
         let poses = dataset.data.records.iter().zip(&norms).zip(&weights);
-        for (((record, norm), weight), m) in poses.zip(&dataset.measurements) {
+        for (((record, norm), weight), m) in poses.zip(dataset.measurements()) {
             let outlier = match &estimated {
                 Some(thresholds) => {
                     let error = m.error_of(&fitted.forward_angles(&m.angles));
@@ -1024,35 +1021,38 @@ fn lm_error(error: LmError, set: &ParameterSet<Dyn, Dyn>) -> crate::Error {
 /// Table 3 before and after on the calibration and validation poses, per-pose errors, and the
 /// calibration poses' report rows.
 fn evaluate(
-    dataset: &Dataset,
-    validation: Option<&Dataset>,
+    dataset: &Seen<'_>,
+    validation: Option<&Seen<'_>>,
     errors: &ParameterErrors<f64, Dyn>,
     fit: Option<&Fit>,
 ) -> crate::Result<(Stage, Option<Stage>, PerPose, Vec<PoseReport>)> {
     use crate::measurement::statistics::{orientation_per_pose, table3};
-    let nominal = Kinematics::nominal(&dataset.model.robot)?;
-    let actual = Kinematics::new(&dataset.model.robot, errors)?;
-    let (before, before_poses) = table3(&nominal, &dataset.measurements);
-    let (after, after_poses) = table3(&actual, &dataset.measurements);
+    let nominal = Kinematics::nominal(&dataset.robot.model.robot)?;
+    let actual = Kinematics::new(&dataset.robot.model.robot, errors)?;
+    let (before, before_poses) = table3(&nominal, dataset.measurements());
+    let (after, after_poses) = table3(&actual, dataset.measurements());
     let mut per_pose = PerPose {
         orientation_before: orientation_per_pose(&nominal, dataset),
         orientation_after: orientation_per_pose(&actual, dataset),
         ..PerPose::default()
     };
     let validation_stage = validation.map(|v| {
-        let (before, per_pose_before) = table3(&nominal, &v.measurements);
-        let (after, per_pose_after) = table3(&actual, &v.measurements);
+        let (before, per_pose_before) = table3(&nominal, v.measurements());
+        let (after, per_pose_after) = table3(&actual, v.measurements());
         per_pose.validation_before = per_pose_before;
         per_pose.validation_after = per_pose_after;
         per_pose.validation_before_xyz = crate::measurement::statistics::signed_errors(
             &nominal,
-            &v.model.robot,
-            &v.measurements,
+            &v.robot.model.robot,
+            v.measurements(),
         );
-        per_pose.validation_after_xyz =
-            crate::measurement::statistics::signed_errors(&actual, &v.model.robot, &v.measurements);
+        per_pose.validation_after_xyz = crate::measurement::statistics::signed_errors(
+            &actual,
+            &v.robot.model.robot,
+            v.measurements(),
+        );
         Stage {
-            poses: v.measurements.len(),
+            poses: v.measurements().len(),
             before,
             after,
         }
@@ -1076,12 +1076,12 @@ fn evaluate(
     per_pose.after = after_poses;
     per_pose.lines = dataset.data.records.iter().map(|r| r.line).collect();
     per_pose.orientation_lines = (dataset.data.records.iter())
-        .zip(&dataset.measurements)
+        .zip(dataset.measurements())
         .filter(|(_, m)| m.rotation.is_some())
         .map(|(r, _)| r.line)
         .collect();
     let calibration = Stage {
-        poses: dataset.measurements.len(),
+        poses: dataset.measurements().len(),
         before,
         after,
     };

@@ -28,7 +28,7 @@ pub fn check(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
     // geometric parameters at the kinematic angles (the readings with the maps).
     let (_, dataset) = options.input.load()?;
     Ok(crate::analysis::identifiability::check(
-        dataset,
+        &dataset,
         options.frames,
         options.k,
     )?)

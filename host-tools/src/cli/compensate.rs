@@ -257,7 +257,7 @@ fn compensated(
         file.joint.len(),
         "the nominal robot of --robot",
     )?;
-    let actual = ActualRobot::from_file(&params, &options.params)?;
+    let actual = ActualRobot::from_file(params.clone(), &options.params)?;
     crate::model::counts::joint_count(file.joint.len())?;
     // The readings each non-zero map was identified on.
     let ranges = params

@@ -44,23 +44,25 @@ pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
 /// Python package's `evaluate`): `options`' paths name the robot and data in messages only.
 pub fn evaluate_dataset(
     options: &EvaluateOptions,
-    mut dataset: crate::measurement::dataset::Dataset,
+    dataset: crate::measurement::dataset::Dataset,
 ) -> anyhow::Result<Evaluation> {
-    crate::model::counts::joint_count(dataset.file.joint.len())?;
+    crate::model::counts::joint_count(dataset.robot.file.joint.len())?;
+    let mut robot = dataset.robot.clone();
     let frames = if options.stored_registration {
-        if dataset.file.measurement.is_none() {
+        if robot.file.measurement.is_none() {
             anyhow::bail!(
                 "{}: has no [measurement] section, no registration to use: give a model identified on tracker data \
                  (calibrate writes it), or fit the frames (--fit-frames)",
                 options.input.robot.display()
             );
         }
-        dataset = dataset.in_measurement_setup()?;
+        robot = robot.in_measurement_setup()?;
         Frames::None
     } else {
         Frames::chosen(options.fit_frames, &dataset.data)
     };
     Ok(crate::analysis::evaluation::evaluate(
+        &robot,
         &dataset,
         frames,
         options.fit_poses,

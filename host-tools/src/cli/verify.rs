@@ -34,8 +34,8 @@ pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
     let (calibration, validation) =
         crate::measurement::dataset::split(&all, options.validate, options.validate_seed)?;
     Ok(crate::analysis::verify::verify(
-        calibration,
-        validation,
+        &calibration,
+        &validation,
         options.frames,
         options.k,
     )?)

@@ -149,11 +149,8 @@ pub fn export(
     };
     Ok(match format {
         ExportFormat::Block => {
-            let actual = crate::kinematics::actual::ActualRobot::from_model(
-                model.clone(),
-                file,
-                &model.path,
-            )?;
+            let actual =
+                crate::kinematics::actual::ActualRobot::from_file(file.clone(), &model.path)?;
             parameter_block(
                 &actual.model.robot,
                 actual.maps.as_ref(),

@@ -18,9 +18,15 @@ use nalgebra::{Dyn, Rotation3, Vector3};
 use std::path::Path;
 
 /// The actual robot: geometry and frames, optional joint maps, optional gravity compliance.
+///
+/// A calibration's stages each take one and return the one they found: the frames registered
+/// ([`Self::with_frames`]), the geometry identified, the joint maps and compliance found.
 #[derive(Clone, Debug)]
 pub struct ActualRobot {
-    /// The geometry and frames, in core units, with the file's identification mask.
+    /// The robot file the model was read from, or written for it (its frames, when a stage
+    /// registered them).
+    pub file: RobotFile,
+    /// The geometry and frames, in core units, with the identification mask a stage uses.
     pub model: RobotModel,
     /// The joint maps (`[joint_maps]`), when the file has them.
     pub maps: Option<JointMaps>,
@@ -31,17 +37,51 @@ pub struct ActualRobot {
 impl ActualRobot {
     /// The model of the robot file `file`, read from `path` (which names it in errors): its
     /// geometry, joint maps and compliance, each checked.
-    pub fn from_file(file: &RobotFile, path: &Path) -> crate::Result<Self> {
-        Self::from_model(file.to_model(path)?, file, path)
-    }
-
-    /// [`Self::from_file`] with the geometry already converted (`model`, of `file`).
-    pub fn from_model(model: RobotModel, file: &RobotFile, path: &Path) -> crate::Result<Self> {
+    pub fn from_file(file: RobotFile, path: &Path) -> crate::Result<Self> {
+        let model = file.to_model(path)?;
+        let joints = model.robot.joints.len();
+        if joints != crate::JOINTS && file.compliance.is_some() {
+            return Err(crate::refused!(
+                "{}: gravity compliance is modelled for {}-joint robots; this robot has {joints} joints: remove [compliance]",
+                path.display(),
+                crate::JOINTS
+            ));
+        }
         Ok(Self {
             model,
             maps: file.joint_maps(path)?,
             compliance: file.gravity_compliance(path)?,
+            file,
         })
+    }
+
+    /// This robot with the frames (`[base]`, `[tool]`) of `file` and the geometry `model` of
+    /// that file (its frames checked by the caller), the identification mask, joint maps and
+    /// compliance kept: what registering the frames of a measurement setup returns.
+    pub fn with_frames(&self, file: RobotFile, mut model: RobotModel) -> Self {
+        model.mask = self.model.mask;
+        Self {
+            file,
+            model,
+            maps: self.maps.clone(),
+            compliance: self.compliance,
+        }
+    }
+
+    /// This robot in its measurement setup ([`RobotFile::in_measurement_setup`]: the tracker's
+    /// base and the identified probe or reflector as the tool), the identification mask kept.
+    pub fn in_measurement_setup(&self) -> crate::Result<Self> {
+        let file = self.file.in_measurement_setup();
+        let model = file.to_model(&self.model.path)?;
+        Ok(self.with_frames(file, model))
+    }
+
+    /// The probe or reflector identified with this robot's model (`[measurement] flange_tool`).
+    pub fn identified_probe(&self) -> Option<&crate::io::robot_file::FrameEntry> {
+        self.file
+            .measurement
+            .as_ref()
+            .and_then(|m| m.flange_tool.as_ref())
     }
 
     /// The kinematic angles (rad) of the joint readings `readings` (rad): the readings with each

@@ -111,7 +111,7 @@ impl FileKinematics {
         file: &crate::io::robot_file::RobotFile,
         path: &std::path::Path,
     ) -> crate::Result<Self> {
-        let actual = ActualRobot::from_file(file, path)?;
+        let actual = ActualRobot::from_file(file.clone(), path)?;
         let kinematics = Kinematics::nominal(&actual.model.robot)
             .with_context(|| format!("robot file {}", path.display()))?;
         Ok(Self { actual, kinematics })

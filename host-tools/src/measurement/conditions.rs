@@ -65,7 +65,7 @@ impl MeasurementConditions {
         validation: Option<&Dataset>,
         payload_kg: Option<f64>,
     ) -> crate::Result<Self> {
-        let file_payload = (dataset.file.dynamics.as_ref())
+        let file_payload = (dataset.robot.file.dynamics.as_ref())
             .and_then(|d| d.tool.as_ref())
             .map(|t| t.mass_kg);
         let payload = match (payload_kg, file_payload) {
@@ -104,7 +104,7 @@ impl MeasurementConditions {
             poses: temperatures.len(),
         });
         Ok(Self {
-            robot_serial: dataset.file.serial.clone(),
+            robot_serial: dataset.robot.file.serial.clone(),
             payload,
             instrument: dataset.data.instrument.clone(),
             temperature,

@@ -1,32 +1,91 @@
-//! A dataset: a robot file and its measured poses, checked against each other and converted into
+//! A dataset: the poses measured on a robot, checked against its robot file and converted into
 //! the core's units and types (mm, rad, [`Measurement`]), read from files or built in memory;
-//! and the held-out split used for validation.
+//! the poses as a model of the robot sees them ([`Seen`]); and the held-out split used for
+//! validation.
 
-use crate::JOINTS;
 use crate::error::Context;
 use crate::io::profile::DataProfile;
-use crate::io::robot_file::{RobotFile, RobotModel};
+use crate::io::robot_file::RobotFile;
 use crate::io::tracker_data::{Record, TrackerData};
+use crate::kinematics::actual::ActualRobot;
 use calib_core::identify::objective::Measurement;
 use calib_core::model::JointVec;
 use nalgebra::Dyn;
 use nalgebra::Vector3;
 use rand_core::{Rng, SeedableRng};
+use std::borrow::Cow;
 use std::path::Path;
 
-/// A robot file, a data file and the measurements prepared for the core.
+/// The poses measured on a robot, read once and checked against the robot file they were
+/// measured with, in the core's units and types.
 ///
-/// `N` is the robot's joint count (the robot file's; 6 unless said).
+/// A dataset is never rewritten: a calibration's stages each take a model of the robot
+/// ([`ActualRobot`]: the given one, then the one with the frames registered, the identified one)
+/// and see the poses through it ([`Dataset::seen_by`]: its joint maps added to the readings, its
+/// compliance taken off the measured poses).
 #[derive(Clone)]
 pub struct Dataset {
-    /// The robot file as read.
-    pub file: RobotFile,
-    /// The robot in core units, with its identification mask.
-    pub model: RobotModel,
+    /// The robot as given: the robot file the data were checked against, read and converted.
+    pub robot: ActualRobot,
     /// The data file as read.
     pub data: TrackerData,
-    /// One core measurement per data row.
-    pub measurements: Vec<Measurement<f64, Dyn>>,
+    /// One core measurement per data row, as measured: the joint readings (rad; a robot's joint
+    /// maps are not added) and the measured pose (mm).
+    pub readings: Vec<Measurement<f64, Dyn>>,
+}
+
+/// The poses of a dataset as one model of the robot sees them: the kinematic angles (the joint
+/// readings with the model's maps added) and the measured poses (with the model's compliance
+/// taken off, when asked for): what the model's geometry must explain.
+#[derive(Clone)]
+pub struct Seen<'a> {
+    /// The model that sees the poses.
+    pub robot: &'a ActualRobot,
+    /// The data file as read.
+    pub data: &'a TrackerData,
+    /// One core measurement per data row: the kinematic angles (rad) and the measured pose (mm);
+    /// borrowed from the dataset's readings when the model has no maps or compliance.
+    pub(crate) measurements: Cow<'a, [Measurement<f64, Dyn>]>,
+}
+
+impl Seen<'_> {
+    /// One core measurement per data row: the kinematic angles (rad) and the measured pose (mm).
+    pub fn measurements(&self) -> &[Measurement<f64, Dyn>] {
+        &self.measurements
+    }
+
+    /// Number of residual rows: 6 per full pose, 3 per position-only pose.
+    pub fn rows(&self) -> usize {
+        rows(&self.measurements)
+    }
+
+    /// The data as this geometry sees them: each record's joint readings replaced by the
+    /// kinematic angles of its measurement (the joint maps added, in (-pi, pi]), its pose by the
+    /// measured pose the measurement holds (the compliance taken off, when it was). For the
+    /// reference kinematics, which knows neither maps nor compliance.
+    pub(crate) fn as_tracker_data(&self) -> TrackerData {
+        let mut data = self.data.clone();
+        for (r, m) in data.records.iter_mut().zip(self.measurements.iter()) {
+            r.q = m
+                .angles
+                .sin
+                .iter()
+                .zip(&m.angles.cos)
+                .map(|(s, c)| s.atan2(*c))
+                .collect();
+            r.position = m.position.into();
+            r.rotation = m.rotation;
+        }
+        data
+    }
+}
+
+/// Number of residual rows of `measurements`: 6 per full pose, 3 per position-only pose.
+fn rows(measurements: &[Measurement<f64, Dyn>]) -> usize {
+    measurements
+        .iter()
+        .map(|m| if m.rotation.is_some() { 6 } else { 3 })
+        .sum()
 }
 
 impl Dataset {
@@ -62,14 +121,8 @@ impl Dataset {
 
     /// Checks the data against the robot and converts them for the core.
     fn from_parts(file: RobotFile, robot: &Path, data_file: TrackerData) -> crate::Result<Self> {
-        let model: RobotModel = file.to_model(robot)?;
-        let joints = model.robot.joints.len();
-        if joints != JOINTS && file.compliance.is_some() {
-            return Err(crate::refused!(
-                "{}: gravity compliance is modelled for {JOINTS}-joint robots; this robot has {joints} joints: remove [compliance]",
-                robot.display()
-            ));
-        }
+        let actual = ActualRobot::from_file(file, robot)?;
+        let joints = actual.model.robot.joints.len();
         let data = data_file.path.clone();
         let data = data.as_path();
         if data_file.joints != joints {
@@ -78,7 +131,7 @@ impl Dataset {
                 data.display(),
                 data_file.header_line,
                 data_file.joints,
-                model.name
+                actual.model.name
             ));
         }
         if !data_file.records.is_empty() && data_file.records.iter().all(|r| r.weight == 0.0) {
@@ -87,10 +140,10 @@ impl Dataset {
                 data.display()
             ));
         }
-        let mut measurements = Vec::with_capacity(data_file.records.len());
+        let mut readings = Vec::with_capacity(data_file.records.len());
         for r in &data_file.records {
             let q = JointVec::<f64>::from_fn(r.q.len(), |i| r.q[i]);
-            for (i, (qi, limits)) in q.iter().zip(&model.robot.limits).enumerate() {
+            for (i, (qi, limits)) in q.iter().zip(&actual.model.robot.limits).enumerate() {
                 if !limits.contains(*qi) {
                     return Err(crate::refused!(
                         "{}:{}: column q{}: {:.4} deg is outside the joint limits [{}, {}] deg of {}",
@@ -106,144 +159,98 @@ impl Dataset {
             }
             let m = Measurement::new(&q, Vector3::from(r.position), r.rotation, r.weight)
                 .with_context(|| format!("{}:{}", data.display(), r.line))?;
-            measurements.push(m);
+            readings.push(m);
         }
         let dataset = Self {
-            file,
-            model,
+            robot: actual,
             data: data_file,
-            measurements,
+            readings,
         };
-        // Joint maps of the robot file are part of the model: the kinematics sees the readings
-        // with each joint's angle error added.
-        let actual = crate::kinematics::actual::ActualRobot::from_model(
-            dataset.model.clone(),
-            &dataset.file,
-            robot,
-        )?;
-        match &actual.maps {
-            Some(maps) => {
-                dataset.warn_extrapolated(maps, robot);
-                dataset.with_maps(maps)
-            }
-            None => Ok(dataset),
+        if let Some(maps) = &dataset.robot.maps {
+            dataset.warn_extrapolated(maps, robot);
         }
+        // The kinematic angles of every pose are checked once here, so that every later view
+        // of the data through the same maps is known to succeed.
+        dataset.seen_by(&dataset.robot)?;
+        Ok(dataset)
     }
 
-    /// The dataset with `maps` added to every joint reading: what the kinematics sees.
-    pub fn with_maps(&self, maps: &crate::model::joint_maps::JointMaps) -> crate::Result<Self> {
-        let mut out = self.clone();
-        for (m, r) in out.measurements.iter_mut().zip(&self.data.records) {
+    /// The poses as the robot `robot` sees them: its joint maps (if any) added to every joint
+    /// reading, the measured poses as measured. Borrows the readings when `robot` has no maps.
+    pub fn seen_by<'a>(&'a self, robot: &'a ActualRobot) -> crate::Result<Seen<'a>> {
+        let Some(maps) = &robot.maps else {
+            return Ok(Seen {
+                robot,
+                data: &self.data,
+                measurements: Cow::Borrowed(&self.readings),
+            });
+        };
+        let mut measurements = Vec::with_capacity(self.readings.len());
+        for r in &self.data.records {
             let q = JointVec::<f64>::from_fn(r.q.len(), |j| r.q[j]);
-            *m = Measurement::new(
-                &maps.apply(&q),
-                Vector3::from(r.position),
-                r.rotation,
-                r.weight,
-            )
-            .with_context(|| format!("{}:{}", self.data.path.display(), r.line))?;
+            measurements.push(
+                Measurement::new(
+                    &maps.apply(&q),
+                    Vector3::from(r.position),
+                    r.rotation,
+                    r.weight,
+                )
+                .with_context(|| format!("{}:{}", self.data.path.display(), r.line))?,
+            );
         }
-        Ok(out)
+        Ok(Seen {
+            robot,
+            data: &self.data,
+            measurements: Cow::Owned(measurements),
+        })
     }
 
-    /// The dataset, whose measurements already see the joint maps `maps` (if any), with the
-    /// gravity compliance displacement of `gains` taken off every measured pose: what the geometry
-    /// `robot + errors` (in the dataset's frames) alone must explain. The displacement is
-    /// evaluated at the kinematic angles (the readings with the maps).
-    pub(crate) fn without_compliance(
-        &self,
-        robot: &calib_core::Robot<f64, Dyn>,
+    /// The poses as the geometry of `robot` with the errors `errors` (mm and rad, in the frames
+    /// of `robot`) alone must explain them: [`Self::seen_by`] with the gravity compliance's
+    /// displacement of `robot` (if any; held fixed) taken off every measured pose, evaluated at
+    /// the kinematic angles of that geometry. Commands that fit or check the geometry of a model
+    /// with compliance use it (the deflection depends on the geometry only to second order: a few
+    /// tenths of a millimetre times its relative change).
+    pub fn seen_by_geometry<'a>(
+        &'a self,
+        robot: &'a ActualRobot,
         errors: &calib_core::ParameterErrors<f64, Dyn>,
-        maps: Option<&crate::model::joint_maps::JointMaps>,
-        gravity: &crate::model::compliance::Gravity,
-        gains: &[f64; crate::model::compliance::GAIN_COUNT],
-    ) -> crate::Result<Self> {
-        let mut out = self.clone();
-        for (m, r) in out.measurements.iter_mut().zip(&self.data.records) {
+    ) -> crate::Result<Seen<'a>> {
+        let mut seen = self.seen_by(robot)?;
+        let Some(compliance) = &robot.compliance else {
+            return Ok(seen);
+        };
+        let measurements = seen.measurements.to_mut();
+        for (m, r) in measurements.iter_mut().zip(&self.data.records) {
             let q = JointVec::<f64>::from_fn(r.q.len(), |j| r.q.get(j).copied().unwrap_or(0.0));
-            let angles = maps.map_or(q, |maps| maps.apply(&q));
-            let columns = crate::model::compliance::columns(gravity, robot, errors, &angles)?;
-            let d = crate::model::compliance::displacement(&columns, gains);
+            let angles = robot.kinematic_angles(&q);
+            let columns = crate::model::compliance::columns(
+                &compliance.gravity,
+                &robot.model.robot,
+                errors,
+                &angles,
+            )?;
+            let d = crate::model::compliance::displacement(&columns, &compliance.gains);
             m.position -= Vector3::new(d[0], d[1], d[2]);
             if let Some(rotation) = m.rotation.as_mut() {
                 *rotation =
                     nalgebra::Rotation3::new(-Vector3::new(d[3], d[4], d[5])).matrix() * *rotation;
             }
         }
-        Ok(out)
+        Ok(seen)
     }
 
-    /// The dataset with the gravity compliance of its robot file (if any; held fixed) taken off
-    /// every measured pose, evaluated for the geometry `robot + errors` (the file's model in the
-    /// data's frames): what that geometry alone must explain. Without `[compliance]` the dataset
-    /// unchanged. Commands that fit or check the geometry of a file with compliance use it (the
-    /// deflection depends on the geometry only to second order: a few tenths of a millimetre
-    /// times its relative change).
-    pub(crate) fn without_file_compliance(
-        &self,
-        robot: &calib_core::Robot<f64, Dyn>,
-        errors: &calib_core::ParameterErrors<f64, Dyn>,
-    ) -> crate::Result<Self> {
-        let actual = crate::kinematics::actual::ActualRobot::from_model(
-            self.model.clone(),
-            &self.file,
-            &self.model.path,
-        )?;
-        let Some(compliance) = &actual.compliance else {
-            return Ok(self.clone());
-        };
-        self.without_compliance(
-            robot,
-            errors,
-            actual.maps.as_ref(),
-            &compliance.gravity,
-            &compliance.gains,
-        )
-    }
-
-    /// The data as the geometry sees them: each record's joint readings replaced by the kinematic
-    /// angles of its measurement (the joint maps added, in (-pi, pi]), its pose by the measured
-    /// pose the measurement holds (the compliance taken off, when it was). For the reference
-    /// kinematics, which knows neither maps nor compliance.
-    pub(crate) fn as_seen_by_the_geometry(&self) -> TrackerData {
-        let mut data = self.data.clone();
-        for (r, m) in data.records.iter_mut().zip(&self.measurements) {
-            r.q = m
-                .angles
-                .sin
-                .iter()
-                .zip(&m.angles.cos)
-                .map(|(s, c)| s.atan2(*c))
-                .collect();
-            r.position = m.position.into();
-            r.rotation = m.rotation;
-        }
-        data
-    }
-
-    /// The dataset with its file in its measurement setup (`RobotFile::in_measurement_setup`:
-    /// the identified probe or reflector as the tool), the identification mask kept.
-    pub fn in_measurement_setup(&self) -> crate::Result<Self> {
-        let mut kept = self.clone();
-        kept.file = self.file.in_measurement_setup();
-        let mask = kept.model.mask;
-        kept.model = kept.file.to_model(&self.model.path)?;
-        kept.model.mask = mask;
-        Ok(kept)
-    }
-
-    /// The probe or reflector identified with the file's model (`[measurement] flange_tool`).
-    pub(crate) fn identified_probe(&self) -> Option<&crate::io::robot_file::FrameEntry> {
-        self.file
-            .measurement
-            .as_ref()
-            .and_then(|m| m.flange_tool.as_ref())
+    /// The poses as the robot file they were checked against sees them ([`Self::seen_by`] the
+    /// given robot).
+    pub fn as_given(&self) -> crate::Result<Seen<'_>> {
+        self.seen_by(&self.robot)
     }
 
     /// Warns on standard error for every joint whose non-zero map (of the robot file at `robot`)
     /// is extrapolated: readings outside the range it was identified on.
     fn warn_extrapolated(&self, maps: &crate::model::joint_maps::JointMaps, robot: &Path) {
         let ranges = self
+            .robot
             .file
             .joint_maps
             .as_ref()
@@ -276,16 +283,14 @@ impl Dataset {
     /// `(the others, the poses at indices)`: the data split in two, file order kept. Linear in
     /// the poses, and each pose is copied once (2,000,000 poses are 1 GB).
     pub fn partition(&self, indices: &[usize]) -> (Self, Self) {
-        let chosen = mask(self.measurements.len(), indices);
+        let chosen = mask(self.readings.len(), indices);
         let taken_count = chosen.iter().filter(|c| **c).count();
-        let mut kept = self.empty_like(self.measurements.len() - taken_count);
+        let mut kept = self.empty_like(self.readings.len() - taken_count);
         let mut taken = self.empty_like(taken_count);
-        for ((record, m), taken_here) in
-            self.data.records.iter().zip(&self.measurements).zip(chosen)
-        {
+        for ((record, m), taken_here) in self.data.records.iter().zip(&self.readings).zip(chosen) {
             let side = if taken_here { &mut taken } else { &mut kept };
             side.data.records.push(record.clone());
-            side.measurements.push(*m);
+            side.readings.push(*m);
         }
         (kept, taken)
     }
@@ -294,8 +299,7 @@ impl Dataset {
     fn empty_like(&self, capacity: usize) -> Self {
         let data = &self.data;
         Self {
-            file: self.file.clone(),
-            model: self.model.clone(),
+            robot: self.robot.clone(),
             data: TrackerData {
                 path: data.path.clone(),
                 base_frame: data.base_frame,
@@ -308,16 +312,13 @@ impl Dataset {
                 has_times: data.has_times,
                 instrument: data.instrument.clone(),
             },
-            measurements: Vec::with_capacity(capacity),
+            readings: Vec::with_capacity(capacity),
         }
     }
 
     /// Number of residual rows: 6 per full pose, 3 per position-only pose.
     pub fn rows(&self) -> usize {
-        self.measurements
-            .iter()
-            .map(|m| if m.rotation.is_some() { 6 } else { 3 })
-            .sum()
+        rows(&self.readings)
     }
 }
 
@@ -341,7 +342,7 @@ pub fn split(dataset: &Dataset, fraction: f64, seed: u64) -> crate::Result<(Data
             "--validate must be a fraction between 0 and 1, got {fraction}"
         ));
     }
-    let n = dataset.measurements.len();
+    let n = dataset.readings.len();
     let held = ((n as f64) * fraction).round() as usize;
     if held == 0 || held >= n {
         return Err(crate::refused!(

@@ -12,6 +12,8 @@
 
 use crate::error::Context;
 use crate::io::robot_file::{FrameEntry, RobotFile};
+use crate::kinematics::actual::ActualRobot;
+use crate::measurement::dataset::Seen;
 use calib_core::identify::objective::Measurement;
 use calib_core::{FrameParameter, JointParameter, Kinematics, Parameter, ParameterMask, Robot};
 use nalgebra::Dyn;
@@ -20,18 +22,16 @@ use serde::Serialize;
 
 /// With only the base fitted (`frames` base), an identified file's probe or reflector
 /// (`[measurement] flange_tool`, identified with the model) stays the tool: the same probe in a
-/// new session needs only the tracker's position re-fitted. `dataset` in its measurement setup
-/// ([`Dataset::in_measurement_setup`]), or `None` when there is nothing to keep.
-///
-/// [`Dataset::in_measurement_setup`]: crate::measurement::dataset::Dataset::in_measurement_setup
+/// new session needs only the tracker's position re-fitted. `robot` in its measurement setup
+/// ([`ActualRobot::in_measurement_setup`]), or `None` when there is nothing to keep.
 pub(crate) fn with_identified_probe(
-    dataset: &crate::measurement::dataset::Dataset,
+    robot: &ActualRobot,
     frames: Frames,
-) -> crate::Result<Option<crate::measurement::dataset::Dataset>> {
-    if frames != Frames::Base || dataset.identified_probe().is_none() {
+) -> crate::Result<Option<ActualRobot>> {
+    if frames != Frames::Base || robot.identified_probe().is_none() {
         return Ok(None);
     }
-    dataset.in_measurement_setup().map(Some)
+    robot.in_measurement_setup().map(Some)
 }
 
 /// Which frames a calibration identifies.
@@ -426,12 +426,13 @@ mod tests {
             &root.join("data/er10l-c10-sim32.csv"),
         )
         .unwrap();
-        let mut wild = dataset.file.clone();
+        let seen = dataset.as_given().unwrap();
+        let mut wild = dataset.robot.file.clone();
         wild.base = Some(FrameEntry {
             xyz_mm: [-146_114.0, 0.0, 0.0],
             rpy_deg: [0.0; 3],
         });
-        let message = measured_model(&wild, &dataset, "registered")
+        let message = measured_model(&wild, &seen, "registered")
             .unwrap_err()
             .to_string();
         assert!(
@@ -442,7 +443,7 @@ mod tests {
             "{message}"
         );
         // The robot file's own frames pass.
-        assert!(measured_model(&dataset.file, &dataset, "fitted").is_ok());
+        assert!(measured_model(&dataset.robot.file, &seen, "fitted").is_ok());
     }
 }
 
@@ -487,17 +488,17 @@ pub struct FramesReport {
 /// robot file (which holds the nominal frames).
 fn measured_model(
     file: &RobotFile,
-    inputs: &crate::measurement::dataset::Dataset,
+    inputs: &Seen<'_>,
     how: &str,
 ) -> crate::Result<crate::io::robot_file::RobotModel> {
-    file.to_model(&inputs.model.path).map_err(|e| match e {
+    file.to_model(&inputs.robot.model.path).map_err(|e| match e {
         crate::io::robot_file::RobotFileError::Invalid { message, .. } => crate::refused!(
             "{}: the tracker and tool frames {how} from these data are not physically plausible ({message}). \
              The positions do not come from this robot in one rigid tracker frame: check the units of the \
              positions (a data profile, --profile), the joint order and signs against the robot file {}, \
              and whether the data are already in the base frame (--frames none)",
             inputs.data.path.display(),
-            inputs.model.path.display()
+            inputs.robot.model.path.display()
         ),
         other => other.into(),
     })
@@ -506,7 +507,7 @@ fn measured_model(
 /// The robot file `registered` (the registration's frames) with the frames of `mask` fitted by
 /// least squares to `inputs`, the geometry fixed.
 fn with_fitted_frames(
-    inputs: &crate::measurement::dataset::Dataset,
+    inputs: &Seen<'_>,
     registered: RobotFile,
     mask: &ParameterMask<Dyn>,
     k: f64,
@@ -517,9 +518,14 @@ fn with_fitted_frames(
             frame_mask.set(p, true);
         }
     }
-    let mut fitted_inputs = inputs.clone();
-    fitted_inputs.model = measured_model(&registered, inputs, "registered")?;
-    fitted_inputs.model.mask = inputs.model.mask;
+    let registered_model = measured_model(&registered, inputs, "registered")?;
+    let registered_robot = inputs
+        .robot
+        .with_frames(registered.clone(), registered_model);
+    let fitted_inputs = Seen {
+        robot: &registered_robot,
+        ..inputs.clone()
+    };
     let frame_parameters = frame_mask.count();
     if !(1..=12).contains(&frame_parameters) {
         return Err(crate::refused!(
@@ -532,21 +538,21 @@ fn with_fitted_frames(
     Ok(fitted)
 }
 
-/// Registers the frames of `inputs` and fits them (nominal geometry) by least squares; replaces
-/// the robot of `inputs` (and of `others`, e.g. validation poses in the same tracker frame) by the
-/// nominal geometry with the fitted frames. Returns the report and the mask of identified
+/// The frames stage: registers the frames of the robot that sees `inputs` and fits them (its
+/// geometry held) by least squares. Returns that robot with the fitted frames (the robot itself
+/// when `frames` is none: the data are in its base frame), the report and the mask of identified
 /// parameters with the frames.
 pub fn prepare(
     frames: Frames,
-    inputs: &mut crate::measurement::dataset::Dataset,
-    others: &mut [&mut crate::measurement::dataset::Dataset],
+    inputs: &Seen<'_>,
     k: f64,
-) -> crate::Result<(FramesReport, ParameterMask<Dyn>)> {
-    let full_pose = inputs.measurements.iter().all(|m| m.rotation.is_some());
-    let (mask, removed) = mask_with_frames(&inputs.model.mask, frames, full_pose);
+) -> crate::Result<(ActualRobot, FramesReport, ParameterMask<Dyn>)> {
+    let full_pose = inputs.measurements().iter().all(|m| m.rotation.is_some());
+    let (mask, removed) = mask_with_frames(&inputs.robot.model.mask, frames, full_pose);
     if frames == Frames::None {
         check_base_frame(inputs)?;
         return Ok((
+            inputs.robot.clone(),
             FramesReport {
                 identified: frames,
                 registration_rms_mm: 0.0,
@@ -557,12 +563,16 @@ pub fn prepare(
                 base: None,
                 tool: None,
                 held_at_stored_probe: Vec::new(),
-                given: inputs.file.clone(),
+                given: inputs.robot.file.clone(),
             },
             mask,
         ));
     }
-    let registration = register(&inputs.model.robot, &inputs.measurements, frames.tool())?;
+    let registration = register(
+        &inputs.robot.model.robot,
+        inputs.measurements(),
+        frames.tool(),
+    )?;
     if registration.rms_mm > MAX_REGISTRATION_RMS_MM {
         return Err(crate::refused!(
             "{}: the nominal robot registered onto the measurements leaves {:.1} mm RMS ({:.1} mm max), \
@@ -574,24 +584,19 @@ pub fn prepare(
             registration.max_mm
         ));
     }
-    let registered = with_registration(&inputs.file, &registration, frames.tool());
+    let registered = with_registration(&inputs.robot.file, &registration, frames.tool());
     let fitted = with_fitted_frames(inputs, registered, &mask, k)?;
-    let mut model = measured_model(&fitted, inputs, "fitted")?;
-    model.mask = inputs.model.mask;
-    let kinematics = Kinematics::nominal(&model.robot)?;
+    let model = measured_model(&fitted, inputs, "fitted")?;
+    let robot = inputs.robot.with_frames(fitted, model);
+    let kinematics = Kinematics::nominal(&robot.model.robot)?;
     let frames_fit_rms_mm =
-        crate::measurement::statistics::table3(&kinematics, &inputs.measurements)
+        crate::measurement::statistics::table3(&kinematics, inputs.measurements())
             .0
             .position_mm
             .rms;
-    let given = inputs.file.clone();
-    for other in others.iter_mut() {
-        other.file = fitted.clone();
-        other.model = model.clone();
-    }
-    inputs.file = fitted;
-    inputs.model = model;
+    let given = inputs.robot.file.clone();
     Ok((
+        robot,
         FramesReport {
             identified: frames,
             registration_rms_mm: registration.rms_mm,
@@ -611,24 +616,24 @@ pub fn prepare(
 /// Re-registration with the probe fitted (`base+tool`) against a robot file that stores one
 /// (`[measurement] flange_tool`): the probe's parameters the selection `dropped` (the data cannot
 /// determine them) are held at the stored probe's values, not at the values the unconstrained
-/// frames fit gave them, in `inputs` and `others` alike; the frame parameters of `mask` (the
-/// selection) are fitted again from there (nominal geometry, as in [`prepare`]). A translation is
+/// frames fit gave them; the frame parameters of `mask` (the selection) are fitted again from
+/// there (the geometry of the robot that sees `inputs` held, as in [`prepare`]). A translation is
 /// set to the stored one; a rotation is turned about the tool's own axis by the component of the
-/// turn from the fitted to the stored probe. Returns the parameters held.
+/// turn from the fitted to the stored probe. Returns the robot with these frames and the
+/// parameters held, or `None` when none is held.
 pub(crate) fn hold_dropped_probe_parameters(
-    inputs: &mut crate::measurement::dataset::Dataset,
-    others: &mut [&mut crate::measurement::dataset::Dataset],
+    inputs: &Seen<'_>,
     (dropped, mask): (&[Parameter], &ParameterMask<Dyn>),
     stored: &FrameEntry,
     k: f64,
-) -> crate::Result<Vec<Parameter>> {
+) -> crate::Result<Option<(ActualRobot, Vec<Parameter>)>> {
     let held: Vec<Parameter> = dropped
         .iter()
         .copied()
         .filter(|p| matches!(p, Parameter::Tool(_)))
         .collect();
-    let Some(fitted) = inputs.file.tool.clone().filter(|_| !held.is_empty()) else {
-        return Ok(Vec::new());
+    let Some(fitted) = inputs.robot.file.tool.clone().filter(|_| !held.is_empty()) else {
+        return Ok(None);
     };
     let (now, target) = (fitted.isometry(), stored.isometry());
     let mut translation = now.translation.vector;
@@ -647,18 +652,11 @@ pub(crate) fn hold_dropped_probe_parameters(
         }
     }
     let rotation = now.rotation * nalgebra::UnitQuaternion::from_scaled_axis(kept_turn);
-    let mut held_file = inputs.file.clone();
+    let mut held_file = inputs.robot.file.clone();
     held_file.tool = Some(frame_entry(&rotation.to_rotation_matrix(), &translation));
     let file = with_fitted_frames(inputs, held_file, mask, k)?;
-    let mut model = measured_model(&file, inputs, "fitted")?;
-    model.mask = inputs.model.mask;
-    for other in others.iter_mut() {
-        other.file = file.clone();
-        other.model = model.clone();
-    }
-    inputs.file = file;
-    inputs.model = model;
-    Ok(held)
+    let model = measured_model(&file, inputs, "fitted")?;
+    Ok(Some((inputs.robot.with_frames(file, model), held)))
 }
 
 /// How many times better a registration must fit data said to be in the base frame for them to
@@ -674,25 +672,23 @@ const BEYOND_GEOMETRIC_ERRORS_MM: f64 = 5.0 * MAX_REGISTRATION_RMS_MM;
 /// registration fits them [`REGISTRATION_GAIN`] times better) or other units (their spread is
 /// about 1000 times the model's), or when the model misses them by more than
 /// [`BEYOND_GEOMETRIC_ERRORS_MM`]; the error says which.
-pub(crate) fn check_base_frame(
-    dataset: &crate::measurement::dataset::Dataset,
-) -> crate::Result<()> {
-    let kinematics = Kinematics::nominal(&dataset.model.robot)?;
-    let rms = crate::measurement::statistics::table3(&kinematics, &dataset.measurements)
+pub(crate) fn check_base_frame(dataset: &Seen<'_>) -> crate::Result<()> {
+    let kinematics = Kinematics::nominal(&dataset.robot.model.robot)?;
+    let rms = crate::measurement::statistics::table3(&kinematics, dataset.measurements())
         .0
         .position_mm
         .rms;
     if rms <= MAX_REGISTRATION_RMS_MM {
         return Ok(());
     }
-    let measured: Vec<Vector3<f64>> = dataset.measurements.iter().map(|m| m.position).collect();
+    let measured: Vec<Vector3<f64>> = dataset.measurements().iter().map(|m| m.position).collect();
     let modelled: Vec<Vector3<f64>> = dataset
-        .measurements
+        .measurements()
         .iter()
         .map(|m| kinematics.forward_angles(&m.angles).translation.vector)
         .collect();
     let ratio = spread(&measured) / spread(&modelled).max(1e-300);
-    let registered = register(&dataset.model.robot, &dataset.measurements, true)
+    let registered = register(&dataset.robot.model.robot, dataset.measurements(), true)
         .ok()
         .filter(|r| r.rms_mm <= MAX_REGISTRATION_RMS_MM);
     let units = (300.0..3000.0).contains(&ratio) || (1.0 / 3000.0..1.0 / 300.0).contains(&ratio);
@@ -731,7 +727,7 @@ pub(crate) fn check_base_frame(
         "{}: the data are said to be in the robot's base frame, but the model of {} misses them by {rms:.1} mm RMS, \
          far beyond the few millimetres of a robot's geometric errors. Likely: {likely}",
         dataset.data.path.display(),
-        dataset.model.path.display()
+        dataset.robot.model.path.display()
     ))
 }
 
@@ -748,16 +744,16 @@ fn spread(points: &[Vector3<f64>]) -> f64 {
 
 /// Least-squares fit of the frame parameters in `mask` alone (nominal geometry).
 fn fit_frames(
-    inputs: &crate::measurement::dataset::Dataset,
+    inputs: &Seen<'_>,
     mask: &ParameterMask<Dyn>,
     k: f64,
 ) -> crate::Result<calib_core::ParameterErrors<f64, Dyn>> {
     let set = calib_core::ParameterSet::<Dyn, nalgebra::Dyn>::from_mask(mask)?;
     let problem = calib_core::Problem::new(
-        &inputs.model.robot,
-        &calib_core::ParameterErrors::zeros_for(inputs.model.robot.joint_count()),
+        &inputs.robot.model.robot,
+        &calib_core::ParameterErrors::zeros_for(inputs.robot.model.robot.joint_count()),
         set,
-        &inputs.measurements,
+        inputs.measurements(),
         k,
     )
     .context("fitting the frames")?;

@@ -99,12 +99,13 @@ pub fn check(dataset: &Dataset, euler: &EulerConvention) -> crate::Result<()> {
     if rotations.iter().filter(|r| r.is_some()).count() < 3 {
         return Ok(());
     }
-    let mut bare = dataset.model.robot;
+    let mut bare = dataset.robot.model.robot;
     bare.base = calib_core::FramePose::identity();
     bare.tool = calib_core::FramePose::identity();
     let kinematics = Kinematics::<f64, Dyn>::nominal(&bare)?;
     let flanges: Vec<Rotation3<f64>> = dataset
-        .measurements
+        .as_given()?
+        .measurements()
         .iter()
         .map(|m| kinematics.forward_angles(&m.angles).rotation)
         .collect();

@@ -2,7 +2,7 @@
 //! deviation, maximum and RMS of the absolute position error in mm and of the orientation error
 //! per axis in deg), and the per-pose errors behind them.
 
-use crate::measurement::dataset::Dataset;
+use crate::measurement::dataset::{Dataset, Seen};
 use calib_core::Kinematics;
 use calib_core::identify::statistics::{PoseStatistics, Summary};
 use nalgebra::Dyn;
@@ -148,10 +148,10 @@ pub(crate) fn base_positions<'a>(
 /// orientation, in file order.
 pub(crate) fn orientation_per_pose(
     kinematics: &Kinematics<f64, Dyn>,
-    dataset: &Dataset,
+    dataset: &Seen<'_>,
 ) -> Vec<[f64; 3]> {
     dataset
-        .measurements
+        .measurements()
         .iter()
         .filter(|m| m.rotation.is_some())
         .map(|m| {
@@ -161,8 +161,9 @@ pub(crate) fn orientation_per_pose(
         .collect()
 }
 
-/// Table 3 statistics of the dataset's own robot (nominal or identified) on its measurements.
+/// Table 3 statistics of the dataset's own robot (nominal or identified, its joint maps
+/// included) on its measurements.
 pub fn evaluate(dataset: &Dataset) -> crate::Result<Table3> {
-    let kinematics = Kinematics::nominal(&dataset.model.robot)?;
-    Ok(table3(&kinematics, &dataset.measurements).0)
+    let kinematics = Kinematics::nominal(&dataset.robot.model.robot)?;
+    Ok(table3(&kinematics, dataset.as_given()?.measurements()).0)
 }

@@ -48,9 +48,10 @@ pub(super) fn information(
         });
     }
     // In a tracker's frame (here the base frame itself), as the measured file will be.
-    let mut dataset = Dataset::from_records(file.clone(), records, false)?;
+    let dataset = Dataset::from_records(file.clone(), records, false)?;
     let frames = Frames::chosen(None, &dataset.data);
-    let (_, mask) = crate::measurement::frames::prepare(frames, &mut dataset, &mut [], k)?;
+    let (robot, _, mask) = crate::measurement::frames::prepare(frames, &dataset.as_given()?, k)?;
+    let dataset = dataset.seen_by(&robot)?;
     let (mut mask, _) = crate::analysis::identifiability::default_mask(&dataset, mask, k)?;
     let report = analyse(&dataset, &mask, k)?;
     let undetermined = report.to_drop();
@@ -58,9 +59,9 @@ pub(super) fn information(
         mask.set(*p, false);
     }
     let parameters: Vec<Parameter> = mask.iter().collect();
-    let kinematics = Kinematics::nominal(&dataset.model.robot)?;
+    let kinematics = Kinematics::nominal(&robot.model.robot)?;
     let rows = dataset
-        .measurements
+        .measurements()
         .iter()
         .map(|m| pose_rows(&kinematics, &parameters, &m.angles, measure, k))
         .collect::<crate::Result<_>>()?;

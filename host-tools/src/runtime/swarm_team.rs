@@ -730,7 +730,7 @@ mod tests {
             &dir.join("data/er10l-c10-sim32.csv"),
         )
         .expect("bundled files")
-        .measurements
+        .readings
     }
 
     /// `check` of the paper's objective (its 24 parameters) on the bundled measurements.
