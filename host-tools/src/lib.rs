@@ -5,8 +5,12 @@
 //!   robot-file sections) and the joint and parameter counts every robot is checked against;
 //! - [`io`]: files in and out: robot files, tracker data read through a data profile, and the
 //!   outputs every command stages and replaces all together;
-//! - [`measurement`]: a dataset (a robot and its measured poses), the frames that register the
-//!   tracker and the probe, error statistics, the orientation-convention check, simulated data;
+//! - [`kinematics`]: the actual robot as one model ([`kinematics::actual::ActualRobot`]: the
+//!   robot file, geometry and frames, joint maps, compliance), and an identified robot put to use
+//!   off line: forward kinematics, compensation;
+//! - [`measurement`]: a dataset (the measured poses, read once, with the robot file they were
+//!   checked against) and the poses as a model sees them, the frames that register the tracker
+//!   and the probe, error statistics, the orientation-convention check, simulated data;
 //! - [`formats`]: exports for controllers and other tools, and the UR factory-calibration import;
 //! - [`analysis`]: identifiability, evaluation on new poses, comparison with a known truth, and
 //!   verification against the independent float64 reference ([`analysis::reference`], on the crate `calib_reference`);
@@ -15,9 +19,8 @@
 //! - [`runtime`]: the threads and SIMD lanes that make the identification fast;
 //! - [`calibration`]: the pipeline of stages, from a dataset and a configuration to a typed
 //!   result (frames, selection, solve, joint maps and their evidence solver, cross-validation,
-//!   plausibility);
+//!   plausibility); each stage takes the model of the robot the one before returned;
 //! - [`report`]: the text and HTML reports and their plots;
-//! - [`kinematics`]: an identified robot put to use off line: forward kinematics, compensation;
 //! - [`cli`]: the `calib` commands, thin layers over the above.
 //!
 //! A folder uses only folders listed before it; `.ci/check-module-cycles` fails on a cycle

@@ -18,7 +18,7 @@ pub const LARGEST_NAMED: usize = 5;
 const LISTED: usize = 8;
 
 /// Robust standard deviations above the median beyond which a held-out pose is flagged.
-pub const FLAG_ROBUST_Z: f64 = 3.0;
+pub(crate) const FLAG_ROBUST_Z: f64 = 3.0;
 
 /// The MAD of a normal distribution in standard deviations: `1 / 1.4826`.
 const MAD_TO_SD: f64 = 1.4826;
@@ -92,7 +92,7 @@ pub struct HeldOutAccuracy {
 
 /// The `p`-quantile (0 to 1) of `sorted` (ascending, not empty), interpolated linearly between
 /// the order statistics.
-pub fn quantile(sorted: &[f64], p: f64) -> f64 {
+pub(crate) fn quantile(sorted: &[f64], p: f64) -> f64 {
     let Some(last) = sorted.len().checked_sub(1) else {
         return f64::NAN;
     };
@@ -398,7 +398,7 @@ pub struct Acceptance {
 impl Acceptance {
     /// `criteria` judged on the held-out errors `after_mm` (`|dp|` after calibration, mm);
     /// `None` without criteria or without held-out poses.
-    pub fn judge(criteria: &[Criterion], after_mm: &[f64]) -> Option<Self> {
+    pub(crate) fn judge(criteria: &[Criterion], after_mm: &[f64]) -> Option<Self> {
         if criteria.is_empty() || after_mm.is_empty() {
             return None;
         }

@@ -8,7 +8,7 @@ use serde::Serialize;
 
 /// The share of held-out poses inside the predicted 95 % band below which the band is said to
 /// miss an error, %.
-pub const COVERAGE_BELOW_PERCENT: f64 = 90.0;
+pub(crate) const COVERAGE_BELOW_PERCENT: f64 = 90.0;
 
 /// Lines a caveat lists (in the text; the JSON has them all).
 const LISTED: usize = 8;
@@ -62,7 +62,7 @@ impl Caveat {
 }
 
 /// The joint range (rad) each joint covers over `q` (one row per pose); empty without poses.
-pub fn joint_ranges(q: &[Vec<f64>]) -> Vec<[f64; 2]> {
+pub(crate) fn joint_ranges(q: &[Vec<f64>]) -> Vec<[f64; 2]> {
     let joints = q.first().map_or(0, Vec::len);
     (0..joints)
         .map(|j| {

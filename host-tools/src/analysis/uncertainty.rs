@@ -16,11 +16,11 @@ use nalgebra::{DMatrix, Dyn, Matrix3, Vector3};
 use serde::Serialize;
 
 /// The 95 % point of the chi-square distribution with 3 degrees of freedom.
-pub const CHI_SQUARE_3_95: f64 = 7.814_727_903_251_178;
+pub(crate) const CHI_SQUARE_3_95: f64 = 7.814_727_903_251_178;
 
 /// The covariance of the position (mm^2) and of the orientation (rad^2) at one pose from the
 /// parameters' covariance `covariance` (in the order of `set`), for the model `kinematics`.
-pub fn pose_covariance(
+pub(crate) fn pose_covariance(
     kinematics: &Kinematics<f64, Dyn>,
     set: &ParameterSet<Dyn, Dyn>,
     covariance: &DMatrix<f64>,
@@ -84,12 +84,12 @@ pub struct Coverage {
 /// One held-out pose for [`coverage`]: its joint angles, its position error `measured -
 /// predicted` (mm, measurement frame), its data file's line, and the instrument's noise there
 /// (1 sigma per coordinate, mm).
-pub type HeldOutPose = (JointAngles<f64, Dyn>, Vector3<f64>, u64, f64);
+pub(crate) type HeldOutPose = (JointAngles<f64, Dyn>, Vector3<f64>, u64, f64);
 
 /// The held-out `poses` against the band of `kinematics` (the identified model) with the
 /// parameters' covariance `covariance` (in the order of `set`) and each pose's noise; `noise_source`
 /// says where the noise came from.
-pub fn coverage(
+pub(crate) fn coverage(
     (kinematics, set, covariance): (
         &Kinematics<f64, Dyn>,
         &ParameterSet<Dyn, Dyn>,
@@ -204,7 +204,7 @@ mod tests {
 
 /// Correlation beyond which a pair of identified parameters is named: the data hardly tell them
 /// apart, and their values trade off against each other.
-pub const STRONG_CORRELATION: f64 = 0.9;
+pub(crate) const STRONG_CORRELATION: f64 = 0.9;
 
 /// The identified parameters read against their covariance: which joint parameters are smaller
 /// than twice their standard error (not significant at about 95 %: the data do not show the
@@ -271,7 +271,7 @@ impl Significance {
 /// The parameters' covariance a robot file records (`[calibration.covariance]`), checked: every
 /// name a parameter of the robot, in canonical order, the matrix square, finite and symmetric,
 /// its diagonal not negative. Returns the parameter set (in the file's order) and the matrix.
-pub fn recorded_covariance(
+pub(crate) fn recorded_covariance(
     file: &crate::io::robot_file::RobotFile,
     path: &std::path::Path,
 ) -> crate::Result<(ParameterSet<Dyn, Dyn>, DMatrix<f64>)> {

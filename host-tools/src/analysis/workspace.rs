@@ -12,7 +12,7 @@
 use serde::Serialize;
 
 /// Cuts per axis: terciles.
-pub const BINS: usize = 3;
+pub(crate) const BINS: usize = 3;
 
 /// Regions named worst.
 pub const WORST_NAMED: usize = 3;
@@ -44,7 +44,7 @@ pub struct Region {
 
 impl Region {
     /// "x 412..893, y -310..-12, z 95..402 mm".
-    pub fn bounds_text(&self) -> String {
+    pub(crate) fn bounds_text(&self) -> String {
         let range = |r: [f64; 2]| format!("{:.0}..{:.0}", r[0], r[1]);
         format!(
             "x {}, y {}, z {} mm",

@@ -189,7 +189,7 @@ impl CalibrateOptions {
     }
 
     /// How the validation poses are chosen, for the report.
-    pub fn hold_out(&self) -> HoldOut {
+    pub(crate) fn hold_out(&self) -> HoldOut {
         HoldOut {
             validate: self.validate,
             validate_seed: self.validate_seed,
@@ -531,7 +531,7 @@ impl CalibrateOptions {
 
 /// Writes the outputs of a calibration that were asked for, all together or none (see
 /// [`Outputs`]); returns the files written.
-pub fn write_outputs(
+pub(crate) fn write_outputs(
     calibration: &Calibration,
     paths: &OutputPaths,
 ) -> anyhow::Result<Vec<PathBuf>> {

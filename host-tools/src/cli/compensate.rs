@@ -212,16 +212,9 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
 }
 
 /// The table `calib compensate` writes to `--out` (CSV, one row per target), computed and
-/// written nowhere, with its summary.
-pub fn compensated_table(options: &CompensateOptions) -> anyhow::Result<(Vec<u8>, Summary)> {
-    let file = RobotFile::read(&options.robot)?;
-    let params = RobotFile::read(&options.params)?;
-    compensated_table_of(options, file, params)
-}
-
-/// [`compensated_table`] with the robots already read (the Python package's `compensate`, whose
-/// robots may be built in memory): `file` the nominal robot, `params` the identified one;
-/// `options`' robot paths name them in messages only.
+/// written nowhere, with its summary, from the robots already read (the Python package's
+/// `compensate`, whose robots may be built in memory): `file` the nominal robot, `params` the
+/// identified one; `options`' robot paths name them in messages only.
 pub fn compensated_table_of(
     options: &CompensateOptions,
     file: RobotFile,

@@ -57,10 +57,10 @@ impl InputFiles {
 
 /// Smallest and largest orientation weight `--k` accepted, mm^2/rad^2: beyond them one kind of
 /// row drowns the other in rounding (the paper's 1e6 makes 1 mrad weigh like 1 mm).
-pub const K_RANGE: [f64; 2] = [1e-6, 1e12];
+pub(crate) const K_RANGE: [f64; 2] = [1e-6, 1e12];
 
 /// Parses `--k`, the orientation weight of eq. (7): a number in [`K_RANGE`].
-pub fn orientation_weight(text: &str) -> Result<f64, String> {
+pub(crate) fn orientation_weight(text: &str) -> Result<f64, String> {
     let k: f64 = text
         .trim()
         .parse()

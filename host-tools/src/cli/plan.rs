@@ -300,4 +300,4 @@ fn write(options: &PlanOptions, file: &RobotFile, plan: &Plan) -> anyhow::Result
 }
 
 /// Most candidates `calib plan` takes (the greedy selection's time grows with their number).
-pub const MAX_CANDIDATES: usize = 100_000;
+pub(crate) const MAX_CANDIDATES: usize = 100_000;

@@ -25,9 +25,9 @@ pub enum Input {
 }
 
 /// Default limit of [`Input::Data`], bytes.
-pub const DATA_LIMIT: u64 = 1 << 30;
+pub(crate) const DATA_LIMIT: u64 = 1 << 30;
 /// Default limit of [`Input::Document`], bytes.
-pub const DOCUMENT_LIMIT: u64 = 16 << 20;
+pub(crate) const DOCUMENT_LIMIT: u64 = 16 << 20;
 
 /// The limit set by [`set_limit_mib`], bytes; 0 while the defaults hold.
 static LIMIT: AtomicU64 = AtomicU64::new(0);
@@ -67,7 +67,7 @@ pub fn read(path: &Path, input: Input) -> std::io::Result<Vec<u8>> {
 
 /// The text of the file at `path`, as [`read`]; invalid UTF-8 is an error of kind
 /// [`std::io::ErrorKind::InvalidData`].
-pub fn read_text(path: &Path, input: Input) -> std::io::Result<String> {
+pub(crate) fn read_text(path: &Path, input: Input) -> std::io::Result<String> {
     String::from_utf8(read(path, input)?).map_err(|e| {
         std::io::Error::new(
             std::io::ErrorKind::InvalidData,

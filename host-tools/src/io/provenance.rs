@@ -42,7 +42,7 @@ impl InputFile {
 
 /// The SHA-256 of the file at `path` as 64 lowercase hexadecimal digits, read in blocks (a data
 /// file may be large).
-pub fn sha256_hex(path: &Path) -> crate::Result<String> {
+pub(crate) fn sha256_hex(path: &Path) -> crate::Result<String> {
     use crate::error::Context as _;
     let read = || -> std::io::Result<String> {
         let mut file = std::fs::File::open(path)?;

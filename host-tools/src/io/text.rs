@@ -36,7 +36,7 @@ pub fn one_line(text: &str) -> Cow<'_, str> {
 
 /// `text` for an XML attribute value or element text: [`one_line`], then `&`, `<`, `>`, `"`
 /// and `'` as entities. The value reads back as the one-line text.
-pub fn xml_attribute(text: &str) -> String {
+pub(crate) fn xml_attribute(text: &str) -> String {
     one_line(text)
         .replace('&', "&amp;")
         .replace('<', "&lt;")
@@ -47,7 +47,7 @@ pub fn xml_attribute(text: &str) -> String {
 
 /// `text` inside an XML comment: [`xml_attribute`]'s escapes, and a space between two hyphens
 /// (a comment may not hold `--`) and after a final one (nor end in `-` before `-->`).
-pub fn xml_comment(text: &str) -> String {
+pub(crate) fn xml_comment(text: &str) -> String {
     let escaped = xml_attribute(text);
     let mut out = String::with_capacity(escaped.len());
     for c in escaped.chars() {

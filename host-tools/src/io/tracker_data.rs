@@ -121,7 +121,7 @@ pub struct Record {
 }
 
 /// The air temperatures a `temperature_c` column may hold, deg C.
-pub const TEMPERATURE_C: std::ops::RangeInclusive<f64> = -40.0..=80.0;
+pub(crate) const TEMPERATURE_C: std::ops::RangeInclusive<f64> = -40.0..=80.0;
 
 /// A pose's role in a measurement plan (`calib plan`; the `role` column of a data file).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
@@ -340,7 +340,7 @@ impl TrackerData {
 
     /// Reads a tracker's export of measured points through a data profile: positions (and
     /// orientations) required, joints optional (a robot log merged in), for `calib merge`.
-    pub fn read_measured(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
+    pub(crate) fn read_measured(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
         let text = read_text(path)?;
         Self::parse_with(&text, path, Needs::Targets, profile)
     }

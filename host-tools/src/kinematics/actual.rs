@@ -77,7 +77,7 @@ impl ActualRobot {
     }
 
     /// The probe or reflector identified with this robot's model (`[measurement] flange_tool`).
-    pub fn identified_probe(&self) -> Option<&crate::io::robot_file::FrameEntry> {
+    pub(crate) fn identified_probe(&self) -> Option<&crate::io::robot_file::FrameEntry> {
         self.file
             .measurement
             .as_ref()
@@ -86,7 +86,7 @@ impl ActualRobot {
 
     /// The kinematic angles (rad) of the joint readings `readings` (rad): the readings with each
     /// joint's map added; the readings themselves without maps.
-    pub fn kinematic_angles(&self, readings: &JointVec<f64>) -> JointVec<f64> {
+    pub(crate) fn kinematic_angles(&self, readings: &JointVec<f64>) -> JointVec<f64> {
         match &self.maps {
             Some(maps) => maps.apply(readings),
             None => *readings,

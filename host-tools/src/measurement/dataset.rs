@@ -211,7 +211,7 @@ impl Dataset {
     /// the kinematic angles of that geometry. Commands that fit or check the geometry of a model
     /// with compliance use it (the deflection depends on the geometry only to second order: a few
     /// tenths of a millimetre times its relative change).
-    pub fn seen_by_geometry<'a>(
+    pub(crate) fn seen_by_geometry<'a>(
         &'a self,
         robot: &'a ActualRobot,
         errors: &calib_core::ParameterErrors<f64, Dyn>,
@@ -242,7 +242,7 @@ impl Dataset {
 
     /// The poses as the robot file they were checked against sees them ([`Self::seen_by`] the
     /// given robot).
-    pub fn as_given(&self) -> crate::Result<Seen<'_>> {
+    pub(crate) fn as_given(&self) -> crate::Result<Seen<'_>> {
         self.seen_by(&self.robot)
     }
 

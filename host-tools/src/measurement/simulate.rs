@@ -42,7 +42,7 @@ pub const REALISTIC_TRACKER: FrameEntry = FrameEntry {
 pub const REALISTIC_REFLECTOR_MM: [f64; 3] = [0.0, 60.0, 137.4773];
 
 /// Most poses one simulation writes: 10 million (1.6 GB of CSV).
-pub const MAX_POSES: usize = 10_000_000;
+pub(crate) const MAX_POSES: usize = 10_000_000;
 
 /// What to simulate. `Default` is the paper's section 3.1: Table 2 errors, 32 exact 6-DoF poses
 /// uniform in [-180, 180] deg, in the base frame, seed 1.
@@ -210,7 +210,7 @@ impl Simulated {
     }
 
     /// As [`Self::write`], refusing to replace any of `inputs` (each named by its flag).
-    pub fn write_beside(
+    pub(crate) fn write_beside(
         &self,
         data: &Path,
         truth: &Path,
