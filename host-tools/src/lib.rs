@@ -23,8 +23,22 @@
 //! - [`report`]: the text and HTML reports and their plots;
 //! - [`cli`]: the `calib` commands, thin layers over the above.
 //!
-//! A folder uses only folders listed before it; `.ci/check-module-cycles` fails on a cycle
-//! between folders or between the files of one folder.
+//! A folder uses only folders listed before it; `.ci/check-module-cycles` fails when one uses a
+//! folder listed after it, and on a cycle between the files of one folder.
+//!
+//! A calibration ([`calibration::calibrate`]) reads the data once into a
+//! [`measurement::dataset::Dataset`] and passes the model of the robot
+//! ([`kinematics::actual::ActualRobot`]) from stage to stage, each taking one and returning the
+//! one it found; a stage sees the poses through its model ([`measurement::dataset::Seen`]: the
+//! joint maps added to the readings, the compliance taken off the measured poses). Where each
+//! stage lives: the frames in `measurement/frames.rs` ([`measurement::frames::prepare`]); the
+//! selection of the parameters in `calibration/mod.rs` ([`calibration::select_parameters`], on
+//! the analysis of `analysis/identifiability.rs`); the solve (swarm and least squares, the
+//! compliance held) in `calibration/mod.rs`, its swarm run by `runtime/swarm_team.rs`; the
+//! cross-validation in `calibration/cross_validation.rs`; the joint maps in
+//! `calibration/maps.rs` and `calibration/maps/evidence.rs`; the held-out accuracy in
+//! `analysis/accuracy.rs`, `analysis/uncertainty.rs` and `analysis/workspace.rs`; the
+//! plausibility in `calibration/plausibility.rs`.
 #![deny(missing_docs)]
 
 /// The joint count of the models defined for 6R arms only: gravity compliance (the gains of
