@@ -7,7 +7,7 @@ use crate::measurement::dataset::{Dataset, Seen};
 
 use calib_core::identify::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability, Status};
 use calib_core::identify::lm::LeastSquares;
-use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, Problem};
+use calib_core::{Kinematics, Parameter, ParameterMask};
 use nalgebra::DVector;
 use nalgebra::Dyn;
 use serde::Serialize;
@@ -318,13 +318,7 @@ pub(crate) fn analyse(
             dataset.rows()
         ));
     }
-    let problem = Problem::new(
-        &dataset.robot.model.robot,
-        &ParameterErrors::zeros_for(dataset.robot.model.robot.joint_count()),
-        set,
-        dataset.measurements(),
-        k,
-    )?;
+    let problem = dataset.problem(set, k)?;
     let set = problem.set();
     let least_squares = LeastSquares::new(&problem);
     let r = least_squares.jacobian_factor(&set.zeros());

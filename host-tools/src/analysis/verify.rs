@@ -165,13 +165,7 @@ fn run(
         crate::analysis::identifiability::analyse(calibration, mask, k)?.condition_number;
     let settings = LmSettings::default();
     // f64 core.
-    let problem = Problem::new(
-        &calibration.robot.model.robot,
-        &ParameterErrors::zeros_for(calibration.robot.model.robot.joint_count()),
-        set.clone(),
-        calibration.measurements(),
-        k,
-    )?;
+    let problem = calibration.problem(set.clone(), k)?;
     let least_squares = LeastSquares::new(&problem);
     let x64 = least_squares
         .solve(&set.zeros(), &settings)

@@ -7,7 +7,7 @@
 use super::CalibrationConfig;
 use crate::measurement::dataset::Seen;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
-use calib_core::{Kinematics, ParameterErrors, ParameterSet, Problem};
+use calib_core::{Kinematics, ParameterSet};
 use nalgebra::Dyn;
 use serde::Serialize;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -71,14 +71,7 @@ pub fn cross_validate(
         // a fold costs 9 bytes per pose, not the measurements again.
         let held = crate::measurement::dataset::mask(n, &held);
         let robot = &dataset.robot.model.robot;
-        let problem = Problem::new(
-            robot,
-            &ParameterErrors::zeros_for(robot.joint_count()),
-            set.clone(),
-            dataset.measurements(),
-            config.k,
-        )
-        .ok()?;
+        let problem = dataset.problem(set.clone(), config.k).ok()?;
         let least_squares = LeastSquares::new(&problem).leaving_out(&held);
         let mut weights = vec![1.0; n];
         let x = least_squares

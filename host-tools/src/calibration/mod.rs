@@ -486,13 +486,7 @@ fn solve(
     mut frames: FramesReport,
 ) -> crate::Result<CalibrationResult> {
     let set = crate::model::counts::solvable_set(&selection.mask)?;
-    let problem = Problem::new(
-        &dataset.robot.model.robot,
-        &ParameterErrors::zeros_for(dataset.robot.model.robot.joint_count()),
-        set,
-        dataset.measurements(),
-        config.k,
-    )?;
+    let problem = dataset.problem(set, config.k)?;
     let set = problem.set();
     let objective = Objective::new(&problem);
     let zero = set.zeros();

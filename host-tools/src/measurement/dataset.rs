@@ -59,6 +59,24 @@ impl Seen<'_> {
         rows(&self.measurements)
     }
 
+    /// The core's identification problem on these poses: the parameters of `set` of this
+    /// model's geometry, the others at zero error; `k` weights orientation, mm^2/rad^2 (eq. 7).
+    pub fn problem(
+        &self,
+        set: calib_core::ParameterSet<Dyn, Dyn>,
+        k: f64,
+    ) -> crate::Result<calib_core::Problem<'_, f64, Dyn, Dyn>> {
+        let robot = &self.robot.model.robot;
+        let zero = calib_core::ParameterErrors::zeros_for(robot.joint_count());
+        Ok(calib_core::Problem::new(
+            robot,
+            &zero,
+            set,
+            &self.measurements,
+            k,
+        )?)
+    }
+
     /// The data as this geometry sees them: each record's joint readings replaced by the
     /// kinematic angles of its measurement (the joint maps added, in (-pi, pi]), its pose by the
     /// measured pose the measurement holds (the compliance taken off, when it was). For the

@@ -749,14 +749,7 @@ fn fit_frames(
     k: f64,
 ) -> crate::Result<calib_core::ParameterErrors<f64, Dyn>> {
     let set = calib_core::ParameterSet::<Dyn, nalgebra::Dyn>::from_mask(mask)?;
-    let problem = calib_core::Problem::new(
-        &inputs.robot.model.robot,
-        &calib_core::ParameterErrors::zeros_for(inputs.robot.model.robot.joint_count()),
-        set,
-        inputs.measurements(),
-        k,
-    )
-    .context("fitting the frames")?;
+    let problem = inputs.problem(set, k).context("fitting the frames")?;
     let set = problem.set();
     let least_squares = calib_core::identify::lm::LeastSquares::new(&problem);
     let result = least_squares
