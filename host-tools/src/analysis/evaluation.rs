@@ -4,7 +4,7 @@
 //! changed. Poses used to fit the frames can be kept out of the statistics.
 
 use crate::kinematics::actual::ActualRobot;
-use crate::measurement::dataset::{Dataset, Seen};
+use crate::measurement::dataset::Dataset;
 use crate::measurement::frames::{Frames, FramesReport};
 use crate::measurement::statistics::{Table3, table3};
 use calib_core::Kinematics;
@@ -75,12 +75,8 @@ pub fn evaluate(
         // they do not absorb it.
         let zero = calib_core::ParameterErrors::zeros_for(robot.model.robot.joint_count());
         let without = fitting.seen_by_geometry(&robot, &zero)?;
-        let again = Seen {
-            robot: &setup,
-            data: without.data,
-            measurements: without.measurements,
-        };
-        let (refitted, report, _) = crate::measurement::frames::prepare(frames, &again, k)?;
+        let (refitted, report, _) =
+            crate::measurement::frames::prepare(frames, &without.for_robot(&setup), k)?;
         let seen = evaluated
             .seen_by_geometry(&robot, &zero)?
             .measurements

@@ -132,11 +132,7 @@ fn reflector_on_last_axis(
     let on_axis = flange.forward(&q)?.inverse_transform_point(&centre.into());
     let mut projected_robot = dataset.robot.clone();
     projected_robot.model.robot.tool.xyz = [on_axis.x, on_axis.y, on_axis.z];
-    let projected = Seen {
-        robot: &projected_robot,
-        ..dataset.clone()
-    };
-    let analysis = analyse(&projected, mask, k)?;
+    let analysis = analyse(&dataset.for_robot(&projected_robot), mask, k)?;
     if analysis.undetermined.is_empty() {
         return Ok(None);
     }

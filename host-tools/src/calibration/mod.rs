@@ -128,10 +128,11 @@ pub fn calibrate(
     let (robot, mut frames_report, mask) =
         crate::measurement::frames::prepare(frames, &dataset.seen_by(&setup)?, config.k)?;
     let mask = identified_mask(mask, frames, config)?;
-    let selection = select_parameters(&dataset.seen_by(&robot)?, mask, config)?;
+    let seen = dataset.seen_by(&robot)?;
+    let selection = select_parameters(&seen, mask, config)?;
     let held = match probe.as_ref().filter(|_| frames.tool()) {
         Some(stored) => crate::measurement::frames::hold_dropped_probe_parameters(
-            &dataset.seen_by(&robot)?,
+            &seen,
             (&selection.dropped, &selection.mask),
             stored,
             config.k,

@@ -56,7 +56,21 @@ impl Seen<'_> {
 
     /// Number of residual rows: 6 per full pose, 3 per position-only pose.
     pub fn rows(&self) -> usize {
-        rows(&self.measurements)
+        self.measurements
+            .iter()
+            .map(|m| if m.rotation.is_some() { 6 } else { 3 })
+            .sum()
+    }
+
+    /// These poses as `robot` sees them, a model with the same joint maps and compliance as
+    /// this one and other frames or geometry (a registration's start, the reflector moved): the
+    /// measurements borrowed, not computed again.
+    pub(crate) fn for_robot<'b>(&'b self, robot: &'b ActualRobot) -> Seen<'b> {
+        Seen {
+            robot,
+            data: self.data,
+            measurements: Cow::Borrowed(&self.measurements),
+        }
     }
 
     /// The core's identification problem on these poses: the parameters of `set` of this
@@ -96,14 +110,6 @@ impl Seen<'_> {
         }
         data
     }
-}
-
-/// Number of residual rows of `measurements`: 6 per full pose, 3 per position-only pose.
-fn rows(measurements: &[Measurement<f64, Dyn>]) -> usize {
-    measurements
-        .iter()
-        .map(|m| if m.rotation.is_some() { 6 } else { 3 })
-        .sum()
 }
 
 impl Dataset {
@@ -160,7 +166,7 @@ impl Dataset {
         }
         let mut readings = Vec::with_capacity(data_file.records.len());
         for r in &data_file.records {
-            let q = JointVec::<f64>::from_fn(r.q.len(), |i| r.q[i]);
+            let q = joint_readings(r);
             for (i, (qi, limits)) in q.iter().zip(&actual.model.robot.limits).enumerate() {
                 if !limits.contains(*qi) {
                     return Err(crate::refused!(
@@ -175,9 +181,7 @@ impl Dataset {
                     ));
                 }
             }
-            let m = Measurement::new(&q, Vector3::from(r.position), r.rotation, r.weight)
-                .with_context(|| format!("{}:{}", data.display(), r.line))?;
-            readings.push(m);
+            readings.push(measured_at(data, r, &q)?);
         }
         let dataset = Self {
             robot: actual,
@@ -203,19 +207,9 @@ impl Dataset {
                 measurements: Cow::Borrowed(&self.readings),
             });
         };
-        let mut measurements = Vec::with_capacity(self.readings.len());
-        for r in &self.data.records {
-            let q = JointVec::<f64>::from_fn(r.q.len(), |j| r.q[j]);
-            measurements.push(
-                Measurement::new(
-                    &maps.apply(&q),
-                    Vector3::from(r.position),
-                    r.rotation,
-                    r.weight,
-                )
-                .with_context(|| format!("{}:{}", self.data.path.display(), r.line))?,
-            );
-        }
+        let measurements = (self.data.records.iter())
+            .map(|r| measured_at(&self.data.path, r, &maps.apply(&joint_readings(r))))
+            .collect::<crate::Result<_>>()?;
         Ok(Seen {
             robot,
             data: &self.data,
@@ -234,28 +228,27 @@ impl Dataset {
         robot: &'a ActualRobot,
         errors: &calib_core::ParameterErrors<f64, Dyn>,
     ) -> crate::Result<Seen<'a>> {
-        let mut seen = self.seen_by(robot)?;
-        let Some(compliance) = &robot.compliance else {
-            return Ok(seen);
-        };
-        let measurements = seen.measurements.to_mut();
-        for (m, r) in measurements.iter_mut().zip(&self.data.records) {
-            let q = JointVec::<f64>::from_fn(r.q.len(), |j| r.q.get(j).copied().unwrap_or(0.0));
-            let angles = robot.kinematic_angles(&q);
-            let columns = crate::model::compliance::columns(
-                &compliance.gravity,
-                &robot.model.robot,
-                errors,
-                &angles,
-            )?;
-            let d = crate::model::compliance::displacement(&columns, &compliance.gains);
-            m.position -= Vector3::new(d[0], d[1], d[2]);
-            if let Some(rotation) = m.rotation.as_mut() {
-                *rotation =
-                    nalgebra::Rotation3::new(-Vector3::new(d[3], d[4], d[5])).matrix() * *rotation;
-            }
+        if robot.compliance.is_none() {
+            return self.seen_by(robot);
         }
-        Ok(seen)
+        let mut measurements = Vec::with_capacity(self.readings.len());
+        for r in &self.data.records {
+            let angles = robot.kinematic_angles(&joint_readings(r));
+            let mut m = measured_at(&self.data.path, r, &angles)?;
+            if let Some(d) = robot.deflection(&robot.model.robot, errors, &angles)? {
+                m.position -= Vector3::new(d[0], d[1], d[2]);
+                if let Some(rotation) = m.rotation.as_mut() {
+                    *rotation = nalgebra::Rotation3::new(-Vector3::new(d[3], d[4], d[5])).matrix()
+                        * *rotation;
+                }
+            }
+            measurements.push(m);
+        }
+        Ok(Seen {
+            robot,
+            data: &self.data,
+            measurements: Cow::Owned(measurements),
+        })
     }
 
     /// The poses as the robot file they were checked against sees them ([`Self::seen_by`] the
@@ -333,11 +326,22 @@ impl Dataset {
             readings: Vec::with_capacity(capacity),
         }
     }
+}
 
-    /// Number of residual rows: 6 per full pose, 3 per position-only pose.
-    pub fn rows(&self) -> usize {
-        rows(&self.readings)
-    }
+/// The joint readings of the record `r` (rad).
+fn joint_readings(r: &Record) -> JointVec<f64> {
+    JointVec::<f64>::from_fn(r.q.len(), |j| r.q[j])
+}
+
+/// The core measurement of the record `r` of the data file `data` at the joint angles `angles`
+/// (rad: its readings, or its kinematic angles); an error names the file and line.
+fn measured_at(
+    data: &Path,
+    r: &Record,
+    angles: &JointVec<f64>,
+) -> crate::Result<Measurement<f64, Dyn>> {
+    Measurement::new(angles, Vector3::from(r.position), r.rotation, r.weight)
+        .with_context(|| format!("{}:{}", data.display(), r.line))
 }
 
 /// `true` at each of `indices` (those below `len`), `false` elsewhere: a mask, not

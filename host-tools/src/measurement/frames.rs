@@ -522,10 +522,7 @@ fn with_fitted_frames(
     let registered_robot = inputs
         .robot
         .with_frames(registered.clone(), registered_model);
-    let fitted_inputs = Seen {
-        robot: &registered_robot,
-        ..inputs.clone()
-    };
+    let fitted_inputs = inputs.for_robot(&registered_robot);
     let frame_parameters = frame_mask.count();
     if !(1..=12).contains(&frame_parameters) {
         return Err(crate::refused!(
