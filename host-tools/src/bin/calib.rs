@@ -146,8 +146,16 @@ fn compensate(options: &host_tools::cli::compensate::CompensateOptions) -> anyho
     } else {
         String::new()
     };
+    let moves = match &summary.largest_move {
+        Some((id, joint, deg)) => format!(
+            ", {} with a joint moved by more than {} deg from the given joints (near a singularity; largest: target {id}, joint {joint} by {deg:.3} deg)",
+            summary.large_moves,
+            host_tools::kinematics::compensate::LARGE_MOVE_DEG
+        ),
+        None => String::new(),
+    };
     host_tools::cli::print_line(format_args!(
-        "compensated {} of {} targets ({} refused, see the status column{extrapolated}); wrote {}",
+        "compensated {} of {} targets ({} refused, see the status column{extrapolated}{moves}); wrote {}",
         summary.ok,
         summary.ok + summary.failed,
         summary.failed,

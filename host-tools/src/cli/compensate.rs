@@ -33,9 +33,11 @@ pub struct CompensateOptions {
     /// unless --targets-frame says otherwise.
     #[arg(long, value_name = "FILE")]
     pub targets: PathBuf,
-    /// The frame of the targets: the robot's base, or the tracker's (the cell's, as measured),
-    /// mapped into the base frame through the registration identified with the --params file
-    /// (its `[measurement]` section's `tracker_base`).
+    /// The frame of the targets: the robot's base (the robot file's DH base), the tracker's (the
+    /// cell's, as measured), mapped into the base frame through the registration identified with
+    /// the --params file (its `[measurement]` section's `tracker_base`), or a UR pendant's base
+    /// (`ur-base`: the DH base turned by 180 deg about z, x and y negated; poses copied from a UR
+    /// pendant or URScript's get_actual_tcp_pose are in it).
     #[arg(long, value_enum, default_value_t = TargetsFrame::Base)]
     pub targets_frame: TargetsFrame,
     /// The targets are a robot program's joint targets (CSV: q1_deg..qN_deg, optional id, such as
@@ -78,6 +80,37 @@ pub struct CompensateOptions {
     /// on (counted in the summary) instead of refusing them.
     #[arg(long)]
     pub allow_extrapolation: bool,
+    /// On a 7-joint arm (numerical inverse kinematics), the largest change of the arm angle (the
+    /// elbow's turn about the shoulder-wrist line) from the posture or the given joints, deg; a
+    /// solution beyond it is another configuration and refused. The configuration joints (on the
+    /// iiwa 2, 4 and 6) always keep the posture's side of zero.
+    #[arg(long, value_name = "DEG", default_value_t = crate::kinematics::configuration::DEFAULT_MAX_ARM_ANGLE_DEG,
+          value_parser = arm_angle_bound)]
+    pub max_arm_angle_deg: f64,
+    /// On a robot without a closed form (numerical inverse kinematics), the largest distance of
+    /// any joint from the posture (--near-deg) or the given joints, deg; a solution beyond it is
+    /// refused as another configuration.
+    #[arg(long, value_name = "DEG", default_value_t = crate::kinematics::configuration::DEFAULT_MAX_JOINT_DISTANCE_DEG,
+          value_parser = joint_distance_bound)]
+    pub near_within_deg: f64,
+}
+
+/// `--near-within-deg`: a finite angle from 0 to 360 deg.
+fn joint_distance_bound(text: &str) -> Result<f64, String> {
+    let v: f64 = text.parse().map_err(|e| format!("{e}"))?;
+    if !(0.0..=360.0).contains(&v) {
+        return Err(format!("{v} deg: give 0 to 360 deg"));
+    }
+    Ok(v)
+}
+
+/// `--max-arm-angle-deg`: a finite angle from 0 to 180 deg.
+fn arm_angle_bound(text: &str) -> Result<f64, String> {
+    let v: f64 = text.parse().map_err(|e| format!("{e}"))?;
+    if !(0.0..=180.0).contains(&v) {
+        return Err(format!("{v} deg: give 0 to 180 deg"));
+    }
+    Ok(v)
 }
 
 impl CompensateOptions {
@@ -109,6 +142,10 @@ impl CompensateOptions {
             configuration_is_default: self.near_deg.is_none() && self.branch.is_none(),
             map_ranges,
             allow_extrapolation: self.allow_extrapolation,
+            bounds: crate::kinematics::configuration::ConfigurationBounds {
+                max_arm_angle_rad: self.max_arm_angle_deg.to_radians(),
+                max_joint_distance_rad: self.near_within_deg.to_radians(),
+            },
         })
     }
 }
@@ -120,6 +157,9 @@ pub enum TargetsFrame {
     Base,
     /// The laser tracker's frame: the cell as measured.
     Tracker,
+    /// A Universal Robots controller's base frame, as the pendant shows poses: the DH base of the
+    /// robot file (ur_description's `base_link`) turned by 180 deg about z (x and y negated).
+    UrBase,
 }
 
 /// Maps targets given in the tracker's frame into the robot's base frame through the registration
@@ -325,17 +365,30 @@ fn inputs(
     params: &RobotFile,
 ) -> anyhow::Result<(TrackerData, CompensationSettings<f64>)> {
     let mut targets = if options.joint_targets {
-        if options.targets_frame == TargetsFrame::Tracker {
+        if options.targets_frame != TargetsFrame::Base {
             bail!(
-                "--joint-targets: the targets are the nominal poses of the joints, in the base frame; drop --targets-frame tracker"
+                "--joint-targets: the targets are the nominal poses of the joints, in the base frame; drop --targets-frame"
             );
         }
         nominal_poses_of(nominal, &options.targets)?
     } else {
         TrackerData::read_targets(&options.targets)?
     };
-    if options.targets_frame == TargetsFrame::Tracker {
-        targets_into_base(&mut targets, (params, &options.params), &options.targets)?;
+    match options.targets_frame {
+        TargetsFrame::Tracker => {
+            targets_into_base(&mut targets, (params, &options.params), &options.targets)?;
+        }
+        TargetsFrame::UrBase => {
+            // The pendant's base is the DH base turned by a half turn about z.
+            let half_turn =
+                nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(-1.0, -1.0, 1.0));
+            for record in &mut targets.records {
+                let [x, y, z] = record.position;
+                record.position = [-x, -y, z];
+                record.rotation = record.rotation.map(|r| half_turn * r);
+            }
+        }
+        TargetsFrame::Base => {}
     }
     if targets.rows_without_orientation() {
         bail!(

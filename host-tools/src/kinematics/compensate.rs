@@ -2,8 +2,8 @@
 //! that put the actual (identified) robot on it, started from the controller's nominal joints:
 //! given, or the nominal inverse kinematics, in closed form on a branch where the structure allows
 //! (spherical wrist, UR-type offset wrist), numerical otherwise
-//! ([`calib_core::controller::numerical_ik`], from the middle of the joint limits, up to
-//! [`NUMERICAL_STARTS`] solutions). Where that fails or the nominal robot cannot reach the target
+//! ([`calib_core::controller::numerical_ik`] from the caller's posture: the first solution in the
+//! posture's configuration, [`super::configuration`]). Where that fails or the nominal robot cannot reach the target
 //! (within mm of a workspace boundary or singularity, where the two robots part ways), the
 //! identified robot is solved from the nominal (or nearest) configuration, under the same bounds.
 //! The output's `start` column says which way each row went.
@@ -15,6 +15,7 @@
 //! range of readings; a target whose joints leave a map's range is refused unless extrapolation is
 //! allowed ([`Request`]), and counted.
 
+use super::configuration::{ConfigurationBounds, ConfigurationJoints, PostureConfiguration};
 use crate::error::Context;
 use crate::io::tracker_data::TrackerData;
 use calib_core::controller::compensate::{
@@ -52,7 +53,15 @@ pub struct TargetOutcome {
     /// Whether a joint of the compensated joints lies outside the range of readings its map was
     /// identified on (compensated only when the request allows extrapolation).
     pub extrapolated: bool,
+    /// For a target compensated from the controller's joints (given, or a program's joint
+    /// targets): the joint (0-based) that moves most from them and by how much, rad.
+    pub largest_move: Option<(usize, f64)>,
 }
+
+/// A joint move from the controller's joints above which the summary names the target, deg: a
+/// mm-level correction moves a joint by hundredths of a degree away from singularities; near the
+/// shoulder or wrist singularity by degrees, which the program's author should see.
+pub const LARGE_MOVE_DEG: f64 = 5.0;
 
 /// The arm configuration of targets that carry no joints.
 #[derive(Clone, Debug, PartialEq)]
@@ -79,6 +88,9 @@ pub struct Request {
     pub map_ranges: Vec<Option<[f64; 2]>>,
     /// Compensate targets whose joints leave a map's range (counted) instead of refusing them.
     pub allow_extrapolation: bool,
+    /// On robots without a closed form, how far a solution may be from the posture (or the
+    /// given joints) and stay in its configuration ([`configuration`](super::configuration)).
+    pub bounds: ConfigurationBounds,
 }
 
 impl Request {
@@ -89,12 +101,13 @@ impl Request {
             configuration_is_default: false,
             map_ranges: Vec::new(),
             allow_extrapolation: false,
+            bounds: ConfigurationBounds::default(),
         }
     }
 }
 
 /// Counts of a compensation run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Summary {
     /// Targets compensated.
     pub ok: usize,
@@ -102,16 +115,34 @@ pub struct Summary {
     pub failed: usize,
     /// Targets compensated with a joint outside its map's identified range.
     pub extrapolated: usize,
+    /// Targets compensated from the controller's joints with a joint moved by more than
+    /// [`LARGE_MOVE_DEG`].
+    pub large_moves: usize,
+    /// The largest such move: the target's id, the joint (1-based) and the move, deg.
+    pub largest_move: Option<(String, usize, f64)>,
 }
 
 impl Summary {
     /// The counts of `outcomes`.
     pub fn of(outcomes: &[TargetOutcome]) -> Self {
         let ok = outcomes.iter().filter(|o| o.result.is_ok()).count();
+        let moves = outcomes.iter().filter_map(|o| {
+            let (joint, rad) = o.largest_move.filter(|_| o.result.is_ok())?;
+            (rad.to_degrees() > LARGE_MOVE_DEG).then(|| (o.id.clone(), joint + 1, rad.to_degrees()))
+        });
+        let (mut large_moves, mut largest_move) = (0, None::<(String, usize, f64)>);
+        for m in moves {
+            large_moves += 1;
+            if largest_move.as_ref().is_none_or(|l| m.2 > l.2) {
+                largest_move = Some(m);
+            }
+        }
         Self {
             ok,
             failed: outcomes.len() - ok,
             extrapolated: outcomes.iter().filter(|o| o.extrapolated).count(),
+            large_moves,
+            largest_move,
         }
     }
 }
@@ -158,6 +189,7 @@ pub(crate) fn compensate_targets_of(
                     result: Err("no arm configuration named for this target".to_string()),
                     configuration: String::new(),
                     extrapolated: false,
+                    largest_move: None,
                 };
             };
             let rotation = record.rotation.unwrap_or_else(nalgebra::Matrix3::identity);
@@ -175,16 +207,11 @@ pub(crate) fn compensate_targets_of(
     Ok(outcomes)
 }
 
-/// Most nominal numerical solutions a target without joints is compensated from: when the
-/// compensation from one fails (it lies near a singularity where the actual robot turns away, or
-/// needs a joint beyond its limit), the next seed's solution is tried.
-pub const NUMERICAL_STARTS: usize = 8;
-
 /// Compensates one record: from the controller's joints when the file has them; otherwise from
 /// the nominal inverse kinematics, in closed form on `branch` where the robot's structure has
 /// one (6 joints: spherical or UR-type offset wrist), else numerical from the middle of the joint
-/// limits (each limit taken within one turn of zero), up to [`NUMERICAL_STARTS`] solutions in
-/// seed order. Returns the outcome and where the start came from (empty when none was found).
+/// limits (each limit taken within one turn of zero): the first solution in the posture's
+/// configuration. Returns the outcome and where the start came from (empty when none was found).
 fn compensate_record(
     nominal: &Robot<f64, Dyn>,
     planned: &Kinematics<f64, Dyn>,
@@ -198,9 +225,9 @@ fn compensate_record(
         compensate_target(planned, real, &nominal.limits, target, start, settings)
     };
     let (branch, posture) = match start {
-        Start::Given => return (from(&given_joints(record, nominal)), "given".into()),
-        Start::Numerical(posture) => {
-            return from_numerical_starts(nominal, planned, real, target, posture, settings);
+        Start::Given(_) => return (from(&given_joints(record, nominal)), "given".into()),
+        Start::Numerical(configuration) => {
+            return from_numerical_starts(nominal, planned, real, target, configuration, settings);
         }
         Start::Branch(branch, posture) => (*branch, posture.as_ref()),
     };
@@ -231,24 +258,30 @@ fn compensate_record(
     }
 }
 
-/// Compensates `target` from the nominal robot's numerical inverse kinematics, from `posture`
-/// first, up to [`NUMERICAL_STARTS`] solutions in seed order; where none works, the identified
-/// robot is solved from the first start (or the posture). Returns the outcome and where the
+/// Compensates `target` from the nominal robot's numerical inverse kinematics in the posture's
+/// `configuration`: the first nominal solution in that configuration, from the posture first,
+/// then in seed order (solutions in another configuration are passed over; once one in the
+/// configuration is found, no other is sought: a later seed's solution would be another arm
+/// configuration the test does not tell, such as joints 1 and 3 trading half a turn near the
+/// shoulder's alignment). Where its compensation fails, the identified robot is solved from it
+/// under the bounds (or from the posture when none was found). Returns the outcome and where the
 /// start came from.
 fn from_numerical_starts(
     nominal: &Robot<f64, Dyn>,
     planned: &Kinematics<f64, Dyn>,
     real: &impl ActualRobot<f64, Dyn>,
     target: &Pose,
-    posture: &JointVec<f64>,
+    configuration: &PostureConfiguration,
     settings: &CompensationSettings<f64>,
 ) -> (Result<Compensated<f64, Dyn>, String>, String) {
-    let reference = *posture;
+    let reference = configuration.posture;
     // The first failure: its error, method and start.
     let mut first: Option<(String, String, JointVec<f64>)> = None;
+    // The first nominal solution passed over, and why.
+    let mut elsewhere: Option<String> = None;
     let mut not_found = None;
     let mut seed = 0;
-    for _ in 0..NUMERICAL_STARTS {
+    while first.is_none() {
         let start = match numerical_inverse_kinematics_from_seed(
             planned,
             &nominal.limits,
@@ -263,6 +296,11 @@ fn from_numerical_starts(
                 break;
             }
         };
+        seed = start.seed.saturating_add(1);
+        if let Some(why) = configuration.departure(planned, &start.q) {
+            elsewhere.get_or_insert(format!("seed {}: {why}", start.seed));
+            continue;
+        }
         let method = format!("numerical, seed {}", start.seed);
         match compensate_target(planned, real, &nominal.limits, target, &start.q, settings) {
             Ok(c) => return (Ok(c), method),
@@ -270,7 +308,6 @@ fn from_numerical_starts(
                 first.get_or_insert((e, method, start.q));
             }
         }
-        seed = start.seed.saturating_add(1);
     }
     let (from_planned, planned_start) = match &first {
         Some((_, _, q)) => (true, *q),
@@ -285,12 +322,43 @@ fn from_numerical_starts(
         from_planned,
         settings,
     );
-    match (fallback, first, not_found) {
-        (Ok((c, m)), Some((_, method, _)), _) => (Ok(c), format!("{method}; {m}")),
-        (Ok((c, m)), None, _) => (Ok(c), m),
-        (Err(_), Some((error, method, _)), _) => (Err(error), method),
-        (Err(_), None, Some(e)) => (Err(e), String::new()),
-        (Err(e), None, None) => (Err(e), String::new()),
+    // A fallback from the posture itself may land in another configuration: refused here, with
+    // the reason the nominal solutions gave.
+    let fallback = fallback.and_then(|(c, m)| match configuration.departure(planned, &c.q) {
+        Some(why) if !from_planned => Err(format!("on the identified robot: {why}")),
+        _ => Ok((c, m)),
+    });
+    let first = first.map(|(error, method, _)| (error, method));
+    numerical_outcome(fallback, first, (elsewhere, not_found), configuration)
+}
+
+/// The outcome of [`from_numerical_starts`]: the fallback's result, or the first nominal
+/// solution's refusal (`first`: its error and method), or why no nominal solution was found in
+/// the configuration (`elsewhere`: the first found outside it; `not_found`: the search's error).
+fn numerical_outcome(
+    fallback: Result<(Compensated<f64, Dyn>, String), String>,
+    first: Option<(String, String)>,
+    (elsewhere, not_found): (Option<String>, Option<String>),
+    configuration: &PostureConfiguration,
+) -> (Result<Compensated<f64, Dyn>, String>, String) {
+    match (fallback, first) {
+        (Ok((c, m)), Some((_, method))) => (Ok(c), format!("{method}; {m}")),
+        (Ok((c, m)), None) => (Ok(c), format!("numerical, the posture; {m}")),
+        (Err(_), Some((error, method))) => (Err(error), method),
+        (Err(e), None) => {
+            let found = match (elsewhere, not_found) {
+                (Some(why), _) => {
+                    format!("the nominal robot's solutions are in another configuration ({why})")
+                }
+                (None, Some(e)) => e,
+                (None, None) => e,
+            };
+            let within = configuration.describe();
+            (
+                Err(format!("no solution in {within}: {found}")),
+                String::new(),
+            )
+        }
     }
 }
 
@@ -370,12 +438,14 @@ fn branch_distances(
 
 /// Where the nominal start of targets without their own joints comes from.
 enum Start {
-    /// Every target has the controller's joints.
-    Given,
+    /// Every target has the controller's joints; for a robot without a closed form, its
+    /// configuration joints (the compensated joints keep the given joints' configuration).
+    Given(Option<ConfigurationJoints>),
     /// The closed-form branch, with the posture whose configuration it is (whole turns toward it).
     Branch(usize, Option<JointVec<f64>>),
-    /// The numerical inverse kinematics from this posture (robots without a closed form).
-    Numerical(JointVec<f64>),
+    /// The numerical inverse kinematics from this posture, in its configuration (robots without
+    /// a closed form).
+    Numerical(Box<PostureConfiguration>),
 }
 
 impl Start {
@@ -439,7 +509,9 @@ impl Start {
                     targets.path.display()
                 ));
             }
-            return Ok(Self::Given);
+            let joints = (!has_closed_form(nominal))
+                .then(|| ConfigurationJoints::of(planned, &nominal.limits));
+            return Ok(Self::Given(joints));
         }
         match &request.configuration {
             None => Err(crate::refused!(
@@ -472,7 +544,15 @@ impl Start {
                     ));
                 }
                 match branches_of(nominal, planned, posture) {
-                    None => Ok(Self::Numerical(*posture)),
+                    None => PostureConfiguration::of(
+                        planned,
+                        ConfigurationJoints::of(planned, &nominal.limits),
+                        *posture,
+                        request.bounds,
+                        true,
+                    )
+                    .map(|c| Self::Numerical(Box::new(c)))
+                    .map_err(|e| crate::refused!("--near-deg: {e}")),
                     Some(branches) => match branches.first() {
                         Some(branch) => Ok(Self::Branch(*branch, Some(*posture))),
                         None => Err(crate::refused!(
@@ -515,22 +595,22 @@ fn checked(
         result,
         configuration: String::new(),
         extrapolated: false,
+        largest_move: None,
     };
     let Ok(compensated) = &outcome.result else {
         return outcome;
     };
-    let asked = match start {
-        Start::Given => branches_of(nominal, planned, &given_joints(record, nominal)),
-        Start::Branch(branch, _) => Some(vec![*branch]),
-        Start::Numerical(_) => None,
-    };
-    let (configuration, refusal) = configuration_of(
+    if let Start::Given(_) = start {
+        outcome.largest_move = largest_move(&compensated.q, &given_joints(record, nominal));
+    }
+    let (configuration, refusal) = configuration_against_start(
         settings,
         nominal,
         planned,
-        &compensated.q,
+        record,
         start,
-        asked.as_deref(),
+        request,
+        &compensated.q,
     );
     outcome.configuration = configuration;
     let outside = outside_map_range(request, &compensated.q);
@@ -553,6 +633,55 @@ fn checked(
         outcome.configuration.clear();
     }
     outcome
+}
+
+/// The joint (0-based) of `q` that moves most from `from`, and by how much (rad).
+fn largest_move(q: &JointVec<f64>, from: &JointVec<f64>) -> Option<(usize, f64)> {
+    q.iter()
+        .zip(from)
+        .map(|(q, g)| (q - g).abs())
+        .enumerate()
+        .fold(None, |m: Option<(usize, f64)>, (j, d)| match m {
+            Some((_, best)) if best >= d => m,
+            _ => Some((j, d)),
+        })
+}
+
+/// The configuration of the compensated joints `q` as the output states it, and the refusal when
+/// it is not the one asked for: the branch, the given joints' (by branch on closed-form robots,
+/// by [`PostureConfiguration`] on the others) or the posture's.
+fn configuration_against_start(
+    settings: &CompensationSettings<f64>,
+    nominal: &Robot<f64, Dyn>,
+    planned: &Kinematics<f64, Dyn>,
+    record: &crate::io::tracker_data::Record,
+    start: &Start,
+    request: &Request,
+    q: &JointVec<f64>,
+) -> (String, Option<String>) {
+    match start {
+        Start::Numerical(posture) => numerical_configuration(planned, posture, q),
+        Start::Given(Some(joints)) => {
+            let given = PostureConfiguration::of(
+                planned,
+                joints.clone(),
+                given_joints(record, nominal),
+                request.bounds,
+                false,
+            );
+            match given {
+                Ok(given) => numerical_configuration(planned, &given, q),
+                Err(e) => (String::new(), Some(e)),
+            }
+        }
+        Start::Given(None) => {
+            let asked = branches_of(nominal, planned, &given_joints(record, nominal));
+            configuration_of(settings, nominal, planned, q, start, asked.as_deref())
+        }
+        Start::Branch(branch, _) => {
+            configuration_of(settings, nominal, planned, q, start, Some(&[*branch]))
+        }
+    }
 }
 
 /// The arm configuration of the compensated joints `q` as the output states it, and the
@@ -586,7 +715,7 @@ fn configuration_of(
                 "the compensated joints are in another arm configuration (branch {}) than {} (branch {}): refused, as the robot would move through the workspace another way",
                 list(reached),
                 match start {
-                    Start::Given => "the given joints",
+                    Start::Given(_) => "the given joints",
                     _ => "asked for",
                 },
                 list(asked)
@@ -604,10 +733,37 @@ fn configuration_of(
             ),
             _ => format!("branch {}", list(b)),
         },
-        (None, Start::Given) => "from the given joints".into(),
+        (None, Start::Given(_)) => "from the given joints".into(),
         (None, _) => "near the posture".into(),
     };
     (configuration, refusal)
+}
+
+/// The configuration of joints `q` on a robot without a closed form as the output states it (the
+/// posture's), and the refusal when they are in another one.
+fn numerical_configuration(
+    planned: &Kinematics<f64, Dyn>,
+    posture: &PostureConfiguration,
+    q: &JointVec<f64>,
+) -> (String, Option<String>) {
+    let refusal = posture.departure(planned, q).map(|why| {
+        format!(
+            "the compensated joints are in another arm configuration than {}: {why}; refused, as the robot would move through the workspace another way",
+            posture.describe()
+        )
+    });
+    (posture.describe(), refusal)
+}
+
+/// Whether the nominal robot has a closed-form inverse kinematics (6 joints, a spherical or
+/// UR-type offset wrist).
+fn has_closed_form(nominal: &Robot<f64, Dyn>) -> bool {
+    as_six(nominal).is_some_and(|six| {
+        !matches!(
+            inverse_kinematics(&six, &Pose::identity()),
+            Err(IkError::UnsupportedGeometry)
+        )
+    })
 }
 
 /// The first joint of `q` outside the readings its map was identified on: (joint, reading,

@@ -4,4 +4,5 @@
 
 pub mod actual;
 pub mod compensate;
+pub mod configuration;
 pub mod fk;
