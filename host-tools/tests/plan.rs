@@ -1078,7 +1078,9 @@ fn a_plan_rehearsed_by_simulation_calibrates_with_its_verification_held_out() {
         "program corrected: {compensated} of {} poses, worst miss of the identified robot {worst:.2e} mm",
         plan.records.len()
     );
-    assert!(compensated >= 50 && worst < 2e-3, "{compensated} {worst}");
+    // 47 of 55 with the plan above the base's mounting plane (issue 52; 52 before, with 26 of
+    // the poses below it): the refused ones lie within degrees of a singularity.
+    assert!(compensated >= 45 && worst < 2e-3, "{compensated} {worst}");
     // A program's joints outside the nominal limits, and joint targets said to be in the
     // tracker's frame, are refused; nothing written.
     std::fs::write(
@@ -1258,5 +1260,230 @@ fn merge_by_time_pairs_each_logged_pose_with_the_point_measured_then() {
         assert_eq!(out.status.code(), Some(1), "{stderr}");
         assert!(stderr.contains(says), "{says}: {stderr}");
         assert!(!d.join("measured.csv").exists());
+    }
+}
+
+/// Issue 52 (V8, V10): the URScript's speed, acceleration and settle time are bounded by what a
+/// controller accepts (no 301-digit literal in a program), and refused without `--urscript`,
+/// which alone uses them; nothing is written either way.
+#[test]
+fn urscript_settings_are_bounded_and_need_urscript() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("plan.csv");
+    let script = dir.path().join("plan.script");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "plan",
+            "--robot",
+            ROBOT,
+            "--generate",
+            "100",
+            "--poses",
+            "20",
+            "--measure",
+            "position",
+            "--noise-mm",
+            "0.02",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        common::calib(&args)
+    };
+    let s = script.to_str().unwrap();
+    for (extra, says) in [
+        (
+            vec!["--urscript", s, "--speed-rad-s", "1e300"],
+            "outside (0, 3.2] rad/s",
+        ),
+        (
+            vec!["--urscript", s, "--speed-rad-s", "0"],
+            "outside (0, 3.2] rad/s",
+        ),
+        (
+            vec!["--urscript", s, "--settle-s", "1e300"],
+            "outside (0, 600] s",
+        ),
+        (
+            vec!["--urscript", s, "--acceleration-rad-s2", "-1"],
+            "outside (0, 40] rad/s^2",
+        ),
+        (vec!["--settle-s", "3"], "--urscript"),
+        (vec!["--speed-rad-s", "0.2"], "--urscript"),
+        (vec!["--acceleration-rad-s2", "0.2"], "--urscript"),
+    ] {
+        let result = run(&extra);
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert!(!result.status.success(), "{extra:?}");
+        assert!(stderr.contains(says), "{extra:?}: {stderr}");
+        assert!(!out.exists() && !script.exists(), "{extra:?}");
+    }
+    let result = run(&["--urscript", s, "--speed-rad-s", "1.0", "--settle-s", "0.5"]);
+    assert!(
+        result.status.success(),
+        "{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    let program = std::fs::read_to_string(&script).unwrap();
+    assert!(program.contains("v=1"), "{program}");
+}
+
+/// Issue 52 (V4): an export whose id column names the plan's poses and contradicts its order
+/// (two neighbours swapped) is refused by `merge --by order`, naming the line, instead of pairing
+/// points with the wrong poses; `--by id` pairs it; an export in plan order passes `--by order`.
+#[test]
+fn merge_by_order_checks_the_ids_it_has() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let path = |name: &str| d.join(name).to_str().unwrap().to_string();
+    common::ok(&common::calib(&[
+        "plan",
+        "--robot",
+        ROBOT,
+        "--generate",
+        "200",
+        "--poses",
+        "20",
+        "--measure",
+        "pose",
+        "--noise-mm",
+        "0.05",
+        "--out",
+        &path("plan.csv"),
+    ]));
+    common::ok(&common::calib(&[
+        "simulate",
+        "--robot",
+        ROBOT,
+        "--joints-from",
+        &path("plan.csv"),
+        "--errors",
+        "random",
+        "--out",
+        &path("tracker.csv"),
+        "--truth-out",
+        &path("truth.toml"),
+    ]));
+    let merge = |measured: &str, by: &str| {
+        common::calib(&[
+            "merge",
+            "--plan",
+            &path("plan.csv"),
+            "--measured",
+            &path(measured),
+            "--by",
+            by,
+            "--out",
+            &path("merged.csv"),
+        ])
+    };
+    common::ok(&merge("tracker.csv", "order"));
+    // Rows 3 and 4 of the export swapped (lines: comments, header, then the rows).
+    let text = std::fs::read_to_string(d.join("tracker.csv")).unwrap();
+    let mut lines: Vec<&str> = text.lines().collect();
+    let first = lines.iter().position(|l| !l.starts_with('#')).unwrap() + 1;
+    lines.swap(first + 2, first + 3);
+    std::fs::write(d.join("swapped.csv"), lines.join("\n") + "\n").unwrap();
+    std::fs::remove_file(d.join("merged.csv")).unwrap();
+    let refused = merge("swapped.csv", "order");
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success());
+    assert!(
+        stderr.contains(&format!("swapped.csv:{}:", first + 3)) && stderr.contains("merge --by id"),
+        "{stderr}"
+    );
+    assert!(!d.join("merged.csv").exists());
+    common::ok(&merge("swapped.csv", "id"));
+}
+
+/// Issue 52 (V7): `merge --by time` takes a robot log without joint columns (`time_s,id`, as help
+/// and USAGE say) and ISO 8601 timestamps, as tracker software writes them, in the log and the
+/// export; every planned pose gets the point measured 0.2 s after the log says the robot stood
+/// there (checked by its measured position, the simulated export's own row).
+#[test]
+fn merge_by_time_takes_a_log_without_joints_and_iso_8601_times() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let path = |name: &str| d.join(name).to_str().unwrap().to_string();
+    common::ok(&common::calib(&[
+        "plan",
+        "--robot",
+        ROBOT,
+        "--generate",
+        "200",
+        "--poses",
+        "20",
+        "--measure",
+        "pose",
+        "--noise-mm",
+        "0.05",
+        "--out",
+        &path("plan.csv"),
+    ]));
+    common::ok(&common::calib(&[
+        "simulate",
+        "--robot",
+        ROBOT,
+        "--joints-from",
+        &path("plan.csv"),
+        "--errors",
+        "random",
+        "--out",
+        &path("tracker.csv"),
+        "--truth-out",
+        &path("truth.toml"),
+    ]));
+    let plan = TrackerData::read_joints(&d.join("plan.csv"), &DataProfile::default()).unwrap();
+    let stamp = |i: usize, extra_ds: usize| {
+        let tenths = i * 100 + extra_ds;
+        format!(
+            "2026-11-27T10:{:02}:{:02}.{}Z",
+            tenths / 600,
+            (tenths / 10) % 60,
+            tenths % 10
+        )
+    };
+    let mut log = String::from("time_s,id\n");
+    for (i, r) in plan.records.iter().enumerate() {
+        log.push_str(&format!("{},{}\n", stamp(i, 0), r.id));
+    }
+    std::fs::write(d.join("log.csv"), log).unwrap();
+    // The export: the simulated rows in plan order with a time column 0.2 s after the log's.
+    let text = std::fs::read_to_string(d.join("tracker.csv")).unwrap();
+    let mut export = String::new();
+    let mut row = 0;
+    for line in text.lines() {
+        if line.starts_with('#') {
+            continue;
+        }
+        if export.is_empty() {
+            export.push_str(&format!("{line},time_s\n"));
+        } else {
+            export.push_str(&format!("{line},{}\n", stamp(row, 2)));
+            row += 1;
+        }
+    }
+    assert_eq!(row, plan.records.len());
+    std::fs::write(d.join("export.csv"), export).unwrap();
+    common::ok(&common::calib(&[
+        "merge",
+        "--plan",
+        &path("plan.csv"),
+        "--measured",
+        &path("export.csv"),
+        "--by",
+        "time",
+        "--robot-log",
+        &path("log.csv"),
+        "--out",
+        &path("merged.csv"),
+    ]));
+    let merged = TrackerData::read_with(&d.join("merged.csv"), &DataProfile::default()).unwrap();
+    let simulated =
+        TrackerData::read_with(&d.join("tracker.csv"), &DataProfile::default()).unwrap();
+    assert_eq!(merged.records.len(), plan.records.len());
+    for (m, s) in merged.records.iter().zip(&simulated.records) {
+        assert_eq!(m.id, s.id);
+        assert_eq!(m.position, s.position);
     }
 }

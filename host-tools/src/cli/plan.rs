@@ -62,7 +62,8 @@ pub struct PlanOptions {
     /// repeatability together (unmodelled errors act as more noise).
     #[arg(long, value_name = "MM", required_unless_present = "noise_from")]
     pub noise_mm: Option<f64>,
-    /// Noise of each measured orientation axis, 1 sigma, deg (--measure pose). Default: the
+    /// Noise of each measured orientation axis, 1 sigma, deg (--measure pose; refused with
+    /// position). Default: the
     /// position noise over sqrt(k), the ratio the fit's weight k assumes.
     #[arg(long, value_name = "DEG", requires = "noise_mm")]
     pub noise_deg: Option<f64>,
@@ -92,21 +93,60 @@ pub struct PlanOptions {
     /// the planned order).
     #[arg(long, value_name = "FILE")]
     pub joint_targets: Option<PathBuf>,
-    /// URScript: time the robot stands still at each pose for the tracker, s.
-    #[arg(long, default_value_t = 2.0)]
+    /// Generate candidates with the tool below the base's mounting plane too (z < 0 mm in the
+    /// base frame; a robot mounted on a wall or ceiling, or reaching below its pedestal). By
+    /// default --generate keeps the tool above it (z >= 0), unless --box-mm states the workspace.
+    #[arg(long, conflicts_with = "box_mm")]
+    pub below_base: bool,
+    /// URScript: time the robot stands still at each pose for the tracker, s (above 0, at most 600).
+    #[arg(long, default_value_t = 2.0, requires = "urscript", allow_hyphen_values = true, value_parser = settle_time)]
     pub settle_s: f64,
-    /// URScript: joint speed of the moves, rad/s.
-    #[arg(long, default_value_t = 0.5)]
+    /// URScript: joint speed of the moves, rad/s (above 0, at most 3.2: a UR wrist joint reaches pi).
+    #[arg(long, default_value_t = 0.5, requires = "urscript", allow_hyphen_values = true, value_parser = joint_speed)]
     pub speed_rad_s: f64,
-    /// URScript: joint acceleration of the moves, rad/s^2.
-    #[arg(long, default_value_t = 0.5)]
+    /// URScript: joint acceleration of the moves, rad/s^2 (above 0, at most 40).
+    #[arg(long, default_value_t = 0.5, requires = "urscript", allow_hyphen_values = true, value_parser = joint_acceleration)]
     pub acceleration_rad_s2: f64,
+}
+
+/// A number of `text` within `(low, high]` in `unit`, for the URScript's settings: what a
+/// controller accepts, no 301-digit literal in a program.
+fn within(text: &str, (low, high): (f64, f64), unit: &str) -> Result<f64, String> {
+    let v: f64 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("\"{text}\" is not a number"))?;
+    if v > low && v <= high {
+        Ok(v)
+    } else {
+        Err(format!("{v} {unit} is outside ({low}, {high}] {unit}"))
+    }
+}
+
+/// `--settle-s`: above 0, at most 600 s.
+fn settle_time(text: &str) -> Result<f64, String> {
+    within(text, (0.0, 600.0), "s")
+}
+
+/// `--speed-rad-s`: above 0, at most 3.2 rad/s (a UR wrist joint reaches 180 deg/s, pi rad/s).
+fn joint_speed(text: &str) -> Result<f64, String> {
+    within(text, (0.0, 3.2), "rad/s")
+}
+
+/// `--acceleration-rad-s2`: above 0, at most 40 rad/s^2.
+fn joint_acceleration(text: &str) -> Result<f64, String> {
+    within(text, (0.0, 40.0), "rad/s^2")
 }
 
 impl PlanOptions {
     /// The noise levels (mm per position coordinate, deg per orientation axis): the flags, or
     /// the residuals of the report of --noise-from.
     fn noise(&self) -> anyhow::Result<(f64, f64)> {
+        if self.measure == Measure::Position && self.noise_deg.is_some() {
+            bail!(
+                "--noise-deg is the noise of a measured orientation, and --measure position measures none: drop it, or --measure pose"
+            );
+        }
         let weighted = |mm: f64| (mm / self.k.sqrt()).to_degrees();
         match (&self.noise_mm, &self.noise_from) {
             (Some(mm), _) => Ok((*mm, self.noise_deg.unwrap_or_else(|| weighted(*mm)))),
@@ -183,7 +223,16 @@ fn candidates(options: &PlanOptions, file: &RobotFile) -> anyhow::Result<Vec<(St
         }
         (None, Some(count)) => {
             let box_mm = match options.box_mm.as_deref() {
-                None => None,
+                None if options.below_base => None,
+                // The half space above the mounting plane.
+                None => Some([
+                    f64::NEG_INFINITY,
+                    f64::INFINITY,
+                    f64::NEG_INFINITY,
+                    f64::INFINITY,
+                    0.0,
+                    f64::INFINITY,
+                ]),
                 Some(&[a, b, c, d, e, f]) => {
                     if !(a < b && c < d && e < f) {
                         bail!("--box-mm: each minimum must be below its maximum");
@@ -208,12 +257,43 @@ fn candidates(options: &PlanOptions, file: &RobotFile) -> anyhow::Result<Vec<(St
     Ok(candidates)
 }
 
-/// `calib plan`: plans, writes the plan (and the report) together, returns the plan.
+/// `calib plan`: plans, writes the plan (and the report) together, returns the plan. Warns on
+/// standard error when a planned pose puts the tool below the base's mounting plane.
 pub fn plan(options: &PlanOptions) -> anyhow::Result<Plan> {
     let file = RobotFile::read(&options.robot)?;
     let plan = planned(options, &file)?;
     write(options, &file, &plan)?;
+    if let Some(warning) = below_base(options, &file, &plan)? {
+        eprintln!("{warning}");
+    }
     Ok(plan)
+}
+
+/// The warning for planned poses whose tool point lies below the base's mounting plane (z < 0
+/// mm in the base frame): how many, the lowest, and what to do; `None` when there are none.
+fn below_base(
+    options: &PlanOptions,
+    file: &RobotFile,
+    plan: &Plan,
+) -> anyhow::Result<Option<String>> {
+    let kinematics = calib_core::Kinematics::nominal(&file.to_model(&options.robot)?.robot)?;
+    let mut below = Vec::new();
+    for pose in &plan.poses {
+        let q = calib_core::model::JointVec::from_slice(&pose.q)
+            .ok_or_else(|| anyhow::anyhow!("more than 9 joints"))?;
+        let z = kinematics.forward(&q)?.translation.vector.z;
+        if z < 0.0 {
+            below.push((pose.id.as_str(), z));
+        }
+    }
+    let Some((id, z)) = below.iter().copied().min_by(|a, b| a.1.total_cmp(&b.1)) else {
+        return Ok(None);
+    };
+    Ok(Some(format!(
+        "warning: {} of the {} planned poses put the tool below the base's mounting plane (z < 0 mm in the base frame; lowest: {id} at {z:.0} mm), and the robot program goes there: make sure the cell has room, or plan above it (--generate keeps z >= 0 unless --below-base; --box-mm states the workspace)",
+        below.len(),
+        plan.poses.len()
+    )))
 }
 
 /// The plan `calib plan` makes for the robot `file` (read from `options.robot`), written nowhere

@@ -100,7 +100,7 @@ pub fn generate(
             out.len(),
             box_mm
                 .map(|b| format!(
-                    "x {} ... {}, y {} ... {}, z {} ... {}",
+                    "x {} ... {}, y {} ... {}, z {} ... {} (unbounded sides: inf)",
                     b[0], b[1], b[2], b[3], b[4], b[5]
                 ))
                 .unwrap_or_default()

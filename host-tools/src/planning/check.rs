@@ -41,12 +41,28 @@ impl PlanCheck {
         })
     }
 
+    /// Where the measured mean lies against the prediction's 95 % range, in words: `below the
+    /// range (better than predicted: ...)`, `within the range` or `above the range`.
+    pub fn verdict(&self) -> &'static str {
+        verdict(
+            self.measured_mean_mm,
+            self.predicted.low_mm,
+            self.predicted.high_mm,
+        )
+    }
+
     /// Text for people.
     pub fn text(&self) -> String {
         let p = &self.predicted;
         let mut out = format!(
-            "plan check: {} verification poses, measured mean position error {:.4} mm; the plan predicted {:.4} mm (95 % range {:.4} ... {:.4} mm, noise {:.4} mm)\n",
-            self.poses, self.measured_mean_mm, p.mean_mm, p.low_mm, p.high_mm, p.noise_mm
+            "plan check: {} verification poses, measured mean position error {:.4} mm; the plan predicted {:.4} mm (95 % range {:.4} ... {:.4} mm, noise {:.4} mm): {}\n",
+            self.poses,
+            self.measured_mean_mm,
+            p.mean_mm,
+            p.low_mm,
+            p.high_mm,
+            p.noise_mm,
+            self.verdict()
         );
         if self.gap {
             out.push_str(&format!(
@@ -118,5 +134,19 @@ pub(crate) fn check_plan(
         largest_leverage,
         largest_residual,
         leverage_note,
+    }
+}
+
+/// Where a measured mean error (mm) lies against a predicted 95 % range `[low, high]` (mm), in
+/// words. Below it the model did better than the plan predicted: the noise level the plan assumed
+/// (or the errors it expected) was larger than this measurement's, and the prediction says little
+/// about this measurement's accuracy beyond that it is no worse.
+pub(crate) fn verdict(measured: f64, low: f64, high: f64) -> &'static str {
+    if measured > high {
+        "above the range"
+    } else if measured < low {
+        "below the range (better than predicted: the plan assumed more noise or larger errors than this measurement had)"
+    } else {
+        "within the range"
     }
 }

@@ -33,7 +33,7 @@ mod tour;
 use self::{candidates::*, design::*, information::*, prediction::*, tour::*};
 pub use candidates::generate;
 pub use check::PlanCheck;
-pub(crate) use check::check_plan;
+pub(crate) use check::{check_plan, verdict};
 pub use prediction::{Prediction, leverages};
 
 use crate::analysis::identifiability::analyse;
