@@ -75,6 +75,14 @@ pub struct Coverage {
     pub max_model_rms_mm: f64,
     /// The pose of that largest predicted error: its data file's line.
     pub max_model_rms_line: u64,
+    /// What the band is made of: the noise's share of its variance (`3 sigma^2` against the
+    /// parameters' `trace(J S J^T)`), mean over the poses, %. Near 100 the band holds through
+    /// the noise term, and says little about the model's own uncertainty.
+    pub noise_share_percent: f64,
+    /// How well the parameters' per-pose prediction ranks the poses: Spearman's rank correlation
+    /// of the predicted RMS error with the measured error (1: the largest predicted are the
+    /// largest measured; near 0: no ranking). `None` for fewer than 3 poses.
+    pub rank_correlation: Option<f64>,
     /// The predicted RMS position error from the parameters alone of every pose, in order, mm
     /// (in the JSON report as `per_pose.validation_predicted_rms_mm`).
     #[serde(skip)]
@@ -104,8 +112,10 @@ pub(crate) fn coverage(
     let mut inside = 0;
     let (mut sum, mut max, mut max_line, mut noise_sum) = (0.0, 0.0, 0, 0.0);
     let mut model_rms_mm = Vec::with_capacity(poses.len());
+    let (mut measured, mut noise_share) = (Vec::with_capacity(poses.len()), 0.0);
     for (angles, error, line, noise_mm) in poses {
         noise_sum += *noise_mm;
+        measured.push(error.norm());
         let (position, _) = pose_covariance(kinematics, set, covariance, angles);
         let rms = position.trace().max(0.0).sqrt();
         model_rms_mm.push(rms);
@@ -113,6 +123,8 @@ pub(crate) fn coverage(
         if rms > max {
             (max, max_line) = (rms, *line);
         }
+        let noise_variance = 3.0 * noise_mm * noise_mm;
+        noise_share += noise_variance / (position.trace().max(0.0) + noise_variance).max(1e-300);
         let band = position + Matrix3::identity() * (noise_mm * noise_mm);
         let inside_band = band
             .cholesky()
@@ -130,8 +142,47 @@ pub(crate) fn coverage(
         mean_model_rms_mm: sum / poses.len() as f64,
         max_model_rms_mm: max,
         max_model_rms_line: max_line,
+        noise_share_percent: 100.0 * noise_share / poses.len() as f64,
+        rank_correlation: spearman(&model_rms_mm, &measured),
         model_rms_mm,
     })
+}
+
+/// Spearman's rank correlation of `a` and `b` (the Pearson correlation of their ranks, ties
+/// given their mean rank); `None` for fewer than 3 pairs, unequal lengths or a constant side.
+pub(crate) fn spearman(a: &[f64], b: &[f64]) -> Option<f64> {
+    if a.len() != b.len() || a.len() < 3 {
+        return None;
+    }
+    let ranks = |v: &[f64]| {
+        let mut order: Vec<usize> = (0..v.len()).collect();
+        order.sort_by(|i, j| v[*i].total_cmp(&v[*j]));
+        let mut rank = vec![0.0; v.len()];
+        let mut start = 0;
+        while start < order.len() {
+            let mut end = start + 1;
+            while end < order.len() && v[order[end]] == v[order[start]] {
+                end += 1;
+            }
+            // Ranks start + 1 ..= end share their mean.
+            let mean = (start + 1 + end) as f64 / 2.0;
+            for k in &order[start..end] {
+                rank[*k] = mean;
+            }
+            start = end;
+        }
+        rank
+    };
+    let (ra, rb) = (ranks(a), ranks(b));
+    let n = a.len() as f64;
+    let (ma, mb) = (ra.iter().sum::<f64>() / n, rb.iter().sum::<f64>() / n);
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in ra.iter().zip(&rb) {
+        sab += (x - ma) * (y - mb);
+        saa += (x - ma) * (x - ma);
+        sbb += (y - mb) * (y - mb);
+    }
+    (saa > 0.0 && sbb > 0.0).then(|| sab / (saa * sbb).sqrt())
 }
 
 impl Coverage {
@@ -140,14 +191,34 @@ impl Coverage {
         format!(
             "predicted uncertainty (parameters' covariance, and {:.4} mm of noise per coordinate, {}): the held-out \
              errors lie inside their predicted 95 % band for {:.1} % of {} poses; the parameters alone predict {:.4} mm \
-             RMS on average, at most {:.4} mm (line {})\n",
+             RMS on average, at most {:.4} mm (line {}); {}\n",
             self.noise_mm,
             self.noise_source,
             self.percent_inside_95,
             self.poses,
             self.mean_model_rms_mm,
             self.max_model_rms_mm,
-            self.max_model_rms_line
+            self.max_model_rms_line,
+            self.makeup()
+        )
+    }
+
+    /// What the band is made of and how well the per-pose prediction ranks the poses, in words.
+    pub fn makeup(&self) -> String {
+        format!(
+            "the band is {:.1} % noise and {:.1} % parameters (variance, mean over the poses){}; the per-pose prediction ranks \
+             the measured errors with Spearman correlation {} (1: largest predicted = largest measured; 0: no ranking)",
+            self.noise_share_percent,
+            100.0 - self.noise_share_percent,
+            if self.noise_share_percent > 80.0 {
+                ": it holds through the noise term, not through the model's own uncertainty"
+            } else {
+                ""
+            },
+            self.rank_correlation.map_or_else(
+                || "not computed (fewer than 3 poses)".to_string(),
+                |r| format!("{r:.2}")
+            )
         )
     }
 }
@@ -155,6 +226,23 @@ impl Coverage {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Spearman's correlation against closed forms: 1 for any increasing relation, -1 for a
+    /// decreasing one, and for ranks (1, 2, 3, 4, 5) against (2, 1, 4, 3, 5), with
+    /// `sum d^2 = 4`, `1 - 6 * 4 / (5 * 24) = 0.8`; ties take their mean rank.
+    #[test]
+    fn spearman_matches_closed_forms() {
+        let a = [1.0, 2.0, 3.0, 4.0, 5.0];
+        assert!((spearman(&a, &a.map(|x: f64| x.exp())).unwrap() - 1.0).abs() < 1e-12);
+        assert!((spearman(&a, &a.map(|x| -x * x)).unwrap() + 1.0).abs() < 1e-12);
+        let swapped = [2.0, 1.0, 4.0, 3.0, 5.0];
+        assert!((spearman(&a, &swapped).unwrap() - 0.8).abs() < 1e-12);
+        // Ties: ranks (1.5, 1.5, 3) against (1, 2, 3): Pearson of those, sqrt(3)/2.
+        let r = spearman(&[1.0, 1.0, 2.0], &[1.0, 2.0, 3.0]).unwrap();
+        assert!((r - 3f64.sqrt() / 2.0).abs() < 1e-12, "{r}");
+        assert_eq!(spearman(&[1.0, 1.0, 1.0], &[1.0, 2.0, 3.0]), None);
+        assert_eq!(spearman(&[1.0, 2.0], &[1.0, 2.0]), None);
+    }
 
     /// A closed form: one identified parameter, a translation of the base along x with variance
     /// 4 mm^2, moves every pose's position along x by itself, so the position's covariance is
@@ -268,9 +356,16 @@ impl Significance {
         text
     }
 }
+/// The largest standard deviation of a length parameter a recorded covariance may state, mm: a
+/// calibration that cannot tell a link length within a metre has identified nothing.
+const MAX_SD_MM: f64 = 1000.0;
+
+/// The largest standard deviation of an angle parameter a recorded covariance may state, rad.
+const MAX_SD_RAD: f64 = std::f64::consts::PI;
+
 /// The parameters' covariance a robot file records (`[calibration.covariance]`), checked: every
 /// name a parameter of the robot, in canonical order, the matrix square, finite and symmetric,
-/// its diagonal not negative. Returns the parameter set (in the file's order) and the matrix.
+/// its diagonal not negative and no standard deviation beyond [`MAX_SD_MM`] or [`MAX_SD_RAD`]. Returns the parameter set (in the file's order) and the matrix.
 pub(crate) fn recorded_covariance(
     file: &crate::io::robot_file::RobotFile,
     path: &std::path::Path,
@@ -317,6 +412,18 @@ pub(crate) fn recorded_covariance(
                 "the variance of {} is {}",
                 entry.parameters[i],
                 matrix[(i, i)]
+            )));
+        }
+        let (limit, unit) = if order[i].is_angle() {
+            (MAX_SD_RAD, "rad")
+        } else {
+            (MAX_SD_MM, "mm")
+        };
+        if matrix[(i, i)].sqrt() > limit {
+            return Err(bad(format!(
+                "the standard deviation of {} is {:e} {unit}, beyond any calibration's (at most {limit} {unit}): the file is damaged, or not a calibration's",
+                entry.parameters[i],
+                matrix[(i, i)].sqrt()
             )));
         }
         for j in 0..i {

@@ -274,6 +274,11 @@ impl Default for CalibrationConfig {
 impl CalibrationConfig {
     /// An error naming the first setting out of its range (by its command-line flag).
     pub fn check(&self) -> crate::Result<()> {
+        if self.loss == LossChoice::L2 && self.loss_scale_mm.is_some() {
+            return Err(crate::refused!(
+                "--loss-scale-mm scales a robust loss, and --loss l2 (the default) has none: give --loss huber or cauchy, or drop --loss-scale-mm"
+            ));
+        }
         if !SWARM_SIZES.contains(&self.swarm.particles) {
             return Err(crate::refused!(
                 "--swarm {} is out of range; choose {} to {} particles (paper: 20)",

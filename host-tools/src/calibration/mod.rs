@@ -186,7 +186,12 @@ fn caveats(
         lines: Vec::new(),
     };
     let mut out = Vec::new();
-    if let Some(cv) = result.cross_validation.filter(|cv| cv.worse_than_nominal()) {
+    // A re-registration keeps a geometry identified from other data: the geometry's
+    // cross-validation and the joint ranges of these (registration) poses say nothing of it.
+    let geometry_identified = result.config.identify == Identify::Geometry;
+    if let Some(cv) =
+        (result.cross_validation).filter(|cv| geometry_identified && cv.worse_than_nominal())
+    {
         out.push(whole(
             CaveatKind::CrossValidation,
             format!(
@@ -195,7 +200,7 @@ fn caveats(
             ),
         ));
     }
-    if let Some(v) = validation {
+    if let Some(v) = validation.filter(|_| geometry_identified) {
         let held_out: Vec<Vec<f64>> = v.data.records.iter().map(|r| r.q.clone()).collect();
         let lines: Vec<u64> = v.data.records.iter().map(|r| r.line).collect();
         out.extend(extrapolation(

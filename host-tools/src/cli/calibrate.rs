@@ -48,8 +48,8 @@ pub struct CalibrateOptions {
     /// Loss of the least-squares stage: l2, or huber / cauchy to down-weight outlier poses.
     #[arg(long, value_enum, default_value_t = LossChoice::L2)]
     pub loss: LossChoice,
-    /// Scale of the robust loss, mm of pose residual sqrt(|dp|^2 + k |dr|^2); poses beyond it are
-    /// reported as outliers. Default: estimated from the data, as the median pose residual of a
+    /// Scale of the robust loss (--loss huber or cauchy; refused with l2), mm of pose residual
+    /// sqrt(|dp|^2 + k |dr|^2); poses beyond it are reported as outliers. Default: estimated from the data, as the median pose residual of a
     /// plain least-squares fit plus 3 robust standard deviations (1.4826 times the median absolute
     /// deviation), so that orientation residuals counted in millimetres do not make every pose an
     /// outlier.
@@ -86,8 +86,8 @@ pub struct CalibrateOptions {
     /// statistics on them separately.
     #[arg(long, value_name = "FRACTION", conflicts_with = "holdout")]
     pub validate: Option<f64>,
-    /// Seed of the random hold-out of --validate.
-    #[arg(long, default_value_t = 0)]
+    /// Seed of the random hold-out of --validate (refused without it).
+    #[arg(long, default_value_t = 0, requires = "validate")]
     pub validate_seed: u64,
     /// A separate data file of validation poses.
     #[arg(long, value_name = "FILE")]

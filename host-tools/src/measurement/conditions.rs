@@ -121,14 +121,16 @@ impl MeasurementConditions {
         let payload = self.payload.map_or_else(
             || not_stated("--payload-kg, or [dynamics] tool in the robot file"),
             |p| {
-                format!(
-                    "{} kg ({})",
-                    p.mass_kg,
-                    match p.source {
-                        PayloadSource::Option => "--payload-kg",
-                        PayloadSource::RobotFile => "the robot file's [dynamics] tool",
-                    }
-                )
+                match p.source {
+                    PayloadSource::Option => format!(
+                        "{} kg (given for this measurement, --payload-kg)",
+                        p.mass_kg
+                    ),
+                    PayloadSource::RobotFile => format!(
+                        "assumed {} kg (the robot file's [dynamics] tool, not given for this measurement: --payload-kg states it)",
+                        p.mass_kg
+                    ),
+                }
             },
         );
         let instrument = self.instrument.as_ref().map_or_else(

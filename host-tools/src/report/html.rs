@@ -112,13 +112,32 @@ pub fn render(report: &Value, rendering: &Rendering) -> crate::Result<String> {
             .filter(|a| !a.is_empty())
             .map_or_else(
                 || "-".to_string(),
-                |a| a.iter().map(text).collect::<Vec<_>>().join(" ")
+                |a| a
+                    .iter()
+                    .map(|w| esc(&shell_word(w.as_str().unwrap_or_default())))
+                    .collect::<Vec<_>>()
+                    .join(" ")
             ),
         esc(&rendering.software),
         esc(&rendering.date),
         inputs(&report["inputs"])
     )?;
     Ok(page)
+}
+
+/// One word of a command line as a POSIX shell reads it back: as it is when it holds only
+/// characters no shell treats specially, else in single quotes (a quote inside as `'\''`), so
+/// that the recorded command line can be pasted back (`--accept '95% <= 1 mm'`).
+pub(crate) fn shell_word(word: &str) -> String {
+    let plain = !word.is_empty()
+        && word
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b"@%+=:,./_-".contains(&b));
+    if plain {
+        word.to_string()
+    } else {
+        format!("'{}'", word.replace('\'', "'\\''"))
+    }
 }
 
 /// The input files with their SHA-256 (`inputs`), as a table; nothing when the report has none.
@@ -215,20 +234,27 @@ fn uncertainty(page: &mut String, u: &Value) -> crate::Result<()> {
     }
     writeln!(
         page,
-        "<p>Predicted uncertainty (the parameters' covariance, and {}&nbsp;mm of noise per coordinate {}): the held-out errors lie inside their predicted 95&nbsp;% band for <strong>{}&nbsp;%</strong> of {} poses; the parameters alone predict {}&nbsp;mm RMS on average, at most {}&nbsp;mm (line {}).</p>",
+        "<p>Predicted uncertainty (the parameters' covariance, and {}&nbsp;mm of noise per coordinate {}): the held-out errors lie inside their predicted 95&nbsp;% band for <strong>{}&nbsp;%</strong> of {} poses; the parameters alone predict {}&nbsp;mm RMS on average, at most {}&nbsp;mm (line {}). The band is {}&nbsp;% noise (variance, mean over the poses){}; the per-pose prediction ranks the measured errors with Spearman correlation {} (1: the largest predicted are the largest measured; 0: no ranking).</p>",
         num(&u["noise_mm"], 4),
         text(&u["noise_source"]),
         num(&u["percent_inside_95"], 1),
         text(&u["poses"]),
         num(&u["mean_model_rms_mm"], 4),
         num(&u["max_model_rms_mm"], 4),
-        text(&u["max_model_rms_line"])
+        text(&u["max_model_rms_line"]),
+        num(&u["noise_share_percent"], 1),
+        if u["noise_share_percent"].as_f64().is_some_and(|p| p > 80.0) {
+            ": it holds through the noise term, not through the model's own uncertainty"
+        } else {
+            ""
+        },
+        num(&u["rank_correlation"], 2)
     )?;
     Ok(())
 }
 
-/// The acceptance statement (`acceptance`), when criteria were given: ACCEPTED or NOT ACCEPTED
-/// with each criterion's measured share.
+/// The acceptance statement (`acceptance`), when criteria were given: PASS or FAIL (the words of
+/// the text report) with each criterion's measured share.
 fn acceptance_stamp(page: &mut String, acceptance: &Value) -> crate::Result<()> {
     if let Some(criteria) = acceptance["criteria"].as_array() {
         let pass = acceptance["pass"].as_bool() == Some(true);
@@ -236,7 +262,7 @@ fn acceptance_stamp(page: &mut String, acceptance: &Value) -> crate::Result<()> 
             page,
             "<p class=\"{}\"><strong>{}</strong>: {}</p>",
             if pass { "pass" } else { "fail" },
-            if pass { "ACCEPTED" } else { "NOT ACCEPTED" },
+            if pass { "PASS" } else { "FAIL" },
             criteria
                 .iter()
                 .map(|c| format!(
@@ -297,11 +323,16 @@ fn conditions(page: &mut String, c: &Value) -> crate::Result<()> {
     let payload = if payload.is_null() {
         not_stated("<code>--payload-kg</code>, or <code>[dynamics.tool]</code> in the robot file")
     } else {
-        let source = match payload["source"].as_str() {
-            Some("option") => "--payload-kg",
-            _ => "the robot file's [dynamics] tool",
-        };
-        format!("{}&nbsp;kg ({source})", num(&payload["mass_kg"], 3))
+        match payload["source"].as_str() {
+            Some("option") => format!(
+                "{}&nbsp;kg (given for this measurement, --payload-kg)",
+                num(&payload["mass_kg"], 3)
+            ),
+            _ => format!(
+                "assumed {}&nbsp;kg (the robot file's [dynamics] tool, not given for this measurement: --payload-kg states it)",
+                num(&payload["mass_kg"], 3)
+            ),
+        }
     };
     let i = &c["instrument"];
     let instrument = if i.is_null() {
@@ -352,15 +383,33 @@ fn checks(page: &mut String, report: &Value) -> crate::Result<()> {
             num(&p["mean_mm"], 4),
             num(&p["low_mm"], 4),
             num(&p["high_mm"], 4),
-            if check["gap"] == true {
-                "<strong>above the range</strong>"
-            } else {
-                "within the prediction"
+            match (
+                check["measured_mean_mm"].as_f64(),
+                p["low_mm"].as_f64(),
+                p["high_mm"].as_f64(),
+            ) {
+                (Some(m), Some(low), Some(high)) if m > high => format!(
+                    "<strong>{}</strong>",
+                    crate::planning::verdict(m, low, high)
+                ),
+                (Some(m), Some(low), Some(high)) =>
+                    crate::planning::verdict(m, low, high).to_string(),
+                _ => "-".to_string(),
             }
         )?;
     }
     let cv = &report["cross_validation"];
-    if !cv.is_null() {
+    if report["settings"]["config"]["identify"] == "frames" && !cv.is_null() {
+        // A re-registration: the geometry is the robot file's either way, so the comparison is
+        // the frames' fit against their prediction of new poses, not a model against another.
+        writeln!(
+            page,
+            "<p>Cross-validation of the re-registration ({} folds): poses predicted by the frames fitted without them {}&nbsp;mm mean error, the frames fitted on every pose {}&nbsp;mm (the same geometry, the robot file's). A geometry's cross-validation and the joint ranges of its calibration poses do not apply: the geometry was identified from other data.</p>",
+            text(&cv["folds"]),
+            num(&cv["calibrated_mean_mm"], 4),
+            num(&cv["nominal_mean_mm"], 4)
+        )?;
+    } else if !cv.is_null() {
         let worse = cv["calibrated_mean_mm"].as_f64() > cv["nominal_mean_mm"].as_f64();
         writeln!(
             page,
@@ -438,6 +487,17 @@ fn workspace_regions(page: &mut String, map: &Value) -> crate::Result<()> {
     if !map["worst_predicted"].is_null() {
         rows.push_str(&row(&map["worst_predicted"], "largest predicted"));
     }
+    if rows.is_empty() {
+        // No header over no rows: say why there is no region to name.
+        writeln!(
+            page,
+            "<p>Where the held-out error remains: {} poses in {} regions (terciles of x, y and z in the robot's base frame), none holding the {} poses a worst one is named from.</p>",
+            text(&map["poses"]),
+            map["regions"].as_array().map_or(0, Vec::len),
+            crate::analysis::workspace::MIN_POSES
+        )?;
+        return Ok(());
+    }
     writeln!(
         page,
         "<table>\n<caption>Where the held-out error remains: {} poses in {} regions (terciles of x, y and z in the robot's base frame; the map is under Plots)</caption>\n\
@@ -445,6 +505,41 @@ fn workspace_regions(page: &mut String, map: &Value) -> crate::Result<()> {
         text(&map["poses"]),
         map["regions"].as_array().map_or(0, Vec::len)
     )?;
+    Ok(())
+}
+
+/// The ISO 9283-style figures (`iso9283`): AP, and RP with the largest AP from poses repeated
+/// often enough, or why they are not stated.
+fn iso9283(page: &mut String, iso: &Value) -> crate::Result<()> {
+    if iso.is_null() {
+        page.push_str("<p>ISO 9283 pose accuracy and repeatability: not measured (no held-out pose repeats a commanded pose).</p>\n");
+    } else {
+        let repeatability = if iso["rp_max_mm"].is_null() {
+            format!(
+                "repeatability RP and the largest AP not stated: they need a pose repeated at least {} times (ISO 9283: 30 cycles), and the most here is {}",
+                text(&iso["cycles_needed"]),
+                text(&iso["most_repeats"])
+            )
+        } else {
+            format!(
+                "from the {} groups of at least {} cycles: AP max {}&nbsp;mm; repeatability RP mean {}&nbsp;mm, max {}&nbsp;mm (lines {})",
+                text(&iso["groups_with_cycles"]),
+                text(&iso["cycles_needed"]),
+                num(&iso["ap_max_mm"], 4),
+                num(&iso["rp_mean_mm"], 4),
+                num(&iso["rp_max_mm"], 4),
+                text(&iso["rp_max_lines"])
+            )
+        };
+        writeln!(
+            page,
+            "<p>ISO 9283-style, from {} held-out poses repeated in {} groups (at most {} times; ISO asks for 30 cycles): accuracy AP mean {}&nbsp;mm; {repeatability}.</p>",
+            text(&iso["poses"]),
+            text(&iso["groups"]),
+            text(&iso["most_repeats"]),
+            num(&iso["ap_mean_mm"], 4),
+        )?;
+    }
     Ok(())
 }
 
@@ -494,23 +589,7 @@ fn accuracy(page: &mut String, report: &Value) -> crate::Result<()> {
         named_rows(&held["largest"])
     )?;
     uncertainty(page, &report["uncertainty"])?;
-    let iso = &held["iso9283"];
-    if iso.is_null() {
-        page.push_str("<p>ISO 9283 pose accuracy and repeatability: not measured (no held-out pose repeats a commanded pose).</p>\n");
-    } else {
-        writeln!(
-            page,
-            "<p>ISO 9283-style, from {} held-out poses repeated in {} groups (at most {} times; ISO asks for 30 cycles): accuracy AP mean {}&nbsp;mm, max {}&nbsp;mm; repeatability RP mean {}&nbsp;mm, max {}&nbsp;mm (lines {}).</p>",
-            text(&iso["poses"]),
-            text(&iso["groups"]),
-            text(&iso["most_repeats"]),
-            num(&iso["ap_mean_mm"], 4),
-            num(&iso["ap_max_mm"], 4),
-            num(&iso["rp_mean_mm"], 4),
-            num(&iso["rp_max_mm"], 4),
-            text(&iso["rp_max_lines"])
-        )?;
-    }
+    iso9283(page, &held["iso9283"])?;
     workspace_regions(page, &held["workspace"])?;
     checks(page, report)?;
     let flagged = &held["flagged"];
@@ -793,10 +872,14 @@ fn poses(page: &mut String, report: &Value) -> crate::Result<()> {
 }
 
 fn outliers(page: &mut String, report: &Value) -> crate::Result<()> {
-    page.push_str("<h2 id=\"outliers\">Flagged poses</h2>\n");
+    // "Flagged" is kept for held-out poses of unusual error; these are calibration poses the
+    // robust loss weighed down.
+    page.push_str("<h2 id=\"outliers\">Calibration poses down-weighted as outliers</h2>\n");
     let list = report["outliers"].as_array().map_or(&[][..], Vec::as_slice);
     if list.is_empty() {
-        page.push_str("<p>No pose was flagged as an outlier.</p>\n");
+        page.push_str(
+            "<p>No calibration pose was down-weighted as an outlier (the robust loss kept every weight).</p>\n",
+        );
         return Ok(());
     }
     page.push_str(
@@ -888,5 +971,34 @@ fn flatten(prefix: &str, value: &Value, rows: &mut Vec<(String, String)>) {
             }
         }
         other => rows.push((prefix.to_string(), text(other))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// A recorded command line pasted into a POSIX shell gives back the same words (issue 52:
+    /// `--accept 95% <= 1 mm` was recorded without its quotes).
+    #[test]
+    fn shell_words_read_back_as_the_same_words() {
+        let words = [
+            "calib",
+            "--accept",
+            "95% <= 1 mm",
+            "it's",
+            "",
+            "a\"b$c`d`\\e",
+            "x,y:z/w.csv",
+        ];
+        let line = words.map(super::shell_word).join(" ");
+        let out = std::process::Command::new("sh")
+            .arg("-c")
+            .arg(format!("printf '%s\\n' {line}"))
+            .output()
+            .unwrap();
+        let text = String::from_utf8(out.stdout).unwrap();
+        let back: Vec<&str> = text.strip_suffix('\n').unwrap().split('\n').collect();
+        assert_eq!(back, words);
+        assert_eq!(super::shell_word("--accept"), "--accept");
+        assert_eq!(super::shell_word("95% <= 1 mm"), "'95% <= 1 mm'");
     }
 }
