@@ -214,6 +214,30 @@ fn tracker_data_calibrate_export_compensate_reaches_the_targets() {
         stored < 0.05 && (stored - mean).abs() < 0.01,
         "{stored} {mean}"
     );
+    // Issue 52: the tracker moved since the registration (its stored position 100 mm off): the
+    // refusal says so, and blames no '# frame: base' line (the data have none).
+    let mut moved =
+        host_tools::io::robot_file::RobotFile::read(&d.join("identified.toml")).unwrap();
+    moved.measurement.as_mut().unwrap().tracker_base.xyz_mm[0] += 100.0;
+    std::fs::write(d.join("moved.toml"), moved.to_toml("")).unwrap();
+    let out = calib_in(
+        d,
+        &[
+            "evaluate",
+            "--stored-registration",
+            "--robot",
+            "moved.toml",
+            "--data",
+            "data.csv",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("the tracker (or the robot) moved since that registration")
+            && !stderr.contains("# frame: base"),
+        "{stderr}"
+    );
     for args in [
         &["evaluate", "--fit-frames", "none"][..],
         &["calibrate", "--frames", "none"][..],

@@ -35,7 +35,7 @@ pub struct MergeOptions {
     #[arg(long, value_name = "FILE", requires = "robot_log")]
     pub log_profile: Option<PathBuf>,
     /// For --by time: largest time between a logged pose and the point measured for it, s.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, requires = "robot_log")]
     pub time_tolerance_s: f64,
     /// Largest difference between an export's joint columns (when it has them) and the plan's,
     /// deg.
@@ -64,7 +64,7 @@ pub fn merge(options: &MergeOptions) -> anyhow::Result<Merged> {
         );
     }
     let log = match &options.robot_log {
-        Some(path) => Some(TrackerData::read_joints(
+        Some(path) => Some(TrackerData::read_log(
             path,
             &DataProfile::load(options.log_profile.as_deref())?,
         )?),

@@ -154,6 +154,16 @@ pub fn simulate(options: &Simulation) -> anyhow::Result<usize> {
     file.refuse_compliance(&robot, "calib simulate")?;
     file.refuse_joint_maps(&robot, "calib simulate")?;
     crate::model::counts::joint_count(file.joint.len())?;
+    // Commanded joints within the robot's limits, as fk, evaluate and compensate require.
+    if let (Some(commanded), Some(path)) = (&config.commanded, &options.joints_from) {
+        let model = file.to_model(&robot)?;
+        let joints = model.robot.joints.len();
+        for (id, q) in commanded.iter().filter(|(_, q)| q.len() == joints) {
+            if let Some(outside) = model.outside_limits(q) {
+                anyhow::bail!("{}: configuration {id}: {outside}", path.display());
+            }
+        }
+    }
     let simulated: Simulated = crate::measurement::simulate::simulate(&file, &robot, &config)?;
     let mut inputs = vec![("--robot", robot.as_path())];
     if let Some(path) = &options.joints_from {

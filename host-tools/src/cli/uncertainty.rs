@@ -164,6 +164,13 @@ pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
             file.joint.len()
         );
     }
+    // Joints within the robot's limits, as fk, evaluate and compensate require.
+    let model = file.to_model(&options.params)?;
+    for record in &data.records {
+        if let Some(outside) = model.outside_limits(&record.q) {
+            anyhow::bail!("{}:{}: {outside}", options.joints.display(), record.line);
+        }
+    }
     let q: Vec<Vec<f64>> = data.records.iter().map(|r| r.q.clone()).collect();
     let sds = crate::analysis::uncertainty::at_poses(&file, &options.params, &q)?;
     let positions = nominal_positions(&file, &options.params, &q)?;

@@ -62,7 +62,39 @@ pub fn read(path: &Path, input: Input) -> std::io::Result<Vec<u8>> {
     if bytes.len() as u64 > limit {
         return Err(too_large(None, limit));
     }
+    remember(path, &bytes);
     Ok(bytes)
+}
+
+/// The SHA-256 (64 lowercase hexadecimal digits) of the bytes first read from each path in this
+/// process, as given: what the provenance records, so that it is the hash of the bytes the run
+/// used, not of the file opened again afterwards (piped input would hash empty, a file replaced
+/// during the run its replacement, and a named pipe would block).
+static READ_HASHES: std::sync::Mutex<Vec<(std::path::PathBuf, String)>> =
+    std::sync::Mutex::new(Vec::new());
+
+/// Records the hash of `bytes`, read from `path`, unless that path was read before.
+fn remember(path: &Path, bytes: &[u8]) {
+    use sha2::Digest as _;
+    let mut hashes = READ_HASHES
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    if hashes.iter().any(|(p, _)| p == path) {
+        return;
+    }
+    let digest = sha2::Sha256::digest(bytes);
+    let hex = digest.iter().map(|b| format!("{b:02x}")).collect();
+    hashes.push((path.to_path_buf(), hex));
+}
+
+/// The SHA-256 of the bytes this process first read from `path` (as given), if it read any.
+pub(crate) fn sha256_of_read(path: &Path) -> Option<String> {
+    READ_HASHES
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .iter()
+        .find(|(p, _)| p == path)
+        .map(|(_, h)| h.clone())
 }
 
 /// The text of the file at `path`, as [`read`]; invalid UTF-8 is an error of kind

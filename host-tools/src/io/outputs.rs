@@ -89,7 +89,58 @@ fn exit_removing_temporaries() -> ! {
         let _ = std::fs::remove_file(&path);
         let _ = std::fs::remove_file(path.with_extension("tmp.png"));
     }
+    let scratch = SCRATCH_DIRS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    for dir in scratch.iter() {
+        let _ = std::fs::remove_dir_all(dir);
+    }
     std::process::exit(INTERRUPTED_STATUS)
+}
+
+/// Scratch directories of this process (the PDF's), removed with the temporaries when the
+/// process is interrupted.
+static SCRATCH_DIRS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// A new private directory (mode 0700 on Unix) named `{prefix}-{pid}-{n}` in the system's
+/// temporary directory, removed when an interruption ends the process and when the returned
+/// guard is dropped.
+pub(crate) fn scratch_dir(prefix: &str) -> std::io::Result<ScratchDir> {
+    let base = std::env::temp_dir();
+    let mut list = SCRATCH_DIRS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    for n in 0..1000u32 {
+        let dir = base.join(format!("{prefix}-{}-{n}", std::process::id()));
+        let mut builder = std::fs::DirBuilder::new();
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::DirBuilderExt;
+            builder.mode(0o700);
+        }
+        match builder.create(&dir) {
+            Ok(()) => {
+                list.push(dir.clone());
+                return Ok(ScratchDir(dir));
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Err(std::io::Error::other("no free scratch directory name"))
+}
+
+/// A private scratch directory ([`scratch_dir`]), removed with its content when dropped.
+pub(crate) struct ScratchDir(pub(crate) PathBuf);
+
+impl Drop for ScratchDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+        SCRATCH_DIRS
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .retain(|d| d != &self.0);
+    }
 }
 
 /// [`create_new`], and the file added to the list of temporaries, under that list's lock: an
@@ -322,7 +373,9 @@ fn complete_interrupted_commits(dir: &Path) {
             let _ = std::fs::remove_file(entry.path());
             continue;
         }
-        let journal: Option<Journal> = ours(&entry.path())
+        // A journal names a few paths: a larger file is not one of ours (and is not read).
+        let small = entry.metadata().is_ok_and(|m| m.len() <= MAX_JOURNAL_BYTES);
+        let journal: Option<Journal> = (small && ours(&entry.path()))
             .then(|| std::fs::read(entry.path()).ok())
             .flatten()
             .and_then(|bytes| serde_json::from_slice(&bytes).ok());
@@ -335,9 +388,24 @@ fn complete_interrupted_commits(dir: &Path) {
             );
             continue;
         };
+        // Only the outputs in this folder: a journal found here never replaces a file
+        // elsewhere (each folder of a commit holds its own copy of the journal, and completes
+        // its own outputs when a later run writes there).
+        let here = std::fs::canonicalize(dir).ok();
+        let in_this_folder = |path: &Path| {
+            let parent = match path.parent() {
+                Some(p) if !p.as_os_str().is_empty() => p,
+                _ => Path::new("."),
+            };
+            here.is_some() && std::fs::canonicalize(parent).ok() == here
+        };
         let mut completed = Vec::new();
         for (temporary, target) in &journal.outputs {
-            if ours(temporary) && std::fs::rename(temporary, target).is_ok() {
+            if in_this_folder(temporary)
+                && in_this_folder(target)
+                && ours(temporary)
+                && std::fs::rename(temporary, target).is_ok()
+            {
                 completed.push(target.display().to_string());
             }
         }
@@ -348,11 +416,12 @@ fn complete_interrupted_commits(dir: &Path) {
                 completed.join(", ")
             );
         }
-        for copy in journal.journals.iter().chain([&entry.path()]) {
-            let _ = std::fs::remove_file(copy);
-        }
+        let _ = std::fs::remove_file(entry.path());
     }
 }
+
+/// The largest commit journal read, bytes: a journal names a few paths.
+const MAX_JOURNAL_BYTES: u64 = 1 << 20;
 
 /// Names tried for one output's temporary file before giving up (the others taken by files of
 /// other runs or planted there).
@@ -419,17 +488,6 @@ impl Outputs {
                 Ok(())
             })
         })
-    }
-
-    /// Stages the file that `write` writes at the temporary path it is given (the file exists,
-    /// empty, created by this process: `write` may truncate and fill it).
-    pub(crate) fn stage_with(
-        &mut self,
-        name: &str,
-        path: &Path,
-        write: impl FnOnce(&Path) -> crate::Result<()>,
-    ) -> crate::Result<()> {
-        uninterrupted(|| self.stage_now(name, path, |temporary, _| write(temporary)))
     }
 
     fn stage_now(
@@ -712,7 +770,10 @@ mod tests {
                 }
             }
         }
+        // A run in each folder completes that folder's outputs (issue 52: a journal found in
+        // one folder never replaces a file in another).
         write_atomic(&dir.path().join("sub/z.txt"), b"z").unwrap();
+        write_atomic(&dir.path().join("w.txt"), b"w").unwrap();
         assert_eq!((read(&x), read(&y)), ("new x".into(), "new y".into()));
         assert!(
             leftovers(dir.path()).is_empty(),
@@ -773,6 +834,35 @@ mod tests {
             std::fs::remove_file(&planted).unwrap();
         }
         assert_eq!(read(&dir.path().join("x.json")), "x");
+    }
+
+    /// Issue 52, V2: a journal of our own user in folder D that names a target in folder E,
+    /// with a temporary named as ours beside it, replaces nothing in E when a run writes into D;
+    /// and a journal larger than [`MAX_JOURNAL_BYTES`] is not read (V11).
+    #[test]
+    fn a_journal_completes_only_the_outputs_of_its_own_folder() {
+        let d = tempfile::tempdir().unwrap();
+        let e = tempfile::tempdir().unwrap();
+        let pid = ended_process();
+        let target = e.path().join("t.toml");
+        std::fs::write(&target, "the user's file").unwrap();
+        let temporary = e.path().join(format!(".t.toml.calib-{pid}-0.tmp"));
+        std::fs::write(&temporary, "replacement").unwrap();
+        let journal = Journal {
+            outputs: vec![(temporary.clone(), target.clone())],
+            journals: vec![e.path().join(journal_name(pid))],
+        };
+        let planted = d.path().join(journal_name(pid));
+        std::fs::write(&planted, serde_json::to_string(&journal).unwrap()).unwrap();
+        write_atomic(&d.path().join("x.json"), b"x").unwrap();
+        assert_eq!(read(&target), "the user's file");
+        assert!(temporary.exists());
+        assert_eq!(read(&d.path().join("x.json")), "x");
+        // A journal of 2 MiB: left alone, unread.
+        let large = d.path().join(journal_name(ended_process()));
+        std::fs::write(&large, vec![b' '; 2 << 20]).unwrap();
+        write_atomic(&d.path().join("y.json"), b"y").unwrap();
+        assert!(large.exists());
     }
 
     /// Symbolic links planted at the names of a run's temporaries (issue 39, N2) are never

@@ -22,12 +22,18 @@ pub struct InputFile {
 }
 
 impl InputFile {
-    /// The record of the file at `path`, given with `flag`: its content hashed as it is now.
+    /// The record of the file at `path`, given with `flag`: the hash of the bytes this process
+    /// read from it ([`crate::io::input::read`]), or, for a file it did not read, of its content
+    /// as it is now.
     pub fn of(flag: &str, path: &Path) -> crate::Result<Self> {
+        let sha256 = match crate::io::input::sha256_of_read(path) {
+            Some(hash) => hash,
+            None => sha256_hex(path)?,
+        };
         Ok(Self {
             flag: flag.to_string(),
             path: path.display().to_string(),
-            sha256: sha256_hex(path)?,
+            sha256,
         })
     }
 

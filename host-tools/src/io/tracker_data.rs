@@ -338,6 +338,14 @@ impl TrackerData {
         Self::parse_joints(&text, path, profile)
     }
 
+    /// Reads a robot's log of when it stood at each planned pose (`calib merge --by time`): a time
+    /// column (`time_s`, `time_ms`; numbers or ISO 8601 UTC timestamps), an optional `id`, joint
+    /// columns optional.
+    pub(crate) fn read_log(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
+        let text = read_text(path)?;
+        Self::parse_with(&text, path, Needs::Log, profile)
+    }
+
     /// Reads a tracker's export of measured points through a data profile: positions (and
     /// orientations) required, joints optional (a robot log merged in), for `calib merge`.
     pub(crate) fn read_measured(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
@@ -436,6 +444,9 @@ enum Needs {
     Targets,
     /// Joint configurations: joints; anything else ignored.
     Joints,
+    /// A robot's log for merging by time: its time column, joints optional; anything else
+    /// ignored.
+    Log,
 }
 
 /// The text being parsed and its file, for errors with physical line numbers.
@@ -551,7 +562,7 @@ impl Layout {
         for d in &profile.derived {
             header.push_field(&format!("{} = {}", d.ours, d.describe()));
         }
-        if needs == Needs::Joints {
+        if matches!(needs, Needs::Joints | Needs::Log) {
             for c in &mut columns {
                 if !matches!(
                     c,
@@ -666,6 +677,11 @@ impl Layout {
                     ));
                 }
                 _ => {}
+            }
+            // A time column may hold ISO 8601 timestamps, as tracker software writes them.
+            if let (Column::Time(_), Some(seconds)) = (column, iso_8601_seconds(field)) {
+                record.time_s = Some(seconds);
+                continue;
             }
             let value = number(field, profile.decimal).map_err(at)?;
             match *column {
@@ -842,7 +858,7 @@ fn check_columns(
         .iter()
         .filter(|c| matches!(c, Column::Joint(..)))
         .count();
-    if joints == 0 && needs != Needs::Targets {
+    if joints == 0 && !matches!(needs, Needs::Targets | Needs::Log) {
         return Err(at(None, "no joint columns (q1_deg, q2_deg, ...)".into()));
     }
     for j in 0..joints {
@@ -854,7 +870,7 @@ fn check_columns(
         }
     }
     for axis in ["x", "y", "z"] {
-        if !seen.contains(axis) && needs != Needs::Joints {
+        if !seen.contains(axis) && !matches!(needs, Needs::Joints | Needs::Log) {
             return Err(at(
                 None,
                 format!("missing position column {axis}_mm (or {axis}_m)"),
@@ -862,6 +878,22 @@ fn check_columns(
         }
     }
     Ok(joints)
+}
+
+/// An ISO 8601 (RFC 3339) UTC timestamp as seconds since 1970-01-01 (`2026-11-27T10:15:30.25Z`,
+/// `2026-11-27 10:15:30`, `T` or a space, `Z` or no zone); `None` for anything else.
+fn iso_8601_seconds(field: &str) -> Option<f64> {
+    let field = field.trim();
+    // A plain number is not a timestamp (humantime would not take it either).
+    if !field.contains('-') || !field.contains(':') {
+        return None;
+    }
+    let time = humantime::parse_rfc3339_weak(field).ok()?;
+    Some(
+        time.duration_since(std::time::UNIX_EPOCH)
+            .ok()?
+            .as_secs_f64(),
+    )
 }
 
 impl TrackerData {

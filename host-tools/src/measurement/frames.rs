@@ -698,7 +698,19 @@ pub(crate) fn check_base_frame(dataset: &Seen<'_>) -> crate::Result<()> {
     if !wrong_frame && !units && rms <= BEYOND_GEOMETRIC_ERRORS_MM {
         return Ok(());
     }
-    let likely = if let Some(r) = registered.filter(|_| wrong_frame) {
+    // Data that do not say they are in the base frame, taken there by an option (a stored
+    // registration, `evaluate --stored-registration`, or frames none): no '# frame: base' line
+    // to blame; with a stored registration the tracker or the robot moved since.
+    let taken_as_base = !dataset.data.base_frame;
+    let likely = if let Some(r) = registered.as_ref().filter(|_| wrong_frame && taken_as_base) {
+        format!(
+            "they are in another frame than the one they were taken in: registered anew, the same model fits them to {:.2} mm RMS. \
+             With --stored-registration the tracker (or the robot) moved since that registration: re-register \
+             (calibrate --identify frames), or evaluate with --fit-frames base+tool; otherwise fit the frames \
+             (--frames base+tool, --fit-frames base+tool)",
+            r.rms_mm
+        )
+    } else if let Some(r) = registered.filter(|_| wrong_frame) {
         format!(
             "they are in another frame: registered like tracker data, the same model fits them to {:.2} mm RMS. \
              Use --frames base+tool (calibrate, check, verify) or --fit-frames base+tool (evaluate), and remove a '# frame: base' line from the data, or frame = \"base\" from the profile",

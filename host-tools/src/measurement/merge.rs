@@ -202,6 +202,35 @@ fn pairs_by_time<'a>(
     Ok(out)
 }
 
+/// Refuses an export whose ids name the plan's poses (any of them does) and contradict the
+/// order `--by order` pairs them in (a pose skipped, repeated or measured out of turn). Ids of
+/// the tracker's own, none of them a planned id, say nothing of the order.
+fn ids_agree_with_order(plan: &TrackerData, measured: &TrackerData) -> crate::Result<()> {
+    if !(measured.has_ids && plan.has_ids) {
+        return Ok(());
+    }
+    let planned_ids: std::collections::HashSet<&str> =
+        plan.records.iter().map(|r| r.id.as_str()).collect();
+    if !(measured.records.iter()).any(|p| planned_ids.contains(p.id.as_str())) {
+        return Ok(());
+    }
+    let contradiction = (plan.records.iter().zip(&measured.records))
+        .find(|(planned, point)| planned.id != point.id);
+    match contradiction {
+        Some((planned, point)) => Err(crate::refused!(
+            "{}:{}: the point {} is the planned pose {}'s by order (line {} of {}): the export's ids \
+             contradict its order (a pose skipped, repeated or measured out of turn); merge --by id",
+            measured.path.display(),
+            point.line,
+            point.id,
+            planned.id,
+            planned.line,
+            plan.path.display()
+        )),
+        None => Ok(()),
+    }
+}
+
 /// Each planned pose with its measured point.
 fn pairs<'a, 'b>(
     plan: &'a TrackerData,
@@ -219,6 +248,7 @@ fn pairs<'a, 'b>(
                     plan.records.len()
                 ));
             }
+            ids_agree_with_order(plan, measured)?;
             Ok(plan.records.iter().zip(&measured.records).collect())
         }
         MatchBy::Id => {

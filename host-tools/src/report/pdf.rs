@@ -4,7 +4,7 @@
 //! report has a browser; without one the command says so and writes nothing (the HTML prints to
 //! PDF from any browser). The page's print style sets A4 and keeps tables and plots whole.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 /// The browsers tried, in order.
@@ -20,29 +20,9 @@ pub fn browser() -> Option<&'static str> {
     })
 }
 
-/// A private scratch directory, removed when dropped.
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new() -> std::io::Result<Self> {
-        let base = std::env::temp_dir();
-        for n in 0..1000u32 {
-            let dir = base.join(format!("calib-pdf-{}-{n}", std::process::id()));
-            match std::fs::create_dir(&dir) {
-                Ok(()) => return Ok(Self(dir)),
-                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
-                Err(e) => return Err(e),
-            }
-        }
-        Err(std::io::Error::other("no free scratch directory name"))
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+/// The longest a browser may take to print the page, s: Chromium prints the certificate in about
+/// a second; a browser that hangs (a locked profile, a dialog) is stopped, not waited for.
+pub const PRINT_TIMEOUT_S: u64 = 120;
 
 /// The PDF bytes of the HTML page `html`, printed by a headless Chromium. Refused when none is
 /// installed, or when it writes no PDF (its error output quoted).
@@ -53,31 +33,38 @@ pub fn print(html: &str) -> crate::Result<Vec<u8>> {
              apt-get install chromium), and none was found; write --html and print it to PDF from any browser"
         ));
     };
-    let scratch =
-        Scratch::new().map_err(|e| crate::refused!("cannot make a scratch directory: {e}"))?;
+    print_with(html, browser, PRINT_TIMEOUT_S)
+}
+
+/// [`print`] with the browser command `browser` and a time limit of `timeout_s`.
+fn print_with(html: &str, browser: &str, timeout_s: u64) -> crate::Result<Vec<u8>> {
+    // Private (0700) and removed on every exit, an interruption included: the page may be a
+    // private report's copy.
+    let scratch = crate::io::outputs::scratch_dir("calib-pdf")
+        .map_err(|e| crate::refused!("cannot make a scratch directory: {e}"))?;
     let page = scratch.0.join("report.html");
     let pdf = scratch.0.join("report.pdf");
     std::fs::write(&page, html)
         .map_err(|e| crate::refused!("cannot write {}: {e}", page.display()))?;
-    let out = run(browser, &scratch.0, &page, &pdf)?;
+    let stderr = run(browser, (&scratch.0, &page, &pdf), timeout_s)?;
     let bytes = std::fs::read(&pdf).unwrap_or_default();
     if !bytes.starts_with(b"%PDF-") {
-        return Err(crate::refused!(
-            "{browser} wrote no PDF: {}",
-            String::from_utf8_lossy(&out.stderr).trim()
-        ));
+        return Err(crate::refused!("{browser} wrote no PDF: {}", stderr.trim()));
     }
     Ok(bytes)
 }
 
-/// Runs `browser` headless on `page`, printing it to `pdf` (its profile in `scratch`).
+/// Runs `browser` headless on `page`, printing it to `pdf` (its profile and error output in
+/// `scratch`), for at most `timeout_s`; returns its error output.
 fn run(
     browser: &str,
-    scratch: &Path,
-    page: &Path,
-    pdf: &Path,
-) -> crate::Result<std::process::Output> {
-    Command::new(browser)
+    (scratch, page, pdf): (&Path, &Path, &Path),
+    timeout_s: u64,
+) -> crate::Result<String> {
+    let errors = scratch.join("browser.err");
+    let stderr = std::fs::File::create(&errors)
+        .map_err(|e| crate::refused!("cannot write {}: {e}", errors.display()))?;
+    let mut child = Command::new(browser)
         .args([
             "--headless",
             "--no-sandbox",
@@ -94,6 +81,65 @@ fn run(
         ))
         .arg(format!("--print-to-pdf={}", pdf.display()))
         .arg(format!("file://{}", page.display()))
-        .output()
-        .map_err(|e| crate::refused!("cannot run {browser}: {e}"))
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(stderr)
+        .spawn()
+        .map_err(|e| crate::refused!("cannot run {browser}: {e}"))?;
+    let start = std::time::Instant::now();
+    loop {
+        match child.try_wait() {
+            Ok(Some(_)) => break,
+            Ok(None) if start.elapsed().as_secs() < timeout_s => {
+                std::thread::sleep(std::time::Duration::from_millis(50));
+            }
+            Ok(None) | Err(_) => {
+                let _ = child.kill();
+                let _ = child.wait();
+                return Err(crate::refused!(
+                    "{browser} did not print the page within {timeout_s} s and was stopped; write --html and print it from a browser"
+                ));
+            }
+        }
+    }
+    Ok(std::fs::read_to_string(&errors).unwrap_or_default())
+}
+
+#[cfg(all(test, unix))]
+mod tests {
+    /// Issue 52 (V6): a browser that hangs is stopped after the time limit, and the scratch
+    /// directory holding the page's copy was private (0700) and is gone afterwards. The "browser"
+    /// is a script that notes its page's directory and mode, then sleeps.
+    #[test]
+    fn a_hanging_browser_is_stopped_and_the_private_copy_removed() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let (script, seen) = (dir.path().join("browser"), dir.path().join("seen"));
+        std::fs::write(
+            &script,
+            format!(
+                "#!/bin/sh\nfor a; do case \"$a\" in file://*) p=\"${{a#file://}}\";; esac; done\n\
+                 d=$(dirname \"$p\"); echo \"$d $(stat -c %a \"$d\")\" > '{}'\nexec sleep 30\n",
+                seen.display()
+            ),
+        )
+        .unwrap();
+        std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).unwrap();
+        let start = std::time::Instant::now();
+        let error = super::print_with("<p>private</p>", script.to_str().unwrap(), 1)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            error.contains("did not print the page within 1 s"),
+            "{error}"
+        );
+        assert!(start.elapsed().as_secs() < 10);
+        let seen = std::fs::read_to_string(&seen).unwrap();
+        let (scratch, mode) = seen.trim().rsplit_once(' ').unwrap();
+        assert_eq!(mode, "700");
+        assert!(
+            !std::path::Path::new(scratch).exists(),
+            "{scratch} left behind"
+        );
+    }
 }

@@ -525,29 +525,27 @@ pub(crate) fn stage_plots(
     plots: &PlotData<'_>,
 ) -> crate::Result<()> {
     register_font();
-    // The bitmap backend picks its format from the extension: draw to "<temporary>.png".
+    // Both drawn in memory and staged as bytes: every byte goes through the output's
+    // exclusively created temporary (a drawing backend that opens a path of its own would follow
+    // a link planted at that name).
     macro_rules! both {
         ($name:literal, $size:expr, |$area:ident| $draw:expr) => {{
-            outputs.stage_with("--plot", &dir.join(concat!($name, ".svg")), |t| {
-                let $area = SVGBackend::new(t, $size).into_drawing_area();
+            let mut svg = String::new();
+            {
+                let $area = SVGBackend::with_string(&mut svg, $size).into_drawing_area();
                 $draw?;
                 $area.present().map_err(crate::Error::plot)?;
-                Ok(())
-            })?;
-            outputs.stage_with("--plot", &dir.join(concat!($name, ".png")), |t| {
-                let png = t.with_extension("tmp.png");
-                let drawn = (|| -> crate::Result<()> {
-                    let $area = BitMapBackend::new(&png, $size).into_drawing_area();
-                    $draw?;
-                    $area.present().map_err(crate::Error::plot)?;
-                    Ok(())
-                })();
-                if let Err(e) = drawn.and_then(|()| Ok(std::fs::rename(&png, t)?)) {
-                    let _ = std::fs::remove_file(&png);
-                    return Err(e);
-                }
-                Ok(())
-            })?;
+            }
+            outputs.stage("--plot", &dir.join(concat!($name, ".svg")), svg.as_bytes())?;
+            let (width, height) = $size;
+            let mut rgb = vec![0u8; width as usize * height as usize * 3];
+            {
+                let $area = BitMapBackend::with_buffer(&mut rgb, $size).into_drawing_area();
+                $draw?;
+                $area.present().map_err(crate::Error::plot)?;
+            }
+            let png = png_bytes(&rgb, $size)?;
+            outputs.stage("--plot", &dir.join(concat!($name, ".png")), &png)?;
         }};
     }
     if !plots.history.is_empty() {
@@ -657,4 +655,22 @@ pub(crate) fn svg_plots(
         )?;
     }
     Ok(out)
+}
+
+/// An RGB image of `size` (width, height, pixels) encoded as PNG, in memory.
+fn png_bytes(rgb: &[u8], (width, height): (u32, u32)) -> crate::Result<Vec<u8>> {
+    let mut bytes = Vec::new();
+    let mut encoder = png::Encoder::new(&mut bytes, width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder
+        .write_header()
+        .map_err(|e| crate::Error::plot(e.to_string()))?;
+    writer
+        .write_image_data(rgb)
+        .map_err(|e| crate::Error::plot(e.to_string()))?;
+    writer
+        .finish()
+        .map_err(|e| crate::Error::plot(e.to_string()))?;
+    Ok(bytes)
 }
