@@ -133,7 +133,9 @@ def calibrate(
     robot: Robot, data: Dataset, holdout: Optional[Dataset] = None, **options: Union[str, float, int, bool, Sequence[str]]
 ) -> CalibrationResult:
     """``calib calibrate`` with its options as keyword arguments and the same defaults; Ctrl-C
-    stops it (KeyboardInterrupt) within a swarm generation."""
+    stops it (KeyboardInterrupt) within a swarm generation, where Python receives SIGINT (a
+    process started with SIGINT ignored, as a non-interactive shell starts background jobs, never
+    sees it)."""
 
 def evaluate_json(robot: Robot, data: Dataset, **options: Union[str, float, int, bool]) -> str:
     """``calib evaluate --json`` (the package's ``calib.evaluate`` returns the dict)."""

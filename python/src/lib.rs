@@ -347,9 +347,6 @@ impl Robot {
                 ));
             }
         };
-        // A copy, row after row (whatever the input's memory order: a pandas frame's is often
-        // by column), that no Python thread can change while the GIL is released.
-        let all: Vec<f64> = array.iter().copied().collect();
         let kinematics = host_tools::kinematics::fk::FileKinematics::new(&self.file, &self.path)
             .map_err(|e| py_error(e.into()))?;
         let joints = kinematics.joints();
@@ -360,8 +357,18 @@ impl Robot {
                 self.file.name
             ));
         }
+        // A copy, row after row (whatever the input's memory order: a pandas frame's is often
+        // by column), that no Python thread can change while the GIL is released; it and the
+        // result allocated fallibly (a broadcast array of a billion rows is a MemoryError, not
+        // the end of the interpreter).
+        let mut all = allocated(count.checked_mul(columns), "joints_rad")?;
+        all.extend(array.iter().copied());
+        let cells = allocated(count.checked_mul(16), "the transforms")?;
         let out = py.detach(|| -> Result<Array3<f64>, host_tools::Error> {
-            let mut out = Array3::<f64>::zeros((count, 4, 4));
+            let mut cells = cells;
+            cells.resize(count * 16, 0.0);
+            let mut out = Array3::<f64>::from_shape_vec((count, 4, 4), cells)
+                .map_err(|e| host_tools::Error::Refused(e.to_string()))?;
             for (i, q) in all.chunks_exact(columns).enumerate() {
                 let m = kinematics
                     .pose(q, &|| format!("joints_rad row {i}"))?
@@ -547,6 +554,11 @@ impl Dataset {
         let q = joints_rad.as_array();
         let p = positions_mm.as_array();
         let n = q.nrows();
+        if n > MAX_POSES {
+            return input(format!(
+                "joints_rad: {n} rows: at most {MAX_POSES} poses (a data file's size limit holds fewer)"
+            ));
+        }
         if p.shape() != [n, 3] {
             return input(format!(
                 "positions_mm: shape {:?}, expected ({n}, 3): one x, y, z row in mm per row of joints_rad",
@@ -1093,4 +1105,22 @@ fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("NumericalError", m.py().get_type::<NumericalError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
+}
+
+/// The most poses a dataset made from arrays may hold (a calibration's data file within its
+/// 1 GiB limit holds fewer): more is refused before anything is copied.
+const MAX_POSES: usize = 10_000_000;
+
+/// An empty vector with room for `len` values (`None`: the count overflowed), or MemoryError
+/// naming `what` when that much memory cannot be had.
+fn allocated(len: Option<usize>, what: &str) -> PyResult<Vec<f64>> {
+    let mut values = Vec::new();
+    len.and_then(|len| values.try_reserve_exact(len).ok().map(|()| len))
+        .ok_or_else(|| {
+            pyo3::exceptions::PyMemoryError::new_err(format!(
+                "{what}: {} values of 8 bytes cannot be allocated",
+                len.map_or_else(|| "more than 2^64".to_string(), |l| l.to_string())
+            ))
+        })?;
+    Ok(values)
 }

@@ -222,6 +222,18 @@ def test_export_gives_the_bytes_calib_export_writes(tmp_path):
 
 def test_ctrl_c_stops_a_long_calibration():
     import signal
+
+    # A test runner started in the background by a non-interactive shell inherits SIGINT
+    # ignored, and Python then never sees Ctrl-C: install Python's own handler for this test.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        _interrupt_a_long_calibration()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _interrupt_a_long_calibration():
+    import signal
     import threading
     import time
 
@@ -378,3 +390,19 @@ def test_joint_maps_and_a_re_registration_equal_the_command_line(tmp_path):
     py = frames.report()["held_out"]["after"]["position"]
     assert abs(py["p95_mm"] - cli["held_out"]["after"]["position"]["p95_mm"]) < 1e-9
 
+
+
+def test_huge_arrays_raise_instead_of_ending_the_interpreter():
+    # Issue 52 (V5): a broadcast array of a billion rows (48 GB as a copy) is a MemoryError and
+    # a dataset of 3e8 poses an InputError; both aborted the interpreter ("memory allocation of
+    # 48000000000 bytes failed").
+    robot = calib.Robot.from_file(UR10)
+    with pytest.raises(MemoryError, match="joints_rad"):
+        robot.fk(np.broadcast_to(np.zeros(6), (1_000_000_000, 6)))
+    with pytest.raises(calib.InputError, match="at most 10000000 poses"):
+        calib.Dataset.from_arrays(
+            np.broadcast_to(np.zeros(6), (300_000_000, 6)),
+            np.broadcast_to(np.zeros(3), (300_000_000, 3)),
+        )
+    # The interpreter goes on: a normal call still works.
+    assert robot.fk(np.zeros(6)).shape == (4, 4)
