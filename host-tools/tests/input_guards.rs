@@ -183,23 +183,27 @@ fn joints_outside_the_limits_are_refused_everywhere() {
         "--out",
         identified.to_str().unwrap(),
     ]));
-    let uncertainty = calib(&[
-        "uncertainty",
-        "--params",
-        identified.to_str().unwrap(),
-        "--joints",
-        joints.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    let stderr = String::from_utf8_lossy(&uncertainty.stderr);
-    assert!(!uncertainty.status.success());
+    // `calib uncertainty` of `params` at `joints`: refused, nothing written; its message.
+    let refused = |params: &Path| {
+        let result = calib(&[
+            "uncertainty",
+            "--params",
+            params.to_str().unwrap(),
+            "--joints",
+            joints.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(!result.status.success());
+        assert!(!out.exists());
+        String::from_utf8_lossy(&result.stderr).into_owned()
+    };
+    let stderr = refused(&identified);
     assert!(
         stderr.contains(&format!("joints.csv:2: {named}"))
             && stderr.contains("outside the joint limits"),
         "{stderr}"
     );
-    assert!(!out.exists());
     // V12: a variance of 1e300 in the recorded covariance is refused, naming the parameter.
     let text = std::fs::read_to_string(&identified).unwrap();
     let mut file: toml::Table = text.parse().unwrap();
@@ -222,22 +226,11 @@ fn joints_outside_the_limits_are_refused_everywhere() {
         "id,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\nA,10,-90,90,-90,-90,0\n",
     )
     .unwrap();
-    let refused = calib(&[
-        "uncertainty",
-        "--params",
-        damaged.to_str().unwrap(),
-        "--joints",
-        joints.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    let stderr = String::from_utf8_lossy(&refused.stderr);
-    assert!(!refused.status.success());
+    let stderr = refused(&damaged);
     assert!(
         stderr.contains("the standard deviation of") && stderr.contains("1e150"),
         "{stderr}"
     );
-    assert!(!out.exists());
 }
 
 /// Issue 52 (V10): options that would be ignored without a word are refused, naming what to do,
