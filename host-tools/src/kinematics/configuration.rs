@@ -102,7 +102,7 @@ pub struct PostureConfiguration {
 
 impl ConfigurationJoints {
     /// The configuration joints of the nominal robot `planned` with `limits` (see the module
-    /// documentation), found at [`SAMPLES`] postures within the limits.
+    /// documentation), found at six postures spread over the limits.
     pub fn of(planned: &Kinematics<f64, Dyn>, limits: &JointVec<JointLimits<f64>>) -> Self {
         let n = limits.len();
         let samples: Vec<JointVec<f64>> = (0..SAMPLES)
