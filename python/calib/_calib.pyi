@@ -128,6 +128,9 @@ class CalibrationResult:
         """Their standard errors (NaN where least squares gave none)."""
     @property
     def accepted(self) -> Optional[bool]: ...
+    @property
+    def parameter_units(self) -> list[str]:
+        """The unit of each parameter value and standard error: "mm" or "rad"."""
 
 def calibrate(
     robot: Robot, data: Dataset, holdout: Optional[Dataset] = None, **options: Union[str, float, int, bool, Sequence[str]]

@@ -731,7 +731,39 @@ fn parse_words<A: clap::Args>(words: &[String]) -> PyResult<A> {
     }
     <Words<A> as clap::Parser>::try_parse_from(words)
         .map(|w| w.inner)
-        .map_err(|e| InputError::new_err(e.render().to_string().trim_end().to_string()))
+        .map_err(|e| {
+            unknown_keyword(&e).unwrap_or_else(|| {
+                InputError::new_err(e.render().to_string().trim_end().to_string())
+            })
+        })
+}
+
+/// A keyword argument no option of the command has, as Python says it: `TypeError: unexpected
+/// keyword argument 'validat'` (with clap's suggestion: `; did you mean 'validate'?`); `None`
+/// for any other parse error.
+fn unknown_keyword(error: &clap::Error) -> Option<PyErr> {
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    if error.kind() != ErrorKind::UnknownArgument {
+        return None;
+    }
+    let keyword = |value: &ContextValue| match value {
+        ContextValue::String(s) => Some(s.trim_start_matches('-').replace('-', "_")),
+        ContextValue::Strings(v) => v
+            .first()
+            .map(|s| s.trim_start_matches('-').replace('-', "_")),
+        _ => None,
+    };
+    let name = keyword(error.get(ContextKind::InvalidArg)?)?;
+    // The name alone: a word like "--validat=0.3" carries its value.
+    let name = name.split('=').next().unwrap_or_default().to_string();
+    let suggestion = error
+        .get(ContextKind::SuggestedArg)
+        .and_then(keyword)
+        .map(|s| format!("; did you mean '{s}'?"))
+        .unwrap_or_default();
+    Some(pyo3::exceptions::PyTypeError::new_err(format!(
+        "unexpected keyword argument '{name}'{suggestion}"
+    )))
 }
 
 /// Keyword arguments as command-line words: `name=value` is `--name value` (underscores as
@@ -850,6 +882,30 @@ impl CalibrationResult {
     #[getter]
     fn accepted(&self) -> Option<bool> {
         self.calibration.result.acceptance.as_ref().map(|a| a.pass)
+    }
+
+    /// The unit of each of `parameter_values` and `standard_errors`: "mm" or "rad".
+    #[getter]
+    fn parameter_units(&self) -> Vec<&'static str> {
+        (self.calibration.result.parameters.iter())
+            .map(|p| host_tools::analysis::truth::unit_of(p.parameter))
+            .collect()
+    }
+
+    fn __repr__(&self) -> String {
+        let r = &self.calibration.result;
+        let held_out = r.validation.as_ref().map_or_else(
+            || "no held-out poses".to_string(),
+            |v| format!("held-out mean {:.4} mm", v.after.position_mm.mean),
+        );
+        format!(
+            "CalibrationResult(robot={:?}, parameters={}, {held_out}, accepted={})",
+            r.robot,
+            r.parameters.len(),
+            r.acceptance
+                .as_ref()
+                .map_or("None", |a| if a.pass { "True" } else { "False" })
+        )
     }
 }
 
@@ -1000,6 +1056,19 @@ impl Plan {
     #[getter]
     fn text(&self) -> String {
         self.plan.text()
+    }
+
+    fn __repr__(&self) -> String {
+        let count = |role| self.plan.of_role(role).count();
+        use host_tools::io::tracker_data::Role;
+        format!(
+            "Plan(poses={}: core {}, fill {}, verify {}; from {} candidates)",
+            self.plan.poses.len(),
+            count(Role::Core),
+            count(Role::Fill),
+            count(Role::Verify),
+            self.plan.candidates
+        )
     }
 
     /// The plan as `calib plan --report` writes it (JSON text; `report()` gives the dict).

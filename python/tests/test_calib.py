@@ -193,7 +193,8 @@ def test_bad_inputs_raise_the_documented_exceptions():
     data = calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=robot)
     with pytest.raises(calib.InputError, match="report= is not an option here"):
         calib.calibrate(robot, data, report="r.json")
-    with pytest.raises(calib.InputError, match="unexpected argument '--no-such-option'"):
+    # A keyword no option has is a TypeError, as Python says it (issue 52; was clap's text).
+    with pytest.raises(TypeError, match="unexpected keyword argument 'no_such_option'"):
         calib.calibrate(robot, data, no_such_option=1)
     # The same refusal, in the same words, as the command line.
     out = run_calib("calibrate", "--robot", UR10, "--data", SERIES_B, "--profile", PROFILE, "--accept", "95% <= 1 mm")
@@ -406,3 +407,24 @@ def test_huge_arrays_raise_instead_of_ending_the_interpreter():
         )
     # The interpreter goes on: a normal call still works.
     assert robot.fk(np.zeros(6)).shape == (4, 4)
+
+
+def test_options_are_keyword_arguments_and_results_say_what_they_are():
+    # Issue 52: a typo in an option is a TypeError, as Python says it; results and plans print
+    # what they hold; each parameter value states its unit.
+    robot = calib.Robot.from_file(UR10)
+    data = calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=robot)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'validat'; did you mean 'validate'"):
+        calib.calibrate(robot, data, method="lm", validat=0.9)
+    result = calib.calibrate(robot, data, method="lm", validate=0.9666)
+    text = repr(result)
+    assert text.startswith("CalibrationResult(robot=") and "held-out mean" in text, text
+    assert "object at 0x" not in text
+    units = result.parameter_units
+    assert len(units) == len(result.parameter_names)
+    for name, unit in zip(result.parameter_names, units):
+        # Lengths (da, dd, frame translations) in mm, angles in rad.
+        angle = name.startswith(("dalpha", "dtheta", "dbeta")) or name.endswith(("_rx", "_ry", "_rz"))
+        assert unit == ("rad" if angle else "mm"), (name, unit)
+    plan = calib.plan(robot, generate=300, poses=20, measure="pose", noise_mm=0.05)
+    assert repr(plan).startswith("Plan(poses=35: core"), repr(plan)
