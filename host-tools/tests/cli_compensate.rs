@@ -1410,3 +1410,96 @@ fn ur_pendant_targets_are_read_in_the_ur_base_frame() {
         "{wrong:?}"
     );
 }
+
+/// Issue 52: the compensated program as URScript (`--urscript`): a program's joint targets on a
+/// UR10 whose identified robot differs by tenths of a millimetre and degree come back as one
+/// `movej` per target, in order, at the joints the CSV states (rad, to the 9 decimals written);
+/// with a target refused (a joint beyond the bound) nothing is written and the message names it.
+#[test]
+fn the_compensated_program_is_written_as_urscript() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ur10 = common::UR10;
+    let mut actual = RobotFile::read(Path::new(ur10)).unwrap();
+    for j in &mut actual.joint {
+        j.a_mm += 0.3;
+        j.d_mm += 0.2;
+        j.theta_offset_deg -= 0.1;
+    }
+    let params = d.join("identified.toml");
+    std::fs::write(&params, actual.to_toml("")).unwrap();
+    let program = d.join("program.csv");
+    std::fs::write(
+        &program,
+        "id,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n\
+         A,0,-90,90,-90,-90,0\nB,30,-100,80,-70,-90,10\nC,-45,-60,60,-100,-80,20\n",
+    )
+    .unwrap();
+    let (out, script) = (d.join("out.csv"), d.join("program.script"));
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "compensate",
+            "--robot",
+            ur10,
+            "--params",
+            params.to_str().unwrap(),
+            "--targets",
+            program.to_str().unwrap(),
+            "--joint-targets",
+            "--out",
+            out.to_str().unwrap(),
+            "--urscript",
+            script.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        calib(&args)
+    };
+    let result = run(&["--speed-rad-s", "0.3"]);
+    assert!(
+        result.status.success(),
+        "{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    let text = std::fs::read_to_string(&script).unwrap();
+    let moves: Vec<Vec<f64>> = text
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("movej(["))
+        .map(|l| {
+            let (q, rest) = l.split_once(']').unwrap();
+            assert_eq!(rest, ", a=0.5, v=0.3)");
+            q.split(", ").map(|v| v.parse().unwrap()).collect()
+        })
+        .collect();
+    let mut reader = csv::Reader::from_path(&out).unwrap();
+    let rows: Vec<Vec<f64>> = reader
+        .records()
+        .map(|r| {
+            let r = r.unwrap();
+            assert_eq!(&r[9], "ok");
+            (1..=6)
+                .map(|j| r[j].parse::<f64>().unwrap().to_radians())
+                .collect()
+        })
+        .collect();
+    assert_eq!(moves.len(), 3);
+    for (m, r) in moves.iter().zip(&rows) {
+        for (a, b) in m.iter().zip(r) {
+            assert!((a - b).abs() < 1e-9, "{m:?} {r:?}");
+        }
+    }
+    assert!(
+        text.contains("def calib_compensated():") && text.ends_with("end\ncalib_compensated()\n")
+    );
+    assert!(!text.contains("sleep("));
+    // A bound of 0.001 mm refuses every target: nothing written, the first named.
+    std::fs::remove_file(&script).unwrap();
+    std::fs::remove_file(&out).unwrap();
+    let refused = run(&["--max-correction-mm", "0.001"]);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success());
+    assert!(
+        stderr.contains("--urscript: 3 of 3 targets were refused (the first, A:"),
+        "{stderr}"
+    );
+    assert!(!script.exists() && !out.exists());
+}

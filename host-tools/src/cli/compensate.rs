@@ -50,6 +50,19 @@ pub struct CompensateOptions {
     /// Output CSV: one row per target, in input order.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
+    /// Also write the compensated joints as a URScript program (Universal Robots, 6 joints): a
+    /// movej to each target in order. Only when every target was compensated: a program without
+    /// the refused ones is not the program asked for, so nothing is written then.
+    #[arg(long, value_name = "FILE")]
+    pub urscript: Option<PathBuf>,
+    /// URScript: joint speed of the moves, rad/s (above 0, at most 3.2).
+    #[arg(long, default_value_t = 0.5, requires = "urscript", allow_hyphen_values = true,
+          value_parser = super::plan::joint_speed)]
+    pub speed_rad_s: f64,
+    /// URScript: joint acceleration of the moves, rad/s^2 (above 0, at most 40).
+    #[arg(long, default_value_t = 0.5, requires = "urscript", allow_hyphen_values = true,
+          value_parser = super::plan::joint_acceleration)]
+    pub acceleration_rad_s2: f64,
     /// Largest allowed change of the commanded pose, mm.
     #[arg(long, default_value_t = 5.0)]
     pub max_correction_mm: f64,
@@ -437,6 +450,56 @@ fn finish(
         ("--targets", &options.targets),
     ]);
     outputs.stage("--out", &options.out, &to_csv(outcomes, joints)?)?;
+    if let Some(path) = &options.urscript {
+        outputs.stage("--urscript", path, urscript(options, outcomes)?.as_bytes())?;
+    }
     outputs.commit()?;
     Ok(Summary::of(outcomes))
+}
+
+/// The compensated joints as a URScript program (`--urscript`), targets in input order. Refused
+/// when a target was refused (naming the first and why), or for a robot of other than 6 joints.
+fn urscript(options: &CompensateOptions, outcomes: &[TargetOutcome]) -> anyhow::Result<String> {
+    let refused = outcomes.iter().filter(|o| o.result.is_err()).count();
+    if let Some((o, Err(why))) = outcomes
+        .iter()
+        .map(|o| (o, &o.result))
+        .find(|(_, r)| r.is_err())
+    {
+        bail!(
+            "--urscript: {refused} of {} targets were refused (the first, {}: {why}); a program without them is not the program asked for: correct or remove them (calib compensate without --urscript writes each row's reason), nothing was written",
+            outcomes.len(),
+            o.id
+        );
+    }
+    let targets: Vec<(String, Vec<f64>)> = outcomes
+        .iter()
+        .filter_map(|o| {
+            Some((
+                o.id.clone(),
+                o.result.as_ref().ok()?.q.iter().copied().collect(),
+            ))
+        })
+        .collect();
+    let header = [
+        format!(
+            "The program of {} compensated by calib compensate for the identified robot {}: {} targets in order.",
+            options.targets.display(),
+            options.params.display(),
+            targets.len()
+        ),
+        "Joints in rad; the identified robot at them reaches the targets the nominal model meant."
+            .to_string(),
+    ];
+    let motion = crate::formats::urscript::Motion {
+        speed_rad_s: options.speed_rad_s,
+        acceleration_rad_s2: options.acceleration_rad_s2,
+        settle_s: 0.0,
+    };
+    Ok(crate::formats::urscript::movej_program(
+        "calib_compensated",
+        &header,
+        &targets,
+        &motion,
+    )?)
 }

@@ -129,12 +129,12 @@ fn settle_time(text: &str) -> Result<f64, String> {
 }
 
 /// `--speed-rad-s`: above 0, at most 3.2 rad/s (a UR wrist joint reaches 180 deg/s, pi rad/s).
-fn joint_speed(text: &str) -> Result<f64, String> {
+pub(crate) fn joint_speed(text: &str) -> Result<f64, String> {
     within(text, (0.0, 3.2), "rad/s")
 }
 
 /// `--acceleration-rad-s2`: above 0, at most 40 rad/s^2.
-fn joint_acceleration(text: &str) -> Result<f64, String> {
+pub(crate) fn joint_acceleration(text: &str) -> Result<f64, String> {
     within(text, (0.0, 40.0), "rad/s^2")
 }
 

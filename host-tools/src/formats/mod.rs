@@ -5,3 +5,4 @@ pub mod export;
 pub mod ur_calibration;
 pub mod ur_kinematics;
 pub mod urdf;
+pub mod urscript;
