@@ -55,7 +55,9 @@ class Robot:
         tool_xyz_mm: Optional[Sequence[float]] = None,
         tool_rpy_rad: Optional[Sequence[float]] = None,
     ) -> "Robot":
-        """A robot from arrays of its modified DH parameters (mm, rad), one value per joint."""
+        """A robot from arrays of its Hayati-modified DH parameters (mm, rad), one value per joint.
+        Not for a table in Craig's modified DH convention: write it as ``[[craig_joint]]`` rows of a
+        robot file and read it with ``Robot.from_toml`` or ``Robot.from_file``."""
     @property
     def name(self) -> str: ...
     @property

@@ -199,7 +199,10 @@ impl Robot {
     /// (docs/ARCHITECTURE.md: `A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i) Ry(beta_i)`,
     /// `theta_i = q_i + theta_offset_i`): lengths in mm, angles in rad; `limits_rad` (joints, 2);
     /// the base and tool frames as xyz (mm) and roll, pitch, yaw (rad, `R = Rz(yaw) Ry(pitch)
-    /// Rx(roll)`). The robot file it makes is checked as a file is.
+    /// Rx(roll)`). The robot file it makes is checked as a file is. Not for a table in Craig's
+    /// modified DH convention (`Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i)`, as Franka
+    /// publishes the Panda's): the same numbers give another robot; write such a table as a robot
+    /// file's `[[craig_joint]]` rows and read it with `Robot.from_toml` or `Robot.from_file`.
     #[staticmethod]
     #[pyo3(signature = (name, a_mm, alpha_rad, theta_offset_rad, d_mm, beta_rad = None, limits_rad = None, base_xyz_mm = None, base_rpy_rad = None, tool_xyz_mm = None, tool_rpy_rad = None))]
     #[allow(clippy::too_many_arguments)]
