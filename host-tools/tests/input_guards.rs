@@ -234,7 +234,7 @@ fn joints_outside_the_limits_are_refused_everywhere() {
 }
 
 /// Issue 52 (V10): options that would be ignored without a word are refused, naming what to do,
-/// and nothing is written: `--loss-scale-mm` with the plain least squares, `--validate-seed`
+/// and nothing is written: `--swarm` with `--method lm`, `--loss-scale-mm` with the plain least squares, `--validate-seed`
 /// without `--validate`, `--time-tolerance-s` without a robot log (merging by id or order), and
 /// `--noise-deg` for a plan that measures positions only (the URScript settings without
 /// `--urscript`: `plan::urscript_settings_are_bounded_and_need_urscript`).
@@ -245,7 +245,23 @@ fn options_that_would_be_ignored_are_refused() {
     let (data, _) = simulated(d, "30");
     let out = d.join("out.toml");
     let o = out.to_str().unwrap();
-    let cases: [(Vec<&str>, &str); 4] = [
+    let cases: [(Vec<&str>, &str); 5] = [
+        (
+            vec![
+                "calibrate",
+                "--robot",
+                ROBOT,
+                "--data",
+                &data,
+                "--method",
+                "lm",
+                "--swarm",
+                "30",
+                "--out",
+                o,
+            ],
+            "--method lm runs none",
+        ),
         (
             vec![
                 "calibrate",

@@ -92,12 +92,13 @@ pub struct CalibrateOptions {
     /// A separate data file of validation poses.
     #[arg(long, value_name = "FILE")]
     pub holdout: Option<PathBuf>,
-    /// Swarm size, particles (1 to 1000).
-    #[arg(long, default_value_t = 20)]
-    pub swarm: usize,
-    /// Maximum number of generations.
-    #[arg(long, default_value_t = 2000)]
-    pub generations: u32,
+    /// Swarm size, particles (1 to 1000; default 20, the paper's). Refused with --method lm,
+    /// which runs no swarm.
+    #[arg(long, value_name = "N")]
+    pub swarm: Option<usize>,
+    /// Maximum number of generations of the swarm (default 2000). Refused with --method lm.
+    #[arg(long, value_name = "N")]
+    pub generations: Option<u32>,
     /// Cognitive acceleration coefficient c1 (c1 + c2 > 4).
     #[arg(long, default_value_t = 2.05)]
     pub c1: f64,
@@ -162,8 +163,10 @@ impl CalibrateOptions {
             model: self.model,
             k: self.k,
             swarm: SwarmConfig {
-                particles: self.swarm,
-                generations: self.generations,
+                particles: self.swarm.unwrap_or(SwarmConfig::default().particles),
+                generations: self
+                    .generations
+                    .unwrap_or(SwarmConfig::default().generations),
                 c1: self.c1,
                 c2: self.c2,
                 seed: self.seed,
@@ -302,6 +305,11 @@ fn calibrate_loaded(
     from_files: bool,
 ) -> anyhow::Result<Calibration> {
     config.check()?;
+    if options.method == Method::Lm && (options.swarm.is_some() || options.generations.is_some()) {
+        bail!(
+            "--swarm and --generations set the swarm, and --method lm runs none: drop them, or use --method ipso or ipso+lm"
+        );
+    }
     let stamped = |result| {
         if from_files {
             with_provenance(result, options)
