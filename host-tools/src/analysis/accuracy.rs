@@ -491,7 +491,7 @@ pub const MIN_CYCLES: usize = 10;
 /// the groups), and from the groups of at least [`MIN_CYCLES`] poses the largest `AP` and `RP =
 /// mean(l) + 3 S_l`, `l_j` each pose's distance from the group's barycentre (ISO 9283: 30 cycles
 /// per pose; from 10 to 29 `RP` is indicative).
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Iso9283 {
     /// Groups of repeated poses.
     pub groups: usize,

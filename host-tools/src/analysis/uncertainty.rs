@@ -57,7 +57,7 @@ impl PoseSd {
 }
 
 /// The held-out poses against their predicted 95 % band.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Coverage {
     /// Held-out poses.
     pub poses: usize,

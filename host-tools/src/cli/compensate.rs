@@ -57,11 +57,11 @@ pub struct CompensateOptions {
     pub urscript: Option<PathBuf>,
     /// URScript: joint speed of the moves, rad/s (above 0, at most 3.2).
     #[arg(long, default_value_t = 0.5, requires = "urscript", allow_hyphen_values = true,
-          value_parser = super::plan::joint_speed)]
+          value_parser = super::joint_speed)]
     pub speed_rad_s: f64,
     /// URScript: joint acceleration of the moves, rad/s^2 (above 0, at most 40).
     #[arg(long, default_value_t = 0.5, requires = "urscript", allow_hyphen_values = true,
-          value_parser = super::plan::joint_acceleration)]
+          value_parser = super::joint_acceleration)]
     pub acceleration_rad_s2: f64,
     /// Largest allowed change of the commanded pose, mm.
     #[arg(long, default_value_t = 5.0)]

@@ -99,3 +99,32 @@ pub fn print_line(text: std::fmt::Arguments<'_>) -> anyhow::Result<()> {
 pub fn print_text(text: std::fmt::Arguments<'_>) -> anyhow::Result<()> {
     print(&text.to_string())
 }
+
+/// A number of `text` within `(low, high]` in `unit`, for the URScript settings of `plan` and
+/// `compensate`: what a controller accepts, no 301-digit literal in a program.
+fn within(text: &str, (low, high): (f64, f64), unit: &str) -> Result<f64, String> {
+    let v: f64 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("\"{text}\" is not a number"))?;
+    if v > low && v <= high {
+        Ok(v)
+    } else {
+        Err(format!("{v} {unit} is outside ({low}, {high}] {unit}"))
+    }
+}
+
+/// `--settle-s`: above 0, at most 600 s.
+pub(crate) fn settle_time(text: &str) -> Result<f64, String> {
+    within(text, (0.0, 600.0), "s")
+}
+
+/// `--speed-rad-s`: above 0, at most 3.2 rad/s (a UR wrist joint reaches 180 deg/s, pi rad/s).
+pub(crate) fn joint_speed(text: &str) -> Result<f64, String> {
+    within(text, (0.0, 3.2), "rad/s")
+}
+
+/// `--acceleration-rad-s2`: above 0, at most 40 rad/s^2.
+pub(crate) fn joint_acceleration(text: &str) -> Result<f64, String> {
+    within(text, (0.0, 40.0), "rad/s^2")
+}

@@ -99,43 +99,14 @@ pub struct PlanOptions {
     #[arg(long, conflicts_with = "box_mm")]
     pub below_base: bool,
     /// URScript: time the robot stands still at each pose for the tracker, s (above 0, at most 600).
-    #[arg(long, default_value_t = 2.0, requires = "urscript", allow_hyphen_values = true, value_parser = settle_time)]
+    #[arg(long, default_value_t = 2.0, requires = "urscript", allow_hyphen_values = true, value_parser = crate::cli::settle_time)]
     pub settle_s: f64,
     /// URScript: joint speed of the moves, rad/s (above 0, at most 3.2: a UR wrist joint reaches pi).
-    #[arg(long, default_value_t = 0.5, requires = "urscript", allow_hyphen_values = true, value_parser = joint_speed)]
+    #[arg(long, default_value_t = 0.5, requires = "urscript", allow_hyphen_values = true, value_parser = crate::cli::joint_speed)]
     pub speed_rad_s: f64,
     /// URScript: joint acceleration of the moves, rad/s^2 (above 0, at most 40).
-    #[arg(long, default_value_t = 0.5, requires = "urscript", allow_hyphen_values = true, value_parser = joint_acceleration)]
+    #[arg(long, default_value_t = 0.5, requires = "urscript", allow_hyphen_values = true, value_parser = crate::cli::joint_acceleration)]
     pub acceleration_rad_s2: f64,
-}
-
-/// A number of `text` within `(low, high]` in `unit`, for the URScript's settings: what a
-/// controller accepts, no 301-digit literal in a program.
-fn within(text: &str, (low, high): (f64, f64), unit: &str) -> Result<f64, String> {
-    let v: f64 = text
-        .trim()
-        .parse()
-        .map_err(|_| format!("\"{text}\" is not a number"))?;
-    if v > low && v <= high {
-        Ok(v)
-    } else {
-        Err(format!("{v} {unit} is outside ({low}, {high}] {unit}"))
-    }
-}
-
-/// `--settle-s`: above 0, at most 600 s.
-fn settle_time(text: &str) -> Result<f64, String> {
-    within(text, (0.0, 600.0), "s")
-}
-
-/// `--speed-rad-s`: above 0, at most 3.2 rad/s (a UR wrist joint reaches 180 deg/s, pi rad/s).
-pub(crate) fn joint_speed(text: &str) -> Result<f64, String> {
-    within(text, (0.0, 3.2), "rad/s")
-}
-
-/// `--acceleration-rad-s2`: above 0, at most 40 rad/s^2.
-pub(crate) fn joint_acceleration(text: &str) -> Result<f64, String> {
-    within(text, (0.0, 40.0), "rad/s^2")
 }
 
 impl PlanOptions {

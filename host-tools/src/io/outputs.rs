@@ -87,7 +87,6 @@ fn exit_removing_temporaries() -> ! {
         .unwrap_or_else(std::sync::PoisonError::into_inner);
     for path in list.drain(..) {
         let _ = std::fs::remove_file(&path);
-        let _ = std::fs::remove_file(path.with_extension("tmp.png"));
     }
     let scratch = SCRATCH_DIRS
         .lock()
@@ -163,7 +162,7 @@ fn untrack(path: &Path) {
 }
 
 /// Longest target name kept whole in the names of its temporaries, bytes: a temporary adds up to
-/// 40 bytes (`.`, `.calib-<pid>-<n>.tmp.png`) and a file name holds at most 255 on common file
+/// 40 bytes (`.`, `.calib-<pid>-<n>.tmp`; earlier versions' plots `.tmp.png`) and a file name holds at most 255 on common file
 /// systems, so a legal target name of up to 255 bytes still has legal temporaries.
 const LONGEST_STEM: usize = 200;
 
@@ -196,6 +195,7 @@ fn remove_stale_temporaries(dir: &Path, file_name: &str) {
         let Some(rest) = name.to_str().and_then(|n| n.strip_prefix(&prefix)) else {
             continue;
         };
+        // `.tmp.png`: the plots' second temporaries of earlier versions.
         if !(rest.ends_with(".tmp") || rest.ends_with(".tmp.png")) {
             continue;
         }
@@ -482,7 +482,7 @@ impl Outputs {
     /// Stages `bytes` for `path`, asked for by `name` (such as `--out`).
     pub fn stage(&mut self, name: &str, path: &Path, bytes: &[u8]) -> crate::Result<()> {
         uninterrupted(|| {
-            self.stage_now(name, path, |_, mut file| {
+            self.stage_now(name, path, |mut file| {
                 file.write_all(bytes)?;
                 file.sync_all()?;
                 Ok(())
@@ -494,7 +494,7 @@ impl Outputs {
         &mut self,
         name: &str,
         path: &Path,
-        write: impl FnOnce(&Path, std::fs::File) -> crate::Result<()>,
+        write: impl FnOnce(std::fs::File) -> crate::Result<()>,
     ) -> crate::Result<()> {
         let (target, permissions) = self.checked_target(name, path)?;
         let dir = match target.parent() {
@@ -542,7 +542,7 @@ impl Outputs {
                 dir.display()
             ));
         };
-        if let Err(e) = write(&temporary, file) {
+        if let Err(e) = write(file) {
             let _ = std::fs::remove_file(&temporary);
             untrack(&temporary);
             return Err(e.context(format!("writing {} ({name})", path.display())));

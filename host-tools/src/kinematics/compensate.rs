@@ -15,7 +15,9 @@
 //! range of readings; a target whose joints leave a map's range is refused unless extrapolation is
 //! allowed ([`Request`]), and counted.
 
-use super::configuration::{ConfigurationBounds, ConfigurationJoints, PostureConfiguration};
+use super::configuration::{
+    ConfigurationBounds, ConfigurationJoints, PostureConfiguration, wrapped,
+};
 use crate::error::Context;
 use crate::io::tracker_data::TrackerData;
 use calib_core::controller::compensate::{
@@ -423,8 +425,6 @@ fn branch_distances(
     let six = as_six(nominal)?;
     let pose = planned.forward(q).ok()?;
     let solutions = inverse_kinematics(&six, &pose).ok()?;
-    let pi = std::f64::consts::PI;
-    let wrapped = |d: f64| (d + pi).rem_euclid(std::f64::consts::TAU) - pi;
     Some(solutions.map(|solution| {
         let s = solution?;
         Some(
@@ -869,12 +869,7 @@ struct Needed {
 impl Needed {
     /// The change from pose `from` to pose `to`, and joints `q` against `reference`.
     fn between(from: &Pose, to: &Pose, q: &JointVec<f64>, reference: &JointVec<f64>) -> Self {
-        let (joint, joint_change_rad) = q
-            .iter()
-            .zip(reference)
-            .map(|(q, r)| (q - r).abs())
-            .enumerate()
-            .fold((0, 0.0f64), |m, (j, c)| if c > m.1 { (j, c) } else { m });
+        let (joint, joint_change_rad) = largest_move(q, reference).unwrap_or((0, 0.0));
         Self {
             correction: PoseError::between(to, from),
             joint,

@@ -28,6 +28,7 @@
 //! refused as a posture.
 
 use calib_core::Kinematics;
+use calib_core::kinematics::jacobian::JointJacobian;
 use calib_core::model::{JacobianColumns, JointLimits, JointVec};
 use nalgebra::{Dyn, Vector3};
 use std::f64::consts::{PI, TAU};
@@ -266,8 +267,8 @@ fn within_limits(angle: f64, limits: &JointLimits<f64>) -> Option<f64> {
         .find(|a| limits.contains(*a))
 }
 
-/// An angle wrapped into (-pi, pi], rad.
-fn wrapped(angle: f64) -> f64 {
+/// An angle wrapped into (-pi, pi], rad (whole turns aside).
+pub(crate) fn wrapped(angle: f64) -> f64 {
     let w = (angle + PI).rem_euclid(TAU) - PI;
     if w <= -PI { w + TAU } else { w }
 }
@@ -275,14 +276,22 @@ fn wrapped(angle: f64) -> f64 {
 /// A joint axis as a line: a point on it (mm) and its unit direction.
 type Line = (Vector3<f64>, Vector3<f64>);
 
-/// The joint axes of `planned` at `q` (from the geometric Jacobian's columns: the direction
-/// `omega` and `v = omega x (end - o)`, so `end + omega x v` lies on the axis), with the
-/// manipulability `sqrt(det(J_s J_s^T))` of the Jacobian whose position rows are scaled by the
-/// arm's length.
-fn axes(planned: &Kinematics<f64, Dyn>, q: &JointVec<f64>) -> Option<(Vec<Line>, f64)> {
-    let (end, mut jacobian) = planned.geometric_jacobian(q).ok()?;
+/// The joint axes of an arm at some joint readings, and the Jacobian they come from.
+struct Axes {
+    /// Each joint's axis as a line.
+    lines: Vec<Line>,
+    /// The end point, mm.
+    end: Vector3<f64>,
+    /// The geometric Jacobian.
+    jacobian: JointJacobian<f64, Dyn>,
+}
+
+/// The joint axes of `planned` at `q` as lines (from the geometric Jacobian's columns: the
+/// direction `omega` and `v = omega x (end - o)`, so `end + omega x v` lies on the axis).
+fn axes(planned: &Kinematics<f64, Dyn>, q: &JointVec<f64>) -> Option<Axes> {
+    let (end, jacobian) = planned.geometric_jacobian(q).ok()?;
     let end = end.translation.vector;
-    let lines: Vec<Line> = (0..q.len())
+    let lines = (0..q.len())
         .map(|j| {
             let c = jacobian.column(j);
             let (v, w) = (
@@ -292,19 +301,24 @@ fn axes(planned: &Kinematics<f64, Dyn>, q: &JointVec<f64>) -> Option<(Vec<Line>,
             (end + w.cross(&v), w)
         })
         .collect();
-    let length = lines
-        .iter()
-        .map(|(p, _)| (p - end).norm())
-        .fold(1.0, f64::max);
-    jacobian.divide_position_rows(length);
-    let manipulability = jacobian.outer_product_sum().determinant().max(0.0).sqrt();
-    Some((lines, manipulability))
+    Some(Axes {
+        lines,
+        end,
+        jacobian,
+    })
 }
 
-/// Whether, at `q`, two joint axes of `planned` are one line or the arm is singular (relative to
-/// nothing: the caller compares with the sample before a joint was set).
+/// Whether, at `q`, two joint axes of `planned` are one line or the arm is singular: the
+/// manipulability `sqrt(det(J_s J_s^T))` of the Jacobian with its position rows scaled by the
+/// arm's length below [`SINGULAR_FRACTION`] (the caller compares with the sample before a joint
+/// was set).
 fn aligned_or_singular(planned: &Kinematics<f64, Dyn>, q: &JointVec<f64>) -> bool {
-    let Some((lines, manipulability)) = axes(planned, q) else {
+    let Some(Axes {
+        lines,
+        end,
+        mut jacobian,
+    }) = axes(planned, q)
+    else {
         return true;
     };
     let aligned = lines.iter().enumerate().any(|(a, (pa, wa))| {
@@ -312,6 +326,12 @@ fn aligned_or_singular(planned: &Kinematics<f64, Dyn>, q: &JointVec<f64>) -> boo
             wa.cross(wb).norm() < SAME_DIRECTION && (pb - pa).cross(wa).norm() < SAME_LINE_MM
         })
     });
+    let length = lines
+        .iter()
+        .map(|(p, _)| (p - end).norm())
+        .fold(1.0, f64::max);
+    jacobian.divide_position_rows(length);
+    let manipulability = jacobian.outer_product_sum().determinant().max(0.0).sqrt();
     aligned || manipulability < SINGULAR_FRACTION
 }
 
@@ -334,7 +354,7 @@ fn meeting_point((p1, d1): &Line, (p2, d2): &Line) -> Option<Vector3<f64>> {
 /// not defined: the elbow within 1 mm of the shoulder-wrist line (the arm stretched), that line
 /// within 3 deg of the first axis, or axes that do not meet in the shoulder, elbow or wrist.
 pub fn arm_angle(planned: &Kinematics<f64, Dyn>, q: &JointVec<f64>) -> Option<f64> {
-    let (lines, _) = axes(planned, q)?;
+    let lines = axes(planned, q)?.lines;
     if lines.len() != 7 {
         return None;
     }

@@ -232,23 +232,21 @@ fn uncertainty(page: &mut String, u: &Value) -> crate::Result<()> {
     if u.is_null() {
         return Ok(());
     }
+    // What the band is made of, in the text report's words (from the typed figures; a report of
+    // an earlier version has none).
+    let makeup = serde_json::from_value::<crate::analysis::uncertainty::Coverage>(u.clone())
+        .map(|c| format!("; {}", esc(&c.makeup())))
+        .unwrap_or_default();
     writeln!(
         page,
-        "<p>Predicted uncertainty (the parameters' covariance, and {}&nbsp;mm of noise per coordinate {}): the held-out errors lie inside their predicted 95&nbsp;% band for <strong>{}&nbsp;%</strong> of {} poses; the parameters alone predict {}&nbsp;mm RMS on average, at most {}&nbsp;mm (line {}). The band is {}&nbsp;% noise (variance, mean over the poses){}; the per-pose prediction ranks the measured errors with Spearman correlation {} (1: the largest predicted are the largest measured; 0: no ranking).</p>",
+        "<p>Predicted uncertainty (the parameters' covariance, and {}&nbsp;mm of noise per coordinate {}): the held-out errors lie inside their predicted 95&nbsp;% band for <strong>{}&nbsp;%</strong> of {} poses; the parameters alone predict {}&nbsp;mm RMS on average, at most {}&nbsp;mm (line {}){makeup}.</p>",
         num(&u["noise_mm"], 4),
         text(&u["noise_source"]),
         num(&u["percent_inside_95"], 1),
         text(&u["poses"]),
         num(&u["mean_model_rms_mm"], 4),
         num(&u["max_model_rms_mm"], 4),
-        text(&u["max_model_rms_line"]),
-        num(&u["noise_share_percent"], 1),
-        if u["noise_share_percent"].as_f64().is_some_and(|p| p > 80.0) {
-            ": it holds through the noise term, not through the model's own uncertainty"
-        } else {
-            ""
-        },
-        num(&u["rank_correlation"], 2)
+        text(&u["max_model_rms_line"])
     )?;
     Ok(())
 }
@@ -513,33 +511,22 @@ fn workspace_regions(page: &mut String, map: &Value) -> crate::Result<()> {
 fn iso9283(page: &mut String, iso: &Value) -> crate::Result<()> {
     if iso.is_null() {
         page.push_str("<p>ISO 9283 pose accuracy and repeatability: not measured (no held-out pose repeats a commanded pose).</p>\n");
-    } else {
-        let repeatability = if iso["rp_max_mm"].is_null() {
-            format!(
-                "repeatability RP and the largest AP not stated: they need a pose repeated at least {} times (ISO 9283: 30 cycles), and the most here is {}",
-                text(&iso["cycles_needed"]),
-                text(&iso["most_repeats"])
-            )
-        } else {
-            format!(
-                "from the {} groups of at least {} cycles: AP max {}&nbsp;mm; repeatability RP mean {}&nbsp;mm, max {}&nbsp;mm (lines {})",
-                text(&iso["groups_with_cycles"]),
-                text(&iso["cycles_needed"]),
-                num(&iso["ap_max_mm"], 4),
-                num(&iso["rp_mean_mm"], 4),
-                num(&iso["rp_max_mm"], 4),
-                text(&iso["rp_max_lines"])
-            )
-        };
-        writeln!(
-            page,
-            "<p>ISO 9283-style, from {} held-out poses repeated in {} groups (at most {} times; ISO asks for 30 cycles): accuracy AP mean {}&nbsp;mm; {repeatability}.</p>",
-            text(&iso["poses"]),
-            text(&iso["groups"]),
-            text(&iso["most_repeats"]),
-            num(&iso["ap_mean_mm"], 4),
-        )?;
+        return Ok(());
     }
+    // The typed figures, so that the certificate's words are the text report's.
+    let Ok(iso) = serde_json::from_value::<crate::analysis::accuracy::Iso9283>(iso.clone()) else {
+        page.push_str("<p>ISO 9283-style figures: in a form this version does not read (a report of an earlier version); calibrate again to state them.</p>\n");
+        return Ok(());
+    };
+    writeln!(
+        page,
+        "<p>ISO 9283-style, from {} held-out poses repeated in {} groups (at most {} times; ISO asks for 30 cycles): accuracy AP mean {:.4}&nbsp;mm; {}.</p>",
+        iso.poses,
+        iso.groups,
+        iso.most_repeats,
+        iso.ap_mean_mm,
+        esc(&iso.repeatability_text())
+    )?;
     Ok(())
 }
 
