@@ -279,6 +279,12 @@ impl CalibrationConfig {
                 "--loss-scale-mm scales a robust loss, and --loss l2 (the default) has none: give --loss huber or cauchy, or drop --loss-scale-mm"
             ));
         }
+        let (c1, c2) = (self.swarm.c1, self.swarm.c2);
+        if !(c1 > 0.0 && c2 > 0.0 && c1 + c2 > 4.0 && (c1 + c2).is_finite()) {
+            return Err(crate::refused!(
+                "--c1 {c1} and --c2 {c2}: the constriction factor needs both positive with c1 + c2 > 4 (the paper's: 2.05 each)"
+            ));
+        }
         if !SWARM_SIZES.contains(&self.swarm.particles) {
             return Err(crate::refused!(
                 "--swarm {} is out of range; choose {} to {} particles (paper: 20)",

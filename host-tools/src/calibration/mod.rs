@@ -103,7 +103,7 @@ pub fn calibrate(
     config.check()?;
     if !config.acceptance.is_empty() && validation.is_none() {
         return Err(crate::refused!(
-            "an acceptance criterion ({}) is judged on held-out poses, and none are held out: give --validate FRACTION \
+            "--accept {}: an acceptance criterion is judged on held-out poses, and none are held out: give --validate FRACTION \
              or --holdout FILE (or measure a plan with verification poses)",
             config.acceptance[0]
         ));

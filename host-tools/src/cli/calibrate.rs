@@ -14,7 +14,6 @@ use crate::measurement::dataset::Dataset;
 use crate::measurement::frames::Frames;
 use crate::planning::Measure;
 use anyhow::bail;
-use calib_core::identify::ipso;
 use std::path::PathBuf;
 
 /// Everything `calib calibrate` needs: its command-line options.
@@ -92,46 +91,13 @@ pub struct CalibrateOptions {
     /// A separate data file of validation poses.
     #[arg(long, value_name = "FILE")]
     pub holdout: Option<PathBuf>,
-    /// Swarm size, particles (1 to 1000; default 20, the paper's). Refused with --method lm,
-    /// which runs no swarm.
-    #[arg(long, value_name = "N")]
-    pub swarm: Option<usize>,
-    /// Maximum number of generations of the swarm (default 2000). Refused with --method lm.
-    #[arg(long, value_name = "N")]
-    pub generations: Option<u32>,
-    /// Cognitive acceleration coefficient c1 (c1 + c2 > 4).
-    #[arg(long, default_value_t = 2.05)]
-    pub c1: f64,
-    /// Social acceleration coefficient c2.
-    #[arg(long, default_value_t = 2.05)]
-    pub c2: f64,
-    /// Orientation weight k of eq. (7), mm^2/rad^2: 1e6 makes 1 mrad weigh like 1 mm.
-    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K, value_parser = crate::cli::orientation_weight)]
-    pub k: f64,
-    /// Seed of the swarm's random numbers r1, r2.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Initial half range of angle errors, rad (paper: 0.01).
-    #[arg(long, default_value_t = ipso::PAPER_ANGLE_RANGE)]
-    pub init_angle_rad: f64,
-    /// Initial half range of length errors, mm (paper: 0.5).
-    #[arg(long, default_value_t = ipso::PAPER_LENGTH_RANGE)]
-    pub init_length_mm: f64,
-    /// Search bounds as a multiple of the initial half range (absorbing walls).
-    #[arg(long, default_value_t = ipso::DEFAULT_BOUND_FACTOR)]
-    pub bound_factor: f64,
-    /// Stop after this many generations without improvement (0: never).
-    #[arg(long, default_value_t = 0)]
-    pub stall_generations: u32,
-    /// Stop as soon as the objective reaches this value.
-    #[arg(long, default_value_t = f64::NEG_INFINITY, allow_hyphen_values = true)]
-    pub target: f64,
-    /// Halton index of the first particle (the paper's k; 0 is the all-zero point).
-    #[arg(long, default_value_t = 1)]
-    pub halton_start: u64,
-    /// Halton digit scrambling.
-    #[arg(long, value_enum, default_value_t = ScramblingChoice::None)]
-    pub scrambling: ScramblingChoice,
+    /// Orientation weight k of eq. (7), mm^2/rad^2: 1e6 makes 1 mrad weigh like 1 mm. Refused
+    /// for position-only data, which have no orientation rows to weigh.
+    #[arg(long, value_parser = crate::cli::orientation_weight)]
+    pub k: Option<f64>,
+    /// The swarm's settings (--method ipso and ipso+lm; refused with --method lm).
+    #[command(flatten)]
+    pub swarm: SwarmOptions,
     /// Robot file with the true errors (from calib simulate): prints each parameter's error.
     #[arg(long, value_name = "FILE")]
     pub truth: Option<PathBuf>,
@@ -153,6 +119,92 @@ pub struct CalibrateOptions {
     pub quiet: bool,
 }
 
+/// The settings of the paper's improved particle swarm (`--method ipso` and `ipso+lm`). Each is
+/// optional: unset, the default of [`SwarmConfig::default`] (the paper's) applies; set with
+/// `--method lm`, which runs no swarm, the calibration is refused naming it.
+#[derive(Clone, Debug, Default, clap::Args)]
+pub struct SwarmOptions {
+    /// Swarm size, particles (1 to 1000; default 20, the paper's). Swarm only: refused with
+    /// --method lm, as are all the swarm's settings below.
+    #[arg(long, value_name = "N")]
+    pub swarm: Option<usize>,
+    /// Maximum number of generations of the swarm (default 2000).
+    #[arg(long, value_name = "N")]
+    pub generations: Option<u32>,
+    /// Cognitive acceleration coefficient c1 (default 2.05; c1 + c2 > 4).
+    #[arg(long)]
+    pub c1: Option<f64>,
+    /// Social acceleration coefficient c2 (default 2.05).
+    #[arg(long)]
+    pub c2: Option<f64>,
+    /// Seed of the swarm's random numbers r1, r2 (default 0).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Initial half range of angle errors, rad (default 0.01, the paper's).
+    #[arg(long)]
+    pub init_angle_rad: Option<f64>,
+    /// Initial half range of length errors, mm (default 0.5, the paper's).
+    #[arg(long)]
+    pub init_length_mm: Option<f64>,
+    /// Search bounds as a multiple of the initial half range (absorbing walls; default 10).
+    #[arg(long)]
+    pub bound_factor: Option<f64>,
+    /// Stop after this many generations without improvement (default 0: never).
+    #[arg(long)]
+    pub stall_generations: Option<u32>,
+    /// Stop as soon as the objective reaches this value (default: never).
+    #[arg(long, allow_hyphen_values = true)]
+    pub target: Option<f64>,
+    /// Halton index of the first particle (the paper's k; 0 is the all-zero point; default 1).
+    #[arg(long)]
+    pub halton_start: Option<u64>,
+    /// Halton digit scrambling (default none).
+    #[arg(long, value_enum)]
+    pub scrambling: Option<ScramblingChoice>,
+}
+
+impl SwarmOptions {
+    /// The swarm configuration: each option given, else the default.
+    pub fn config(&self) -> SwarmConfig {
+        let d = SwarmConfig::default();
+        SwarmConfig {
+            particles: self.swarm.unwrap_or(d.particles),
+            generations: self.generations.unwrap_or(d.generations),
+            c1: self.c1.unwrap_or(d.c1),
+            c2: self.c2.unwrap_or(d.c2),
+            seed: self.seed.unwrap_or(d.seed),
+            init_angle_rad: self.init_angle_rad.unwrap_or(d.init_angle_rad),
+            init_length_mm: self.init_length_mm.unwrap_or(d.init_length_mm),
+            bound_factor: self.bound_factor.unwrap_or(d.bound_factor),
+            stall_generations: self.stall_generations.unwrap_or(d.stall_generations),
+            target: self.target.unwrap_or(d.target),
+            halton_start: self.halton_start.unwrap_or(d.halton_start),
+            scrambling: self.scrambling.unwrap_or(d.scrambling),
+        }
+    }
+
+    /// The options given, by their flags.
+    pub fn given(&self) -> Vec<&'static str> {
+        [
+            ("--swarm", self.swarm.is_some()),
+            ("--generations", self.generations.is_some()),
+            ("--c1", self.c1.is_some()),
+            ("--c2", self.c2.is_some()),
+            ("--seed", self.seed.is_some()),
+            ("--init-angle-rad", self.init_angle_rad.is_some()),
+            ("--init-length-mm", self.init_length_mm.is_some()),
+            ("--bound-factor", self.bound_factor.is_some()),
+            ("--stall-generations", self.stall_generations.is_some()),
+            ("--target", self.target.is_some()),
+            ("--halton-start", self.halton_start.is_some()),
+            ("--scrambling", self.scrambling.is_some()),
+        ]
+        .into_iter()
+        .filter_map(|(flag, given)| given.then_some(flag))
+        .collect()
+    }
+}
+
 impl CalibrateOptions {
     /// The library configuration these options ask for.
     pub fn config(&self) -> CalibrationConfig {
@@ -161,23 +213,8 @@ impl CalibrateOptions {
             frames: self.frames,
             identify: self.identify,
             model: self.model,
-            k: self.k,
-            swarm: SwarmConfig {
-                particles: self.swarm.unwrap_or(SwarmConfig::default().particles),
-                generations: self
-                    .generations
-                    .unwrap_or(SwarmConfig::default().generations),
-                c1: self.c1,
-                c2: self.c2,
-                seed: self.seed,
-                init_angle_rad: self.init_angle_rad,
-                init_length_mm: self.init_length_mm,
-                bound_factor: self.bound_factor,
-                stall_generations: self.stall_generations,
-                target: self.target,
-                halton_start: self.halton_start,
-                scrambling: self.scrambling,
-            },
+            k: self.k.unwrap_or(calib_core::identify::objective::DEFAULT_K),
+            swarm: self.swarm.config(),
             lm_iterations: self.lm_iterations,
             loss: self.loss,
             loss_scale_mm: self.loss_scale_mm,
@@ -305,9 +342,13 @@ fn calibrate_loaded(
     from_files: bool,
 ) -> anyhow::Result<Calibration> {
     config.check()?;
-    if options.method == Method::Lm && (options.swarm.is_some() || options.generations.is_some()) {
+    crate::cli::weight_for(options.k, &all.data, &options.input.data)?;
+    let swarm = options.swarm.given();
+    if options.method == Method::Lm && !swarm.is_empty() {
         bail!(
-            "--swarm and --generations set the swarm, and --method lm runs none: drop them, or use --method ipso or ipso+lm"
+            "{} set the swarm, and --method lm runs none: drop {}, or use --method ipso or ipso+lm",
+            swarm.join(", "),
+            if swarm.len() == 1 { "it" } else { "them" }
         );
     }
     let stamped = |result| {

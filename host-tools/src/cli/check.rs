@@ -13,9 +13,10 @@ pub struct CheckOptions {
     /// say `# frame: base`).
     #[arg(long, value_enum)]
     pub frames: Option<crate::measurement::frames::Frames>,
-    /// Orientation weight k, mm^2/rad^2 (as for calibrate).
-    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K, value_parser = crate::cli::orientation_weight)]
-    pub k: f64,
+    /// Orientation weight k, mm^2/rad^2 (as for calibrate; default 1e6; refused for
+    /// position-only data).
+    #[arg(long, value_parser = crate::cli::orientation_weight)]
+    pub k: Option<f64>,
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
@@ -27,9 +28,10 @@ pub fn check(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
     // Joint maps and gravity compliance of the file are held fixed: the analysis is that of the
     // geometric parameters at the kinematic angles (the readings with the maps).
     let (_, dataset) = options.input.load()?;
+    let k = crate::cli::weight_for(options.k, &dataset.data, &options.input.data)?;
     Ok(crate::analysis::identifiability::check(
         &dataset,
         options.frames,
-        options.k,
+        k,
     )?)
 }

@@ -96,16 +96,20 @@ pub struct CompensateOptions {
     /// On a 7-joint arm (numerical inverse kinematics), the largest change of the arm angle (the
     /// elbow's turn about the shoulder-wrist line) from the posture or the given joints, deg; a
     /// solution beyond it is another configuration and refused. The configuration joints (on the
-    /// iiwa 2, 4 and 6) always keep the posture's side of zero.
-    #[arg(long, value_name = "DEG", default_value_t = crate::kinematics::configuration::DEFAULT_MAX_ARM_ANGLE_DEG,
-          value_parser = arm_angle_bound)]
-    pub max_arm_angle_deg: f64,
+    /// iiwa 2, 4 and 6) always keep the posture's side of zero. Default 15; refused for other
+    /// robots.
+    #[arg(long, value_name = "DEG", value_parser = arm_angle_bound)]
+    pub max_arm_angle_deg: Option<f64>,
     /// On a robot without a closed form (numerical inverse kinematics), the largest distance of
     /// any joint from the posture (--near-deg) or the given joints, deg; a solution beyond it is
-    /// refused as another configuration.
-    #[arg(long, value_name = "DEG", default_value_t = crate::kinematics::configuration::DEFAULT_MAX_JOINT_DISTANCE_DEG,
-          value_parser = joint_distance_bound)]
-    pub near_within_deg: f64,
+    /// refused as another configuration. Default 90; refused for robots with a closed form.
+    #[arg(long, value_name = "DEG", value_parser = joint_distance_bound)]
+    pub near_within_deg: Option<f64>,
+    /// The targets' text in the format of a `--targets` file, when they come from memory (the
+    /// Python package's arrays): parsed instead of reading `targets`, which then only names
+    /// them in messages.
+    #[arg(skip)]
+    pub targets_text: Option<String>,
 }
 
 /// `--near-within-deg`: a finite angle from 0 to 360 deg.
@@ -156,9 +160,20 @@ impl CompensateOptions {
             map_ranges,
             allow_extrapolation: self.allow_extrapolation,
             bounds: crate::kinematics::configuration::ConfigurationBounds {
-                max_arm_angle_rad: self.max_arm_angle_deg.to_radians(),
-                max_joint_distance_rad: self.near_within_deg.to_radians(),
+                max_arm_angle_rad: (self.max_arm_angle_deg)
+                    .unwrap_or(crate::kinematics::configuration::DEFAULT_MAX_ARM_ANGLE_DEG)
+                    .to_radians(),
+                max_joint_distance_rad: (self.near_within_deg)
+                    .unwrap_or(crate::kinematics::configuration::DEFAULT_MAX_JOINT_DISTANCE_DEG)
+                    .to_radians(),
             },
+            stated_bounds: [
+                ("--near-within-deg", self.near_within_deg.is_some()),
+                ("--max-arm-angle-deg", self.max_arm_angle_deg.is_some()),
+            ]
+            .into_iter()
+            .filter_map(|(flag, given)| given.then_some(flag))
+            .collect(),
         })
     }
 }
@@ -212,8 +227,16 @@ fn targets_into_base(
 /// The joint targets of the file at `path` (`--joint-targets`) as target poses: each record's
 /// position and orientation the nominal model's pose at its joints, in the base frame; its
 /// joints stay as the start. Joints outside the nominal model's limits are refused with the line.
-fn nominal_poses_of(nominal: &RobotModel, path: &std::path::Path) -> anyhow::Result<TrackerData> {
-    let mut targets = TrackerData::read_joints(path, &crate::io::profile::DataProfile::default())?;
+fn nominal_poses_of(
+    nominal: &RobotModel,
+    path: &std::path::Path,
+    text: Option<&str>,
+) -> anyhow::Result<TrackerData> {
+    let profile = crate::io::profile::DataProfile::default();
+    let mut targets = match text {
+        Some(text) => TrackerData::parse_joints(text, path, &profile)?,
+        None => TrackerData::read_joints(path, &profile)?,
+    };
     let joints = nominal.robot.joints.len();
     if targets.joints != joints {
         bail!(
@@ -383,7 +406,9 @@ fn inputs(
                 "--joint-targets: the targets are the nominal poses of the joints, in the base frame; drop --targets-frame"
             );
         }
-        nominal_poses_of(nominal, &options.targets)?
+        nominal_poses_of(nominal, &options.targets, options.targets_text.as_deref())?
+    } else if let Some(text) = &options.targets_text {
+        TrackerData::parse_targets(text, &options.targets)?
     } else {
         TrackerData::read_targets(&options.targets)?
     };

@@ -20,9 +20,10 @@ pub struct EvaluateOptions {
     /// all poses serve both (and the statistics flatter the model).
     #[arg(long, value_name = "POSES")]
     pub fit_poses: Option<usize>,
-    /// Seed of the choice of --fit-poses (as --validate-seed of calibrate).
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
+    /// Seed of the choice of --fit-poses (as --validate-seed of calibrate; default 0; refused
+    /// without --fit-poses).
+    #[arg(long)]
+    pub seed: Option<u64>,
     /// Use the registration stored with an identified model (its `[measurement]` section: the
     /// tracker's view of the base and the probe) instead of fitting frames: how well the model
     /// and its registration predict new data of the same set-up.
@@ -47,12 +48,17 @@ pub fn evaluate_dataset(
     dataset: crate::measurement::dataset::Dataset,
 ) -> anyhow::Result<Evaluation> {
     crate::model::counts::joint_count(dataset.robot.file.joint.len())?;
+    if options.seed.is_some() && options.fit_poses.is_none() {
+        anyhow::bail!(
+            "--seed chooses the --fit-poses poses, and none are chosen: give --fit-poses N, or drop --seed"
+        );
+    }
     let mut robot = dataset.robot.clone();
     let frames = if options.stored_registration {
         if robot.file.measurement.is_none() {
             anyhow::bail!(
-                "{}: has no [measurement] section, no registration to use: give a model identified on tracker data \
-                 (calibrate writes it), or fit the frames (--fit-frames)",
+                "--stored-registration: {} has no [measurement] section, no registration to use: give a model \
+                 identified on tracker data (calibrate writes it), or fit the frames (--fit-frames)",
                 options.input.robot.display()
             );
         }
@@ -66,7 +72,7 @@ pub fn evaluate_dataset(
         &dataset,
         frames,
         options.fit_poses,
-        options.seed,
+        options.seed.unwrap_or(0),
     )?)
 }
 

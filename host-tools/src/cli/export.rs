@@ -19,27 +19,27 @@ pub struct ExportOptions {
     /// Output file.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
-    /// Scalar type of the block.
-    #[arg(long, value_enum, default_value_t = BlockScalar::F32)]
-    pub scalar: BlockScalar,
-    /// Sequence number written into the block.
-    #[arg(long, default_value_t = 1)]
-    pub sequence: u32,
+    /// Block: scalar type (default f32).
+    #[arg(long, value_enum)]
+    pub scalar: Option<BlockScalar>,
+    /// Block: sequence number written into it (default 1).
+    #[arg(long)]
+    pub sequence: Option<u32>,
     /// URDF: the links after joints 1..N, comma-separated (default link_1,...,link_N).
     #[arg(long, value_delimiter = ',', value_name = "NAMES")]
     pub link_names: Option<Vec<String>>,
     /// URDF: the revolute joints, comma-separated (default joint_1,...,joint_N).
     #[arg(long, value_delimiter = ',', value_name = "NAMES")]
     pub joint_names: Option<Vec<String>>,
-    /// URDF: the root link, where the robot file's `[base]` is given.
-    #[arg(long, default_value = "base_link")]
-    pub base_link: String,
-    /// URDF: the flange link (after the last joint's fixed part).
-    #[arg(long, default_value = "flange")]
-    pub flange_link: String,
-    /// URDF: the controller's tool link (`[tool]` from the flange).
-    #[arg(long, default_value = "tool0")]
-    pub tool_link: String,
+    /// URDF: the root link, where the robot file's `[base]` is given (default base_link).
+    #[arg(long)]
+    pub base_link: Option<String>,
+    /// URDF: the flange link, after the last joint's fixed part (default flange).
+    #[arg(long)]
+    pub flange_link: Option<String>,
+    /// URDF: the controller's tool link, `[tool]` from the flange (default tool0).
+    #[arg(long)]
+    pub tool_link: Option<String>,
     /// URDF: only the `<joint>` elements, with these link names. Their link frames are ours (each
     /// joint's frame at the fixed part of the one before), not a vendor description's: meshes
     /// placed in a vendor's link frames would be misplaced. For UR robots use --format
@@ -66,6 +66,7 @@ pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
 /// The bytes `calib export` writes for `file` (read from `options.params`, which names it in
 /// messages); `options.out` is not used.
 pub fn export_bytes(options: &ExportOptions, file: &RobotFile) -> anyhow::Result<Vec<u8>> {
+    options.check_format()?;
     let urdf = urdf_settings(options, file);
     crate::model::counts::joint_count(file.joint.len())?;
     exported(options, file, &urdf)
@@ -82,10 +83,55 @@ fn exported(
         file,
         &model,
         options.format,
-        options.scalar,
-        options.sequence,
+        options.scalar.unwrap_or(BlockScalar::F32),
+        options.sequence.unwrap_or(1),
         urdf,
     )?)
+}
+
+impl ExportOptions {
+    /// Refuses an option of another format than `--format`'s: it would change nothing.
+    fn check_format(&self) -> anyhow::Result<()> {
+        let given = [
+            ("--scalar", self.scalar.is_some(), "block"),
+            ("--sequence", self.sequence.is_some(), "block"),
+            ("--link-names", self.link_names.is_some(), "urdf"),
+            ("--joint-names", self.joint_names.is_some(), "urdf"),
+            ("--base-link", self.base_link.is_some(), "urdf"),
+            ("--flange-link", self.flange_link.is_some(), "urdf"),
+            ("--tool-link", self.tool_link.is_some(), "urdf"),
+            ("--joints-only", self.joints_only, "urdf"),
+        ];
+        let format = self.format;
+        for (flag, is_given, takes_it) in given {
+            if is_given
+                && !matches!(
+                    (takes_it, format),
+                    ("block", ExportFormat::Block) | ("urdf", ExportFormat::Urdf)
+                )
+            {
+                anyhow::bail!(
+                    "{flag} is an option of --format {takes_it}, and --format is {}: drop {flag}",
+                    format_name(format)
+                );
+            }
+        }
+        if self.geometry_only
+            && !matches!(format, ExportFormat::Urdf | ExportFormat::UrKinematicsYaml)
+        {
+            anyhow::bail!(
+                "--geometry-only is an option of --format urdf and ur-kinematics-yaml (which cannot carry joint maps or compliance), and --format is {}: drop it",
+                format_name(format)
+            );
+        }
+        Ok(())
+    }
+}
+
+/// The name `--format` takes for `format`.
+fn format_name(format: ExportFormat) -> String {
+    clap::ValueEnum::to_possible_value(&format)
+        .map_or_else(String::new, |v| v.get_name().to_owned())
 }
 
 /// The URDF names of the options (defaults for the file's joint count).
@@ -97,9 +143,15 @@ fn urdf_settings(options: &ExportOptions, file: &RobotFile) -> crate::formats::u
     if let Some(names) = &options.joint_names {
         urdf.joints.clone_from(names);
     }
-    urdf.base_link.clone_from(&options.base_link);
-    urdf.flange.clone_from(&options.flange_link);
-    urdf.tool.clone_from(&options.tool_link);
+    for (name, option) in [
+        (&mut urdf.base_link, &options.base_link),
+        (&mut urdf.flange, &options.flange_link),
+        (&mut urdf.tool, &options.tool_link),
+    ] {
+        if let Some(given) = option {
+            name.clone_from(given);
+        }
+    }
     urdf.joints_only = options.joints_only;
     urdf.geometry_only = options.geometry_only;
     urdf

@@ -76,6 +76,23 @@ pub(crate) fn orientation_weight(text: &str) -> Result<f64, String> {
     }
 }
 
+/// The orientation weight `--k` of eq. (7) for `data`: the value given, else the default;
+/// refused when given for position-only data, which have no orientation rows to weigh.
+pub(crate) fn weight_for(
+    k: Option<f64>,
+    data: &crate::io::tracker_data::TrackerData,
+    file: &std::path::Path,
+) -> anyhow::Result<f64> {
+    match k {
+        Some(_) if data.rows_without_orientation() => anyhow::bail!(
+            "--k weighs orientation rows against position rows, and {} has positions only: drop --k",
+            file.display()
+        ),
+        Some(k) => Ok(k),
+        None => Ok(calib_core::identify::objective::DEFAULT_K),
+    }
+}
+
 /// Prints `text` to standard output. A closed pipe (the reader has gone, as with `| head`) ends
 /// the printing quietly; any other write error (such as a full disk) is an error. Never panics.
 pub fn print(text: &str) -> anyhow::Result<()> {

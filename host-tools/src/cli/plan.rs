@@ -73,9 +73,9 @@ pub struct PlanOptions {
     /// errors the geometric model does not describe.
     #[arg(long, value_name = "FILE", conflicts_with = "noise_mm")]
     pub noise_from: Option<PathBuf>,
-    /// Orientation weight k, mm^2/rad^2 (as for calibrate).
-    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K, value_parser = crate::cli::orientation_weight)]
-    pub k: f64,
+    /// Orientation weight k, mm^2/rad^2 (as for calibrate; default 1e6; --measure pose only).
+    #[arg(long, value_parser = crate::cli::orientation_weight)]
+    pub k: Option<f64>,
     /// Seed of the random fill and verification poses.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -110,6 +110,11 @@ pub struct PlanOptions {
 }
 
 impl PlanOptions {
+    /// The orientation weight: `--k`, else the default of eq. (7).
+    fn k(&self) -> f64 {
+        self.k.unwrap_or(calib_core::identify::objective::DEFAULT_K)
+    }
+
     /// The noise levels (mm per position coordinate, deg per orientation axis): the flags, or
     /// the residuals of the report of --noise-from.
     fn noise(&self) -> anyhow::Result<(f64, f64)> {
@@ -118,7 +123,12 @@ impl PlanOptions {
                 "--noise-deg is the noise of a measured orientation, and --measure position measures none: drop it, or --measure pose"
             );
         }
-        let weighted = |mm: f64| (mm / self.k.sqrt()).to_degrees();
+        if self.measure == Measure::Position && self.k.is_some() {
+            bail!(
+                "--k weighs measured orientations against positions, and --measure position measures none: drop it, or --measure pose"
+            );
+        }
+        let weighted = |mm: f64| (mm / self.k().sqrt()).to_degrees();
         match (&self.noise_mm, &self.noise_from) {
             (Some(mm), _) => Ok((*mm, self.noise_deg.unwrap_or_else(|| weighted(*mm)))),
             (None, Some(path)) => noise_of_report(path),
@@ -177,6 +187,11 @@ fn candidates(options: &PlanOptions, file: &RobotFile) -> anyhow::Result<Vec<(St
                     "--box-mm selects among generated candidates (--generate); with --candidates, give only the configurations to choose from"
                 );
             }
+            if options.below_base {
+                bail!(
+                    "--below-base lets generated candidates (--generate) put the tool below the base; --candidates are taken as the file gives them: drop --below-base"
+                );
+            }
             let profile = DataProfile::load(options.profile.as_deref())?;
             let records = TrackerData::read_joints(path, &profile)?.records;
             let model = file.to_model(&options.robot)?;
@@ -193,6 +208,11 @@ fn candidates(options: &PlanOptions, file: &RobotFile) -> anyhow::Result<Vec<(St
             records.into_iter().map(|r| (r.id, r.q)).collect()
         }
         (None, Some(count)) => {
+            if options.profile.is_some() {
+                bail!(
+                    "--profile reads a --candidates file, and --generate reads none: drop --profile"
+                );
+            }
             let box_mm = match options.box_mm.as_deref() {
                 None if options.below_base => None,
                 // The half space above the mounting plane.
@@ -286,7 +306,7 @@ pub fn planned(options: &PlanOptions, file: &RobotFile) -> anyhow::Result<Plan> 
         model: options.model,
         noise_mm,
         noise_deg,
-        k: options.k,
+        k: options.k(),
         seed: options.seed,
     };
     let mut plan = planning::plan(file, &options.robot, &candidates, &settings)?;

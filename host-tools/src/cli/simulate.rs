@@ -15,12 +15,14 @@ pub struct Simulation {
     /// True errors: the paper's Table 2, or random ones.
     #[arg(long, value_enum, default_value_t = TrueErrors::Table2)]
     pub errors: TrueErrors,
-    /// Half range of random length errors, mm (with --errors random).
-    #[arg(long, default_value_t = 0.5)]
-    pub random_length_mm: f64,
-    /// Half range of random angle errors, rad (with --errors random).
-    #[arg(long, default_value_t = 0.01)]
-    pub random_angle_rad: f64,
+    /// Half range of random length errors, mm (default 0.5; with --errors random, refused
+    /// without it).
+    #[arg(long)]
+    pub random_length_mm: Option<f64>,
+    /// Half range of random angle errors, rad (default 0.01; with --errors random, refused
+    /// without it).
+    #[arg(long)]
+    pub random_angle_rad: Option<f64>,
     /// Number of poses.
     #[arg(long, default_value_t = 32)]
     pub poses: usize,
@@ -102,10 +104,24 @@ impl Simulation {
             xyz_mm: tracker_xyz.unwrap_or([0.0; 3]),
             rpy_deg: tracker_rpy.unwrap_or([0.0; 3]),
         });
+        if self.errors != TrueErrors::Random {
+            for (flag, given) in [
+                ("--random-length-mm", self.random_length_mm.is_some()),
+                ("--random-angle-rad", self.random_angle_rad.is_some()),
+            ] {
+                if given {
+                    bail!(
+                        "{flag} sets the range of random errors, and --errors table2 (the default) takes the paper's Table 2: add --errors random, or drop {flag}"
+                    );
+                }
+            }
+        }
         Ok(SimulationConfig {
             errors: self.errors,
-            random_length_mm: self.random_length_mm,
-            random_angle_rad: self.random_angle_rad,
+            random_length_mm: (self.random_length_mm)
+                .unwrap_or(SimulationConfig::default().random_length_mm),
+            random_angle_rad: (self.random_angle_rad)
+                .unwrap_or(SimulationConfig::default().random_angle_rad),
             poses: self.poses,
             within_limits: self.within_limits,
             joint_noise_rad: self.joint_noise_rad,

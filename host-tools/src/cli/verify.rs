@@ -19,9 +19,9 @@ pub struct VerifyOptions {
     /// Seed of the hold-out.
     #[arg(long, default_value_t = 0)]
     pub validate_seed: u64,
-    /// Orientation weight k, mm^2/rad^2.
-    #[arg(long, default_value_t = calib_core::identify::objective::DEFAULT_K, value_parser = crate::cli::orientation_weight)]
-    pub k: f64,
+    /// Orientation weight k, mm^2/rad^2 (default 1e6; refused for position-only data).
+    #[arg(long, value_parser = crate::cli::orientation_weight)]
+    pub k: Option<f64>,
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
@@ -31,12 +31,13 @@ pub struct VerifyOptions {
 pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
     crate::model::counts::joint_count(options.input.joints()?)?;
     let (_, all) = options.input.load()?;
+    let k = crate::cli::weight_for(options.k, &all.data, &options.input.data)?;
     let (calibration, validation) =
         crate::measurement::dataset::split(&all, options.validate, options.validate_seed)?;
     Ok(crate::analysis::verify::verify(
         &calibration,
         &validation,
         options.frames,
-        options.k,
+        k,
     )?)
 }

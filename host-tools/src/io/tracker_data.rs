@@ -327,7 +327,13 @@ impl TrackerData {
     /// optional (when present they are start values).
     pub(crate) fn read_targets(path: &Path) -> Result<Self, DataError> {
         let text = read_text(path)?;
-        Self::parse_with(&text, path, Needs::Targets, &DataProfile::default())
+        Self::parse_targets(&text, path)
+    }
+
+    /// Parses the text of a file of target poses, as [`read_targets`](Self::read_targets) reads
+    /// it; `path` only names the source in errors.
+    pub(crate) fn parse_targets(text: &str, path: &Path) -> Result<Self, DataError> {
+        Self::parse_with(text, path, Needs::Targets, &DataProfile::default())
     }
 
     /// Reads a file of candidate joint configurations (`calib plan --candidates`) through a data

@@ -93,9 +93,37 @@ pub struct Request {
     /// On robots without a closed form, how far a solution may be from the posture (or the
     /// given joints) and stay in its configuration ([`configuration`](super::configuration)).
     pub bounds: ConfigurationBounds,
+    /// The bounds stated for this run, by their flags (`--near-within-deg`,
+    /// `--max-arm-angle-deg`): refused for a robot they do not apply to.
+    pub stated_bounds: Vec<&'static str>,
 }
 
 impl Request {
+    /// Refuses bounds stated for a robot they do not bound: any on a robot with a closed form
+    /// (its configuration is the branch), the arm angle on arms other than 7 joints.
+    fn check_bounds(&self, nominal: &Robot<f64, Dyn>) -> crate::Result<()> {
+        if self.stated_bounds.is_empty() {
+            return Ok(());
+        }
+        if has_closed_form(nominal) {
+            return Err(crate::refused!(
+                "{} bound the numerical inverse kinematics of robots without a closed form, and this robot has one (its configuration is the branch): drop {}",
+                self.stated_bounds.join(" and "),
+                if self.stated_bounds.len() == 1 {
+                    "it"
+                } else {
+                    "them"
+                }
+            ));
+        }
+        let joints = nominal.joints.len();
+        if joints != 7 && self.stated_bounds.contains(&"--max-arm-angle-deg") {
+            return Err(crate::refused!(
+                "--max-arm-angle-deg bounds the arm angle of a 7-joint arm, and this robot has {joints} joints: drop it"
+            ));
+        }
+        Ok(())
+    }
     /// Targets in the closed-form `branch`, no joint maps.
     pub fn branch(branch: usize) -> Self {
         Self {
@@ -104,6 +132,7 @@ impl Request {
             map_ranges: Vec::new(),
             allow_extrapolation: false,
             bounds: ConfigurationBounds::default(),
+            stated_bounds: Vec::new(),
         }
     }
 }
@@ -174,6 +203,7 @@ pub(crate) fn compensate_targets_of(
     settings: &CompensationSettings<f64>,
     request: &Request,
 ) -> crate::Result<Vec<TargetOutcome>> {
+    request.check_bounds(nominal)?;
     let planned = Kinematics::nominal(nominal).context("nominal robot")?;
     let start = Start::of_rows(nominal, &planned, targets, request)?;
     let outcomes = targets
