@@ -13,6 +13,7 @@ import io as _io
 import json as _json
 from os import PathLike as _PathLike
 from typing import Any as _Any
+from typing import Mapping as _Mapping
 from typing import Optional as _Optional
 from typing import Union as _Union
 
@@ -28,6 +29,7 @@ from ._calib import (
 )
 from ._calib import calibrate as _calibrate
 from ._calib import compensate_csv as _compensate_csv
+from ._calib import compensate_csv_text as _compensate_csv_text
 from ._calib import evaluate_json as _evaluate_json
 from ._calib import plan
 
@@ -55,16 +57,27 @@ def evaluate(robot: Robot, data: Dataset, **options: _Any) -> dict[str, _Any]:
 
 
 def compensate(
-    robot: Robot, params: Robot, targets: _Union[str, "_PathLike[str]"], **options: _Any
+    robot: Robot,
+    params: Robot,
+    targets: _Union[str, "_PathLike[str]", _Mapping[str, _Any]],
+    **options: _Any,
 ) -> dict[str, list[_Union[float, str, None]]]:
-    """The joints that put the identified robot ``params`` on each target pose of the file
-    ``targets`` (``calib compensate``), for a controller that plans with the nominal ``robot``;
-    its options as keyword arguments (``targets_frame``, ``joint_targets``, ``max_correction_mm``,
-    ``near_deg``, ``branch``, ...). Either robot may come from a file or from memory
-    (``CalibrationResult.robot``); ``targets`` is a file (CSV). Returns the output table as a
-    dict: column name to list, one entry per target in file order (numbers as float, empty
-    cells as None); rows whose ``status`` is not ``ok`` carry the reason."""
-    text = _compensate_csv(robot, params, targets, **options)
+    """The joints that put the identified robot ``params`` on each target pose (``calib
+    compensate``), for a controller that plans with the nominal ``robot``; its options as keyword
+    arguments (``targets_frame``, ``joint_targets``, ``max_correction_mm``, ``near_deg``,
+    ``branch``, ...). Either robot may come from a file or from memory
+    (``CalibrationResult.robot``). ``targets`` is a file (CSV), or the targets' columns as a
+    mapping of column name to values (a dict of lists or numpy arrays, a pandas DataFrame), named
+    as in a targets file (docs/USAGE.md, "Input formats"): ``x_mm, y_mm, z_mm`` with ``qw, qx,
+    qy, qz`` (or ``rx_deg, ry_deg, rz_deg``), optional ``id`` and ``q1_deg..qN_deg`` (the
+    controller's joints); with ``joint_targets=True`` the joints ``q1_deg..qN_deg`` (or
+    ``_rad``) and optional ``id``. Returns the output table as a dict: column name to list, one
+    entry per target in order (numbers as float, empty cells as None); rows whose ``status`` is
+    not ``ok`` carry the reason."""
+    if isinstance(targets, (str, _PathLike)):
+        text = _compensate_csv(robot, params, targets, **options)
+    else:
+        text = _compensate_csv_text(robot, params, _columns_as_csv(targets), "<targets arrays>", **options)
     rows = list(_csv.reader(line for line in _io.StringIO(text) if not line.startswith("#")))
     header, body = rows[0], rows[1:]
 
@@ -75,6 +88,38 @@ def compensate(
             return cell if cell != "" else None
 
     return {name: [value(row[i]) if i < len(row) else None for row in body] for i, name in enumerate(header)}
+
+
+def _columns_as_csv(columns: _Mapping[str, _Any]) -> str:
+    """The text of a targets file with these columns: numbers written exactly (``repr``), the
+    ``id`` column as text. InputError for columns of unequal length or a value that is not a
+    number."""
+    if not hasattr(columns, "keys"):
+        raise TypeError(
+            f"targets: give a file path or a mapping of column name to values, not {type(columns).__name__}"
+        )
+    names = [str(name) for name in columns.keys()]
+    values = [list(columns[name]) for name in columns.keys()]
+    lengths = {len(v) for v in values}
+    if len(lengths) > 1:
+        counts = ", ".join(f"{n} {len(v)}" for n, v in zip(names, values))
+        raise InputError(f"targets: every column needs one value per target; the lengths differ ({counts})")
+    out = _io.StringIO()
+    writer = _csv.writer(out, lineterminator="\n")
+    writer.writerow(names)
+    rows = zip(*values) if values else iter(())
+    for row, cells in enumerate(rows):
+        line = []
+        for name, cell in zip(names, cells):
+            if name == "id":
+                line.append(str(cell))
+                continue
+            try:
+                line.append(repr(float(cell)))
+            except (TypeError, ValueError):
+                raise InputError(f"targets[{name!r}][{row}] = {cell!r} is not a number") from None
+        writer.writerow(line)
+    return out.getvalue()
 
 
 __all__ = [

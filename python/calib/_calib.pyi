@@ -18,6 +18,7 @@ __all__ = [
     "__version__",
     "calibrate",
     "compensate_csv",
+    "compensate_csv_text",
     "evaluate_json",
     "plan",
 ]
@@ -56,8 +57,23 @@ class Robot:
         tool_rpy_rad: Optional[Sequence[float]] = None,
     ) -> "Robot":
         """A robot from arrays of its Hayati-modified DH parameters (mm, rad), one value per joint.
-        Not for a table in Craig's modified DH convention: write it as ``[[craig_joint]]`` rows of a
-        robot file and read it with ``Robot.from_toml`` or ``Robot.from_file``."""
+        Not for a table in Craig's modified DH convention: that is ``Robot.from_craig``'s."""
+    @staticmethod
+    def from_craig(
+        name: str,
+        alpha_prev_rad: Sequence[float],
+        a_prev_mm: Sequence[float],
+        d_mm: Sequence[float],
+        theta_offset_rad: Sequence[float],
+        limits_rad: Optional[Sequence[Sequence[float]]] = None,
+        flange_alpha_prev_rad: Optional[float] = None,
+        flange_a_prev_mm: Optional[float] = None,
+        flange_d_mm: Optional[float] = None,
+        flange_theta_rad: Optional[float] = None,
+    ) -> "Robot":
+        """A robot from a table in Craig's modified DH convention (mm, rad), one value per joint:
+        ``A_i = Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i)``, as Franka publishes the Panda's;
+        the flange as Craig's last row. Converted exactly, as ``[[craig_joint]]`` rows are."""
     @property
     def name(self) -> str: ...
     @property
@@ -169,3 +185,5 @@ def plan(
 
 def compensate_csv(robot: Robot, params: Robot, targets: _Path, **options: Union[str, float, int, bool, Sequence[str]]) -> str:
     """The table ``calib compensate`` writes, as CSV text (``calib.compensate`` returns its columns)."""
+def compensate_csv_text(robot: Robot, params: Robot, text: str, name: str, **options: Union[str, float, int, bool, Sequence[str]]) -> str:
+    """``compensate_csv`` of targets given as the text of a targets file; ``name`` names them in messages."""

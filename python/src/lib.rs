@@ -201,8 +201,8 @@ impl Robot {
     /// the base and tool frames as xyz (mm) and roll, pitch, yaw (rad, `R = Rz(yaw) Ry(pitch)
     /// Rx(roll)`). The robot file it makes is checked as a file is. Not for a table in Craig's
     /// modified DH convention (`Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i)`, as Franka
-    /// publishes the Panda's): the same numbers give another robot; write such a table as a robot
-    /// file's `[[craig_joint]]` rows and read it with `Robot.from_toml` or `Robot.from_file`.
+    /// publishes the Panda's): the same numbers give another robot; such a table is
+    /// `Robot.from_craig`'s.
     #[staticmethod]
     #[pyo3(signature = (name, a_mm, alpha_rad, theta_offset_rad, d_mm, beta_rad = None, limits_rad = None, base_xyz_mm = None, base_rpy_rad = None, tool_xyz_mm = None, tool_rpy_rad = None))]
     #[allow(clippy::too_many_arguments)]
@@ -257,13 +257,7 @@ impl Robot {
                         [0, 1].map(|k| ("limits_rad", format!("{j}][{k}"), l[k]))
                     }),
                 );
-        for (argument, at, value) in every {
-            if !value.is_finite() {
-                return input(format!(
-                    "from_dh: {argument}[{at}] = {value} is not a finite number"
-                ));
-            }
-        }
+        finite("from_dh", every)?;
         let mut text = format!("name = {}\n\n", toml::Value::from(name));
         for j in 0..joints {
             text += &format!(
@@ -294,6 +288,95 @@ impl Robot {
                     "[{section}]\nxyz_mm = [{x:?}, {y:?}, {z:?}]\nrpy_deg = [{r:?}, {p:?}, {w:?}]\n\n"
                 );
             }
+        }
+        Self::from_toml(&text, &format!("<{name}>"))
+    }
+
+    /// A robot from arrays of a table in Craig's modified DH convention, one value per joint:
+    /// `A_i = Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i)`, `theta_i = q_i +
+    /// theta_offset_i` (as Franka publishes the Panda's); lengths in mm, angles in rad;
+    /// `limits_rad` (joints, 2); the flange after the last joint as Craig's last row
+    /// (`flange_alpha_prev_rad`, `flange_a_prev_mm`, `flange_d_mm`, `flange_theta_rad`; none: the
+    /// flange is the last joint's frame). Converted exactly into the toolkit's model, as a robot
+    /// file's `[[craig_joint]]` rows are (docs/ARCHITECTURE.md).
+    #[staticmethod]
+    #[pyo3(signature = (name, alpha_prev_rad, a_prev_mm, d_mm, theta_offset_rad, limits_rad = None, flange_alpha_prev_rad = None, flange_a_prev_mm = None, flange_d_mm = None, flange_theta_rad = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn from_craig(
+        name: &str,
+        alpha_prev_rad: Vec<f64>,
+        a_prev_mm: Vec<f64>,
+        d_mm: Vec<f64>,
+        theta_offset_rad: Vec<f64>,
+        limits_rad: Option<Vec<[f64; 2]>>,
+        flange_alpha_prev_rad: Option<f64>,
+        flange_a_prev_mm: Option<f64>,
+        flange_d_mm: Option<f64>,
+        flange_theta_rad: Option<f64>,
+    ) -> PyResult<Self> {
+        let joints = alpha_prev_rad.len();
+        if [&a_prev_mm, &d_mm, &theta_offset_rad]
+            .iter()
+            .any(|c| c.len() != joints)
+            || limits_rad.as_ref().is_some_and(|l| l.len() != joints)
+        {
+            return input(format!(
+                "from_craig: every parameter needs {joints} values, one per joint"
+            ));
+        }
+        let named = [
+            ("alpha_prev_rad", &alpha_prev_rad),
+            ("a_prev_mm", &a_prev_mm),
+            ("d_mm", &d_mm),
+            ("theta_offset_rad", &theta_offset_rad),
+        ];
+        let flange = [
+            ("flange_alpha_prev_rad", flange_alpha_prev_rad),
+            ("flange_a_prev_mm", flange_a_prev_mm),
+            ("flange_d_mm", flange_d_mm),
+            ("flange_theta_rad", flange_theta_rad),
+        ];
+        let every = (named.iter())
+            .flat_map(|(n, v)| (v.iter().enumerate()).map(move |(i, x)| (*n, i.to_string(), *x)))
+            .chain(
+                flange
+                    .iter()
+                    .filter_map(|(n, v)| v.map(|x| (*n, "0".to_string(), x))),
+            )
+            .chain(
+                limits_rad
+                    .iter()
+                    .flatten()
+                    .enumerate()
+                    .flat_map(|(j, l)| [0, 1].map(|k| ("limits_rad", format!("{j}][{k}"), l[k]))),
+            );
+        finite("from_craig", every)?;
+        let mut text = format!("name = {}\n\n", toml::Value::from(name));
+        for j in 0..joints {
+            text += &format!(
+                "[[craig_joint]]\nalpha_prev_deg = {:?}\na_prev_mm = {:?}\nd_mm = {:?}\ntheta_offset_deg = {:?}\n",
+                alpha_prev_rad[j].to_degrees(),
+                a_prev_mm[j],
+                d_mm[j],
+                theta_offset_rad[j].to_degrees(),
+            );
+            if let Some(l) = &limits_rad {
+                text += &format!(
+                    "limits_deg = [{:?}, {:?}]\n",
+                    l[j][0].to_degrees(),
+                    l[j][1].to_degrees()
+                );
+            }
+            text += "\n";
+        }
+        if flange.iter().any(|(_, v)| v.is_some()) {
+            text += &format!(
+                "[craig_flange]\nalpha_prev_deg = {:?}\na_prev_mm = {:?}\nd_mm = {:?}\ntheta_deg = {:?}\n",
+                flange_alpha_prev_rad.unwrap_or(0.0).to_degrees(),
+                flange_a_prev_mm.unwrap_or(0.0),
+                flange_d_mm.unwrap_or(0.0),
+                flange_theta_rad.unwrap_or(0.0).to_degrees(),
+            );
         }
         Self::from_toml(&text, &format!("<{name}>"))
     }
@@ -1138,6 +1221,36 @@ fn compensate_csv(
     targets: PathBuf,
     options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<String> {
+    compensated_csv(py, (robot, params), (targets, None), options)
+}
+
+/// [`compensate_csv`] of targets given as the text of a targets file (the package's
+/// `compensate` makes it from arrays); `name` names them in messages.
+#[pyfunction]
+#[pyo3(signature = (robot, params, text, name, **options))]
+fn compensate_csv_text(
+    py: Python<'_>,
+    robot: &Robot,
+    params: &Robot,
+    text: String,
+    name: &str,
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<String> {
+    compensated_csv(
+        py,
+        (robot, params),
+        (PathBuf::from(name), Some(text)),
+        options,
+    )
+}
+
+/// The compensation table of the targets (a file, or its text when given).
+fn compensated_csv(
+    py: Python<'_>,
+    (robot, params): (&Robot, &Robot),
+    (targets, text): (PathBuf, Option<String>),
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<String> {
     let mut words: Vec<String> = vec![
         "compensate".into(),
         "--robot".into(),
@@ -1153,12 +1266,29 @@ fn compensate_csv(
         options,
         &["robot", "params", "targets", "out"],
     )?);
-    let parsed = parse_words::<host_tools::cli::compensate::CompensateOptions>(&words)?;
+    let mut parsed = parse_words::<host_tools::cli::compensate::CompensateOptions>(&words)?;
+    parsed.targets_text = text;
     let (file, identified) = (robot.file.clone(), params.file.clone());
     let (csv, _) = py
         .detach(|| host_tools::cli::compensate::compensated_table_of(&parsed, file, identified))
         .map_err(py_error)?;
     String::from_utf8(csv).map_err(|e| CalibError::new_err(e.to_string()))
+}
+
+/// InputError naming the first value of `values` (argument, index, value) that is not a finite
+/// number, for the constructor `function`.
+fn finite<'a>(
+    function: &str,
+    values: impl IntoIterator<Item = (&'a str, String, f64)>,
+) -> PyResult<()> {
+    for (argument, at, value) in values {
+        if !value.is_finite() {
+            return input(format!(
+                "{function}: {argument}[{at}] = {value} is not a finite number"
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// The module.
@@ -1171,6 +1301,7 @@ fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(evaluate_json, m)?)?;
     m.add_function(wrap_pyfunction!(plan, m)?)?;
     m.add_function(wrap_pyfunction!(compensate_csv, m)?)?;
+    m.add_function(wrap_pyfunction!(compensate_csv_text, m)?)?;
     m.add_class::<Plan>()?;
     m.add("CalibError", m.py().get_type::<CalibError>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;

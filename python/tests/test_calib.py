@@ -206,8 +206,8 @@ def test_bad_inputs_raise_the_documented_exceptions():
 
 def test_export_gives_the_bytes_calib_export_writes(tmp_path):
     robot = calib.Robot.from_file(UR10)
-    for fmt, extra in (("block", []), ("toml", []), ("urdf", []), ("ur-kinematics-yaml", ["--scalar", "f64"])):
-        out = tmp_path / f"ur10.{fmt}"
+    for fmt, extra in (("block", []), ("toml", []), ("urdf", []), ("ur-kinematics-yaml", []), ("block", ["--scalar", "f64"])):
+        out = tmp_path / f"ur10-{len(extra)}.{fmt}"
         done = run_calib("export", "--params", UR10, "--format", fmt, "--out", out, *extra)
         assert done.returncode == 0, done.stderr
         kwargs = {"scalar": "f64"} if extra else {}
@@ -428,3 +428,95 @@ def test_options_are_keyword_arguments_and_results_say_what_they_are():
         assert unit == ("rad" if angle else "mm"), (name, unit)
     plan = calib.plan(robot, generate=300, poses=20, measure="pose", noise_mm=0.05)
     assert repr(plan).startswith("Plan(poses=35: core"), repr(plan)
+
+
+def test_compensate_takes_targets_as_arrays(tmp_path):
+    """The targets of a file given as columns in memory (a dict of numpy arrays, a pandas
+    DataFrame): the table of the file, value for value."""
+    import pandas as pd
+    robot = calib.Robot.from_file(UR10)
+    data = calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=robot)
+    identified = calib.calibrate(robot, data, validate=0.9666, method="lm").robot
+    q = np.degrees(data.joints_rad[:12])
+    names = [f"q{j + 1}_deg" for j in range(6)]
+    joints = {name: q[:, j] for j, name in enumerate(names)}
+    path = tmp_path / "joints.csv"
+    pd.DataFrame(joints).to_csv(path, index=False, float_format="%.17g")
+    from_file = calib.compensate(robot, identified, path, joint_targets=True, max_correction_mm=15)
+    assert from_file["status"].count("ok") >= 10, from_file["status"]
+    assert calib.compensate(robot, identified, joints, joint_targets=True, max_correction_mm=15) == from_file
+    # Pose targets (the nominal poses of those joints, with ids and the controller's joints as
+    # starts), as a DataFrame and as the file pandas writes of it.
+    poses = robot.fk(data.joints_rad[:12])
+    w = np.sqrt(1.0 + np.trace(poses[:, :3, :3], axis1=1, axis2=2)) / 2.0
+    frame = pd.DataFrame({
+        "id": [f"T{i}" for i in range(12)],
+        "x_mm": poses[:, 0, 3], "y_mm": poses[:, 1, 3], "z_mm": poses[:, 2, 3],
+        "qw": w,
+        "qx": (poses[:, 2, 1] - poses[:, 1, 2]) / (4.0 * w),
+        "qy": (poses[:, 0, 2] - poses[:, 2, 0]) / (4.0 * w),
+        "qz": (poses[:, 1, 0] - poses[:, 0, 1]) / (4.0 * w),
+        **joints,
+    })
+    path = tmp_path / "poses.csv"
+    frame.to_csv(path, index=False, float_format="%.17g")
+    from_file = calib.compensate(robot, identified, path, max_correction_mm=15)
+    assert from_file["id"] == [f"T{i}" for i in range(12)]
+    assert calib.compensate(robot, identified, frame, max_correction_mm=15) == from_file
+    with pytest.raises(calib.InputError, match=r"lengths differ \(q1_deg 12, q2_deg 3"):
+        calib.compensate(robot, identified, {**joints, "q2_deg": q[:3, 1]}, joint_targets=True)
+    with pytest.raises(calib.InputError, match=r"targets\['q3_deg'\]\[0\] = 'x' is not a number"):
+        calib.compensate(robot, identified, {**joints, "q3_deg": ["x"] * 12}, joint_targets=True)
+    with pytest.raises(TypeError, match="a file path or a mapping"):
+        calib.compensate(robot, identified, q, joint_targets=True)
+
+
+def test_from_craig_is_the_published_table():
+    """The Panda from Franka's published table (Craig's modified DH, the flange 107 mm along z):
+    the forward kinematics of that convention written out here in numpy, and of the robot file
+    that writes the same table as [[craig_joint]] rows."""
+    alpha = np.radians([0.0, -90.0, 90.0, 90.0, -90.0, 90.0, 90.0])
+    a = [0.0, 0.0, 0.0, 82.5, -82.5, 0.0, 88.0]
+    d = [333.0, 0.0, 316.0, 0.0, 384.0, 0.0, 0.0]
+    limits = np.radians([[-166.0031, 166.0031], [-101.001, 101.001], [-166.0031, 166.0031],
+                         [-176.0012, -3.9992], [-166.0031, 166.0031], [-1.0027, 215.0024],
+                         [-166.0031, 166.0031]])
+    panda = calib.Robot.from_craig("Panda", alpha, a, d, [0.0] * 7, limits_rad=limits, flange_d_mm=107.0)
+
+    def rx(t):
+        c, s = math.cos(t), math.sin(t)
+        return np.array([[1, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1.0]])
+
+    def rz(t):
+        c, s = math.cos(t), math.sin(t)
+        return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+
+    def tx(v):
+        m = np.eye(4)
+        m[0, 3] = v
+        return m
+
+    def tz(v):
+        m = np.eye(4)
+        m[2, 3] = v
+        return m
+
+    file = calib.Robot.from_file(ROOT / "host-tools/robots/franka-panda.toml")
+    rng = np.random.default_rng(7)
+    for q in rng.uniform(limits[:, 0], limits[:, 1], size=(20, 7)):
+        chain = np.eye(4)
+        for i in range(7):
+            chain = chain @ rx(alpha[i]) @ tx(a[i]) @ rz(q[i]) @ tz(d[i])
+        chain = chain @ tz(107.0)
+        assert np.abs(panda.fk(q) - chain).max() < 1e-9
+        assert np.abs(file.fk(q) - chain).max() < 1e-9
+    # Read as Hayati rows, the same numbers are another robot.
+    other = calib.Robot.from_dh("not the Panda", a, alpha, [0.0] * 7, d)
+    home = np.radians([0.0, 0.0, 0.0, -90.0, 0.0, 90.0, 0.0])
+    assert np.abs(other.fk(home) - panda.fk(home)).max() > 100.0
+    with pytest.raises(calib.InputError, match="outside the joint limits"):
+        panda.fk(np.zeros(7))
+    with pytest.raises(calib.InputError, match=r"from_craig: every parameter needs 7 values"):
+        calib.Robot.from_craig("bad", alpha, a, d[:6], [0.0] * 7)
+    with pytest.raises(calib.InputError, match=r"from_craig: flange_d_mm\[0\] = inf is not a finite number"):
+        calib.Robot.from_craig("bad", alpha, a, d, [0.0] * 7, flange_d_mm=math.inf)
