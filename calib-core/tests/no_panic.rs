@@ -145,3 +145,63 @@ proptest! {
         prop_assert!(point.iter().all(|v| (0.0..1.0).contains(v)));
     }
 }
+
+/// A run-time (`Dyn`) parameter count holds a start vector of any length: one that is not the
+/// set's length is refused by least squares with both lengths, and has no objective value
+/// (+infinity), instead of a panic in nalgebra (too long) or a value of a truncated vector (too
+/// short).
+#[test]
+fn dyn_vectors_of_another_length_are_refused() {
+    use nalgebra::{DVector, Dyn};
+    let robot = er10l_c10::<f64>().recount::<Dyn>().unwrap();
+    let set = ParameterSet::<Dyn, Dyn>::default_for(&robot).unwrap();
+    let truth = Kinematics::new(&er10l_c10::<f64>(), &table2::<f64>()).unwrap();
+    let data: Vec<Measurement<f64, Dyn>> = (0..30)
+        .map(|i| {
+            let q = [0.1 * i as f64, -0.5, 0.3, 0.2 * i as f64, 0.7, -0.1];
+            let pose = truth.forward(&q).unwrap();
+            Measurement::<f64, U6>::new(
+                &q,
+                pose.translation.vector,
+                Some(*pose.rotation.matrix()),
+                1.0,
+            )
+            .unwrap()
+            .recount()
+            .unwrap()
+        })
+        .collect();
+    let zero = ParameterErrors::zeros_for(robot.joint_count());
+    let problem = Problem::new(&robot, &zero, set, &data, 1e6).unwrap();
+    let parameters = problem.set().len();
+    assert_eq!(parameters, 24);
+    let objective = Objective::new(&problem);
+    let least_squares = LeastSquares::new(&problem);
+    let settings = LmSettings {
+        max_iterations: 3,
+        ..LmSettings::default()
+    };
+    for length in [0, 1, 23, 25, 48] {
+        let x = DVector::<f64>::zeros(length);
+        assert_eq!(objective.value(&x), f64::INFINITY, "length {length}");
+        let refused = least_squares.solve(&x, &settings).err();
+        assert_eq!(
+            refused,
+            Some(calib_core::identify::lm::LmError::Shape {
+                expected: 24,
+                got: length as u32
+            }),
+            "length {length}"
+        );
+        let mut weights = vec![1.0; data.len()];
+        assert!(
+            least_squares
+                .solve_robust(&x, &settings, Loss::Huber(1.0), &mut weights)
+                .is_err()
+        );
+    }
+    // The set's own length: a finite value and a solution.
+    let x = DVector::<f64>::zeros(parameters);
+    assert!(objective.value(&x).is_finite() && objective.value(&x) > 0.0);
+    assert!(least_squares.solve(&x, &settings).is_ok());
+}

@@ -94,6 +94,14 @@ pub enum LmError {
     WeightBuffer,
     /// The robust loss scale is not a finite positive number.
     InvalidLossScale,
+    /// The start vector's length is not the parameter count of the problem's set (a run-time
+    /// `Dyn` dimension can hold any length).
+    Shape {
+        /// The parameters of the set.
+        expected: u16,
+        /// The start vector's length.
+        got: u32,
+    },
 }
 
 impl fmt::Display for LmError {
@@ -109,6 +117,10 @@ impl fmt::Display for LmError {
             Self::NonFinite => f.write_str("a parameter or residual is not finite"),
             Self::WeightBuffer => f.write_str("the weight buffer needs one entry per measurement"),
             Self::InvalidLossScale => f.write_str("the loss scale must be a finite number > 0"),
+            Self::Shape { expected, got } => write!(
+                f,
+                "the start vector has {got} values; the parameter set has {expected}"
+            ),
         }
     }
 }
@@ -609,11 +621,17 @@ where
         })
     }
 
-    /// The residual rows, after checking that they can determine the parameters and that the
-    /// start is finite.
+    /// The residual rows, after checking that the start has one value per parameter, that they
+    /// can determine the parameters and that the start is finite.
     fn check_start(&self, x0: &OVector<T, D>) -> Result<u32, LmError> {
-        let rows = self.rows();
         let parameters = self.problem.set().len();
+        if x0.len() != parameters {
+            return Err(LmError::Shape {
+                expected: u16::try_from(parameters).unwrap_or(u16::MAX),
+                got: u32::try_from(x0.len()).unwrap_or(u32::MAX),
+            });
+        }
+        let rows = self.rows();
         if (rows as usize) < parameters {
             return Err(LmError::TooFewResiduals {
                 rows,

@@ -303,7 +303,9 @@ where
         self.problem
     }
 
-    /// Eq. (7) at the packed errors `x` (mm, rad). Non-finite `x` gives +infinity.
+    /// Eq. (7) at the packed errors `x` (mm, rad). Non-finite `x`, or an `x` of another length
+    /// than the problem's parameter set (a run-time `Dyn` dimension can hold any), gives
+    /// +infinity: no value of a truncated or padded vector.
     ///
     /// The poses are evaluated `LANES` (4 on a PC, 1 on ARM) at a time in structure-of-arrays form (vectorised on a
     /// PC; on a controller the same scalar operations in a different order of memory accesses).
@@ -360,16 +362,16 @@ where
 
     /// Eq. (7) at `x` over poses in lanes: the terms summed within groups of `GROUP` poses, then
     /// the groups, the same order for every lane width (the padding's terms are +0, which
-    /// changes no sum). Non-finite `x` gives +infinity. Plain loops: a `fold` taking a closure
-    /// stayed a function of its own, compiled without the caller's AVX2 (measured: two thirds
-    /// of the run in it).
+    /// changes no sum). Non-finite `x`, or one of another length, gives +infinity. Plain loops:
+    /// a `fold` taking a closure stayed a function of its own, compiled without the caller's
+    /// AVX2 (measured: two thirds of the run in it).
     #[inline(always)]
     fn sum_in_groups<const L: usize, P: Borrow<PoseLanes<T, N, L>>>(
         &self,
         x: &OVector<T, D>,
         lanes: impl IntoIterator<Item = P>,
     ) -> T {
-        if !x.iter().all(|v| v.finite()) {
+        if x.len() != self.problem.set().len() || !x.iter().all(|v| v.finite()) {
             return T::of(f64::INFINITY);
         }
         let kinematics = self.problem.kinematics(x);
