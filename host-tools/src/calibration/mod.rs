@@ -374,16 +374,31 @@ fn solve_geometry(
         let held_out = validation.map(|v| v.seen_by(robot)).transpose()?;
         return solved(&dataset.seen_by(robot)?, held_out.as_ref());
     }
+    // The rounds before the last only move the geometry the deflection is evaluated at: their
+    // errors are all that is kept, so they are identified and nothing else (no evaluation, no
+    // covariance, no cross-validation); the last round is the calibration.
     let mut errors = ParameterErrors::zeros_for(robot.model.robot.joint_count());
-    let mut result = None;
-    for _ in 0..COMPLIANCE_ROUNDS {
+    for _ in 1..COMPLIANCE_ROUNDS {
         let calibration = dataset.seen_by_geometry(robot, &errors)?;
-        let held_out = (validation.map(|v| v.seen_by_geometry(robot, &errors))).transpose()?;
-        let round = solved(&calibration, held_out.as_ref())?;
-        errors = round.errors;
-        result = Some(round);
+        errors = identified_errors(&calibration, config, selection)?;
     }
-    result.ok_or_else(|| crate::numerical!("no compliance round ran"))
+    let calibration = dataset.seen_by_geometry(robot, &errors)?;
+    let held_out = (validation.map(|v| v.seen_by_geometry(robot, &errors))).transpose()?;
+    solved(&calibration, held_out.as_ref())
+}
+
+/// The errors of the parameters of `selection` identified from `dataset`, as [`solve`]
+/// identifies them, without evaluating them.
+fn identified_errors(
+    dataset: &Seen<'_>,
+    config: &CalibrationConfig,
+    selection: &Selection,
+) -> crate::Result<ParameterErrors<f64, Dyn>> {
+    let set = crate::model::counts::solvable_set(&selection.mask)?;
+    let problem = dataset.problem(set, config.k)?;
+    let objective = Objective::new(&problem);
+    let (_, _, best) = identify_errors(config, &problem, &objective, dataset)?;
+    Ok(problem.set().unpack(&best))
 }
 
 /// The parameters to identify and why.
