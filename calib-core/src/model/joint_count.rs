@@ -15,11 +15,6 @@ use nalgebra::{Const, Dim, Dyn, Matrix6, SMatrix, Vector6};
 /// The most joints a run-time joint count ([`Dyn`]) holds.
 pub const MAX_JOINTS: usize = 9;
 
-/// The run-time joint counts the core takes ([`Dyn`]), and the host with it: 2 to
-/// [`MAX_JOINTS`] (one revolute joint moves the tool on a circle, a pose no model of an arm
-/// is identified from). One range for the core and every command.
-pub const JOINT_COUNTS: core::ops::RangeInclusive<usize> = 2..=MAX_JOINTS;
-
 /// What a per-joint table holds: plain copyable values (that the controller's logs can print).
 pub trait Element: Copy + PartialEq + Debug + Loggable {}
 impl<X: Copy + PartialEq + Debug + Loggable> Element for X {}
@@ -96,7 +91,7 @@ pub trait JointCount: Dim + Copy + PartialEq + Debug {
     fn jacobian<T: Real>(self) -> Self::Jacobian<T>;
 
     /// The count `joints` as this type: `None` unless it is `N` (`Const<N>`) or within
-    /// [`JOINT_COUNTS`] ([`Dyn`]).
+    /// `1..=`[`MAX_JOINTS`] ([`Dyn`]).
     fn checked(joints: usize) -> Option<Self>;
 }
 
@@ -261,7 +256,7 @@ impl<T: Real> JacobianColumns<T> for JointVec<Vector6<T>> {
 }
 
 /// `table` as a table of the joint count type `M` (the same values): `None` when `M` cannot
-/// hold its count (another fixed count, or one outside [`JOINT_COUNTS`] for [`Dyn`]).
+/// hold its count (another fixed count, more than [`MAX_JOINTS`] for [`Dyn`], or no joint).
 /// Converts between a controller's fixed count and a host's run-time one.
 pub fn recount<X: Element, N: JointCount, M: JointCount>(
     table: &N::Table<X>,
@@ -272,9 +267,11 @@ pub fn recount<X: Element, N: JointCount, M: JointCount>(
     Some(out)
 }
 
-/// The run-time joint count `joints`, or `None` outside [`JOINT_COUNTS`].
+/// The run-time joint count `joints`, or `None` beyond [`MAX_JOINTS`] or for no joint. (A count
+/// of 1 serves the host's joint-by-joint checks of a file's joint maps; its commands take robots
+/// of 2 or more: `host_tools::model::counts::JOINT_COUNTS`.)
 pub fn joint_count(joints: usize) -> Option<Dyn> {
-    JOINT_COUNTS.contains(&joints).then_some(Dyn(joints))
+    (1..=MAX_JOINTS).contains(&joints).then_some(Dyn(joints))
 }
 
 /// One value per joint of a robot whose joint count is known at run time: an inline array of
@@ -377,27 +374,5 @@ impl<X: Element> Debug for JointVec<X> {
 impl<X: Element> defmt::Format for JointVec<X> {
     fn format(&self, f: defmt::Formatter) {
         defmt::write!(f, "{=[?]}", self.as_slice());
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The run-time counts are 2 to 9, for `joint_count`, `Dyn::checked` and `recount` alike.
-    #[test]
-    fn run_time_counts_are_two_to_nine() {
-        for joints in 0..=12 {
-            let taken = (2..=9).contains(&joints);
-            assert_eq!(joint_count(joints).is_some(), taken, "{joints}");
-            assert_eq!(
-                <Dyn as JointCount>::checked(joints).is_some(),
-                taken,
-                "{joints}"
-            );
-        }
-        assert!(recount::<f64, Const<1>, Dyn>(&[0.5]).is_none());
-        let two = recount::<f64, Const<2>, Dyn>(&[0.5, 1.5]).unwrap();
-        assert_eq!(two.as_slice(), &[0.5, 1.5]);
     }
 }

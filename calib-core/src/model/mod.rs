@@ -12,8 +12,6 @@ pub mod parameters;
 mod robot;
 
 pub use error::KinematicsError;
-pub use joint_count::{
-    JOINT_COUNTS, JacobianColumns, JointCount, JointTable, JointVec, MAX_JOINTS, joint_count,
-};
+pub use joint_count::{JacobianColumns, JointCount, JointTable, JointVec, MAX_JOINTS, joint_count};
 pub use robot::{FramePose, JointLimits, MdhJoint, Robot};
 pub(crate) use robot::{check_count, joint_number};

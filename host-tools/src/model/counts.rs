@@ -8,15 +8,16 @@
 use calib_core::{ParameterMask, ParameterSet};
 use nalgebra::{Dim, Dyn};
 
-/// The joint counts every command handles: the core's ([`calib_core::model::JOINT_COUNTS`]).
-pub use calib_core::model::JOINT_COUNTS;
+/// The joint counts every command handles (the host's tables hold at most
+/// [`calib_core::model::MAX_JOINTS`]).
+pub const JOINT_COUNTS: std::ops::RangeInclusive<usize> = 2..=calib_core::model::MAX_JOINTS;
 
 /// The run-time joint count of a robot of `joints` joints, or an error naming the supported
 /// counts ([`JOINT_COUNTS`]).
 pub fn joint_count(joints: usize) -> crate::Result<Dyn> {
     match calib_core::model::joint_count(joints) {
-        Some(count) => Ok(count),
-        None => Err(crate::refused!(
+        Some(count) if JOINT_COUNTS.contains(&joints) => Ok(count),
+        _ => Err(crate::refused!(
             "the robot file has {joints} joints; this command handles {} to {} joints",
             JOINT_COUNTS.start(),
             JOINT_COUNTS.end()
