@@ -15,7 +15,7 @@ mod common;
 use common::ROBOT;
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 use std::sync::OnceLock;
 
 /// What adding an option to a base run does.
@@ -34,6 +34,9 @@ enum Variation {
     Exempt(&'static str),
 }
 use Variation::{Exempt, Flag, PerBase, Value};
+
+/// An input every run of the command reads.
+const REQUIRED: Variation = Exempt("required: every run reads it");
 
 /// The global option every command takes.
 const INPUT_LIMIT: (&str, Variation) = (
@@ -284,12 +287,10 @@ struct Written {
 }
 
 fn run(dir: &Path, command: &str, args: &[String]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_calib"))
-        .current_dir(dir)
-        .arg(command)
-        .args(args)
-        .output()
-        .expect("run calib")
+    let all: Vec<&str> = std::iter::once(command)
+        .chain(args.iter().map(String::as_str))
+        .collect();
+    common::calib_in(dir, &all)
 }
 
 fn written(dir: &Path, out: &Output) -> Written {
@@ -501,8 +502,8 @@ fn help_options(command: &str) -> Vec<String> {
         .collect()
 }
 
-fn assert_no_defects(matrix: &Matrix) {
-    let defects = check(matrix);
+fn assert_no_defects(matrices: &[Matrix]) {
+    let defects: Vec<String> = matrices.iter().flat_map(check).collect();
     assert!(defects.is_empty(), "{}", defects.join("\n"));
 }
 
@@ -530,8 +531,8 @@ macro_rules! swarm_options {
 fn calibrate() {
     const SWARM: [(&str, Variation); 12] = swarm_options!();
     const OTHER: &[(&str, Variation)] = &[
-        ("--robot", Exempt("required: every run reads it")),
-        ("--data", Exempt("required: every run reads it")),
+        ("--robot", REQUIRED),
+        ("--data", REQUIRED),
         ("--profile", Value("{F}/profile.toml")),
         ("--frames", Value("base")),
         ("--identify", Value("frames")),
@@ -570,7 +571,7 @@ fn calibrate() {
     ];
     let options: Vec<_> = OTHER.iter().copied().chain(SWARM).collect();
     let options: &'static [(&str, Variation)] = options.leak();
-    assert_no_defects(&Matrix {
+    assert_no_defects(&[Matrix {
         command: "calibrate",
         bases: &[
             &[
@@ -627,12 +628,12 @@ fn calibrate() {
             ],
         ],
         options,
-    });
+    }]);
 }
 
 #[test]
 fn simulate() {
-    assert_no_defects(&Matrix {
+    assert_no_defects(&[Matrix {
         command: "simulate",
         bases: &[
             &[
@@ -688,12 +689,12 @@ fn simulate() {
             ("--truth-out", Value("u.toml")),
             INPUT_LIMIT,
         ],
-    });
+    }]);
 }
 
 #[test]
 fn plan() {
-    assert_no_defects(&Matrix {
+    assert_no_defects(&[Matrix {
         command: "plan",
         bases: &[
             &[
@@ -734,7 +735,7 @@ fn plan() {
             ],
         ],
         options: &[
-            ("--robot", Exempt("required: every run reads it")),
+            ("--robot", REQUIRED),
             ("--candidates", Value("{F}/plan.csv")),
             (
                 "--profile",
@@ -766,7 +767,7 @@ fn plan() {
             ("--acceleration-rad-s2", Value("0.25")),
             INPUT_LIMIT,
         ],
-    });
+    }]);
 }
 
 #[test]
@@ -774,8 +775,8 @@ fn check_evaluate_and_verify() {
     let data_options =
         |extra: &'static [(&'static str, Variation)]| -> &'static [(&'static str, Variation)] {
             let mut all = vec![
-                ("--robot", Exempt("required: every run reads it")),
-                ("--data", Exempt("required: every run reads it")),
+                ("--robot", REQUIRED),
+                ("--data", REQUIRED),
                 (
                     "--profile",
                     Exempt("reads our CSV the same (the reading through profiles: inputs.rs)"),
@@ -786,7 +787,7 @@ fn check_evaluate_and_verify() {
             all.extend_from_slice(extra);
             all.leak()
         };
-    let defects: Vec<String> = [
+    assert_no_defects(&[
         Matrix {
             command: "check",
             bases: &[
@@ -849,16 +850,12 @@ fn check_evaluate_and_verify() {
                 ("--k", Value("1e4")),
             ]),
         },
-    ]
-    .iter()
-    .flat_map(check)
-    .collect();
-    assert!(defects.is_empty(), "{}", defects.join("\n"));
+    ]);
 }
 
 #[test]
 fn compensate() {
-    assert_no_defects(&Matrix {
+    assert_no_defects(&[Matrix {
         command: "compensate",
         bases: &[
             &[
@@ -896,9 +893,9 @@ fn compensate() {
             ],
         ],
         options: &[
-            ("--robot", Exempt("required: every run reads it")),
-            ("--params", Exempt("required: every run reads it")),
-            ("--targets", Exempt("required: every run reads it")),
+            ("--robot", REQUIRED),
+            ("--params", REQUIRED),
+            ("--targets", REQUIRED),
             ("--targets-frame", Value("ur-base")),
             ("--joint-targets", Flag),
             ("--out", Value("d.csv")),
@@ -918,12 +915,12 @@ fn compensate() {
             ("--near-within-deg", Value("30")),
             INPUT_LIMIT,
         ],
-    });
+    }]);
 }
 
 #[test]
 fn export() {
-    assert_no_defects(&Matrix {
+    assert_no_defects(&[Matrix {
         command: "export",
         bases: &[
             &[
@@ -952,7 +949,7 @@ fn export() {
             ],
         ],
         options: &[
-            ("--params", Exempt("required: every run reads it")),
+            ("--params", REQUIRED),
             ("--format", Value("ur-kinematics-yaml")),
             ("--out", Value("other")),
             ("--scalar", Value("f64")),
@@ -972,12 +969,12 @@ fn export() {
             ),
             INPUT_LIMIT,
         ],
-    });
+    }]);
 }
 
 #[test]
 fn merge() {
-    assert_no_defects(&Matrix {
+    assert_no_defects(&[Matrix {
         command: "merge",
         bases: &[
             &[
@@ -1016,8 +1013,8 @@ fn merge() {
             ],
         ],
         options: &[
-            ("--plan", Exempt("required: every run reads it")),
-            ("--measured", Exempt("required: every run reads it")),
+            ("--plan", REQUIRED),
+            ("--measured", REQUIRED),
             (
                 "--profile",
                 Exempt("reads our CSV the same (the reading through profiles: inputs.rs)"),
@@ -1036,17 +1033,17 @@ fn merge() {
             ("--out", Value("n.csv")),
             INPUT_LIMIT,
         ],
-    });
+    }]);
 }
 
 #[test]
 fn the_small_commands() {
-    let defects: Vec<String> = [
+    assert_no_defects(&[
         Matrix {
             command: "fk",
             bases: &[&["--robot", "{R}", "--joints-deg", "0,-30,-120,0,60,0"]],
             options: &[
-                ("--robot", Exempt("required: every run reads it")),
+                ("--robot", REQUIRED),
                 ("--joints-deg", Value("0,-30,-120,0,60,10")),
                 ("--json", Flag),
                 INPUT_LIMIT,
@@ -1056,7 +1053,7 @@ fn the_small_commands() {
             command: "report",
             bases: &[&["--from", "{F}/pos.json", "--html", "r.html"]],
             options: &[
-                ("--from", Exempt("required: every run reads it")),
+                ("--from", REQUIRED),
                 ("--html", Value("s.html")),
                 ("--pdf", Exempt("needs Chromium: html_report.rs tests it")),
                 INPUT_LIMIT,
@@ -1076,8 +1073,8 @@ fn the_small_commands() {
                 "u.toml",
             ]],
             options: &[
-                ("--robot", Exempt("required: every run reads it")),
-                ("--calibration", Exempt("required: every run reads it")),
+                ("--robot", REQUIRED),
+                ("--calibration", REQUIRED),
                 ("--out", Value("v.toml")),
                 (
                     "--accept-implausible",
@@ -1097,8 +1094,8 @@ fn the_small_commands() {
                 "u.csv",
             ]],
             options: &[
-                ("--params", Exempt("required: every run reads it")),
-                ("--joints", Exempt("required: every run reads it")),
+                ("--params", REQUIRED),
+                ("--joints", REQUIRED),
                 ("--profile", Value("{F}/profile.toml")),
                 ("--out", Value("v.csv")),
                 INPUT_LIMIT,
@@ -1116,9 +1113,5 @@ fn the_small_commands() {
                 INPUT_LIMIT,
             ],
         },
-    ]
-    .iter()
-    .flat_map(check)
-    .collect();
-    assert!(defects.is_empty(), "{}", defects.join("\n"));
+    ]);
 }

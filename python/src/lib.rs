@@ -242,21 +242,16 @@ impl Robot {
             ("tool_xyz_mm", tool_xyz_mm),
             ("tool_rpy_rad", tool_rpy_rad),
         ];
-        let every =
-            (named.iter())
-                .flat_map(|(n, v)| {
-                    v.iter()
-                        .enumerate()
-                        .map(move |(i, x)| (*n, i.to_string(), *x))
-                })
-                .chain(frames.iter().flat_map(|(n, v)| {
-                    (v.iter().flatten().enumerate()).map(move |(i, x)| (*n, i.to_string(), *x))
-                }))
-                .chain(
-                    limits_rad.iter().flatten().enumerate().flat_map(|(j, l)| {
-                        [0, 1].map(|k| ("limits_rad", format!("{j}][{k}"), l[k]))
-                    }),
-                );
+        let every = (named.iter())
+            .flat_map(|(n, v)| {
+                v.iter()
+                    .enumerate()
+                    .map(move |(i, x)| (*n, i.to_string(), *x))
+            })
+            .chain(frames.iter().flat_map(|(n, v)| {
+                (v.iter().flatten().enumerate()).map(move |(i, x)| (*n, i.to_string(), *x))
+            }))
+            .chain(limit_values(&limits_rad));
         finite("from_dh", every)?;
         let mut text = format!("name = {}\n\n", toml::Value::from(name));
         for j in 0..joints {
@@ -268,13 +263,7 @@ impl Robot {
                 d_mm[j],
                 beta_rad[j].to_degrees()
             );
-            if let Some(l) = &limits_rad {
-                text += &format!(
-                    "limits_deg = [{:?}, {:?}]\n",
-                    l[j][0].to_degrees(),
-                    l[j][1].to_degrees()
-                );
-            }
+            text += &limits_line(&limits_rad, j);
             text += "\n";
         }
         for (section, xyz, rpy) in [
@@ -343,13 +332,7 @@ impl Robot {
                     .iter()
                     .filter_map(|(n, v)| v.map(|x| (*n, "0".to_string(), x))),
             )
-            .chain(
-                limits_rad
-                    .iter()
-                    .flatten()
-                    .enumerate()
-                    .flat_map(|(j, l)| [0, 1].map(|k| ("limits_rad", format!("{j}][{k}"), l[k]))),
-            );
+            .chain(limit_values(&limits_rad));
         finite("from_craig", every)?;
         let mut text = format!("name = {}\n\n", toml::Value::from(name));
         for j in 0..joints {
@@ -360,13 +343,7 @@ impl Robot {
                 d_mm[j],
                 theta_offset_rad[j].to_degrees(),
             );
-            if let Some(l) = &limits_rad {
-                text += &format!(
-                    "limits_deg = [{:?}, {:?}]\n",
-                    l[j][0].to_degrees(),
-                    l[j][1].to_degrees()
-                );
-            }
+            text += &limits_line(&limits_rad, j);
             text += "\n";
         }
         if flange.iter().any(|(_, v)| v.is_some()) {
@@ -1273,6 +1250,25 @@ fn compensated_csv(
         .detach(|| host_tools::cli::compensate::compensated_table_of(&parsed, file, identified))
         .map_err(py_error)?;
     String::from_utf8(csv).map_err(|e| CalibError::new_err(e.to_string()))
+}
+
+/// The values of a constructor's `limits_rad` (joints, 2) with their indices, for [`finite`].
+fn limit_values(
+    limits_rad: &Option<Vec<[f64; 2]>>,
+) -> impl Iterator<Item = (&'static str, String, f64)> + '_ {
+    (limits_rad.iter().flatten().enumerate())
+        .flat_map(|(j, l)| [0, 1].map(|k| ("limits_rad", format!("{j}][{k}"), l[k])))
+}
+
+/// Joint `j`'s `limits_deg` line of a robot file from `limits_rad`, or nothing without limits.
+fn limits_line(limits_rad: &Option<Vec<[f64; 2]>>, j: usize) -> String {
+    limits_rad.as_ref().map_or_else(String::new, |l| {
+        format!(
+            "limits_deg = [{:?}, {:?}]\n",
+            l[j][0].to_degrees(),
+            l[j][1].to_degrees()
+        )
+    })
 }
 
 /// InputError naming the first value of `values` (argument, index, value) that is not a finite

@@ -185,7 +185,7 @@ impl SwarmOptions {
 
     /// The options given, by their flags.
     pub fn given(&self) -> Vec<&'static str> {
-        [
+        crate::cli::given_flags([
             ("--swarm", self.swarm.is_some()),
             ("--generations", self.generations.is_some()),
             ("--c1", self.c1.is_some()),
@@ -198,10 +198,7 @@ impl SwarmOptions {
             ("--target", self.target.is_some()),
             ("--halton-start", self.halton_start.is_some()),
             ("--scrambling", self.scrambling.is_some()),
-        ]
-        .into_iter()
-        .filter_map(|(flag, given)| given.then_some(flag))
-        .collect()
+        ])
     }
 }
 

@@ -167,13 +167,10 @@ impl CompensateOptions {
                     .unwrap_or(crate::kinematics::configuration::DEFAULT_MAX_JOINT_DISTANCE_DEG)
                     .to_radians(),
             },
-            stated_bounds: [
+            stated_bounds: crate::cli::given_flags([
                 ("--near-within-deg", self.near_within_deg.is_some()),
                 ("--max-arm-angle-deg", self.max_arm_angle_deg.is_some()),
-            ]
-            .into_iter()
-            .filter_map(|(flag, given)| given.then_some(flag))
-            .collect(),
+            ]),
         })
     }
 }

@@ -92,37 +92,32 @@ fn exported(
 impl ExportOptions {
     /// Refuses an option of another format than `--format`'s: it would change nothing.
     fn check_format(&self) -> anyhow::Result<()> {
-        let given = [
-            ("--scalar", self.scalar.is_some(), "block"),
-            ("--sequence", self.sequence.is_some(), "block"),
-            ("--link-names", self.link_names.is_some(), "urdf"),
-            ("--joint-names", self.joint_names.is_some(), "urdf"),
-            ("--base-link", self.base_link.is_some(), "urdf"),
-            ("--flange-link", self.flange_link.is_some(), "urdf"),
-            ("--tool-link", self.tool_link.is_some(), "urdf"),
-            ("--joints-only", self.joints_only, "urdf"),
+        use ExportFormat::{Block, UrKinematicsYaml, Urdf};
+        let given: [(&str, bool, &[ExportFormat]); 9] = [
+            ("--scalar", self.scalar.is_some(), &[Block]),
+            ("--sequence", self.sequence.is_some(), &[Block]),
+            ("--link-names", self.link_names.is_some(), &[Urdf]),
+            ("--joint-names", self.joint_names.is_some(), &[Urdf]),
+            ("--base-link", self.base_link.is_some(), &[Urdf]),
+            ("--flange-link", self.flange_link.is_some(), &[Urdf]),
+            ("--tool-link", self.tool_link.is_some(), &[Urdf]),
+            ("--joints-only", self.joints_only, &[Urdf]),
+            // The formats that cannot carry joint maps or compliance.
+            (
+                "--geometry-only",
+                self.geometry_only,
+                &[Urdf, UrKinematicsYaml],
+            ),
         ];
-        let format = self.format;
-        for (flag, is_given, takes_it) in given {
-            if is_given
-                && !matches!(
-                    (takes_it, format),
-                    ("block", ExportFormat::Block) | ("urdf", ExportFormat::Urdf)
-                )
-            {
+        for (flag, is_given, formats) in given {
+            if is_given && !formats.contains(&self.format) {
+                let names: Vec<String> = formats.iter().map(|f| format_name(*f)).collect();
                 anyhow::bail!(
-                    "{flag} is an option of --format {takes_it}, and --format is {}: drop {flag}",
-                    format_name(format)
+                    "{flag} is an option of --format {}, and --format is {}: drop {flag}",
+                    names.join(" and "),
+                    format_name(self.format)
                 );
             }
-        }
-        if self.geometry_only
-            && !matches!(format, ExportFormat::Urdf | ExportFormat::UrKinematicsYaml)
-        {
-            anyhow::bail!(
-                "--geometry-only is an option of --format urdf and ur-kinematics-yaml (which cannot carry joint maps or compliance), and --format is {}: drop it",
-                format_name(format)
-            );
         }
         Ok(())
     }

@@ -76,6 +76,14 @@ pub(crate) fn orientation_weight(text: &str) -> Result<f64, String> {
     }
 }
 
+/// The flags of `options` (flag, given) that were given, in order: what a refusal names.
+pub(crate) fn given_flags<const N: usize>(options: [(&'static str, bool); N]) -> Vec<&'static str> {
+    options
+        .into_iter()
+        .filter_map(|(flag, given)| given.then_some(flag))
+        .collect()
+}
+
 /// The orientation weight `--k` of eq. (7) for `data`: the value given, else the default;
 /// refused when given for position-only data, which have no orientation rows to weigh.
 pub(crate) fn weight_for(

@@ -104,17 +104,16 @@ impl Simulation {
             xyz_mm: tracker_xyz.unwrap_or([0.0; 3]),
             rpy_deg: tracker_rpy.unwrap_or([0.0; 3]),
         });
-        if self.errors != TrueErrors::Random {
-            for (flag, given) in [
-                ("--random-length-mm", self.random_length_mm.is_some()),
-                ("--random-angle-rad", self.random_angle_rad.is_some()),
-            ] {
-                if given {
-                    bail!(
-                        "{flag} sets the range of random errors, and --errors table2 (the default) takes the paper's Table 2: add --errors random, or drop {flag}"
-                    );
-                }
-            }
+        let random = crate::cli::given_flags([
+            ("--random-length-mm", self.random_length_mm.is_some()),
+            ("--random-angle-rad", self.random_angle_rad.is_some()),
+        ]);
+        if self.errors != TrueErrors::Random && !random.is_empty() {
+            bail!(
+                "{} set the range of random errors, and --errors table2 (the default) takes the paper's Table 2: add --errors random, or drop {}",
+                random.join(" and "),
+                if random.len() == 1 { "it" } else { "them" }
+            );
         }
         Ok(SimulationConfig {
             errors: self.errors,
