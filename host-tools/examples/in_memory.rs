@@ -64,9 +64,13 @@ fn main() -> anyhow::Result<ExitCode> {
     let calibration = Dataset::from_records(robot.clone(), measure(&real, 42, 2)?, false)?;
     let validation = Dataset::from_records(robot, measure(&real, 18, 3)?, false)?;
 
-    let result = calibrate(calibration, Some(validation), &CalibrationConfig::default())?;
-    print!("{}", result.text(None));
-    let held_out = result.validation.as_ref().map(|v| (v.before, v.after));
+    let calibrated = calibrate(calibration, Some(validation), &CalibrationConfig::default())?;
+    print!("{}", calibrated.text());
+    let held_out = calibrated
+        .result
+        .validation
+        .as_ref()
+        .map(|v| (v.before, v.after));
     let Some((before, after)) = held_out else {
         return Ok(ExitCode::FAILURE);
     };

@@ -32,6 +32,47 @@ pub enum Error {
     /// finite); the message says which.
     #[error("{0}")]
     Numerical(String),
+    /// Settings or options that contradict each other (such as a robust loss's scale with the
+    /// plain l2 loss, or the swarm's settings with least squares alone): the message names them
+    /// and says which to drop.
+    #[error("{message}")]
+    OptionConflict {
+        /// The conflicting options, by their command-line flags (`--loss-scale-mm`, `--c1`).
+        options: Vec<String>,
+        /// What to change, for people.
+        message: String,
+    },
+    /// The data cannot determine every parameter asked for (the identification Jacobian's rank
+    /// is below their count), and dropping them was not allowed (`--auto-mask`).
+    #[error("{message}")]
+    Unidentifiable {
+        /// The numerical rank of the identification Jacobian.
+        rank: usize,
+        /// The number of parameters asked for.
+        parameters: usize,
+        /// The parameters the data cannot determine (dropped with `--auto-mask`), such as `dd2`.
+        undetermined: Vec<String>,
+        /// The analysis and what to do, for people.
+        message: String,
+    },
+    /// A calibration whose result fails the plausibility check
+    /// ([`crate::calibration::plausibility`]); the result is kept here for inspection, and
+    /// nothing was written.
+    #[error("{message}")]
+    Implausible {
+        /// Each problem, naming the value and its bound.
+        problems: Vec<String>,
+        /// The result that was refused.
+        result: Box<crate::calibration::CalibrationResult>,
+        /// The problems, the likely causes and what to do, for people.
+        message: String,
+    },
+    /// A statement about held-out poses (an acceptance criterion) with none held out.
+    #[error("{0}")]
+    NoHeldOut(String),
+    /// The calibration was cancelled ([`crate::calibration::Cancel`]).
+    #[error("the calibration was cancelled")]
+    Cancelled,
     /// A robot file that cannot be read or does not describe a robot.
     #[error(transparent)]
     RobotFile(#[from] crate::io::robot_file::RobotFileError),
@@ -121,6 +162,14 @@ macro_rules! numerical {
 }
 
 impl Error {
+    /// Options in conflict, named by their flags, with what to change.
+    pub fn conflict(options: &[&str], message: impl Display) -> Self {
+        Self::OptionConflict {
+            options: options.iter().map(ToString::to_string).collect(),
+            message: message.to_string(),
+        }
+    }
+
     /// A plotting error, by its message.
     pub fn plot(error: impl Display) -> Self {
         Self::Plot(error.to_string())

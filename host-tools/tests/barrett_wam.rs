@@ -11,8 +11,9 @@
 mod common;
 use common::{calib, ok, parse};
 
+use host_tools::calibration::Calibrated as Calibration;
 use host_tools::calibration::Identify;
-use host_tools::cli::calibrate::{self, CalibrateOptions, Calibration};
+use host_tools::cli::calibrate::{self, CalibrateOptions};
 use host_tools::measurement::frames::Frames;
 
 const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/barrett-wam.toml");
@@ -154,7 +155,7 @@ fn joint_maps_are_identified_on_the_seven_joint_arm_and_kept_at_zero_when_they_d
     assert!(after.mean <= 3.15, "random 20 mean {}", after.mean);
     assert!((after.rms - 3.28).abs() < 0.05 && (after.max - 5.90).abs() < 0.1);
     // The geometric calibration's file: no [joint_maps] written for maps kept at zero.
-    assert!(r.identified_robot.joint_maps.is_none());
+    assert!(c.model.file.joint_maps.is_none() && c.model.maps.is_none());
 }
 
 #[test]
@@ -211,7 +212,7 @@ fn check_and_re_registration_through_the_command_line() {
     let c = calibrate(&["--method", "lm", "--holdout", RANDOM]);
     let dir = tempfile::tempdir().unwrap();
     let identified = dir.path().join("wam-identified.toml");
-    std::fs::write(&identified, &c.robot_toml).unwrap();
+    std::fs::write(&identified, c.robot_toml()).unwrap();
     let identified = identified.to_str().unwrap();
     let again = calibrate::calibrate(&parse::<CalibrateOptions>(&[
         "--robot",

@@ -67,7 +67,7 @@ fn frames_and_geometry_reach_the_reference_optimum() {
         // The nominal robot registered onto the data: a few mm (Table 2), not metres.
         assert!(frames.registration_rms_mm < 20.0 && frames.registration_rms_mm > 1.0);
         let identified_path = dir.path().join(format!("identified{seed}.toml"));
-        std::fs::write(&identified_path, &c.robot_toml).unwrap();
+        std::fs::write(&identified_path, c.robot_toml()).unwrap();
         let controller = RobotFile::read(&identified_path).unwrap();
         // The controller's frames are the robot file's (none); the measurement setup is apart.
         assert_eq!((&controller.base, &controller.tool), (&None, &None));

@@ -85,9 +85,9 @@ fn held_out_of(
         maps.joints.iter().map(|j| j.supported).collect::<Vec<_>>()
     );
     // The identified file carries the maps (and the compliance).
-    assert!(c.robot_toml.contains("[joint_maps]"));
+    assert!(c.robot_toml().contains("[joint_maps]"));
     assert_eq!(
-        c.robot_toml.contains("[compliance]"),
+        c.robot_toml().contains("[compliance]"),
         model == "joint-maps+compliance"
     );
     Ok((geometric, with_maps))
@@ -102,7 +102,7 @@ fn calibrated(
     profile: &str,
     poses: usize,
     seed: u64,
-) -> anyhow::Result<calibrate::Calibration> {
+) -> anyhow::Result<host_tools::calibration::Calibrated> {
     let fraction = ((total - poses) as f64 / total as f64).to_string();
     let seed_text = seed.to_string();
     let args = [
@@ -506,9 +506,11 @@ fn a_map_the_poses_do_not_determine_is_kept_at_zero() {
     }
     // The file written is one its reader accepts, and the maps fit A's poses far better than the
     // geometry alone.
-    let file =
-        host_tools::io::robot_file::RobotFile::parse(&c.robot_toml, std::path::Path::new("a.toml"))
-            .unwrap();
+    let file = host_tools::io::robot_file::RobotFile::parse(
+        &c.robot_toml(),
+        std::path::Path::new("a.toml"),
+    )
+    .unwrap();
     assert!(
         file.joint_maps(std::path::Path::new("a.toml"))
             .unwrap()
@@ -574,7 +576,7 @@ fn maps_that_do_not_predict_better_are_kept_at_zero() {
         let result = c.result.validation.unwrap().after.position_mm.mean;
         assert_eq!(result, geometric);
         assert!(held_out.contains(&result), "{result}");
-        assert!(!c.robot_toml.contains("[joint_maps]"));
+        assert!(!c.robot_toml().contains("[joint_maps]"));
         assert!(maps.joints.iter().all(|j| !j.supported));
         assert!(c.result.text(None).contains("every map is kept at zero"));
     }
@@ -851,7 +853,7 @@ fn a_series_a_model_with_compliance_carries_over_to_series_b() {
     )
     .unwrap();
     let held_out = c.result.validation.unwrap().after.position_mm.mean;
-    std::fs::write(d.join("a.toml"), &c.robot_toml).unwrap();
+    std::fs::write(d.join("a.toml"), c.robot_toml()).unwrap();
     let evaluate = |data: &str, fit_poses: &str, seed: &str, frames: &str| -> f64 {
         let out = ok(&calib_in(
             d,
@@ -918,8 +920,8 @@ fn a_series_a_model_with_compliance_carries_over_to_series_b() {
             (held_out - evaluated).abs() < 0.01 * evaluated,
             "{held_out} vs {evaluated}"
         );
-        assert!(registered.robot_toml.contains("[compliance]"));
-        assert!(registered.robot_toml.contains("[joint_maps]"));
+        assert!(registered.robot_toml().contains("[compliance]"));
+        assert!(registered.robot_toml().contains("[joint_maps]"));
     }
 }
 

@@ -6,7 +6,8 @@ mod common;
 use common::{ROBOT, parse, simulate};
 
 use host_tools::analysis::reference;
-use host_tools::cli::calibrate::{self, CalibrateOptions, Calibration};
+use host_tools::calibration::Calibrated as Calibration;
+use host_tools::cli::calibrate::{self, CalibrateOptions};
 use host_tools::cli::check::{self, CheckOptions};
 use host_tools::io::robot_file::RobotFile;
 use host_tools::io::tracker_data::TrackerData;
@@ -28,7 +29,7 @@ fn calibrate(data: &Path, truth: &Path, args: &[&str]) -> Calibration {
 /// Writes the identified robot file and returns it parsed.
 fn identified(c: &Calibration, dir: &Path, name: &str) -> RobotFile {
     let path = dir.join(name);
-    std::fs::write(&path, &c.robot_toml).unwrap();
+    std::fs::write(&path, c.robot_toml()).unwrap();
     RobotFile::read(&path).unwrap()
 }
 

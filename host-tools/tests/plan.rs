@@ -65,7 +65,7 @@ fn held_out_mean(fit: &Dataset, validation: &Dataset) -> f64 {
 /// [`held_out_mean`] with `config`.
 fn held_out_mean_with(fit: &Dataset, validation: &Dataset, config: &CalibrationConfig) -> f64 {
     let result = calibration::calibrate(fit.clone(), Some(validation.clone()), config).unwrap();
-    result.validation.unwrap().after.position_mm.mean
+    result.result.validation.unwrap().after.position_mm.mean
 }
 
 /// The poses of `dataset` at `indices`, in the dataset's order.
@@ -336,9 +336,9 @@ fn plan_measure_calibrate_end_to_end() {
             .all(|(_, h, _)| h.is_some_and(|h| h > 0.0 && h <= 6.0))
     );
     assert!(
-        c.text.contains("plan check: 15 verification poses"),
+        c.text().contains("plan check: 15 verification poses"),
         "{}",
-        c.text
+        c.text()
     );
     println!("{}", check.text());
     // The same plan with a noise level far below the data's: the measured verification error is
@@ -363,11 +363,11 @@ fn plan_measure_calibrate_end_to_end() {
         "{check:?}"
     );
     assert!(
-        c.text.contains("WARNING: the verification error is"),
+        c.text().contains("WARNING: the verification error is"),
         "{}",
-        c.text
+        c.text()
     );
-    assert!(c.text.contains("largest leverage:") && c.text.contains("largest residual:"));
+    assert!(c.text().contains("largest leverage:") && c.text().contains("largest residual:"));
     // The certificate's caveats carry the gap too (issue 41).
     let caveat = (c.result.caveats.iter())
         .find(|k| k.kind == host_tools::analysis::caveats::CaveatKind::PlanCheck)
@@ -381,10 +381,10 @@ fn plan_measure_calibrate_end_to_end() {
         caveat.text
     );
     assert!(
-        c.text
+        c.text()
             .contains("caveats:\n  - the plan's 15 verification poses"),
         "{}",
-        c.text
+        c.text()
     );
     // The poses listed by residual are the fitted poses of the largest residuals.
     let mut residuals: Vec<f64> = c.result.poses.iter().map(|p| p.after_mm).collect();

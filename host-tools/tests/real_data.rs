@@ -5,7 +5,8 @@
 mod common;
 use common::parse;
 
-use host_tools::cli::calibrate::{self, CalibrateOptions, Calibration};
+use host_tools::calibration::Calibrated as Calibration;
+use host_tools::cli::calibrate::{self, CalibrateOptions};
 use host_tools::measurement::frames::Frames;
 use std::path::Path;
 
@@ -172,10 +173,10 @@ fn a_reflector_on_the_last_axis_is_recognised_in_one_configuration() {
         assert_eq!(left_out, ["dtheta5", "dalpha5"]);
         assert!(reflector.distance_mm < 1.0, "{}", reflector.distance_mm);
         assert!(
-            c.text
+            c.text()
                 .contains("reflector 0.4 mm from the last joint's axis"),
             "{}",
-            c.text
+            c.text()
         );
         let condition = id.condition_number.unwrap();
         println!(
@@ -239,7 +240,7 @@ fn series_b_model_re_registered_on_series_d() {
     let dir = tempfile::tempdir().unwrap();
     let b_model = dir.path().join("b50.toml");
     let b = calibrate(DATA, FULL_POSE, &["--validate", "0.9666"]);
-    std::fs::write(&b_model, &b.robot_toml).unwrap();
+    std::fs::write(&b_model, b.robot_toml()).unwrap();
     let b_path = b_model.to_str().unwrap();
     let held = "0.95253"; // 602 of 632 held out, 30 fit the frames
     let all = [
@@ -258,7 +259,7 @@ fn series_b_model_re_registered_on_series_d() {
     assert_eq!(registered.result.calibration.poses, 30);
     // Issue 40, item 4: like with like (the frames' prediction against their own fit, no
     // warning that compared a cross-validation with an in-sample fit), and the probe's move.
-    let text = &registered.text;
+    let text = &registered.text();
     assert!(
         text.contains("cross-validation (frames only") && !text.contains("WARNING: calibrated"),
         "{text}"
@@ -288,8 +289,8 @@ fn series_b_model_re_registered_on_series_d() {
             .unwrap()
     };
     let (stored, refitted) = (
-        stored_probe(&b.robot_toml),
-        stored_probe(&registered.robot_toml),
+        stored_probe(&b.robot_toml()),
+        stored_probe(&registered.robot_toml()),
     );
     assert!(
         (refitted.xyz_mm[2] - stored.xyz_mm[2]).abs() < 1e-9,
@@ -310,8 +311,8 @@ fn series_b_model_re_registered_on_series_d() {
             .iter()
             .all(|p| !matches!(p.parameter, calib_core::Parameter::Joint { .. }))
     );
-    let written = RobotFile::parse(&registered.robot_toml, Path::new("d.toml")).unwrap();
-    let given = RobotFile::parse(&b.robot_toml, Path::new("b.toml")).unwrap();
+    let written = RobotFile::parse(&registered.robot_toml(), Path::new("d.toml")).unwrap();
+    let given = RobotFile::parse(&b.robot_toml(), Path::new("b.toml")).unwrap();
     assert_eq!(written.joint, given.joint);
     assert_eq!(written.calibration, given.calibration);
     assert_ne!(written.measurement, given.measurement);
@@ -359,12 +360,12 @@ fn series_b_model_re_registered_on_series_d() {
     assert_eq!(flags, [("--data", SERIES_D), ("--profile", FULL_POSE)]);
     assert_eq!(registration.inputs[0].sha256, sha256sum(SERIES_D));
     assert!(
-        registered.robot_toml.starts_with(&format!(
+        registered.robot_toml().starts_with(&format!(
             "# Universal Robots UR10: the geometry of {b_path} (its [calibration] says where it came from), \
              the measurement frames re-registered"
         )),
         "{}",
-        &registered.robot_toml[..300]
+        &registered.robot_toml()[..300]
     );
     let re_registered = v.after.position_mm.mean;
     // The same through evaluate.

@@ -2,10 +2,12 @@
 
 The host library of the calib toolkit (the same code as the ``calib`` command line): robots
 (``Robot.from_file``), measured data (``Dataset.from_file``, ``Dataset.from_arrays``), the
-calibration (``calibrate``, with the options of ``calib calibrate`` as keyword arguments and the
-same defaults), its JSON report as a dict and its HTML certificate. Units are in the names: mm,
-rad. Errors are ``CalibError`` (``InputError``: an input refused, with how to fix it;
-``NumericalError``: a computation that cannot stand behind its result).
+calibration (``calibrate``, with the options of ``calib calibrate`` as typed keyword arguments and
+the same defaults), its JSON report as a dict and its HTML certificate. Units are in the names: mm,
+rad. Errors are ``CalibError`` (``InputError``: an input refused, with how to fix it, among them
+``OptionConflictError``, ``UnidentifiableError`` and ``NoHeldOutError``; ``NumericalError``: a
+computation that cannot stand behind its result, among them ``ImplausibleError``), each with its
+data as attributes.
 """
 
 import csv as _csv
@@ -21,30 +23,21 @@ from ._calib import (
     CalibError,
     CalibrationResult,
     Dataset,
-    Plan,
+    ImplausibleError,
     InputError,
+    NoHeldOutError,
     NumericalError,
+    OptionConflictError,
+    Plan,
     Robot,
+    UnidentifiableError,
     __version__,
 )
-from ._calib import calibrate as _calibrate
+from ._calib import calibrate
 from ._calib import compensate_csv as _compensate_csv
 from ._calib import compensate_csv_text as _compensate_csv_text
 from ._calib import evaluate_json as _evaluate_json
 from ._calib import plan
-
-
-def calibrate(robot: Robot, data: Dataset, holdout: _Optional[Dataset] = None, **options: _Any) -> CalibrationResult:
-    """Calibrates ``robot`` (a Robot) on ``data`` (a Dataset).
-
-    ``options`` are those of ``calib calibrate`` with underscores for dashes and the same
-    defaults: ``method="ipso+lm"`` (or ``"lm"``, ``"ipso"``), ``frames``, ``model``,
-    ``validate=FRACTION``, ``validate_seed``, ``loss``, ``seed``, ``accept=["95% <= 0.5 mm"]``, ...
-    ``holdout`` is a Dataset held out for validation. Returns a CalibrationResult (``.report()``,
-    ``.robot``, ``.parameter_names``, ``.parameter_values``, ``.standard_errors``, ``.html()``).
-    The GIL is released while it runs.
-    """
-    return _calibrate(robot, data, holdout, **options)
 
 
 def evaluate(robot: Robot, data: Dataset, **options: _Any) -> dict[str, _Any]:
@@ -126,10 +119,14 @@ __all__ = [
     "CalibError",
     "CalibrationResult",
     "Dataset",
+    "ImplausibleError",
     "InputError",
+    "NoHeldOutError",
+    "OptionConflictError",
     "Plan",
     "NumericalError",
     "Robot",
+    "UnidentifiableError",
     "calibrate",
     "compensate",
     "evaluate",

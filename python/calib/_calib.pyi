@@ -11,10 +11,14 @@ __all__ = [
     "CalibError",
     "CalibrationResult",
     "Dataset",
+    "ImplausibleError",
     "InputError",
+    "NoHeldOutError",
     "NumericalError",
+    "OptionConflictError",
     "Plan",
     "Robot",
+    "UnidentifiableError",
     "__version__",
     "calibrate",
     "compensate_csv",
@@ -31,6 +35,33 @@ class InputError(CalibError):
 
 class NumericalError(CalibError):
     """A computation that cannot stand behind its result."""
+
+class OptionConflictError(InputError):
+    """Options that contradict each other."""
+
+    options: list[str]
+    """The options, by the command line's flags (``--loss-scale-mm``, ``--c1``)."""
+
+class UnidentifiableError(InputError):
+    """The data cannot determine every parameter asked for."""
+
+    rank: int
+    """The rank of the identification Jacobian."""
+    parameters: int
+    """The number of parameters asked for."""
+    undetermined: list[str]
+    """The parameters ``auto_mask=True`` would drop (such as ``dd2``)."""
+
+class NoHeldOutError(InputError):
+    """An acceptance criterion (``accept=``) with no held-out poses."""
+
+class ImplausibleError(NumericalError):
+    """A result that fails the plausibility check; nothing is returned."""
+
+    problems: list[str]
+    """Each problem, naming the value and its bound."""
+    parameters: dict[str, float]
+    """The refused result's identified values by name, mm and rad."""
 
 _Path = Union[str, "PathLike[str]"]
 
@@ -151,12 +182,43 @@ class CalibrationResult:
         """The unit of each parameter value and standard error: "mm" or "rad"."""
 
 def calibrate(
-    robot: Robot, data: Dataset, holdout: Optional[Dataset] = None, **options: Union[str, float, int, bool, Sequence[str]]
+    robot: Robot,
+    data: Dataset,
+    holdout: Optional[Dataset] = None,
+    *,
+    validate: Optional[float] = None,
+    validate_seed: Optional[int] = None,
+    method: Optional[str] = None,
+    frames: Optional[str] = None,
+    identify: Optional[str] = None,
+    model: Optional[str] = None,
+    k: Optional[float] = None,
+    lm_iterations: Optional[int] = None,
+    loss: Optional[str] = None,
+    loss_scale_mm: Optional[float] = None,
+    auto_mask: bool = False,
+    keep_ill_conditioned: bool = False,
+    accept_implausible: bool = False,
+    accept: Optional[Sequence[str]] = None,
+    payload_kg: Optional[float] = None,
+    swarm: Optional[int] = None,
+    generations: Optional[int] = None,
+    c1: Optional[float] = None,
+    c2: Optional[float] = None,
+    seed: Optional[int] = None,
+    init_angle_rad: Optional[float] = None,
+    init_length_mm: Optional[float] = None,
+    bound_factor: Optional[float] = None,
+    stall_generations: Optional[int] = None,
+    target: Optional[float] = None,
+    halton_start: Optional[int] = None,
+    scrambling: Optional[str] = None,
 ) -> CalibrationResult:
-    """``calib calibrate`` with its options as keyword arguments and the same defaults; Ctrl-C
-    stops it (KeyboardInterrupt) within a swarm generation, where Python receives SIGINT (a
-    process started with SIGINT ignored, as a non-interactive shell starts background jobs, never
-    sees it)."""
+    """Calibrates ``robot`` on ``data``. Each keyword is ``calib calibrate``'s option of the same
+    name (underscores for dashes), ``None`` its default; ``holdout`` is a Dataset held out. A
+    keyword no option has is a TypeError. Ctrl-C stops it (KeyboardInterrupt) within a swarm
+    generation, where Python receives SIGINT (a process started with SIGINT ignored, as a
+    non-interactive shell starts background jobs, never sees it)."""
 
 def evaluate_json(robot: Robot, data: Dataset, **options: Union[str, float, int, bool]) -> str:
     """``calib evaluate --json`` (the package's ``calib.evaluate`` returns the dict)."""

@@ -4,7 +4,7 @@
 //! `calib calibrate` as keyword arguments, parsed by the same command-line definition, so that
 //! defaults, checks and messages are the command's. Computation runs with the GIL released.
 
-use host_tools::cli::calibrate::{CalibrateOptions, Calibration};
+use host_tools::calibration::{Calibrated as Calibration, CalibrationConfig};
 use host_tools::io::robot_file::RobotFile;
 use host_tools::io::tracker_data::{Record, TrackerData};
 use host_tools::measurement::dataset::Dataset as HostDataset;
@@ -35,6 +35,76 @@ pyo3::create_exception!(
     "A computation that cannot stand behind its result (singular, not converged, implausible)."
 );
 
+pyo3::create_exception!(
+    _calib,
+    OptionConflictError,
+    InputError,
+    "Options that contradict each other; `.options` names them (by the command line's flags)."
+);
+pyo3::create_exception!(
+    _calib,
+    UnidentifiableError,
+    InputError,
+    "The data cannot determine every parameter asked for: `.rank` of `.parameters`, and `.undetermined` (the parameters auto_mask=True would drop)."
+);
+pyo3::create_exception!(
+    _calib,
+    NoHeldOutError,
+    InputError,
+    "A statement about held-out poses (accept=) with none held out: give validate= or a holdout Dataset."
+);
+pyo3::create_exception!(
+    _calib,
+    ImplausibleError,
+    NumericalError,
+    "A result that fails the plausibility check (nothing is returned): `.problems` says why, `.parameters` holds the refused values (mm, rad) by name."
+);
+
+/// The exception class of the library's typed refusals, with their data as attributes; `None`
+/// for the others.
+fn typed_error(error: &host_tools::Error, message: &str) -> Option<PyErr> {
+    use host_tools::Error as E;
+    Python::attach(|py| -> PyResult<Option<PyErr>> {
+        let err = match error {
+            E::OptionConflict { options, .. } => {
+                let err = OptionConflictError::new_err(message.to_string());
+                err.value(py).setattr("options", options.clone())?;
+                err
+            }
+            E::Unidentifiable {
+                rank,
+                parameters,
+                undetermined,
+                ..
+            } => {
+                let err = UnidentifiableError::new_err(message.to_string());
+                let value = err.value(py);
+                value.setattr("rank", *rank)?;
+                value.setattr("parameters", *parameters)?;
+                value.setattr("undetermined", undetermined.clone())?;
+                err
+            }
+            E::NoHeldOut(_) => NoHeldOutError::new_err(message.to_string()),
+            E::Implausible {
+                problems, result, ..
+            } => {
+                let err = ImplausibleError::new_err(message.to_string());
+                let value = err.value(py);
+                value.setattr("problems", problems.clone())?;
+                let parameters = PyDict::new(py);
+                for p in &result.parameters {
+                    parameters.set_item(p.parameter.to_string(), p.value)?;
+                }
+                value.setattr("parameters", parameters)?;
+                err
+            }
+            _ => return Ok(None),
+        };
+        Ok(Some(err))
+    })
+    .unwrap_or_else(Some)
+}
+
 /// The Python exception of a host error: its message and causes as `calib` prints them.
 fn py_error(error: anyhow::Error) -> PyErr {
     let mut message = error.to_string();
@@ -46,6 +116,12 @@ fn py_error(error: anyhow::Error) -> PyErr {
         }
     }
     use host_tools::Error as E;
+    if let Some(err) = (error.chain())
+        .find_map(|c| c.downcast_ref::<E>())
+        .and_then(|e| typed_error(e, &message))
+    {
+        return err;
+    }
     let numerical = error.chain().any(|c| {
         matches!(
             c.downcast_ref::<E>(),
@@ -897,19 +973,19 @@ impl CalibrationResult {
     /// The text `calib calibrate` prints.
     #[getter]
     fn text(&self) -> String {
-        self.calibration.text.clone()
+        self.calibration.text()
     }
 
     /// The identified robot (its file as `calib calibrate --out` writes it).
     #[getter]
     fn robot(&self) -> PyResult<Robot> {
-        Robot::from_toml(&self.calibration.robot_toml, "<identified robot>")
+        Robot::from_toml(&self.calibration.robot_toml(), "<identified robot>")
     }
 
     /// The identified robot file's text, as `calib calibrate --out` writes it.
     #[getter]
     fn robot_toml(&self) -> String {
-        self.calibration.robot_toml.clone()
+        self.calibration.robot_toml()
     }
 
     /// The identified parameters' names, in canonical order.
@@ -972,74 +1048,225 @@ impl CalibrationResult {
     }
 }
 
-/// Calibrates `robot` on `data` with the options of `calib calibrate` as keyword arguments
-/// (`method="lm"`, `validate=0.3`, `accept=["95% <= 0.5 mm"]`, ...), the same defaults; `holdout`
-/// is a Dataset held out for validation. From files the calibration runs as the command does
-/// (provenance, a measured plan's check).
+/// The value `value` of the keyword argument `name` as one of the choices of `T` (the command
+/// line's words: `"ipso+lm"`, `"base+tool"`, ...), or an InputError listing them.
+fn choice<T: clap::ValueEnum>(name: &str, value: Option<&str>) -> PyResult<Option<T>> {
+    let Some(value) = value else {
+        return Ok(None);
+    };
+    T::from_str(value, false).map(Some).map_err(|_| {
+        let choices: Vec<String> = (T::value_variants().iter())
+            .filter_map(|v| v.to_possible_value())
+            .map(|v| format!("'{}'", v.get_name()))
+            .collect();
+        InputError::new_err(format!(
+            "{name}: invalid value '{value}': choose {}",
+            choices.join(", ")
+        ))
+    })
+}
+
+/// The swarm's settings of `calibrate` (each `None`: the paper's default).
+#[derive(FromPyObject, Default)]
+struct SwarmArgs {
+    swarm: Option<usize>,
+    generations: Option<u32>,
+    c1: Option<f64>,
+    c2: Option<f64>,
+    seed: Option<u64>,
+    init_angle_rad: Option<f64>,
+    init_length_mm: Option<f64>,
+    bound_factor: Option<f64>,
+    stall_generations: Option<u32>,
+    target: Option<f64>,
+    halton_start: Option<u64>,
+    scrambling: Option<String>,
+}
+
+impl SwarmArgs {
+    /// The swarm configuration: each setting given, else [`SwarmConfig::default`]'s.
+    fn config(&self) -> PyResult<host_tools::calibration::SwarmConfig> {
+        let d = host_tools::calibration::SwarmConfig::default();
+        Ok(host_tools::calibration::SwarmConfig {
+            particles: self.swarm.unwrap_or(d.particles),
+            generations: self.generations.unwrap_or(d.generations),
+            c1: self.c1.unwrap_or(d.c1),
+            c2: self.c2.unwrap_or(d.c2),
+            seed: self.seed.unwrap_or(d.seed),
+            init_angle_rad: self.init_angle_rad.unwrap_or(d.init_angle_rad),
+            init_length_mm: self.init_length_mm.unwrap_or(d.init_length_mm),
+            bound_factor: self.bound_factor.unwrap_or(d.bound_factor),
+            stall_generations: self.stall_generations.unwrap_or(d.stall_generations),
+            target: self.target.unwrap_or(d.target),
+            halton_start: self.halton_start.unwrap_or(d.halton_start),
+            scrambling: choice("scrambling", self.scrambling.as_deref())?.unwrap_or(d.scrambling),
+        })
+    }
+}
+
+/// Calibrates `robot` on `data`: a [`Session`] of the library. Every keyword argument is the
+/// command line's option of the same name (underscores for dashes), `None` its default (that of
+/// [`CalibrationConfig::default`]); `holdout` is a Dataset held out for validation. Data from
+/// files are recorded with their SHA-256 in the identified robot file, as the command records
+/// them, and a measured plan's verification rows are its hold-out.
 #[pyfunction]
-#[pyo3(signature = (robot, data, holdout = None, **options))]
+#[pyo3(signature = (
+    robot, data, holdout = None, *, validate = None, validate_seed = None, method = None,
+    frames = None, identify = None, model = None, k = None, lm_iterations = None, loss = None,
+    loss_scale_mm = None, auto_mask = false, keep_ill_conditioned = false,
+    accept_implausible = false, accept = None, payload_kg = None, swarm = None,
+    generations = None, c1 = None, c2 = None, seed = None, init_angle_rad = None,
+    init_length_mm = None, bound_factor = None, stall_generations = None, target = None,
+    halton_start = None, scrambling = None
+))]
+#[allow(clippy::too_many_arguments)]
 fn calibrate(
     py: Python<'_>,
     robot: &Robot,
     data: &Dataset,
     holdout: Option<&Dataset>,
-    options: Option<&Bound<'_, PyDict>>,
+    validate: Option<f64>,
+    validate_seed: Option<u64>,
+    method: Option<&str>,
+    frames: Option<&str>,
+    identify: Option<&str>,
+    model: Option<&str>,
+    k: Option<f64>,
+    lm_iterations: Option<u32>,
+    loss: Option<&str>,
+    loss_scale_mm: Option<f64>,
+    auto_mask: bool,
+    keep_ill_conditioned: bool,
+    accept_implausible: bool,
+    accept: Option<Vec<String>>,
+    payload_kg: Option<f64>,
+    swarm: Option<usize>,
+    generations: Option<u32>,
+    c1: Option<f64>,
+    c2: Option<f64>,
+    seed: Option<u64>,
+    init_angle_rad: Option<f64>,
+    init_length_mm: Option<f64>,
+    bound_factor: Option<f64>,
+    stall_generations: Option<u32>,
+    target: Option<f64>,
+    halton_start: Option<u64>,
+    scrambling: Option<String>,
 ) -> PyResult<CalibrationResult> {
-    let mut words: Vec<String> = vec![
-        "calibrate".into(),
-        "--robot".into(),
-        robot.path().clone(),
-        "--data".into(),
-    ];
-    let from_files = match (&data.source, holdout.map(|h| &h.source)) {
-        (
-            Source::Files {
-                data: path,
-                profile,
-            },
-            None | Some(Source::Files { .. }),
-        ) if robot.on_disk => {
-            words.push(path.display().to_string());
-            if let Some(p) = profile {
-                words.extend(["--profile".into(), p.display().to_string()]);
-            }
-            if let Some(Source::Files { data: h, .. }) = holdout.map(|h| &h.source) {
-                words.extend(["--holdout".into(), h.display().to_string()]);
-            }
-            true
-        }
-        _ => {
-            words.push("<arrays>".into());
-            false
-        }
+    use host_tools::calibration::{HoldOut, Provenance, Session};
+    let swarm = SwarmArgs {
+        swarm,
+        generations,
+        c1,
+        c2,
+        seed,
+        init_angle_rad,
+        init_length_mm,
+        bound_factor,
+        stall_generations,
+        target,
+        halton_start,
+        scrambling,
     };
-    words.extend(option_words(
-        options,
-        &[
-            "robot", "data", "profile", "holdout", "out", "report", "html", "plot", "truth",
-            "quiet",
-        ],
-    )?);
-    let mut parsed = parse_words::<CalibrateOptions>(&words)?;
-    parsed.quiet = true;
-    let mut line = vec!["calib".to_string()];
-    line.extend(words.iter().cloned());
-    parsed.command_line = line;
+    let d = CalibrationConfig::default();
+    let acceptance = (accept.unwrap_or_default().iter())
+        .map(|c| {
+            c.parse()
+                .map_err(|e: String| InputError::new_err(format!("accept: {e}")))
+        })
+        .collect::<PyResult<Vec<_>>>()?;
     let cancel = host_tools::calibration::Cancel::default();
-    let data = data.against(robot).map_err(py_error)?;
-    let holdout = (holdout.map(|h| h.against(robot)).transpose()).map_err(py_error)?;
-    let stop = cancel.clone();
-    let calibration = interruptible(py, &cancel, move || -> anyhow::Result<Calibration> {
-        let mut config = parsed.config();
-        config.cancel = stop;
-        if from_files {
-            host_tools::cli::calibrate::calibrate_datasets(&parsed, config, data, holdout)
-        } else {
-            host_tools::cli::calibrate::calibrate_in_memory(&parsed, config, data, holdout)
+    let config = CalibrationConfig {
+        method: choice("method", method)?.unwrap_or(d.method),
+        frames: choice("frames", frames)?,
+        identify: choice("identify", identify)?.unwrap_or(d.identify),
+        model: choice("model", model)?.unwrap_or(d.model),
+        k: k.unwrap_or(d.k),
+        swarm: swarm.config()?,
+        lm_iterations: lm_iterations.unwrap_or(d.lm_iterations),
+        loss: choice("loss", loss)?.unwrap_or(d.loss),
+        loss_scale_mm,
+        auto_mask,
+        keep_ill_conditioned,
+        accept_implausible,
+        acceptance,
+        payload_kg,
+        progress: false,
+        cancel: cancel.clone(),
+    };
+    if validate_seed.is_some() && validate.is_none() {
+        return Err(py_error(
+            host_tools::Error::conflict(
+                &["--validate-seed", "--validate"],
+                "validate_seed= seeds the random hold-out of validate=: give validate=FRACTION, or drop validate_seed=",
+            )
+            .into(),
+        ));
+    }
+    let all = data.against(robot).map_err(py_error)?;
+    let held = (holdout.map(|h| h.against(robot)).transpose()).map_err(py_error)?;
+    let hold_out = match (held, validate) {
+        (Some(_), Some(_)) => {
+            return Err(py_error(
+                host_tools::Error::conflict(
+                    &["--holdout", "--validate"],
+                    "give either validate= or a holdout Dataset, not both",
+                )
+                .into(),
+            ));
         }
-    })?
-    .map_err(py_error)?;
+        (Some(held), None) => HoldOut::poses(held),
+        (None, Some(fraction)) => HoldOut::Fraction {
+            fraction,
+            seed: validate_seed.unwrap_or(0),
+        },
+        (None, None) => HoldOut::of_data(&all),
+    };
+    let inputs = file_inputs(robot, data, holdout).map_err(|e| py_error(e.into()))?;
+    let session = Session {
+        hold_out,
+        provenance: Provenance {
+            command_line: Vec::new(),
+            inputs,
+        },
+        ..Session::new(all, config)
+    };
+    let calibration =
+        interruptible(py, &cancel, move || session.run())?.map_err(|e| py_error(e.into()))?;
     Ok(CalibrationResult { calibration })
+}
+
+/// The input files of a calibration of `data` (validated on `holdout`) on `robot` with their
+/// SHA-256, as `calib calibrate` records them: when the robot, the data and the hold-out all
+/// come from files; else none (poses from memory have no file to trace back to).
+fn file_inputs(
+    robot: &Robot,
+    data: &Dataset,
+    holdout: Option<&Dataset>,
+) -> host_tools::Result<Vec<host_tools::io::provenance::InputFile>> {
+    let Source::Files {
+        data: path,
+        profile,
+    } = &data.source
+    else {
+        return Ok(Vec::new());
+    };
+    if !robot.on_disk {
+        return Ok(Vec::new());
+    }
+    let mut inputs: Vec<(&str, &std::path::Path)> = vec![
+        ("--robot", robot.path.as_path()),
+        ("--data", path.as_path()),
+    ];
+    if let Some(p) = profile {
+        inputs.push(("--profile", p.as_path()));
+    }
+    match holdout.map(|h| &h.source) {
+        Some(Source::Files { data: h, .. }) => inputs.push(("--holdout", h.as_path())),
+        Some(Source::Memory) => return Ok(Vec::new()),
+        None => {}
+    }
+    host_tools::io::provenance::InputFile::all(&inputs)
 }
 
 /// Table 3 statistics of `robot` (any model, nominal or identified) on `data`, as `calib evaluate
@@ -1302,6 +1529,16 @@ fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("CalibError", m.py().get_type::<CalibError>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;
     m.add("NumericalError", m.py().get_type::<NumericalError>())?;
+    m.add(
+        "OptionConflictError",
+        m.py().get_type::<OptionConflictError>(),
+    )?;
+    m.add(
+        "UnidentifiableError",
+        m.py().get_type::<UnidentifiableError>(),
+    )?;
+    m.add("NoHeldOutError", m.py().get_type::<NoHeldOutError>())?;
+    m.add("ImplausibleError", m.py().get_type::<ImplausibleError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -191,9 +191,10 @@ def test_bad_inputs_raise_the_documented_exceptions():
         calib.Dataset.from_file(UR10)
     assert str(refused.value).splitlines()[0] == out.stderr.splitlines()[0].removeprefix("Error: ")
     data = calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=robot)
-    with pytest.raises(calib.InputError, match="report= is not an option here"):
+    # What the command writes is returned, not an option: a TypeError, as any keyword no option
+    # has (issue 53: typed keyword arguments; issue 52 had clap's text).
+    with pytest.raises(TypeError, match="unexpected keyword argument 'report'"):
         calib.calibrate(robot, data, report="r.json")
-    # A keyword no option has is a TypeError, as Python says it (issue 52; was clap's text).
     with pytest.raises(TypeError, match="unexpected keyword argument 'no_such_option'"):
         calib.calibrate(robot, data, no_such_option=1)
     # The same refusal, in the same words, as the command line.
@@ -414,7 +415,7 @@ def test_options_are_keyword_arguments_and_results_say_what_they_are():
     # what they hold; each parameter value states its unit.
     robot = calib.Robot.from_file(UR10)
     data = calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=robot)
-    with pytest.raises(TypeError, match="unexpected keyword argument 'validat'; did you mean 'validate'"):
+    with pytest.raises(TypeError, match="unexpected keyword argument 'validat'"):
         calib.calibrate(robot, data, method="lm", validat=0.9)
     result = calib.calibrate(robot, data, method="lm", validate=0.9666)
     text = repr(result)
@@ -520,3 +521,51 @@ def test_from_craig_is_the_published_table():
         calib.Robot.from_craig("bad", alpha, a, d[:6], [0.0] * 7)
     with pytest.raises(calib.InputError, match=r"from_craig: flange_d_mm\[0\] = inf is not a finite number"):
         calib.Robot.from_craig("bad", alpha, a, d, [0.0] * 7, flange_d_mm=math.inf)
+
+
+def test_refusals_are_exception_classes_with_their_data():
+    # Issue 53: the library's typed refusals reach Python by type, with their data, and in the
+    # command line's words.
+    robot = calib.Robot.from_file(UR10)
+    data = calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=robot)
+    out = run_calib("calibrate", "--robot", UR10, "--data", SERIES_B, "--profile", PROFILE, "--accept", "95% <= 1 mm")
+    with pytest.raises(calib.NoHeldOutError) as refused:
+        calib.calibrate(robot, data, accept=["95% <= 1 mm"])
+    assert str(refused.value).splitlines()[0] == out.stderr.splitlines()[0].removeprefix("Error: ")
+    assert isinstance(refused.value, calib.InputError)
+    out = run_calib("calibrate", "--robot", UR10, "--data", SERIES_B, "--profile", PROFILE, "--loss-scale-mm", "0.5")
+    with pytest.raises(calib.OptionConflictError) as refused:
+        calib.calibrate(robot, data, loss_scale_mm=0.5)
+    assert refused.value.options == ["--loss-scale-mm", "--loss"]
+    assert str(refused.value).splitlines()[0] == out.stderr.splitlines()[0].removeprefix("Error: ")
+    with pytest.raises(calib.OptionConflictError) as refused:
+        calib.calibrate(robot, data, method="lm", c1=2.5)
+    assert refused.value.options == ["--c1", "--method"]
+    with pytest.raises(calib.InputError, match="method: invalid value 'gauss': choose 'ipso', 'lm', 'ipso\\+lm'"):
+        calib.calibrate(robot, data, method="gauss")
+    with pytest.raises(TypeError):
+        calib.calibrate(robot, data, validate="most")  # type: ignore[arg-type]
+    # Base-frame data of 20 poses that move joints 1 and 2 only: the wrist's parameters are
+    # undetermined, named with the rank the command prints.
+    q = np.zeros((20, 6))
+    q[:, 0] = np.linspace(-1.0, 1.0, 20)
+    q[:, 1] = np.linspace(-1.5, -0.5, 20) ** 2
+    poses = robot.fk(q)
+    flat = calib.Dataset.from_arrays(q, poses[:, :3, 3], rotations=poses[:, :3, :3], frame="base", robot=robot)
+    with pytest.raises(calib.UnidentifiableError) as refused:
+        calib.calibrate(robot, flat, method="lm")
+    e = refused.value
+    assert 0 < e.rank < e.parameters and len(e.undetermined) == e.parameters - e.rank, (e.rank, e.parameters, e.undetermined)
+    assert f"rank {e.rank} of {e.parameters}" in str(e)
+    # Poses of a UR10 whose upper arm is 12 mm longer than its file says: beyond the file's
+    # max_length_error_mm = 5, refused with the values kept on the exception.
+    text = UR10.read_text()
+    longer = calib.Robot.from_toml(text.replace("a_mm = -612.0", "a_mm = -624.0"), "longer")
+    q = np.radians(np.random.default_rng(1).uniform(-170, 170, (40, 6)))
+    poses = longer.fk(q)
+    real = calib.Dataset.from_arrays(q, poses[:, :3, 3], rotations=poses[:, :3, :3], frame="base")
+    with pytest.raises(calib.ImplausibleError) as refused:
+        calib.calibrate(robot, real, method="lm")
+    e = refused.value
+    assert any(p.startswith("da2 = -12.0000 mm is beyond the plausible 5") for p in e.problems), e.problems
+    assert abs(e.parameters["da2"] + 12.0) < 1e-6

@@ -137,6 +137,53 @@ impl Default for SwarmConfig {
     }
 }
 
+impl SwarmConfig {
+    /// The settings that differ from [`SwarmConfig::default`], by their command-line flags.
+    pub fn changed(&self) -> Vec<&'static str> {
+        let d = Self::default();
+        let same = |a: f64, b: f64| a.to_bits() == b.to_bits();
+        [
+            ("--swarm", self.particles == d.particles),
+            ("--generations", self.generations == d.generations),
+            ("--c1", same(self.c1, d.c1)),
+            ("--c2", same(self.c2, d.c2)),
+            ("--seed", self.seed == d.seed),
+            (
+                "--init-angle-rad",
+                same(self.init_angle_rad, d.init_angle_rad),
+            ),
+            (
+                "--init-length-mm",
+                same(self.init_length_mm, d.init_length_mm),
+            ),
+            ("--bound-factor", same(self.bound_factor, d.bound_factor)),
+            (
+                "--stall-generations",
+                self.stall_generations == d.stall_generations,
+            ),
+            ("--target", same(self.target, d.target)),
+            ("--halton-start", self.halton_start == d.halton_start),
+            ("--scrambling", self.scrambling == d.scrambling),
+        ]
+        .into_iter()
+        .filter(|(_, same)| !same)
+        .map(|(flag, _)| flag)
+        .collect()
+    }
+}
+
+/// The refusal of the swarm's settings `flags` with `--method lm`, which runs no swarm.
+pub(crate) fn swarm_without_swarm(flags: &[&str]) -> crate::Error {
+    crate::Error::conflict(
+        &[flags, &["--method"]].concat(),
+        format!(
+            "{} set the swarm, and --method lm runs none: drop {}, or use --method ipso or ipso+lm",
+            flags.join(", "),
+            if flags.len() == 1 { "it" } else { "them" }
+        ),
+    )
+}
+
 /// What a calibration identifies.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
 pub enum Identify {
@@ -275,8 +322,9 @@ impl CalibrationConfig {
     /// An error naming the first setting out of its range (by its command-line flag).
     pub fn check(&self) -> crate::Result<()> {
         if self.loss == LossChoice::L2 && self.loss_scale_mm.is_some() {
-            return Err(crate::refused!(
-                "--loss-scale-mm scales a robust loss, and --loss l2 (the default) has none: give --loss huber or cauchy, or drop --loss-scale-mm"
+            return Err(crate::Error::conflict(
+                &["--loss-scale-mm", "--loss"],
+                "--loss-scale-mm scales a robust loss, and --loss l2 (the default) has none: give --loss huber or cauchy, or drop --loss-scale-mm",
             ));
         }
         let (c1, c2) = (self.swarm.c1, self.swarm.c2);
@@ -313,16 +361,24 @@ impl CalibrationConfig {
             ));
         }
         if self.model.maps() && self.identify == Identify::Frames {
-            return Err(crate::refused!(
+            return Err(crate::Error::conflict(
+                &["--model", "--identify"],
                 "--model joint-maps identifies maps with the geometry; --identify frames keeps the robot file's model \
-                 (with its maps, when it has them): drop one of the two"
+                 (with its maps, when it has them): drop one of the two",
             ));
         }
         if self.loss != LossChoice::L2 && !self.method.least_squares() {
-            return Err(crate::refused!(
-                "--loss {:?} applies to the least-squares stage: use --method lm or ipso+lm",
-                self.loss
+            return Err(crate::Error::conflict(
+                &["--loss", "--method"],
+                format!(
+                    "--loss {:?} applies to the least-squares stage: use --method lm or ipso+lm",
+                    self.loss
+                ),
             ));
+        }
+        let changed = self.swarm.changed();
+        if self.method == Method::Lm && !changed.is_empty() {
+            return Err(swarm_without_swarm(&changed));
         }
         Ok(())
     }

@@ -10,6 +10,7 @@ pub mod evidence;
 use super::ErrorModel;
 use super::{CalibrationConfig, CalibrationResult, Stage};
 use crate::JOINTS;
+use crate::io::robot_file::RobotFile;
 use crate::kinematics::actual::ActualRobot;
 use crate::measurement::dataset::{Dataset, Seen};
 use crate::measurement::statistics::table3;
@@ -269,11 +270,11 @@ fn found_model(
 /// frames registered; the given robot passed [`check_robot_file`]) on `dataset`, validated on
 /// `validation`.
 pub(crate) fn add_joint_maps(
-    mut result: CalibrationResult,
+    (mut result, mut file): (CalibrationResult, RobotFile),
     robot: &ActualRobot,
     (dataset, validation): (&Dataset, Option<&Dataset>),
     config: &CalibrationConfig,
-) -> crate::Result<CalibrationResult> {
+) -> crate::Result<(CalibrationResult, RobotFile)> {
     let geometric = Kinematics::new(&robot.model.robot, &result.errors)?;
     let seen = dataset.seen_by(robot)?;
     let Screened {
@@ -315,7 +316,7 @@ pub(crate) fn add_joint_maps(
         // The geometric calibration stands: its statistics, parameters and file.
         found = found.kept_at_zero(result.errors);
     } else {
-        result = with_maps(
+        (result, file) = with_maps(
             result,
             robot,
             (dataset, validation),
@@ -346,7 +347,7 @@ pub(crate) fn add_joint_maps(
         }),
         cross_validation,
     });
-    Ok(result)
+    Ok((result, file))
 }
 
 /// The poses the maps are identified from: those the geometric model (`geometric`) fits within
@@ -454,7 +455,7 @@ fn map_curves(found: &MapIdentification, poses: &[Pose], joints: usize) -> Vec<M
 }
 
 /// `result` (the geometric calibration) replaced by the model with the maps `found`: statistics,
-/// parameters and the identified robot file with its `[joint_maps]`, the maps identified on
+/// parameters, and the identified robot file returned beside it with its `[joint_maps]`, the maps identified on
 /// readings within `ranges`, the compliance with the masses `gravity`; `robot` has the frames
 /// registered.
 fn with_maps(
@@ -465,7 +466,7 @@ fn with_maps(
     parameters: &[calib_core::Parameter],
     (found, gravity): (&evidence::MapIdentification, Option<&Gravity>),
     ranges: &[[f64; 2]],
-) -> crate::Result<CalibrationResult> {
+) -> crate::Result<(CalibrationResult, RobotFile)> {
     // The statistics of the model with the maps (and the compliance).
     let robot = &found_model(robot, found, gravity);
     let actual = Kinematics::new(&robot.model.robot, &found.errors)?;
@@ -525,9 +526,8 @@ fn with_maps(
         })?;
         file.compliance = Some(section);
     }
-    result.identified_robot = file;
     result.frames = frames;
-    Ok(result)
+    Ok((result, file))
 }
 
 impl JointMapsReport {

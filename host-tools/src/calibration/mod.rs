@@ -1,6 +1,7 @@
-//! Calibration as a library: a [`Dataset`] (robot and measurements, from files or memory) and a
-//! [`CalibrationConfig`] in, a typed [`CalibrationResult`] out. No file is read or written here;
-//! the `calib calibrate` command is a thin layer over [`calibrate`].
+//! Calibration as a library: a [`Session`] (a [`Dataset`] of the robot and its measurements, from
+//! files or memory, a [`HoldOut`] rule and a [`CalibrationConfig`]) in, a [`Calibrated`] out: the
+//! identified robot as a model, the typed [`CalibrationResult`] and the provenance. No file is
+//! read or written here; the `calib calibrate` command is a thin layer over [`Session::run`].
 //!
 //! The stages: the frames are registered and fitted ([`crate::measurement::frames::prepare`]); the
 //! identifiability of the parameters is checked and, with `auto_mask`, what the data cannot
@@ -12,7 +13,7 @@
 //! use host_tools::measurement::dataset::Dataset;
 //! use host_tools::io::robot_file::RobotFile;
 //! use host_tools::io::tracker_data::Record;
-//! use calib_core::Kinematics;
+//! use calib_core::{Kinematics, ParameterErrors};
 //! use calib_core::model::JointVec;
 //! use calib_core::model::paper;
 //! use std::path::Path;
@@ -44,11 +45,17 @@
 //!     .collect();
 //! let dataset = Dataset::from_records(robot, records, true)?;
 //! let config = CalibrationConfig { method: Method::Lm, ..CalibrationConfig::default() };
-//! let result = calibrate(dataset, None, &config)?;
+//! let calibrated = calibrate(dataset, None, &config)?;
 //! // Least squares recovers Table 2 from exact data: da2 = 0.2565 mm.
-//! let da2 = result.parameter("da2").unwrap();
+//! let da2 = calibrated.result.parameter("da2").unwrap();
 //! assert!((da2.value - 0.2565).abs() < 1e-9);
-//! assert!(result.calibration.after.position_mm.max < 1e-9);
+//! assert!(calibrated.result.calibration.after.position_mm.max < 1e-9);
+//! // The identified robot is a model: its forward kinematics are the real robot's.
+//! let q = JointVec::<f64>::from_fn(6, |j| 0.3 * j as f64 - 0.7);
+//! let zero = ParameterErrors::zeros_for(nalgebra::Dyn(6));
+//! let identified = Kinematics::new(&calibrated.model.model.robot, &zero)?;
+//! let miss = identified.forward(&q).unwrap().translation.vector - real.forward(&q).unwrap().translation.vector;
+//! assert!(miss.norm() < 1e-9);
 //! # Ok::<(), anyhow::Error>(())
 //! ```
 
@@ -57,17 +64,23 @@ pub mod cross_validation;
 pub mod maps;
 pub mod plausibility;
 mod result;
+mod session;
 
+pub(crate) use config::swarm_without_swarm;
 pub use config::{
     CalibrationConfig, Cancel, ErrorModel, Identify, LossChoice, Method, SWARM_SIZES,
     ScramblingChoice, SwarmConfig,
 };
+pub use session::{Calibrated, HoldOut, Provenance, Session, Truth};
+
 pub use result::{
-    CalibrationResult, HoldOut, IdentifiedParameter, LeastSquaresReport, ObjectiveValues, Outlier,
-    Parameters, PerPose, PoseReport, Report, Settings, Stage, SwarmSummary, lm_stop, swarm_stop,
+    CalibrationResult, HoldOutSettings, IdentifiedParameter, LeastSquaresReport, ObjectiveValues,
+    Outlier, Parameters, PerPose, PoseReport, Report, Settings, Stage, SwarmSummary, lm_stop,
+    swarm_stop,
 };
 
 use crate::analysis::identifiability::{IdentifiabilityReport, analyse};
+use crate::io::robot_file::RobotFile;
 use crate::kinematics::actual::ActualRobot;
 use crate::measurement::dataset::{Dataset, Seen};
 use crate::measurement::frames::{Frames, FramesReport};
@@ -86,7 +99,22 @@ use std::time::Instant;
 const COMPLIANCE_ROUNDS: usize = 2;
 
 /// Calibrates `dataset` (its robot's identification mask plus the frames of `config`), validating
-/// on `validation` when given (poses in the same tracker frame, not used to identify).
+/// on `validation` when given (poses in the same tracker frame, not used to identify): a
+/// [`Session`] with those poses held out ([`HoldOut::poses`]), no provenance and no truth.
+pub fn calibrate(
+    dataset: Dataset,
+    validation: Option<Dataset>,
+    config: &CalibrationConfig,
+) -> crate::Result<Calibrated> {
+    Session {
+        hold_out: validation.map_or(HoldOut::None, HoldOut::poses),
+        ..Session::new(dataset, config.clone())
+    }
+    .run()
+}
+
+/// The stages of a calibration of `dataset` validated on `validation`: the typed result and the
+/// identified robot file.
 ///
 /// The stages, each taking the model of the robot ([`ActualRobot`]) the one before returned:
 /// the measurement setup (an identified probe kept with `--frames base`), the frames
@@ -95,18 +123,18 @@ const COMPLIANCE_ROUNDS: usize = 2;
 /// the solve (`solve_geometry`), the joint maps (`maps::add_joint_maps`), the held-out accuracy
 /// and the plausibility (`accuracy_and_plausibility`). The datasets are read once and not
 /// changed: each stage sees their poses through its model ([`Dataset::seen_by`]).
-pub fn calibrate(
+pub(crate) fn stages(
     dataset: Dataset,
     validation: Option<Dataset>,
     config: &CalibrationConfig,
-) -> crate::Result<CalibrationResult> {
+) -> crate::Result<(CalibrationResult, RobotFile)> {
     config.check()?;
     if !config.acceptance.is_empty() && validation.is_none() {
-        return Err(crate::refused!(
+        return Err(crate::Error::NoHeldOut(format!(
             "--accept {}: an acceptance criterion is judged on held-out poses, and none are held out: give --validate FRACTION \
              or --holdout FILE (or measure a plan with verification poses)",
             config.acceptance[0]
-        ));
+        )));
     }
     if config.model.maps() {
         maps::check_robot_file(&dataset.robot, config)?;
@@ -147,25 +175,29 @@ pub fn calibrate(
         None => robot,
     };
     let inputs = (&dataset, validation.as_ref());
-    let mut result = solve_geometry(&robot, inputs, config, &selection, &frames_report)?;
+    let mut solved = solve_geometry(&robot, inputs, config, &selection, &frames_report)?;
     if config.model.maps() {
-        result = maps::add_joint_maps(result, &robot, inputs, config)?;
+        solved = maps::add_joint_maps(solved, &robot, inputs, config)?;
     }
+    let (mut result, mut file) = solved;
     if probe_kept {
-        let file = &mut result.identified_robot;
         (file.base, file.tool) = (given.file.base.clone(), given.file.tool.clone());
         if let Some(m) = file.measurement.as_mut() {
             m.flange_tool = probe;
         }
     }
     if config.cancel.is_cancelled() {
-        return Err(crate::refused!("the calibration was cancelled"));
+        return Err(crate::Error::Cancelled);
     }
     result.conditions = Some(conditions);
     let calibration_joints: Vec<Vec<f64>> =
         dataset.data.records.iter().map(|r| r.q.clone()).collect();
     let held_out = validation.as_ref().map(|v| v.seen_by(&robot)).transpose()?;
-    accuracy_and_plausibility(result, (&calibration_joints, held_out.as_ref()), config)
+    accuracy_and_plausibility(
+        (result, file),
+        (&calibration_joints, held_out.as_ref()),
+        config,
+    )
 }
 
 /// The caveats of the certificate ([`crate::analysis::caveats`]; `calib calibrate` adds the plan
@@ -238,10 +270,10 @@ fn caveats(
 /// judged on them, and the plausibility check (an implausible result is refused unless the
 /// configuration accepts it).
 fn accuracy_and_plausibility(
-    mut result: CalibrationResult,
+    (mut result, mut file): (CalibrationResult, RobotFile),
     (calibration_joints, validation): (&[Vec<f64>], Option<&Seen<'_>>),
     config: &CalibrationConfig,
-) -> crate::Result<CalibrationResult> {
+) -> crate::Result<(CalibrationResult, RobotFile)> {
     if let Some(v) = validation {
         let poses: Vec<(String, u64)> = (v.data.records.iter())
             .map(|r| (r.id.clone(), r.line))
@@ -262,22 +294,26 @@ fn accuracy_and_plausibility(
         }
         map_the_workspace(&mut result, v)?;
     }
-    record_covariance(&mut result, config);
+    record_covariance(&result, &mut file, config);
     result.acceptance = crate::analysis::accuracy::Acceptance::judge(
         &config.acceptance,
         &result.per_pose.validation_after,
     );
-    result.implausible = plausibility::check(&result);
+    result.implausible = plausibility::check(&result, &file);
     if !result.implausible.is_empty() && !config.accept_implausible {
         let question = plausibility::question(&result).map_or(String::new(), |q| q + "\n");
-        return Err(crate::refused!(
-            "the calibration is not plausible, nothing was written:\n  - {}\n{question}{}",
-            result.implausible.join("\n  - "),
-            plausibility::LIKELY_CAUSES
-        ));
+        return Err(crate::Error::Implausible {
+            problems: result.implausible.clone(),
+            message: format!(
+                "the calibration is not plausible, nothing was written:\n  - {}\n{question}{}",
+                result.implausible.join("\n  - "),
+                plausibility::LIKELY_CAUSES
+            ),
+            result: Box::new(result),
+        });
     }
     result.caveats = caveats(&result, calibration_joints, validation);
-    Ok(result)
+    Ok((result, file))
 }
 
 /// The held-out poses of `validation` placed in the workspace (`per_pose.validation_position_mm`,
@@ -309,8 +345,8 @@ fn map_the_workspace(result: &mut CalibrationResult, validation: &Seen<'_>) -> c
 
 /// Records the identified parameters' covariance (the frames of the measurement setup included:
 /// the joint parameters are determined relative to them) in the identified file's
-/// `[calibration]`, for a calibration of the geometry.
-fn record_covariance(result: &mut CalibrationResult, config: &CalibrationConfig) {
+/// `[calibration]` of `file`, for a calibration of the geometry.
+fn record_covariance(result: &CalibrationResult, file: &mut RobotFile, config: &CalibrationConfig) {
     let (Some(covariance), Identify::Geometry) = (&result.covariance, config.identify) else {
         return;
     };
@@ -320,7 +356,7 @@ fn record_covariance(result: &mut CalibrationResult, config: &CalibrationConfig)
             .map(|r| r.iter().copied().collect())
             .collect(),
     };
-    if let Some(c) = result.identified_robot.calibration.as_mut() {
+    if let Some(c) = file.calibration.as_mut() {
         c.covariance = Some(entry);
     }
 }
@@ -360,7 +396,7 @@ fn solve_geometry(
     config: &CalibrationConfig,
     selection: &Selection,
     frames: &FramesReport,
-) -> crate::Result<CalibrationResult> {
+) -> crate::Result<(CalibrationResult, RobotFile)> {
     let solved = |calibration: &Seen<'_>, held_out: Option<&Seen<'_>>| {
         solve(
             calibration,
@@ -430,13 +466,20 @@ pub fn select_parameters(
     let mut dropped = Vec::new();
     if identifiability.rank < identifiability.parameters {
         if !config.auto_mask {
-            return Err(crate::refused!(
-                "the data cannot determine every identified parameter (rank {} of {}): {}. \
-                 Drop them with --auto-mask, or set identify = [...] in the robot file; `calib check` shows the analysis",
-                identifiability.rank,
-                identifiability.parameters,
-                identifiability.problem()
-            ));
+            return Err(crate::Error::Unidentifiable {
+                rank: identifiability.rank,
+                parameters: identifiability.parameters,
+                undetermined: (identifiability.to_drop().iter())
+                    .map(ToString::to_string)
+                    .collect(),
+                message: format!(
+                    "the data cannot determine every identified parameter (rank {} of {}): {}. \
+                     Drop them with --auto-mask, or set identify = [...] in the robot file; `calib check` shows the analysis",
+                    identifiability.rank,
+                    identifiability.parameters,
+                    identifiability.problem()
+                ),
+            });
         }
         for parameter in identifiability.to_drop() {
             mask.set(parameter, false);
@@ -505,7 +548,7 @@ fn solve(
     config: &CalibrationConfig,
     selection: Selection,
     mut frames: FramesReport,
-) -> crate::Result<CalibrationResult> {
+) -> crate::Result<(CalibrationResult, RobotFile)> {
     let set = crate::model::counts::solvable_set(&selection.mask)?;
     let problem = dataset.problem(set, config.k)?;
     let set = problem.set();
@@ -532,7 +575,7 @@ fn solve(
     };
     let cross_validation = cross_validation::cross_validate(dataset, set, &cv_config);
     let initial = objective.value(&zero);
-    Ok(CalibrationResult {
+    let result = CalibrationResult {
         robot: dataset.robot.model.name.clone(),
         robot_path: dataset.robot.model.path.clone(),
         data_path: dataset.data.path.clone(),
@@ -556,7 +599,6 @@ fn solve(
         calibration,
         validation,
         per_pose,
-        identified_robot,
         seconds,
         calibrated_at: humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
         implausible: Vec::new(),
@@ -565,13 +607,13 @@ fn solve(
         plan_check: None,
         held_out: None,
         acceptance: None,
-        command_line: Vec::new(),
         uncertainty,
         significance,
         conditions: None,
         caveats: Vec::new(),
         covariance,
-    })
+    };
+    Ok((result, identified_robot))
 }
 
 /// What the fit's covariance says (least squares only): the covariance itself, the held-out poses

@@ -52,11 +52,12 @@ pub(crate) fn bound_of(robot: &RobotFile, parameter: Parameter) -> (f64, &'stati
 const OWN_ANGLE_BOUND: &str = "this robot's geometric errors (its file's max_angle_error_deg)";
 const OWN_LENGTH_BOUND: &str = "this robot's geometric errors (its file's max_length_error_mm)";
 
-/// The problems of `result`, each naming the value and its bound; empty when it is plausible.
-pub fn check(result: &CalibrationResult) -> Vec<String> {
+/// The problems of `result`, each naming the value and its bound (those of its identified robot
+/// file `file`); empty when it is plausible.
+pub fn check(result: &CalibrationResult, file: &RobotFile) -> Vec<String> {
     let mut problems = Vec::new();
     for p in &result.parameters {
-        let (bound, whose) = bound_of(&result.identified_robot, p.parameter);
+        let (bound, whose) = bound_of(file, p.parameter);
         let (value, unit) = if p.parameter.is_angle() {
             (p.value.to_degrees(), "deg")
         } else {
@@ -70,7 +71,7 @@ pub fn check(result: &CalibrationResult) -> Vec<String> {
         }
     }
     let rms = result.calibration.after.position_mm.rms;
-    let (limit, why) = match result.identified_robot.repeatability_mm {
+    let (limit, why) = match file.repeatability_mm {
         Some(r) if REPEATABILITY_FACTOR * r > MAX_FIT_RMS_MM => (
             REPEATABILITY_FACTOR * r,
             format!("{REPEATABILITY_FACTOR} times the robot's repeatability of {r} mm"),

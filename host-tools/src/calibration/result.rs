@@ -3,7 +3,6 @@
 use super::config::CalibrationConfig;
 use crate::analysis::identifiability::IdentifiabilityReport;
 use crate::analysis::truth::{TruthRow, unit_of};
-use crate::io::robot_file::RobotFile;
 use crate::measurement::frames::FramesReport;
 use crate::measurement::statistics::Table3;
 use calib_core::identify::ipso::StopReason;
@@ -194,8 +193,6 @@ pub struct CalibrationResult {
     pub validation: Option<Stage>,
     /// Per-pose errors for plots.
     pub per_pose: PerPose,
-    /// The identified robot: nominal + errors, with a `[calibration]` section.
-    pub identified_robot: RobotFile,
     /// Wall-clock time of the optimisation, s.
     pub seconds: f64,
     /// When the calibration finished, RFC 3339 (UTC, to the second).
@@ -216,9 +213,6 @@ pub struct CalibrationResult {
     pub held_out: Option<crate::analysis::accuracy::HeldOutAccuracy>,
     /// The acceptance criteria of the configuration judged on the held-out poses.
     pub acceptance: Option<crate::analysis::accuracy::Acceptance>,
-    /// The command line that ran the calibration (set by `calib calibrate`; empty for a library
-    /// call).
-    pub command_line: Vec<String>,
     /// The held-out poses against the 95 % band predicted from the parameters' covariance (least
     /// squares and held-out poses needed; not for a model with joint maps).
     pub uncertainty: Option<crate::analysis::uncertainty::Coverage>,
@@ -250,23 +244,6 @@ impl CalibrationResult {
             .collect()
     }
 
-    /// The run's input files with their SHA-256, as the identified robot file records them: a
-    /// re-registration's `[measurement]` files and the robot file it kept the geometry of, else
-    /// `[calibration]`'s (empty until `calib calibrate` records them).
-    pub fn inputs(&self) -> Vec<crate::io::provenance::InputFile> {
-        let file = &self.identified_robot;
-        match &file.measurement {
-            Some(m) if !m.inputs.is_empty() => {
-                m.geometry_from.iter().chain(&m.inputs).cloned().collect()
-            }
-            _ => file
-                .calibration
-                .as_ref()
-                .map(|c| c.inputs.clone())
-                .unwrap_or_default(),
-        }
-    }
-
     /// Objective evaluations of the swarm plus residual evaluations of least squares.
     pub fn evaluations(&self) -> u64 {
         self.swarm.as_ref().map_or(0, |s| s.evaluations)
@@ -285,9 +262,15 @@ impl CalibrationResult {
         }
     }
 
-    /// The JSON report; `settings` describes the run (the configuration and the hold-out),
-    /// `truth` the comparison with known errors.
-    pub fn report(&self, hold_out: HoldOut, truth: Option<Vec<TruthRow>>) -> Report<'_> {
+    /// The JSON report of the calibration `self`, with how its poses were held out (`hold_out`),
+    /// the comparison with known errors (`truth`) and where it came from (`provenance`); see
+    /// [`super::Calibrated::report`].
+    pub(crate) fn report<'a>(
+        &'a self,
+        hold_out: HoldOutSettings,
+        truth: Option<Vec<TruthRow>>,
+        provenance: &'a super::Provenance,
+    ) -> Report<'a> {
         Report {
             method: self.config.method.name(),
             robot: self.robot_path.display().to_string(),
@@ -338,15 +321,16 @@ impl CalibrationResult {
                 env!("CARGO_PKG_VERSION"),
                 env!("CALIB_COMMIT")
             ),
-            command_line: &self.command_line,
-            inputs: self.inputs(),
+            command_line: &provenance.command_line,
+            inputs: provenance.inputs.clone(),
         }
     }
 }
 
-/// How the validation poses were chosen, for the report.
+/// How the validation poses were chosen, as the report's settings state it (the rule itself is
+/// [`super::HoldOut`]).
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
-pub struct HoldOut {
+pub struct HoldOutSettings {
     /// Fraction held out at random.
     pub validate: Option<f64>,
     /// Seed of that random hold-out.
@@ -363,7 +347,7 @@ pub struct Settings<'a> {
     pub config: &'a CalibrationConfig,
     /// The hold-out.
     #[serde(flatten)]
-    pub hold_out: HoldOut,
+    pub hold_out: HoldOutSettings,
 }
 
 /// The identified parameters as a JSON object: name -> { value, unit, std_error }.

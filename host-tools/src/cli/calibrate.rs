@@ -1,18 +1,17 @@
-//! `calib calibrate`: the command over [`crate::calibration`]: read the robot and data files,
-//! calibrate, render the text, the JSON report and the identified robot file, write them.
+//! `calib calibrate`: the command over [`crate::calibration::Session`]: the options as a
+//! configuration and a hold-out rule, the robot, data, hold-out and truth files read, the input
+//! files' hashes as the provenance; the session calibrates, and the identified robot file, the
+//! JSON report, the HTML page and the plots it renders are written here.
 
-use crate::analysis::truth::TruthRow;
 use crate::calibration::{
-    self, CalibrationConfig, CalibrationResult, ErrorModel, HoldOut, Identify, LossChoice, Method,
-    Report, ScramblingChoice, SwarmConfig,
+    Calibrated, CalibrationConfig, ErrorModel, HoldOut, Identify, LossChoice, Method, Provenance,
+    ScramblingChoice, Session, SwarmConfig, Truth,
 };
 use crate::cli::InputFiles;
 use crate::io::outputs::Outputs;
 use crate::io::robot_file::RobotFile;
-use crate::io::tracker_data::Role;
 use crate::measurement::dataset::Dataset;
 use crate::measurement::frames::Frames;
-use crate::planning::Measure;
 use anyhow::bail;
 use std::path::PathBuf;
 
@@ -31,21 +30,21 @@ pub struct CalibrateOptions {
     /// What to identify: geometry (the robot file's identify lists, and the frames), or frames
     /// alone, keeping the robot file's geometry: re-registration of an identified robot measured
     /// again (a moved tracker, a new reflector).
-    #[arg(long, value_enum, default_value_t = Identify::Geometry)]
+    #[arg(long, value_enum, default_value_t = CalibrationConfig::default().identify)]
     pub identify: Identify,
     /// Error model: geometric, or joint-maps (the geometry with each joint's angle-error map, a
     /// periodic function of the joint's own reading, identified jointly with an evidence-tuned
     /// prior; the maps go into the identified file's `[joint_maps]`).
-    #[arg(long, value_enum, default_value_t = ErrorModel::Geometric)]
+    #[arg(long, value_enum, default_value_t = CalibrationConfig::default().model)]
     pub model: ErrorModel,
     /// Identification method: the paper's swarm, least squares, or the swarm then least squares.
-    #[arg(long, value_enum, default_value_t = Method::IpsoLm)]
+    #[arg(long, value_enum, default_value_t = CalibrationConfig::default().method)]
     pub method: Method,
     /// Iteration cap of the least-squares stage.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = CalibrationConfig::default().lm_iterations)]
     pub lm_iterations: u32,
     /// Loss of the least-squares stage: l2, or huber / cauchy to down-weight outlier poses.
-    #[arg(long, value_enum, default_value_t = LossChoice::L2)]
+    #[arg(long, value_enum, default_value_t = CalibrationConfig::default().loss)]
     pub loss: LossChoice,
     /// Scale of the robust loss (--loss huber or cauchy; refused with l2), mm of pose residual
     /// sqrt(|dp|^2 + k |dr|^2); poses beyond it are reported as outliers. Default: estimated from the data, as the median pose residual of a
@@ -225,29 +224,20 @@ impl CalibrateOptions {
         }
     }
 
-    /// How the validation poses are chosen, for the report.
-    pub(crate) fn hold_out(&self) -> HoldOut {
-        HoldOut {
-            validate: self.validate,
-            validate_seed: self.validate_seed,
-            holdout: self.holdout.as_ref().map(|p| p.display().to_string()),
-        }
+    /// The hold-out rule of these options for the data `all` read from `--data`, with the poses
+    /// of `--holdout` already read (`holdout`): `--holdout`, `--validate`, else a measured
+    /// plan's verification rows when the data carry them.
+    fn hold_out_rule(&self, all: &Dataset, holdout: Option<Dataset>) -> anyhow::Result<HoldOut> {
+        Ok(match (holdout, self.validate) {
+            (Some(_), Some(_)) => bail!("use either --validate or --holdout, not both"),
+            (Some(held), None) => HoldOut::poses(held),
+            (None, Some(fraction)) => HoldOut::Fraction {
+                fraction,
+                seed: self.validate_seed,
+            },
+            (None, None) => HoldOut::of_data(all),
+        })
     }
-}
-
-/// A calibration run by the command: the typed result and what is rendered from it (`N`: the
-/// robot's joint count).
-pub struct Calibration {
-    /// The typed result.
-    pub result: CalibrationResult,
-    /// How the validation poses were chosen.
-    pub hold_out: HoldOut,
-    /// The comparison with `--truth`, when given.
-    pub truth: Option<Vec<TruthRow>>,
-    /// The identified robot file (TOML text).
-    pub robot_toml: String,
-    /// The text for people (Table 3 and the truth comparison).
-    pub text: String,
 }
 
 /// Runs `calib calibrate` as the command does: calibrates (the robot file's joint count one of
@@ -256,16 +246,16 @@ pub struct Calibration {
 /// whether the acceptance criteria (if any) are met.
 pub fn calibrate_and_write(options: &CalibrateOptions) -> anyhow::Result<Written> {
     crate::model::counts::joint_count(options.input.joints()?)?;
-    let calibration = calibrate(options)?;
+    let calibrated = calibrate(options)?;
     // The files first: a closed or full standard output must not lose them.
-    let written = write_outputs(&calibration, &options.outputs())?;
-    let mut text = calibration.text;
+    let written = write_outputs(&calibrated, &options.outputs())?;
+    let mut text = calibrated.text();
     for path in written {
         text.push_str(&format!("wrote {}\n", path.display()));
     }
     Ok(Written {
         text,
-        accepted: calibration.result.acceptance.as_ref().map(|a| a.pass),
+        accepted: calibrated.accepted(),
     })
 }
 
@@ -278,9 +268,8 @@ pub struct Written {
     pub accepted: Option<bool>,
 }
 
-/// Runs `calib calibrate` without writing anything: reads the files,
-/// calibrates, renders.
-pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
+/// Runs `calib calibrate` without writing anything: reads the files, calibrates.
+pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibrated> {
     calibrate_with(options, options.config())
 }
 
@@ -289,7 +278,7 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibration> {
 pub fn calibrate_with(
     options: &CalibrateOptions,
     config: CalibrationConfig,
-) -> anyhow::Result<Calibration> {
+) -> anyhow::Result<Calibrated> {
     config.check()?; // bad settings are reported before any file is read
     let (profile, all) = options.input.load()?;
     if options.holdout.is_some() && options.validate.is_some() {
@@ -303,235 +292,47 @@ pub fn calibrate_with(
         }
         None => None,
     };
-    calibrate_datasets(options, config, all, holdout)
-}
-
-/// [`calibrate_with`] on the data already read: `all` from `options`' data file (through its
-/// profile, checked as [`super::InputFiles::load`] checks it) and `holdout` from its `--holdout`
-/// file, so that a caller holding them (the Python package) does not read the files again.
-pub fn calibrate_datasets(
-    options: &CalibrateOptions,
-    config: CalibrationConfig,
-    all: Dataset,
-    holdout: Option<Dataset>,
-) -> anyhow::Result<Calibration> {
-    calibrate_loaded(options, config, (all, holdout), true)
-}
-
-/// [`calibrate_datasets`] of poses that come from no file (the Python package's arrays): the
-/// same hold-out (`holdout` or `--validate`) and calibration; the identified robot file records
-/// no input files.
-pub fn calibrate_in_memory(
-    options: &CalibrateOptions,
-    config: CalibrationConfig,
-    all: Dataset,
-    holdout: Option<Dataset>,
-) -> anyhow::Result<Calibration> {
-    calibrate_loaded(options, config, (all, holdout), false)
-}
-
-/// The calibration of `all` with the hold-out `holdout`, `--validate` or a measured plan's verify
-/// poses; `from_files`: the input files of `options` are recorded with their SHA-256.
-fn calibrate_loaded(
-    options: &CalibrateOptions,
-    config: CalibrationConfig,
-    (all, holdout): (Dataset, Option<Dataset>),
-    from_files: bool,
-) -> anyhow::Result<Calibration> {
-    config.check()?;
-    crate::cli::weight_for(options.k, &all.data, &options.input.data)?;
-    let swarm = options.swarm.given();
-    if options.method == Method::Lm && !swarm.is_empty() {
-        bail!(
-            "{} set the swarm, and --method lm runs none: drop {}, or use --method ipso or ipso+lm",
-            swarm.join(", "),
-            if swarm.len() == 1 { "it" } else { "them" }
-        );
-    }
-    let stamped = |result| {
-        if from_files {
-            with_provenance(result, options)
-        } else {
-            Ok(result)
-        }
+    check_options(options, &config, &all)?;
+    let truth = match &options.truth {
+        Some(path) => Some(Truth {
+            file: RobotFile::read(path)?,
+            path: path.clone(),
+        }),
+        None => None,
     };
-    // A measured plan (calib plan): its verification poses are the hold-out.
-    let verify: Vec<usize> = (all.data.records.iter().enumerate())
-        .filter(|(_, r)| r.role == Some(Role::Verify))
-        .map(|(i, _)| i)
-        .collect();
-    if !verify.is_empty() {
-        if options.holdout.is_some() || options.validate.is_some() {
-            bail!(
-                "{}: the plan's {} verify poses are the hold-out; drop --validate and --holdout (or the file's role column)",
-                options.input.data.display(),
-                verify.len()
-            );
-        }
-        let (fitted, held) = all.partition(&verify);
-        let result = calibration::calibrate(fitted.clone(), Some(held), &config)?;
-        let result = stamped(with_plan_check(result, &fitted, &config))?;
-        let hold_out = HoldOut {
-            holdout: Some(format!(
-                "{} (the plan's verify poses)",
-                options.input.data.display()
-            )),
-            ..options.hold_out()
-        };
-        return Calibration::new(result, hold_out, options.truth.as_deref());
-    }
-    let (dataset, validation) = match (holdout, options.validate) {
-        (Some(_), Some(_)) => bail!("use either --validate or --holdout, not both"),
-        (Some(held), None) => (all, Some(held)),
-        (None, Some(fraction)) => {
-            let (calibration, held) =
-                crate::measurement::dataset::split(&all, fraction, options.validate_seed)?;
-            (calibration, Some(held))
-        }
-        (None, None) => (all, None),
-    };
-    let result = stamped(calibration::calibrate(dataset, validation, &config)?)?;
-    Calibration::new(result, options.hold_out(), options.truth.as_deref())
-}
-
-/// `result` with its provenance in the identified robot file: the input files with their SHA-256
-/// and the date, in `[calibration]` for the files the geometry was identified from; for a
-/// re-registration (`--identify frames`) in `[measurement]`, with the robot file whose geometry
-/// was kept as `geometry_from` (its `[calibration]` is kept as it was).
-fn with_provenance(
-    mut result: CalibrationResult,
-    options: &CalibrateOptions,
-) -> crate::Result<CalibrationResult> {
     let given = options.outputs().inputs;
     let inputs: Vec<(&str, &std::path::Path)> = (given.iter())
         .filter(|(flag, _)| *flag != "--truth")
         .map(|(flag, path)| (*flag, path.as_path()))
         .collect();
-    let records = crate::io::provenance::InputFile::all(&inputs)?;
-    result.command_line = options.command_line.clone();
-    let at = result.calibrated_at.clone();
-    let file = &mut result.identified_robot;
-    if result.config.identify == crate::calibration::Identify::Frames {
-        if let Some(m) = file.measurement.as_mut() {
-            let (robot, rest): (Vec<_>, Vec<_>) =
-                records.into_iter().partition(|r| r.flag == "--robot");
-            m.registered_at = Some(at);
-            m.geometry_from = robot.into_iter().next();
-            m.inputs = rest;
-        }
-    } else {
-        if let Some(m) = file.measurement.as_mut() {
-            m.registered_at = Some(at.clone());
-        }
-        if let Some(c) = file.calibration.as_mut() {
-            c.calibrated_at = Some(at);
-            c.inputs = records;
-        }
-    }
-    Ok(result)
-}
-
-/// `result` of a measured plan's fitted poses `fitted` with the check of its verification poses
-/// against the plan's prediction (when the file kept the plan's prediction line).
-fn with_plan_check(
-    mut result: CalibrationResult,
-    fitted: &Dataset,
-    config: &crate::calibration::CalibrationConfig,
-) -> CalibrationResult {
-    let (Some(predicted), Some(validation)) = (fitted.data.planned, &result.validation) else {
-        return result;
+    let session = Session {
+        hold_out: options.hold_out_rule(&all, holdout)?,
+        provenance: Provenance {
+            command_line: options.command_line.clone(),
+            inputs: crate::io::provenance::InputFile::all(&inputs)?,
+        },
+        truth,
+        ..Session::new(all, config)
     };
-    let measure = if fitted.data.rows_without_orientation() {
-        Measure::Position
-    } else {
-        Measure::Pose
-    };
-    let poses: Vec<(String, Vec<f64>, f64)> = (fitted.data.records.iter())
-        .zip(&result.poses)
-        .map(|(r, p)| (r.id.clone(), r.q.clone(), p.after_mm))
-        .collect();
-    let check = crate::planning::check_plan(
-        predicted,
-        validation.after.position_mm.mean,
-        validation.poses,
-        &fitted.robot.file,
-        &fitted.robot.model.path,
-        &poses,
-        measure,
-        config.k,
-    );
-    result.caveats.extend(check.caveat());
-    result.plan_check = Some(check);
-    result
+    Ok(session.run()?)
 }
 
-impl Calibration {
-    /// Renders `result`: the text, the identified robot file and, with the robot file of the true
-    /// errors at `truth`, the comparison with them.
-    pub fn new(
-        result: CalibrationResult,
-        hold_out: HoldOut,
-        truth: Option<&std::path::Path>,
-    ) -> anyhow::Result<Self> {
-        let truth = match truth {
-            None => None,
-            Some(path) => Some(truth_rows(&result, path)?),
-        };
-        let header = if result.config.identify == crate::calibration::Identify::Frames {
-            format!(
-                "{}: the geometry of {} (its [calibration] says where it came from), the measurement frames re-registered by calib calibrate --identify frames ({}) from {} ([measurement]).",
-                result.robot,
-                result.robot_path.display(),
-                result.config.method.name(),
-                result.data_path.display()
-            )
-        } else {
-            format!(
-                "{} identified by calib calibrate ({}) from {}.",
-                result.robot,
-                result.config.method.name(),
-                result.data_path.display()
-            )
-        };
-        let robot_toml = result.identified_robot.to_toml(&format!(
-            "{header}\nValues are nominal + identified errors; [calibration.errors] lists the errors and [calibration.std_errors] their standard errors, in mm and rad; [calibration.inputs] the files they were identified from, with their SHA-256."
-        ));
-        let text = result.text(truth.as_deref());
-        Ok(Self {
-            result,
-            hold_out,
-            truth,
-            robot_toml,
-            text,
-        })
+/// The refusals of option combinations that the library's configuration cannot see (it holds
+/// values, not which options were given): `--k` on position-only data, the swarm's settings with
+/// `--method lm`.
+fn check_options(
+    options: &CalibrateOptions,
+    config: &CalibrationConfig,
+    all: &Dataset,
+) -> anyhow::Result<()> {
+    config.check()?;
+    crate::cli::weight_for(options.k, &all.data, &options.input.data)?;
+    let swarm = options.swarm.given();
+    if options.method == Method::Lm && !swarm.is_empty() {
+        // Named as given: a setting given at its default value is refused too.
+        return Err(crate::calibration::swarm_without_swarm(&swarm).into());
     }
-
-    /// The JSON report.
-    pub fn report(&self) -> Report<'_> {
-        self.result
-            .report(self.hold_out.clone(), self.truth.clone())
-    }
-}
-
-/// The identified errors against the true errors of the robot file at `path`.
-fn truth_rows(result: &CalibrationResult, path: &std::path::Path) -> anyhow::Result<Vec<TruthRow>> {
-    let file = RobotFile::read(path)?;
-    file.expect_joints(path, result.errors.joints.len(), "the robot calibrated")?;
-    // The whole file checked as a robot file (finite joint values, ordered limits), not only the
-    // errors read from it (issue 39, N19: inf and NaN in its joints were accepted).
-    file.to_model(path)?;
-    let truth = file.calibration_errors(path)?;
-    Ok(result
-        .parameters
-        .iter()
-        .map(|p| {
-            TruthRow::new(
-                p.parameter,
-                result.errors.get(p.parameter).unwrap_or(0.0),
-                truth.get(p.parameter).unwrap_or(0.0),
-            )
-        })
-        .collect())
+    Ok(())
 }
 
 /// The files a calibration writes, each optional, and the inputs they must not replace.
@@ -578,7 +379,7 @@ impl CalibrateOptions {
 /// Writes the outputs of a calibration that were asked for, all together or none (see
 /// [`Outputs`]); returns the files written.
 pub(crate) fn write_outputs(
-    calibration: &Calibration,
+    calibration: &Calibrated,
     paths: &OutputPaths,
 ) -> anyhow::Result<Vec<PathBuf>> {
     let inputs: Vec<(&str, &std::path::Path)> = paths
@@ -588,7 +389,7 @@ pub(crate) fn write_outputs(
         .collect();
     let mut outputs = Outputs::new(&inputs);
     if let Some(path) = &paths.out {
-        outputs.stage("--out", path, calibration.robot_toml.as_bytes())?;
+        outputs.stage("--out", path, calibration.robot_toml().as_bytes())?;
     }
     if let Some(path) = &paths.report {
         let json = serde_json::to_string_pretty(&calibration.report())?;
@@ -631,4 +432,56 @@ pub(crate) fn write_outputs(
         )?;
     }
     Ok(outputs.commit()?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::{CommandFactory, Parser};
+
+    /// The options as a whole command line.
+    #[derive(clap::Parser)]
+    struct Words {
+        #[command(flatten)]
+        options: CalibrateOptions,
+    }
+
+    /// One source of every default: the command line's options, none given, are the library's
+    /// [`CalibrationConfig::default`] (a terminal's progress bar aside), and each swarm setting's
+    /// help states the value of [`SwarmConfig::default`] it leaves in place.
+    #[test]
+    fn the_command_lines_defaults_are_the_librarys() {
+        let words = ["calibrate", "--robot", "r.toml", "--data", "d.csv"];
+        let options = Words::try_parse_from(words).unwrap().options;
+        let expected = CalibrationConfig {
+            progress: true,
+            ..CalibrationConfig::default()
+        };
+        assert_eq!(options.config(), expected);
+        let d = SwarmConfig::default();
+        let stated = [
+            ("swarm", d.particles.to_string()),
+            ("generations", d.generations.to_string()),
+            ("c1", d.c1.to_string()),
+            ("c2", d.c2.to_string()),
+            ("seed", d.seed.to_string()),
+            ("init_angle_rad", d.init_angle_rad.to_string()),
+            ("init_length_mm", d.init_length_mm.to_string()),
+            ("bound_factor", d.bound_factor.to_string()),
+            ("stall_generations", d.stall_generations.to_string()),
+            ("halton_start", d.halton_start.to_string()),
+        ];
+        let command = Words::command();
+        for (id, value) in stated {
+            let help = (command.get_arguments())
+                .find(|a| a.get_id() == id)
+                .and_then(|a| a.get_help())
+                .map(ToString::to_string)
+                .unwrap_or_default();
+            assert!(
+                help.contains(&format!("default {value}")),
+                "--{id}: the help does not state the default {value}: {help}"
+            );
+        }
+    }
 }

@@ -10,8 +10,8 @@
 //! Everything (robot file, simulated data, truth, identified robots, JSON reports, plots) is
 //! written into the output directory so that each step can be rerun with `calib`.
 
-use crate::calibration::{self, CalibrationConfig, HoldOut, Method};
-use crate::cli::calibrate::{Calibration, OutputPaths, write_outputs};
+use crate::calibration::{CalibrationConfig, HoldOut, Method, Session, Truth};
+use crate::cli::calibrate::{OutputPaths, write_outputs};
 use crate::io::robot_file::{ER10L_C10_TOML, RobotFile};
 use crate::measurement::dataset::Dataset;
 use crate::measurement::simulate::{self, SimulationConfig};
@@ -51,12 +51,19 @@ fn calibrate_into(
 ) -> anyhow::Result<(String, Vec<PathBuf>)> {
     let dataset = Dataset::load(robot, data)?;
     let validation = holdout.map(|h| Dataset::load(robot, h)).transpose()?;
-    let result = calibration::calibrate(dataset, validation, config)?;
-    let hold_out = HoldOut {
-        holdout: holdout.map(|h| h.display().to_string()),
-        ..HoldOut::default()
+    let truth_file = match truth {
+        Some(path) => Some(Truth {
+            file: RobotFile::read(path)?,
+            path: path.to_path_buf(),
+        }),
+        None => None,
     };
-    let calibration = Calibration::new(result, hold_out, truth)?;
+    let calibration = Session {
+        hold_out: validation.map_or(HoldOut::None, HoldOut::poses),
+        truth: truth_file,
+        ..Session::new(dataset, config.clone())
+    }
+    .run()?;
     let mut inputs = vec![
         ("--robot", robot.to_path_buf()),
         ("--data", data.to_path_buf()),
@@ -71,7 +78,7 @@ fn calibrate_into(
         inputs,
     };
     let written = write_outputs(&calibration, &outputs)?;
-    Ok((calibration.text, written))
+    Ok((calibration.text(), written))
 }
 
 /// Runs the demo and prints its tables.

@@ -34,6 +34,17 @@ pub struct Dataset {
     pub readings: Vec<Measurement<f64, Dyn>>,
 }
 
+/// The robot, the data file and the number of poses (the poses themselves are many).
+impl std::fmt::Debug for Dataset {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Dataset")
+            .field("robot", &self.robot.model.name)
+            .field("data", &self.data.path)
+            .field("poses", &self.readings.len())
+            .finish()
+    }
+}
+
 /// The poses of a dataset as one model of the robot sees them: the kinematic angles (the joint
 /// readings with the model's maps added) and the measured poses (with the model's compliance
 /// taken off, when asked for): what the model's geometry must explain.
