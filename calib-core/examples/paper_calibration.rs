@@ -45,7 +45,7 @@ fn main() -> Result<ExitCode, Box<dyn std::error::Error>> {
     )?;
     // Least squares from the swarm's best to the noise floor (here: exact data).
     let fit = LeastSquares::new(&problem).solve(&swarm.best, &LmSettings::default())?;
-    let identified = set.unpack(&fit.x);
+    let identified = set.unpack(&fit.x)?;
     println!(
         "objective {:.6e} -> {:.6e} (swarm, {} generations) -> least squares cost {:.3e}",
         swarm.initial_cost, swarm.best_cost, swarm.generations, fit.cost

@@ -47,7 +47,7 @@
 //! let problem = Problem::new(&robot, &ParameterErrors::zero(), set, &measurements, 1e6)?;
 //! let start = problem.set().zeros(); // from the nominal model
 //! let fit = LeastSquares::new(&problem).solve(&start, &LmSettings::default())?;
-//! let identified = problem.set().unpack(&fit.x);
+//! let identified = problem.set().unpack(&fit.x)?;
 //! assert!((identified.joints[1].da - 0.2565).abs() < 1e-9); // Table 2: da2 = 0.2565 mm
 //! # Ok::<(), Box<dyn core::error::Error>>(())
 //! ```
@@ -59,6 +59,7 @@ pub mod identify;
 pub mod kinematics;
 pub mod math;
 pub mod model;
+pub mod numerics;
 pub mod scalar;
 
 pub use identify::Problem;

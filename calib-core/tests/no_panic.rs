@@ -199,9 +199,51 @@ fn dyn_vectors_of_another_length_are_refused() {
                 .solve_robust(&x, &settings, Loss::Huber(1.0), &mut weights)
                 .is_err()
         );
+        // Every other entry of a packed vector: refused with both lengths (issue 53, item 5).
+        let shape = calib_core::model::parameters::ShapeError {
+            expected: 24,
+            got: length,
+        };
+        let lm_shape = calib_core::identify::lm::LmError::from(shape);
+        let set = problem.set();
+        assert_eq!(set.unpack(&x), Err(shape), "length {length}");
+        let mut errors = ParameterErrors::zeros_for(robot.joint_count());
+        errors.joints[1].da = 0.25;
+        let kept = errors;
+        assert_eq!(set.unpack_into(&x, &mut errors), Err(shape));
+        assert_eq!(errors, kept, "a refused vector changes nothing");
+        let own = DVector::<f64>::zeros(parameters);
+        assert_eq!(set.largest_differences(&x, &own), Err(shape));
+        assert_eq!(set.largest_differences(&own, &x), Err(shape));
+        assert_eq!(problem.errors(&x).err(), Some(shape));
+        assert_eq!(problem.kinematics(&x).err(), Some(shape));
+        assert_eq!(objective.pose_errors(&x, |_, _| {}), Err(shape));
+        assert_eq!(least_squares.cost(&x), Err(lm_shape));
+        assert_eq!(least_squares.jacobian_factor(&x).err(), Some(lm_shape));
+        let mut norms = vec![0.0; data.len()];
+        assert_eq!(
+            least_squares.pose_residual_norms(&x, &mut norms),
+            Err(lm_shape)
+        );
+        assert_eq!(
+            calib_core::identify::ipso::SearchSpace::around(x.clone(), own.clone(), 2.0).err(),
+            Some(calib_core::identify::ipso::IpsoError::InvalidSize)
+        );
     }
-    // The set's own length: a finite value and a solution.
+    // The set's own length: a finite value and a solution, and the same values from every entry.
     let x = DVector::<f64>::zeros(parameters);
     assert!(objective.value(&x).is_finite() && objective.value(&x) > 0.0);
     assert!(least_squares.solve(&x, &settings).is_ok());
+    let cost = least_squares.cost(&x).unwrap();
+    // The poses' residual norms make up least squares' cost 0.5 |r|^2 (unit weights).
+    let mut norms = vec![0.0; data.len()];
+    least_squares.pose_residual_norms(&x, &mut norms).unwrap();
+    let sum: f64 = norms.iter().map(|n| n * n).sum();
+    assert!((sum - 2.0 * cost).abs() <= 1e-9 * cost);
+    assert_eq!(
+        least_squares.pose_residual_norms(&x, &mut norms[1..]),
+        Err(calib_core::identify::lm::LmError::WeightBuffer)
+    );
+    assert_eq!(problem.set().unpack(&x).unwrap(), zero);
 }
+

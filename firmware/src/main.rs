@@ -182,7 +182,7 @@ fn micro_benchmarks() {
     let t = ticks();
     for _ in 0..100 {
         let mut e = ParameterErrors::zero();
-        set.unpack_into(black_box(&x), &mut e);
+        let _ = set.unpack_into(black_box(&x), &mut e);
         let _ = black_box(e);
     }
     defmt::info!(

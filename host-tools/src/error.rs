@@ -94,6 +94,9 @@ pub enum Error {
     /// The core refused a measurement.
     #[error(transparent)]
     Measurement(#[from] calib_core::identify::objective::MeasurementError),
+    /// A packed parameter vector of another length than its set.
+    #[error(transparent)]
+    Shape(#[from] calib_core::model::parameters::ShapeError),
     /// The core's least squares failed.
     #[error(transparent)]
     LeastSquares(#[from] calib_core::identify::lm::LmError),

@@ -253,7 +253,8 @@ pub fn run(marks: &mut impl Marks) -> Result<Outcome, Error> {
         .map_err(|_| Error::LeastSquares)?;
     marks.end(Stage::LeastSquares);
 
-    let identified = problem.set().unpack(&lm.x);
+    let mut identified = ParameterErrors::zero();
+    (problem.set().unpack_into(&lm.x, &mut identified)).map_err(|_| Error::Problem)?;
     let nominal = Kinematics::nominal(&robot).map_err(|_| Error::Problem)?;
     let actual = Kinematics::new(&robot, &identified).map_err(|_| Error::Problem)?;
     let before = table(&nominal, &measurements);

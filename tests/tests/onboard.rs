@@ -84,7 +84,7 @@ fn the_job_is_accurate_and_its_encoding_is_the_firmwares_expectation() {
         .x;
     let job =
         nalgebra::SVector::<f64, D>::from_iterator(outcome.errors.iter().map(|e| f64::from(*e)));
-    let (length, angle) = set.largest_differences(&job, &x64);
+    let (length, angle) = set.largest_differences(&job, &x64).unwrap();
     println!("f32 job vs f64 core: {length:.3e} mm, {angle:.3e} rad");
     assert!(length < 5e-3 && angle < 1e-5, "{length} {angle}");
 }

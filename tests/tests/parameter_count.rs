@@ -60,7 +60,9 @@ where
     .expect("valid problem");
     let least_squares = LeastSquares::new(&problem);
     let analysis = Identifiability::from_factor(
-        &least_squares.jacobian_factor(&problem.set().zeros()),
+        &least_squares
+            .jacobian_factor(&problem.set().zeros())
+            .unwrap(),
         measurements.len(),
         DEFAULT_RANK_TOLERANCE,
     );

@@ -346,7 +346,9 @@ mod tests {
         let problem =
             Problem::new(&robot, &ParameterErrors::zero(), set, data.as_slice(), 1e6).unwrap();
         let least_squares = LeastSquares::new(&problem);
-        let r = least_squares.jacobian_factor(&nalgebra::SVector::zeros());
+        let r = least_squares
+            .jacobian_factor(&nalgebra::SVector::zeros())
+            .unwrap();
         (
             Identifiability::from_factor(&r, 32, DEFAULT_RANK_TOLERANCE),
             set,
@@ -437,7 +439,9 @@ mod tests {
             Problem::new(&robot, &ParameterErrors::zero(), set, data.as_slice(), 1e6).unwrap();
         let least_squares = LeastSquares::new(&problem);
         let id = Identifiability::from_factor(
-            &least_squares.jacobian_factor(&nalgebra::SVector::zeros()),
+            &least_squares
+                .jacobian_factor(&nalgebra::SVector::zeros())
+                .unwrap(),
             32,
             DEFAULT_RANK_TOLERANCE,
         );

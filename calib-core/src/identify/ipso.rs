@@ -151,7 +151,7 @@ where
                 .iter()
                 .map(|p| if p.is_angle() { angle } else { length }),
         );
-        Self::around(set.zeros(), widths, bound_factor)
+        Self::spanning(set.zeros(), widths, bound_factor)
     }
 
     /// [`SearchSpace::for_parameters`] with the paper's ranges (0.01 rad, 0.5 mm) and
@@ -166,8 +166,21 @@ where
     }
 
     /// The box `center +- half_width` for the start and `center +- bound_factor * half_width` for
-    /// the search.
-    pub fn around(center: OVector<T, D>, half_width: OVector<T, D>, bound_factor: T) -> Self {
+    /// the search; two vectors of different lengths (a run-time `Dyn` dimension holds any) are
+    /// refused with [`IpsoError::InvalidSize`].
+    pub fn around(
+        center: OVector<T, D>,
+        half_width: OVector<T, D>,
+        bound_factor: T,
+    ) -> Result<Self, IpsoError> {
+        if center.len() != half_width.len() {
+            return Err(IpsoError::InvalidSize);
+        }
+        Ok(Self::spanning(center, half_width, bound_factor))
+    }
+
+    /// [`Self::around`] of two vectors of one length.
+    fn spanning(center: OVector<T, D>, half_width: OVector<T, D>, bound_factor: T) -> Self {
         let reach = &half_width * bound_factor;
         Self {
             lower: &center - &reach,
@@ -255,7 +268,7 @@ pub enum IpsoError {
     /// A bound or width is not finite, a width is negative, or a lower bound exceeds its upper one.
     InvalidSearchSpace,
     /// `D` exceeds the number of Halton bases (64), the swarm is empty, or the slices of a
-    /// [`SwarmMemory`] differ in length.
+    /// [`SwarmMemory`] or the vectors of a search space differ in length.
     InvalidSize,
 }
 
@@ -776,7 +789,7 @@ mod tests {
     }
 
     fn space() -> SearchSpace<f64, U24> {
-        SearchSpace::around(SVector::zeros(), SVector::repeat(0.05), 2.0)
+        SearchSpace::around(SVector::zeros(), SVector::repeat(0.05), 2.0).unwrap()
     }
 
     #[test]
@@ -1031,7 +1044,8 @@ mod tests {
             optimize::<f64, 20, U24>(&mut quadratic, &bad, &settings, &mut Silent),
             Err(IpsoError::InvalidSearchSpace)
         );
-        let s0 = SearchSpace::around(SVector::<f64, 65>::zeros(), SVector::repeat(1.0), 1.0);
+        let s0 =
+            SearchSpace::around(SVector::<f64, 65>::zeros(), SVector::repeat(1.0), 1.0).unwrap();
         assert_eq!(
             optimize::<f64, 4, U65>(&mut |_: &SVector<f64, 65>| 0.0, &s0, &settings, &mut Silent),
             Err(IpsoError::InvalidSize)
@@ -1042,7 +1056,8 @@ mod tests {
     fn works_in_f32() {
         let mut settings = IpsoSettings::<f32>::paper();
         settings.seed = 7;
-        let space = SearchSpace::around(SVector::<f32, 24>::zeros(), SVector::repeat(0.05), 2.0);
+        let space =
+            SearchSpace::around(SVector::<f32, 24>::zeros(), SVector::repeat(0.05), 2.0).unwrap();
         let mut f = |x: &SVector<f32, 24>| quadratic(&x.map(f64::from)) as f32;
         let r = optimize::<f32, 20, U24>(&mut f, &space, &settings, &mut Silent).unwrap();
         assert!(r.best_cost < 1e-9, "{}", r.best_cost);

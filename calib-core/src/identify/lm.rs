@@ -17,6 +17,7 @@ use crate::identify::Problem;
 use crate::identify::objective::Measurement;
 use crate::kinematics::pose_error::pose_error_jacobian;
 use crate::model::JointCount;
+use crate::model::parameters::ShapeError;
 use crate::scalar::Real;
 use core::fmt;
 use nalgebra::allocator::Allocator;
@@ -126,6 +127,15 @@ impl fmt::Display for LmError {
 }
 
 impl core::error::Error for LmError {}
+
+impl From<ShapeError> for LmError {
+    fn from(e: ShapeError) -> Self {
+        Self::Shape {
+            expected: u16::try_from(e.expected).unwrap_or(u16::MAX),
+            got: u32::try_from(e.got).unwrap_or(u32::MAX),
+        }
+    }
+}
 
 /// At most this many reweightings of the robust loss.
 pub const MAX_REWEIGHTINGS: u32 = 30;
@@ -467,7 +477,7 @@ where
         with_jacobian: bool,
         mut row: impl FnMut(&OVector<T, D>, T),
     ) {
-        let kinematics = self.problem.kinematics(x);
+        let kinematics = self.problem.kinematics_unchecked(x);
         let zero = self.problem.set().zeros::<T>();
         // One scaled Jacobian row at a time, in one buffer (no allocation per row for `Dyn`).
         let mut scaled = zero.clone();
@@ -502,18 +512,25 @@ where
     }
 
     /// Residual norm of every pose at `x`, `sqrt(|dp|^2 + k |dr|^2)` (mm; `|dp|` for position-only
-    /// poses), without weights, into `out` (one entry per measurement).
-    pub fn pose_residual_norms(&self, x: &OVector<T, D>, out: &mut [T]) {
+    /// poses), without weights, into `out` (one entry per measurement: refused with
+    /// [`LmError::WeightBuffer`] otherwise, as is an `x` of another length than the set).
+    pub fn pose_residual_norms(&self, x: &OVector<T, D>, out: &mut [T]) -> Result<(), LmError> {
+        self.problem.set().check_shape(x)?;
+        if out.len() != self.problem.measurements().len() {
+            return Err(LmError::WeightBuffer);
+        }
         self.for_each_pose_norm(x, |index, norm| {
             if let Some(o) = out.get_mut(index) {
                 *o = norm;
             }
         });
+        Ok(())
     }
 
-    /// Calls `visit(index, norm)` with the residual norm of every pose at `x`.
+    /// Calls `visit(index, norm)` with the residual norm of every pose at `x` (its length
+    /// checked by the caller).
     fn for_each_pose_norm(&self, x: &OVector<T, D>, mut visit: impl FnMut(usize, T)) {
-        let kinematics = self.problem.kinematics(x);
+        let kinematics = self.problem.kinematics_unchecked(x);
         for (index, m) in self.poses() {
             let predicted = kinematics.forward_angles(&m.angles);
             let dp2 = (m.position - predicted.translation.vector).norm_squared();
@@ -529,11 +546,12 @@ where
         }
     }
 
-    /// `0.5 |r|^2` at `x`.
-    pub fn cost(&self, x: &OVector<T, D>) -> T {
+    /// `0.5 |r|^2` at `x`; a vector of another length than the set is refused.
+    pub fn cost(&self, x: &OVector<T, D>) -> Result<T, LmError> {
+        self.problem.set().check_shape(x)?;
         let mut sum = T::zero();
         self.for_each_row(x, &[], false, |_, r| sum += r * r);
-        sum / T::of(2.0)
+        Ok(sum / T::of(2.0))
     }
 
     fn weighted_cost(&self, x: &OVector<T, D>, robust: &[T]) -> T {
@@ -543,9 +561,10 @@ where
     }
 
     /// The triangular factor `R` of the Jacobian at `x` (`J = Q R`), for the identifiability
-    /// analysis.
-    pub fn jacobian_factor(&self, x: &OVector<T, D>) -> OMatrix<T, D, D> {
-        self.factor(x, &[]).r()
+    /// analysis; a vector of another length than the set is refused.
+    pub fn jacobian_factor(&self, x: &OVector<T, D>) -> Result<OMatrix<T, D, D>, LmError> {
+        self.problem.set().check_shape(x)?;
+        Ok(self.factor(x, &[]).r())
     }
 
     fn factor(&self, x: &OVector<T, D>, robust: &[T]) -> Factor<T, D> {
@@ -625,12 +644,7 @@ where
     /// can determine the parameters and that the start is finite.
     fn check_start(&self, x0: &OVector<T, D>) -> Result<u32, LmError> {
         let parameters = self.problem.set().len();
-        if x0.len() != parameters {
-            return Err(LmError::Shape {
-                expected: u16::try_from(parameters).unwrap_or(u16::MAX),
-                got: u32::try_from(x0.len()).unwrap_or(u32::MAX),
-            });
-        }
+        self.problem.set().check_shape(x0)?;
         let rows = self.rows();
         if (rows as usize) < parameters {
             return Err(LmError::TooFewResiduals {
@@ -845,7 +859,7 @@ mod tests {
             .solve(&SVector::zeros(), &LmSettings::default())
             .unwrap();
         let truth = set.pack(&table2::<T>());
-        let (mm, rad) = set.largest_differences(&result.x, &truth);
+        let (mm, rad) = set.largest_differences(&result.x, &truth).unwrap();
         (mm.to_f64(), rad.to_f64(), result)
     }
 
@@ -901,7 +915,7 @@ mod tests {
             .solve(&swarm.best, &LmSettings::default())
             .unwrap();
         let truth = set.pack(&table2::<f32>());
-        let (mm, rad) = set.largest_differences(&result.x, &truth);
+        let (mm, rad) = set.largest_differences(&result.x, &truth).unwrap();
         extern crate std;
         std::println!(
             "ipso+lm f32: {mm:.2e} mm {rad:.2e} rad ({} iterations)",

@@ -19,6 +19,7 @@ use crate::kinematics::mdh::{GROUP, LANES, Lanes};
 use crate::kinematics::pose_error::PoseError;
 use crate::kinematics::{JointAngles, Kinematics};
 use crate::math::so3;
+use crate::model::parameters::ShapeError;
 use crate::model::{JointCount, JointTable};
 use crate::scalar::Real;
 use crate::{KinematicsError, Pose};
@@ -374,7 +375,7 @@ where
         if x.len() != self.problem.set().len() || !x.iter().all(|v| v.finite()) {
             return T::of(f64::INFINITY);
         }
-        let kinematics = self.problem.kinematics(x);
+        let kinematics = self.problem.kinematics_unchecked(x);
         let mut total = T::zero();
         let mut group = T::zero();
         let mut in_group = 0;
@@ -394,16 +395,18 @@ where
     }
 
     /// The pose error of every measurement at `x`, in measurement order, passed to `visit`
-    /// (rotation zero for position-only measurements).
+    /// (rotation zero for position-only measurements); a vector of another length than the set
+    /// is refused.
     pub fn pose_errors(
         &self,
         x: &OVector<T, D>,
         mut visit: impl FnMut(&Measurement<T, N>, PoseError<T>),
-    ) {
-        let kinematics = self.problem.kinematics(x);
+    ) -> Result<(), ShapeError> {
+        let kinematics = self.problem.kinematics(x)?;
         for m in self.problem.measurements() {
             visit(m, m.error_of(&kinematics.forward_angles(&m.angles)));
         }
+        Ok(())
     }
 }
 
@@ -476,7 +479,7 @@ mod tests {
             ipso::optimize::<T, 20, U24>(&mut cost, &space, &IpsoSettings::paper(), &mut Silent)
                 .unwrap();
         let truth = set.pack(&table2::<T>());
-        let (worst_mm, worst_rad) = set.largest_differences(&r.best, &truth);
+        let (worst_mm, worst_rad) = set.largest_differences(&r.best, &truth).unwrap();
         (
             worst_mm.to_f64(),
             worst_rad.to_f64(),

@@ -8,7 +8,7 @@
 use crate::identify::objective::Measurement;
 use crate::kinematics::{Kinematics, PreparedRobot};
 use crate::model::Robot;
-use crate::model::parameters::{ParameterErrors, ParameterSet};
+use crate::model::parameters::{ParameterErrors, ParameterSet, ShapeError};
 use crate::model::{JointCount, JointTable};
 use crate::model::{KinematicsError, check_count};
 use crate::scalar::Real;
@@ -117,17 +117,32 @@ where
         self.measurements
     }
 
-    /// All errors for the packed vector `x`: the fixed values with the identified ones replaced.
+    /// All errors for the packed vector `x`: the fixed values with the identified ones replaced;
+    /// a vector of another length than the set is refused.
+    pub fn errors(&self, x: &OVector<T, D>) -> Result<ParameterErrors<T, N>, ShapeError> {
+        self.set.check_shape(x)?;
+        Ok(self.errors_unchecked(x))
+    }
+
+    /// [`Self::errors`] of a vector whose length was checked where it entered (the objective's
+    /// and the solver's inner loops).
     #[cfg_attr(not(target_arch = "arm"), inline(always))]
-    pub fn errors(&self, x: &OVector<T, D>) -> ParameterErrors<T, N> {
+    pub(crate) fn errors_unchecked(&self, x: &OVector<T, D>) -> ParameterErrors<T, N> {
         let mut errors = self.fixed;
-        self.set.unpack_into(x, &mut errors);
+        self.set.write_into(x, &mut errors);
         errors
     }
 
-    /// The actual model at the packed errors `x`.
+    /// The actual model at the packed errors `x`; a vector of another length than the set is
+    /// refused.
+    pub fn kinematics(&self, x: &OVector<T, D>) -> Result<Kinematics<T, N>, ShapeError> {
+        self.set.check_shape(x)?;
+        Ok(self.kinematics_unchecked(x))
+    }
+
+    /// [`Self::kinematics`] of a vector whose length was checked where it entered.
     #[cfg_attr(not(target_arch = "arm"), inline(always))]
-    pub fn kinematics(&self, x: &OVector<T, D>) -> Kinematics<T, N> {
-        self.robot.actual(&self.errors(x))
+    pub(crate) fn kinematics_unchecked(&self, x: &OVector<T, D>) -> Kinematics<T, N> {
+        self.robot.actual(&self.errors_unchecked(x))
     }
 }

@@ -469,6 +469,31 @@ impl<N: JointCount> ParameterMask<N> {
     }
 }
 
+/// A packed vector whose length is not its parameter set's: a run-time dimension
+/// ([`nalgebra::Dyn`]) holds any length, and the core refuses it where the vector enters rather
+/// than truncating it or letting nalgebra panic (a fixed `Const<D>` has its length by type, and
+/// the check folds away: see [`crate::numerics`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ShapeError {
+    /// The parameters of the set.
+    pub expected: usize,
+    /// The vector's length.
+    pub got: usize,
+}
+
+impl fmt::Display for ShapeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "a packed parameter vector of {} values for a set of {} parameters",
+            self.got, self.expected
+        )
+    }
+}
+
+impl core::error::Error for ShapeError {}
+
 /// The `D` identified parameters of an N-joint robot, in canonical order: the meaning of every
 /// entry of a packed parameter vector `OVector<T, D>` and every column of a parameter Jacobian.
 ///
@@ -595,9 +620,39 @@ where
         x
     }
 
-    /// Writes the packed values into `errors`, leaving parameters outside the set unchanged.
+    /// `Ok` when `x` has one value per parameter of the set, else the [`ShapeError`].
+    #[inline(always)]
+    pub fn check_shape<T: Real>(&self, x: &OVector<T, D>) -> Result<(), ShapeError> {
+        if x.len() == self.len() {
+            Ok(())
+        } else {
+            Err(ShapeError {
+                expected: self.len(),
+                got: x.len(),
+            })
+        }
+    }
+
+    /// Writes the packed values into `errors`, leaving parameters outside the set unchanged; a
+    /// vector of another length is refused and `errors` left as it was.
     #[cfg_attr(not(target_arch = "arm"), inline(always))]
-    pub fn unpack_into<T: Real>(&self, x: &OVector<T, D>, errors: &mut ParameterErrors<T, N>) {
+    pub fn unpack_into<T: Real>(
+        &self,
+        x: &OVector<T, D>,
+        errors: &mut ParameterErrors<T, N>,
+    ) -> Result<(), ShapeError> {
+        self.check_shape(x)?;
+        self.write_into(x, errors);
+        Ok(())
+    }
+
+    /// [`Self::unpack_into`] of a vector whose length the caller checked where it entered.
+    #[cfg_attr(not(target_arch = "arm"), inline(always))]
+    pub(crate) fn write_into<T: Real>(
+        &self,
+        x: &OVector<T, D>,
+        errors: &mut ParameterErrors<T, N>,
+    ) {
         // A plain slice: nalgebra's iterator checks for a column's end at every step, which a
         // run-time count (`Dyn`) does not fold away.
         for (xi, p) in x.as_slice().iter().zip(self.parameters()) {
@@ -605,17 +660,25 @@ where
         }
     }
 
-    /// The errors with the packed values set and every other error zero.
-    pub fn unpack<T: Real>(&self, x: &OVector<T, D>) -> ParameterErrors<T, N> {
+    /// The errors with the packed values set and every other error zero; a vector of another
+    /// length is refused.
+    pub fn unpack<T: Real>(&self, x: &OVector<T, D>) -> Result<ParameterErrors<T, N>, ShapeError> {
         let mut errors = ParameterErrors::zeros_for(self.joints);
-        self.unpack_into(x, &mut errors);
-        errors
+        self.unpack_into(x, &mut errors)?;
+        Ok(errors)
     }
 
     /// The largest length difference (mm) and the largest angle difference (rad) between two
     /// packed vectors of this set, such as identified errors against the truth. A non-finite
-    /// difference is returned as such, never hidden by a finite one.
-    pub fn largest_differences<T: Real>(&self, a: &OVector<T, D>, b: &OVector<T, D>) -> (T, T) {
+    /// difference is returned as such, never hidden by a finite one; a vector of another length
+    /// is refused.
+    pub fn largest_differences<T: Real>(
+        &self,
+        a: &OVector<T, D>,
+        b: &OVector<T, D>,
+    ) -> Result<(T, T), ShapeError> {
+        self.check_shape(a)?;
+        self.check_shape(b)?;
         let (mut length, mut angle) = (T::zero(), T::zero());
         for (p, (x, y)) in self.parameters().iter().zip(a.iter().zip(b.iter())) {
             let d = (*x - *y).abs();
@@ -628,7 +691,7 @@ where
                 *largest = d;
             }
         }
-        (length, angle)
+        Ok((length, angle))
     }
 
     /// Builds an `R x D` matrix whose column k is `column(parameters[k])`.
@@ -666,10 +729,10 @@ mod tests {
         found[0] += 0.25; // da1, mm
         found[1] -= 0.5; // da2, mm
         found[11] += 1e-3; // dalpha1, rad
-        assert_eq!(set.largest_differences(&found, &truth), (0.5, 1e-3));
+        assert_eq!(set.largest_differences(&found, &truth), Ok((0.5, 1e-3)));
         found[23] = f64::NAN; // dtheta6
-        assert!(set.largest_differences(&found, &truth).1.is_nan());
-        assert!(set.largest_differences(&truth, &found).1.is_nan());
+        assert!(set.largest_differences(&found, &truth).unwrap().1.is_nan());
+        assert!(set.largest_differences(&truth, &found).unwrap().1.is_nan());
     }
 
     #[test]
@@ -709,7 +772,7 @@ mod tests {
         assert_eq!(x[17], -0.0028);
         assert_eq!(x[23], 0.0083);
         // Table 2 has no error outside the 24 identified parameters, so unpack restores it exactly.
-        assert_eq!(set.unpack(&x), errors);
+        assert_eq!(set.unpack(&x), Ok(errors));
         assert_eq!(set.mask(), mask);
         assert_eq!(
             set.index_of(Parameter::from_name("dbeta2", 6).unwrap()),

@@ -317,7 +317,7 @@ pub(crate) fn analyse(
     let problem = dataset.problem(set, k)?;
     let set = problem.set();
     let least_squares = LeastSquares::new(&problem);
-    let r = least_squares.jacobian_factor(&set.zeros());
+    let r = least_squares.jacobian_factor(&set.zeros())?;
     let id = Identifiability::from_factor(&r, dataset.measurements().len(), DEFAULT_RANK_TOLERANCE);
     let names = set.parameters().to_vec();
     let mut undetermined = Vec::new();

@@ -184,7 +184,7 @@ fn run(
     let xref: Vec<f64> = fit.errors.iter().map(|(_, v)| *v).collect();
 
     let rms = |x: &DVector<f64>| -> crate::Result<f64> {
-        let kinematics = Kinematics::new(&validation.robot.model.robot, &set.unpack(x))?;
+        let kinematics = Kinematics::new(&validation.robot.model.robot, &set.unpack(x)?)?;
         let (table, _) =
             crate::measurement::statistics::table3(&kinematics, validation.measurements());
         Ok(table.position_mm.rms)

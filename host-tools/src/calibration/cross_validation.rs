@@ -80,7 +80,7 @@ pub fn cross_validate(
             .result
             .x;
         drop(weights);
-        let model = Kinematics::new(robot, &set.unpack(&x)).ok()?;
+        let model = Kinematics::new(robot, &set.unpack(&x).ok()?).ok()?;
         let predicted = || {
             dataset
                 .measurements()

@@ -434,7 +434,7 @@ fn identified_errors(
     let problem = dataset.problem(set, config.k)?;
     let objective = Objective::new(&problem);
     let (_, _, best) = identify_errors(config, &problem, &objective, dataset)?;
-    Ok(problem.set().unpack(&best))
+    Ok(problem.set().unpack(&best)?)
 }
 
 /// The parameters to identify and why.
@@ -559,7 +559,7 @@ fn solve(
     let seconds = started.elapsed().as_secs_f64();
     let standard_errors = fit.as_ref().and_then(|f| f.result.standard_errors());
     let parameters = identified_parameters(set, &best, standard_errors.as_ref());
-    let errors = set.unpack(&best);
+    let errors = set.unpack(&best)?;
     let (covariance, uncertainty, significance) =
         covariance_findings((dataset, validation), set, fit.as_ref(), &best, &errors)?;
     let (calibration, validation, per_pose, poses) =
@@ -925,8 +925,8 @@ fn least_squares(
     let mut outliers = Vec::new();
     if config.loss != LossChoice::L2 {
         let mut norms = vec![0.0; dataset.measurements().len()];
-        least_squares.pose_residual_norms(&robust.result.x, &mut norms);
-        let fitted = least_squares.problem().kinematics(&robust.result.x);
+        least_squares.pose_residual_norms(&robust.result.x, &mut norms)?;
+        let fitted = least_squares.problem().kinematics(&robust.result.x)?;
         let poses = dataset.data.records.iter().zip(&norms).zip(&weights);
         for (((record, norm), weight), m) in poses.zip(dataset.measurements()) {
             let outlier = match &estimated {
@@ -1015,7 +1015,7 @@ pub(crate) fn robust_scale(
     let fit = least_squares
         .solve(start, settings)
         .map_err(|e| lm_error(e, set))?;
-    let model = least_squares.problem().kinematics(&fit.x);
+    let model = least_squares.problem().kinematics(&fit.x)?;
     let (mut positions, mut rotations) = (Vec::new(), Vec::new());
     for m in least_squares.problem().measurements() {
         let error = m.error_of(&model.forward_angles(&m.angles));

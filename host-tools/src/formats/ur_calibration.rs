@@ -296,5 +296,5 @@ fn fit(
     let fit = LeastSquares::new(&problem)
         .solve(&set.zeros(), &settings)
         .context("fitting the Hayati parameters to the UR calibration")?;
-    Ok(set.unpack(&fit.x))
+    Ok(set.unpack(&fit.x)?)
 }

@@ -767,5 +767,5 @@ fn fit_frames(
             &calib_core::identify::lm::LmSettings::default(),
         )
         .context("fitting the frames")?;
-    Ok(set.unpack(&result.x))
+    Ok(set.unpack(&result.x)?)
 }
