@@ -246,4 +246,3 @@ fn dyn_vectors_of_another_length_are_refused() {
     );
     assert_eq!(problem.set().unpack(&x).unwrap(), zero);
 }
-

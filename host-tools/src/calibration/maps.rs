@@ -8,12 +8,11 @@
 pub mod evidence;
 
 use super::ErrorModel;
-use super::{CalibrationConfig, CalibrationResult, Stage};
+use super::solve::Identification;
+use super::{CalibrationConfig, Stage};
 use crate::JOINTS;
-use crate::io::robot_file::RobotFile;
 use crate::kinematics::actual::ActualRobot;
 use crate::measurement::dataset::{Dataset, Seen};
-use crate::measurement::statistics::table3;
 use crate::model::compliance::{self, Gravity};
 use crate::model::joint_maps::{JointMapsSection, NEGLIGIBLE_AMPLITUDE_RAD};
 use calib_core::Kinematics;
@@ -266,16 +265,34 @@ fn found_model(
     }
 }
 
-/// The joint maps stage: adds the joint maps to the geometric calibration `result` of `robot` (its
-/// frames registered; the given robot passed [`check_robot_file`]) on `dataset`, validated on
-/// `validation`.
+/// Joint maps (and compliance) found for the geometric calibration and kept: they predict the
+/// calibration poses better in cross-validation.
+pub(crate) struct KeptMaps {
+    /// The registered robot with the maps and compliance found ([`found_model`]).
+    pub robot: ActualRobot,
+    /// The geometry's errors identified with the maps (mm, rad).
+    pub errors: calib_core::ParameterErrors<f64, Dyn>,
+    /// The posterior standard deviation of each identified parameter, in the order of the
+    /// geometric identification's parameters.
+    pub parameter_sd: Vec<f64>,
+    /// The `[joint_maps]` section, checked against its reader.
+    pub maps: JointMapsSection,
+    /// The `[compliance]` section, when identified, checked against its reader.
+    pub compliance: Option<crate::model::compliance::ComplianceSection>,
+}
+
+/// The joint maps stage: the joint maps identified with the geometry on top of the geometric
+/// identification `identification` of `robot` (its frames registered; the given robot passed
+/// [`check_robot_file`]) on `dataset`, with the geometric calibration's statistics `geometric`
+/// (calibration and held-out poses) for the report; the maps are returned when they are kept.
 pub(crate) fn add_joint_maps(
-    (mut result, mut file): (CalibrationResult, RobotFile),
+    identification: &Identification,
     robot: &ActualRobot,
-    (dataset, validation): (&Dataset, Option<&Dataset>),
+    dataset: &Dataset,
     config: &CalibrationConfig,
-) -> crate::Result<(CalibrationResult, RobotFile)> {
-    let geometric = Kinematics::new(&robot.model.robot, &result.errors)?;
+    (geometric_calibration, geometric_validation): (Stage, Option<Stage>),
+) -> crate::Result<(JointMapsReport, Option<KeptMaps>)> {
+    let geometric = Kinematics::new(&robot.model.robot, &identification.errors)?;
     let seen = dataset.seen_by(robot)?;
     let Screened {
         poses,
@@ -285,18 +302,20 @@ pub(crate) fn add_joint_maps(
     // 6-DoF data: the orientation rows too (position rows alone cannot determine the geometry
     // identified from full poses, such as the probe's rotation).
     let orientation_scale_mm = orientation_scale(&seen, &geometric);
-    let parameters: Vec<_> = result.parameters.iter().map(|p| p.parameter).collect();
+    let parameters: Vec<_> = (identification.parameters.iter())
+        .map(|p| p.parameter)
+        .collect();
     let gravity = gravity(robot, config)?;
     let problem = evidence::MapsProblem {
         robot: &robot.model.robot,
-        start: &result.errors,
+        start: &identification.errors,
         parameters: &parameters,
         poses: &poses,
         orientation_scale_mm,
         gravity: gravity.as_ref(),
     };
     let (mut found, evidence) = evidence::identify_best(&problem)?;
-    let cross_validation = result.cross_validation.and_then(|geometric| {
+    let cross_validation = identification.cross_validation.and_then(|geometric| {
         let (folds, maps_mean_mm) =
             maps_cross_validation(&seen, &kept, &problem, found.maps.harmonics)?;
         Some(MapsCrossValidation {
@@ -310,25 +329,16 @@ pub(crate) fn add_joint_maps(
     let ranges = reading_ranges(&poses, robot.model.robot.joints.len());
     // Maps that could not be cross-validated show nothing: kept at zero like maps that do not help.
     let kept_at_zero = cross_validation.is_none_or(|c| c.kept_at_zero);
-    let geometric_calibration = result.calibration;
-    let geometric_validation = result.validation;
-    if kept_at_zero {
+    let kept = if kept_at_zero {
         // The geometric calibration stands: its statistics, parameters and file.
-        found = found.kept_at_zero(result.errors);
+        found = found.kept_at_zero(identification.errors);
+        None
     } else {
-        (result, file) = with_maps(
-            result,
-            robot,
-            (dataset, validation),
-            config,
-            &parameters,
-            (&found, gravity.as_ref()),
-            &ranges,
-        )?;
-    }
+        Some(kept_maps(robot, (&found, gravity.as_ref()), &ranges)?)
+    };
     let joints = joint_reports(&found, &poses, &ranges);
     let curves = map_curves(&found, &poses, ranges.len());
-    result.joint_maps = Some(JointMapsReport {
+    let report = JointMapsReport {
         curves,
         harmonics: found.maps.harmonics,
         evidence,
@@ -346,8 +356,8 @@ pub(crate) fn add_joint_maps(
                 .collect()
         }),
         cross_validation,
-    });
-    Ok((result, file))
+    };
+    Ok((report, kept))
 }
 
 /// The poses the maps are identified from: those the geometric model (`geometric`) fits within
@@ -454,80 +464,43 @@ fn map_curves(found: &MapIdentification, poses: &[Pose], joints: usize) -> Vec<M
         .collect()
 }
 
-/// `result` (the geometric calibration) replaced by the model with the maps `found`: statistics,
-/// parameters, and the identified robot file returned beside it with its `[joint_maps]`, the maps identified on
-/// readings within `ranges`, the compliance with the masses `gravity`; `robot` has the frames
-/// registered.
-fn with_maps(
-    mut result: CalibrationResult,
+/// The maps `found` kept: the model of `robot` with them (the compliance with the masses
+/// `gravity`), their errors and standard deviations, and the file's sections for the maps
+/// identified on readings within `ranges`, each checked against its reader (never a file its own
+/// reader refuses).
+fn kept_maps(
     robot: &ActualRobot,
-    (dataset, validation): (&Dataset, Option<&Dataset>),
-    config: &CalibrationConfig,
-    parameters: &[calib_core::Parameter],
     (found, gravity): (&evidence::MapIdentification, Option<&Gravity>),
     ranges: &[[f64; 2]],
-) -> crate::Result<(CalibrationResult, RobotFile)> {
-    // The statistics of the model with the maps (and the compliance).
-    let robot = &found_model(robot, found, gravity);
-    let actual = Kinematics::new(&robot.model.robot, &found.errors)?;
-    let mapped = dataset.seen_by_geometry(robot, &found.errors)?;
-    let (after, after_poses) = table3(&actual, mapped.measurements());
-    result.calibration.after = after;
-    for (pose, after) in result.poses.iter_mut().zip(&after_poses) {
-        pose.after_mm = *after;
-    }
-    result.per_pose.after = after_poses;
-    result.per_pose.orientation_after =
-        crate::measurement::statistics::orientation_per_pose(&actual, &mapped);
-    if let (Some(v), Some(stage)) = (validation, result.validation.as_mut()) {
-        let seen = v.seen_by_geometry(robot, &found.errors)?;
-        let (after, per_pose) = table3(&actual, seen.measurements());
-        stage.after = after;
-        result.per_pose.validation_after = per_pose;
-        result.per_pose.validation_after_xyz = crate::measurement::statistics::signed_errors(
-            &actual,
-            &seen.robot.model.robot,
-            seen.measurements(),
-        );
-    }
-    for p in &mut result.parameters {
-        p.value = found.errors.get(p.parameter).unwrap_or(0.0);
-        if let Some(i) = parameters.iter().position(|q| *q == p.parameter) {
-            p.std_error = found.parameter_sd.get(i).copied();
-        }
-    }
-    result.errors = found.errors;
-    // The geometric fit's covariance does not describe the model with the maps.
-    (result.uncertainty, result.covariance, result.significance) = (None, None, None);
-    let mut frames = result.frames.clone();
-    let mut file = super::identified_robot(
-        &mapped,
-        config,
-        &result.parameters,
-        &result.errors,
-        &mut frames,
-    );
-    let section = JointMapsSection::new(&found.maps, ranges);
-    // Never write a file that its own reader refuses.
-    section.to_maps(robot.model.robot.joints.len()).map_err(|problem| {
+) -> crate::Result<KeptMaps> {
+    let robot = found_model(robot, found, gravity);
+    let maps = JointMapsSection::new(&found.maps, ranges);
+    maps.to_maps(robot.model.robot.joints.len()).map_err(|problem| {
         crate::refused!(
             "the identified joint maps are not plausible ({problem}); nothing was written. The poses may not move \
              that joint enough, or hold an outlier: calibrate with --model geometric, or measure more varied poses"
         )
     })?;
-    file.joint_maps = Some(section);
-    if let Some(c) = &found.compliance {
-        let section = crate::model::compliance::ComplianceSection::new(&c.gains);
-        section.to_gains().map_err(|problem| {
-            crate::refused!(
-                "the identified gravity compliance is not plausible ({problem}); nothing was written. The poses may \
-                 not load the joints differently enough: calibrate with --model joint-maps, or measure more varied poses"
-            )
-        })?;
-        file.compliance = Some(section);
-    }
-    result.frames = frames;
-    Ok((result, file))
+    let compliance = match &found.compliance {
+        Some(c) => {
+            let section = crate::model::compliance::ComplianceSection::new(&c.gains);
+            section.to_gains().map_err(|problem| {
+                crate::refused!(
+                    "the identified gravity compliance is not plausible ({problem}); nothing was written. The poses may \
+                     not load the joints differently enough: calibrate with --model joint-maps, or measure more varied poses"
+                )
+            })?;
+            Some(section)
+        }
+        None => None,
+    };
+    Ok(KeptMaps {
+        robot,
+        errors: found.errors,
+        parameter_sd: found.parameter_sd.clone(),
+        maps,
+        compliance,
+    })
 }
 
 impl JointMapsReport {

@@ -5,7 +5,7 @@
 //! errors that are not geometric; it is refused unless the user accepts it
 //! (`--accept-implausible`).
 
-use super::CalibrationResult;
+use super::{CalibrationResult, IdentifiedParameter};
 use crate::io::robot_file::RobotFile;
 use calib_core::Parameter;
 
@@ -52,11 +52,12 @@ pub(crate) fn bound_of(robot: &RobotFile, parameter: Parameter) -> (f64, &'stati
 const OWN_ANGLE_BOUND: &str = "this robot's geometric errors (its file's max_angle_error_deg)";
 const OWN_LENGTH_BOUND: &str = "this robot's geometric errors (its file's max_length_error_mm)";
 
-/// The problems of `result`, each naming the value and its bound (those of its identified robot
-/// file `file`); empty when it is plausible.
-pub fn check(result: &CalibrationResult, file: &RobotFile) -> Vec<String> {
+/// The problems of a calibration's identified `parameters` and its fit (`fit_rms_mm`, the RMS
+/// position error on the calibration poses), each naming the value and its bound (those of the
+/// robot file `file`); empty when it is plausible.
+pub fn check(parameters: &[IdentifiedParameter], fit_rms_mm: f64, file: &RobotFile) -> Vec<String> {
     let mut problems = Vec::new();
-    for p in &result.parameters {
+    for p in parameters {
         let (bound, whose) = bound_of(file, p.parameter);
         let (value, unit) = if p.parameter.is_angle() {
             (p.value.to_degrees(), "deg")
@@ -70,7 +71,7 @@ pub fn check(result: &CalibrationResult, file: &RobotFile) -> Vec<String> {
             ));
         }
     }
-    let rms = result.calibration.after.position_mm.rms;
+    let rms = fit_rms_mm;
     let (limit, why) = match file.repeatability_mm {
         Some(r) if REPEATABILITY_FACTOR * r > MAX_FIT_RMS_MM => (
             REPEATABILITY_FACTOR * r,

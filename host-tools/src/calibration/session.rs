@@ -8,8 +8,8 @@
 //! - Where the calibration came from ([`Provenance`]): the command line and the input files with
 //!   their SHA-256, stamped with the date into the identified file's `[calibration]` (or, for a
 //!   re-registration, `[measurement]`).
-//! - The check of a measured plan's verification poses against the plan's prediction, and the
-//!   comparison with known errors ([`Truth`], from `calib simulate`).
+//! - A measured plan's verification poses held out, to be checked against the plan's prediction,
+//!   and the comparison with known errors ([`Truth`], from `calib simulate`).
 //!
 //! It returns [`Calibrated`]: the identified robot as a model (geometry, frames, joint maps,
 //! compliance, covariance: an [`ActualRobot`]), the typed result and the provenance. The
@@ -24,7 +24,6 @@ use crate::io::robot_file::RobotFile;
 use crate::io::tracker_data::Role;
 use crate::kinematics::actual::ActualRobot;
 use crate::measurement::dataset::Dataset;
-use crate::planning::Measure;
 use std::path::PathBuf;
 
 /// Which poses a calibration holds out of the fit, to state its accuracy on poses it did not see.
@@ -160,11 +159,7 @@ impl Session {
             ));
         }
         let (fitted, validation, settings, plan) = Self::split(dataset, hold_out)?;
-        let planned = plan.then(|| fitted.clone());
-        let (mut result, mut file) = super::stages(fitted, validation, &config)?;
-        if let Some(fitted) = planned {
-            result = with_plan_check(result, &fitted, &config);
-        }
+        let (result, mut file) = super::stages(fitted, validation, &config, plan)?;
         if !provenance.inputs.is_empty() {
             stamp(&mut file, &provenance, &result);
         }
@@ -263,40 +258,6 @@ fn stamp(file: &mut RobotFile, provenance: &Provenance, result: &CalibrationResu
             c.inputs = records;
         }
     }
-}
-
-/// `result` of a measured plan's fitted poses `fitted` with the check of its verification poses
-/// against the plan's prediction (when the file kept the plan's prediction line).
-fn with_plan_check(
-    mut result: CalibrationResult,
-    fitted: &Dataset,
-    config: &CalibrationConfig,
-) -> CalibrationResult {
-    let (Some(predicted), Some(validation)) = (fitted.data.planned, &result.validation) else {
-        return result;
-    };
-    let measure = if fitted.data.rows_without_orientation() {
-        Measure::Position
-    } else {
-        Measure::Pose
-    };
-    let poses: Vec<(String, Vec<f64>, f64)> = (fitted.data.records.iter())
-        .zip(&result.poses)
-        .map(|(r, p)| (r.id.clone(), r.q.clone(), p.after_mm))
-        .collect();
-    let check = crate::planning::check_plan(
-        predicted,
-        validation.after.position_mm.mean,
-        validation.poses,
-        &fitted.robot.file,
-        &fitted.robot.model.path,
-        &poses,
-        measure,
-        config.k,
-    );
-    result.caveats.extend(check.caveat());
-    result.plan_check = Some(check);
-    result
 }
 
 /// The identified errors of `result` against the true errors of `truth`.
