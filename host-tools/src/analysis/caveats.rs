@@ -8,6 +8,7 @@ use serde::Serialize;
 
 /// The share of held-out poses inside the predicted 95 % band below which the band is said to
 /// miss an error, %.
+/// A convention, not fitted to data (docs/RESULTS.md, "Thresholds set from data").
 pub(crate) const COVERAGE_BELOW_PERCENT: f64 = 90.0;
 
 /// Lines a caveat lists (in the text; the JSON has them all).

@@ -15,6 +15,7 @@ use serde::Serialize;
 /// Scaled condition number above which a pose set is reported as ill-conditioned: the weakest
 /// parameter combination is then determined more than 1000 times worse than the best one, so
 /// noise and unmodelled errors leak into it amplified.
+/// A convention, not fitted to data (docs/RESULTS.md, "Thresholds set from data").
 pub const ILL_CONDITIONED: f64 = 1000.0;
 
 /// Serialises `(parameter, value)` pairs as `[name, value]`.
@@ -32,6 +33,7 @@ fn named<S: serde::Serializer>(parameter: &Parameter, s: S) -> Result<S::Ok, S::
 /// [`default_mask`]). Reflectors in a nest on the flange's centre sit a few millimetres
 /// off the axis (the Barrett WAM data: 3.0 mm); a reflector meant to sense the last joint is
 /// mounted tens of millimetres off it.
+/// One of the thresholds set from data (docs/RESULTS.md, "Thresholds set from data").
 pub(crate) const REFLECTOR_ON_AXIS_MM: f64 = 10.0;
 
 /// A reflector on (or near) the last joint's axis, and what it leaves undetermined.

@@ -8,6 +8,7 @@
 pub mod evidence;
 
 use super::ErrorModel;
+use super::OUTLIER_DEVIATIONS;
 use super::solve::Identification;
 use super::{CalibrationConfig, Stage};
 use crate::JOINTS;
@@ -21,11 +22,6 @@ use evidence::{MapIdentification, Pose};
 use nalgebra::Dyn;
 use nalgebra::Vector3;
 use serde::Serialize;
-
-/// Poses whose geometric position residual exceeds the median by this many robust standard
-/// deviations (1.4826 MAD) are left out of the maps: one stale measurement would otherwise
-/// raise the noise level and flatten every map.
-pub const OUTLIER_DEVIATIONS: f64 = 6.0;
 
 /// One joint's map in the report.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -100,6 +96,7 @@ pub struct JointMapsReport {
 /// full poses of Series D (seed 1) the maps were 3 % better in cross-validation and 1.6 % worse
 /// on the held-out poses; real gains are 8 % and more (Series D full pose, seed 0) and usually
 /// 30-50 %.
+/// One of the thresholds set from data (docs/RESULTS.md, "Thresholds set from data").
 pub const CROSS_VALIDATION_MARGIN: f64 = 0.05;
 
 /// Cross-validation of the model with maps against the geometry alone, on the same folds of the
@@ -361,7 +358,8 @@ pub(crate) fn add_joint_maps(
 }
 
 /// The poses the maps are identified from: those the geometric model (`geometric`) fits within
-/// [`OUTLIER_DEVIATIONS`] robust deviations of the median, with weight above 0.
+/// [`OUTLIER_DEVIATIONS`] robust deviations (1.4826 MAD) of the median, with weight above 0 (one
+/// stale measurement would otherwise raise the noise level and flatten every map).
 struct Screened {
     poses: Vec<Pose>,
     /// The dataset's indices of `poses`.

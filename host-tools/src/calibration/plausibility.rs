@@ -12,6 +12,7 @@ use calib_core::Parameter;
 /// Largest plausible identified length error (joints, and frames relative to their registration),
 /// mm. Manufacturing errors of a robot's links are below a few millimetres. A robot file's
 /// `max_length_error_mm` replaces it for that robot (and `max_angle_error_deg` the angle bound).
+/// A convention, not fitted to data (docs/RESULTS.md, "Thresholds set from data").
 pub(crate) const MAX_LENGTH_ERROR_MM: f64 = 20.0;
 
 /// Largest plausible identified angle error, degrees. Twist and joint zero errors are a fraction
@@ -22,6 +23,7 @@ pub(crate) const MAX_ANGLE_ERROR_DEG: f64 = 3.0;
 /// a geometric model reach 0.1-0.5 mm (the UR10 of the bundled data: 0.42 mm mean). A robot
 /// file's `repeatability_mm` raises it to [`REPEATABILITY_FACTOR`] times that: a cable-driven
 /// Barrett WAM (2 mm repeatability) fits its tracker data to 2.2 mm RMS.
+/// One of the thresholds set from data (docs/RESULTS.md, "Thresholds set from data").
 pub(crate) const MAX_FIT_RMS_MM: f64 = 2.0;
 
 /// The plausible fit as a multiple of the robot's repeatability.

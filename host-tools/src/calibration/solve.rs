@@ -397,6 +397,7 @@ fn least_squares(
 /// orientation residuals separately). On the real UR10 Series B (1495 poses), the three known stale
 /// measurements lie 7.7 to 9.5 robust standard deviations out and the largest clean pose 5.1 to
 /// 5.3: the threshold sits between them.
+/// One of the thresholds set from data (docs/RESULTS.md, "Thresholds set from data").
 pub const OUTLIER_DEVIATIONS: f64 = 6.0;
 
 /// Outlier thresholds and the robust loss scale, estimated from the data.

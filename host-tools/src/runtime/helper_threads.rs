@@ -4,7 +4,7 @@
 //! A new thread is queued on its parent's CPU. While the parent computes, the scheduler runs the
 //! new thread there only when the parent's time slice ends or the load is balanced, milliseconds
 //! later; until then the helper does not work and, once it runs, it shares the CPU with the
-//! parent (waits of milliseconds measured with `perf sched timehist`: docs/RESULTS.md, "Speed to
+//! parent (waits of milliseconds measured with `perf sched timehist`: docs/JOURNAL.md, "Speed to
 //! the limit"). [`spawn`] therefore moves the helper off the parent's CPU as its first step and yields the
 //! parent's CPU once, so that a helper queued there runs (and moves) at once.
 

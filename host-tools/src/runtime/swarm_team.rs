@@ -13,7 +13,7 @@
 //! The swarm's update between two generations runs on the caller alone, particle by particle;
 //! each particle the members evaluate is published as soon as the update has given it its position
 //! ([`CostFunction::position_ready`]), and a member evaluates it while the caller updates the
-//! next ones (measured faster than publishing the whole generation after the update: docs/RESULTS.md,
+//! next ones (measured faster than publishing the whole generation after the update: docs/JOURNAL.md,
 //! "Speed to the limit"). Its random pairs
 //! `r1, r2` (960 draws from one sequential generator per generation of the paper's swarm) are
 //! drawn ahead by a helper, which is idle while the caller updates: [`TeamPairs`] posts the next
