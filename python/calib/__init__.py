@@ -40,12 +40,30 @@ from ._calib import evaluate_json as _evaluate_json
 from ._calib import plan
 
 
-def evaluate(robot: Robot, data: Dataset, **options: _Any) -> dict[str, _Any]:
+def evaluate(
+    robot: Robot,
+    data: Dataset,
+    *,
+    fit_frames: _Optional[str] = None,
+    fit_poses: _Optional[int] = None,
+    seed: _Optional[int] = None,
+    stored_registration: bool = False,
+) -> dict[str, _Any]:
     """Table 3 statistics of ``robot`` (nominal or identified) on ``data`` as a dict, as
-    ``calib evaluate --json`` prints them; its options as keyword arguments (``fit_frames``,
-    ``fit_poses``, ``seed``, ``stored_registration``). The data, from a file or arrays, are
-    checked against ``robot`` (a file, ``Robot.from_dh`` or ``CalibrationResult.robot``)."""
-    evaluation: dict[str, _Any] = _json.loads(_evaluate_json(robot, data, **options))
+    ``calib evaluate --json`` prints them; its options as typed keyword arguments (``fit_frames``:
+    "none", "base" or "base+tool"; ``fit_poses``, ``seed``, ``stored_registration``). The data,
+    from a file or arrays, are checked against ``robot`` (a file, ``Robot.from_dh`` or
+    ``CalibrationResult.robot``)."""
+    evaluation: dict[str, _Any] = _json.loads(
+        _evaluate_json(
+            robot,
+            data,
+            fit_frames=fit_frames,
+            fit_poses=fit_poses,
+            seed=seed,
+            stored_registration=stored_registration,
+        )
+    )
     return evaluation
 
 

@@ -220,7 +220,15 @@ def calibrate(
     generation, where Python receives SIGINT (a process started with SIGINT ignored, as a
     non-interactive shell starts background jobs, never sees it)."""
 
-def evaluate_json(robot: Robot, data: Dataset, **options: Union[str, float, int, bool]) -> str:
+def evaluate_json(
+    robot: Robot,
+    data: Dataset,
+    *,
+    fit_frames: Optional[str] = None,
+    fit_poses: Optional[int] = None,
+    seed: Optional[int] = None,
+    stored_registration: bool = False,
+) -> str:
     """``calib evaluate --json`` (the package's ``calib.evaluate`` returns the dict)."""
 
 @final

@@ -1270,41 +1270,56 @@ fn file_inputs(
 }
 
 /// Table 3 statistics of `robot` (any model, nominal or identified) on `data`, as `calib evaluate
-/// --json` gives them (JSON text; the package's `evaluate` returns the dict), its options as
-/// keyword arguments (`fit_frames="base"`, `fit_poses=30`, `stored_registration=True`, ...); the
-/// data, from a file or arrays, are checked against `robot`.
+/// --json` gives them (JSON text; the package's `evaluate` returns the dict): the library's
+/// evaluation, its options as typed keyword arguments (`fit_frames="base"`, `fit_poses=30`,
+/// `seed=1`, `stored_registration=True`); the data, from a file or arrays, are checked against
+/// `robot`.
 #[pyfunction]
-#[pyo3(signature = (robot, data, **options))]
+#[pyo3(signature = (robot, data, *, fit_frames = None, fit_poses = None, seed = None, stored_registration = false))]
 fn evaluate_json(
     py: Python<'_>,
     robot: &Robot,
     data: &Dataset,
-    options: Option<&Bound<'_, PyDict>>,
+    fit_frames: Option<&str>,
+    fit_poses: Option<usize>,
+    seed: Option<u64>,
+    stored_registration: bool,
 ) -> PyResult<String> {
-    let mut words: Vec<String> = vec![
-        "evaluate".into(),
-        "--robot".into(),
-        robot.path(),
-        "--data".into(),
-    ];
-    match &data.source {
-        Source::Files { data, profile } => {
-            words.push(data.display().to_string());
-            if let Some(p) = profile {
-                words.extend(["--profile".into(), p.display().to_string()]);
-            }
-        }
-        Source::Memory => words.push("<arrays>".into()),
+    use host_tools::analysis::evaluation::{FitPoses, Registration};
+    let frames = choice("fit_frames", fit_frames)?;
+    if seed.is_some() && fit_poses.is_none() {
+        return Err(py_error(
+            host_tools::Error::conflict(
+                &["--seed", "--fit-poses"],
+                "seed= chooses the fit_poses= poses, and none are chosen: give fit_poses=N, or drop seed=",
+            )
+            .into(),
+        ));
     }
-    words.extend(option_words(
-        options,
-        &["robot", "data", "profile", "json"],
-    )?);
-    let parsed = parse_words::<host_tools::cli::evaluate::EvaluateOptions>(&words)?;
+    if stored_registration && frames.is_some() {
+        return Err(py_error(
+            host_tools::Error::conflict(
+                &["--stored-registration", "--fit-frames"],
+                "stored_registration=True uses the model's own registration, and fit_frames= fits the frames: drop one of the two",
+            )
+            .into(),
+        ));
+    }
+    let registration = if stored_registration {
+        Registration::Stored
+    } else {
+        Registration::Fit(frames)
+    };
+    let fit_poses = fit_poses.map(|count| FitPoses {
+        count,
+        seed: seed.unwrap_or(0),
+    });
     let dataset = data.against(robot).map_err(py_error)?;
     let evaluation = py
-        .detach(|| host_tools::cli::evaluate::evaluate_dataset(&parsed, dataset))
-        .map_err(py_error)?;
+        .detach(|| {
+            host_tools::analysis::evaluation::evaluate_model(&dataset, registration, fit_poses)
+        })
+        .map_err(|e| py_error(e.into()))?;
     serde_json::to_string(&evaluation).map_err(|e| py_error(e.into()))
 }
 

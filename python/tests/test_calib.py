@@ -274,6 +274,20 @@ def test_evaluate_equals_calib_evaluate(tmp_path):
                                    name="narrow")
     with pytest.raises(calib.InputError, match="outside the joint limits"):
         calib.evaluate(narrow, data)
+    # Issue 53: typed keyword arguments calling the library; the stored registration and frames
+    # fitted on 30 poses as the command gives them.
+    for words, kwargs in ((["--stored-registration"], {"stored_registration": True}),
+                          (["--fit-poses", "30", "--seed", "2"], {"fit_poses": 30, "seed": 2})):
+        out = run_calib("evaluate", "--robot", identified, "--data", SERIES_B, "--profile", PROFILE, *words, "--json")
+        assert out.returncode == 0, out.stderr
+        assert calib.evaluate(robot, data, **kwargs) == json.loads(out.stdout), words
+    with pytest.raises(TypeError, match="unexpected keyword argument 'fit_frame'"):
+        calib.evaluate(robot, data, fit_frame="base")  # type: ignore[call-arg]
+    with pytest.raises(calib.OptionConflictError) as refused:
+        calib.evaluate(robot, data, seed=3)
+    assert refused.value.options == ["--seed", "--fit-poses"]
+    with pytest.raises(calib.InputError, match="fit_frames: invalid value 'all': choose 'none', 'base', 'base\\+tool'"):
+        calib.evaluate(robot, data, fit_frames="all")
 
 
 def test_plan_equals_calib_plan(tmp_path):

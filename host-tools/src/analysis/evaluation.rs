@@ -26,6 +26,60 @@ pub struct Evaluation {
     pub fitted_poses_evaluated: bool,
 }
 
+/// Where the frames of the measurement setup come from before a model is evaluated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Registration {
+    /// Registered and fitted on the poses, the geometry kept: these frames (`None`: base+tool,
+    /// or none when the data say `# frame: base`; `calib evaluate --fit-frames`).
+    Fit(Option<Frames>),
+    /// The registration stored with an identified model (its `[measurement]` section: the
+    /// tracker's view of the base and the probe; `calib evaluate --stored-registration`).
+    Stored,
+}
+
+/// The poses that fit the frames: `count` of them chosen at random by `seed`, as `calib
+/// calibrate --validate` chooses its calibration poses (`calib evaluate --fit-poses --seed`);
+/// the statistics are then computed on the others.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FitPoses {
+    /// Poses fitted (at least 3, fewer than the data's).
+    pub count: usize,
+    /// Seed of the choice.
+    pub seed: u64,
+}
+
+/// Evaluates the model of `dataset`'s robot on its poses, the frames had as `registration` says,
+/// fitted on `fit_poses` when given (on all poses otherwise: the statistics then flatter the
+/// model). A stored registration is refused for a model without one, and with poses to fit.
+pub fn evaluate_model(
+    dataset: &Dataset,
+    registration: Registration,
+    fit_poses: Option<FitPoses>,
+) -> crate::Result<Evaluation> {
+    crate::model::counts::joint_count(dataset.robot.file.joint.len())?;
+    let (robot, frames) = match registration {
+        Registration::Stored => {
+            if fit_poses.is_some() {
+                return Err(crate::Error::conflict(
+                    &["--stored-registration", "--fit-poses"],
+                    "--stored-registration uses the model's own registration, and --fit-poses fits the frames: drop one of the two",
+                ));
+            }
+            if dataset.robot.file.measurement.is_none() {
+                return Err(crate::refused!(
+                    "--stored-registration: {} has no [measurement] section, no registration to use: give a model \
+                     identified on tracker data (calibrate writes it), or fit the frames (--fit-frames)",
+                    dataset.robot.model.path.display()
+                ));
+            }
+            (dataset.robot.in_measurement_setup()?, Frames::None)
+        }
+        Registration::Fit(frames) => (dataset.robot.clone(), Frames::chosen(frames, &dataset.data)),
+    };
+    let (count, seed) = fit_poses.map_or((None, 0), |f| (Some(f.count), f.seed));
+    evaluate(&robot, dataset, frames, count, seed)
+}
+
 /// Evaluates the model `robot` (the dataset's own, or that robot in its measurement setup) on
 /// the poses of `dataset`. With `frames` `base` or `base+tool`, the frames
 /// are registered and fitted first with the geometry fixed: on `fit_poses` poses chosen at random

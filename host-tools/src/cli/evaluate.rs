@@ -41,38 +41,31 @@ pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
     evaluate_dataset(options, dataset)
 }
 
-/// [`evaluate`] on the data already read and checked against the robot (`dataset`; the
-/// Python package's `evaluate`): `options`' paths name the robot and data in messages only.
+/// [`evaluate`] on the data already read and checked against the robot (`dataset`): the options
+/// as the library's request ([`crate::analysis::evaluation::evaluate_model`]).
 pub fn evaluate_dataset(
     options: &EvaluateOptions,
     dataset: crate::measurement::dataset::Dataset,
 ) -> anyhow::Result<Evaluation> {
-    crate::model::counts::joint_count(dataset.robot.file.joint.len())?;
+    use crate::analysis::evaluation::{FitPoses, Registration};
     if options.seed.is_some() && options.fit_poses.is_none() {
         anyhow::bail!(
             "--seed chooses the --fit-poses poses, and none are chosen: give --fit-poses N, or drop --seed"
         );
     }
-    let mut robot = dataset.robot.clone();
-    let frames = if options.stored_registration {
-        if robot.file.measurement.is_none() {
-            anyhow::bail!(
-                "--stored-registration: {} has no [measurement] section, no registration to use: give a model \
-                 identified on tracker data (calibrate writes it), or fit the frames (--fit-frames)",
-                options.input.robot.display()
-            );
-        }
-        robot = robot.in_measurement_setup()?;
-        Frames::None
+    let registration = if options.stored_registration {
+        Registration::Stored
     } else {
-        Frames::chosen(options.fit_frames, &dataset.data)
+        Registration::Fit(options.fit_frames)
     };
-    Ok(crate::analysis::evaluation::evaluate(
-        &robot,
+    let fit_poses = options.fit_poses.map(|count| FitPoses {
+        count,
+        seed: options.seed.unwrap_or(0),
+    });
+    Ok(crate::analysis::evaluation::evaluate_model(
         &dataset,
-        frames,
-        options.fit_poses,
-        options.seed.unwrap_or(0),
+        registration,
+        fit_poses,
     )?)
 }
 
