@@ -113,9 +113,23 @@ class Robot:
     def path(self) -> str: ...
     def to_toml(self) -> str: ...
     def to_file(self, path: _Path) -> None: ...
-    def export(self, format: str, **options: Union[str, int, bool, Sequence[str]]) -> bytes:
+    def export(
+        self,
+        format: str,
+        *,
+        scalar: Optional[str] = None,
+        sequence: Optional[int] = None,
+        link_names: Optional[Sequence[str]] = None,
+        joint_names: Optional[Sequence[str]] = None,
+        base_link: Optional[str] = None,
+        flange_link: Optional[str] = None,
+        tool_link: Optional[str] = None,
+        joints_only: bool = False,
+        geometry_only: bool = False,
+    ) -> bytes:
         """What ``calib export --format FORMAT`` writes: "block", "toml", "json", "urdf",
-        "ur-kinematics-yaml"; its other options as keyword arguments."""
+        "ur-kinematics-yaml"; its other options as typed keyword arguments (an option of another
+        format is an OptionConflictError)."""
     def fk(self, joints_rad: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Forward kinematics (geometry, joint maps, compliance) as ``calib fk``: joints in rad,
         shape (joints,) or (n, joints); homogeneous transforms in mm, (4, 4) or (n, 4, 4)."""

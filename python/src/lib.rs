@@ -530,29 +530,45 @@ impl Robot {
     }
 
     /// The robot as `calib export --format FORMAT` writes it, as bytes: "block" (the controller's
-    /// parameter block), "toml", "json", "urdf", "ur-kinematics-yaml"; the other options of `calib
-    /// export` as keyword arguments (`scalar="f64"`, `geometry_only=True`, ...).
-    #[pyo3(signature = (format, **options))]
+    /// parameter block), "toml", "json", "urdf", "ur-kinematics-yaml"; the options of `calib
+    /// export` as typed keyword arguments (`scalar="f64"`, `geometry_only=True`, ...), the
+    /// library's export request (an option of another format is an OptionConflictError).
+    #[pyo3(signature = (
+        format, *, scalar = None, sequence = None, link_names = None, joint_names = None,
+        base_link = None, flange_link = None, tool_link = None, joints_only = false,
+        geometry_only = false
+    ))]
+    #[allow(clippy::too_many_arguments)]
     fn export<'py>(
         &self,
         py: Python<'py>,
         format: &str,
-        options: Option<&Bound<'py, PyDict>>,
+        scalar: Option<&str>,
+        sequence: Option<u32>,
+        link_names: Option<Vec<String>>,
+        joint_names: Option<Vec<String>>,
+        base_link: Option<String>,
+        flange_link: Option<String>,
+        tool_link: Option<String>,
+        joints_only: bool,
+        geometry_only: bool,
     ) -> PyResult<Bound<'py, pyo3::types::PyBytes>> {
-        let mut words: Vec<String> = [
-            "export",
-            "--params",
-            &self.path(),
-            "--out",
-            "-",
-            "--format",
+        let Some(format) = choice("format", Some(format))? else {
+            return input("format: a format is needed".into());
+        };
+        let request = host_tools::formats::export::ExportRequest {
             format,
-        ]
-        .map(String::from)
-        .to_vec();
-        words.extend(option_words(options, &["params", "out", "format"])?);
-        let parsed = parse_words::<host_tools::cli::export::ExportOptions>(&words)?;
-        let bytes = host_tools::cli::export::export_bytes(&parsed, &self.file).map_err(py_error)?;
+            scalar: choice("scalar", scalar)?,
+            sequence,
+            link_names,
+            joint_names,
+            base_link,
+            flange_link,
+            tool_link,
+            joints_only,
+            geometry_only,
+        };
+        let bytes = (request.export(&self.file, &self.path)).map_err(|e| py_error(e.into()))?;
         Ok(pyo3::types::PyBytes::new(py, &bytes))
     }
 

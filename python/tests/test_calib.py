@@ -216,10 +216,24 @@ def test_export_gives_the_bytes_calib_export_writes(tmp_path):
     # Two joint names for six joints: refused in the command's words.
     done = run_calib("export", "--params", UR10, "--format", "urdf", "--joint-names", "a,b", "--out", tmp_path / "x.urdf")
     with pytest.raises(calib.InputError) as refused:
-        robot.export("urdf", joint_names="a,b")
+        robot.export("urdf", joint_names=["a", "b"])
     assert str(refused.value).splitlines()[0] == done.stderr.splitlines()[0].removeprefix("Error: ")
     with pytest.raises(calib.InputError, match="invalid value 'pdf'"):
         robot.export("pdf")
+    # Issue 53: typed keyword arguments calling the library's export request; an option of
+    # another format is refused as the command refuses it, by type.
+    urdf = tmp_path / "named.urdf"
+    done = run_calib("export", "--params", UR10, "--format", "urdf", "--joint-names", "a,b,c,d,e,f",
+                     "--base-link", "world", "--joints-only", "--out", urdf)
+    assert done.returncode == 0, done.stderr
+    assert robot.export("urdf", joint_names=list("abcdef"), base_link="world", joints_only=True) == urdf.read_bytes()
+    done = run_calib("export", "--params", UR10, "--format", "block", "--joints-only", "--out", tmp_path / "x.bin")
+    with pytest.raises(calib.OptionConflictError) as conflict:
+        robot.export("block", joints_only=True)
+    assert conflict.value.options == ["--joints-only", "--format"]
+    assert str(conflict.value).splitlines()[0] == done.stderr.splitlines()[0].removeprefix("Error: ")
+    with pytest.raises(TypeError, match="unexpected keyword argument 'scaler'"):
+        robot.export("block", scaler="f64")  # type: ignore[call-arg]
 
 
 def test_ctrl_c_stops_a_long_calibration():

@@ -1,9 +1,9 @@
 //! `calib export`: an identified robot file as the controller's parameter block, TOML, JSON, a
 //! URDF or a UR kinematics YAML.
 
-use crate::formats::export::{BlockScalar, ExportFormat};
+use crate::formats::export::{BlockScalar, ExportFormat, ExportRequest};
 use crate::io::outputs::Outputs;
-use crate::io::robot_file::{RobotFile, RobotModel};
+use crate::io::robot_file::RobotFile;
 use std::path::PathBuf;
 
 /// Options of `calib export`.
@@ -63,91 +63,26 @@ pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
     Ok(bytes.len())
 }
 
-/// The bytes `calib export` writes for `file` (read from `options.params`, which names it in
-/// messages); `options.out` is not used.
+/// The bytes `calib export` writes for the robot file `file` (read from `options.params`), as the
+/// library's [`ExportRequest`] of these options.
 pub fn export_bytes(options: &ExportOptions, file: &RobotFile) -> anyhow::Result<Vec<u8>> {
-    options.check_format()?;
-    let urdf = urdf_settings(options, file);
-    crate::model::counts::joint_count(file.joint.len())?;
-    exported(options, file, &urdf)
-}
-
-/// The bytes `calib export` writes for `file`.
-fn exported(
-    options: &ExportOptions,
-    file: &RobotFile,
-    urdf: &crate::formats::urdf::UrdfSettings,
-) -> anyhow::Result<Vec<u8>> {
-    let model: RobotModel = file.to_model(&options.params)?;
-    Ok(crate::formats::export::export(
-        file,
-        &model,
-        options.format,
-        options.scalar.unwrap_or(BlockScalar::F32),
-        options.sequence.unwrap_or(1),
-        urdf,
-    )?)
+    Ok(options.request().export(file, &options.params)?)
 }
 
 impl ExportOptions {
-    /// Refuses an option of another format than `--format`'s: it would change nothing.
-    fn check_format(&self) -> anyhow::Result<()> {
-        use ExportFormat::{Block, UrKinematicsYaml, Urdf};
-        let given: [(&str, bool, &[ExportFormat]); 9] = [
-            ("--scalar", self.scalar.is_some(), &[Block]),
-            ("--sequence", self.sequence.is_some(), &[Block]),
-            ("--link-names", self.link_names.is_some(), &[Urdf]),
-            ("--joint-names", self.joint_names.is_some(), &[Urdf]),
-            ("--base-link", self.base_link.is_some(), &[Urdf]),
-            ("--flange-link", self.flange_link.is_some(), &[Urdf]),
-            ("--tool-link", self.tool_link.is_some(), &[Urdf]),
-            ("--joints-only", self.joints_only, &[Urdf]),
-            // The formats that cannot carry joint maps or compliance.
-            (
-                "--geometry-only",
-                self.geometry_only,
-                &[Urdf, UrKinematicsYaml],
-            ),
-        ];
-        for (flag, is_given, formats) in given {
-            if is_given && !formats.contains(&self.format) {
-                let names: Vec<String> = formats.iter().map(|f| format_name(*f)).collect();
-                anyhow::bail!(
-                    "{flag} is an option of --format {}, and --format is {}: drop {flag}",
-                    names.join(" and "),
-                    format_name(self.format)
-                );
-            }
-        }
-        Ok(())
-    }
-}
-
-/// The name `--format` takes for `format`.
-fn format_name(format: ExportFormat) -> String {
-    clap::ValueEnum::to_possible_value(&format)
-        .map_or_else(String::new, |v| v.get_name().to_owned())
-}
-
-/// The URDF names of the options (defaults for the file's joint count).
-fn urdf_settings(options: &ExportOptions, file: &RobotFile) -> crate::formats::urdf::UrdfSettings {
-    let mut urdf = crate::formats::urdf::UrdfSettings::named_for(&file.name, file.joint.len());
-    if let Some(names) = &options.link_names {
-        urdf.links.clone_from(names);
-    }
-    if let Some(names) = &options.joint_names {
-        urdf.joints.clone_from(names);
-    }
-    for (name, option) in [
-        (&mut urdf.base_link, &options.base_link),
-        (&mut urdf.flange, &options.flange_link),
-        (&mut urdf.tool, &options.tool_link),
-    ] {
-        if let Some(given) = option {
-            name.clone_from(given);
+    /// The library's request of these options.
+    pub fn request(&self) -> ExportRequest {
+        ExportRequest {
+            format: self.format,
+            scalar: self.scalar,
+            sequence: self.sequence,
+            link_names: self.link_names.clone(),
+            joint_names: self.joint_names.clone(),
+            base_link: self.base_link.clone(),
+            flange_link: self.flange_link.clone(),
+            tool_link: self.tool_link.clone(),
+            joints_only: self.joints_only,
+            geometry_only: self.geometry_only,
         }
     }
-    urdf.joints_only = options.joints_only;
-    urdf.geometry_only = options.geometry_only;
-    urdf
 }

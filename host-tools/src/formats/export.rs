@@ -117,6 +117,133 @@ fn model_block<T: calib_core::Real>(
     Ok(buffer)
 }
 
+/// An export as asked for: the format and the options given, each an option of some formats
+/// only. [`ExportRequest::export`] refuses an option of another format (naming it by its
+/// command-line flag) and exports: the one place `calib export` and the Python package's
+/// `Robot.export` share.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ExportRequest {
+    /// The format.
+    pub format: ExportFormat,
+    /// The block's scalar (block only; default f32).
+    pub scalar: Option<BlockScalar>,
+    /// The block's sequence number (block only; default 1).
+    pub sequence: Option<u32>,
+    /// The links after each joint (URDF only; default `link_1..link_N`).
+    pub link_names: Option<Vec<String>>,
+    /// The joints (URDF only; default `joint_1..joint_N`).
+    pub joint_names: Option<Vec<String>>,
+    /// The root link (URDF only; default `base_link`).
+    pub base_link: Option<String>,
+    /// The flange link (URDF only; default `flange`).
+    pub flange_link: Option<String>,
+    /// The tool link (URDF only; default `tool0`).
+    pub tool_link: Option<String>,
+    /// Only the `<joint>` elements (URDF only).
+    pub joints_only: bool,
+    /// The geometry of a model with joint maps or compliance (URDF and UR kinematics YAML,
+    /// which cannot carry them).
+    pub geometry_only: bool,
+}
+
+impl ExportRequest {
+    /// `format` with no option given.
+    pub fn new(format: ExportFormat) -> Self {
+        Self {
+            format,
+            scalar: None,
+            sequence: None,
+            link_names: None,
+            joint_names: None,
+            base_link: None,
+            flange_link: None,
+            tool_link: None,
+            joints_only: false,
+            geometry_only: false,
+        }
+    }
+
+    /// The export of the robot file `file` (read from `path`, which names it in errors), or the
+    /// refusal of an option of another format.
+    pub fn export(&self, file: &RobotFile, path: &std::path::Path) -> crate::Result<Vec<u8>> {
+        self.check_format()?;
+        crate::model::counts::joint_count(file.joint.len())?;
+        let model = file.to_model(path)?;
+        export(
+            file,
+            &model,
+            self.format,
+            self.scalar.unwrap_or(BlockScalar::F32),
+            self.sequence.unwrap_or(1),
+            &self.urdf_settings(file),
+        )
+    }
+
+    /// Refuses an option given for a format it is not an option of.
+    fn check_format(&self) -> crate::Result<()> {
+        use ExportFormat::{Block, UrKinematicsYaml, Urdf};
+        let given: [(&str, bool, &[ExportFormat]); 9] = [
+            ("--scalar", self.scalar.is_some(), &[Block]),
+            ("--sequence", self.sequence.is_some(), &[Block]),
+            ("--link-names", self.link_names.is_some(), &[Urdf]),
+            ("--joint-names", self.joint_names.is_some(), &[Urdf]),
+            ("--base-link", self.base_link.is_some(), &[Urdf]),
+            ("--flange-link", self.flange_link.is_some(), &[Urdf]),
+            ("--tool-link", self.tool_link.is_some(), &[Urdf]),
+            ("--joints-only", self.joints_only, &[Urdf]),
+            // The formats that cannot carry joint maps or compliance.
+            (
+                "--geometry-only",
+                self.geometry_only,
+                &[Urdf, UrKinematicsYaml],
+            ),
+        ];
+        for (flag, is_given, formats) in given {
+            if is_given && !formats.contains(&self.format) {
+                let names: Vec<String> = formats.iter().map(|f| format_name(*f)).collect();
+                return Err(crate::Error::conflict(
+                    &[flag, "--format"],
+                    format!(
+                        "{flag} is an option of --format {}, and --format is {}: drop {flag}",
+                        names.join(" and "),
+                        format_name(self.format)
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The URDF names of the request (defaults for the file's joint count).
+    fn urdf_settings(&self, file: &RobotFile) -> crate::formats::urdf::UrdfSettings {
+        let mut urdf = crate::formats::urdf::UrdfSettings::named_for(&file.name, file.joint.len());
+        if let Some(names) = &self.link_names {
+            urdf.links.clone_from(names);
+        }
+        if let Some(names) = &self.joint_names {
+            urdf.joints.clone_from(names);
+        }
+        for (name, option) in [
+            (&mut urdf.base_link, &self.base_link),
+            (&mut urdf.flange, &self.flange_link),
+            (&mut urdf.tool, &self.tool_link),
+        ] {
+            if let Some(given) = option {
+                name.clone_from(given);
+            }
+        }
+        urdf.joints_only = self.joints_only;
+        urdf.geometry_only = self.geometry_only;
+        urdf
+    }
+}
+
+/// The name `--format` takes for `format`.
+pub fn format_name(format: ExportFormat) -> String {
+    clap::ValueEnum::to_possible_value(&format)
+        .map_or_else(String::new, |v| v.get_name().to_owned())
+}
+
 /// `file` (an identified robot file of any joint count) in `format`; `scalar` and `sequence` for the
 /// block, `urdf` for the URDF (names; whether a file with joint maps or compliance may be
 /// exported as its geometry alone, also for the UR YAML). The block carries the joint maps of any
