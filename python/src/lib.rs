@@ -1082,44 +1082,6 @@ fn choice<T: clap::ValueEnum>(name: &str, value: Option<&str>) -> PyResult<Optio
     })
 }
 
-/// The swarm's settings of `calibrate` (each `None`: the paper's default).
-#[derive(FromPyObject, Default)]
-struct SwarmArgs {
-    swarm: Option<usize>,
-    generations: Option<u32>,
-    c1: Option<f64>,
-    c2: Option<f64>,
-    seed: Option<u64>,
-    init_angle_rad: Option<f64>,
-    init_length_mm: Option<f64>,
-    bound_factor: Option<f64>,
-    stall_generations: Option<u32>,
-    target: Option<f64>,
-    halton_start: Option<u64>,
-    scrambling: Option<String>,
-}
-
-impl SwarmArgs {
-    /// The swarm configuration: each setting given, else [`SwarmConfig::default`]'s.
-    fn config(&self) -> PyResult<host_tools::calibration::SwarmConfig> {
-        let d = host_tools::calibration::SwarmConfig::default();
-        Ok(host_tools::calibration::SwarmConfig {
-            particles: self.swarm.unwrap_or(d.particles),
-            generations: self.generations.unwrap_or(d.generations),
-            c1: self.c1.unwrap_or(d.c1),
-            c2: self.c2.unwrap_or(d.c2),
-            seed: self.seed.unwrap_or(d.seed),
-            init_angle_rad: self.init_angle_rad.unwrap_or(d.init_angle_rad),
-            init_length_mm: self.init_length_mm.unwrap_or(d.init_length_mm),
-            bound_factor: self.bound_factor.unwrap_or(d.bound_factor),
-            stall_generations: self.stall_generations.unwrap_or(d.stall_generations),
-            target: self.target.unwrap_or(d.target),
-            halton_start: self.halton_start.unwrap_or(d.halton_start),
-            scrambling: choice("scrambling", self.scrambling.as_deref())?.unwrap_or(d.scrambling),
-        })
-    }
-}
-
 /// Calibrates `robot` on `data`: a [`Session`] of the library. Every keyword argument is the
 /// command line's option of the same name (underscores for dashes), `None` its default (that of
 /// [`CalibrationConfig::default`]); `holdout` is a Dataset held out for validation. Data from
@@ -1170,7 +1132,7 @@ fn calibrate(
     scrambling: Option<String>,
 ) -> PyResult<CalibrationResult> {
     use host_tools::calibration::{HoldOut, Provenance, Session};
-    let swarm = SwarmArgs {
+    let swarm = host_tools::calibration::SwarmOptions {
         swarm,
         generations,
         c1,
@@ -1182,7 +1144,7 @@ fn calibrate(
         stall_generations,
         target,
         halton_start,
-        scrambling,
+        scrambling: choice("scrambling", scrambling.as_deref())?,
     };
     let d = CalibrationConfig::default();
     let acceptance = (accept.unwrap_or_default().iter())
@@ -1198,7 +1160,7 @@ fn calibrate(
         identify: choice("identify", identify)?.unwrap_or(d.identify),
         model: choice("model", model)?.unwrap_or(d.model),
         k: k.unwrap_or(d.k),
-        swarm: swarm.config()?,
+        swarm: swarm.config(),
         lm_iterations: lm_iterations.unwrap_or(d.lm_iterations),
         loss: choice("loss", loss)?.unwrap_or(d.loss),
         loss_scale_mm,

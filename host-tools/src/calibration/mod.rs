@@ -72,7 +72,7 @@ mod solve;
 pub(crate) use config::swarm_without_swarm;
 pub use config::{
     CalibrationConfig, Cancel, ErrorModel, Identify, LossChoice, Method, SWARM_SIZES,
-    ScramblingChoice, SwarmConfig,
+    ScramblingChoice, SwarmConfig, SwarmOptions,
 };
 pub use session::{Calibrated, HoldOut, Provenance, Session, Truth};
 pub use solve::OUTLIER_DEVIATIONS;

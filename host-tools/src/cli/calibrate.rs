@@ -3,9 +3,10 @@
 //! files' hashes as the provenance; the session calibrates, and the identified robot file, the
 //! JSON report, the HTML page and the plots it renders are written here.
 
+pub use crate::calibration::SwarmOptions;
 use crate::calibration::{
     Calibrated, CalibrationConfig, ErrorModel, HoldOut, Identify, LossChoice, Method, Provenance,
-    ScramblingChoice, Session, SwarmConfig, Truth,
+    Session, Truth,
 };
 use crate::cli::InputFiles;
 use crate::io::outputs::Outputs;
@@ -116,89 +117,6 @@ pub struct CalibrateOptions {
     /// Never show the progress bar (it is shown only on a terminal anyway).
     #[arg(long)]
     pub quiet: bool,
-}
-
-/// The settings of the paper's improved particle swarm (`--method ipso` and `ipso+lm`). Each is
-/// optional: unset, the default of [`SwarmConfig::default`] (the paper's) applies; set with
-/// `--method lm`, which runs no swarm, the calibration is refused naming it.
-#[derive(Clone, Debug, Default, clap::Args)]
-pub struct SwarmOptions {
-    /// Swarm size, particles (1 to 1000; default 20, the paper's). Swarm only: refused with
-    /// --method lm, as are all the swarm's settings below.
-    #[arg(long, value_name = "N")]
-    pub swarm: Option<usize>,
-    /// Maximum number of generations of the swarm (default 2000).
-    #[arg(long, value_name = "N")]
-    pub generations: Option<u32>,
-    /// Cognitive acceleration coefficient c1 (default 2.05; c1 + c2 > 4).
-    #[arg(long)]
-    pub c1: Option<f64>,
-    /// Social acceleration coefficient c2 (default 2.05).
-    #[arg(long)]
-    pub c2: Option<f64>,
-    /// Seed of the swarm's random numbers r1, r2 (default 0).
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Initial half range of angle errors, rad (default 0.01, the paper's).
-    #[arg(long)]
-    pub init_angle_rad: Option<f64>,
-    /// Initial half range of length errors, mm (default 0.5, the paper's).
-    #[arg(long)]
-    pub init_length_mm: Option<f64>,
-    /// Search bounds as a multiple of the initial half range (absorbing walls; default 10).
-    #[arg(long)]
-    pub bound_factor: Option<f64>,
-    /// Stop after this many generations without improvement (default 0: never).
-    #[arg(long)]
-    pub stall_generations: Option<u32>,
-    /// Stop as soon as the objective reaches this value (default: never).
-    #[arg(long, allow_hyphen_values = true)]
-    pub target: Option<f64>,
-    /// Halton index of the first particle (the paper's k; 0 is the all-zero point; default 1).
-    #[arg(long)]
-    pub halton_start: Option<u64>,
-    /// Halton digit scrambling (default none).
-    #[arg(long, value_enum)]
-    pub scrambling: Option<ScramblingChoice>,
-}
-
-impl SwarmOptions {
-    /// The swarm configuration: each option given, else the default.
-    pub fn config(&self) -> SwarmConfig {
-        let d = SwarmConfig::default();
-        SwarmConfig {
-            particles: self.swarm.unwrap_or(d.particles),
-            generations: self.generations.unwrap_or(d.generations),
-            c1: self.c1.unwrap_or(d.c1),
-            c2: self.c2.unwrap_or(d.c2),
-            seed: self.seed.unwrap_or(d.seed),
-            init_angle_rad: self.init_angle_rad.unwrap_or(d.init_angle_rad),
-            init_length_mm: self.init_length_mm.unwrap_or(d.init_length_mm),
-            bound_factor: self.bound_factor.unwrap_or(d.bound_factor),
-            stall_generations: self.stall_generations.unwrap_or(d.stall_generations),
-            target: self.target.unwrap_or(d.target),
-            halton_start: self.halton_start.unwrap_or(d.halton_start),
-            scrambling: self.scrambling.unwrap_or(d.scrambling),
-        }
-    }
-
-    /// The options given, by their flags.
-    pub fn given(&self) -> Vec<&'static str> {
-        crate::cli::given_flags([
-            ("--swarm", self.swarm.is_some()),
-            ("--generations", self.generations.is_some()),
-            ("--c1", self.c1.is_some()),
-            ("--c2", self.c2.is_some()),
-            ("--seed", self.seed.is_some()),
-            ("--init-angle-rad", self.init_angle_rad.is_some()),
-            ("--init-length-mm", self.init_length_mm.is_some()),
-            ("--bound-factor", self.bound_factor.is_some()),
-            ("--stall-generations", self.stall_generations.is_some()),
-            ("--target", self.target.is_some()),
-            ("--halton-start", self.halton_start.is_some()),
-            ("--scrambling", self.scrambling.is_some()),
-        ])
-    }
 }
 
 impl CalibrateOptions {
@@ -437,6 +355,7 @@ pub(crate) fn write_outputs(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::calibration::SwarmConfig;
     use clap::{CommandFactory, Parser};
 
     /// The options as a whole command line.
