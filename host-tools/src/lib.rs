@@ -17,8 +17,10 @@
 //! - [`planning`]: which poses to measure (candidates, information, D-optimal design, tour,
 //!   predicted accuracy, plan check, the robot program);
 //! - [`runtime`]: the threads and SIMD lanes that make the identification fast;
-//! - [`calibration`]: the pipeline of stages, from a dataset and a configuration to a typed
-//!   result (frames, selection, solve, joint maps and their evidence solver, cross-validation,
+//! - [`calibration`]: a calibration session ([`calibration::Session`]: a dataset, a hold-out rule,
+//!   a configuration and the provenance in; [`calibration::Calibrated`] out: the identified
+//!   robot as a model, the typed result, the provenance) and its pipeline of stages (frames,
+//!   selection, solve, joint maps and their evidence solver, one evaluation, cross-validation,
 //!   plausibility); each stage takes the model of the robot the one before returned;
 //! - [`report`]: the text and HTML reports and their plots;
 //! - [`cli`]: the `calib` commands, thin layers over the above.
@@ -26,19 +28,36 @@
 //! A folder uses only folders listed before it; `.ci/check-module-cycles` fails when one uses a
 //! folder listed after it, and on a cycle between the files of one folder.
 //!
-//! A calibration ([`calibration::calibrate`]) reads the data once into a
+//! A calibration ([`calibration::Session::run`]) reads the data once into a
 //! [`measurement::dataset::Dataset`] and passes the model of the robot
 //! ([`kinematics::actual::ActualRobot`]) from stage to stage, each taking one and returning the
 //! one it found; a stage sees the poses through its model ([`measurement::dataset::Seen`]: the
 //! joint maps added to the readings, the compliance taken off the measured poses). Where each
-//! stage lives: the frames in `measurement/frames.rs` ([`measurement::frames::prepare`]); the
-//! selection of the parameters in `calibration/mod.rs` ([`calibration::select_parameters`], on
-//! the analysis of `analysis/identifiability.rs`); the solve (swarm and least squares, the
-//! compliance held) in `calibration/mod.rs`, its swarm run by `runtime/swarm_team.rs`; the
-//! cross-validation in `calibration/cross_validation.rs`; the joint maps in
-//! `calibration/maps.rs` and `calibration/maps/evidence.rs`; the held-out accuracy in
-//! `analysis/accuracy.rs`, `analysis/uncertainty.rs` and `analysis/workspace.rs`; the
-//! plausibility in `calibration/plausibility.rs`.
+//! part lives, one place each:
+//!
+//! - which poses are held out: [`calibration::HoldOut`] (a new rule is a variant there and an
+//!   arm of `Session::split` in `calibration/session.rs`); where the result came from:
+//!   [`calibration::Provenance`], stamped into the file in `calibration/session.rs`;
+//! - the frames: `measurement/frames.rs` ([`measurement::frames::prepare`]); the selection of the
+//!   parameters: `calibration/mod.rs` ([`calibration::select_parameters`], on the analysis of
+//!   `analysis/identifiability.rs`);
+//! - the solve (swarm and least squares, the compliance held, covariance, cross-validation):
+//!   `calibration/solve.rs`, its swarm run by `runtime/swarm_team.rs`; the joint maps:
+//!   `calibration/maps.rs` and `calibration/maps/evidence.rs`;
+//! - the evaluation of the model found (Table 3, per pose, held-out accuracy, the predicted
+//!   band): `calibration/evaluation.rs`, on `analysis/accuracy.rs`, `analysis/uncertainty.rs`
+//!   and `analysis/workspace.rs`; the result, built once: `finish` in `calibration/mod.rs`;
+//! - the identified robot file: `calibration/identified_file.rs` (a new field of the file is
+//!   written there, from the model; the maps' sections come from `calibration/maps.rs`), emitted
+//!   by [`calibration::Calibrated::robot_toml`];
+//! - the plausibility: `calibration/plausibility.rs`; the refusals a caller can tell apart:
+//!   [`Error`] (`OptionConflict`, `Unidentifiable`, `Implausible`, `NoHeldOut`).
+//!
+//! A measurement is today a pose (6-DoF or position) in a tracker's frame
+//! (`identify::objective::Measurement` of the core, read by `io/tracker_data.rs`); its residual
+//! and Jacobian live in the core, the frames it leaves free in `measurement/frames.rs`, its
+//! held-out statistic in `calibration/evaluation.rs`. A new kind of measurement touches those
+//! four places; making it one place is issue 53's item 7, open.
 #![deny(missing_docs)]
 
 /// The joint count of the models defined for 6R arms only: gravity compliance (the gains of
