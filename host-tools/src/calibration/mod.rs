@@ -127,7 +127,7 @@ pub(crate) fn stages(
     config: &CalibrationConfig,
     plan: bool,
 ) -> crate::Result<(CalibrationResult, RobotFile)> {
-    config.check()?;
+    // The settings were checked by `Session::run`, the only caller.
     if !config.acceptance.is_empty() && validation.is_none() {
         return Err(crate::Error::NoHeldOut(format!(
             "--accept {}: an acceptance criterion is judged on held-out poses, and none are held out: give --validate FRACTION \

@@ -210,7 +210,7 @@ pub fn calibrate_with(
         }
         None => None,
     };
-    check_options(options, &config, &all)?;
+    check_options(options, &all)?;
     let truth = match &options.truth {
         Some(path) => Some(Truth {
             file: RobotFile::read(path)?,
@@ -238,12 +238,7 @@ pub fn calibrate_with(
 /// The refusals of option combinations that the library's configuration cannot see (it holds
 /// values, not which options were given): `--k` on position-only data, the swarm's settings with
 /// `--method lm`.
-fn check_options(
-    options: &CalibrateOptions,
-    config: &CalibrationConfig,
-    all: &Dataset,
-) -> anyhow::Result<()> {
-    config.check()?;
+fn check_options(options: &CalibrateOptions, all: &Dataset) -> anyhow::Result<()> {
     crate::cli::weight_for(options.k, &all.data, &options.input.data)?;
     let swarm = options.swarm.given();
     if options.method == Method::Lm && !swarm.is_empty() {
