@@ -14,6 +14,18 @@ fn select(page: &Html, css: &str) -> Vec<String> {
         .collect()
 }
 
+/// Issue 53 (item 3): the page is rendered from the typed report, and the typed report reads
+/// back what `calib calibrate --report` wrote: written again, the same bytes (every field, every
+/// number to the last bit).
+fn reads_back_as_written(path: &Path) {
+    let written = std::fs::read_to_string(path).unwrap();
+    let report: host_tools::calibration::Report = serde_json::from_str(&written).unwrap();
+    let again = serde_json::to_string_pretty(&report).unwrap();
+    let differ = (again.lines().zip(written.lines()).enumerate()).find(|(_, (a, w))| a != w);
+    assert_eq!(differ, None, "{}", path.display());
+    assert_eq!(again, written, "{}", path.display());
+}
+
 /// The README's real-data example (50 random poses of Series B, 6-DoF, the others held out)
 /// with `--html`: every section, the paper's Table 3 for calibration and held-out poses with the
 /// JSON report's numbers, every identified parameter, the five plots inline, no script and no
@@ -43,6 +55,7 @@ fn the_html_report_holds_everything_and_nothing_external() {
     let html = std::fs::read_to_string(d.join("r.html")).unwrap();
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("r.json")).unwrap()).unwrap();
+    reads_back_as_written(&d.join("r.json"));
     let page = Html::parse_document(&html);
     assert!(page.errors.is_empty(), "{:?}", page.errors);
     let sections: Vec<String> = page
@@ -271,6 +284,7 @@ fn the_html_report_holds_everything_and_nothing_external() {
     ));
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("p.json")).unwrap()).unwrap();
+    reads_back_as_written(&d.join("p.json"));
     let dropped: Vec<&str> = json["dropped"]
         .as_array()
         .unwrap()
@@ -298,6 +312,25 @@ fn the_html_report_holds_everything_and_nothing_external() {
         .map(|u| u["name"].as_str().unwrap())
         .collect();
     assert_eq!(left_out, ["dtheta5", "dalpha5"]);
+    // The undetermined parameters by name and status (the page showed their JSON until issue 53).
+    let undetermined: Vec<String> = json["identifiability"]["undetermined"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|u| {
+            format!(
+                "{} ({})",
+                u["name"].as_str().unwrap(),
+                u["status"].as_str().unwrap()
+            )
+        })
+        .collect();
+    let shown = if undetermined.is_empty() {
+        "none".to_string()
+    } else {
+        undetermined.join(", ")
+    };
+    assert!(select(&page, "td").contains(&shown), "{shown}");
     assert!(
         select(&page, "p").iter().any(|p| p
             .starts_with("Reflector 1.1 mm from the last joint's axis")

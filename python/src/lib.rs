@@ -980,8 +980,7 @@ impl CalibrationResult {
 
     /// The certificate as one self-contained HTML page (`calib calibrate --html`).
     fn html(&self) -> PyResult<String> {
-        let report =
-            serde_json::to_value(self.calibration.report()).map_err(|e| py_error(e.into()))?;
+        let report = self.calibration.report();
         host_tools::report::html::render(&report, &host_tools::report::html::Rendering::now())
             .map_err(|e| py_error(e.into()))
     }

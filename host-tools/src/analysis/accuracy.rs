@@ -24,7 +24,7 @@ pub(crate) const FLAG_ROBUST_Z: f64 = 3.0;
 const MAD_TO_SD: f64 = 1.4826;
 
 /// Percentiles of the position error `|dp|`, mm.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Percentiles {
     /// Median, mm.
     pub p50_mm: f64,
@@ -37,7 +37,7 @@ pub struct Percentiles {
 }
 
 /// The signed error along one axis: mean and sample standard deviation, mm.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct AxisError {
     /// Mean of `measured - predicted` along the axis, mm.
     pub mean_mm: f64,
@@ -46,7 +46,7 @@ pub struct AxisError {
 }
 
 /// The accuracy of one model on a set of poses.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Accuracy {
     /// Number of poses.
     pub poses: usize,
@@ -57,7 +57,7 @@ pub struct Accuracy {
 }
 
 /// A held-out pose named by its data file's line.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct NamedPose {
     /// The pose's id.
     pub id: String,
@@ -70,7 +70,7 @@ pub struct NamedPose {
 }
 
 /// The accuracy on the held-out poses before and after calibration, with the poses to look at.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct HeldOutAccuracy {
     /// With the nominal model (frames fitted, when identified).
     pub before: Accuracy,
@@ -350,7 +350,7 @@ mod tests {
 
 /// An acceptance criterion the user states (`calib calibrate --accept "95% <= 0.5 mm"`): at least
 /// `percent` % of the held-out poses within `within_mm` of their prediction after calibration.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Criterion {
     /// The share of held-out poses that must be within the bound, % (0 to 100].
     pub percent: f64,
@@ -402,7 +402,7 @@ impl std::fmt::Display for Criterion {
 }
 
 /// One criterion judged on the held-out poses.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Judged {
     /// The criterion.
     #[serde(flatten)]
@@ -416,7 +416,7 @@ pub struct Judged {
 }
 
 /// The acceptance statement: every criterion judged, and whether all are met.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Acceptance {
     /// Each criterion with its measured share.
     pub criteria: Vec<Judged>,

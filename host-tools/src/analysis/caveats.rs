@@ -15,7 +15,7 @@ pub(crate) const COVERAGE_BELOW_PERCENT: f64 = 90.0;
 const LISTED: usize = 8;
 
 /// What a caveat is about.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum CaveatKind {
     /// The plan's verification poses missed the plan's prediction.
@@ -31,7 +31,7 @@ pub enum CaveatKind {
 }
 
 /// One caveat: what, in words, and the data file lines it concerns.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Caveat {
     /// What it is about.
     pub kind: CaveatKind,

@@ -10,7 +10,7 @@ use calib_core::identify::lm::LeastSquares;
 use calib_core::{Kinematics, Parameter, ParameterMask};
 use nalgebra::DVector;
 use nalgebra::Dyn;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Scaled condition number above which a pose set is reported as ill-conditioned: the weakest
 /// parameter combination is then determined more than 1000 times worse than the best one, so
@@ -28,6 +28,30 @@ fn named<S: serde::Serializer>(parameter: &Parameter, s: S) -> Result<S::Ok, S::
     s.collect_str(parameter)
 }
 
+/// A parameter read back from its name (a report read again).
+fn by_name(name: &str) -> Result<Parameter, String> {
+    Parameter::from_name(name, calib_core::model::joint_count::MAX_JOINTS).ok_or_else(|| {
+        format!("`{name}` is not a parameter's name (such as da2, dtheta3, base_tx)")
+    })
+}
+
+/// Reads a parameter written by [`named`].
+fn from_name<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Parameter, D::Error> {
+    let name = String::deserialize(d)?;
+    by_name(&name).map_err(serde::de::Error::custom)
+}
+
+/// Reads pairs written by [`named_pairs`].
+fn from_named_pairs<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> Result<Vec<(Parameter, f64)>, D::Error> {
+    let pairs = Vec::<(String, f64)>::deserialize(d)?;
+    (pairs.into_iter())
+        .map(|(name, v)| by_name(&name).map(|p| (p, v)))
+        .collect::<Result<_, _>>()
+        .map_err(serde::de::Error::custom)
+}
+
 /// A reflector closer than this to the last joint's axis (mm) is "on the last axis": the last
 /// joint turns it on a circle too small to tell the previous joint's parameters apart (see
 /// [`default_mask`]). Reflectors in a nest on the flange's centre sit a few millimetres
@@ -37,7 +61,7 @@ fn named<S: serde::Serializer>(parameter: &Parameter, s: S) -> Result<S::Ok, S::
 pub(crate) const REFLECTOR_ON_AXIS_MM: f64 = 10.0;
 
 /// A reflector on (or near) the last joint's axis, and what it leaves undetermined.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct ReflectorOnAxis {
     /// Distance of the reflector from the last joint's axis, mm (of the model with its frames
     /// fitted).
@@ -145,21 +169,25 @@ fn reflector_on_last_axis(
 }
 
 /// A parameter the data do not determine.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Undetermined {
     /// The parameter (its name in JSON).
-    #[serde(rename = "name", serialize_with = "named")]
+    #[serde(
+        rename = "name",
+        serialize_with = "named",
+        deserialize_with = "from_name"
+    )]
     pub parameter: Parameter,
     /// `not identifiable` (changes no residual) or `redundant`.
-    pub status: &'static str,
+    pub status: String,
     /// For a redundant one: the determined parameters it is confounded with, and the coefficient
     /// in scaled units (its column equals the sum of coefficient times their columns).
-    #[serde(serialize_with = "named_pairs")]
+    #[serde(serialize_with = "named_pairs", deserialize_with = "from_named_pairs")]
     pub with: Vec<(Parameter, f64)>,
 }
 
 /// The identifiability analysis in report form.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct IdentifiabilityReport {
     /// Number of identified parameters analysed.
     pub parameters: usize,
@@ -176,7 +204,7 @@ pub struct IdentifiabilityReport {
     /// The least determined direction: the right singular vector of the smallest singular value
     /// of the scaled Jacobian, as (parameter, component) for components of magnitude >= 0.2,
     /// largest first. These are the parameters an ill-conditioned pose set leaves uncertain.
-    #[serde(serialize_with = "named_pairs")]
+    #[serde(serialize_with = "named_pairs", deserialize_with = "from_named_pairs")]
     pub weakest_direction: Vec<(Parameter, f64)>,
     /// `true` when the condition number exceeds [`ILL_CONDITIONED`] (or the rank is deficient).
     pub ill_conditioned: bool,
@@ -340,8 +368,8 @@ pub(crate) fn analyse(
         undetermined.push(Undetermined {
             parameter: *parameter,
             status: match status {
-                Status::NotIdentifiable => "not identifiable",
-                _ => "redundant",
+                Status::NotIdentifiable => "not identifiable".to_string(),
+                _ => "redundant".to_string(),
             },
             with: if status == &Status::NotIdentifiable {
                 Vec::new()

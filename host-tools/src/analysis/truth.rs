@@ -5,12 +5,12 @@ use calib_core::Parameter;
 use serde::Serialize;
 
 /// One row of the comparison against a known truth (mm or rad).
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct TruthRow {
     /// Parameter name.
     pub name: String,
     /// Unit: `mm` or `rad`.
-    pub unit: &'static str,
+    pub unit: String,
     /// Identified error.
     pub identified: f64,
     /// True error.
@@ -24,7 +24,7 @@ impl TruthRow {
     pub fn new(parameter: Parameter, identified: f64, truth: f64) -> Self {
         Self {
             name: parameter.to_string(),
-            unit: unit_of(parameter),
+            unit: unit_of(parameter).to_string(),
             identified,
             truth,
             difference: identified - truth,

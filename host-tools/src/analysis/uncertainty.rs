@@ -35,7 +35,7 @@ pub(crate) fn pose_covariance(
 }
 
 /// A pose's predicted standard deviations, from the parameters alone (without the instrument).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct PoseSd {
     /// Of the position along x, y and z of the measurement frame, mm.
     pub position_mm: [f64; 3],
@@ -299,7 +299,7 @@ pub(crate) const STRONG_CORRELATION: f64 = 0.9;
 /// robot to differ from its drawing there; the frames' parameters are errors of frames fitted to
 /// these very data, near zero by construction, and are not judged) and which pairs are strongly
 /// correlated.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct Significance {
     /// Joint parameters with `|value| < 2 standard errors`, in canonical order.
     pub not_significant: Vec<String>,

@@ -21,7 +21,7 @@ pub const WORST_NAMED: usize = 3;
 pub const MIN_POSES: usize = 3;
 
 /// One box of the workspace and the held-out error inside it.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Region {
     /// The x range of its poses in the robot's base frame, mm.
     pub x_mm: [f64; 2],
@@ -56,7 +56,7 @@ impl Region {
 }
 
 /// The held-out error over the workspace.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct WorkspaceMap {
     /// Held-out poses mapped.
     pub poses: usize,

@@ -12,7 +12,7 @@ use serde::Serialize;
 pub const SWARM_SIZES: std::ops::RangeInclusive<usize> = 1..=1000;
 
 /// Identification method.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize, serde::Deserialize)]
 pub enum Method {
     /// The paper's improved particle swarm (Halton start, constriction factor).
     #[serde(rename = "ipso")]
@@ -48,7 +48,7 @@ impl Method {
 }
 
 /// Loss of the least-squares stage.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum LossChoice {
     /// Plain least squares.
@@ -71,7 +71,7 @@ impl LossChoice {
 }
 
 /// Halton digit scrambling.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ScramblingChoice {
     /// Plain Halton, as in the paper.
@@ -90,7 +90,7 @@ impl From<ScramblingChoice> for Scrambling {
 }
 
 /// The swarm's settings (the paper's section 2.2).
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct SwarmConfig {
     /// Particles: within [`SWARM_SIZES`] (paper: 20).
     pub particles: usize,
@@ -111,11 +111,18 @@ pub struct SwarmConfig {
     /// Stop after this many generations without improvement (0: never).
     pub stall_generations: u32,
     /// Stop as soon as the objective reaches this value.
+    #[serde(deserialize_with = "target_or_none")]
     pub target: f64,
     /// Halton index of the first particle (the paper's k; 0 is the all-zero point).
     pub halton_start: u64,
     /// Halton digit scrambling.
     pub scrambling: ScramblingChoice,
+}
+
+/// Reads the swarm's target objective back from a report: JSON has no infinity, so the default
+/// (no target, minus infinity) is written as `null`.
+fn target_or_none<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(<Option<f64> as serde::Deserialize>::deserialize(d)?.unwrap_or(f64::NEG_INFINITY))
 }
 
 impl Default for SwarmConfig {
@@ -271,7 +278,7 @@ pub(crate) fn swarm_without_swarm(flags: &[&str]) -> crate::Error {
 }
 
 /// What a calibration identifies.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize, serde::Deserialize)]
 pub enum Identify {
     /// The geometry (the robot file's identify lists, or the default rule) and the frames.
     #[value(name = "geometry")]
@@ -285,7 +292,7 @@ pub enum Identify {
 }
 
 /// The error model identified.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize, serde::Deserialize)]
 pub enum ErrorModel {
     /// The geometry (and the frames of the measurement setup).
     #[value(name = "geometric")]
@@ -312,7 +319,7 @@ impl ErrorModel {
 
 /// Everything a calibration needs besides the data. `Default` is the paper's method followed by
 /// least squares (`ipso+lm`), `k = 1e6` mm^2/rad^2, the frames chosen from the data.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct CalibrationConfig {
     /// Identification method.
     pub method: Method,
@@ -343,7 +350,7 @@ pub struct CalibrationConfig {
     /// refusing it; its problems are listed in the result.
     pub accept_implausible: bool,
     /// Acceptance criteria judged on the held-out poses (`--accept`); empty: none stated.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub acceptance: Vec<crate::analysis::accuracy::Criterion>,
     /// The mass the flange carried while measured, kg (`--payload-kg`): stated on the
     /// certificate, not modelled. `None`: the robot file's `[dynamics] tool` mass, if any.

@@ -19,7 +19,7 @@ pub(crate) const LEAVE_ONE_OUT_UP_TO: usize = 20;
 pub(crate) const FOLDS: usize = 5;
 
 /// The estimate.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct CrossValidation {
     /// Number of folds (= poses for leave-one-out).
     pub folds: usize,

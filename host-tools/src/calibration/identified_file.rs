@@ -19,7 +19,7 @@ pub(crate) fn identified_robot(
     config: &CalibrationConfig,
     parameters: &[IdentifiedParameter],
     errors: &ParameterErrors<f64, Dyn>,
-    frames: &mut FramesReport,
+    (frames, given): (&mut FramesReport, &RobotFile),
 ) -> crate::io::robot_file::RobotFile {
     let std_errors: Vec<(Parameter, f64)> = parameters
         .iter()
@@ -56,10 +56,10 @@ pub(crate) fn identified_robot(
         method,
         &nominal,
     );
-    (file.base, file.tool) = (frames.given.base.clone(), frames.given.tool.clone());
+    (file.base, file.tool) = (given.base.clone(), given.tool.clone());
     if config.identify == Identify::Frames {
         // Re-registration: the geometry and its calibration record are the given file's.
-        file.calibration = frames.given.calibration.clone();
+        file.calibration = given.calibration.clone();
     }
     file.measurement =
         frames

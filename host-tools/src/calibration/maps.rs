@@ -24,7 +24,7 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 /// One joint's map in the report.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct JointMapReport {
     /// Joint number, 1-based.
     pub joint: usize,
@@ -61,7 +61,7 @@ pub struct MapCurve {
 pub const CURVE_STEP_DEG: f64 = 0.5;
 
 /// What the joint-maps stage found.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct JointMapsReport {
     /// Harmonics per joint, chosen by the evidence.
     pub harmonics: usize,
@@ -105,7 +105,7 @@ pub const CROSS_VALIDATION_MARGIN: f64 = 0.05;
 /// maps, the harmonics chosen on all poses) identified without it. Where the maps do not predict
 /// at least [`CROSS_VALIDATION_MARGIN`] better, they are kept at zero: asking for the model never
 /// makes a calibration worse than the geometry alone on poses it did not see.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct MapsCrossValidation {
     /// Folds.
     pub folds: usize,

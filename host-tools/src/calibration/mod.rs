@@ -79,13 +79,14 @@ pub use solve::OUTLIER_DEVIATIONS;
 pub(crate) use solve::{cores, median};
 
 pub use result::{
-    CalibrationResult, HoldOutSettings, IdentifiedParameter, LeastSquaresReport, ObjectiveValues,
-    Outlier, Parameters, PerPose, PoseReport, Report, Settings, Stage, SwarmSummary, lm_stop,
-    swarm_stop,
+    CalibrationResult, Covariance, HoldOutSettings, IdentifiedParameter, LeastSquaresReport,
+    ObjectiveValues, Outlier, ParameterEntry, Parameters, PerPose, PoseReport, Report, Settings,
+    Stage, SwarmSummary, lm_stop, swarm_stop,
 };
 
 use crate::analysis::identifiability::{IdentifiabilityReport, analyse};
 use crate::io::robot_file::RobotFile;
+use crate::measurement::conditions::MeasurementConditions;
 use crate::measurement::dataset::{Dataset, Seen};
 use crate::measurement::frames::{Frames, FramesReport};
 use crate::planning::Measure;
@@ -138,14 +139,11 @@ pub(crate) fn stages(
     if config.model.maps() {
         maps::check_robot_file(&dataset.robot, config)?;
     }
-    let conditions = crate::measurement::conditions::MeasurementConditions::of(
-        &dataset,
-        validation.as_ref(),
-        config.payload_kg,
-    )?;
+    let conditions = MeasurementConditions::of(&dataset, validation.as_ref(), config.payload_kg)?;
     let Registered {
         robot,
         frames: mut frames_report,
+        setup,
         selection,
         probe,
     } = register_and_select(&dataset, config)?;
@@ -177,7 +175,7 @@ pub(crate) fn stages(
         (&dataset, validation.as_ref()),
         (&seen, held_out.as_ref(), geometric),
         config,
-        &mut frames_report,
+        (&mut frames_report, &setup),
     )?;
     let mut file = file;
     if let Some(probe) = probe {
@@ -209,6 +207,9 @@ struct Registered {
     robot: crate::kinematics::actual::ActualRobot,
     /// The frames identified with the geometry.
     frames: FramesReport,
+    /// The robot file the frames were registered with: its base and tool are the controller's
+    /// (the measured frames belong to the measurement setup), kept for the identified file.
+    setup: RobotFile,
     /// The parameters to identify.
     selection: Selection,
     /// With only the base fitted: the probe identified with the file's model, kept as the tool
@@ -253,6 +254,7 @@ fn register_and_select(dataset: &Dataset, config: &CalibrationConfig) -> crate::
     Ok(Registered {
         robot,
         frames: frames_report,
+        setup: setup.file,
         selection,
         probe: probe_kept.then_some(probe),
     })
@@ -267,7 +269,7 @@ fn identified_model(
     (dataset, validation): (&Dataset, Option<&Dataset>),
     (seen, held_out, geometric): (&Seen<'_>, Option<&Seen<'_>>, Evaluation),
     config: &CalibrationConfig,
-    frames: &mut FramesReport,
+    frames: (&mut FramesReport, &RobotFile),
 ) -> crate::Result<(Identified, Evaluation, RobotFile)> {
     let Some(kept) = kept else {
         let mut file = identified_file::identified_robot(
@@ -275,7 +277,7 @@ fn identified_model(
             config,
             &identification.parameters,
             &identification.errors,
-            frames,
+            (&mut *frames.0, frames.1),
         );
         identified_file::record_covariance(
             &mut file,

@@ -10,7 +10,6 @@ use calib_core::identify::lm::LmStop;
 use calib_core::{Parameter, ParameterErrors};
 use nalgebra::Dyn;
 use serde::Serialize;
-use serde::ser::SerializeMap;
 use std::path::PathBuf;
 
 /// One identified parameter error.
@@ -25,7 +24,7 @@ pub struct IdentifiedParameter {
 }
 
 /// Initial and final objective (eq. 7).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct ObjectiveValues {
     /// At zero errors (the nominal model, frames fitted).
     pub initial: f64,
@@ -53,14 +52,14 @@ pub struct SwarmSummary {
 }
 
 /// The least-squares stage of a calibration.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct LeastSquaresReport {
     /// Iterations.
     pub iterations: u32,
     /// Residual evaluations.
     pub evaluations: u32,
     /// Why it stopped.
-    pub stop: &'static str,
+    pub stop: String,
     /// `0.5 |r|^2` at its start (residual `[dp; sqrt(k) dr]`, mm).
     pub cost_initial: f64,
     /// `0.5 |r|^2` at the end.
@@ -81,7 +80,7 @@ pub struct LeastSquaresReport {
 }
 
 /// Table 3 statistics of a set of poses before and after calibration.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Stage {
     /// Number of poses.
     pub poses: usize,
@@ -92,7 +91,7 @@ pub struct Stage {
 }
 
 /// One calibration pose in the report.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct PoseReport {
     /// The pose's id.
     pub id: String,
@@ -107,7 +106,7 @@ pub struct PoseReport {
 }
 
 /// A pose flagged by the robust loss.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Outlier {
     /// The pose's id.
     pub id: String,
@@ -120,7 +119,7 @@ pub struct Outlier {
 }
 
 /// Per-pose errors for plots: `|dp|` (mm) and orientation per axis (deg), before and after.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct PerPose {
     /// The data file's line of each calibration pose.
     pub lines: Vec<u64>,
@@ -254,9 +253,9 @@ impl CalibrationResult {
     }
 
     /// Why the last stage stopped.
-    pub(crate) fn stop(&self) -> &'static str {
+    pub(crate) fn stop(&self) -> &str {
         match (&self.least_squares, &self.swarm) {
-            (Some(l), _) => l.stop,
+            (Some(l), _) => &l.stop,
             (None, Some(s)) => swarm_stop(s.stop),
             (None, None) => "",
         }
@@ -265,71 +264,81 @@ impl CalibrationResult {
     /// The JSON report of the calibration `self`, with how its poses were held out (`hold_out`),
     /// the comparison with known errors (`truth`) and where it came from (`provenance`); see
     /// [`super::Calibrated::report`].
-    pub(crate) fn report<'a>(
-        &'a self,
+    pub(crate) fn report(
+        &self,
         hold_out: HoldOutSettings,
         truth: Option<Vec<TruthRow>>,
-        provenance: &'a super::Provenance,
-    ) -> Report<'a> {
+        provenance: &super::Provenance,
+    ) -> Report {
         Report {
-            method: self.config.method.name(),
+            method: self.config.method.name().to_string(),
             robot: self.robot_path.display().to_string(),
             data: self.data_path.display().to_string(),
-            parameters: Parameters(&self.parameters),
+            parameters: self.parameters.iter().map(reported).collect(),
             objective: self.objective,
             generations: self.swarm.as_ref().map_or(0, |s| s.generations),
             evaluations: self.evaluations(),
-            stop: self.stop(),
-            least_squares: self.least_squares.as_ref(),
-            identifiability: &self.identifiability,
+            stop: self.stop().to_string(),
+            least_squares: self.least_squares.clone(),
+            identifiability: self.identifiability.clone(),
             dropped: self.dropped.iter().map(ToString::to_string).collect(),
-            implausible: &self.implausible,
+            implausible: self.implausible.clone(),
             cross_validation: self.cross_validation,
-            joint_maps: self.joint_maps.as_ref(),
-            plan_check: self.plan_check.as_ref(),
-            held_out: self.held_out.as_ref(),
-            acceptance: self.acceptance.as_ref(),
-            uncertainty: self.uncertainty.as_ref(),
-            significance: self.significance.as_ref(),
-            conditions: self.conditions.as_ref(),
-            caveats: &self.caveats,
+            joint_maps: self.joint_maps.clone(),
+            plan_check: self.plan_check.clone(),
+            held_out: self.held_out.clone(),
+            acceptance: self.acceptance.clone(),
+            uncertainty: self.uncertainty.clone(),
+            significance: self.significance.clone(),
+            conditions: self.conditions.clone(),
+            caveats: self.caveats.clone(),
             covariance: self.covariance.as_ref().map(|c| Covariance {
                 parameters: self.names(),
                 matrix: c.row_iter().map(|r| r.iter().copied().collect()).collect(),
             }),
-            frames: &self.frames,
-            outliers: &self.outliers,
-            poses: &self.poses,
+            frames: self.frames.clone(),
+            outliers: self.outliers.clone(),
+            poses: self.poses.clone(),
             calibration: self.calibration,
             validation: self.validation,
             before: self.calibration.before,
             after: self.calibration.after,
             settings: Settings {
-                config: &self.config,
+                config: self.config.clone(),
                 hold_out,
             },
             truth,
             seconds: self.seconds,
-            calibrated_at: &self.calibrated_at,
-            per_pose: &self.per_pose,
+            calibrated_at: self.calibrated_at.clone(),
+            per_pose: self.per_pose.clone(),
             convergence: self
                 .swarm
                 .as_ref()
-                .map_or(&[][..], |s| s.history.as_slice()),
+                .map_or_else(Vec::new, |s| s.history.clone()),
             software: format!(
                 "calib {} (commit {})",
                 env!("CARGO_PKG_VERSION"),
                 env!("CALIB_COMMIT")
             ),
-            command_line: &provenance.command_line,
+            command_line: provenance.command_line.clone(),
             inputs: provenance.inputs.clone(),
         }
     }
 }
 
+/// An identified parameter as the report states it: its name and its entry.
+fn reported(p: &IdentifiedParameter) -> (String, ParameterEntry) {
+    let entry = ParameterEntry {
+        value: p.value,
+        unit: unit_of(p.parameter).to_string(),
+        std_error: p.std_error,
+    };
+    (p.parameter.to_string(), entry)
+}
+
 /// How the validation poses were chosen, as the report's settings state it (the rule itself is
 /// [`super::HoldOut`]).
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct HoldOutSettings {
     /// Fraction held out at random.
     pub validate: Option<f64>,
@@ -340,53 +349,54 @@ pub struct HoldOutSettings {
 }
 
 /// The settings block of the report.
-#[derive(Debug, Serialize)]
-pub struct Settings<'a> {
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct Settings {
     /// The calibration's configuration.
     #[serde(flatten)]
-    pub config: &'a CalibrationConfig,
+    pub config: CalibrationConfig,
     /// The hold-out.
     #[serde(flatten)]
     pub hold_out: HoldOutSettings,
 }
 
-/// The identified parameters as a JSON object: name -> { value, unit, std_error }.
-#[derive(Debug)]
-pub struct Parameters<'a>(pub &'a [IdentifiedParameter]);
+/// One identified parameter in the JSON report (its name is the key of its entry).
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParameterEntry {
+    /// The identified error, in `unit`.
+    pub value: f64,
+    /// `mm` or `rad`.
+    pub unit: String,
+    /// Its standard error from least squares (1 sigma, in `unit`), when least squares ran.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub std_error: Option<f64>,
+}
 
-impl Serialize for Parameters<'_> {
-    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        #[derive(Serialize)]
-        struct Entry {
-            value: f64,
-            unit: &'static str,
-            #[serde(skip_serializing_if = "Option::is_none")]
-            std_error: Option<f64>,
-        }
-        let mut map = serializer.serialize_map(Some(self.0.len()))?;
-        for p in self.0 {
-            let entry = Entry {
-                value: p.value,
-                unit: unit_of(p.parameter),
-                std_error: p.std_error,
-            };
-            map.serialize_entry(&p.parameter.to_string(), &entry)?;
-        }
-        map.end()
+impl ParameterEntry {
+    /// Whether the parameter is an angle (its unit is rad).
+    pub fn is_angle(&self) -> bool {
+        self.unit == "rad"
     }
 }
 
+/// The identified parameters as a JSON object, name -> entry, in the order of identification.
+pub type Parameters = indexmap::IndexMap<String, ParameterEntry>;
+
 /// The JSON report of a calibration (a rendering of [`CalibrationResult`]).
-#[derive(Debug, Serialize)]
-pub struct Report<'a> {
+///
+/// The same type is written by `calib calibrate --report` and read back by `calib report --from`
+/// and the HTML certificate ([`crate::report::html`]), so a field renamed here is renamed
+/// everywhere it is shown, or the build fails.
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct Report {
     /// `ipso`, `lm` or `ipso+lm`.
-    pub method: &'static str,
+    pub method: String,
     /// Robot file.
     pub robot: String,
     /// Data file.
     pub data: String,
     /// Identified errors: name -> { value, unit, std_error (after least squares) }.
-    pub parameters: Parameters<'a>,
+    pub parameters: Parameters,
     /// Objective (eq. 7) at the nominal model and at the result.
     pub objective: ObjectiveValues,
     /// Swarm generations run (0 without the swarm).
@@ -394,53 +404,53 @@ pub struct Report<'a> {
     /// Objective evaluations of the swarm plus residual evaluations of least squares.
     pub evaluations: u64,
     /// Why the last stage stopped.
-    pub stop: &'static str,
+    pub stop: String,
     /// The least-squares stage, when it ran.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub least_squares: Option<&'a LeastSquaresReport>,
+    pub least_squares: Option<LeastSquaresReport>,
     /// Identifiability of the parameters of the robot file on these data, at the nominal model.
-    pub identifiability: &'a IdentifiabilityReport,
+    pub identifiability: IdentifiabilityReport,
     /// Parameters dropped: undetermined ones (--auto-mask), then along the weakest direction of an
     /// ill-conditioned pose set (unless --keep-ill-conditioned).
     pub dropped: Vec<String>,
     /// Why the result is not plausible (written only with --accept-implausible); empty when it is.
-    pub implausible: &'a [String],
+    pub implausible: Vec<String>,
     /// The cross-validation estimate of the held-out error (`null` with fewer than 3 poses).
     pub cross_validation: Option<super::cross_validation::CrossValidation>,
     /// The joint maps identified with the geometry (`--model joint-maps`).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub joint_maps: Option<&'a super::maps::JointMapsReport>,
+    pub joint_maps: Option<super::maps::JointMapsReport>,
     /// The plan's verification poses against its prediction, for a measured plan.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub plan_check: Option<&'a crate::planning::PlanCheck>,
+    pub plan_check: Option<crate::planning::PlanCheck>,
     /// The accuracy on the held-out poses: `|dp|` percentiles and signed error per base axis,
     /// before and after; the largest and the flagged poses with their lines.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub held_out: Option<&'a crate::analysis::accuracy::HeldOutAccuracy>,
+    pub held_out: Option<crate::analysis::accuracy::HeldOutAccuracy>,
     /// The acceptance criteria judged on the held-out poses: each with its measured share, and
     /// `pass` when all are met.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub acceptance: Option<&'a crate::analysis::accuracy::Acceptance>,
+    pub acceptance: Option<crate::analysis::accuracy::Acceptance>,
     /// The held-out poses against their predicted 95 % band (parameters' covariance and noise).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub uncertainty: Option<&'a crate::analysis::uncertainty::Coverage>,
+    pub uncertainty: Option<crate::analysis::uncertainty::Coverage>,
     /// The identified parameters' covariance from least squares.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub covariance: Option<Covariance>,
     /// Parameters not shown to differ from zero, and strongly correlated pairs.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub significance: Option<&'a crate::analysis::uncertainty::Significance>,
+    pub significance: Option<crate::analysis::uncertainty::Significance>,
     /// The conditions of the measurement.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub conditions: Option<&'a crate::measurement::conditions::MeasurementConditions>,
+    pub conditions: Option<crate::measurement::conditions::MeasurementConditions>,
     /// What limits the accuracy statement (empty: nothing found).
-    pub caveats: &'a [crate::analysis::caveats::Caveat],
+    pub caveats: Vec<crate::analysis::caveats::Caveat>,
     /// The frames identified with the geometry and their values.
-    pub frames: &'a FramesReport,
+    pub frames: FramesReport,
     /// Poses whose residual exceeds the robust loss scale (empty for l2).
-    pub outliers: &'a [Outlier],
+    pub outliers: Vec<Outlier>,
     /// Every calibration pose: its position error before and after, and its robust weight.
-    pub poses: &'a [PoseReport],
+    pub poses: Vec<PoseReport>,
     /// Statistics on the calibration poses (the same as `before` and `after`).
     pub calibration: Stage,
     /// Statistics on the held-out validation poses, when asked for.
@@ -451,7 +461,7 @@ pub struct Report<'a> {
     /// Table 3 statistics with the identified model.
     pub after: Table3,
     /// Settings used.
-    pub settings: Settings<'a>,
+    pub settings: Settings,
     /// Comparison with the truth, when given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub truth: Option<Vec<TruthRow>>,
@@ -459,22 +469,25 @@ pub struct Report<'a> {
     pub seconds: f64,
     /// When the calibration finished, RFC 3339 (UTC, to the second): the date of the result, which
     /// a report rendered later states (not the time of rendering).
-    pub calibrated_at: &'a str,
+    #[serde(default)]
+    pub calibrated_at: String,
     /// Per-pose errors (calibration and validation poses), for plots.
-    pub per_pose: &'a PerPose,
+    pub per_pose: PerPose,
     /// The swarm's convergence: `[generation, best objective]` (empty without the swarm).
-    pub convergence: &'a [(u32, f64)],
+    pub convergence: Vec<(u32, f64)>,
     /// The software that wrote the report: its version and the git commit it was built from.
     pub software: String,
     /// The command line that ran the calibration (empty for a library call); with `settings`
     /// (seeds included) and the identified file's input hashes, what reproduces it.
-    pub command_line: &'a [String],
+    #[serde(default)]
+    pub command_line: Vec<String>,
     /// The run's input files with their SHA-256 (as the identified robot file records them).
+    #[serde(default)]
     pub inputs: Vec<crate::io::provenance::InputFile>,
 }
 
 /// The identified parameters' covariance in the JSON report.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Covariance {
     /// The parameters, in the order of the rows and columns.
     pub parameters: Vec<String>,

@@ -312,7 +312,7 @@ impl Calibrated {
     }
 
     /// The JSON report (`calib calibrate --report`).
-    pub fn report(&self) -> Report<'_> {
+    pub fn report(&self) -> Report {
         self.result
             .report(self.hold_out.clone(), self.truth.clone(), &self.provenance)
     }

@@ -373,7 +373,7 @@ fn least_squares(
     let report = LeastSquaresReport {
         iterations: l.iterations,
         evaluations: l.evaluations,
-        stop: lm_stop(l.stop),
+        stop: lm_stop(l.stop).to_string(),
         cost_initial: l.initial_cost,
         cost_final: l.cost,
         rows: l.rows,

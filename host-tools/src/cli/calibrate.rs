@@ -309,8 +309,10 @@ pub(crate) fn write_outputs(
         outputs.stage("--report", path, json.as_bytes())?;
     }
     if let Some(path) = &paths.html {
-        let report = serde_json::to_value(calibration.report())?;
-        let page = crate::report::html::render(&report, &crate::report::html::Rendering::now())?;
+        let page = crate::report::html::render(
+            &calibration.report(),
+            &crate::report::html::Rendering::now(),
+        )?;
         outputs.stage("--html", path, page.as_bytes())?;
     }
     if let Some(dir) = &paths.plot {

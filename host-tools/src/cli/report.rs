@@ -25,18 +25,13 @@ pub struct ReportOptions {
 pub fn report(options: &ReportOptions) -> anyhow::Result<()> {
     let text = crate::io::input::read_text(&options.from, crate::io::input::Input::Data)
         .with_context(|| format!("{}: cannot read the report", options.from.display()))?;
-    let report: serde_json::Value = serde_json::from_str(&text).with_context(|| {
+    let report: crate::calibration::Report = serde_json::from_str(&text).with_context(|| {
         format!(
-            "{}: not a JSON report of calib calibrate",
+            "{}: not a JSON report of calib calibrate that this version reads; write one with calib calibrate --report \
+             (a report written by another version renders with that version)",
             options.from.display()
         )
     })?;
-    if !(report["parameters"].is_object() && report["calibration"].is_object()) {
-        anyhow::bail!(
-            "{}: not a JSON report of calib calibrate (no parameters or calibration statistics); write one with calib calibrate --report",
-            options.from.display()
-        );
-    }
     let page = crate::report::html::render(&report, &crate::report::html::Rendering::now())?;
     let pdf = match &options.pdf {
         Some(_) => Some(crate::report::pdf::print(&page)?),

@@ -174,7 +174,7 @@ fn parse_configuration(field: &str) -> Result<Option<u8>, String> {
 
 /// What a plan predicted for its verification poses, from its `# plan prediction:` comment line
 /// (written by `calib plan`, read back by `calibrate` to put the measured error next to it).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PlannedVerification {
     /// Predicted mean position error of the verification poses, mm.
     pub mean_mm: f64,

@@ -10,7 +10,7 @@ use crate::measurement::dataset::Dataset;
 use serde::Serialize;
 
 /// Where the payload figure came from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum PayloadSource {
     /// The `--payload-kg` option.
@@ -20,7 +20,7 @@ pub enum PayloadSource {
 }
 
 /// The payload during the measurement.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Payload {
     /// The mass the flange carried, kg.
     pub mass_kg: f64,
@@ -29,7 +29,7 @@ pub struct Payload {
 }
 
 /// The air temperature over the measured poses.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct TemperatureRange {
     /// Lowest, deg C.
     pub min_c: f64,
@@ -40,7 +40,7 @@ pub struct TemperatureRange {
 }
 
 /// What the certificate says of the measurement.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct MeasurementConditions {
     /// The robot's serial number (the robot file's `serial`), if stated.
     pub robot_serial: Option<String>,

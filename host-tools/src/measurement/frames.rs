@@ -35,7 +35,7 @@ pub(crate) fn with_identified_probe(
 }
 
 /// Which frames a calibration identifies.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize, serde::Deserialize)]
 pub enum Frames {
     /// None: the data are in the robot's base frame and the tool is known.
     #[value(name = "none")]
@@ -453,7 +453,7 @@ mod tests {
 pub(crate) const MAX_REGISTRATION_RMS_MM: f64 = 20.0;
 
 /// What the frame identification did, for reports.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct FramesReport {
     /// The frames identified (`none`, `base` or `base+tool` in JSON).
     pub identified: Frames,
@@ -475,12 +475,17 @@ pub struct FramesReport {
     pub tool: Option<FrameEntry>,
     /// Probe parameters the data could not determine in a re-registration, held at the robot
     /// file's stored probe (`[measurement] flange_tool`) instead of being fitted.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub held_at_stored_probe: Vec<String>,
-    /// The robot file as given: its base and tool are the controller's, kept for the identified
-    /// robot file (the measured frames above belong to the measurement setup, not the controller).
+    /// The probe the robot file stores (`[measurement] flange_tool`), against which a
+    /// re-registration's fitted probe is compared. Not in the JSON report (`None` when read back).
     #[serde(skip)]
-    pub given: RobotFile,
+    pub stored_probe: Option<crate::io::robot_file::FrameEntry>,
+}
+
+/// The probe the robot file of `inputs` stores, if any.
+fn stored_probe(inputs: &Seen<'_>) -> Option<crate::io::robot_file::FrameEntry> {
+    (inputs.robot.file.measurement.as_ref()).and_then(|m| m.flange_tool.clone())
 }
 
 /// The model of `file`, whose frames were `how` (registered or fitted) from the data of
@@ -560,7 +565,7 @@ pub fn prepare(
                 base: None,
                 tool: None,
                 held_at_stored_probe: Vec::new(),
-                given: inputs.robot.file.clone(),
+                stored_probe: stored_probe(inputs),
             },
             mask,
         ));
@@ -591,7 +596,6 @@ pub fn prepare(
             .0
             .position_mm
             .rms;
-    let given = inputs.robot.file.clone();
     Ok((
         robot,
         FramesReport {
@@ -604,7 +608,7 @@ pub fn prepare(
             base: None,
             tool: None,
             held_at_stored_probe: Vec::new(),
-            given,
+            stored_probe: stored_probe(inputs),
         },
         mask,
     ))

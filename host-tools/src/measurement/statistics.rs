@@ -9,7 +9,7 @@ use nalgebra::Dyn;
 use serde::Serialize;
 
 /// Mean, sample standard deviation and maximum of one quantity.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Stat {
     /// Mean.
     pub mean: f64,
@@ -37,7 +37,7 @@ impl Stat {
 }
 
 /// Per-axis orientation statistics, degrees.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct AxisStats {
     /// `|dr_x|`, deg.
     pub x: Stat,
@@ -48,7 +48,7 @@ pub struct AxisStats {
 }
 
 /// Table 3 statistics of one model on one data set.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Table3 {
     /// Number of poses.
     pub poses: u32,

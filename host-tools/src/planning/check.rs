@@ -4,7 +4,7 @@
 use super::*;
 
 /// What `calibrate` says of a plan's verification poses once measured.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct PlanCheck {
     /// What the plan predicted.
     pub predicted: PlannedVerification,

@@ -63,12 +63,7 @@ impl CalibrationResult {
     /// the frames choice that fits (a moved probe is fitted with `--frames base+tool`; one that
     /// stayed is kept with `--frames base`).
     fn probe_text(&self) -> String {
-        let stored = self
-            .frames
-            .given
-            .measurement
-            .as_ref()
-            .and_then(|m| m.flange_tool.as_ref());
+        let stored = self.frames.stored_probe.as_ref();
         let (Some(stored), Some(fitted)) = (stored, self.frames.tool.as_ref()) else {
             return String::new();
         };
