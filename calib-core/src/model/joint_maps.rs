@@ -45,6 +45,48 @@ pub const MAX_COEFFICIENT: f64 = 0.01;
 /// 24 iterations reach `0.5^25 < 3e-8` rad in the worst accepted case).
 pub const MAX_FIXED_POINT_ITERATIONS: u32 = 24;
 
+/// `(sin(h q), cos(h q))` for `h = 1, 2, ...` without end, by the angle-addition recurrence from
+/// one `sin_cos` of `q` (rad): the one evaluation of a map's harmonics, on the controller
+/// ([`JointMaps::error`]) and in the host's identification (its basis), so that both see the same
+/// numbers to the last bit.
+pub fn harmonics<T: Real>(q: T) -> Harmonics<T> {
+    let (s1, c1) = q.sin_cos_fast();
+    Harmonics {
+        first: (s1, c1),
+        next: (s1, c1),
+    }
+}
+
+/// The iterator of [`harmonics`].
+#[derive(Clone, Copy, Debug)]
+pub struct Harmonics<T> {
+    first: (T, T),
+    next: (T, T),
+}
+
+impl<T: Real> Iterator for Harmonics<T> {
+    type Item = (T, T);
+
+    #[inline]
+    fn next(&mut self) -> Option<(T, T)> {
+        let (s1, c1) = self.first;
+        let (s, c) = self.next;
+        self.next = (s * c1 + c * s1, c * c1 - s * s1);
+        Some((s, c))
+    }
+}
+
+/// One map's value at reading `q` (rad): `sum_h sin[h-1] sin(h q) + cos[h-1] cos(h q)` over the
+/// shorter of the two coefficient slices (rad), summed from `h = 1` up, each term `a s + b c`.
+pub fn series<T: Real>(sin: &[T], cos: &[T], q: T) -> T {
+    if sin.is_empty() || cos.is_empty() {
+        return T::zero();
+    }
+    (sin.iter().zip(cos).zip(harmonics(q))).fold(T::zero(), |error, ((a, b), (s, c))| {
+        error + (*a * s + *b * c)
+    })
+}
+
 /// The angle-error maps of `N` joints with room for `C` harmonics each.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct JointMaps<T: Real, N: JointCount, const C: usize> {
@@ -236,11 +278,16 @@ impl<T: Real, N: JointCount, const C: usize> JointMaps<T, N, C> {
     }
 
     /// The angle error of joint `joint` (0-based) at reading `q`, rad (the value alone: the
-    /// compensation's hot path).
+    /// compensation's hot path). The [`series`] of the joint's used coefficients.
     pub fn error(&self, joint: usize, q: T) -> T {
-        self.fold_harmonics(joint, q, T::zero(), |error, _, a, b, s, c| {
-            error + (a * s + b * c)
-        })
+        let used = self.harmonics().min(C);
+        let (Some(a), Some(b)) = (
+            (self.sin.as_slice().get(joint)).and_then(|a| a.get(..used)),
+            (self.cos.as_slice().get(joint)).and_then(|b| b.get(..used)),
+        ) else {
+            return T::zero();
+        };
+        series(a, b, q)
     }
 
     /// Folds `step(acc, h, a_h, b_h, sin(h q), cos(h q))` over the used harmonics of joint
@@ -262,13 +309,10 @@ impl<T: Real, N: JointCount, const C: usize> JointMaps<T, N, C> {
         if used == 0 {
             return init;
         }
-        let (s1, c1) = q.sin_cos_fast();
-        let (mut s, mut c) = (s1, c1);
         let (mut acc, mut order) = (init, T::zero());
-        for (a, b) in a.iter().zip(b).take(used) {
+        for ((a, b), (s, c)) in a.iter().zip(b).take(used).zip(harmonics(q)) {
             order += T::one();
             acc = step(acc, order, *a, *b, s, c);
-            (s, c) = (s * c1 + c * s1, c * c1 - s * s1);
         }
         acc
     }

@@ -26,12 +26,16 @@ pub(crate) const NEGLIGIBLE_AMPLITUDE_RAD: f64 = 1e-7;
 
 /// The basis of a map at reading `q` (rad), in the order of [`JointMaps::coefficients`]:
 /// `[sin(q), ..., sin(H q), cos(q), ..., cos(H q)]`.
+/// The sines and cosines are the core's ([`calib_core::model::joint_maps::harmonics`]): the
+/// controller evaluates the maps identified from this basis with the same numbers.
 pub(crate) fn harmonic_basis(harmonics: usize, q: f64) -> DVector<f64> {
     let mut basis = DVector::zeros(2 * harmonics);
-    for k in 1..=harmonics {
-        let (s, c) = (k as f64 * q).sin_cos();
-        basis[k - 1] = s;
-        basis[harmonics + k - 1] = c;
+    for (k, (s, c)) in calib_core::model::joint_maps::harmonics(q)
+        .take(harmonics)
+        .enumerate()
+    {
+        basis[k] = s;
+        basis[harmonics + k] = c;
     }
     basis
 }
@@ -59,14 +63,12 @@ impl JointMaps {
         self.coefficients.len()
     }
 
-    /// The angle error of joint `joint` (0-based) at reading `q`, rad.
+    /// The angle error of joint `joint` (0-based) at reading `q`, rad: the core's series
+    /// ([`calib_core::model::joint_maps::series`]), as the controller evaluates it.
     pub fn error(&self, joint: usize, q: f64) -> f64 {
         self.coefficients.get(joint).map_or(0.0, |c| {
-            harmonic_basis(self.harmonics, q)
-                .iter()
-                .zip(c)
-                .map(|(b, c)| b * c)
-                .sum()
+            let (sin, cos) = c.split_at(self.harmonics.min(c.len()));
+            calib_core::model::joint_maps::series(sin, cos, q)
         })
     }
 
@@ -107,5 +109,44 @@ impl JointMaps {
             }
         }
         CoreMaps::new(h, sin, cos)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{JointMaps, harmonic_basis};
+
+    /// Issue 53 (item 6): the host evaluates a map with the controller's arithmetic, so the value
+    /// the identification fitted is the value the core computes, to the last bit; and the basis
+    /// the identification fits with gives that value (summed in the same order) and equals
+    /// `sin(h q)`, `cos(h q)` to within the recurrence's rounding (a closed form).
+    #[test]
+    fn the_host_evaluates_maps_as_the_controller_does() {
+        let h = 30;
+        let maps = JointMaps {
+            harmonics: h,
+            coefficients: (0..6)
+                .map(|j| {
+                    (0..2 * h)
+                        .map(|k| 1e-5 * ((j * 7 + k * 3) % 11) as f64 / (1.0 + k as f64))
+                        .collect()
+                })
+                .collect(),
+        };
+        let core = maps.to_core::<f64, 30>().unwrap();
+        for j in 0..6 {
+            for q in [-3.1, -1.234, 0.0, 0.5, 2.9, 6.2] {
+                assert_eq!(maps.error(j, q).to_bits(), core.error(j, q).to_bits());
+                let basis = harmonic_basis(h, q);
+                let c = &maps.coefficients[j];
+                let summed =
+                    (0..h).fold(0.0, |e, k| e + (c[k] * basis[k] + c[h + k] * basis[h + k]));
+                assert_eq!(summed.to_bits(), maps.error(j, q).to_bits());
+                for k in 0..h {
+                    let (s, c) = ((k + 1) as f64 * q).sin_cos();
+                    assert!((basis[k] - s).abs() < 1e-13 && (basis[h + k] - c).abs() < 1e-13);
+                }
+            }
+        }
     }
 }
