@@ -263,9 +263,26 @@ class Plan:
     def __len__(self) -> int: ...
 
 def plan(
-    robot: Robot, candidates: Optional[_Path] = None, profile: Optional[_Path] = None, **options: Union[str, float, int, bool]
+    robot: Robot,
+    *,
+    poses: int,
+    measure: str,
+    candidates: Optional[_Path] = None,
+    profile: Optional[_Path] = None,
+    generate: Optional[int] = None,
+    box_mm: Optional[Sequence[float]] = None,
+    below_base: bool = False,
+    core: Optional[int] = None,
+    verify: Optional[int] = None,
+    min_distance_deg: Optional[float] = None,
+    model: Optional[str] = None,
+    noise_mm: Optional[float] = None,
+    noise_deg: Optional[float] = None,
+    noise_from: Optional[_Path] = None,
+    k: Optional[float] = None,
+    seed: Optional[int] = None,
 ) -> Plan:
-    """``calib plan`` (its options as keyword arguments, the same defaults); nothing is written."""
+    """``calib plan`` (its options as keyword arguments, ``None`` the same defaults); nothing is written."""
 
 def compensate_csv(robot: Robot, params: Robot, targets: _Path, **options: Union[str, float, int, bool, Sequence[str]]) -> str:
     """The table ``calib compensate`` writes, as CSV text (``calib.compensate`` returns its columns)."""

@@ -105,6 +105,12 @@ fn typed_error(error: &host_tools::Error, message: &str) -> Option<PyErr> {
     .unwrap_or_else(Some)
 }
 
+/// `OptionConflictError` for keyword arguments that contradict each other, named by the
+/// command line's flags as the library names them.
+fn conflict(options: &[&str], message: &str) -> PyErr {
+    py_error(host_tools::Error::conflict(options, message).into())
+}
+
 /// The Python exception of a host error: its message and causes as `calib` prints them.
 fn py_error(error: anyhow::Error) -> PyErr {
     let mut message = error.to_string();
@@ -1370,35 +1376,98 @@ impl Plan {
 
 /// Plans the poses to measure for `robot` (`calib plan`): from the candidate configurations of
 /// the file `candidates` (through `profile`), or with `generate=N` candidates within the joint
-/// limits; the other options of `calib plan` as keyword arguments (`poses=30`, `verify=10`,
-/// `measure="position"`, `noise_mm=0.05`, `seed=0`, ...). Nothing is written.
+/// limits; every other keyword argument is `calib plan`'s option of the same name (underscores
+/// for dashes), `None` its default: the library's [`PlanRequest`], no command-line words.
+/// Nothing is written.
 #[pyfunction]
-#[pyo3(signature = (robot, candidates = None, profile = None, **options))]
+#[pyo3(signature = (
+    robot, *, poses, measure, candidates = None, profile = None, generate = None, box_mm = None,
+    below_base = false, core = None, verify = None, min_distance_deg = None, model = None,
+    noise_mm = None, noise_deg = None, noise_from = None, k = None, seed = None
+))]
+#[allow(clippy::too_many_arguments)]
 fn plan(
     py: Python<'_>,
     robot: &Robot,
+    poses: usize,
+    measure: &str,
     candidates: Option<PathBuf>,
     profile: Option<PathBuf>,
-    options: Option<&Bound<'_, PyDict>>,
+    generate: Option<usize>,
+    box_mm: Option<[f64; 6]>,
+    below_base: bool,
+    core: Option<usize>,
+    verify: Option<usize>,
+    min_distance_deg: Option<f64>,
+    model: Option<&str>,
+    noise_mm: Option<f64>,
+    noise_deg: Option<f64>,
+    noise_from: Option<PathBuf>,
+    k: Option<f64>,
+    seed: Option<u64>,
 ) -> PyResult<Plan> {
-    let mut words: Vec<String> = ["plan", "--robot", &robot.path(), "--out", "-"]
-        .map(String::from)
-        .to_vec();
-    if let Some(c) = &candidates {
-        words.extend(["--candidates".into(), c.display().to_string()]);
+    use host_tools::planning::{Candidates, Noise, PlanRequest};
+    let candidates = match (candidates, generate) {
+        (Some(path), None) => Candidates::File { path, profile },
+        (None, Some(count)) if profile.is_none() => Candidates::Generate {
+            count,
+            box_mm,
+            below_base,
+        },
+        (None, Some(_)) => {
+            return Err(conflict(
+                &["--profile", "--generate"],
+                "profile reads a candidates file, and generate reads none: drop profile",
+            ));
+        }
+        (Some(_), Some(_)) => {
+            return Err(conflict(
+                &["--candidates", "--generate"],
+                "give the candidates one way: candidates=FILE or generate=N",
+            ));
+        }
+        (None, None) => {
+            return Err(InputError::new_err(
+                "give the candidates: candidates=FILE or generate=N",
+            ));
+        }
+    };
+    if matches!(candidates, Candidates::File { .. }) && (box_mm.is_some() || below_base) {
+        return Err(conflict(
+            &["--box-mm", "--below-base", "--candidates"],
+            "box_mm and below_base select among generated candidates (generate=N); candidates are taken as the file gives them",
+        ));
     }
-    if let Some(p) = &profile {
-        words.extend(["--profile".into(), p.display().to_string()]);
-    }
-    words.extend(option_words(
-        options,
-        &["robot", "out", "report", "urscript", "joint_targets"],
-    )?);
-    let parsed = parse_words::<host_tools::cli::plan::PlanOptions>(&words)?;
-    let file = robot.file.clone();
+    let noise = match (noise_mm, noise_from) {
+        (Some(mm), None) => Noise::Given { mm, deg: noise_deg },
+        (None, Some(path)) if noise_deg.is_none() => Noise::FromReport(path),
+        (None, None) => {
+            return Err(InputError::new_err(
+                "give the noise level: noise_mm or noise_from",
+            ));
+        }
+        _ => {
+            return Err(conflict(
+                &["--noise-mm", "--noise-deg", "--noise-from"],
+                "give the noise one way: noise_mm (and noise_deg), or noise_from",
+            ));
+        }
+    };
+    let measure = choice("measure", Some(measure))?.unwrap_or(host_tools::planning::Measure::Position);
+    let defaults = PlanRequest::new(candidates, poses, measure, noise);
+    let request = PlanRequest {
+        core,
+        verify: verify.unwrap_or(defaults.verify),
+        min_distance_deg: min_distance_deg.unwrap_or(defaults.min_distance_deg),
+        model: choice("model", model)?.unwrap_or(defaults.model),
+        k,
+        seed: seed.unwrap_or(defaults.seed),
+        ..defaults
+    };
+    let (file, path) = (robot.file.clone(), PathBuf::from(robot.path()));
     let planned = py
-        .detach(|| host_tools::cli::plan::planned(&parsed, &file))
-        .map_err(py_error)?;
+        .detach(|| request.plan(&file, &path))
+        .map_err(|e| py_error(e.into()))?;
     Ok(Plan { plan: planned })
 }
 

@@ -315,8 +315,17 @@ def test_plan_equals_calib_plan(tmp_path):
     assert p.report() == cli
     assert len(p) == len(cli["poses"]) and p.roles == [q["role"] for q in cli["poses"]]
     assert np.abs(p.joints_rad - np.array([q["q"] for q in cli["poses"]])).max() == 0.0
-    with pytest.raises(calib.InputError, match="required"):
+    with pytest.raises(TypeError, match="poses"):
         calib.plan(robot)
+    with pytest.raises(TypeError, match="noise"):
+        calib.plan(robot, generate=300, poses=20, measure="pose", noise=0.05)
+    with pytest.raises(calib.InputError, match="give the candidates"):
+        calib.plan(robot, poses=20, measure="pose", noise_mm=0.05)
+    with pytest.raises(calib.OptionConflictError) as refused:
+        calib.plan(robot, generate=300, poses=20, measure="position", noise_mm=0.05, noise_deg=0.01)
+    assert refused.value.options == ["--noise-deg", "--measure"]
+    with pytest.raises(calib.InputError, match="measure: invalid value 'laser': choose 'position', 'pose'"):
+        calib.plan(robot, generate=300, poses=20, measure="laser", noise_mm=0.05)
 
 
 def test_compensate_equals_calib_compensate(tmp_path):

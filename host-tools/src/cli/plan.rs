@@ -3,11 +3,8 @@
 //! ([`crate::planning`]).
 
 use crate::io::outputs::Outputs;
-use crate::io::profile::DataProfile;
 use crate::io::robot_file::RobotFile;
-use crate::io::tracker_data::TrackerData;
-use crate::planning::{self, Measure, Plan, PlanModel, PlanSettings};
-use anyhow::{Context, bail};
+use crate::planning::{self, Candidates, Measure, Noise, Plan, PlanModel, PlanRequest};
 use std::path::PathBuf;
 
 /// Options of `calib plan`.
@@ -110,142 +107,79 @@ pub struct PlanOptions {
 }
 
 impl PlanOptions {
-    /// The orientation weight: `--k`, else the default of eq. (7).
-    fn k(&self) -> f64 {
-        self.k.unwrap_or(calib_core::identify::objective::DEFAULT_K)
-    }
-
-    /// The noise levels (mm per position coordinate, deg per orientation axis): the flags, or
-    /// the residuals of the report of --noise-from.
-    fn noise(&self) -> anyhow::Result<(f64, f64)> {
-        if self.measure == Measure::Position && self.noise_deg.is_some() {
-            bail!(
-                "--noise-deg is the noise of a measured orientation, and --measure position measures none: drop it, or --measure pose"
-            );
-        }
-        if self.measure == Measure::Position && self.k.is_some() {
-            bail!(
-                "--k weighs measured orientations against positions, and --measure position measures none: drop it, or --measure pose"
-            );
-        }
-        let weighted = |mm: f64| (mm / self.k().sqrt()).to_degrees();
-        match (&self.noise_mm, &self.noise_from) {
-            (Some(mm), _) => Ok((*mm, self.noise_deg.unwrap_or_else(|| weighted(*mm)))),
-            (None, Some(path)) => noise_of_report(path),
-            (None, None) => bail!("give the noise level: --noise-mm or --noise-from"),
-        }
-    }
-}
-
-/// The noise levels of a calibration's JSON report: RMS residual per position coordinate (mm)
-/// and per orientation axis (deg) of its calibration poses, times sqrt(rows / (rows -
-/// parameters)).
-fn noise_of_report(path: &std::path::Path) -> anyhow::Result<(f64, f64)> {
-    let text = crate::io::input::read_text(path, crate::io::input::Input::Data)
-        .with_context(|| format!("{}: cannot read the report", path.display()))?;
-    let report: serde_json::Value = serde_json::from_str(&text)
-        .with_context(|| format!("{}: not a JSON report of calibrate", path.display()))?;
-    let number =
-        |pointer: &str| {
-            report.pointer(pointer).and_then(serde_json::Value::as_f64).ok_or_else(|| {
-            anyhow::anyhow!(
-                "{}: no {pointer}; give the JSON report of calibrate (--report) or --noise-mm",
-                path.display()
-            )
-        })
-        };
-    let rows = number("/least_squares/rows")?;
-    let parameters = report
-        .pointer("/parameters")
-        .and_then(serde_json::Value::as_object)
-        .map_or(0, serde_json::Map::len) as f64;
-    if rows.partial_cmp(&parameters) != Some(std::cmp::Ordering::Greater) {
-        bail!(
-            "{}: the calibration has no residual degrees of freedom",
-            path.display()
-        );
-    }
-    let dof = (rows / (rows - parameters)).sqrt();
-    let position = number("/calibration/after/position_mm/rms")? / 3f64.sqrt() * dof;
-    let orientation = match ["x", "y", "z"]
-        .map(|a| number(&format!("/calibration/after/orientation_deg/{a}/rms")))
-    {
-        [Ok(x), Ok(y), Ok(z)] => ((x * x + y * y + z * z) / 3.0).sqrt() * dof,
-        // Position-only calibration: the weighted equivalent.
-        _ => (position / calib_core::identify::objective::DEFAULT_K.sqrt()).to_degrees(),
-    };
-    Ok((position, orientation))
-}
-
-/// The candidates of `calib plan`: read from `--candidates` or generated (`--generate`, within
-/// `--box-mm`), at most [`MAX_CANDIDATES`].
-fn candidates(options: &PlanOptions, file: &RobotFile) -> anyhow::Result<Vec<(String, Vec<f64>)>> {
-    let candidates: Vec<(String, Vec<f64>)> = match (&options.candidates, options.generate) {
-        (Some(path), _) => {
-            if options.box_mm.is_some() {
-                bail!(
-                    "--box-mm selects among generated candidates (--generate); with --candidates, give only the configurations to choose from"
-                );
-            }
-            if options.below_base {
-                bail!(
-                    "--below-base lets generated candidates (--generate) put the tool below the base; --candidates are taken as the file gives them: drop --below-base"
-                );
-            }
-            let profile = DataProfile::load(options.profile.as_deref())?;
-            let records = TrackerData::read_joints(path, &profile)?.records;
-            let model = file.to_model(&options.robot)?;
-            for r in &records {
-                if let Some(outside) = model.outside_limits(&r.q) {
-                    bail!(
-                        "{}:{}: candidate {}: {outside}; remove it or correct the limits",
-                        path.display(),
-                        r.line,
-                        r.id
-                    );
+    /// The library's request for these options. Errors: options that name what the request
+    /// cannot hold together (`--box-mm` or `--below-base` with `--candidates`, `--profile` with
+    /// `--generate`, a box of other than six values, no candidates or no noise).
+    pub fn request(&self) -> crate::Result<PlanRequest> {
+        let candidates = match (&self.candidates, self.generate) {
+            (Some(path), _) => {
+                if self.box_mm.is_some() {
+                    return Err(crate::Error::conflict(
+                        &["--box-mm", "--candidates"],
+                        "--box-mm selects among generated candidates (--generate); with --candidates, give only the configurations to choose from",
+                    ));
+                }
+                if self.below_base {
+                    return Err(crate::Error::conflict(
+                        &["--below-base", "--candidates"],
+                        "--below-base lets generated candidates (--generate) put the tool below the base; --candidates are taken as the file gives them: drop --below-base",
+                    ));
+                }
+                Candidates::File {
+                    path: path.clone(),
+                    profile: self.profile.clone(),
                 }
             }
-            records.into_iter().map(|r| (r.id, r.q)).collect()
-        }
-        (None, Some(count)) => {
-            if options.profile.is_some() {
-                bail!(
-                    "--profile reads a --candidates file, and --generate reads none: drop --profile"
-                );
-            }
-            let box_mm = match options.box_mm.as_deref() {
-                None if options.below_base => None,
-                // The half space above the mounting plane.
-                None => Some([
-                    f64::NEG_INFINITY,
-                    f64::INFINITY,
-                    f64::NEG_INFINITY,
-                    f64::INFINITY,
-                    0.0,
-                    f64::INFINITY,
-                ]),
-                Some(&[a, b, c, d, e, f]) => {
-                    if !(a < b && c < d && e < f) {
-                        bail!("--box-mm: each minimum must be below its maximum");
+            (None, Some(count)) => {
+                if self.profile.is_some() {
+                    return Err(crate::Error::conflict(
+                        &["--profile", "--generate"],
+                        "--profile reads a --candidates file, and --generate reads none: drop --profile",
+                    ));
+                }
+                let box_mm = match self.box_mm.as_deref() {
+                    None => None,
+                    Some(&[a, b, c, d, e, f]) => Some([a, b, c, d, e, f]),
+                    Some(_) => {
+                        return Err(crate::refused!(
+                            "--box-mm takes six values: XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX"
+                        ));
                     }
-                    Some([a, b, c, d, e, f])
+                };
+                Candidates::Generate {
+                    count,
+                    box_mm,
+                    below_base: self.below_base,
                 }
-                Some(_) => bail!("--box-mm takes six values: XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX"),
-            };
-            if count > MAX_CANDIDATES {
-                bail!("--generate {count}: at most {MAX_CANDIDATES} candidates");
             }
-            planning::generate(file, &options.robot, count, box_mm)?
-        }
-        (None, None) => bail!("give the candidates: --candidates FILE or --generate N"),
-    };
-    if candidates.len() > MAX_CANDIDATES {
-        bail!(
-            "{} candidates: at most {MAX_CANDIDATES} (thin them out)",
-            candidates.len()
-        );
+            (None, None) => {
+                return Err(crate::refused!(
+                    "give the candidates: --candidates FILE or --generate N"
+                ));
+            }
+        };
+        let noise = match (self.noise_mm, &self.noise_from) {
+            (Some(mm), _) => Noise::Given {
+                mm,
+                deg: self.noise_deg,
+            },
+            (None, Some(path)) => Noise::FromReport(path.clone()),
+            (None, None) => {
+                return Err(crate::refused!(
+                    "give the noise level: --noise-mm or --noise-from"
+                ));
+            }
+        };
+        Ok(PlanRequest {
+            core: self.core,
+            verify: self.verify,
+            min_distance_deg: self.min_distance_deg,
+            model: self.model,
+            k: self.k,
+            seed: self.seed,
+            ..PlanRequest::new(candidates, self.poses, self.measure, noise)
+        })
     }
-    Ok(candidates)
 }
 
 /// `calib plan`: plans, writes the plan (and the report) together, returns the plan. Warns on
@@ -290,40 +224,7 @@ fn below_base(
 /// The plan `calib plan` makes for the robot `file` (read from `options.robot`), written nowhere
 /// (`options.out` is not used).
 pub fn planned(options: &PlanOptions, file: &RobotFile) -> anyhow::Result<Plan> {
-    let candidates = candidates(options, file)?;
-    let rows = options.measure.rows();
-    let (noise_mm, noise_deg) = options.noise()?;
-    let settings = PlanSettings {
-        poses: options.poses,
-        // The default fits in the poses asked for; a --core given is taken as given (more than
-        // --poses is refused, not cut).
-        core: options
-            .core
-            .unwrap_or(planning::DEFAULT_CORE.min(options.poses)),
-        verify: options.verify,
-        min_distance_deg: options.min_distance_deg,
-        measure: options.measure,
-        model: options.model,
-        noise_mm,
-        noise_deg,
-        k: options.k(),
-        seed: options.seed,
-    };
-    let mut plan = planning::plan(file, &options.robot, &candidates, &settings)?;
-    // Too few core poses to determine the parameters alone: make the core large enough.
-    let needed = plan.parameters.len().div_ceil(rows);
-    if options.core.is_none() && settings.core < needed && needed <= options.poses {
-        plan = planning::plan(
-            file,
-            &options.robot,
-            &candidates,
-            &PlanSettings {
-                core: needed,
-                ..settings
-            },
-        )?;
-    }
-    Ok(plan)
+    Ok(options.request()?.plan(file, &options.robot)?)
 }
 
 /// Writes `plan` of the robot `file` where `options` ask, all files together.
@@ -369,6 +270,3 @@ fn write(options: &PlanOptions, file: &RobotFile, plan: &Plan) -> anyhow::Result
     outputs.commit()?;
     Ok(())
 }
-
-/// Most candidates `calib plan` takes (the greedy selection's time grows with their number).
-pub(crate) const MAX_CANDIDATES: usize = 100_000;

@@ -28,6 +28,7 @@ mod design;
 mod information;
 mod prediction;
 pub mod program;
+mod request;
 mod tour;
 
 use self::{candidates::*, design::*, information::*, prediction::*, tour::*};
@@ -35,6 +36,7 @@ pub use candidates::generate;
 pub use check::PlanCheck;
 pub(crate) use check::{check_plan, verdict};
 pub use prediction::{Prediction, leverages};
+pub use request::{Candidates, MAX_CANDIDATES, Noise, PlanRequest};
 
 use crate::analysis::identifiability::analyse;
 use crate::error::Context;
