@@ -284,7 +284,38 @@ def plan(
 ) -> Plan:
     """``calib plan`` (its options as keyword arguments, ``None`` the same defaults); nothing is written."""
 
-def compensate_csv(robot: Robot, params: Robot, targets: _Path, **options: Union[str, float, int, bool, Sequence[str]]) -> str:
+def compensate_csv(
+    robot: Robot,
+    params: Robot,
+    targets: _Path,
+    *,
+    targets_frame: Optional[str] = None,
+    joint_targets: bool = False,
+    max_correction_mm: Optional[float] = None,
+    max_correction_deg: Optional[float] = None,
+    max_joint_correction_deg: Optional[float] = None,
+    near_deg: Optional[Sequence[float]] = None,
+    branch: Optional[int] = None,
+    allow_extrapolation: bool = False,
+    max_arm_angle_deg: Optional[float] = None,
+    near_within_deg: Optional[float] = None,
+) -> str:
     """The table ``calib compensate`` writes, as CSV text (``calib.compensate`` returns its columns)."""
-def compensate_csv_text(robot: Robot, params: Robot, text: str, name: str, **options: Union[str, float, int, bool, Sequence[str]]) -> str:
+def compensate_csv_text(
+    robot: Robot,
+    params: Robot,
+    text: str,
+    name: str,
+    *,
+    targets_frame: Optional[str] = None,
+    joint_targets: bool = False,
+    max_correction_mm: Optional[float] = None,
+    max_correction_deg: Optional[float] = None,
+    max_joint_correction_deg: Optional[float] = None,
+    near_deg: Optional[Sequence[float]] = None,
+    branch: Optional[int] = None,
+    allow_extrapolation: bool = False,
+    max_arm_angle_deg: Optional[float] = None,
+    near_within_deg: Optional[float] = None,
+) -> str:
     """``compensate_csv`` of targets given as the text of a targets file; ``name`` names them in messages."""

@@ -8,12 +8,13 @@ use host_tools::calibration::{Calibrated as Calibration, CalibrationConfig};
 use host_tools::io::robot_file::RobotFile;
 use host_tools::io::tracker_data::{Record, TrackerData};
 use host_tools::measurement::dataset::Dataset as HostDataset;
+use host_tools::kinematics::targets::{CompensationRequest, ConfigurationChoice, TargetsFrame};
 use numpy::PyUntypedArrayMethods;
 use numpy::ndarray::{Array2, Array3};
 use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyTuple};
+use pyo3::types::PyDict;
 use std::path::PathBuf;
 
 pyo3::create_exception!(
@@ -880,92 +881,6 @@ fn orientations(
     }
 }
 
-/// A command's options (`calib calibrate`'s, `calib export`'s, ...) parsed from the command-line
-/// words `words` (the command's name first), by the command's own definition: its defaults,
-/// checks and messages; a refusal is an `InputError` with clap's message.
-fn parse_words<A: clap::Args>(words: &[String]) -> PyResult<A> {
-    /// The options as a whole command line.
-    #[derive(clap::Parser)]
-    struct Words<A: clap::Args> {
-        #[command(flatten)]
-        inner: A,
-    }
-    <Words<A> as clap::Parser>::try_parse_from(words)
-        .map(|w| w.inner)
-        .map_err(|e| {
-            unknown_keyword(&e).unwrap_or_else(|| {
-                InputError::new_err(e.render().to_string().trim_end().to_string())
-            })
-        })
-}
-
-/// A keyword argument no option of the command has, as Python says it: `TypeError: unexpected
-/// keyword argument 'validat'` (with clap's suggestion: `; did you mean 'validate'?`); `None`
-/// for any other parse error.
-fn unknown_keyword(error: &clap::Error) -> Option<PyErr> {
-    use clap::error::{ContextKind, ContextValue, ErrorKind};
-    if error.kind() != ErrorKind::UnknownArgument {
-        return None;
-    }
-    let keyword = |value: &ContextValue| match value {
-        ContextValue::String(s) => Some(s.trim_start_matches('-').replace('-', "_")),
-        ContextValue::Strings(v) => v
-            .first()
-            .map(|s| s.trim_start_matches('-').replace('-', "_")),
-        _ => None,
-    };
-    let name = keyword(error.get(ContextKind::InvalidArg)?)?;
-    // The name alone: a word like "--validat=0.3" carries its value.
-    let name = name.split('=').next().unwrap_or_default().to_string();
-    let suggestion = error
-        .get(ContextKind::SuggestedArg)
-        .and_then(keyword)
-        .map(|s| format!("; did you mean '{s}'?"))
-        .unwrap_or_default();
-    Some(pyo3::exceptions::PyTypeError::new_err(format!(
-        "unexpected keyword argument '{name}'{suggestion}"
-    )))
-}
-
-/// Keyword arguments as command-line words: `name=value` is `--name value` (underscores as
-/// dashes), `True` a flag, `False` and `None` nothing, a list or tuple the option repeated.
-fn option_words(options: Option<&Bound<'_, PyDict>>, taken: &[&str]) -> PyResult<Vec<String>> {
-    let mut words = Vec::new();
-    let Some(options) = options else {
-        return Ok(words);
-    };
-    for (key, value) in options.iter() {
-        let key: String = key.extract()?;
-        if taken.contains(&key.as_str()) {
-            return input(format!(
-                "{key}= is not an option here: the robot and the data are the arguments, and what \
-                 the command writes is returned (.robot.to_file(), .report(), .html(), bytes)"
-            ));
-        }
-        let flag = format!("--{}", key.replace('_', "-"));
-        let values: Vec<Bound<'_, PyAny>> =
-            if value.is_instance_of::<PyList>() || value.is_instance_of::<PyTuple>() {
-                value.try_iter()?.collect::<PyResult<_>>()?
-            } else {
-                vec![value]
-            };
-        for v in values {
-            if v.is_none() {
-                continue;
-            }
-            if let Ok(b) = v.cast::<pyo3::types::PyBool>() {
-                if b.is_true() {
-                    words.push(flag.clone());
-                }
-                continue;
-            }
-            words.push(flag.clone());
-            words.push(v.str()?.to_string());
-        }
-    }
-    Ok(words)
-}
-
 /// A calibration's result.
 #[pyclass(module = "calib", name = "CalibrationResult", frozen)]
 struct CalibrationResult {
@@ -1473,70 +1388,141 @@ fn plan(
 
 /// The table `calib compensate` writes (CSV text; the package's `compensate` returns its
 /// columns): the joints that put the identified robot `params` on each target of the file
-/// `targets`, for a controller planning with the nominal `robot`; its options as keyword
-/// arguments (`targets_frame="tracker"`, `joint_targets=True`, `max_correction_mm=15`, ...).
-/// Either robot may be read from a file or built in memory (`CalibrationResult.robot`). Nothing
-/// is written.
+/// `targets`, for a controller planning with the nominal `robot`; every other keyword argument is
+/// `calib compensate`'s option of the same name (underscores for dashes), `None` its default: the
+/// library's [`CompensationRequest`], no command-line words. Either robot may be read from a file
+/// or built in memory (`CalibrationResult.robot`). Nothing is written.
 #[pyfunction]
-#[pyo3(signature = (robot, params, targets, **options))]
+#[pyo3(signature = (
+    robot, params, targets, *, targets_frame = None, joint_targets = false,
+    max_correction_mm = None, max_correction_deg = None, max_joint_correction_deg = None,
+    near_deg = None, branch = None, allow_extrapolation = false, max_arm_angle_deg = None,
+    near_within_deg = None
+))]
+#[allow(clippy::too_many_arguments)]
 fn compensate_csv(
     py: Python<'_>,
     robot: &Robot,
     params: &Robot,
     targets: PathBuf,
-    options: Option<&Bound<'_, PyDict>>,
+    targets_frame: Option<&str>,
+    joint_targets: bool,
+    max_correction_mm: Option<f64>,
+    max_correction_deg: Option<f64>,
+    max_joint_correction_deg: Option<f64>,
+    near_deg: Option<Vec<f64>>,
+    branch: Option<usize>,
+    allow_extrapolation: bool,
+    max_arm_angle_deg: Option<f64>,
+    near_within_deg: Option<f64>,
 ) -> PyResult<String> {
-    compensated_csv(py, (robot, params), (targets, None), options)
+    let request = CompensationRequest {
+        frame: choice("targets_frame", targets_frame)?.unwrap_or(TargetsFrame::Base),
+        joint_targets,
+        configuration: configuration_choice(near_deg, branch)?,
+        allow_extrapolation,
+        max_arm_angle_deg,
+        near_within_deg,
+        ..CompensationRequest::new(targets)
+    };
+    let limits = (max_correction_mm, max_correction_deg, max_joint_correction_deg);
+    compensated_csv(py, (robot, params), with_limits(request, limits))
 }
 
 /// [`compensate_csv`] of targets given as the text of a targets file (the package's
 /// `compensate` makes it from arrays); `name` names them in messages.
 #[pyfunction]
-#[pyo3(signature = (robot, params, text, name, **options))]
+#[pyo3(signature = (
+    robot, params, text, name, *, targets_frame = None, joint_targets = false,
+    max_correction_mm = None, max_correction_deg = None, max_joint_correction_deg = None,
+    near_deg = None, branch = None, allow_extrapolation = false, max_arm_angle_deg = None,
+    near_within_deg = None
+))]
+#[allow(clippy::too_many_arguments)]
 fn compensate_csv_text(
     py: Python<'_>,
     robot: &Robot,
     params: &Robot,
     text: String,
     name: &str,
-    options: Option<&Bound<'_, PyDict>>,
+    targets_frame: Option<&str>,
+    joint_targets: bool,
+    max_correction_mm: Option<f64>,
+    max_correction_deg: Option<f64>,
+    max_joint_correction_deg: Option<f64>,
+    near_deg: Option<Vec<f64>>,
+    branch: Option<usize>,
+    allow_extrapolation: bool,
+    max_arm_angle_deg: Option<f64>,
+    near_within_deg: Option<f64>,
 ) -> PyResult<String> {
-    compensated_csv(
-        py,
-        (robot, params),
-        (PathBuf::from(name), Some(text)),
-        options,
-    )
+    let request = CompensationRequest {
+        targets_text: Some(text),
+        frame: choice("targets_frame", targets_frame)?.unwrap_or(TargetsFrame::Base),
+        joint_targets,
+        configuration: configuration_choice(near_deg, branch)?,
+        allow_extrapolation,
+        max_arm_angle_deg,
+        near_within_deg,
+        ..CompensationRequest::new(PathBuf::from(name))
+    };
+    let limits = (max_correction_mm, max_correction_deg, max_joint_correction_deg);
+    compensated_csv(py, (robot, params), with_limits(request, limits))
 }
 
-/// The compensation table of the targets (a file, or its text when given).
+/// The configuration of targets without joints: a posture (deg) or a branch, not both.
+fn configuration_choice(
+    near_deg: Option<Vec<f64>>,
+    branch: Option<usize>,
+) -> PyResult<Option<ConfigurationChoice>> {
+    match (near_deg, branch) {
+        (Some(_), Some(_)) => Err(conflict(
+            &["--near-deg", "--branch"],
+            "near_deg and branch both name the arm configuration: give one",
+        )),
+        (Some(posture), None) => Ok(Some(ConfigurationChoice::NearDeg(posture))),
+        (None, Some(branch)) => Ok(Some(ConfigurationChoice::Branch(branch))),
+        (None, None) => Ok(None),
+    }
+}
+
+/// `request` with the largest corrections given (mm, deg, deg), the others at their defaults.
+fn with_limits(
+    request: CompensationRequest,
+    (mm, deg, joint_deg): (Option<f64>, Option<f64>, Option<f64>),
+) -> CompensationRequest {
+    CompensationRequest {
+        max_correction_mm: mm.unwrap_or(request.max_correction_mm),
+        max_correction_deg: deg.unwrap_or(request.max_correction_deg),
+        max_joint_correction_deg: joint_deg.unwrap_or(request.max_joint_correction_deg),
+        ..request
+    }
+}
+
+/// The compensation table of `request` for the nominal `robot` and the identified `params`.
 fn compensated_csv(
     py: Python<'_>,
     (robot, params): (&Robot, &Robot),
-    (targets, text): (PathBuf, Option<String>),
-    options: Option<&Bound<'_, PyDict>>,
+    request: CompensationRequest,
 ) -> PyResult<String> {
-    let mut words: Vec<String> = vec![
-        "compensate".into(),
-        "--robot".into(),
-        robot.path(),
-        "--params".into(),
-        params.path(),
-        "--targets".into(),
-        targets.display().to_string(),
-        "--out".into(),
-        "-".into(),
-    ];
-    words.extend(option_words(
-        options,
-        &["robot", "params", "targets", "out"],
-    )?);
-    let mut parsed = parse_words::<host_tools::cli::compensate::CompensateOptions>(&words)?;
-    parsed.targets_text = text;
-    let (file, identified) = (robot.file.clone(), params.file.clone());
-    let (csv, _) = py
-        .detach(|| host_tools::cli::compensate::compensated_table_of(&parsed, file, identified))
-        .map_err(py_error)?;
+    if request.joint_targets && (request.configuration.is_some()) {
+        return Err(conflict(
+            &["--joint-targets", "--near-deg", "--branch"],
+            "joint_targets: each target's joints name its configuration; drop near_deg and branch",
+        ));
+    }
+    let nominal = (robot.file.clone(), PathBuf::from(robot.path()));
+    let identified = (params.file.clone(), PathBuf::from(params.path()));
+    let (outcomes, joints) = py
+        .detach(|| {
+            request.outcomes(
+                (nominal.0, nominal.1.as_path()),
+                (identified.0, identified.1.as_path()),
+            )
+        })
+        .map_err(|e| py_error(e.into()))?;
+    let csv = host_tools::kinematics::compensate::to_csv(&outcomes, joints)
+        .map_err(|e| py_error(e.into()))?;
     String::from_utf8(csv).map_err(|e| CalibError::new_err(e.to_string()))
 }
 

@@ -357,6 +357,21 @@ def test_compensate_equals_calib_compensate(tmp_path):
     result = calib.calibrate(robot, calib.Dataset.from_file(SERIES_B, profile=PROFILE, robot=robot),
                              validate=0.9666, method="lm")
     assert calib.compensate(robot, result.robot, targets, joint_targets=True, max_correction_mm=15) == py
+    # Typed keyword arguments (issue 53): a misspelt one is Python's TypeError, contradicting ones
+    # an OptionConflictError naming the flags, a bad choice or bound an InputError.
+    identified_robot = calib.Robot.from_file(identified)
+    with pytest.raises(TypeError, match="max_correction"):
+        calib.compensate(robot, identified_robot, targets, joint_targets=True, max_correction=15)
+    with pytest.raises(calib.OptionConflictError) as refused:
+        calib.compensate(robot, identified_robot, targets, near_deg=[0, -90, 90, 0, 90, 0], branch=2)
+    assert refused.value.options == ["--near-deg", "--branch"]
+    with pytest.raises(calib.OptionConflictError) as refused:
+        calib.compensate(robot, identified_robot, targets, joint_targets=True, targets_frame="tracker")
+    assert refused.value.options == ["--joint-targets", "--targets-frame"]
+    with pytest.raises(calib.InputError, match="targets_frame: invalid value 'world': choose 'base', 'tracker', 'ur-base'"):
+        calib.compensate(robot, identified_robot, targets, targets_frame="world")
+    with pytest.raises(calib.InputError, match="--near-within-deg 400: give 0 to 360 deg"):
+        calib.compensate(robot, identified_robot, targets, joint_targets=True, near_within_deg=400)
 
 
 def test_a_pandas_frame_of_the_tracker_file_calibrates_as_the_file():

@@ -1,19 +1,14 @@
 //! `calib compensate`: read the nominal and identified robots and the targets, compensate
 //! ([`crate::kinematics::compensate`]), write one CSV row per target.
 
-use crate::formats::export::controller_model;
 use crate::io::outputs::Outputs;
 use crate::io::robot_file::RobotFile;
-use crate::io::robot_file::RobotModel;
-use crate::io::tracker_data::TrackerData;
-use crate::kinematics::actual::ActualRobot;
-use crate::kinematics::compensate::TargetOutcome;
-use crate::kinematics::compensate::{
-    Configuration, Request, Summary, compensate_targets, compensate_targets_of, to_csv,
-};
+use crate::kinematics::compensate::{Summary, TargetOutcome, to_csv};
+use crate::kinematics::targets::{CompensationRequest, ConfigurationChoice};
 use anyhow::bail;
-use calib_core::controller::compensate::CompensationSettings;
 use std::path::PathBuf;
+
+pub use crate::kinematics::targets::TargetsFrame;
 
 /// Options of `calib compensate`.
 #[derive(Clone, Debug, clap::Args)]
@@ -131,149 +126,28 @@ fn arm_angle_bound(text: &str) -> Result<f64, String> {
 }
 
 impl CompensateOptions {
-    /// The request of these options for a robot whose joint maps (if any) were identified on
-    /// `map_ranges` (rad, per joint; `None` where a joint has no map); without a configuration
-    /// option, the nominal robot file's `[compensation]` default, if any.
-    fn request(
-        &self,
-        map_ranges: Vec<Option<[f64; 2]>>,
-        default: Option<&crate::io::robot_file::CompensationSection>,
-    ) -> anyhow::Result<Request> {
-        let robot = self.robot.display();
-        let configuration = match (&self.near_deg, self.branch, default) {
-            (Some(posture), _, _) => Some(near(posture, "--near-deg")?),
-            (None, Some(branch), _) => Some(Configuration::Branch(branch)),
-            (None, None, Some(section)) => match (&section.near_deg, section.branch) {
-                (Some(posture), None) => {
-                    Some(near(posture, &format!("{robot}: [compensation] near_deg"))?)
-                }
-                (None, Some(branch)) => Some(Configuration::Branch(branch)),
-                _ => bail!(
-                    "{robot}: [compensation] states the configuration of targets without joints: give near_deg = [...] (a posture, deg) or branch = 0-7, one of them"
-                ),
-            },
-            (None, None, None) => None,
+    /// The library's request of these options.
+    pub fn request(&self) -> CompensationRequest {
+        let configuration = match (&self.near_deg, self.branch) {
+            (Some(posture), _) => Some(ConfigurationChoice::NearDeg(posture.clone())),
+            (None, Some(branch)) => Some(ConfigurationChoice::Branch(branch)),
+            (None, None) => None,
         };
-        Ok(Request {
+        CompensationRequest {
+            targets_text: self.targets_text.clone(),
+            frame: self.targets_frame,
+            joint_targets: self.joint_targets,
+            max_correction_mm: self.max_correction_mm,
+            max_correction_deg: self.max_correction_deg,
+            max_joint_correction_deg: self.max_joint_correction_deg,
             configuration,
-            configuration_is_default: self.near_deg.is_none() && self.branch.is_none(),
-            map_ranges,
             allow_extrapolation: self.allow_extrapolation,
-            bounds: crate::kinematics::configuration::ConfigurationBounds {
-                max_arm_angle_rad: (self.max_arm_angle_deg)
-                    .unwrap_or(crate::kinematics::configuration::DEFAULT_MAX_ARM_ANGLE_DEG)
-                    .to_radians(),
-                max_joint_distance_rad: (self.near_within_deg)
-                    .unwrap_or(crate::kinematics::configuration::DEFAULT_MAX_JOINT_DISTANCE_DEG)
-                    .to_radians(),
-            },
-            stated_bounds: crate::cli::given_flags([
-                ("--near-within-deg", self.near_within_deg.is_some()),
-                ("--max-arm-angle-deg", self.max_arm_angle_deg.is_some()),
-            ]),
-        })
-    }
-}
-
-/// The frame target poses are given in (`calib compensate --targets-frame`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum TargetsFrame {
-    /// The robot's base frame, as the controller plans.
-    Base,
-    /// The laser tracker's frame: the cell as measured.
-    Tracker,
-    /// A Universal Robots controller's base frame, as the pendant shows poses: the DH base of the
-    /// robot file (ur_description's `base_link`) turned by 180 deg about z (x and y negated).
-    UrBase,
-}
-
-/// Maps targets given in the tracker's frame into the robot's base frame through the registration
-/// identified with the `params` file: `T_base = B^-1 T_tracker`, `B` its `[measurement]`
-/// section's `tracker_base`. Refused without a registration, and for a target file that says
-/// `# frame: base`.
-fn targets_into_base(
-    targets: &mut TrackerData,
-    (params, params_path): (&RobotFile, &std::path::Path),
-    targets_path: &std::path::Path,
-) -> anyhow::Result<()> {
-    if targets.base_frame {
-        bail!(
-            "{}: says '# frame: base', but --targets-frame tracker says the targets are in the tracker's frame; remove one",
-            targets_path.display()
-        );
-    }
-    let Some(measurement) = &params.measurement else {
-        bail!(
-            "{}: has no [measurement] section, the registration of the tracker that --targets-frame tracker maps the targets \
-             through: give a file calibrated on data in the tracker's frame, or targets in the base frame",
-            params_path.display()
-        );
-    };
-    let base = measurement.tracker_base.isometry();
-    for record in &mut targets.records {
-        let position = nalgebra::Point3::from(nalgebra::Vector3::from(record.position));
-        record.position = base.inverse_transform_point(&position).coords.into();
-        record.rotation = record
-            .rotation
-            .map(|r| base.rotation.to_rotation_matrix().matrix().transpose() * r);
-    }
-    targets.base_frame = true;
-    Ok(())
-}
-
-/// The joint targets of the file at `path` (`--joint-targets`) as target poses: each record's
-/// position and orientation the nominal model's pose at its joints, in the base frame; its
-/// joints stay as the start. Joints outside the nominal model's limits are refused with the line.
-fn nominal_poses_of(
-    nominal: &RobotModel,
-    path: &std::path::Path,
-    text: Option<&str>,
-) -> anyhow::Result<TrackerData> {
-    let profile = crate::io::profile::DataProfile::default();
-    let mut targets = match text {
-        Some(text) => TrackerData::parse_joints(text, path, &profile)?,
-        None => TrackerData::read_joints(path, &profile)?,
-    };
-    let joints = nominal.robot.joints.len();
-    if targets.joints != joints {
-        bail!(
-            "{}: has {} joint columns, the robot {} has {joints} joints",
-            path.display(),
-            targets.joints,
-            nominal.path.display()
-        );
-    }
-    let kinematics = calib_core::Kinematics::nominal(&nominal.robot)?;
-    for record in &mut targets.records {
-        let q = calib_core::model::JointVec::from_slice(&record.q)
-            .ok_or_else(|| anyhow::anyhow!("{}: more than 9 joints", path.display()))?;
-        if let Some(outside) = nominal.outside_limits(&record.q) {
-            bail!("{}:{}: {outside}", path.display(), record.line);
+            max_arm_angle_deg: self.max_arm_angle_deg,
+            near_within_deg: self.near_within_deg,
+            ..CompensationRequest::new(self.targets.clone())
         }
-        let pose = kinematics.forward(&q)?;
-        record.position = pose.translation.vector.into();
-        record.rotation = Some(*pose.rotation.matrix());
     }
-    targets.orientation = crate::io::tracker_data::OrientationColumns::Quaternion;
-    targets.base_frame = true;
-    Ok(targets)
 }
-
-/// The configuration of the posture `deg` (deg), named `what` in errors.
-fn near(deg: &[f64], what: &str) -> anyhow::Result<Configuration> {
-    if let Some(v) = deg.iter().find(|v| !v.is_finite()) {
-        bail!("{what}: {v} is not a finite angle");
-    }
-    let Some(q) = calib_core::model::JointVec::from_slice(
-        &deg.iter().map(|v| v.to_radians()).collect::<Vec<_>>(),
-    ) else {
-        bail!("{what} has {} values; at most 9 joints", deg.len());
-    };
-    Ok(Configuration::Near(q))
-}
-
-/// The fewest joints that put a tool on a 6-DoF pose.
-const MIN_JOINTS: usize = 6;
 
 /// Runs `calib compensate` for the robot file's joint count (6 to 9 joints, fewer are refused
 /// with the reason; joint maps for every count, gravity compliance for 6-joint robots).
@@ -304,160 +178,11 @@ fn compensated(
     file: RobotFile,
     params: RobotFile,
 ) -> anyhow::Result<(Vec<TargetOutcome>, usize)> {
-    file.refuse_joint_maps(
-        &options.robot,
-        "calib compensate's --robot (the nominal model the controller plans with)",
-    )?;
-    if file.joint.len() < MIN_JOINTS {
-        bail!(
-            "{}: compensation puts the tool on 6-DoF target poses (position and orientation), which \
-             takes at least {MIN_JOINTS} joints; this robot has {}, so the identified robot generally \
-             cannot reach a pose its nominal model reaches (calibrate, check, evaluate, verify, fk \
-             and export take it)",
-            options.robot.display(),
-            file.joint.len()
-        );
-    }
-    params.expect_joints(
-        &options.params,
-        file.joint.len(),
-        "the nominal robot of --robot",
-    )?;
-    let actual = ActualRobot::from_file(params.clone(), &options.params)?;
-    crate::model::counts::joint_count(file.joint.len())?;
-    // The readings each non-zero map was identified on.
-    let ranges = params
-        .joint_maps
-        .as_ref()
-        .map(crate::model::joint_maps::JointMapsSection::ranges)
-        .unwrap_or_default();
-    let map_ranges = (0..file.joint.len())
-        .map(|j| {
-            let mapped = actual.maps.as_ref().is_some_and(|m| !m.is_zero(j));
-            ranges.get(j).copied().filter(|_| mapped)
-        })
-        .collect();
-    let request = options.request(map_ranges, file.compensation.as_ref())?;
-    let nominal = file.to_model(&options.robot)?;
-    let outcomes = if actual.maps.is_none() && actual.compliance.is_none() {
-        compensate_geometric(options, (nominal, &actual), &params, &request)?
-    } else {
-        compensate_model(options, (nominal, &actual), &params, &request)?
-    };
-    Ok((outcomes, file.joint.len()))
-}
-
-/// `calib compensate` of a model with joint maps or gravity compliance (the compliance a 6R
-/// arm's, refused for other counts): the controller's model, geometry, maps (zero without) and
-/// compliance (none without), of the identified robot `actual` (the file `params`); `nominal` the
-/// model the controller plans with.
-fn compensate_model(
-    options: &CompensateOptions,
-    (nominal, actual): (RobotModel, &ActualRobot),
-    params: &RobotFile,
-    request: &Request,
-) -> anyhow::Result<Vec<TargetOutcome>> {
-    let (targets, settings) = inputs(options, &nominal, params)?;
-    let model = controller_model(
-        actual.model.robot,
-        actual.maps.as_ref(),
-        actual.compliance.as_ref(),
-    )?;
-    let real = model.kinematics()?;
-    Ok(compensate_targets_of(
-        &nominal.robot,
-        &real,
-        &targets,
-        &settings,
-        request,
-    )?)
-}
-
-/// `calib compensate` of a geometric model (`actual`, of the file `params`).
-fn compensate_geometric(
-    options: &CompensateOptions,
-    (nominal, actual): (RobotModel, &ActualRobot),
-    params: &RobotFile,
-    request: &Request,
-) -> anyhow::Result<Vec<TargetOutcome>> {
-    let (targets, settings) = inputs(options, &nominal, params)?;
-    Ok(compensate_targets(
-        &nominal.robot,
-        &actual.model.robot,
-        &targets,
-        &settings,
-        request,
-    )?)
-}
-
-/// The targets (through the registration of the identified file `params` for targets in the
-/// tracker's frame; the nominal poses of `nominal` for joint targets) and the settings, checked.
-fn inputs(
-    options: &CompensateOptions,
-    nominal: &RobotModel,
-    params: &RobotFile,
-) -> anyhow::Result<(TrackerData, CompensationSettings<f64>)> {
-    let mut targets = if options.joint_targets {
-        if options.targets_frame != TargetsFrame::Base {
-            bail!(
-                "--joint-targets: the targets are the nominal poses of the joints, in the base frame; drop --targets-frame"
-            );
-        }
-        nominal_poses_of(nominal, &options.targets, options.targets_text.as_deref())?
-    } else if let Some(text) = &options.targets_text {
-        TrackerData::parse_targets(text, &options.targets)?
-    } else {
-        TrackerData::read_targets(&options.targets)?
-    };
-    match options.targets_frame {
-        TargetsFrame::Tracker => {
-            targets_into_base(&mut targets, (params, &options.params), &options.targets)?;
-        }
-        TargetsFrame::UrBase => {
-            // The pendant's base is the DH base turned by a half turn about z.
-            let half_turn =
-                nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(-1.0, -1.0, 1.0));
-            for record in &mut targets.records {
-                let [x, y, z] = record.position;
-                record.position = [-x, -y, z];
-                record.rotation = record.rotation.map(|r| half_turn * r);
-            }
-        }
-        TargetsFrame::Base => {}
-    }
-    if targets.rows_without_orientation() {
-        bail!(
-            "{}: targets need an orientation (qw..qz or rx_deg..rz_deg)",
-            options.targets.display()
-        );
-    }
-    let joints = nominal.robot.joints.len();
-    if targets.joints != 0 && targets.joints != joints {
-        bail!(
-            "{}: has {} joint columns; give all of q1_deg..q{joints}_deg as start values, or none",
-            options.targets.display(),
-            targets.joints
-        );
-    }
-    for (name, v) in [
-        ("--max-correction-mm", options.max_correction_mm),
-        ("--max-correction-deg", options.max_correction_deg),
-        (
-            "--max-joint-correction-deg",
-            options.max_joint_correction_deg,
-        ),
-    ] {
-        if !(v.is_finite() && v > 0.0) {
-            bail!("{name} must be a finite number > 0, got {v}");
-        }
-    }
-    let settings = CompensationSettings {
-        max_correction_mm: options.max_correction_mm,
-        max_correction_rad: options.max_correction_deg.to_radians(),
-        max_joint_correction_rad: options.max_joint_correction_deg.to_radians(),
-        ..CompensationSettings::default()
-    };
-    Ok((targets, settings))
+    let robots = (
+        (file, options.robot.as_path()),
+        (params, options.params.as_path()),
+    );
+    Ok(options.request().outcomes(robots.0, robots.1)?)
 }
 
 /// Writes the outcomes (all or nothing) and counts them.

@@ -1073,7 +1073,7 @@ fn needed_correction(
 
 /// The outcomes of a robot of `joints` joints as CSV: `id, q1_deg..qN_deg, residual_mm, residual_deg, status, start` (`ok` or
 /// the error; a refused target leaves the joints and residuals empty).
-pub(crate) fn to_csv(outcomes: &[TargetOutcome], joints: usize) -> crate::Result<Vec<u8>> {
+pub fn to_csv(outcomes: &[TargetOutcome], joints: usize) -> crate::Result<Vec<u8>> {
     let mut writer = csv::Writer::from_writer(Vec::new());
     let mut header = vec!["id".to_string()];
     header.extend((1..=joints).map(|i| format!("q{i}_deg")));

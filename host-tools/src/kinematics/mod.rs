@@ -6,3 +6,4 @@ pub mod actual;
 pub mod compensate;
 pub mod configuration;
 pub mod fk;
+pub mod targets;
