@@ -1355,7 +1355,11 @@ fn plan(
     }
     let noise = match (noise_mm, noise_from) {
         (Some(mm), None) => Noise::Given { mm, deg: noise_deg },
-        (None, Some(path)) if noise_deg.is_none() => Noise::FromReport(path),
+        (None, Some(path)) if noise_deg.is_none() => {
+            let report =
+                host_tools::calibration::Report::read(&path).map_err(|e| py_error(e.into()))?;
+            Noise::Residuals(report.residuals(&path).map_err(|e| py_error(e.into()))?)
+        }
         (None, None) => {
             return Err(InputError::new_err(
                 "give the noise level: noise_mm or noise_from",

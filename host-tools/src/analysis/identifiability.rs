@@ -72,11 +72,10 @@ pub struct ReflectorOnAxis {
 }
 
 impl ReflectorOnAxis {
-    /// One line for people.
-    pub fn text(&self) -> String {
-        let names: Vec<String> = self
-            .not_identified
-            .iter()
+    /// The parameters left out, each with what it acts like: `dtheta5 (acts like da5)`, or
+    /// `dd6 (does not move it)`.
+    pub fn left_out(&self) -> Vec<String> {
+        (self.not_identified.iter())
             .map(|u| {
                 let with: Vec<String> = u.with.iter().map(|(p, _)| p.to_string()).collect();
                 if with.is_empty() {
@@ -85,7 +84,12 @@ impl ReflectorOnAxis {
                     format!("{} (acts like {})", u.parameter, with.join(", "))
                 }
             })
-            .collect();
+            .collect()
+    }
+
+    /// One line for people.
+    pub fn text(&self) -> String {
+        let names = self.left_out();
         format!(
             "reflector {:.1} mm from the last joint's axis (below {REFLECTOR_ON_AXIS_MM} mm): the last joint barely moves it, so position data cannot tell apart what moves it alike; not identified (kept nominal): {}\n",
             self.distance_mm,

@@ -486,6 +486,40 @@ pub struct Report {
     pub inputs: Vec<crate::io::provenance::InputFile>,
 }
 
+impl Report {
+    /// The JSON report at `path` (written by `calib calibrate --report`). Refused, naming the
+    /// field and line, when it is not one this version reads.
+    pub fn read(path: &std::path::Path) -> crate::Result<Self> {
+        let text = crate::io::input::read_text(path, crate::io::input::Input::Data)?;
+        serde_json::from_str(&text).map_err(|e| {
+            crate::refused!(
+                "{}: not a JSON report of calib calibrate that this version reads ({e}); write one with calib calibrate --report \
+                 (a report written by another version renders with that version)",
+                path.display()
+            )
+        })
+    }
+
+    /// The residuals of its calibration poses (`source` names the report in messages), for the
+    /// noise of a plan (`calib plan --noise-from`). Refused when least squares did not run.
+    pub fn residuals(&self, source: &std::path::Path) -> crate::Result<crate::planning::Residuals> {
+        let Some(least_squares) = &self.least_squares else {
+            return Err(crate::refused!(
+                "{}: no least-squares stage (the calibration ran the swarm alone), so no residuals to take the noise from; give --noise-mm",
+                source.display()
+            ));
+        };
+        let after = &self.calibration.after;
+        Ok(crate::planning::Residuals {
+            source: source.to_path_buf(),
+            rows: least_squares.rows,
+            parameters: self.parameters.len(),
+            position_rms_mm: after.position_mm.rms,
+            orientation_rms_deg: after.orientation_deg.map(|o| [o.x.rms, o.y.rms, o.z.rms]),
+        })
+    }
+}
+
 /// The identified parameters' covariance in the JSON report.
 #[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Covariance {

@@ -163,7 +163,9 @@ impl PlanOptions {
                 mm,
                 deg: self.noise_deg,
             },
-            (None, Some(path)) => Noise::FromReport(path.clone()),
+            (None, Some(path)) => {
+                Noise::Residuals(crate::calibration::Report::read(path)?.residuals(path)?)
+            }
             (None, None) => {
                 return Err(crate::refused!(
                     "give the noise level: --noise-mm or --noise-from"

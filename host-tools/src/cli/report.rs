@@ -3,7 +3,6 @@
 //! ([`crate::report::pdf`]).
 
 use crate::io::outputs::Outputs;
-use anyhow::Context;
 use std::path::PathBuf;
 
 /// Options of `calib report`.
@@ -23,15 +22,7 @@ pub struct ReportOptions {
 
 /// Runs `calib report`: writes the HTML page and/or the PDF asked for, all or nothing.
 pub fn report(options: &ReportOptions) -> anyhow::Result<()> {
-    let text = crate::io::input::read_text(&options.from, crate::io::input::Input::Data)
-        .with_context(|| format!("{}: cannot read the report", options.from.display()))?;
-    let report: crate::calibration::Report = serde_json::from_str(&text).with_context(|| {
-        format!(
-            "{}: not a JSON report of calib calibrate that this version reads; write one with calib calibrate --report \
-             (a report written by another version renders with that version)",
-            options.from.display()
-        )
-    })?;
+    let report = crate::calibration::Report::read(&options.from)?;
     let page = crate::report::html::render(&report, &crate::report::html::Rendering::now())?;
     let pdf = match &options.pdf {
         Some(_) => Some(crate::report::pdf::print(&page)?),

@@ -8,6 +8,7 @@
 use crate::JOINTS;
 use crate::io::robot_file::{RobotFile, RobotModel};
 use crate::model::compliance::FileCompliance;
+use crate::model::controller_model;
 use crate::model::joint_maps::{JointMaps, MAX_FILE_HARMONICS};
 use calib_core::controller::storage::{self, ControllerModel};
 use nalgebra::Dyn;
@@ -80,24 +81,6 @@ pub(crate) fn geometry_block(
             buffer
         }
     })
-}
-
-/// The controller's model in scalar `T`: `robot`, the maps (zero without) and the compliance
-/// (none without).
-pub(crate) fn controller_model<T: calib_core::Real>(
-    robot: calib_core::Robot<T, Dyn>,
-    maps: Option<&JointMaps>,
-    compliance: Option<&FileCompliance>,
-) -> crate::Result<ControllerModel<T, Dyn, MAX_FILE_HARMONICS>> {
-    let joints = robot.joints.len();
-    let mut model = ControllerModel::geometric(robot);
-    if let Some(maps) = maps {
-        model.maps = maps.to_core::<T, MAX_FILE_HARMONICS>()?;
-    }
-    if let Some(compliance) = compliance {
-        model.compliance = compliance.to_core::<T>(joints)?;
-    }
-    Ok(model)
 }
 
 /// A version 2 block of `model`.

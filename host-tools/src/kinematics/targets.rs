@@ -12,9 +12,9 @@ use super::compensate::{
 use super::configuration::{
     ConfigurationBounds, DEFAULT_MAX_ARM_ANGLE_DEG, DEFAULT_MAX_JOINT_DISTANCE_DEG,
 };
-use crate::formats::export::controller_model;
 use crate::io::robot_file::{CompensationSection, RobotFile, RobotModel};
 use crate::io::tracker_data::TrackerData;
+use crate::model::controller_model;
 use calib_core::controller::compensate::CompensationSettings;
 use std::path::{Path, PathBuf};
 
@@ -138,12 +138,8 @@ impl CompensationRequest {
             .collect();
         let request = self.request(map_ranges, file.compensation.as_ref(), robot)?;
         let nominal = file.to_model(robot)?;
-        let paths = (params_path, &params);
-        let outcomes = if actual.maps.is_none() && actual.compliance.is_none() {
-            self.compensate_geometric((nominal, &actual), paths, &request)?
-        } else {
-            self.compensate_model((nominal, &actual), paths, &request)?
-        };
+        let outcomes =
+            self.compensate_with((nominal, &actual), (params_path, &params), &request)?;
         Ok((outcomes, file.joint.len()))
     }
 
@@ -205,41 +201,23 @@ impl CompensationRequest {
         })
     }
 
-    /// The outcomes of a model with joint maps or gravity compliance (the compliance a 6R arm's,
-    /// refused for other counts): the controller's model, geometry, maps (zero without) and
-    /// compliance (none without), of the identified robot `actual` (the file `params`);
-    /// `nominal` the model the controller plans with.
-    fn compensate_model(
+    /// The outcomes for the identified robot `actual` (the file `params`), `nominal` the model
+    /// the controller plans with: of its geometry, or, with joint maps or gravity compliance (the
+    /// compliance a 6R arm's, refused for other counts), of the controller's whole model.
+    fn compensate_with(
         &self,
         (nominal, actual): (RobotModel, &ActualRobot),
         params: (&Path, &RobotFile),
         request: &Request,
     ) -> crate::Result<Vec<TargetOutcome>> {
         let (targets, settings) = self.inputs(&nominal, params)?;
-        let model = controller_model(
-            actual.model.robot,
-            actual.maps.as_ref(),
-            actual.compliance.as_ref(),
-        )?;
+        let geometry = &actual.model.robot;
+        if actual.maps.is_none() && actual.compliance.is_none() {
+            return compensate_targets(&nominal.robot, geometry, &targets, &settings, request);
+        }
+        let model = controller_model(*geometry, actual.maps.as_ref(), actual.compliance.as_ref())?;
         let real = model.kinematics()?;
         compensate_targets_of(&nominal.robot, &real, &targets, &settings, request)
-    }
-
-    /// The outcomes of a geometric model (`actual`, of the file `params`).
-    fn compensate_geometric(
-        &self,
-        (nominal, actual): (RobotModel, &ActualRobot),
-        params: (&Path, &RobotFile),
-        request: &Request,
-    ) -> crate::Result<Vec<TargetOutcome>> {
-        let (targets, settings) = self.inputs(&nominal, params)?;
-        compensate_targets(
-            &nominal.robot,
-            &actual.model.robot,
-            &targets,
-            &settings,
-            request,
-        )
     }
 
     /// The targets (through the registration of the identified file `params` for targets in the

@@ -7,3 +7,26 @@
 pub mod compliance;
 pub mod counts;
 pub mod joint_maps;
+
+use calib_core::controller::storage::ControllerModel;
+use compliance::FileCompliance;
+use joint_maps::{JointMaps, MAX_FILE_HARMONICS};
+use nalgebra::Dyn;
+
+/// The controller's model in scalar `T`: `robot`, the maps (zero without) and the compliance
+/// (none without).
+pub(crate) fn controller_model<T: calib_core::Real>(
+    robot: calib_core::Robot<T, Dyn>,
+    maps: Option<&JointMaps>,
+    compliance: Option<&FileCompliance>,
+) -> crate::Result<ControllerModel<T, Dyn, MAX_FILE_HARMONICS>> {
+    let joints = robot.joints.len();
+    let mut model = ControllerModel::geometric(robot);
+    if let Some(maps) = maps {
+        model.maps = maps.to_core::<T, MAX_FILE_HARMONICS>()?;
+    }
+    if let Some(compliance) = compliance {
+        model.compliance = compliance.to_core::<T>(joints)?;
+    }
+    Ok(model)
+}

@@ -36,7 +36,7 @@ pub use candidates::generate;
 pub use check::PlanCheck;
 pub(crate) use check::{check_plan, verdict};
 pub use prediction::{Prediction, leverages};
-pub use request::{Candidates, MAX_CANDIDATES, Noise, PlanRequest};
+pub use request::{Candidates, MAX_CANDIDATES, Noise, PlanRequest, Residuals};
 
 use crate::analysis::identifiability::analyse;
 use crate::error::Context;

@@ -49,10 +49,51 @@ pub enum Noise {
         /// 1 sigma per orientation axis, deg.
         deg: Option<f64>,
     },
-    /// The residuals of a previous calibration's JSON report (`--noise-from`): the RMS per
-    /// coordinate and per orientation axis of its calibration poses, corrected for the
-    /// parameters fitted (`sqrt(rows / (rows - parameters))`).
-    FromReport(PathBuf),
+    /// The residuals of a previous calibration (`--noise-from`, from its JSON report: see
+    /// `calibration::Report::residuals`).
+    Residuals(Residuals),
+}
+
+/// The residuals of a previous calibration of the robot, for the noise of a plan: the RMS per
+/// coordinate and per orientation axis of its calibration poses, corrected for the parameters
+/// fitted (`sqrt(rows / (rows - parameters))`). They include the errors the geometric model does
+/// not describe.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Residuals {
+    /// Where they come from (a report file), for messages.
+    pub source: PathBuf,
+    /// Residual rows of its least squares.
+    pub rows: u32,
+    /// Parameters it identified.
+    pub parameters: usize,
+    /// RMS position error of its calibration poses after the calibration, mm.
+    pub position_rms_mm: f64,
+    /// RMS orientation error per axis (x, y, z) after the calibration, deg; `None` for
+    /// position-only data.
+    pub orientation_rms_deg: Option<[f64; 3]>,
+}
+
+impl Residuals {
+    /// The noise levels: per position coordinate (mm) and per orientation axis (deg; for
+    /// position-only data, the position's weighted by the default k). Refused without residual
+    /// degrees of freedom.
+    fn levels(&self) -> crate::Result<(f64, f64)> {
+        let (rows, parameters) = (f64::from(self.rows), self.parameters as f64);
+        if rows.partial_cmp(&parameters) != Some(std::cmp::Ordering::Greater) {
+            return Err(crate::refused!(
+                "{}: the calibration has no residual degrees of freedom",
+                self.source.display()
+            ));
+        }
+        let dof = (rows / (rows - parameters)).sqrt();
+        let position = self.position_rms_mm / 3f64.sqrt() * dof;
+        let orientation = match self.orientation_rms_deg {
+            Some([x, y, z]) => ((x * x + y * y + z * z) / 3.0).sqrt() * dof,
+            // Position-only calibration: the weighted equivalent.
+            None => (position / calib_core::identify::objective::DEFAULT_K.sqrt()).to_degrees(),
+        };
+        Ok((position, orientation))
+    }
 }
 
 /// A plan asked for: `calib plan`'s options without the outputs.
@@ -158,7 +199,7 @@ impl PlanRequest {
                 let weighted = (mm / self.k().sqrt()).to_degrees();
                 Ok((*mm, deg.unwrap_or(weighted)))
             }
-            Noise::FromReport(path) => noise_of_report(path),
+            Noise::Residuals(residuals) => residuals.levels(),
         }
     }
 
@@ -239,40 +280,4 @@ fn read_candidates(
         }
     }
     Ok(records.into_iter().map(|r| (r.id, r.q)).collect())
-}
-
-/// The noise levels of a calibration's JSON report (the typed report of
-/// [`crate::calibration::Report`]): RMS residual per position coordinate (mm) and per
-/// orientation axis (deg) of its calibration poses, times `sqrt(rows / (rows - parameters))`.
-fn noise_of_report(path: &Path) -> crate::Result<(f64, f64)> {
-    let text = crate::io::input::read_text(path, crate::io::input::Input::Data)
-        .map_err(|e| crate::refused!("{}: cannot read the report: {e}", path.display()))?;
-    let report: crate::calibration::Report = serde_json::from_str(&text).map_err(|e| {
-        crate::refused!(
-            "{}: not a JSON report of calib calibrate that this version reads ({e}); give the report calib calibrate --report writes, or --noise-mm",
-            path.display()
-        )
-    })?;
-    let Some(rows) = report.least_squares.as_ref().map(|l| f64::from(l.rows)) else {
-        return Err(crate::refused!(
-            "{}: no least-squares stage (the calibration ran the swarm alone), so no residuals to take the noise from; give --noise-mm",
-            path.display()
-        ));
-    };
-    let parameters = report.parameters.len() as f64;
-    if rows.partial_cmp(&parameters) != Some(std::cmp::Ordering::Greater) {
-        return Err(crate::refused!(
-            "{}: the calibration has no residual degrees of freedom",
-            path.display()
-        ));
-    }
-    let dof = (rows / (rows - parameters)).sqrt();
-    let after = &report.calibration.after;
-    let position = after.position_mm.rms / 3f64.sqrt() * dof;
-    let orientation = match after.orientation_deg {
-        Some(o) => ((o.x.rms * o.x.rms + o.y.rms * o.y.rms + o.z.rms * o.z.rms) / 3.0).sqrt() * dof,
-        // Position-only calibration: the weighted equivalent.
-        None => (position / calib_core::identify::objective::DEFAULT_K.sqrt()).to_degrees(),
-    };
-    Ok((position, orientation))
 }

@@ -680,16 +680,7 @@ fn identifiability(page: &mut String, report: &Report) -> crate::Result<()> {
         list(&report.dropped),
     )?;
     if let Some(reflector) = &i.reflector_on_last_axis {
-        let left_out: Vec<String> = (reflector.not_identified.iter())
-            .map(|u| {
-                let with: Vec<String> = u.with.iter().map(|(p, _)| p.to_string()).collect();
-                if with.is_empty() {
-                    format!("{} (does not move it)", u.parameter)
-                } else {
-                    format!("{} (acts like {})", u.parameter, with.join(", "))
-                }
-            })
-            .collect();
+        let left_out = reflector.left_out();
         writeln!(
             page,
             "<p>Reflector {} mm from the last joint's axis: the last joint barely moves it, so position data \
