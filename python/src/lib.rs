@@ -7,8 +7,8 @@
 use host_tools::calibration::{Calibrated as Calibration, CalibrationConfig};
 use host_tools::io::robot_file::RobotFile;
 use host_tools::io::tracker_data::{Record, TrackerData};
-use host_tools::measurement::dataset::Dataset as HostDataset;
 use host_tools::kinematics::targets::{CompensationRequest, ConfigurationChoice, TargetsFrame};
+use host_tools::measurement::dataset::Dataset as HostDataset;
 use numpy::PyUntypedArrayMethods;
 use numpy::ndarray::{Array2, Array3};
 use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2, PyReadonlyArray3};
@@ -1372,7 +1372,8 @@ fn plan(
             ));
         }
     };
-    let measure = choice("measure", Some(measure))?.unwrap_or(host_tools::planning::Measure::Position);
+    let measure =
+        choice("measure", Some(measure))?.unwrap_or(host_tools::planning::Measure::Position);
     let defaults = PlanRequest::new(candidates, poses, measure, noise);
     let request = PlanRequest {
         core,
@@ -1429,7 +1430,11 @@ fn compensate_csv(
         near_within_deg,
         ..CompensationRequest::new(targets)
     };
-    let limits = (max_correction_mm, max_correction_deg, max_joint_correction_deg);
+    let limits = (
+        max_correction_mm,
+        max_correction_deg,
+        max_joint_correction_deg,
+    );
     compensated_csv(py, (robot, params), with_limits(request, limits))
 }
 
@@ -1470,7 +1475,11 @@ fn compensate_csv_text(
         near_within_deg,
         ..CompensationRequest::new(PathBuf::from(name))
     };
-    let limits = (max_correction_mm, max_correction_deg, max_joint_correction_deg);
+    let limits = (
+        max_correction_mm,
+        max_correction_deg,
+        max_joint_correction_deg,
+    );
     compensated_csv(py, (robot, params), with_limits(request, limits))
 }
 
