@@ -304,15 +304,14 @@ pub(crate) fn write_outputs(
     if let Some(path) = &paths.out {
         outputs.stage("--out", path, calibration.robot_toml().as_bytes())?;
     }
-    if let Some(path) = &paths.report {
-        let json = serde_json::to_string_pretty(&calibration.report())?;
+    // The report is built once for both of its renderings.
+    let report = (paths.report.is_some() || paths.html.is_some()).then(|| calibration.report());
+    if let (Some(path), Some(report)) = (&paths.report, &report) {
+        let json = serde_json::to_string_pretty(report)?;
         outputs.stage("--report", path, json.as_bytes())?;
     }
-    if let Some(path) = &paths.html {
-        let page = crate::report::html::render(
-            &calibration.report(),
-            &crate::report::html::Rendering::now(),
-        )?;
+    if let (Some(path), Some(report)) = (&paths.html, &report) {
+        let page = crate::report::html::render(report, &crate::report::html::Rendering::now())?;
         outputs.stage("--html", path, page.as_bytes())?;
     }
     if let Some(dir) = &paths.plot {
