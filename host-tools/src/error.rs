@@ -4,7 +4,8 @@
 //! error and then its causes, one per line).
 //!
 //! Every public function of the library returns [`Result`]; `anyhow` is only the command line's
-//! (`cli/` and the binary), where any of these errors is printed and turned into exit status 1.
+//! (the `calib` binary, `src/bin/calib/`), where any of these errors is printed and turned into
+//! exit status 1.
 //!
 //! ```
 //! use host_tools::error::Error;

@@ -22,8 +22,10 @@
 //!   robot as a model, the typed result, the provenance) and its pipeline of stages (frames,
 //!   selection, solve, joint maps and their evidence solver, one evaluation, cross-validation,
 //!   plausibility); each stage takes the model of the robot the one before returned;
-//! - [`report`]: the text and HTML reports and their plots;
-//! - [`cli`]: the `calib` commands, thin layers over the above.
+//! - [`report`]: the text and HTML reports and their plots.
+//!
+//! The `calib` command line (`src/bin/calib/`) is not part of the library: its `cli/` turns clap
+//! options into the configurations above, reads and writes the files, and prints.
 //!
 //! A folder uses only folders listed before it; `.ci/check-module-cycles` fails when one uses a
 //! folder listed after it, and on a cycle between the files of one folder.
@@ -69,7 +71,6 @@ pub use error::{Error, Result};
 
 pub mod analysis;
 pub mod calibration;
-pub mod cli;
 pub mod error;
 pub mod formats;
 pub mod io;

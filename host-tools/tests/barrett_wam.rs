@@ -9,11 +9,10 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
-use common::{calib, ok, parse};
+use common::{calib, ok};
 
 use host_tools::calibration::Calibrated as Calibration;
-use host_tools::calibration::Identify;
-use host_tools::cli::calibrate::{self, CalibrateOptions};
+use host_tools::calibration::{CalibrationConfig, ErrorModel, HoldOut, Identify, Method};
 use host_tools::measurement::frames::Frames;
 
 const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/barrett-wam.toml");
@@ -30,22 +29,18 @@ const PROFILE: &str = concat!(
     "/profiles/barrett-wam-lasertracker.toml"
 );
 
-/// `calib calibrate --robot ROBOT --data GRID --profile PROFILE` plus `args`, with the defaults.
-fn calibrate(args: &[&str]) -> Calibration {
-    let all = [
-        &[
-            "--robot",
-            ROBOT,
-            "--data",
-            GRID,
-            "--profile",
-            PROFILE,
-            "--quiet",
-        ][..],
-        args,
-    ]
-    .concat();
-    calibrate::calibrate(&parse::<CalibrateOptions>(&all)).unwrap()
+/// The WAM calibrated on the grid (`calib calibrate --robot ROBOT --data GRID --profile
+/// PROFILE`) with `config` and the hold-out `hold_out`.
+fn calibrate(config: CalibrationConfig, hold_out: HoldOut) -> Calibration {
+    let grid = common::read(ROBOT, GRID, Some(PROFILE)).unwrap();
+    let mut session = common::session(grid, config);
+    session.hold_out = hold_out;
+    session.run().unwrap()
+}
+
+/// The random 20 poses, held out (`--holdout RANDOM`).
+fn random_twenty() -> HoldOut {
+    HoldOut::poses(common::read(ROBOT, RANDOM, Some(PROFILE)).unwrap())
 }
 
 /// Mean, RMS and largest |difference| of a data file: the error of the robot as delivered (the
@@ -73,7 +68,7 @@ fn random_twenty_after_calibrating_on_the_grid() {
     assert!((mean - 17.62).abs() < 0.005 && (rms - 17.75).abs() < 0.005);
     assert!((max - 20.62).abs() < 0.005);
 
-    let c = calibrate(&["--holdout", RANDOM]);
+    let c = calibrate(CalibrationConfig::default(), random_twenty());
     let r = &c.result;
     assert_eq!(r.frames.identified, Frames::BaseTool);
     assert_eq!(
@@ -129,7 +124,11 @@ fn random_twenty_after_calibrating_on_the_grid() {
 /// calibration (held out: the independent float64 calibration's 3.09 / 3.28 / 5.90 mm).
 #[test]
 fn joint_maps_are_identified_on_the_seven_joint_arm_and_kept_at_zero_when_they_do_not_predict() {
-    let c = calibrate(&["--holdout", RANDOM, "--model", "joint-maps"]);
+    let maps = CalibrationConfig {
+        model: ErrorModel::JointMaps,
+        ..CalibrationConfig::default()
+    };
+    let c = calibrate(maps, random_twenty());
     let r = &c.result;
     let maps = r.joint_maps.as_ref().expect("the joint-maps stage ran");
     assert_eq!(maps.joints.len(), 7);
@@ -163,8 +162,13 @@ fn grid_seventy_thirty_over_five_seeds() {
     let mut calibrated = Vec::new();
     let mut frames_only = Vec::new();
     for seed in 0..5 {
-        let s = seed.to_string();
-        let c = calibrate(&["--validate", "0.3", "--validate-seed", &s]);
+        let c = calibrate(
+            CalibrationConfig::default(),
+            HoldOut::Fraction {
+                fraction: 0.3,
+                seed,
+            },
+        );
         let v = c.result.validation.as_ref().unwrap();
         assert_eq!((c.result.calibration.poses, v.poses), (151, 65));
         println!(
@@ -209,25 +213,22 @@ fn check_and_re_registration_through_the_command_line() {
         ),
         "{out}"
     );
-    let c = calibrate(&["--method", "lm", "--holdout", RANDOM]);
+    let lm = CalibrationConfig {
+        method: Method::Lm,
+        ..CalibrationConfig::default()
+    };
+    let c = calibrate(lm.clone(), random_twenty());
     let dir = tempfile::tempdir().unwrap();
     let identified = dir.path().join("wam-identified.toml");
     std::fs::write(&identified, c.robot_toml()).unwrap();
     let identified = identified.to_str().unwrap();
-    let again = calibrate::calibrate(&parse::<CalibrateOptions>(&[
-        "--robot",
-        identified,
-        "--data",
-        RANDOM,
-        "--profile",
-        PROFILE,
-        "--identify",
-        "frames",
-        "--method",
-        "lm",
-        "--quiet",
-    ]))
-    .unwrap();
+    // `calib calibrate --robot IDENTIFIED --data RANDOM --identify frames --method lm`.
+    let frames_only = CalibrationConfig {
+        identify: Identify::Frames,
+        ..lm
+    };
+    let files = (identified, RANDOM, Some(PROFILE));
+    let again = common::calibrate_files(files, frames_only, None).unwrap();
     assert_eq!(again.result.config.identify, Identify::Frames);
     // 20 poses, the frames alone fitted on them: at most the held-out error of the grid
     // calibration on the same poses.

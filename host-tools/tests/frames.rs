@@ -5,10 +5,10 @@
 //! and parameters.
 
 mod common;
-use common::{ROBOT, parse};
+use common::ROBOT;
 
 use host_tools::analysis::reference;
-use host_tools::cli::calibrate::{self, CalibrateOptions};
+use host_tools::calibration::{CalibrationConfig, HoldOut};
 use host_tools::io::robot_file::RobotFile;
 use host_tools::io::tracker_data::TrackerData;
 use host_tools::measurement::simulate::SimulationConfig;
@@ -50,15 +50,12 @@ fn frames_and_geometry_reach_the_reference_optimum() {
         );
         let text = std::fs::read_to_string(&data).unwrap();
         assert!(!text.contains("# frame: base"));
-        let options = parse::<CalibrateOptions>(&[
-            "--robot",
-            ROBOT,
-            "--data",
-            data.to_str().unwrap(),
-            "--holdout",
-            holdout.to_str().unwrap(),
-        ]);
-        let c = calibrate::calibrate(&options).unwrap();
+        // `calib calibrate --holdout FILE`: the held-out poses measured apart.
+        let fitted = common::read(ROBOT, data.to_str().unwrap(), None).unwrap();
+        let held = common::read(ROBOT, holdout.to_str().unwrap(), None).unwrap();
+        let mut session = common::session(fitted, CalibrationConfig::default());
+        session.hold_out = HoldOut::poses(held);
+        let c = session.run().unwrap();
         let frames = &c.result.frames;
         assert_eq!(
             frames.identified,

@@ -3,9 +3,9 @@
 //! the others.
 
 mod common;
-use common::parse;
-use host_tools::cli::calibrate::{self, CalibrateOptions};
+use host_tools::calibration::{CalibrationConfig, ErrorModel, Identify, Method};
 use host_tools::io::robot_file::{RobotFile, RobotModel};
+use host_tools::measurement::frames::Frames;
 
 const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/ur10.toml");
 const DATA_B: &str = concat!(
@@ -60,19 +60,19 @@ fn held_out(
     profile: &str,
     poses: usize,
     seed: u64,
-) -> anyhow::Result<(f64, f64)> {
-    held_out_of("joint-maps", data, total, profile, poses, seed)
+) -> host_tools::Result<(f64, f64)> {
+    held_out_of(ErrorModel::JointMaps, data, total, profile, poses, seed)
 }
 
 /// [`held_out`] with `model` (`joint-maps` or `joint-maps+compliance`).
 fn held_out_of(
-    model: &str,
+    model: ErrorModel,
     data: &str,
     total: usize,
     profile: &str,
     poses: usize,
     seed: u64,
-) -> anyhow::Result<(f64, f64)> {
+) -> host_tools::Result<(f64, f64)> {
     let c = calibrated(model, data, total, profile, poses, seed)?;
     let maps = c.result.joint_maps.as_ref().unwrap();
     assert_eq!(c.result.calibration.poses, poses);
@@ -88,41 +88,30 @@ fn held_out_of(
     assert!(c.robot_toml().contains("[joint_maps]"));
     assert_eq!(
         c.robot_toml().contains("[compliance]"),
-        model == "joint-maps+compliance"
+        model == ErrorModel::JointMapsCompliance
     );
     Ok((geometric, with_maps))
 }
 
-/// `calibrate --model model` of the UR10 on `poses` random poses (`seed`) of `data` (`total`
-/// poses), through `profile`, `--auto-mask --method lm`, the other poses held out.
+/// The UR10 calibrated with `model` on `poses` random poses (`seed`) of `data` (`total`
+/// poses), through `profile`, least squares, dropping what the data cannot determine
+/// (`calibrate --model MODEL --auto-mask --method lm`), the other poses held out.
 fn calibrated(
-    model: &str,
+    model: ErrorModel,
     data: &str,
     total: usize,
     profile: &str,
     poses: usize,
     seed: u64,
-) -> anyhow::Result<host_tools::calibration::Calibrated> {
-    let fraction = ((total - poses) as f64 / total as f64).to_string();
-    let seed_text = seed.to_string();
-    let args = [
-        "--robot",
-        ROBOT,
-        "--data",
-        data,
-        "--profile",
-        profile,
-        "--auto-mask",
-        "--method",
-        "lm",
-        "--validate",
-        &fraction,
-        "--validate-seed",
-        &seed_text,
-        "--model",
+) -> host_tools::Result<host_tools::calibration::Calibrated> {
+    let fraction = (total - poses) as f64 / total as f64;
+    let config = CalibrationConfig {
         model,
-    ];
-    calibrate::calibrate(&parse::<CalibrateOptions>(&args))
+        method: Method::Lm,
+        auto_mask: true,
+        ..CalibrationConfig::default()
+    };
+    common::calibrate_files((ROBOT, data, Some(profile)), config, Some((fraction, seed)))
 }
 
 /// The mean of the runs' (geometric, with maps) held-out means, each run better with the maps.
@@ -495,7 +484,15 @@ fn compensation_uses_the_model(d: &std::path::Path, params: &str, baseline: &str
 /// others are identified.
 #[test]
 fn a_map_the_poses_do_not_determine_is_kept_at_zero() {
-    let c = calibrated("joint-maps", DATA_A, SERIES_A_POSES, POSITION, 200, 0).unwrap();
+    let c = calibrated(
+        ErrorModel::JointMaps,
+        DATA_A,
+        SERIES_A_POSES,
+        POSITION,
+        200,
+        0,
+    )
+    .unwrap();
     let maps = c.result.joint_maps.as_ref().unwrap();
     assert_eq!(c.result.calibration.poses, 200);
     let supported: Vec<bool> = maps.joints.iter().map(|j| j.supported).collect();
@@ -567,7 +564,15 @@ fn a_new_session_with_only_the_base_refitted_keeps_the_identified_probe() {
 #[test]
 fn maps_that_do_not_predict_better_are_kept_at_zero() {
     for (seed, held_out) in [(4, 0.55..0.57), (1, 0.42..0.43)] {
-        let c = calibrated("joint-maps", DATA_D, SERIES_D_POSES, FULL_POSE, 50, seed).unwrap();
+        let c = calibrated(
+            ErrorModel::JointMaps,
+            DATA_D,
+            SERIES_D_POSES,
+            FULL_POSE,
+            50,
+            seed,
+        )
+        .unwrap();
         let maps = c.result.joint_maps.as_ref().unwrap();
         let cv = maps.cross_validation.unwrap();
         println!("seed {seed}: {cv:?}");
@@ -590,7 +595,7 @@ fn maps_that_do_not_predict_better_are_kept_at_zero() {
 fn series_d_with_joint_maps_and_compliance() {
     let run = |poses: usize, seed: u64| {
         held_out_of(
-            "joint-maps+compliance",
+            ErrorModel::JointMapsCompliance,
             DATA_D,
             SERIES_D_POSES,
             POSITION,
@@ -616,7 +621,7 @@ fn series_d_six_dof_with_joint_maps_and_compliance() {
     let runs: Vec<(f64, f64)> = (0..5)
         .map(|seed| {
             let c = calibrated(
-                "joint-maps+compliance",
+                ErrorModel::JointMapsCompliance,
                 DATA_D,
                 SERIES_D_POSES,
                 FULL_POSE,
@@ -648,7 +653,7 @@ fn series_d_six_dof_with_joint_maps_and_compliance() {
 /// study's 0.125 (measured 0.1017; maps alone 0.1353).
 #[test]
 fn series_a_and_b_with_joint_maps_and_compliance() {
-    let model = "joint-maps+compliance";
+    let model = ErrorModel::JointMapsCompliance;
     let b: Vec<_> = (0..5)
         .map(|seed| held_out_of(model, DATA_B, SERIES_B_POSES, POSITION, 50, seed).unwrap())
         .collect();
@@ -844,7 +849,7 @@ fn a_series_a_model_with_compliance_carries_over_to_series_b() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let c = calibrated(
-        "joint-maps+compliance",
+        ErrorModel::JointMapsCompliance,
         DATA_A,
         SERIES_A_POSES,
         POSITION,
@@ -890,28 +895,18 @@ fn a_series_a_model_with_compliance_carries_over_to_series_b() {
     // The frames-only re-registration (`calibrate --identify frames`) of the same 30 poses keeps
     // the maps and the compliance: its held-out error is evaluate's (which re-registers by its
     // own path), and the file it writes still has both.
-    let fraction = ((SERIES_B_POSES - 30) as f64 / SERIES_B_POSES as f64).to_string();
-    for frames in ["base+tool", "base"] {
+    let fraction = (SERIES_B_POSES - 30) as f64 / SERIES_B_POSES as f64;
+    let a_model = d.join("a.toml");
+    for (frames, identified) in [("base+tool", Frames::BaseTool), ("base", Frames::Base)] {
         let evaluated = evaluate(DATA_B, "30", "0", frames);
-        let registered = calibrate::calibrate(&parse::<CalibrateOptions>(&[
-            "--robot",
-            d.join("a.toml").to_str().unwrap(),
-            "--data",
-            DATA_B,
-            "--profile",
-            POSITION,
-            "--identify",
-            "frames",
-            "--frames",
-            frames,
-            "--method",
-            "lm",
-            "--validate",
-            &fraction,
-            "--validate-seed",
-            "0",
-        ]))
-        .unwrap();
+        let frames_only = CalibrationConfig {
+            identify: Identify::Frames,
+            frames: Some(identified),
+            method: Method::Lm,
+            ..CalibrationConfig::default()
+        };
+        let files = (a_model.to_str().unwrap(), DATA_B, Some(POSITION));
+        let registered = common::calibrate_files(files, frames_only, Some((fraction, 0))).unwrap();
         let held_out = registered.result.validation.unwrap().after.position_mm.mean;
         println!(
             "Series A model, {frames} re-registered on 30 poses of B: calibrate --identify frames {held_out:.4} mm, evaluate {evaluated:.4} mm"

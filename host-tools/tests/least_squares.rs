@@ -3,27 +3,29 @@
 //! independent float64 reference optimiser and the known truth.
 
 mod common;
-use common::{ROBOT, parse, simulate};
+use common::{ROBOT, simulate};
 
+use host_tools::analysis::identifiability::IdentifiabilityReport;
 use host_tools::analysis::reference;
 use host_tools::calibration::Calibrated as Calibration;
-use host_tools::cli::calibrate::{self, CalibrateOptions};
-use host_tools::cli::check::{self, CheckOptions};
+use host_tools::calibration::{CalibrationConfig, LossChoice, Method};
 use host_tools::io::robot_file::RobotFile;
 use host_tools::io::tracker_data::TrackerData;
 use std::path::Path;
 
-fn calibrate(data: &Path, truth: &Path, args: &[&str]) -> Calibration {
-    let mut all = vec![
-        "--robot",
-        ROBOT,
-        "--data",
-        data.to_str().unwrap(),
-        "--truth",
-        truth.to_str().unwrap(),
-    ];
-    all.extend_from_slice(args);
-    calibrate::calibrate(&parse::<CalibrateOptions>(&all)).unwrap()
+/// The ER10L-C10 calibrated on `data` with `config`, compared with the known errors of `truth`.
+fn calibrate(data: &Path, truth: &Path, config: CalibrationConfig) -> Calibration {
+    let dataset = common::read(ROBOT, data.to_str().unwrap(), None).unwrap();
+    let mut session = common::session(dataset, config);
+    session.truth = Some(common::truth(truth));
+    session.run().unwrap()
+}
+
+/// What the poses of `data` determine (`calib check --robot ROBOT --data DATA`).
+fn check(data: &Path) -> IdentifiabilityReport {
+    let dataset = common::read(ROBOT, data.to_str().unwrap(), None).unwrap();
+    let k = calib_core::identify::objective::DEFAULT_K;
+    host_tools::analysis::identifiability::check(&dataset, None, k).unwrap()
 }
 
 /// Writes the identified robot file and returns it parsed.
@@ -56,7 +58,7 @@ fn tracker_noise_scenario_matches_the_reference_and_the_statistics() {
             &format!("hold{seed}"),
             &[&["--poses", "200", "--seed", &h][..], &noise].concat(),
         );
-        let c = calibrate(&data, &truth, &[]);
+        let c = calibrate(&data, &truth, CalibrationConfig::default());
         let names = c.result.names();
         let nominal = RobotFile::read(Path::new(ROBOT)).unwrap();
         let cal = TrackerData::read(&data).unwrap();
@@ -135,7 +137,11 @@ fn lm_from_nominal_reaches_the_reference_cost() {
             "11",
         ],
     );
-    let c = calibrate(&data, &truth, &["--method", "lm"]);
+    let lm = CalibrationConfig {
+        method: Method::Lm,
+        ..CalibrationConfig::default()
+    };
+    let c = calibrate(&data, &truth, lm);
     assert_eq!(c.report().generations, 0);
     let names = c.result.names();
     let fit = reference::fit(
@@ -187,7 +193,7 @@ fn huber_loss_survives_two_outliers_and_flags_them() {
             .collect();
         (rows.iter().map(|d| d * d).sum::<f64>() / rows.len() as f64).sqrt()
     };
-    let clean = calibrate(&data, &truth, &[]);
+    let clean = calibrate(&data, &truth, CalibrationConfig::default());
     // Shift two poses by 5 mm along x.
     let text = std::fs::read_to_string(&data).unwrap();
     let shifted: Vec<String> = text
@@ -204,9 +210,14 @@ fn huber_loss_survives_two_outliers_and_flags_them() {
         .collect();
     let bad = dir.path().join("bad.csv");
     std::fs::write(&bad, shifted.join("\n")).unwrap();
-    let l2 = calibrate(&bad, &truth, &[]);
+    let l2 = calibrate(&bad, &truth, CalibrationConfig::default());
     // Scale: about 3 times the typical clean pose residual (0.17 mm here).
-    let huber = calibrate(&bad, &truth, &["--loss", "huber", "--loss-scale-mm", "0.5"]);
+    let huber_config = CalibrationConfig {
+        loss: LossChoice::Huber,
+        loss_scale_mm: Some(0.5),
+        ..CalibrationConfig::default()
+    };
+    let huber = calibrate(&bad, &truth, huber_config);
     println!(
         "length RMS error clean {:.2e} l2 {:.2e} huber {:.2e}; angle clean {:.2e} l2 {:.2e} huber {:.2e}",
         rms(&clean, false),
@@ -251,13 +262,7 @@ fn position_only_data_of_a_point_on_the_last_axis() {
             "1",
         ],
     );
-    let report = check::check(&parse::<CheckOptions>(&[
-        "--robot",
-        ROBOT,
-        "--data",
-        data.to_str().unwrap(),
-    ]))
-    .unwrap();
+    let report = check(&data);
     assert_eq!((report.parameters, report.rank), (20, 20));
     assert!(report.undetermined.is_empty());
     let reflector = report.reflector_on_last_axis.as_ref().unwrap();
@@ -294,15 +299,7 @@ fn position_only_data_of_a_point_on_the_last_axis() {
         report.text()
     );
 
-    let all = [
-        "--robot",
-        ROBOT,
-        "--data",
-        data.to_str().unwrap(),
-        "--truth",
-        truth.to_str().unwrap(),
-    ];
-    let c = calibrate::calibrate(&parse::<CalibrateOptions>(&all)).unwrap();
+    let c = calibrate(&data, &truth, CalibrationConfig::default());
     assert!(c.report().dropped.is_empty());
     assert_eq!(c.result.parameters.len(), 20);
     let sigma = c.result.least_squares.as_ref().unwrap().sigma_mm;
@@ -316,13 +313,7 @@ fn position_only_data_of_a_point_on_the_last_axis() {
 fn full_poses_determine_all_24_parameters() {
     let dir = tempfile::tempdir().unwrap();
     let (data, _) = simulate(dir.path(), "d", &["--poses", "32"]);
-    let report = check::check(&parse::<CheckOptions>(&[
-        "--robot",
-        ROBOT,
-        "--data",
-        data.to_str().unwrap(),
-    ]))
-    .unwrap();
+    let report = check(&data);
     assert_eq!(report.rank, 24);
     let condition = report.condition_number.unwrap();
     println!(
@@ -337,15 +328,11 @@ fn full_poses_determine_all_24_parameters() {
 fn too_few_poses_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     let (data, _) = simulate(dir.path(), "d", &["--poses", "3"]);
-    let e = calibrate::calibrate(&parse::<CalibrateOptions>(&[
-        "--robot",
-        ROBOT,
-        "--data",
-        data.to_str().unwrap(),
-    ]))
-    .err()
-    .unwrap()
-    .to_string();
+    let files = (ROBOT, data.to_str().unwrap(), None);
+    let e = common::calibrate_files(files, CalibrationConfig::default(), None)
+        .err()
+        .unwrap()
+        .to_string();
     assert_eq!(
         e,
         "3 poses give 18 equations, fewer than the 24 identified parameters"

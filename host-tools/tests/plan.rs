@@ -4,15 +4,16 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
-use common::parse;
+use common::{calib, ok};
 
-use host_tools::calibration::{self, CalibrationConfig, ErrorModel, Method};
-use host_tools::cli::calibrate::{self as calibrate_cli, CalibrateOptions};
-use host_tools::cli::plan::{self as plan_cli, PlanOptions};
+use host_tools::calibration::{self, CalibrationConfig, ErrorModel, HoldOut, Method};
 use host_tools::io::profile::DataProfile;
+use host_tools::io::robot_file::RobotFile;
 use host_tools::io::tracker_data::{Role, TrackerData};
 use host_tools::measurement::dataset::Dataset;
-use host_tools::planning::{self, Measure, PlanModel, PlanSettings};
+use host_tools::planning::{
+    self, Candidates, Measure, Noise, PlanModel, PlanRequest, PlanSettings,
+};
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -226,7 +227,8 @@ fn plan_measure_calibrate_end_to_end() {
     let dir = tempfile::tempdir().unwrap();
     // The noise levels from a previous calibration: 50 poses of Series A.
     let report = dir.path().join("series-a.json");
-    let options: CalibrateOptions = parse(&[
+    ok(&calib(&[
+        "calibrate",
         "--robot",
         ROBOT,
         "--data",
@@ -239,32 +241,26 @@ fn plan_measure_calibrate_end_to_end() {
         "0.9958",
         "--report",
         report.to_str().unwrap(),
-    ]);
-    calibrate_cli::calibrate_and_write(&options).unwrap();
-    // 30 fitted and 15 verify poses of Series B, 6-DoF, with the noise levels of `noise`.
-    let plan_series_b = |noise: &[&str], out: &Path| {
-        let all = [
-            &[
-                "--robot",
-                ROBOT,
-                "--candidates",
-                SERIES_B,
-                "--profile",
-                PROFILE,
-                "--poses",
-                "30",
-                "--measure",
-                "pose",
-                "--out",
-            ][..],
-            &[out.to_str().unwrap()][..],
-            noise,
-        ]
-        .concat();
-        plan_cli::plan(&parse::<PlanOptions>(&all)).unwrap()
+    ]));
+    // 30 fitted and 15 verify poses of Series B, 6-DoF, with the noise levels of `noise`
+    // (`calib plan --candidates SERIES_B --profile PROFILE --poses 30 --measure pose --out OUT`).
+    let file = RobotFile::read(Path::new(ROBOT)).unwrap();
+    let plan_series_b = |noise: Noise, out: &Path| {
+        let candidates = Candidates::File {
+            path: SERIES_B.into(),
+            profile: Some(PROFILE.into()),
+        };
+        let request = PlanRequest::new(candidates, 30, Measure::Pose, noise);
+        let plan = request.plan(&file, Path::new(ROBOT)).unwrap();
+        std::fs::write(out, plan.csv(&[]).unwrap()).unwrap();
+        plan
     };
     let plan_csv = dir.path().join("plan.csv");
-    let p = plan_series_b(&["--noise-from", report.to_str().unwrap()], &plan_csv);
+    let residuals = calibration::Report::read(&report)
+        .unwrap()
+        .residuals(&report)
+        .unwrap();
+    let p = plan_series_b(Noise::Residuals(residuals), &plan_csv);
     println!("{}", p.text());
     let noise = (p.prediction.noise_mm, p.prediction.noise_deg.unwrap());
     println!("noise from the Series A calibration: {noise:?}");
@@ -274,16 +270,14 @@ fn plan_measure_calibrate_end_to_end() {
     assert_eq!(p.of_role(Role::Verify).count(), 15);
     assert!(p.joint_travel_deg < p.joint_travel_unordered_deg);
 
+    let lm = CalibrationConfig {
+        method: Method::Lm,
+        ..CalibrationConfig::default()
+    };
+    // `calib calibrate --robot ROBOT --data DATA --method lm`: a plan's verify poses held out.
     let calibrate = |data: &Path| {
-        let options: CalibrateOptions = parse(&[
-            "--robot",
-            ROBOT,
-            "--data",
-            data.to_str().unwrap(),
-            "--method",
-            "lm",
-        ]);
-        calibrate_cli::calibrate(&options)
+        let files = (ROBOT, data.to_str().unwrap(), None);
+        common::calibrate_files(files, lm.clone(), None)
     };
     let unfilled = calibrate(&plan_csv).map(|_| ()).unwrap_err().to_string();
     assert!(unfilled.contains("not been measured"), "{unfilled}");
@@ -344,10 +338,11 @@ fn plan_measure_calibrate_end_to_end() {
     // The same plan with a noise level far below the data's: the measured verification error is
     // above the predicted range, flagged with the poses to look at first.
     let optimistic_csv = dir.path().join("optimistic-plan.csv");
-    let optimistic = plan_series_b(
-        &["--noise-mm", "0.02", "--noise-deg", "0.002"],
-        &optimistic_csv,
-    );
+    let given = Noise::Given {
+        mm: 0.02,
+        deg: Some(0.002),
+    };
+    let optimistic = plan_series_b(given, &optimistic_csv);
     let same = |p: &planning::Plan| p.poses.iter().map(|q| q.candidate).collect::<Vec<_>>();
     assert_eq!(
         same(&optimistic),
@@ -393,18 +388,13 @@ fn plan_measure_calibrate_end_to_end() {
     assert_eq!(listed, residuals[..3].to_vec());
     println!("{}", check.text());
     // With a hold-out of its own, the file's verify poses would be silently mixed: refused.
-    let options: CalibrateOptions = parse(&[
-        "--robot",
-        ROBOT,
-        "--data",
-        filled_csv.to_str().unwrap(),
-        "--validate",
-        "0.2",
-    ]);
-    let both = calibrate_cli::calibrate(&options)
-        .map(|_| ())
-        .unwrap_err()
-        .to_string();
+    let filled = common::read(ROBOT, filled_csv.to_str().unwrap(), None).unwrap();
+    let mut session = common::session(filled, CalibrationConfig::default());
+    session.hold_out = HoldOut::Fraction {
+        fraction: 0.2,
+        seed: 0,
+    };
+    let both = (session.run()).map(|_| ()).unwrap_err().to_string();
     assert!(both.contains("verify poses are the hold-out"), "{both}");
 }
 
@@ -514,15 +504,14 @@ fn plan_refuses_what_it_cannot_stand_behind() {
     let out = dir.path().join("plan.csv");
     let refused = |args: &[&str]| {
         let all = [
-            &["--robot", ROBOT, "--measure", "pose", "--noise-mm", "0.05"][..],
-            &["--out", out.to_str().unwrap()][..],
+            &["plan", "--robot", ROBOT, "--measure", "pose"][..],
+            &["--noise-mm", "0.05", "--out", out.to_str().unwrap()][..],
             args,
         ]
         .concat();
-        let message = match plan_cli::plan(&parse::<PlanOptions>(&all)) {
-            Ok(_) => panic!("{args:?} was planned"),
-            Err(e) => e.to_string(),
-        };
+        let run = calib(&all);
+        assert_eq!(run.status.code(), Some(1), "{args:?} was planned");
+        let message = String::from_utf8_lossy(&run.stderr).into_owned();
         assert!(!out.exists(), "{message}");
         message
     };
@@ -555,6 +544,7 @@ fn plan_refuses_what_it_cannot_stand_behind() {
     // A 7-joint robot is planned for joint maps too (issue 37: maps for any joint count).
     let iiwa = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/kuka-iiwa14.toml");
     let all = [
+        "plan",
         "--robot",
         iiwa,
         "--measure",
@@ -570,8 +560,8 @@ fn plan_refuses_what_it_cannot_stand_behind() {
         "--model",
         "joint-maps",
     ];
-    let planned = plan_cli::plan(&parse::<PlanOptions>(&all)).unwrap();
-    assert!(planned.text().contains("for joint maps"));
+    let planned = ok(&calib(&all));
+    assert!(planned.contains("for joint maps"), "{planned}");
     assert!(out.exists());
 }
 

@@ -3,10 +3,9 @@
 //! tracker and tool frames identified, and validated on the poses not used.
 
 mod common;
-use common::parse;
 
 use host_tools::calibration::Calibrated as Calibration;
-use host_tools::cli::calibrate::{self, CalibrateOptions};
+use host_tools::calibration::{CalibrationConfig, Identify, LossChoice, Method};
 use host_tools::measurement::frames::Frames;
 use std::path::Path;
 
@@ -24,13 +23,24 @@ const POSITION: &str = concat!(
     "/profiles/ipa-ur10-lasertracker-position.toml"
 );
 
-fn calibrate(data: &str, profile: &str, args: &[&str]) -> Calibration {
-    let all = [
-        &["--robot", ROBOT, "--data", data, "--profile", profile][..],
-        args,
-    ]
-    .concat();
-    calibrate::calibrate(&parse::<CalibrateOptions>(&all)).unwrap()
+/// The UR10 calibrated on `data` read with `profile`, with `config`, holding out the random
+/// `(fraction, seed)` of the poses when given.
+fn calibrate(
+    data: &str,
+    profile: &str,
+    config: CalibrationConfig,
+    validate: Option<(f64, u64)>,
+) -> Calibration {
+    common::calibrate_files((ROBOT, data, Some(profile)), config, validate).unwrap()
+}
+
+/// Least squares alone, with `loss` (the default scale).
+fn lm(loss: LossChoice) -> CalibrationConfig {
+    CalibrationConfig {
+        method: Method::Lm,
+        loss,
+        ..CalibrationConfig::default()
+    }
 }
 
 /// 50 random poses of the 1495 calibrate (`--validate 0.9666` holds out 1445), 5 seeds.
@@ -41,15 +51,14 @@ fn series_b_fifty_poses_validate_on_the_rest() {
     for (name, profile) in [("full pose", FULL_POSE), ("position only", POSITION)] {
         let mut means = Vec::new();
         for seed in 0..5 {
-            let s = seed.to_string();
             // Position-only: the T-Mac point is near the axis of joint 6, so joint 5's distal
             // parameters are nearly confounded with the tool point; --auto-mask drops the
             // worst of them (see an_ill_conditioned_subset_is_flagged).
-            let mut args = vec!["--validate", "0.9666", "--validate-seed", &s];
-            if profile == POSITION {
-                args.push("--auto-mask");
-            }
-            let c = calibrate(DATA, profile, &args);
+            let config = CalibrationConfig {
+                auto_mask: profile == POSITION,
+                ..CalibrationConfig::default()
+            };
+            let c = calibrate(DATA, profile, config, Some((0.9666, seed)));
             assert_eq!(c.result.calibration.poses, 50);
             let v = c.result.validation.as_ref().unwrap();
             assert_eq!(v.poses, 1445);
@@ -79,14 +88,14 @@ fn series_b_fifty_poses_validate_on_the_rest() {
 #[test]
 fn the_estimated_loss_scale_flags_exactly_the_stale_measurements() {
     for profile in [POSITION, FULL_POSE] {
-        for loss in ["huber", "cauchy"] {
-            let c = calibrate(DATA, profile, &["--method", "lm", "--loss", loss]);
+        for loss in [LossChoice::Huber, LossChoice::Cauchy] {
+            let c = calibrate(DATA, profile, lm(loss), None);
             let lines: Vec<u64> = c.result.outliers.iter().map(|o| o.line).collect();
-            assert_eq!(lines, [534, 856, 857], "{profile} {loss}");
+            assert_eq!(lines, [534, 856, 857], "{profile} {loss:?}");
             let l = c.result.least_squares.as_ref().unwrap();
             assert!(l.loss_scale_estimated);
             println!(
-                "{profile} {loss}: scale {:.4} mm, outliers beyond {:.4} mm / {:?} deg",
+                "{profile} {loss:?}: scale {:.4} mm, outliers beyond {:.4} mm / {:?} deg",
                 l.loss_scale_mm.unwrap(),
                 l.outlier_position_mm.unwrap(),
                 l.outlier_rotation_deg
@@ -101,11 +110,11 @@ fn the_estimated_loss_scale_flags_exactly_the_stale_measurements() {
 #[test]
 fn the_robust_loss_flags_the_stale_measurements() {
     for profile in [POSITION, FULL_POSE] {
-        let c = calibrate(
-            DATA,
-            profile,
-            &["--method", "lm", "--loss", "huber", "--loss-scale-mm", "1"],
-        );
+        let config = CalibrationConfig {
+            loss_scale_mm: Some(1.0),
+            ..lm(LossChoice::Huber)
+        };
+        let c = calibrate(DATA, profile, config, None);
         let mut poses: Vec<_> = c.result.poses.iter().collect();
         poses.sort_by(|a, b| b.after_mm.total_cmp(&a.after_mm));
         let mut worst: Vec<u64> = poses.iter().take(3).map(|p| p.line).collect();
@@ -157,12 +166,12 @@ fn a_reflector_on_the_last_axis_is_recognised_in_one_configuration() {
             .collect::<String>(),
     )
     .unwrap();
-    for keep in [&[][..], &["--keep-ill-conditioned"][..]] {
-        let c = calibrate(
-            path.to_str().unwrap(),
-            POSITION,
-            &[&["--method", "lm"][..], keep].concat(),
-        );
+    for keep in [false, true] {
+        let config = CalibrationConfig {
+            keep_ill_conditioned: keep,
+            ..lm(LossChoice::L2)
+        };
+        let c = calibrate(path.to_str().unwrap(), POSITION, config, None);
         let id = &c.result.identifiability;
         let reflector = id.reflector_on_last_axis.as_ref().unwrap();
         let left_out: Vec<String> = reflector
@@ -180,7 +189,7 @@ fn a_reflector_on_the_last_axis_is_recognised_in_one_configuration() {
         );
         let condition = id.condition_number.unwrap();
         println!(
-            "{keep:?}: condition {condition:.3e}, dropped {:?}",
+            "keep ill-conditioned {keep}: condition {condition:.3e}, dropped {:?}",
             c.report().dropped
         );
         assert!(!id.ill_conditioned && condition < 1000.0, "{condition}");
@@ -193,7 +202,7 @@ fn a_reflector_on_the_last_axis_is_recognised_in_one_configuration() {
         }
     }
     // The same subset with full poses is well conditioned.
-    let full = calibrate(path.to_str().unwrap(), FULL_POSE, &["--method", "lm"]);
+    let full = calibrate(path.to_str().unwrap(), FULL_POSE, lm(LossChoice::L2), None);
     assert!(!full.result.identifiability.ill_conditioned);
     assert!(full.result.identifiability.condition_number.unwrap() < 1000.0);
 }
@@ -205,8 +214,8 @@ fn a_reflector_on_the_last_axis_is_recognised_in_one_configuration() {
 fn a_poor_registration_is_reported() {
     let er10l = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/er10l-c10.toml");
     let error = |profile: &str| {
-        let all = ["--robot", er10l, "--data", DATA, "--profile", profile];
-        calibrate::calibrate(&parse::<CalibrateOptions>(&all))
+        let files = (er10l, DATA, Some(profile));
+        common::calibrate_files(files, CalibrationConfig::default(), None)
             .err()
             .unwrap()
             .to_string()
@@ -235,27 +244,25 @@ const SERIES_D: &str = concat!(
 /// so the re-registration holds it at the B model's probe (93.07 mm) where evaluate fits it.
 #[test]
 fn series_b_model_re_registered_on_series_d() {
-    use host_tools::cli::evaluate::{self, EvaluateOptions};
+    use host_tools::analysis::evaluation::{FitPoses, Registration, evaluate_model};
     use host_tools::io::robot_file::RobotFile;
     let dir = tempfile::tempdir().unwrap();
     let b_model = dir.path().join("b50.toml");
-    let b = calibrate(DATA, FULL_POSE, &["--validate", "0.9666"]);
+    let b = calibrate(
+        DATA,
+        FULL_POSE,
+        CalibrationConfig::default(),
+        Some((0.9666, 0)),
+    );
     std::fs::write(&b_model, b.robot_toml()).unwrap();
     let b_path = b_model.to_str().unwrap();
-    let held = "0.95253"; // 602 of 632 held out, 30 fit the frames
-    let all = [
-        "--robot",
-        b_path,
-        "--data",
-        SERIES_D,
-        "--profile",
-        FULL_POSE,
-        "--identify",
-        "frames",
-        "--validate",
-        held,
-    ];
-    let registered = calibrate::calibrate(&parse::<CalibrateOptions>(&all)).unwrap();
+    let held = 0.95253; // 602 of 632 held out, 30 fit the frames
+    let frames_only = CalibrationConfig {
+        identify: Identify::Frames,
+        ..CalibrationConfig::default()
+    };
+    let files = (b_path, SERIES_D, Some(FULL_POSE));
+    let registered = common::calibrate_files(files, frames_only, Some((held, 0))).unwrap();
     assert_eq!(registered.result.calibration.poses, 30);
     // Issue 40, item 4: like with like (the frames' prediction against their own fit, no
     // warning that compared a cross-validation with an in-sample fit), and the probe's move.
@@ -369,18 +376,11 @@ fn series_b_model_re_registered_on_series_d() {
     );
     let re_registered = v.after.position_mm.mean;
     // The same through evaluate.
-    let evaluation = evaluate::evaluate(&parse::<EvaluateOptions>(&[
-        "--robot",
-        b_path,
-        "--data",
-        SERIES_D,
-        "--profile",
-        FULL_POSE,
-        "--fit-frames",
-        "base+tool",
-        "--fit-poses",
-        "30",
-    ]))
+    let evaluation = evaluate_model(
+        &common::read(b_path, SERIES_D, Some(FULL_POSE)).unwrap(),
+        Registration::Fit(Some(Frames::BaseTool)),
+        Some(FitPoses { count: 30, seed: 0 }),
+    )
     .unwrap();
     assert_eq!(
         (evaluation.fitted_poses, evaluation.evaluated_poses),
@@ -393,7 +393,12 @@ fn series_b_model_re_registered_on_series_d() {
         evaluation.table.position_mm.mean
     );
     // D's own calibration on 50 poses, and the nominal geometry with D's frames fitted.
-    let own = calibrate(SERIES_D, FULL_POSE, &["--validate", "0.92089"]);
+    let own = calibrate(
+        SERIES_D,
+        FULL_POSE,
+        CalibrationConfig::default(),
+        Some((0.92089, 0)),
+    );
     let own_v = own.result.validation.as_ref().unwrap();
     assert_eq!(own_v.poses, 582);
     let (nominal, own_after) = (own_v.before.position_mm.mean, own_v.after.position_mm.mean);
@@ -424,15 +429,8 @@ fn a_wrong_euler_convention_is_refused_and_the_right_one_named() {
     )
     .unwrap();
     for data in [DATA, SERIES_D] {
-        let all = [
-            "--robot",
-            ROBOT,
-            "--data",
-            data,
-            "--profile",
-            wrong.to_str().unwrap(),
-        ];
-        let err = calibrate::calibrate(&parse::<CalibrateOptions>(&all))
+        let files = (ROBOT, data, wrong.to_str());
+        let err = common::calibrate_files(files, CalibrationConfig::default(), None)
             .err()
             .unwrap()
             .to_string();

@@ -44,7 +44,7 @@ pub struct Region {
 
 impl Region {
     /// "x 412..893, y -310..-12, z 95..402 mm".
-    pub(crate) fn bounds_text(&self) -> String {
+    pub fn bounds_text(&self) -> String {
         let range = |r: [f64; 2]| format!("{:.0}..{:.0}", r[0], r[1]);
         format!(
             "x {}, y {}, z {} mm",

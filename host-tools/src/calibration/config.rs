@@ -266,7 +266,7 @@ impl SwarmConfig {
 }
 
 /// The refusal of the swarm's settings `flags` with `--method lm`, which runs no swarm.
-pub(crate) fn swarm_without_swarm(flags: &[&str]) -> crate::Error {
+pub fn swarm_without_swarm(flags: &[&str]) -> crate::Error {
     crate::Error::conflict(
         &[flags, &["--method"]].concat(),
         format!(

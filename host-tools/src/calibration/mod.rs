@@ -69,7 +69,7 @@ mod result;
 mod session;
 mod solve;
 
-pub(crate) use config::swarm_without_swarm;
+pub use config::swarm_without_swarm;
 pub use config::{
     CalibrationConfig, Cancel, ErrorModel, Identify, LossChoice, Method, SWARM_SIZES,
     ScramblingChoice, SwarmConfig, SwarmOptions,

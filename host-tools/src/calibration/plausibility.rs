@@ -13,7 +13,7 @@ use calib_core::Parameter;
 /// mm. Manufacturing errors of a robot's links are below a few millimetres. A robot file's
 /// `max_length_error_mm` replaces it for that robot (and `max_angle_error_deg` the angle bound).
 /// A convention, not fitted to data (docs/RESULTS.md, "Thresholds set from data").
-pub(crate) const MAX_LENGTH_ERROR_MM: f64 = 20.0;
+pub const MAX_LENGTH_ERROR_MM: f64 = 20.0;
 
 /// Largest plausible identified angle error, degrees. Twist and joint zero errors are a fraction
 /// of a degree.
@@ -37,7 +37,7 @@ determine the parameters (`calib check`). If the result is right, --accept-impla
 /// The bound (in the parameter's unit, mm or deg) of an identified parameter, and whose bound it
 /// is. A robot file's `max_length_error_mm` and `max_angle_error_deg` bound its joints' errors
 /// (the robot's geometry); the frames of the measurement set-up keep the general bounds.
-pub(crate) fn bound_of(robot: &RobotFile, parameter: Parameter) -> (f64, &'static str) {
+pub fn bound_of(robot: &RobotFile, parameter: Parameter) -> (f64, &'static str) {
     let own = match parameter {
         Parameter::Joint { .. } if parameter.is_angle() => robot.max_angle_error_deg,
         Parameter::Joint { .. } => robot.max_length_error_mm,

@@ -705,7 +705,7 @@ fn resolved(path: &Path) -> PathBuf {
 }
 
 /// Writes `bytes` to `path` as the only output of a command (see [`Outputs`]).
-pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> crate::Result<()> {
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> crate::Result<()> {
     let mut outputs = Outputs::default();
     outputs.stage("output", path, bytes)?;
     outputs.commit().map(|_| ())

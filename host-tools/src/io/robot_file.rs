@@ -609,7 +609,7 @@ impl RobotFile {
 
     /// Refuses a file with gravity compliance for `what` (a command that cannot apply it:
     /// `simulate`), so that no result silently leaves it out.
-    pub(crate) fn refuse_compliance(&self, path: &Path, what: &str) -> crate::Result<()> {
+    pub fn refuse_compliance(&self, path: &Path, what: &str) -> crate::Result<()> {
         if self.compliance.is_some() {
             return Err(crate::refused!(
                 "{}: this robot file has gravity compliance ([compliance], from calibrate --model joint-maps+compliance), \
@@ -623,7 +623,7 @@ impl RobotFile {
 
     /// Refuses a file with joint maps for `what` (a command or an output that cannot apply them
     /// yet), so that no result silently leaves the maps out.
-    pub(crate) fn refuse_joint_maps(&self, path: &Path, what: &str) -> crate::Result<()> {
+    pub fn refuse_joint_maps(&self, path: &Path, what: &str) -> crate::Result<()> {
         if self.joint_maps.is_some() {
             return Err(crate::refused!(
                 "{}: this robot file has joint maps ([joint_maps], from calibrate --model joint-maps), \
@@ -645,7 +645,7 @@ impl RobotModel {
     /// The first of the joint readings `q` (rad) outside this robot's limits, in words: `q3 =
     /// 400.0000 deg is outside the joint limits [-360, 360] deg of FILE`; `None` when all are
     /// within.
-    pub(crate) fn outside_limits(&self, q: &[f64]) -> Option<String> {
+    pub fn outside_limits(&self, q: &[f64]) -> Option<String> {
         let (j, (q, l)) =
             (q.iter().zip(&self.robot.limits).enumerate()).find(|(_, (q, l))| !l.contains(**q))?;
         Some(format!(

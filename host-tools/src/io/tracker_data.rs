@@ -347,14 +347,14 @@ impl TrackerData {
     /// Reads a robot's log of when it stood at each planned pose (`calib merge --by time`): a time
     /// column (`time_s`, `time_ms`; numbers or ISO 8601 UTC timestamps), an optional `id`, joint
     /// columns optional.
-    pub(crate) fn read_log(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
+    pub fn read_log(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
         let text = read_text(path)?;
         Self::parse_with(&text, path, Needs::Log, profile)
     }
 
     /// Reads a tracker's export of measured points through a data profile: positions (and
     /// orientations) required, joints optional (a robot log merged in), for `calib merge`.
-    pub(crate) fn read_measured(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
+    pub fn read_measured(path: &Path, profile: &DataProfile) -> Result<Self, DataError> {
         let text = read_text(path)?;
         Self::parse_with(&text, path, Needs::Targets, profile)
     }
@@ -904,7 +904,7 @@ fn iso_8601_seconds(field: &str) -> Option<f64> {
 
 impl TrackerData {
     /// `true` when the file has no orientation columns.
-    pub(crate) fn rows_without_orientation(&self) -> bool {
+    pub fn rows_without_orientation(&self) -> bool {
         self.orientation == OrientationColumns::None
     }
 }

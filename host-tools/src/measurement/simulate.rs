@@ -210,7 +210,7 @@ impl Simulated {
     }
 
     /// As [`Self::write`], refusing to replace any of `inputs` (each named by its flag).
-    pub(crate) fn write_beside(
+    pub fn write_beside(
         &self,
         data: &Path,
         truth: &Path,

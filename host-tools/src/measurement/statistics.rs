@@ -88,14 +88,14 @@ pub(crate) fn table3<'a>(
 
 /// A model's base frame seen from the frame its poses are measured in (for data in a tracker's
 /// frame, the registration): points and directions of that frame along the robot's own axes.
-pub(crate) struct BaseFrame {
+pub struct BaseFrame {
     to_base: nalgebra::Rotation3<f64>,
     origin: nalgebra::Vector3<f64>,
 }
 
 impl BaseFrame {
     /// The base frame of `robot` (its `base`).
-    pub(crate) fn of(robot: &calib_core::Robot<f64, Dyn>) -> Self {
+    pub fn of(robot: &calib_core::Robot<f64, Dyn>) -> Self {
         let [roll, pitch, yaw] = robot.base.rpy;
         Self {
             to_base: nalgebra::Rotation3::from_euler_angles(roll, pitch, yaw).inverse(),
@@ -104,7 +104,7 @@ impl BaseFrame {
     }
 
     /// A point (mm) in the base frame.
-    pub(crate) fn point(&self, p: &nalgebra::Vector3<f64>) -> [f64; 3] {
+    pub fn point(&self, p: &nalgebra::Vector3<f64>) -> [f64; 3] {
         self.direction(&(p - self.origin))
     }
 

@@ -6,3 +6,5 @@ pub mod pdf;
 pub mod plots;
 pub mod tables;
 mod text;
+
+pub use text::evaluation;

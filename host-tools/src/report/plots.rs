@@ -515,6 +515,40 @@ impl PlotData<'_> {
     }
 }
 
+/// Stages the plots of the calibration `calibrated` into `dir`, each as SVG and PNG: the swarm's
+/// convergence, the position and orientation errors per pose, the held-out histogram and
+/// workspace map, the joint maps (those the calibration has). The files are written when
+/// `outputs` is committed: what `calib calibrate --plot DIR` writes.
+pub fn stage_calibration(
+    outputs: &mut crate::io::outputs::Outputs,
+    dir: &Path,
+    calibrated: &crate::calibration::Calibrated,
+) -> crate::Result<()> {
+    let result = &calibrated.result;
+    let p = &result.per_pose;
+    let history = (result.swarm.as_ref()).map_or(&[][..], |s| s.history.as_slice());
+    let joint_maps = (result.joint_maps.as_ref()).map_or(&[][..], |m| m.curves.as_slice());
+    stage_plots(
+        outputs,
+        dir,
+        &PlotData {
+            history,
+            title: "absolute position error per calibration pose",
+            lines: &p.lines,
+            orientation_lines: &p.orientation_lines,
+            before: &p.before,
+            after: &p.after,
+            orientation_before: &p.orientation_before,
+            orientation_after: &p.orientation_after,
+            validation_before: &p.validation_before,
+            validation_after: &p.validation_after,
+            validation_positions: &p.validation_position_mm,
+            validation_predicted: &p.validation_predicted_rms_mm,
+            joint_maps,
+        },
+    )
+}
+
 /// Stages into `dir` (see [`crate::io::outputs::Outputs`]), each as SVG and PNG: `convergence` (with
 /// the swarm), `position-error`, `orientation-error` (with orientation data) and
 /// `validation-histogram` and `workspace-error` (with validation poses) and `joint-maps` (with joint maps). Nothing is replaced until the outputs are

@@ -1,6 +1,7 @@
 //! A calibration result as text for people: the run in a few lines, then the paper's Table 3
 //! before and after on the calibration and the validation poses.
 
+use crate::analysis::evaluation::Evaluation;
 use crate::analysis::truth::TruthRow;
 use crate::calibration::LossChoice;
 use crate::calibration::{CalibrationResult, swarm_stop};
@@ -283,5 +284,29 @@ fn caveats_text(caveats: &[crate::analysis::caveats::Caveat]) -> String {
     for c in caveats {
         text.push_str(&format!("  - {}\n", c.line()));
     }
+    text
+}
+
+/// A model evaluated on poses ([`crate::analysis::evaluation::evaluate_model`]) as text for
+/// people, titled `title`: how the frames were fitted, then Table 3 (`calib evaluate`).
+pub fn evaluation(evaluation: &Evaluation, title: &str) -> String {
+    let mut text = String::new();
+    if evaluation.frames.identified.base() {
+        text.push_str(&format!(
+            "frames fitted ({}, geometry kept) on {} poses: {:.4} mm RMS\n",
+            evaluation.frames.identified.name(),
+            evaluation.fitted_poses,
+            evaluation.frames.frames_fit_rms_mm
+        ));
+        if evaluation.fitted_poses_evaluated {
+            text.push_str(
+                "the statistics include the poses that fitted the frames (--fit-poses N keeps them out)\n",
+            );
+        }
+    }
+    text.push_str(&crate::report::tables::table3_single_text(
+        title,
+        &evaluation.table,
+    ));
     text
 }

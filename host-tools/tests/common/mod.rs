@@ -1,8 +1,11 @@
-//! Helpers shared by the integration tests: the `calib` binary runner, the success check, the
-//! parser of command options from argument lists, and simulated data. Each test file uses some
-//! of them.
+//! Helpers shared by the integration tests: the `calib` binary runner, the success check, data
+//! read and calibrated through the library as `calib` reads and calibrates them, and simulated
+//! data. Each test file uses some of them.
 #![allow(dead_code)]
 
+use host_tools::calibration::{Calibrated, CalibrationConfig, HoldOut, Session, Truth};
+use host_tools::io::profile::DataProfile;
+use host_tools::measurement::dataset::Dataset;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -48,18 +51,6 @@ pub fn ok(out: &Output) -> String {
         String::from_utf8_lossy(&out.stderr)
     );
     String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-#[derive(clap::Parser)]
-#[command(no_binary_name = true)]
-struct Wrap<T: clap::Args> {
-    #[command(flatten)]
-    inner: T,
-}
-
-/// A command's options parsed from `args` (without the command name), as `calib` parses them.
-pub fn parse<T: clap::Args>(args: &[&str]) -> T {
-    <Wrap<T> as clap::Parser>::parse_from(args.iter().copied()).inner
 }
 
 /// Per row of a `calib compensate` output `out` of a robot of `joints` joints (every row `ok`),
@@ -166,13 +157,14 @@ pub fn compensated_misses(
     )
 }
 
-/// Simulated data of the nominal ER10L-C10 ([`ROBOT`]), as `calib simulate` with the options
-/// `args` writes them: the data to `dir/NAME.csv`, the true robot to `dir/NAME-truth.toml`.
+/// Simulated data of the nominal ER10L-C10 ([`ROBOT`]), written by `calib simulate` with the
+/// options `args`: the data to `dir/NAME.csv`, the true robot to `dir/NAME-truth.toml`.
 /// Returns (data, truth).
 pub fn simulate(dir: &Path, name: &str, args: &[&str]) -> (PathBuf, PathBuf) {
     let data = dir.join(format!("{name}.csv"));
     let truth = dir.join(format!("{name}-truth.toml"));
     let mut all = vec![
+        "simulate",
         "--robot",
         ROBOT,
         "--out",
@@ -181,9 +173,55 @@ pub fn simulate(dir: &Path, name: &str, args: &[&str]) -> (PathBuf, PathBuf) {
         truth.to_str().unwrap(),
     ];
     all.extend_from_slice(args);
-    host_tools::cli::simulate::simulate(&parse::<host_tools::cli::simulate::Simulation>(&all))
-        .unwrap();
+    ok(&calib(&all));
     (data, truth)
+}
+
+/// The poses of the data file `data`, read through the data profile `profile` (the default
+/// profile with `None`) for the robot file `robot` and checked as `calib` checks them (joint
+/// count and limits, the orientations against the profile's Euler convention).
+pub fn read(robot: &str, data: &str, profile: Option<&str>) -> host_tools::Result<Dataset> {
+    let profile = DataProfile::load(profile.map(Path::new))?;
+    let dataset = Dataset::load_with(Path::new(robot), Path::new(data), &profile)?;
+    host_tools::measurement::orientation_check::check(&dataset, &profile.euler)?;
+    Ok(dataset)
+}
+
+/// The calibration session of `dataset` with `config` that `calib calibrate` starts without a
+/// hold-out option: a measured plan's verification rows held out, else none.
+pub fn session(dataset: Dataset, config: CalibrationConfig) -> Session {
+    Session {
+        hold_out: HoldOut::of_data(&dataset),
+        ..Session::new(dataset, config)
+    }
+}
+
+/// [`session`] of the files `robot`, `data` and `profile` ([`read`]) with `config`, holding out
+/// the random `fraction` of the poses chosen by `seed` (`calib calibrate --validate FRACTION
+/// --validate-seed SEED`) when given, calibrated; the files and their hashes are its provenance,
+/// as `calib calibrate` records them.
+pub fn calibrate_files(
+    (robot, data, profile): (&str, &str, Option<&str>),
+    config: CalibrationConfig,
+    validate: Option<(f64, u64)>,
+) -> host_tools::Result<Calibrated> {
+    let dataset = read(robot, data, profile)?;
+    let mut session = session(dataset, config);
+    let mut inputs = vec![("--robot", Path::new(robot)), ("--data", Path::new(data))];
+    inputs.extend(profile.map(|p| ("--profile", Path::new(p))));
+    session.provenance.inputs = host_tools::io::provenance::InputFile::all(&inputs)?;
+    if let Some((fraction, seed)) = validate {
+        session.hold_out = HoldOut::Fraction { fraction, seed };
+    }
+    session.run()
+}
+
+/// The robot file of known errors at `path` (`calib simulate --truth-out`), to compare with.
+pub fn truth(path: &Path) -> Truth {
+    Truth {
+        file: host_tools::io::robot_file::RobotFile::read(path).unwrap(),
+        path: path.to_path_buf(),
+    }
 }
 
 /// Simulated data of the nominal ER10L-C10 ([`ROBOT`]) under a simulation configuration of the

@@ -1,7 +1,7 @@
 //! `calib verify`: the same calibration by the f32 core, the f64 core and the reference
-//! optimiser ([`crate::analysis::verify`]); exits non-zero past the documented tolerances.
+//! optimiser ([`host_tools::analysis::verify`]); exits non-zero past the documented tolerances.
 
-use crate::analysis::verify::Verification;
+use host_tools::analysis::verify::Verification;
 
 /// Options of `calib verify`.
 #[derive(Clone, Debug, clap::Args)]
@@ -12,7 +12,7 @@ pub struct VerifyOptions {
     /// Frames identified with the geometry (default base+tool unless the data say
     /// `# frame: base`).
     #[arg(long, value_enum)]
-    pub frames: Option<crate::measurement::frames::Frames>,
+    pub frames: Option<host_tools::measurement::frames::Frames>,
     /// Fraction of the poses held out for the validation error.
     #[arg(long, default_value_t = 0.3)]
     pub validate: f64,
@@ -29,12 +29,12 @@ pub struct VerifyOptions {
 
 /// Runs `calib verify`: reads the files, holds out `--validate` of the poses, verifies.
 pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
-    crate::model::counts::joint_count(options.input.joints()?)?;
+    host_tools::model::counts::joint_count(options.input.joints()?)?;
     let (_, all) = options.input.load()?;
     let k = crate::cli::weight_for(options.k, &all.data, &options.input.data)?;
     let (calibration, validation) =
-        crate::measurement::dataset::split(&all, options.validate, options.validate_seed)?;
-    Ok(crate::analysis::verify::verify(
+        host_tools::measurement::dataset::split(&all, options.validate, options.validate_seed)?;
+    Ok(host_tools::analysis::verify::verify(
         &calibration,
         &validation,
         options.frames,

@@ -1,19 +1,19 @@
-//! `calib calibrate`: the command over [`crate::calibration::Session`]: the options as a
+//! `calib calibrate`: the command over [`host_tools::calibration::Session`]: the options as a
 //! configuration and a hold-out rule, the robot, data, hold-out and truth files read, the input
 //! files' hashes as the provenance; the session calibrates, and the identified robot file, the
 //! JSON report, the HTML page and the plots it renders are written here.
 
-pub use crate::calibration::SwarmOptions;
-use crate::calibration::{
+use crate::cli::InputFiles;
+use anyhow::bail;
+pub use host_tools::calibration::SwarmOptions;
+use host_tools::calibration::{
     Calibrated, CalibrationConfig, ErrorModel, HoldOut, Identify, LossChoice, Method, Provenance,
     Session, Truth,
 };
-use crate::cli::InputFiles;
-use crate::io::outputs::Outputs;
-use crate::io::robot_file::RobotFile;
-use crate::measurement::dataset::Dataset;
-use crate::measurement::frames::Frames;
-use anyhow::bail;
+use host_tools::io::outputs::Outputs;
+use host_tools::io::robot_file::RobotFile;
+use host_tools::measurement::dataset::Dataset;
+use host_tools::measurement::frames::Frames;
 use std::path::PathBuf;
 
 /// Everything `calib calibrate` needs: its command-line options.
@@ -73,7 +73,7 @@ pub struct CalibrateOptions {
     /// states PASS or FAIL; on FAIL the files are written and calib exits with status 3.
     /// Needs held-out poses (--validate, --holdout or a plan's verification poses).
     #[arg(long, value_name = "CRITERION")]
-    pub accept: Vec<crate::analysis::accuracy::Criterion>,
+    pub accept: Vec<host_tools::analysis::accuracy::Criterion>,
     /// The mass the flange carried while measured (probe or reflector, its mount, any load), kg:
     /// stated on the certificate, not modelled (compliance takes the robot file's `[dynamics]`).
     #[arg(long, value_name = "KG")]
@@ -137,7 +137,7 @@ impl CalibrateOptions {
             accept_implausible: self.accept_implausible,
             acceptance: self.accept.clone(),
             payload_kg: self.payload_kg,
-            cancel: crate::calibration::Cancel::default(),
+            cancel: host_tools::calibration::Cancel::default(),
             progress: !self.quiet,
         }
     }
@@ -159,11 +159,11 @@ impl CalibrateOptions {
 }
 
 /// Runs `calib calibrate` as the command does: calibrates (the robot file's joint count one of
-/// [`JOINT_COUNTS`](crate::model::counts::JOINT_COUNTS)), writes the
+/// [`JOINT_COUNTS`](host_tools::model::counts::JOINT_COUNTS)), writes the
 /// files asked for (all or none), and returns the text to print, with the files written, and
 /// whether the acceptance criteria (if any) are met.
 pub fn calibrate_and_write(options: &CalibrateOptions) -> anyhow::Result<Written> {
-    crate::model::counts::joint_count(options.input.joints()?)?;
+    host_tools::model::counts::joint_count(options.input.joints()?)?;
     let calibrated = calibrate(options)?;
     // The files first: a closed or full standard output must not lose them.
     let written = write_outputs(&calibrated, &options.outputs())?;
@@ -192,7 +192,7 @@ pub fn calibrate(options: &CalibrateOptions) -> anyhow::Result<Calibrated> {
 }
 
 /// [`calibrate`] with the library configuration `config` (that of `options`, with what the
-/// command line does not set: a [`crate::calibration::Cancel`] flag).
+/// command line does not set: a [`host_tools::calibration::Cancel`] flag).
 pub fn calibrate_with(
     options: &CalibrateOptions,
     config: CalibrationConfig,
@@ -205,7 +205,7 @@ pub fn calibrate_with(
     let holdout = match &options.holdout {
         Some(path) => {
             let held = Dataset::load_with(&options.input.robot, path, &profile)?;
-            crate::measurement::orientation_check::check(&held, &profile.euler)?;
+            host_tools::measurement::orientation_check::check(&held, &profile.euler)?;
             Some(held)
         }
         None => None,
@@ -227,7 +227,7 @@ pub fn calibrate_with(
         hold_out: options.hold_out_rule(&all, holdout)?,
         provenance: Provenance {
             command_line: options.command_line.clone(),
-            inputs: crate::io::provenance::InputFile::all(&inputs)?,
+            inputs: host_tools::io::provenance::InputFile::all(&inputs)?,
         },
         truth,
         ..Session::new(all, config)
@@ -243,7 +243,7 @@ fn check_options(options: &CalibrateOptions, all: &Dataset) -> anyhow::Result<()
     let swarm = options.swarm.given();
     if options.method == Method::Lm && !swarm.is_empty() {
         // Named as given: a setting given at its default value is refused too.
-        return Err(crate::calibration::swarm_without_swarm(&swarm).into());
+        return Err(host_tools::calibration::swarm_without_swarm(&swarm).into());
     }
     Ok(())
 }
@@ -311,39 +311,12 @@ pub(crate) fn write_outputs(
         outputs.stage("--report", path, json.as_bytes())?;
     }
     if let (Some(path), Some(report)) = (&paths.html, &report) {
-        let page = crate::report::html::render(report, &crate::report::html::Rendering::now())?;
+        let page =
+            host_tools::report::html::render(report, &host_tools::report::html::Rendering::now())?;
         outputs.stage("--html", path, page.as_bytes())?;
     }
     if let Some(dir) = &paths.plot {
-        let per_pose = &calibration.result.per_pose;
-        let history = calibration
-            .result
-            .swarm
-            .as_ref()
-            .map_or(&[][..], |s| s.history.as_slice());
-        crate::report::plots::stage_plots(
-            &mut outputs,
-            dir,
-            &crate::report::plots::PlotData {
-                history,
-                title: "absolute position error per calibration pose",
-                lines: &per_pose.lines,
-                orientation_lines: &per_pose.orientation_lines,
-                before: &per_pose.before,
-                after: &per_pose.after,
-                orientation_before: &per_pose.orientation_before,
-                orientation_after: &per_pose.orientation_after,
-                validation_before: &per_pose.validation_before,
-                validation_after: &per_pose.validation_after,
-                validation_positions: &per_pose.validation_position_mm,
-                validation_predicted: &per_pose.validation_predicted_rms_mm,
-                joint_maps: calibration
-                    .result
-                    .joint_maps
-                    .as_ref()
-                    .map_or(&[][..], |m| m.curves.as_slice()),
-            },
-        )?;
+        host_tools::report::plots::stage_calibration(&mut outputs, dir, calibration)?;
     }
     Ok(outputs.commit()?)
 }
@@ -351,8 +324,8 @@ pub(crate) fn write_outputs(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibration::SwarmConfig;
     use clap::{CommandFactory, Parser};
+    use host_tools::calibration::SwarmConfig;
 
     /// The options as a whole command line.
     #[derive(clap::Parser)]

@@ -1,14 +1,14 @@
 //! `calib uncertainty`: the identified model's predicted uncertainty at joint configurations
-//! ([`crate::analysis::uncertainty::at_poses`]): per pose the standard deviation of the position
+//! ([`host_tools::analysis::uncertainty::at_poses`]): per pose the standard deviation of the position
 //! (of the measured point) along the robot's base axes and of the orientation about them, from
 //! the parameters' covariance the identified robot file records, and with the instrument a data
 //! profile states (`[instrument]`) what a measurement of the pose would show; the worst poses and
 //! the regions of the workspace of largest uncertainty named.
 
-use crate::io::outputs::Outputs;
-use crate::io::profile::DataProfile;
-use crate::io::robot_file::RobotFile;
-use crate::io::tracker_data::TrackerData;
+use host_tools::io::outputs::Outputs;
+use host_tools::io::profile::DataProfile;
+use host_tools::io::robot_file::RobotFile;
+use host_tools::io::tracker_data::TrackerData;
 use std::path::PathBuf;
 
 /// Options of `calib uncertainty`.
@@ -46,9 +46,9 @@ pub struct Summary {
     /// The largest, mm, with its configuration's id and file line.
     pub worst: Vec<(String, u64, f64)>,
     /// The regions of the workspace (terciles of the configurations' nominal positions in the
-    /// robot's base frame, [`crate::analysis::workspace`]) of largest mean predicted uncertainty:
+    /// robot's base frame, [`host_tools::analysis::workspace`]) of largest mean predicted uncertainty:
     /// their `mean_mm` and `max_mm` are the predicted RMS standard deviation, mm.
-    pub worst_regions: Vec<crate::analysis::workspace::Region>,
+    pub worst_regions: Vec<host_tools::analysis::workspace::Region>,
 }
 
 /// How many of the worst configurations the summary names.
@@ -63,7 +63,7 @@ fn nominal_positions(
 ) -> anyhow::Result<Vec<[f64; 3]>> {
     let model = file.to_model(path)?;
     let kinematics = calib_core::Kinematics::nominal(&model.robot)?;
-    let base = crate::measurement::statistics::BaseFrame::of(&model.robot);
+    let base = host_tools::measurement::statistics::BaseFrame::of(&model.robot);
     q.iter()
         .map(|q| {
             let q = calib_core::model::JointVec::from_slice(q)
@@ -77,7 +77,7 @@ fn nominal_positions(
 /// the identified model's point from the tracker (the file's measurement setup), or its constant
 /// part for a file without one (data in the base frame).
 fn instrument_sd(
-    instrument: &crate::io::profile::Instrument,
+    instrument: &host_tools::io::profile::Instrument,
     file: &RobotFile,
     path: &std::path::Path,
     q: &[Vec<f64>],
@@ -102,7 +102,7 @@ fn instrument_sd(
 /// measurement would show.
 fn table(
     data: &TrackerData,
-    sds: &[crate::analysis::uncertainty::PoseSd],
+    sds: &[host_tools::analysis::uncertainty::PoseSd],
     positions: &[[f64; 3]],
     instrument: Option<&[f64]>,
 ) -> anyhow::Result<Vec<u8>> {
@@ -172,7 +172,7 @@ pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
         }
     }
     let q: Vec<Vec<f64>> = data.records.iter().map(|r| r.q.clone()).collect();
-    let sds = crate::analysis::uncertainty::at_poses(&file, &options.params, &q)?;
+    let sds = host_tools::analysis::uncertainty::at_poses(&file, &options.params, &q)?;
     let positions = nominal_positions(&file, &options.params, &q)?;
     let instrument = match &profile.instrument {
         Some(i) => Some(instrument_sd(i, &file, &options.params, &q)?),
@@ -190,7 +190,7 @@ pub fn uncertainty(options: &UncertaintyOptions) -> anyhow::Result<Summary> {
     let rms: Vec<f64> = sds.iter().map(|s| s.position_rms_mm).collect();
     let lines: Vec<u64> = data.records.iter().map(|r| r.line).collect();
     let worst_regions =
-        crate::analysis::workspace::WorkspaceMap::of(&positions, &rms, &lines, None)
+        host_tools::analysis::workspace::WorkspaceMap::of(&positions, &rms, &lines, None)
             .map(|m| m.worst)
             .unwrap_or_default();
     Ok(Summary {

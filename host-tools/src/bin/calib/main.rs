@@ -1,13 +1,15 @@
 //! `calib`: robot geometric calibration from laser-tracker data.
 
+mod cli;
+
+use crate::cli::calibrate::{self, CalibrateOptions};
+use crate::cli::check::{self, CheckOptions};
+use crate::cli::compensate::CompensateOptions;
+use crate::cli::export::ExportOptions;
+use crate::cli::print;
+use crate::cli::simulate::{self, Simulation};
 use anyhow::Context;
 use clap::{Parser, Subcommand};
-use host_tools::cli::calibrate::{self, CalibrateOptions};
-use host_tools::cli::check::{self, CheckOptions};
-use host_tools::cli::compensate::CompensateOptions;
-use host_tools::cli::export::ExportOptions;
-use host_tools::cli::print;
-use host_tools::cli::simulate::{self, Simulation};
 use host_tools::kinematics::fk;
 use std::path::{Path, PathBuf};
 
@@ -51,39 +53,39 @@ enum Command {
     /// Choose the poses to measure (a D-optimal core, random fill and verification poses) from
     /// candidate joint configurations, predict the accuracy they give, and write the plan as a
     /// tracker CSV to be filled by the tracker software.
-    Plan(host_tools::cli::plan::PlanOptions),
+    Plan(crate::cli::plan::PlanOptions),
     /// Print which identified parameters the data determine (identifiability), without calibrating.
     Check(CheckOptions),
     /// Print the Table 3 statistics of any robot model on any data.
-    Evaluate(host_tools::cli::evaluate::EvaluateOptions),
+    Evaluate(crate::cli::evaluate::EvaluateOptions),
     /// Joints that put the identified robot on target poses (on-line compensation, off line).
     Compensate(CompensateOptions),
     /// Write identified parameters as the controller's parameter block, TOML, JSON, a URDF or a
     /// UR kinematics YAML.
     Export(ExportOptions),
     /// Render a calibration's JSON report (calibrate --report) as a self-contained HTML page.
-    Report(host_tools::cli::report::ReportOptions),
+    Report(crate::cli::report::ReportOptions),
     /// Convert a Universal Robots controller's factory calibration (calibration.conf) into a
     /// robot file: the same geometry in Hayati parameters.
-    ImportUrCalibration(host_tools::cli::import_ur::ImportUrOptions),
+    ImportUrCalibration(crate::cli::import_ur::ImportUrOptions),
     /// The identified model's predicted uncertainty (1 sigma) at joint configurations, from the
     /// parameters' covariance its robot file records.
-    Uncertainty(host_tools::cli::uncertainty::UncertaintyOptions),
+    Uncertainty(crate::cli::uncertainty::UncertaintyOptions),
     /// Merge a tracker's export of the measured points into the plan it measured (by id or by
     /// order, joints checked when the export has them): data that calibrate takes directly.
-    Merge(host_tools::cli::merge::MergeOptions),
+    Merge(crate::cli::merge::MergeOptions),
     /// Calibrate with the f32 core, the f64 core and the independent reference optimiser and
     /// compare; exits with status 1 when a difference is past its documented tolerance.
-    Verify(host_tools::cli::verify::VerifyOptions),
+    Verify(crate::cli::verify::VerifyOptions),
     /// Run the paper's experiment and a realistic cell on simulated data, no input files needed;
     /// prints the tables and writes data, reports and plots into a directory.
-    Demo(host_tools::cli::demo::DemoOptions),
+    Demo(crate::cli::demo::DemoOptions),
 }
 
 /// `calib merge`: merges, writes, says what it wrote.
-fn merge(options: &host_tools::cli::merge::MergeOptions) -> anyhow::Result<()> {
-    let merged = host_tools::cli::merge::merge(options)?;
-    host_tools::cli::print_line(format_args!(
+fn merge(options: &crate::cli::merge::MergeOptions) -> anyhow::Result<()> {
+    let merged = crate::cli::merge::merge(options)?;
+    crate::cli::print_line(format_args!(
         "merged {} measured poses into the plan; wrote {}",
         merged.rows.len(),
         options.out.display()
@@ -136,8 +138,8 @@ fn calibrate_command(mut options: CalibrateOptions) -> anyhow::Result<()> {
 }
 
 /// `calib compensate`: compensates, writes, says how many targets were compensated.
-fn compensate(options: &host_tools::cli::compensate::CompensateOptions) -> anyhow::Result<()> {
-    let summary = host_tools::cli::compensate::compensate(options)?;
+fn compensate(options: &crate::cli::compensate::CompensateOptions) -> anyhow::Result<()> {
+    let summary = crate::cli::compensate::compensate(options)?;
     let extrapolated = if summary.extrapolated > 0 {
         format!(
             ", {} with a joint map extrapolated beyond its identified readings",
@@ -154,7 +156,7 @@ fn compensate(options: &host_tools::cli::compensate::CompensateOptions) -> anyho
         ),
         None => String::new(),
     };
-    host_tools::cli::print_line(format_args!(
+    crate::cli::print_line(format_args!(
         "compensated {} of {} targets ({} refused, see the status column{extrapolated}{moves}); wrote {}",
         summary.ok,
         summary.ok + summary.failed,
@@ -176,7 +178,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         } => forward_kinematics(&robot, &joints_deg, json)?,
         Command::Simulate(settings) => {
             let poses = simulate::simulate(&settings)?;
-            host_tools::cli::print_line(format_args!(
+            crate::cli::print_line(format_args!(
                 "wrote {} poses to {} and the true robot to {}",
                 poses,
                 settings.out.display(),
@@ -185,35 +187,35 @@ fn run(command: Command) -> anyhow::Result<()> {
         }
         Command::Compensate(options) => compensate(&options)?,
         Command::Export(options) => {
-            let bytes = host_tools::cli::export::export(&options)?;
-            host_tools::cli::print_line(format_args!(
+            let bytes = crate::cli::export::export(&options)?;
+            crate::cli::print_line(format_args!(
                 "wrote {} bytes to {}",
                 bytes,
                 options.out.display()
             ))?;
         }
         Command::Report(options) => {
-            host_tools::cli::report::report(&options)?;
+            crate::cli::report::report(&options)?;
             for path in options.html.iter().chain(&options.pdf) {
-                host_tools::cli::print_line(format_args!("wrote {}", path.display()))?;
+                crate::cli::print_line(format_args!("wrote {}", path.display()))?;
             }
         }
         Command::ImportUrCalibration(options) => {
-            let (_, text) = host_tools::cli::import_ur::import(&options)?;
-            host_tools::cli::print_text(format_args!("{text}"))?;
+            let (_, text) = crate::cli::import_ur::import(&options)?;
+            crate::cli::print_text(format_args!("{text}"))?;
         }
         Command::Merge(options) => merge(&options)?,
         Command::Uncertainty(options) => {
-            let summary = host_tools::cli::uncertainty::uncertainty(&options)?;
-            host_tools::cli::print_text(format_args!("{}", summary.text(&options.out)))?;
+            let summary = crate::cli::uncertainty::uncertainty(&options)?;
+            crate::cli::print_text(format_args!("{}", summary.text(&options.out)))?;
         }
         Command::Evaluate(options) => evaluate(&options)?,
         Command::Plan(options) => {
-            let plan = host_tools::cli::plan::plan(&options)?;
-            host_tools::cli::print_text(format_args!("{}", plan.text()))?;
-            host_tools::cli::print_line(format_args!("wrote {}", options.out.display()))?;
+            let plan = crate::cli::plan::plan(&options)?;
+            crate::cli::print_text(format_args!("{}", plan.text()))?;
+            crate::cli::print_line(format_args!("wrote {}", options.out.display()))?;
             if let Some(path) = &options.report {
-                host_tools::cli::print_line(format_args!("wrote {}", path.display()))?;
+                crate::cli::print_line(format_args!("wrote {}", path.display()))?;
             }
         }
         Command::Check(options) => {
@@ -221,13 +223,13 @@ fn run(command: Command) -> anyhow::Result<()> {
             print_json_or_text(options.json, &report, || report.text())?;
         }
         Command::Verify(options) => {
-            let verification = host_tools::cli::verify::verify(&options)?;
+            let verification = crate::cli::verify::verify(&options)?;
             print_json_or_text(options.json, &verification, || verification.text())?;
             if !verification.passed {
                 std::process::exit(1);
             }
         }
-        Command::Demo(options) => host_tools::cli::demo::demo(&options)?,
+        Command::Demo(options) => crate::cli::demo::demo(&options)?,
         Command::Calibrate(options) => calibrate_command(options)?,
     }
     Ok(())
@@ -240,9 +242,9 @@ fn print_json_or_text<T: serde::Serialize>(
     text: impl FnOnce() -> String,
 ) -> anyhow::Result<()> {
     if json {
-        host_tools::cli::print_line(format_args!("{}", serde_json::to_string_pretty(value)?))?;
+        crate::cli::print_line(format_args!("{}", serde_json::to_string_pretty(value)?))?;
     } else {
-        host_tools::cli::print_text(format_args!("{}", text()))?;
+        crate::cli::print_text(format_args!("{}", text()))?;
     }
     Ok(())
 }
@@ -256,25 +258,26 @@ fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::R
     let pose = fk::forward_deg(&kinematics, joints_deg)?;
     let name = kinematics.name();
     if json {
-        host_tools::cli::print_line(format_args!(
+        crate::cli::print_line(format_args!(
             "{}",
             serde_json::to_string(&pose).context("serialising the pose")?
         ))?;
     } else {
-        host_tools::cli::print_line(format_args!("robot: {} ({})", name, robot.display()))?;
-        host_tools::cli::print_text(format_args!("{}", pose.to_text()))?;
+        crate::cli::print_line(format_args!("robot: {} ({})", name, robot.display()))?;
+        crate::cli::print_text(format_args!("{}", pose.to_text()))?;
     }
     Ok(())
 }
 
 /// `calib evaluate`: Table 3 of a robot file on a data file.
-fn evaluate(options: &host_tools::cli::evaluate::EvaluateOptions) -> anyhow::Result<()> {
-    let evaluation = host_tools::cli::evaluate::evaluate(options)?;
+fn evaluate(options: &crate::cli::evaluate::EvaluateOptions) -> anyhow::Result<()> {
+    let evaluation = crate::cli::evaluate::evaluate(options)?;
     print_json_or_text(options.json, &evaluation, || {
-        evaluation.text(&format!(
+        let title = format!(
             "{} on {}",
             options.input.robot.display(),
             options.input.data.display()
-        ))
+        );
+        host_tools::report::evaluation(&evaluation, &title)
     })
 }

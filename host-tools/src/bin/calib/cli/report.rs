@@ -1,8 +1,8 @@
 //! `calib report`: a calibration's JSON report (`calibrate --report`) rendered again, as the
-//! self-contained HTML page of `calibrate --html` ([`crate::report::html`]), and printed to a PDF
-//! ([`crate::report::pdf`]).
+//! self-contained HTML page of `calibrate --html` ([`host_tools::report::html`]), and printed to a PDF
+//! ([`host_tools::report::pdf`]).
 
-use crate::io::outputs::Outputs;
+use host_tools::io::outputs::Outputs;
 use std::path::PathBuf;
 
 /// Options of `calib report`.
@@ -22,10 +22,11 @@ pub struct ReportOptions {
 
 /// Runs `calib report`: writes the HTML page and/or the PDF asked for, all or nothing.
 pub fn report(options: &ReportOptions) -> anyhow::Result<()> {
-    let report = crate::calibration::Report::read(&options.from)?;
-    let page = crate::report::html::render(&report, &crate::report::html::Rendering::now())?;
+    let report = host_tools::calibration::Report::read(&options.from)?;
+    let page =
+        host_tools::report::html::render(&report, &host_tools::report::html::Rendering::now())?;
     let pdf = match &options.pdf {
-        Some(_) => Some(crate::report::pdf::print(&page)?),
+        Some(_) => Some(host_tools::report::pdf::print(&page)?),
         None => None,
     };
     let mut outputs = Outputs::new(&[("--from", &options.from)]);

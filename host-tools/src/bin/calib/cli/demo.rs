@@ -10,12 +10,12 @@
 //! Everything (robot file, simulated data, truth, identified robots, JSON reports, plots) is
 //! written into the output directory so that each step can be rerun with `calib`.
 
-use crate::calibration::{CalibrationConfig, HoldOut, Method, Session, Truth};
 use crate::cli::calibrate::{OutputPaths, write_outputs};
-use crate::io::robot_file::{ER10L_C10_TOML, RobotFile};
-use crate::measurement::dataset::Dataset;
-use crate::measurement::simulate::{self, SimulationConfig};
 use anyhow::Context;
+use host_tools::calibration::{CalibrationConfig, HoldOut, Method, Session, Truth};
+use host_tools::io::robot_file::{ER10L_C10_TOML, RobotFile};
+use host_tools::measurement::dataset::Dataset;
+use host_tools::measurement::simulate::{self, SimulationConfig};
 use std::path::{Path, PathBuf};
 
 /// Options of `calib demo`.
@@ -86,7 +86,7 @@ pub fn demo(options: &DemoOptions) -> anyhow::Result<()> {
     let dir = &options.out;
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let robot_path = dir.join("er10l-c10.toml");
-    crate::io::outputs::write_atomic(&robot_path, ER10L_C10_TOML.as_bytes())?;
+    host_tools::io::outputs::write_atomic(&robot_path, ER10L_C10_TOML.as_bytes())?;
     let robot = (
         RobotFile::parse(ER10L_C10_TOML, &robot_path)?,
         robot_path.clone(),

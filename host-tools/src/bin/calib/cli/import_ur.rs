@@ -1,9 +1,9 @@
 //! `calib import-ur-calibration`: a UR controller's factory calibration (`calibration.conf`) as
-//! our robot file ([`crate::formats::ur_calibration`]).
+//! our robot file ([`host_tools::formats::ur_calibration`]).
 
-use crate::formats::ur_calibration::{Import, UrCalibration};
-use crate::io::outputs::Outputs;
-use crate::io::robot_file::{RobotFile, RobotModel};
+use host_tools::formats::ur_calibration::{Import, UrCalibration};
+use host_tools::io::outputs::Outputs;
+use host_tools::io::robot_file::{RobotFile, RobotModel};
 use std::path::PathBuf;
 
 /// Options of `calib import-ur-calibration`.
@@ -30,7 +30,7 @@ pub struct ImportUrOptions {
 /// A factory calibration corrects a robot by millimetres and tenths of a degree; more means
 /// wrong deltas or a nominal file of another robot than the one calibrated.
 fn implausible(file: &RobotFile, import: &Import) -> Vec<String> {
-    use crate::calibration::plausibility::{MAX_LENGTH_ERROR_MM, bound_of};
+    use host_tools::calibration::plausibility::{MAX_LENGTH_ERROR_MM, bound_of};
     let mut problems = Vec::new();
     for p in import.mask.iter() {
         let value = import.errors.get(p).unwrap_or(0.0);
@@ -61,7 +61,7 @@ pub fn import(options: &ImportUrOptions) -> anyhow::Result<(Import, String)> {
     let file = RobotFile::read(&options.robot)?;
     let model: RobotModel = file.to_model(&options.robot)?;
     let calibration = UrCalibration::read(&options.calibration)?;
-    let import = crate::formats::ur_calibration::import(&model.robot, &calibration)?;
+    let import = host_tools::formats::ur_calibration::import(&model.robot, &calibration)?;
     let problems = implausible(&file, &import);
     if !problems.is_empty() && !options.accept_implausible {
         anyhow::bail!(
@@ -89,7 +89,7 @@ pub fn import(options: &ImportUrOptions) -> anyhow::Result<(Import, String)> {
         options.calibration.display(),
         import.max_position_mm,
         import.max_rotation_rad,
-        crate::formats::ur_calibration::CHECK_POSES
+        host_tools::formats::ur_calibration::CHECK_POSES
     ));
     let mut outputs = Outputs::new(&[
         ("--robot", &options.robot),

@@ -1,9 +1,9 @@
 //! `calib export`: an identified robot file as the controller's parameter block, TOML, JSON, a
 //! URDF or a UR kinematics YAML.
 
-use crate::formats::export::{BlockScalar, ExportFormat, ExportRequest};
-use crate::io::outputs::Outputs;
-use crate::io::robot_file::RobotFile;
+use host_tools::formats::export::{BlockScalar, ExportFormat, ExportRequest};
+use host_tools::io::outputs::Outputs;
+use host_tools::io::robot_file::RobotFile;
 use std::path::PathBuf;
 
 /// Options of `calib export`.

@@ -1,10 +1,10 @@
 //! `calib merge`: a tracker's export merged into the plan it measured
-//! ([`crate::measurement::merge`]), written as data that `calibrate` takes directly.
+//! ([`host_tools::measurement::merge`]), written as data that `calibrate` takes directly.
 
-use crate::io::outputs::Outputs;
-use crate::io::profile::DataProfile;
-use crate::io::tracker_data::TrackerData;
-use crate::measurement::merge::{MatchBy, Merged, RobotLog};
+use host_tools::io::outputs::Outputs;
+use host_tools::io::profile::DataProfile;
+use host_tools::io::tracker_data::TrackerData;
+use host_tools::measurement::merge::{MatchBy, Merged, RobotLog};
 use std::path::PathBuf;
 
 /// Options of `calib merge`.
@@ -74,7 +74,7 @@ pub fn merge(options: &MergeOptions) -> anyhow::Result<Merged> {
         log,
         tolerance_s: options.time_tolerance_s,
     });
-    let merged = crate::measurement::merge::merge(
+    let merged = host_tools::measurement::merge::merge(
         &plan,
         &measured,
         options.by,

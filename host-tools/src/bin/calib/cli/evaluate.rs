@@ -1,8 +1,8 @@
 //! `calib evaluate`: the paper's Table 3 statistics of any robot model on any data, the frames of
-//! tracker data fitted first ([`crate::analysis::evaluation`]).
+//! tracker data fitted first ([`host_tools::analysis::evaluation`]).
 
-use crate::analysis::evaluation::Evaluation;
-use crate::measurement::frames::Frames;
+use host_tools::analysis::evaluation::Evaluation;
+use host_tools::measurement::frames::Frames;
 
 /// Options of `calib evaluate`.
 #[derive(Clone, Debug, clap::Args)]
@@ -36,18 +36,18 @@ pub struct EvaluateOptions {
 
 /// Runs `calib evaluate`.
 pub fn evaluate(options: &EvaluateOptions) -> anyhow::Result<Evaluation> {
-    crate::model::counts::joint_count(options.input.joints()?)?;
+    host_tools::model::counts::joint_count(options.input.joints()?)?;
     let (_, dataset) = options.input.load()?;
     evaluate_dataset(options, dataset)
 }
 
 /// [`evaluate`] on the data already read and checked against the robot (`dataset`): the options
-/// as the library's request ([`crate::analysis::evaluation::evaluate_model`]).
+/// as the library's request ([`host_tools::analysis::evaluation::evaluate_model`]).
 pub fn evaluate_dataset(
     options: &EvaluateOptions,
-    dataset: crate::measurement::dataset::Dataset,
+    dataset: host_tools::measurement::dataset::Dataset,
 ) -> anyhow::Result<Evaluation> {
-    use crate::analysis::evaluation::{FitPoses, Registration};
+    use host_tools::analysis::evaluation::{FitPoses, Registration};
     if options.seed.is_some() && options.fit_poses.is_none() {
         anyhow::bail!(
             "--seed chooses the --fit-poses poses, and none are chosen: give --fit-poses N, or drop --seed"
@@ -62,34 +62,9 @@ pub fn evaluate_dataset(
         count,
         seed: options.seed.unwrap_or(0),
     });
-    Ok(crate::analysis::evaluation::evaluate_model(
+    Ok(host_tools::analysis::evaluation::evaluate_model(
         &dataset,
         registration,
         fit_poses,
     )?)
-}
-
-impl Evaluation {
-    /// The text for people: how the frames were fitted, then Table 3.
-    pub fn text(&self, title: &str) -> String {
-        let mut text = String::new();
-        if self.frames.identified.base() {
-            text.push_str(&format!(
-                "frames fitted ({}, geometry kept) on {} poses: {:.4} mm RMS\n",
-                self.frames.identified.name(),
-                self.fitted_poses,
-                self.frames.frames_fit_rms_mm
-            ));
-            if self.fitted_poses_evaluated {
-                text.push_str(
-                    "the statistics include the poses that fitted the frames (--fit-poses N keeps them out)\n",
-                );
-            }
-        }
-        text.push_str(&crate::report::tables::table3_single_text(
-            title,
-            &self.table,
-        ));
-        text
-    }
 }

@@ -1,7 +1,7 @@
 //! `calib check`: the identifiability of the identified parameters from a data set, without
 //! calibrating.
 
-use crate::analysis::identifiability::IdentifiabilityReport;
+use host_tools::analysis::identifiability::IdentifiabilityReport;
 
 /// Options of `calib check`.
 #[derive(Clone, Debug, clap::Args)]
@@ -12,7 +12,7 @@ pub struct CheckOptions {
     /// Frames identified with the geometry (as for calibrate; default base+tool unless the data
     /// say `# frame: base`).
     #[arg(long, value_enum)]
-    pub frames: Option<crate::measurement::frames::Frames>,
+    pub frames: Option<host_tools::measurement::frames::Frames>,
     /// Orientation weight k, mm^2/rad^2 (as for calibrate; default 1e6; refused for
     /// position-only data).
     #[arg(long, value_parser = crate::cli::orientation_weight)]
@@ -24,12 +24,12 @@ pub struct CheckOptions {
 
 /// `calib check`: the identifiability analysis of a robot file's parameters on a data file.
 pub fn check(options: &CheckOptions) -> anyhow::Result<IdentifiabilityReport> {
-    crate::model::counts::joint_count(options.input.joints()?)?;
+    host_tools::model::counts::joint_count(options.input.joints()?)?;
     // Joint maps and gravity compliance of the file are held fixed: the analysis is that of the
     // geometric parameters at the kinematic angles (the readings with the maps).
     let (_, dataset) = options.input.load()?;
     let k = crate::cli::weight_for(options.k, &dataset.data, &options.input.data)?;
-    Ok(crate::analysis::identifiability::check(
+    Ok(host_tools::analysis::identifiability::check(
         &dataset,
         options.frames,
         k,

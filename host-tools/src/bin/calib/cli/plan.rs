@@ -1,10 +1,10 @@
 //! `calib plan`: choose the poses to measure from candidate joint configurations, predict the
 //! accuracy they give, and write the plan as a tracker CSV without measurements
-//! ([`crate::planning`]).
+//! ([`host_tools::planning`]).
 
-use crate::io::outputs::Outputs;
-use crate::io::robot_file::RobotFile;
-use crate::planning::{self, Candidates, Measure, Noise, Plan, PlanModel, PlanRequest};
+use host_tools::io::outputs::Outputs;
+use host_tools::io::robot_file::RobotFile;
+use host_tools::planning::{self, Candidates, Measure, Noise, Plan, PlanModel, PlanRequest};
 use std::path::PathBuf;
 
 /// Options of `calib plan`.
@@ -110,17 +110,17 @@ impl PlanOptions {
     /// The library's request for these options. Errors: options that name what the request
     /// cannot hold together (`--box-mm` or `--below-base` with `--candidates`, `--profile` with
     /// `--generate`, a box of other than six values, no candidates or no noise).
-    pub fn request(&self) -> crate::Result<PlanRequest> {
+    pub fn request(&self) -> host_tools::Result<PlanRequest> {
         let candidates = match (&self.candidates, self.generate) {
             (Some(path), _) => {
                 if self.box_mm.is_some() {
-                    return Err(crate::Error::conflict(
+                    return Err(host_tools::Error::conflict(
                         &["--box-mm", "--candidates"],
                         "--box-mm selects among generated candidates (--generate); with --candidates, give only the configurations to choose from",
                     ));
                 }
                 if self.below_base {
-                    return Err(crate::Error::conflict(
+                    return Err(host_tools::Error::conflict(
                         &["--below-base", "--candidates"],
                         "--below-base lets generated candidates (--generate) put the tool below the base; --candidates are taken as the file gives them: drop --below-base",
                     ));
@@ -132,7 +132,7 @@ impl PlanOptions {
             }
             (None, Some(count)) => {
                 if self.profile.is_some() {
-                    return Err(crate::Error::conflict(
+                    return Err(host_tools::Error::conflict(
                         &["--profile", "--generate"],
                         "--profile reads a --candidates file, and --generate reads none: drop --profile",
                     ));
@@ -141,7 +141,7 @@ impl PlanOptions {
                     None => None,
                     Some(&[a, b, c, d, e, f]) => Some([a, b, c, d, e, f]),
                     Some(_) => {
-                        return Err(crate::refused!(
+                        return Err(host_tools::refused!(
                             "--box-mm takes six values: XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX"
                         ));
                     }
@@ -153,7 +153,7 @@ impl PlanOptions {
                 }
             }
             (None, None) => {
-                return Err(crate::refused!(
+                return Err(host_tools::refused!(
                     "give the candidates: --candidates FILE or --generate N"
                 ));
             }
@@ -164,10 +164,10 @@ impl PlanOptions {
                 deg: self.noise_deg,
             },
             (None, Some(path)) => {
-                Noise::Residuals(crate::calibration::Report::read(path)?.residuals(path)?)
+                Noise::Residuals(host_tools::calibration::Report::read(path)?.residuals(path)?)
             }
             (None, None) => {
-                return Err(crate::refused!(
+                return Err(host_tools::refused!(
                     "give the noise level: --noise-mm or --noise-from"
                 ));
             }

@@ -15,8 +15,8 @@ pub mod simulate;
 pub mod uncertainty;
 pub mod verify;
 
-use crate::io::profile::DataProfile;
-use crate::measurement::dataset::Dataset;
+use host_tools::io::profile::DataProfile;
+use host_tools::measurement::dataset::Dataset;
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -39,17 +39,17 @@ pub struct InputFiles {
 
 impl InputFiles {
     /// The data profile, then both files read and checked through it, and the orientations
-    /// checked against the robot ([`crate::measurement::orientation_check`]).
+    /// checked against the robot ([`host_tools::measurement::orientation_check`]).
     pub fn load(&self) -> anyhow::Result<(DataProfile, Dataset)> {
         let profile = DataProfile::load(self.profile.as_deref())?;
         let inputs = Dataset::load_with(&self.robot, &self.data, &profile)?;
-        crate::measurement::orientation_check::check(&inputs, &profile.euler)?;
+        host_tools::measurement::orientation_check::check(&inputs, &profile.euler)?;
         Ok((profile, inputs))
     }
 
     /// The robot file's joint count (the file is read and checked again by [`Self::load`]).
     pub fn joints(&self) -> anyhow::Result<usize> {
-        Ok(crate::io::robot_file::RobotFile::read(&self.robot)?
+        Ok(host_tools::io::robot_file::RobotFile::read(&self.robot)?
             .joint
             .len())
     }
@@ -88,7 +88,7 @@ pub(crate) fn given_flags<const N: usize>(options: [(&'static str, bool); N]) ->
 /// refused when given for position-only data, which have no orientation rows to weigh.
 pub(crate) fn weight_for(
     k: Option<f64>,
-    data: &crate::io::tracker_data::TrackerData,
+    data: &host_tools::io::tracker_data::TrackerData,
     file: &std::path::Path,
 ) -> anyhow::Result<f64> {
     match k {

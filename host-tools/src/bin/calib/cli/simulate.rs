@@ -1,8 +1,8 @@
-//! `calib simulate`: the options of a simulation ([`crate::measurement::simulate`]) and the files it writes.
+//! `calib simulate`: the options of a simulation ([`host_tools::measurement::simulate`]) and the files it writes.
 
-use crate::io::robot_file::{FrameEntry, RobotFile};
-use crate::measurement::simulate::{Simulated, SimulationConfig, TrueErrors};
 use anyhow::bail;
+use host_tools::io::robot_file::{FrameEntry, RobotFile};
+use host_tools::measurement::simulate::{Simulated, SimulationConfig, TrueErrors};
 use std::path::PathBuf;
 
 /// Settings of a simulation: the options of `calib simulate`.
@@ -132,9 +132,9 @@ impl Simulation {
             seed: self.seed,
             commanded: match &self.joints_from {
                 Some(path) => Some(
-                    crate::io::tracker_data::TrackerData::read_joints(
+                    host_tools::io::tracker_data::TrackerData::read_joints(
                         path,
-                        &crate::io::profile::DataProfile::default(),
+                        &host_tools::io::profile::DataProfile::default(),
                     )?
                     .records
                     .into_iter()
@@ -152,7 +152,7 @@ const BUILT_IN_ROBOT: &str = "er10l-c10.toml (built into calib)";
 
 /// Runs `calib simulate`: simulates, then writes the tracker CSV to `--out` and the true robot to
 /// `--truth-out` (nothing unless both are ready; each atomically).
-/// Robots of any joint count in [`JOINT_COUNTS`](crate::model::counts::JOINT_COUNTS); returns the
+/// Robots of any joint count in [`JOINT_COUNTS`](host_tools::model::counts::JOINT_COUNTS); returns the
 /// number of poses written.
 pub fn simulate(options: &Simulation) -> anyhow::Result<usize> {
     let config = options.config()?;
@@ -161,14 +161,14 @@ pub fn simulate(options: &Simulation) -> anyhow::Result<usize> {
         None => {
             let path = PathBuf::from(BUILT_IN_ROBOT);
             (
-                RobotFile::parse(crate::io::robot_file::ER10L_C10_TOML, &path)?,
+                RobotFile::parse(host_tools::io::robot_file::ER10L_C10_TOML, &path)?,
                 path,
             )
         }
     };
     file.refuse_compliance(&robot, "calib simulate")?;
     file.refuse_joint_maps(&robot, "calib simulate")?;
-    crate::model::counts::joint_count(file.joint.len())?;
+    host_tools::model::counts::joint_count(file.joint.len())?;
     // Commanded joints within the robot's limits, as fk, evaluate and compensate require.
     if let (Some(commanded), Some(path)) = (&config.commanded, &options.joints_from) {
         let model = file.to_model(&robot)?;
@@ -179,7 +179,7 @@ pub fn simulate(options: &Simulation) -> anyhow::Result<usize> {
             }
         }
     }
-    let simulated: Simulated = crate::measurement::simulate::simulate(&file, &robot, &config)?;
+    let simulated: Simulated = host_tools::measurement::simulate::simulate(&file, &robot, &config)?;
     let mut inputs = vec![("--robot", robot.as_path())];
     if let Some(path) = &options.joints_from {
         inputs.push(("--joints-from", path.as_path()));

@@ -1,14 +1,14 @@
 //! `calib compensate`: read the nominal and identified robots and the targets, compensate
-//! ([`crate::kinematics::compensate`]), write one CSV row per target.
+//! ([`host_tools::kinematics::compensate`]), write one CSV row per target.
 
-use crate::io::outputs::Outputs;
-use crate::io::robot_file::RobotFile;
-use crate::kinematics::compensate::{Summary, TargetOutcome, to_csv};
-use crate::kinematics::targets::{CompensationRequest, ConfigurationChoice};
 use anyhow::bail;
+use host_tools::io::outputs::Outputs;
+use host_tools::io::robot_file::RobotFile;
+use host_tools::kinematics::compensate::{Summary, TargetOutcome, to_csv};
+use host_tools::kinematics::targets::{CompensationRequest, ConfigurationChoice};
 use std::path::PathBuf;
 
-pub use crate::kinematics::targets::TargetsFrame;
+pub use host_tools::kinematics::targets::TargetsFrame;
 
 /// Options of `calib compensate`.
 #[derive(Clone, Debug, clap::Args)]
@@ -158,19 +158,6 @@ pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
     finish(options, &outcomes, joints)
 }
 
-/// The table `calib compensate` writes to `--out` (CSV, one row per target), computed and
-/// written nowhere, with its summary, from the robots already read (the Python package's
-/// `compensate`, whose robots may be built in memory): `file` the nominal robot, `params` the
-/// identified one; `options`' robot paths name them in messages only.
-pub fn compensated_table_of(
-    options: &CompensateOptions,
-    file: RobotFile,
-    params: RobotFile,
-) -> anyhow::Result<(Vec<u8>, Summary)> {
-    let (outcomes, joints) = compensated(options, file, params)?;
-    Ok((to_csv(&outcomes, joints)?, Summary::of(&outcomes)))
-}
-
 /// The outcome of every target of `calib compensate` of the nominal robot `file` and the
 /// identified `params`, and the joint count.
 fn compensated(
@@ -188,7 +175,7 @@ fn compensated(
 /// Writes the outcomes (all or nothing) and counts them.
 fn finish(
     options: &CompensateOptions,
-    outcomes: &[crate::kinematics::compensate::TargetOutcome],
+    outcomes: &[host_tools::kinematics::compensate::TargetOutcome],
     joints: usize,
 ) -> anyhow::Result<Summary> {
     let mut outputs = Outputs::new(&[
@@ -238,12 +225,12 @@ fn urscript(options: &CompensateOptions, outcomes: &[TargetOutcome]) -> anyhow::
         "Joints in rad; the identified robot at them reaches the targets the nominal model meant."
             .to_string(),
     ];
-    let motion = crate::formats::urscript::Motion {
+    let motion = host_tools::formats::urscript::Motion {
         speed_rad_s: options.speed_rad_s,
         acceleration_rad_s2: options.acceleration_rad_s2,
         settle_s: 0.0,
     };
-    Ok(crate::formats::urscript::movej_program(
+    Ok(host_tools::formats::urscript::movej_program(
         "calib_compensated",
         &header,
         &targets,
