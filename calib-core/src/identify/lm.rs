@@ -13,10 +13,7 @@
 //! below `ftol`), or the iteration cap. The result carries `R` at the solution, from which the
 //! covariance `sigma^2 (J^T J)^-1 = sigma^2 R^-1 R^-T` and the standard errors follow.
 
-use crate::identify::Problem;
-use crate::identify::objective::Measurement;
-use crate::kinematics::pose_error::pose_error_jacobian;
-use crate::model::JointCount;
+use crate::identify::residuals::Residuals;
 use crate::model::parameters::ShapeError;
 use crate::scalar::Real;
 use core::fmt;
@@ -270,17 +267,28 @@ where
     }
 }
 
-/// Least squares over a [`Problem`]: its identified parameters over its measurements.
-#[derive(Clone, Copy, Debug)]
-pub struct LeastSquares<'p, T: Real, N: JointCount, D: Dim>
+/// Least squares over the residuals of a kind of measurement ([`Residuals`]: measured poses, a
+/// [`Problem`](crate::identify::Problem), or common points): its identified parameters over its measurements.
+#[derive(Debug)]
+pub struct LeastSquares<'p, R: Residuals>
 where
-    DefaultAllocator: Allocator<D>,
+    DefaultAllocator: Allocator<R::Dim>,
 {
-    problem: &'p Problem<'p, T, N, D>,
-    sqrt_k: T,
-    /// `true` at the poses left out ([`LeastSquares::leaving_out`]); empty: none.
+    problem: &'p R,
+    /// `true` at the measurements left out ([`LeastSquares::leaving_out`]); empty: none.
     left_out: &'p [bool],
 }
+
+impl<R: Residuals> Clone for LeastSquares<'_, R>
+where
+    DefaultAllocator: Allocator<R::Dim>,
+{
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<R: Residuals> Copy for LeastSquares<'_, R> where DefaultAllocator: Allocator<R::Dim> {}
 
 /// Triangular factor, `Q^T r` and `|r|^2` of the stacked residual, accumulated row by row.
 struct Factor<T: Real, D: Dim>
@@ -307,6 +315,7 @@ where
     }
 
     /// The upper triangular factor `R`.
+    #[inline(never)] // several call sites: one copy (controller flash)
     fn r(&self) -> OMatrix<T, D, D> {
         self.rt.transpose()
     }
@@ -424,99 +433,57 @@ where
     }
 }
 
-impl<'p, T: Real, N: JointCount, D: Dim> LeastSquares<'p, T, N, D>
+impl<'p, T: Real, D: Dim, R: Residuals<Real = T, Dim = D>> LeastSquares<'p, R>
 where
-    DefaultAllocator: Allocator<D> + Allocator<D, D> + Allocator<nalgebra::U6, D>,
+    DefaultAllocator: Allocator<D> + Allocator<D, D>,
 {
-    /// Least squares over `problem`; `k` (mm^2/rad^2) weights the orientation rows as in eq. (7).
-    pub fn new(problem: &'p Problem<'p, T, N, D>) -> Self {
+    /// Least squares over `problem` (for measured poses, a [`crate::identify::Problem`], whose `k` (mm^2/rad^2)
+    /// weights the orientation rows as in eq. (7)).
+    pub fn new(problem: &'p R) -> Self {
         Self {
-            sqrt_k: problem.k().sqrt(),
             problem,
             left_out: &[],
         }
     }
 
-    /// The same least squares without the poses at which `left_out` is `true` (a shorter mask
-    /// keeps the poses past its end): a cross-validation fold over the problem's measurements
-    /// without a copy of them. The result has the bits of a problem built on the other poses
-    /// alone; weight buffers and per-pose outputs keep one entry per measurement (the left-out
-    /// poses' entries are not written).
+    /// The same least squares without the measurements at which `left_out` is `true` (a shorter
+    /// mask keeps the measurements past its end): a cross-validation fold over the problem's
+    /// measurements without a copy of them. The result has the bits of a problem built on the
+    /// other measurements alone; weight buffers and per-measurement outputs keep one entry per
+    /// measurement (the left-out measurements' entries are not written).
     pub fn leaving_out(self, left_out: &'p [bool]) -> Self {
         Self { left_out, ..self }
     }
 
-    /// The measurements taken into account, with their indices.
-    fn poses(&self) -> impl Iterator<Item = (usize, &'p Measurement<T, N>)> + '_ {
-        self.problem
-            .measurements()
-            .iter()
-            .enumerate()
-            .filter(|(index, _)| !self.left_out.get(*index).copied().unwrap_or(false))
-    }
-
-    /// The problem: identified parameters, measurements, `k`.
-    pub fn problem(&self) -> &'p Problem<'p, T, N, D> {
+    /// The problem: identified parameters and measurements.
+    pub fn problem(&self) -> &'p R {
         self.problem
     }
 
-    /// Number of residual rows: 6 per full pose, 3 per position-only pose.
+    /// Number of residual rows (for measured poses: 6 per full pose, 3 per position-only pose).
     pub fn rows(&self) -> u32 {
-        self.poses()
-            .map(|(_, m)| if m.rotation.is_some() { 6 } else { 3 })
-            .sum()
+        self.problem.rows(self.left_out)
     }
 
-    /// Calls `row(jacobian_row, residual)` for every residual row at `x` (the Jacobian row is
-    /// zero unless `with_jacobian`). Row scale: `sqrt(weight * robust_weight)`, times `sqrt(k)`
-    /// for rotation rows; `robust` holds one weight per measurement (empty: all 1).
+    /// Calls `row(jacobian_row, residual)` for every residual row at `x` (see
+    /// [`Residuals::for_each_row`]).
     fn for_each_row(
         &self,
         x: &OVector<T, D>,
         robust: &[T],
         with_jacobian: bool,
-        mut row: impl FnMut(&OVector<T, D>, T),
+        row: impl FnMut(&OVector<T, D>, T),
     ) {
-        let kinematics = self.problem.kinematics_unchecked(x);
-        let zero = self.problem.set().zeros::<T>();
-        // One scaled Jacobian row at a time, in one buffer (no allocation per row for `Dyn`).
-        let mut scaled = zero.clone();
-        for (index, m) in self.poses() {
-            let robust_weight = robust.get(index).copied().unwrap_or_else(T::one);
-            let w = (m.weight * robust_weight).sqrt();
-            let (error, jacobian) = if with_jacobian {
-                let (e, j) =
-                    pose_error_jacobian(&kinematics, self.problem.set(), &m.angles, &m.pose());
-                (e, Some(j))
-            } else {
-                (m.error_of(&kinematics.forward_angles(&m.angles)), None)
-            };
-            let rows = if m.rotation.is_some() { 6 } else { 3 };
-            for i in 0..rows {
-                let (scale, value) = if i < 3 {
-                    (w, error.position.get(i).copied())
-                } else {
-                    (w * self.sqrt_k, error.rotation.get(i - 3).copied())
-                };
-                let value = value.unwrap_or_else(T::zero) * scale;
-                match &jacobian {
-                    Some(j) => {
-                        scaled.tr_copy_from(&j.row(i));
-                        scaled *= scale;
-                        row(&scaled, value)
-                    }
-                    None => row(&zero, value),
-                }
-            }
-        }
+        (self.problem).for_each_row(x, self.left_out, robust, with_jacobian, row);
     }
 
-    /// Residual norm of every pose at `x`, `sqrt(|dp|^2 + k |dr|^2)` (mm; `|dp|` for position-only
-    /// poses), without weights, into `out` (one entry per measurement: refused with
-    /// [`LmError::WeightBuffer`] otherwise, as is an `x` of another length than the set).
+    /// Residual norm of every measurement at `x` (for measured poses `sqrt(|dp|^2 + k |dr|^2)`,
+    /// mm; `|dp|` for position-only poses), without weights, into `out` (one entry per
+    /// measurement: refused with [`LmError::WeightBuffer`] otherwise, as is an `x` of another
+    /// length than the set).
     pub fn pose_residual_norms(&self, x: &OVector<T, D>, out: &mut [T]) -> Result<(), LmError> {
-        self.problem.set().check_shape(x)?;
-        if out.len() != self.problem.measurements().len() {
+        self.problem.check_shape(x)?;
+        if out.len() != self.problem.measurements() {
             return Err(LmError::WeightBuffer);
         }
         self.for_each_pose_norm(x, |index, norm| {
@@ -527,28 +494,15 @@ where
         Ok(())
     }
 
-    /// Calls `visit(index, norm)` with the residual norm of every pose at `x` (its length
+    /// Calls `visit(index, norm)` with the residual norm of every measurement at `x` (its length
     /// checked by the caller).
-    fn for_each_pose_norm(&self, x: &OVector<T, D>, mut visit: impl FnMut(usize, T)) {
-        let kinematics = self.problem.kinematics_unchecked(x);
-        for (index, m) in self.poses() {
-            let predicted = kinematics.forward_angles(&m.angles);
-            let dp2 = (m.position - predicted.translation.vector).norm_squared();
-            let norm = match &m.rotation {
-                Some(r) => {
-                    let angle2 =
-                        crate::math::so3::angle_squared_between(r, predicted.rotation.matrix());
-                    (dp2 + self.sqrt_k * self.sqrt_k * angle2).sqrt()
-                }
-                None => dp2.sqrt(),
-            };
-            visit(index, norm);
-        }
+    fn for_each_pose_norm(&self, x: &OVector<T, D>, visit: impl FnMut(usize, T)) {
+        self.problem.for_each_norm(x, self.left_out, visit);
     }
 
     /// `0.5 |r|^2` at `x`; a vector of another length than the set is refused.
     pub fn cost(&self, x: &OVector<T, D>) -> Result<T, LmError> {
-        self.problem.set().check_shape(x)?;
+        self.problem.check_shape(x)?;
         let mut sum = T::zero();
         self.for_each_row(x, &[], false, |_, r| sum += r * r);
         Ok(sum / T::of(2.0))
@@ -563,12 +517,12 @@ where
     /// The triangular factor `R` of the Jacobian at `x` (`J = Q R`), for the identifiability
     /// analysis; a vector of another length than the set is refused.
     pub fn jacobian_factor(&self, x: &OVector<T, D>) -> Result<OMatrix<T, D, D>, LmError> {
-        self.problem.set().check_shape(x)?;
+        self.problem.check_shape(x)?;
         Ok(self.factor(x, &[]).r())
     }
 
     fn factor(&self, x: &OVector<T, D>, robust: &[T]) -> Factor<T, D> {
-        let dim = self.problem.set().dim();
+        let dim = self.problem.dim();
         let mut factor = Factor::new(dim);
         let mut batch = RowBatch::new(dim);
         self.for_each_row(x, robust, true, |a, b| batch.push(&mut factor, a, b));
@@ -597,7 +551,7 @@ where
         loss: Loss<T>,
         weights: &mut [T],
     ) -> Result<RobustResult<T, D>, LmError> {
-        if weights.len() != self.problem.measurements().len() {
+        if weights.len() != self.problem.measurements() {
             return Err(LmError::WeightBuffer);
         }
         if let Loss::Huber(c) | Loss::Cauchy(c) = loss
@@ -643,8 +597,8 @@ where
     /// The residual rows, after checking that the start has one value per parameter, that they
     /// can determine the parameters and that the start is finite.
     fn check_start(&self, x0: &OVector<T, D>) -> Result<u32, LmError> {
-        let parameters = self.problem.set().len();
-        self.problem.set().check_shape(x0)?;
+        let parameters = self.problem.parameters();
+        self.problem.check_shape(x0)?;
         let rows = self.rows();
         if (rows as usize) < parameters {
             return Err(LmError::TooFewResiduals {
@@ -834,6 +788,7 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::identify::Problem;
     use crate::identify::objective::Measurement;
     use crate::model::paper::{er10l_c10, paper_measurements, table2};
     use crate::{JointParameter, Parameter, ParameterErrors, ParameterSet};

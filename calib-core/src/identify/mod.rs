@@ -6,6 +6,8 @@
 //! - [`objective`]: measurements and the objective of eq. (7);
 //! - [`halton`]: the Halton sequence of eq. (8)-(9);
 //! - [`ipso`]: the improved particle swarm (Halton start, constriction factor, eq. 10);
+//! - [`residuals`]: what least squares minimises, by kind of measurement (measured poses, common
+//!   points);
 //! - [`lm`]: least squares with streamed Givens QR, robust losses, standard errors;
 //! - [`identifiability`]: rank, condition, observability and the undetermined parameters;
 //! - [`statistics`]: the paper's Table 3 statistics, accumulated without storage.
@@ -16,6 +18,7 @@ pub mod ipso;
 pub mod lm;
 pub mod objective;
 mod problem;
+pub mod residuals;
 pub mod statistics;
 
 pub use problem::{Problem, ProblemError};

@@ -318,7 +318,7 @@ struct Fit {
 
 fn least_squares(
     config: &CalibrationConfig,
-    least_squares: &LeastSquares<'_, f64, Dyn, Dyn>,
+    least_squares: &LeastSquares<'_, Problem<'_, f64, Dyn, Dyn>>,
     start: &DVector<f64>,
     dataset: &Seen<'_>,
 ) -> crate::Result<Fit> {
@@ -425,7 +425,7 @@ impl RobustScale {
 /// MAD` (median absolute deviation), so that orientation counted in millimetres never makes clean
 /// poses outliers.
 pub(crate) fn robust_scale(
-    least_squares: &LeastSquares<'_, f64, Dyn, Dyn>,
+    least_squares: &LeastSquares<'_, Problem<'_, f64, Dyn, Dyn>>,
     start: &DVector<f64>,
     settings: &LmSettings<f64>,
     k: f64,
