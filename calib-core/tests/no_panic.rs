@@ -246,3 +246,62 @@ fn dyn_vectors_of_another_length_are_refused() {
     );
     assert_eq!(problem.set().unpack(&x).unwrap(), zero);
 }
+
+/// Common points (issue 53, item 7): a start vector of another length is refused by every entry,
+/// touches without weight or without partners leave rows out instead of dividing by zero, and
+/// no touches at all are refused as too few residuals.
+#[test]
+fn common_points_refuse_what_they_cannot_fit() {
+    use calib_core::identify::common_point::{CommonPoints, Touch};
+    use calib_core::identify::lm::LmError;
+    use nalgebra::{DVector, Dyn};
+    let robot = er10l_c10::<f64>().recount::<Dyn>().unwrap();
+    let set = ParameterSet::<Dyn, Dyn>::default_for(&robot).unwrap();
+    let zero = ParameterErrors::zeros_for(robot.joint_count());
+    let q = |i: usize| {
+        calib_core::model::JointVec::from_slice(&[0.1 * i as f64, -0.5, 0.3, 0.2, 0.7, -0.1])
+            .unwrap()
+    };
+    // Point 0: two touches of weight 0; point 1: one touch; point 3: ten touches (point 2: none).
+    let mut touches = vec![
+        Touch::new(&q(0), 0, 0.0).unwrap(),
+        Touch::new(&q(1), 0, 0.0).unwrap(),
+        Touch::new(&q(2), 1, 1.0).unwrap(),
+    ];
+    touches.extend((3..13).map(|i| Touch::new(&q(i), 3, 1.0).unwrap()));
+    let problem = CommonPoints::new(&robot, &zero, set.clone(), &touches).unwrap();
+    let least_squares = LeastSquares::new(&problem);
+    // 3 (10 - 1) rows from point 3, 3 (2 - 1) from point 0 (counted, weighted zero), 0 from 1.
+    assert_eq!(least_squares.rows(), 30);
+    let settings = LmSettings {
+        max_iterations: 3,
+        ..LmSettings::default()
+    };
+    for length in [0, 23, 25] {
+        let x = DVector::<f64>::zeros(length);
+        let shape = LmError::Shape {
+            expected: 24,
+            got: length as u32,
+        };
+        assert_eq!(least_squares.solve(&x, &settings).err(), Some(shape));
+        assert_eq!(least_squares.cost(&x).err(), Some(shape));
+        assert_eq!(problem.centre_at(&x, 3).err().map(|e| e.got), Some(length));
+    }
+    let x = DVector::<f64>::zeros(24);
+    assert!(least_squares.cost(&x).unwrap().is_finite());
+    assert_eq!(problem.centre_at(&x, 0).unwrap(), None);
+    assert_eq!(problem.centre_at(&x, 2).unwrap(), None);
+    let mut norms = vec![f64::NAN; touches.len()];
+    least_squares.pose_residual_norms(&x, &mut norms).unwrap();
+    assert_eq!(norms[2], 0.0, "a point touched once is its own centre");
+    assert!(norms[..2].iter().all(|n| n.is_nan()), "weight 0: no centre, no norm");
+    let none: [Touch<f64, Dyn>; 0] = [];
+    let empty = CommonPoints::new(&robot, &zero, set, &none).unwrap();
+    assert_eq!(
+        LeastSquares::new(&empty).solve(&x, &settings).err(),
+        Some(LmError::TooFewResiduals {
+            rows: 0,
+            parameters: 24
+        })
+    );
+}

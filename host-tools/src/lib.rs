@@ -56,10 +56,14 @@
 //!   [`Error`] (`OptionConflict`, `Unidentifiable`, `Implausible`, `NoHeldOut`).
 //!
 //! A measurement is today a pose (6-DoF or position) in a tracker's frame
-//! (`identify::objective::Measurement` of the core, read by `io/tracker_data.rs`); its residual
-//! and Jacobian live in the core, the frames it leaves free in `measurement/frames.rs`, its
-//! held-out statistic in `calibration/evaluation.rs`. A new kind of measurement touches those
-//! four places; making it one place is issue 53's item 7, open.
+//! (`identify::objective::Measurement` of the core, read by `io/tracker_data.rs`). What least
+//! squares minimises is a kind of measurement in the core (`identify::residuals::Residuals`:
+//! its rows, their Jacobian, one norm per measurement; measured poses are the core's `Problem`,
+//! a ball touched in unknown sockets its `identify::common_point::CommonPoints`), so a new
+//! kind's residual is one implementation there and the solver does not change. The host's stages
+//! still take poses: the frames a kind leaves free (`measurement/frames.rs`), its held-out
+//! statistic (`calibration/evaluation.rs`) and the reading of its data (`io/`) are not yet per
+//! kind (issue 53's item 7, open).
 #![deny(missing_docs)]
 
 /// The joint count of the models defined for 6R arms only: gravity compliance (the gains of

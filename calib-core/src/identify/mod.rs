@@ -8,10 +8,12 @@
 //! - [`ipso`]: the improved particle swarm (Halton start, constriction factor, eq. 10);
 //! - [`residuals`]: what least squares minimises, by kind of measurement (measured poses, common
 //!   points);
+//! - [`common_point`]: a ball held in unknown sockets, joint readings only (no instrument);
 //! - [`lm`]: least squares with streamed Givens QR, robust losses, standard errors;
 //! - [`identifiability`]: rank, condition, observability and the undetermined parameters;
 //! - [`statistics`]: the paper's Table 3 statistics, accumulated without storage.
 
+pub mod common_point;
 pub mod halton;
 pub mod identifiability;
 pub mod ipso;

@@ -8,7 +8,7 @@
 //!
 //! - measured poses ([`Problem`]): per pose `[dp; sqrt(k) dr]` (mm; 3 rows for a position-only
 //!   pose), the pose error of docs/ARCHITECTURE.md, each row scaled by `sqrt(weight)`;
-//! - (next) common points: a point of the tool (a
+//! - common points ([`crate::identify::common_point::CommonPoints`]): a point of the tool (a
 //!   ball) held at one unknown point (a socket) from several configurations, its rows the
 //!   distances of each predicted point from the group's mean.
 //!
