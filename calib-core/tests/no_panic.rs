@@ -294,7 +294,10 @@ fn common_points_refuse_what_they_cannot_fit() {
     let mut norms = vec![f64::NAN; touches.len()];
     least_squares.pose_residual_norms(&x, &mut norms).unwrap();
     assert_eq!(norms[2], 0.0, "a point touched once is its own centre");
-    assert!(norms[..2].iter().all(|n| n.is_nan()), "weight 0: no centre, no norm");
+    assert!(
+        norms[..2].iter().all(|n| n.is_nan()),
+        "weight 0: no centre, no norm"
+    );
     let none: [Touch<f64, Dyn>; 0] = [];
     let empty = CommonPoints::new(&robot, &zero, set, &none).unwrap();
     assert_eq!(
