@@ -1,0 +1,223 @@
+//! Calibration without an instrument on real data (issue 54, first figures): the MUKCa sockets
+//! of two Franka Pandas (bundled with their licence in data/mukca-sockets/), a ball on the
+//! flange held in two sockets 50 mm apart from 20-31 configurations each, joint readings only.
+//! The geometry is fitted on one placement of the sockets by the core's common-point kind
+//! (`calib_core::identify::common_point`, least squares from the nominal Panda) and judged on
+//! the other placements by the authors' protocol: the mean distance of the ball points from
+//! their socket's mean (MAE, after their outlier rule) and the error of the 50 mm distance.
+
+use calib_core::identify::common_point::{CommonPoints, Touch};
+use calib_core::identify::lm::{LeastSquares, LmSettings};
+use calib_core::model::JointVec;
+use calib_core::model::parameters::{FrameParameter, JointParameter};
+use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterSet, Robot};
+use host_tools::io::robot_file::RobotFile;
+use nalgebra::{Dyn, Vector3};
+use std::path::Path;
+
+const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/mukca-sockets");
+const PANDA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/franka-panda.toml");
+
+/// The nominal Panda with the authors' ball as its tool: `ball_link` of their `panda.urdf`, in
+/// the flange frame (`panda_link8`: the hand turned -45 deg about z, the TCP 103.4 mm along it, the
+/// ball 30.13 mm further and 0.08 mm aside), mm.
+fn panda_with_ball(dir: &Path) -> Robot<f64, Dyn> {
+    let (x, y, z) = (
+        7.773732033005863e-2,
+        -4.214022515884392e-2,
+        30.128297908475325,
+    );
+    let c = std::f64::consts::FRAC_1_SQRT_2;
+    let ball = [c * x + c * y, -c * x + c * y, 103.4 + z];
+    let text = std::fs::read_to_string(PANDA).unwrap();
+    let with_ball = format!(
+        "{text}\n[tool]\nxyz_mm = [{}, {}, {}]\nrpy_deg = [0.0, 0.0, 0.0]\n",
+        ball[0], ball[1], ball[2]
+    );
+    let path = dir.join("panda-ball.toml");
+    std::fs::write(&path, with_ball).unwrap();
+    RobotFile::read(&path)
+        .unwrap()
+        .to_model(&path)
+        .unwrap()
+        .robot
+}
+
+/// The configurations of one socket file (radians, one per line, no header).
+fn configurations(robot: &str, placement: &str, hole: u16) -> Vec<Vec<f64>> {
+    let path = format!("{DATA}/{robot}/{placement}/hole_{hole}.csv");
+    let text = std::fs::read_to_string(&path).unwrap();
+    (text.lines().filter(|l| !l.trim().is_empty()))
+        .map(|l| l.split(',').map(|v| v.trim().parse().unwrap()).collect())
+        .collect()
+}
+
+/// The touches of both sockets of a placement (socket 0, then socket 1).
+fn touches(robot: &str, placement: &str) -> Vec<Touch<f64, Dyn>> {
+    (0..2)
+        .flat_map(|hole| {
+            configurations(robot, placement, hole)
+                .into_iter()
+                .map(move |q| Touch::new(&JointVec::from_slice(&q).unwrap(), hole, 1.0).unwrap())
+        })
+        .collect()
+}
+
+/// What one placement's touches can determine of a 7-joint arm in our convention (standard DH):
+/// the joints' parameters but joint 1's `theta` and `d` (they turn and lift the whole arm, the
+/// sockets along) and joint 7's (after the last axis: the ball's offset takes them), and not
+/// `dd5` (the scale: without a known length only one length fixed holds it); the ball's offset.
+fn identifiable(robot: &Robot<f64, Dyn>) -> ParameterSet<Dyn, Dyn> {
+    let mut mask = ParameterSet::<Dyn, Dyn>::default_for(robot).unwrap().mask();
+    let joint = |joint, kind| Parameter::Joint { joint, kind };
+    let all = [
+        JointParameter::A,
+        JointParameter::Alpha,
+        JointParameter::Theta,
+        JointParameter::D,
+        JointParameter::Beta,
+    ];
+    for kind in [JointParameter::Theta, JointParameter::D] {
+        mask.set(joint(1, kind), false);
+    }
+    for kind in all {
+        mask.set(joint(7, kind), false);
+    }
+    mask.set(joint(5, JointParameter::D), false);
+    for axis in [FrameParameter::Tx, FrameParameter::Ty, FrameParameter::Tz] {
+        mask.set(Parameter::Tool(axis), true);
+    }
+    ParameterSet::from_mask(&mask).unwrap()
+}
+
+/// The linearly interpolated `p` quantile of `values` (numpy's default).
+fn quantile(values: &[f64], p: f64) -> f64 {
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let rank = p * (sorted.len() - 1) as f64;
+    let (low, high) = (rank.floor() as usize, rank.ceil() as usize);
+    sorted[low] + (sorted[high] - sorted[low]) * (rank - low as f64)
+}
+
+/// The figures of a placement under `model`: (MAE by the authors' rule, MAE of every point,
+/// distance error), mm. The authors' rule keeps, per socket, the points within 2 interquartile
+/// ranges of the quartiles on every axis, and averages the distances from the kept points' mean
+/// over both sockets.
+fn figures(model: &Kinematics<f64, Dyn>, touches: &[Touch<f64, Dyn>]) -> (f64, f64, f64) {
+    let (mut kept_sum, mut kept_count, mut all_sum) = (0.0, 0, 0.0);
+    let mut centres = Vec::new();
+    for hole in 0..2 {
+        let balls: Vec<Vector3<f64>> = (touches.iter())
+            .filter(|t| t.point == hole)
+            .map(|t| model.forward_angles(&t.angles).translation.vector)
+            .collect();
+        let mean =
+            |points: &[Vector3<f64>]| points.iter().sum::<Vector3<f64>>() / points.len() as f64;
+        let centre = mean(&balls);
+        all_sum += balls.iter().map(|b| (b - centre).norm()).sum::<f64>();
+        let bounds: Vec<(f64, f64)> = (0..3)
+            .map(|axis| {
+                let values: Vec<f64> = balls.iter().map(|b| b[axis]).collect();
+                let (q1, q3) = (quantile(&values, 0.25), quantile(&values, 0.75));
+                (q1 - 2.0 * (q3 - q1), q3 + 2.0 * (q3 - q1))
+            })
+            .collect();
+        let kept: Vec<Vector3<f64>> = (balls.iter())
+            .filter(|b| (0..3).all(|a| (bounds[a].0..=bounds[a].1).contains(&b[a])))
+            .copied()
+            .collect();
+        let kept_centre = mean(&kept);
+        kept_sum += kept.iter().map(|b| (b - kept_centre).norm()).sum::<f64>();
+        kept_count += kept.len();
+        centres.push(kept_centre);
+    }
+    let distance = ((centres[0] - centres[1]).norm() - 50.0).abs();
+    (
+        kept_sum / kept_count as f64,
+        all_sum / touches.len() as f64,
+        distance,
+    )
+}
+
+/// Fits the geometry on `train` of `robot` and returns, per other placement, (placement, MAE by
+/// the authors' rule, MAE of every point, distance error); prints them with the nominal's.
+fn train_and_test(
+    panda: &Robot<f64, Dyn>,
+    robot: &str,
+    train: &str,
+) -> Vec<(String, f64, f64, f64)> {
+    let set = identifiable(panda);
+    let fixed = ParameterErrors::zeros_for(panda.joint_count());
+    let training = touches(robot, train);
+    let problem = CommonPoints::new(panda, &fixed, set.clone(), &training).unwrap();
+    let fit = LeastSquares::new(&problem)
+        .solve(&set.zeros(), &LmSettings::default())
+        .unwrap();
+    let nominal = Kinematics::new(panda, &fixed).unwrap();
+    let fitted = problem.kinematics(&fit.x).unwrap();
+    let (before, _, _) = figures(&nominal, &training);
+    let (after, _, distortion) = figures(&fitted, &training);
+    assert!(
+        before > 3.0 && after < 0.16,
+        "{robot}: {before} -> {after} mm"
+    );
+    println!(
+        "{robot}, trained on {train} ({} touches, {} parameters, {} iterations, {:?}): MAE {before:.3} -> {after:.3} mm, distance error {distortion:.3} mm",
+        training.len(),
+        set.len(),
+        fit.iterations,
+        fit.stop
+    );
+    let mut placements: Vec<String> = std::fs::read_dir(format!("{DATA}/{robot}"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|p| p != train)
+        .collect();
+    placements.sort();
+    placements
+        .into_iter()
+        .map(|placement| {
+            let test = touches(robot, &placement);
+            let (nominal_mae, _, _) = figures(&nominal, &test);
+            let (mae, all, distance) = figures(&fitted, &test);
+            println!(
+                "  {placement}: MAE {nominal_mae:.3} -> {mae:.3} mm (every point {all:.3} mm), distance error {distance:.3} mm"
+            );
+            (placement, mae, all, distance)
+        })
+        .collect()
+}
+
+/// The mean over the test placements of (MAE by the authors' rule, MAE of every point).
+fn means(results: &[(String, f64, f64, f64)]) -> (f64, f64) {
+    let n = results.len() as f64;
+    (
+        results.iter().map(|r| r.1).sum::<f64>() / n,
+        results.iter().map(|r| r.2).sum::<f64>() / n,
+    )
+}
+
+/// `panda_3` trained on `frontcenter` and `panda_2` on `front_center`, tested on their other
+/// placements. The authors' calibrated models reach a test MAE of 0.221 and 0.427 mm (issue 54;
+/// a plain geometric model with a weak prior: 0.221 and 0.430 mm). Ours, plain least squares from
+/// the nominal Panda without a prior, measured: 0.2209 and 0.4361 mm (every point kept: 0.2395
+/// and 0.4592 mm), from 3.3 and 8.2 mm nominal on the training placements; held here within 1 %
+/// and 3 % of the authors' figures. Beating them is issue 54's goal, not yet reached.
+#[test]
+fn pandas_trained_on_one_placement_tested_on_the_others() {
+    let dir = tempfile::tempdir().unwrap();
+    let panda = panda_with_ball(dir.path());
+    for (robot, train, authors, within) in [
+        ("panda_3", "frontcenter", 0.221, 1.01),
+        ("panda_2", "front_center", 0.427, 1.03),
+    ] {
+        let results = train_and_test(&panda, robot, train);
+        let (mae, all) = means(&results);
+        println!(
+            "{robot}: test MAE {mae:.4} mm (authors' model {authors} mm), every point {all:.4} mm"
+        );
+        assert!(mae <= authors * within, "{robot}: {mae} mm");
+        // Every test placement gains on the nominal model's several millimetres.
+        assert!(results.iter().all(|r| r.1 < 1.1), "{results:?}");
+    }
+}
