@@ -13,6 +13,9 @@
 //! `J_i` the position rows of the parameter Jacobian at touch `i`. The residual has three rows
 //! per touch and `3 (touches - points)` degrees of freedom, which [`Residuals::rows`] counts.
 //!
+//! A known distance between two points ([`KnownDistance`]: the two sockets of one printed tool)
+//! adds the row `sqrt(weight) (mm - |c_a - c_b|)` between their centres and fixes the scale.
+//!
 //! What such data cannot determine: where the robot stands (a rigid motion of the base moves
 //! every point along: the base frame, and the first joint's `theta` and `d`, which turn and lift
 //! the whole arm about the first axis), what comes after the last axis apart from the ball's
@@ -62,6 +65,46 @@ impl<T: Real, N: JointCount> Touch<T, N> {
     }
 }
 
+/// A known distance between two points (a gauge: two sockets of one printed tool, a ball bar).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct KnownDistance<T> {
+    /// The two points, by number.
+    pub points: [u16; 2],
+    /// Their distance, mm.
+    pub mm: T,
+    /// Weight of its residual row, against the touches' rows of weight 1: the square of (the
+    /// touches' scatter / the distance's uncertainty), such as `(0.1 / 0.05)^2 = 4` for balls
+    /// within 0.1 mm and a distance known to 0.05 mm.
+    pub weight: T,
+}
+
+/// Why a known distance was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum DistanceError {
+    /// A point no touch names.
+    UnknownPoint(u16),
+    /// A point's distance from itself.
+    SamePoint(u16),
+    /// A distance not finite or not above zero, or a weight not finite or negative.
+    Value,
+}
+
+impl core::fmt::Display for DistanceError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::UnknownPoint(p) => write!(f, "no touch names point {p} of a known distance"),
+            Self::SamePoint(p) => write!(f, "a known distance from point {p} to itself"),
+            Self::Value => f.write_str(
+                "a known distance must be finite and above 0 mm, its weight finite and >= 0",
+            ),
+        }
+    }
+}
+
+impl core::error::Error for DistanceError {}
+
 /// The touches of one calibration with the robot and the identified parameters, checked once:
 /// the common-point kind of measurement for [`crate::identify::lm::LeastSquares`].
 #[derive(Clone, Debug)]
@@ -75,6 +118,8 @@ where
     touches: &'a [Touch<T, N>],
     /// One more than the largest point number.
     points: u16,
+    /// Known distances between the points.
+    distances: &'a [KnownDistance<T>],
 }
 
 impl<'a, T: Real, N: JointCount, D: Dim> CommonPoints<'a, T, N, D>
@@ -98,7 +143,30 @@ where
             model,
             touches,
             points,
+            distances: &[],
         })
+    }
+
+    /// The same problem with the known `distances` between its points, each a residual row
+    /// `sqrt(weight) (mm - |c_a - c_b|)` between the points' centres: a length that fixes the
+    /// scale. (The centres stay the means of their touches; with a distance the exact optimum
+    /// would move them by a share of its residual, which the weight keeps small.)
+    pub fn with_distances(self, distances: &'a [KnownDistance<T>]) -> Result<Self, DistanceError> {
+        for d in distances {
+            let [a, b] = d.points;
+            for p in [a, b] {
+                if !self.touches.iter().any(|t| t.point == p) {
+                    return Err(DistanceError::UnknownPoint(p));
+                }
+            }
+            if a == b {
+                return Err(DistanceError::SamePoint(a));
+            }
+            if !(d.mm.finite() && d.mm > T::zero() && d.weight.finite() && d.weight >= T::zero()) {
+                return Err(DistanceError::Value);
+            }
+        }
+        Ok(Self { distances, ..self })
     }
 
     /// The identified parameters.
@@ -205,12 +273,18 @@ where
         self.touches.len()
     }
 
-    /// The degrees of freedom: 3 per touch, less 3 per point touched (its centre is fitted).
+    /// The degrees of freedom: 3 per touch, less 3 per point touched (its centre is fitted), and
+    /// 1 per known distance between points touched.
     fn rows(&self, left_out: &[bool]) -> u32 {
+        let touched = |p: u16| self.of_point(p, left_out).next().is_some();
+        let distances = (self.distances.iter())
+            .filter(|d| d.points.iter().all(|p| touched(*p)))
+            .count();
         (0..self.points)
             .map(|point| self.of_point(point, left_out).count())
             .map(|n| 3 * u32::try_from(n.saturating_sub(1)).unwrap_or(u32::MAX))
             .fold(0, u32::saturating_add)
+            .saturating_add(u32::try_from(distances).unwrap_or(u32::MAX))
     }
 
     fn for_each_row(
@@ -259,6 +333,39 @@ where
                         }
                     }
                 }
+            }
+        }
+        for d in self.distances {
+            let [a, b] = d.points;
+            let w = d.weight.sqrt();
+            if with_jacobian {
+                let (Some((ca, ja)), Some((cb, jb))) = (
+                    self.centre_and_jacobian(&model, a, left_out, robust),
+                    self.centre_and_jacobian(&model, b, left_out, robust),
+                ) else {
+                    continue;
+                };
+                let between = ca - cb;
+                let length = between.norm();
+                // d(mm - |c_a - c_b|)/dx = -u^T (J_a - J_b), u the unit vector from b to a.
+                let u = if length > T::zero() {
+                    between / length
+                } else {
+                    between
+                };
+                let gradient = (ja - jb).tr_mul(&u);
+                for (s, g) in scaled.iter_mut().zip(gradient.iter()) {
+                    *s = -*g * w;
+                }
+                row(&scaled, (d.mm - length) * w);
+            } else {
+                let (Some(ca), Some(cb)) = (
+                    self.centre(&model, a, left_out, robust),
+                    self.centre(&model, b, left_out, robust),
+                ) else {
+                    continue;
+                };
+                row(&zero, (d.mm - (ca - cb).norm()) * w);
             }
         }
     }
@@ -402,15 +509,25 @@ mod tests {
         (values, jacobian)
     }
 
+    /// The known distance of the first two sockets (60 mm in the truth), weight 4.
+    const GAUGE: [KnownDistance<f64>; 1] = [KnownDistance {
+        points: [0, 1],
+        mm: 60.0,
+        weight: 4.0,
+    }];
+
     /// The Jacobian of the residual is that of central differences, with unequal weights (the
-    /// centre's dependence on the parameters included), to 1e-7 of its largest entry.
+    /// centre's dependence on the parameters included) and a known distance, to 1e-7 of its
+    /// largest entry.
     #[test]
     fn the_jacobian_is_that_of_the_residual() {
         let robot = robot();
         let touches = touches();
         let set = identifiable();
-        let problem =
-            CommonPoints::new(&robot, &ParameterErrors::zero(), set.clone(), &touches).unwrap();
+        let problem = CommonPoints::new(&robot, &ParameterErrors::zero(), set.clone(), &touches)
+            .unwrap()
+            .with_distances(&GAUGE)
+            .unwrap();
         let robust: Vec<f64> = (0..touches.len())
             .map(|i| 0.5 + (i % 5) as f64 / 4.0)
             .collect();
@@ -511,5 +628,115 @@ mod tests {
         let set = ParameterSet::<Dyn, Dyn>::default_for(&robot).unwrap();
         let fixed = ParameterErrors::<f64, Dyn>::zeros_for(Dyn(6));
         assert!(CommonPoints::new(&robot, &fixed, set, &short).is_err());
+    }
+
+    /// With the known distance of two sockets the scale is determined: `da3`, left out without
+    /// it, is identified too, and least squares from the nominal robot finds the true errors of
+    /// all 21 parameters and the true distance; the distance adds one degree of freedom.
+    #[test]
+    fn a_known_distance_determines_the_scale() {
+        let robot = robot();
+        let touches = touches();
+        let mut mask = identifiable().mask();
+        let da3 = Parameter::Joint {
+            joint: 3,
+            kind: JointParameter::A,
+        };
+        mask.set(da3, true);
+        let set = ParameterSet::<U6, Dyn>::from_mask(&mask).unwrap();
+        let problem = CommonPoints::new(&robot, &ParameterErrors::zero(), set.clone(), &touches)
+            .unwrap()
+            .with_distances(&GAUGE)
+            .unwrap();
+        let least_squares = LeastSquares::new(&problem);
+        let fit = least_squares
+            .solve(&set.zeros(), &LmSettings::default())
+            .unwrap();
+        assert_eq!(fit.rows, 3 * (36 - 3) + 1);
+        let (mm, rad) = set
+            .largest_differences(&fit.x, &set.pack(&truth()))
+            .unwrap();
+        std::println!(
+            "{} parameters with the distance: {mm:.2e} mm, {rad:.2e} rad from the truth, {} iterations",
+            set.len(),
+            fit.iterations
+        );
+        assert!(mm < 1e-6 && rad < 1e-9, "{mm} mm, {rad} rad");
+        let centre = |p| problem.centre_at(&fit.x, p).unwrap().unwrap();
+        assert!(((centre(1) - centre(0)).norm() - 60.0).abs() < 1e-9);
+        // A distance naming a point no touch names, or a point twice, or not above zero: refused.
+        let refused = |d: KnownDistance<f64>| {
+            let problem =
+                CommonPoints::new(&robot, &ParameterErrors::zero(), set.clone(), &touches);
+            problem.unwrap().with_distances(&[d]).err()
+        };
+        let gauge = GAUGE[0];
+        assert_eq!(
+            refused(KnownDistance {
+                points: [0, 7],
+                ..gauge
+            }),
+            Some(DistanceError::UnknownPoint(7))
+        );
+        assert_eq!(
+            refused(KnownDistance {
+                points: [1, 1],
+                ..gauge
+            }),
+            Some(DistanceError::SamePoint(1))
+        );
+        assert_eq!(
+            refused(KnownDistance { mm: 0.0, ..gauge }),
+            Some(DistanceError::Value)
+        );
+        assert_eq!(
+            refused(KnownDistance {
+                weight: f64::NAN,
+                ..gauge
+            }),
+            Some(DistanceError::Value)
+        );
+    }
+
+    /// What touches cannot determine, found by the identifiability analysis of the fit's
+    /// Jacobian (not chosen by hand): of every joint parameter of the default set and the ball's
+    /// offset, at the truth, seven directions are left undetermined: joint 1's `theta` and `d`
+    /// (the arm turned and lifted about its first axis), four after the last axis (joint 6's four
+    /// and the ball's offset take each other's place: the pivoting names three of the offset's and
+    /// one of joint 6's) and one length (the scale); with the known distance, six.
+    #[test]
+    fn the_analysis_finds_the_base_the_last_joint_and_the_scale() {
+        use crate::identify::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability};
+        let robot = robot();
+        let touches = touches();
+        let mut mask = ParameterSet::<U6, Dyn>::default_for(&robot).unwrap().mask();
+        for axis in [FrameParameter::Tx, FrameParameter::Ty, FrameParameter::Tz] {
+            mask.set(Parameter::Tool(axis), true);
+        }
+        let set = ParameterSet::<U6, Dyn>::from_mask(&mask).unwrap();
+        let x = set.pack(&truth());
+        let undetermined = |distances: &[KnownDistance<f64>]| {
+            let problem =
+                CommonPoints::new(&robot, &ParameterErrors::zero(), set.clone(), &touches)
+                    .unwrap()
+                    .with_distances(distances)
+                    .unwrap();
+            let r = LeastSquares::new(&problem).jacobian_factor(&x).unwrap();
+            let id = Identifiability::from_factor(&r, touches.len(), DEFAULT_RANK_TOLERANCE);
+            let mut names: Vec<std::string::String> = (id.pivots.iter().skip(id.rank))
+                .map(|i| std::format!("{}", set.parameters()[*i]))
+                .collect();
+            names.sort();
+            names
+        };
+        let without = undetermined(&[]);
+        let with = undetermined(&GAUGE);
+        std::println!("undetermined without the distance {without:?}, with it {with:?}");
+        let last_joint = ["da6", "dalpha6", "dd6", "dtheta6"];
+        assert_eq!(without.len(), 2 + last_joint.len() + 1, "{without:?}");
+        assert_eq!(with.len(), 2 + last_joint.len(), "{with:?}");
+        for name in ["dd1", "dtheta1"] {
+            assert!(with.iter().any(|n| n == name), "{with:?}");
+        }
     }
 }
