@@ -253,3 +253,76 @@ fn the_known_distance_holds_the_scale() {
         assert!(mae <= authors * within, "{robot}: {mae} mm");
     }
 }
+
+/// The touches of several placements, each placement's two sockets its own two points (2i and
+/// 2i + 1), with each placement's known distance.
+fn placements(
+    robot: &str,
+    names: &[&str],
+    weight: f64,
+) -> (Vec<Touch<f64, Dyn>>, Vec<KnownDistance<f64>>) {
+    let mut all = Vec::new();
+    let mut gauges = Vec::new();
+    for (i, name) in names.iter().enumerate() {
+        let base = 2 * i as u16;
+        all.extend(touches(robot, name).into_iter().map(|mut t| {
+            t.point += base;
+            t
+        }));
+        gauges.push(KnownDistance {
+            points: [base, base + 1],
+            mm: 50.0,
+            weight,
+        });
+    }
+    (all, gauges)
+}
+
+/// Leave one placement out (issue 54): trained on all other placements (their sockets and
+/// distances), tested on the one left out by the authors' protocol, for every placement of
+/// `panda_2` and `panda_3` (distance weight 4, `dd5` fitted). Measured, mean / worst test MAE
+/// over the placements: `panda_3` 0.1943 / 0.2187 mm (one placement: 0.2208 mm on the others),
+/// `panda_2` 0.3579 / 1.0408 mm (0.4378 mm; the worst is `high`, 1.04 mm from one placement or
+/// from all eight others alike: that placement disagrees with the rest). Held here: the mean at
+/// most the one-placement figure.
+#[test]
+fn leave_one_placement_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let panda = panda_with_ball(dir.path());
+    let set = identifiable(&panda, true);
+    let fixed = ParameterErrors::zeros_for(panda.joint_count());
+    for (robot, one_placement) in [("panda_3", 0.2208), ("panda_2", 0.4378)] {
+        let mut names: Vec<String> = std::fs::read_dir(format!("{DATA}/{robot}"))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        let mut maes = Vec::new();
+        for left_out in &names {
+            let others: Vec<&str> = (names.iter())
+                .filter(|n| *n != left_out)
+                .map(String::as_str)
+                .collect();
+            let (training, gauges) = placements(robot, &others, 4.0);
+            let problem = CommonPoints::new(&panda, &fixed, set.clone(), &training)
+                .unwrap()
+                .with_distances(&gauges)
+                .unwrap();
+            let fit = LeastSquares::new(&problem)
+                .solve(&set.zeros(), &LmSettings::default())
+                .unwrap();
+            let fitted = problem.kinematics(&fit.x).unwrap();
+            let (mae, all, distance) = figures(&fitted, &touches(robot, left_out));
+            println!(
+                "{robot} without {left_out}: test MAE {mae:.4} mm (every point {all:.4}), distance error {distance:.3} mm"
+            );
+            maes.push(mae);
+        }
+        let mean = maes.iter().sum::<f64>() / maes.len() as f64;
+        let worst = maes.iter().fold(0.0f64, |m, v| m.max(*v));
+        println!(
+            "{robot}: leave one placement out, test MAE mean {mean:.4} mm, worst {worst:.4} mm (one placement: {one_placement} mm)"
+        );
+        assert!(mean <= one_placement, "{robot}: {mean} mm");
+    }
+}

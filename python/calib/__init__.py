@@ -35,7 +35,6 @@ from ._calib import (
 )
 from ._calib import calibrate
 from ._calib import compensate_csv as _compensate_csv
-from ._calib import compensate_csv_text as _compensate_csv_text
 from ._calib import evaluate_json as _evaluate_json
 from ._calib import plan
 
@@ -88,7 +87,7 @@ def compensate(
     if isinstance(targets, (str, _PathLike)):
         text = _compensate_csv(robot, params, targets, **options)
     else:
-        text = _compensate_csv_text(robot, params, _columns_as_csv(targets), "<targets arrays>", **options)
+        text = _compensate_csv(robot, params, "<targets arrays>", text=_columns_as_csv(targets), **options)
     rows = list(_csv.reader(line for line in _io.StringIO(text) if not line.startswith("#")))
     header, body = rows[0], rows[1:]
 

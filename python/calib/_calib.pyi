@@ -22,7 +22,6 @@ __all__ = [
     "__version__",
     "calibrate",
     "compensate_csv",
-    "compensate_csv_text",
     "evaluate_json",
     "plan",
 ]
@@ -289,6 +288,7 @@ def compensate_csv(
     params: Robot,
     targets: _Path,
     *,
+    text: Optional[str] = None,
     targets_frame: Optional[str] = None,
     joint_targets: bool = False,
     max_correction_mm: Optional[float] = None,
@@ -300,22 +300,6 @@ def compensate_csv(
     max_arm_angle_deg: Optional[float] = None,
     near_within_deg: Optional[float] = None,
 ) -> str:
-    """The table ``calib compensate`` writes, as CSV text (``calib.compensate`` returns its columns)."""
-def compensate_csv_text(
-    robot: Robot,
-    params: Robot,
-    text: str,
-    name: str,
-    *,
-    targets_frame: Optional[str] = None,
-    joint_targets: bool = False,
-    max_correction_mm: Optional[float] = None,
-    max_correction_deg: Optional[float] = None,
-    max_joint_correction_deg: Optional[float] = None,
-    near_deg: Optional[Sequence[float]] = None,
-    branch: Optional[int] = None,
-    allow_extrapolation: bool = False,
-    max_arm_angle_deg: Optional[float] = None,
-    near_within_deg: Optional[float] = None,
-) -> str:
-    """``compensate_csv`` of targets given as the text of a targets file; ``name`` names them in messages."""
+    """The table ``calib compensate`` writes, as CSV text (``calib.compensate`` returns its
+    columns), for the targets file ``targets``, or for the targets file's ``text`` (``targets``
+    then names it in messages)."""

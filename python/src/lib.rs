@@ -1393,13 +1393,15 @@ fn plan(
 
 /// The table `calib compensate` writes (CSV text; the package's `compensate` returns its
 /// columns): the joints that put the identified robot `params` on each target of the file
-/// `targets`, for a controller planning with the nominal `robot`; every other keyword argument is
-/// `calib compensate`'s option of the same name (underscores for dashes), `None` its default: the
-/// library's [`CompensationRequest`], no command-line words. Either robot may be read from a file
-/// or built in memory (`CalibrationResult.robot`). Nothing is written.
+/// `targets` (or, with `text`, of that text of a targets file, which the package makes from
+/// arrays; `targets` then names it in messages), for a controller planning with the nominal
+/// `robot`; every other keyword argument is `calib compensate`'s option of the same name
+/// (underscores for dashes), `None` its default: the library's [`CompensationRequest`], no
+/// command-line words. Either robot may be read from a file or built in memory
+/// (`CalibrationResult.robot`). Nothing is written.
 #[pyfunction]
 #[pyo3(signature = (
-    robot, params, targets, *, targets_frame = None, joint_targets = false,
+    robot, params, targets, *, text = None, targets_frame = None, joint_targets = false,
     max_correction_mm = None, max_correction_deg = None, max_joint_correction_deg = None,
     near_deg = None, branch = None, allow_extrapolation = false, max_arm_angle_deg = None,
     near_within_deg = None
@@ -1410,6 +1412,7 @@ fn compensate_csv(
     robot: &Robot,
     params: &Robot,
     targets: PathBuf,
+    text: Option<String>,
     targets_frame: Option<&str>,
     joint_targets: bool,
     max_correction_mm: Option<f64>,
@@ -1422,6 +1425,7 @@ fn compensate_csv(
     near_within_deg: Option<f64>,
 ) -> PyResult<String> {
     let request = CompensationRequest {
+        targets_text: text,
         frame: choice("targets_frame", targets_frame)?.unwrap_or(TargetsFrame::Base),
         joint_targets,
         configuration: configuration_choice(near_deg, branch)?,
@@ -1429,51 +1433,6 @@ fn compensate_csv(
         max_arm_angle_deg,
         near_within_deg,
         ..CompensationRequest::new(targets)
-    };
-    let limits = (
-        max_correction_mm,
-        max_correction_deg,
-        max_joint_correction_deg,
-    );
-    compensated_csv(py, (robot, params), with_limits(request, limits))
-}
-
-/// [`compensate_csv`] of targets given as the text of a targets file (the package's
-/// `compensate` makes it from arrays); `name` names them in messages.
-#[pyfunction]
-#[pyo3(signature = (
-    robot, params, text, name, *, targets_frame = None, joint_targets = false,
-    max_correction_mm = None, max_correction_deg = None, max_joint_correction_deg = None,
-    near_deg = None, branch = None, allow_extrapolation = false, max_arm_angle_deg = None,
-    near_within_deg = None
-))]
-#[allow(clippy::too_many_arguments)]
-fn compensate_csv_text(
-    py: Python<'_>,
-    robot: &Robot,
-    params: &Robot,
-    text: String,
-    name: &str,
-    targets_frame: Option<&str>,
-    joint_targets: bool,
-    max_correction_mm: Option<f64>,
-    max_correction_deg: Option<f64>,
-    max_joint_correction_deg: Option<f64>,
-    near_deg: Option<Vec<f64>>,
-    branch: Option<usize>,
-    allow_extrapolation: bool,
-    max_arm_angle_deg: Option<f64>,
-    near_within_deg: Option<f64>,
-) -> PyResult<String> {
-    let request = CompensationRequest {
-        targets_text: Some(text),
-        frame: choice("targets_frame", targets_frame)?.unwrap_or(TargetsFrame::Base),
-        joint_targets,
-        configuration: configuration_choice(near_deg, branch)?,
-        allow_extrapolation,
-        max_arm_angle_deg,
-        near_within_deg,
-        ..CompensationRequest::new(PathBuf::from(name))
     };
     let limits = (
         max_correction_mm,
@@ -1584,7 +1543,6 @@ fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(evaluate_json, m)?)?;
     m.add_function(wrap_pyfunction!(plan, m)?)?;
     m.add_function(wrap_pyfunction!(compensate_csv, m)?)?;
-    m.add_function(wrap_pyfunction!(compensate_csv_text, m)?)?;
     m.add_class::<Plan>()?;
     m.add("CalibError", m.py().get_type::<CalibError>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;
