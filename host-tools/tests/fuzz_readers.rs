@@ -340,3 +340,30 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    // Each case writes a file: fewer cases.
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// A socket file of arbitrary text or of near-valid lines: read or refused with a line,
+    /// never a panic; what is read has the robot's joint count and finite readings only.
+    #[test]
+    fn socket_files_never_panic(
+        text in prop_oneof!["\\PC{0,300}", "([-0-9.e,naif ]{0,40}\n){0,8}"],
+        joints in 1usize..9,
+    ) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("hole_0.csv");
+        std::fs::write(&path, &text).unwrap();
+        match host_tools::io::sockets::read_socket(&path, joints) {
+            Ok(socket) => {
+                prop_assert!(!socket.readings.is_empty());
+                for r in &socket.readings {
+                    prop_assert_eq!(r.q_rad.len(), joints);
+                    prop_assert!(r.q_rad.iter().all(|v| v.is_finite()));
+                }
+            }
+            Err(e) => prop_assert!(e.to_string().contains("hole_0.csv")),
+        }
+    }
+}

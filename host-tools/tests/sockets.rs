@@ -44,13 +44,12 @@ fn panda_with_ball(dir: &Path) -> Robot<f64, Dyn> {
         .robot
 }
 
-/// The configurations of one socket file (radians, one per line, no header).
+/// The configurations of one socket file (radians, one per line, no header), read by the
+/// library's reader of the layout.
 fn configurations(robot: &str, placement: &str, hole: u16) -> Vec<Vec<f64>> {
     let path = format!("{DATA}/{robot}/{placement}/hole_{hole}.csv");
-    let text = std::fs::read_to_string(&path).unwrap();
-    (text.lines().filter(|l| !l.trim().is_empty()))
-        .map(|l| l.split(',').map(|v| v.trim().parse().unwrap()).collect())
-        .collect()
+    let socket = host_tools::io::sockets::read_socket(Path::new(&path), 7).unwrap();
+    socket.readings.into_iter().map(|r| r.q_rad).collect()
 }
 
 /// The touches of both sockets of a placement (socket 0, then socket 1).
