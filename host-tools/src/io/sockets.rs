@@ -200,7 +200,10 @@ mod tests {
         let first = &placements[3].sockets[0].readings[0];
         assert_eq!(first.line, 1);
         // The file's first value, 6.890856181302096317e-02, parsed to the nearest f64.
-        assert_eq!(first.q_rad[0], "6.890856181302096317e-02".parse::<f64>().unwrap());
+        assert_eq!(
+            first.q_rad[0],
+            "6.890856181302096317e-02".parse::<f64>().unwrap()
+        );
     }
 
     /// Bad files are refused with the file and line (and the joint, for a value).
