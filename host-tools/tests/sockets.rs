@@ -8,7 +8,7 @@
 //! and without that distance in the fit.
 
 use calib_core::identify::common_point::{CommonPoints, KnownDistance, Touch};
-use calib_core::identify::lm::{LeastSquares, LmSettings};
+use calib_core::identify::lm::{LeastSquares, LmResult, LmSettings};
 use calib_core::model::JointVec;
 use calib_core::model::parameters::{FrameParameter, JointParameter};
 use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterSet, Robot};
@@ -91,6 +91,25 @@ fn identifiable(robot: &Robot<f64, Dyn>, scale: bool) -> ParameterSet<Dyn, Dyn> 
     ParameterSet::from_mask(&mask).unwrap()
 }
 
+/// The geometry of `panda` with the parameters `set` fitted to `touches` and the known
+/// distances `gauges` by least squares from the nominal model, and the fit.
+fn fit(
+    panda: &Robot<f64, Dyn>,
+    set: &ParameterSet<Dyn, Dyn>,
+    touches: &[Touch<f64, Dyn>],
+    gauges: &[KnownDistance<f64>],
+) -> (Kinematics<f64, Dyn>, LmResult<f64, Dyn>) {
+    let fixed = ParameterErrors::zeros_for(panda.joint_count());
+    let problem = CommonPoints::new(panda, &fixed, set.clone(), touches)
+        .unwrap()
+        .with_distances(gauges)
+        .unwrap();
+    let fit = LeastSquares::new(&problem)
+        .solve(&set.zeros(), &LmSettings::default())
+        .unwrap();
+    (problem.kinematics(&fit.x).unwrap(), fit)
+}
+
 /// The linearly interpolated `p` quantile of `values` (numpy's default).
 fn quantile(values: &[f64], p: f64) -> f64 {
     let mut sorted = values.to_vec();
@@ -152,15 +171,8 @@ fn train_and_test(
     let fixed = ParameterErrors::zeros_for(panda.joint_count());
     let training = touches(robot, train);
     let gauges: Vec<KnownDistance<f64>> = gauge.into_iter().collect();
-    let problem = CommonPoints::new(panda, &fixed, set.clone(), &training)
-        .unwrap()
-        .with_distances(&gauges)
-        .unwrap();
-    let fit = LeastSquares::new(&problem)
-        .solve(&set.zeros(), &LmSettings::default())
-        .unwrap();
+    let (fitted, fit) = fit(panda, &set, &training, &gauges);
     let nominal = Kinematics::new(panda, &fixed).unwrap();
-    let fitted = problem.kinematics(&fit.x).unwrap();
     let (before, _, _) = figures(&nominal, &training);
     let (after, _, distortion) = figures(&fitted, &training);
     assert!(
@@ -289,7 +301,6 @@ fn leave_one_placement_out() {
     let dir = tempfile::tempdir().unwrap();
     let panda = panda_with_ball(dir.path());
     let set = identifiable(&panda, true);
-    let fixed = ParameterErrors::zeros_for(panda.joint_count());
     for (robot, one_placement) in [("panda_3", 0.2208), ("panda_2", 0.4378)] {
         let mut names: Vec<String> = std::fs::read_dir(format!("{DATA}/{robot}"))
             .unwrap()
@@ -303,14 +314,7 @@ fn leave_one_placement_out() {
                 .map(String::as_str)
                 .collect();
             let (training, gauges) = placements(robot, &others, 4.0);
-            let problem = CommonPoints::new(&panda, &fixed, set.clone(), &training)
-                .unwrap()
-                .with_distances(&gauges)
-                .unwrap();
-            let fit = LeastSquares::new(&problem)
-                .solve(&set.zeros(), &LmSettings::default())
-                .unwrap();
-            let fitted = problem.kinematics(&fit.x).unwrap();
+            let (fitted, _) = fit(&panda, &set, &training, &gauges);
             let (mae, all, distance) = figures(&fitted, &touches(robot, left_out));
             println!(
                 "{robot} without {left_out}: test MAE {mae:.4} mm (every point {all:.4}), distance error {distance:.3} mm"

@@ -399,6 +399,15 @@ mod tests {
     extern crate std;
     use std::vec::Vec;
 
+    /// The five parameters of a joint.
+    const EVERY_KIND: [JointParameter; 5] = [
+        JointParameter::A,
+        JointParameter::Alpha,
+        JointParameter::Theta,
+        JointParameter::D,
+        JointParameter::Beta,
+    ];
+
     /// The ER10L-C10 with a ball 150 mm off its flange as the tool.
     fn robot() -> Robot<f64, U6> {
         let mut robot = er10l_c10::<f64>();
@@ -421,13 +430,7 @@ mod tests {
             mask.set(Parameter::Joint { joint: 1, kind }, false);
         }
         let joint = |joint, kind| Parameter::Joint { joint, kind };
-        for kind in [
-            JointParameter::A,
-            JointParameter::Alpha,
-            JointParameter::Theta,
-            JointParameter::D,
-            JointParameter::Beta,
-        ] {
+        for kind in EVERY_KIND {
             mask.set(joint(6, kind), false);
         }
         mask.set(joint(3, JointParameter::A), false);
@@ -442,13 +445,7 @@ mod tests {
     fn truth() -> ParameterErrors<f64, U6> {
         let mut errors = table2::<f64>();
         let joint = |joint, kind| Parameter::Joint { joint, kind };
-        for kind in [
-            JointParameter::A,
-            JointParameter::Alpha,
-            JointParameter::Theta,
-            JointParameter::D,
-            JointParameter::Beta,
-        ] {
+        for kind in EVERY_KIND {
             errors.set(joint(6, kind), 0.0);
         }
         errors.set(joint(3, JointParameter::A), 0.0);

@@ -700,22 +700,7 @@ fn identifiability(page: &mut String, report: &Report) -> crate::Result<()> {
 }
 
 fn plots(page: &mut String, report: &Report) -> crate::Result<()> {
-    let p = &report.per_pose;
-    let data = crate::report::plots::PlotData {
-        history: &report.convergence,
-        title: "absolute position error per calibration pose",
-        lines: &p.lines,
-        orientation_lines: &p.orientation_lines,
-        before: &p.before,
-        after: &p.after,
-        orientation_before: &p.orientation_before,
-        orientation_after: &p.orientation_after,
-        validation_before: &p.validation_before,
-        validation_after: &p.validation_after,
-        validation_positions: &p.validation_position_mm,
-        validation_predicted: &p.validation_predicted_rms_mm,
-        joint_maps: &[],
-    };
+    let data = crate::report::plots::PlotData::of_poses(&report.per_pose, &report.convergence, &[]);
     page.push_str("<h2 id=\"plots\">Plots</h2>\n");
     for (name, caption, svg) in crate::report::plots::svg_plots(&data)? {
         writeln!(

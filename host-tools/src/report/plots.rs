@@ -507,7 +507,31 @@ pub(crate) struct PlotData<'a> {
     pub joint_maps: &'a [crate::calibration::maps::MapCurve],
 }
 
-impl PlotData<'_> {
+impl<'a> PlotData<'a> {
+    /// The plots of a calibration's per-pose errors `p`, with the swarm's convergence `history`
+    /// (empty without the swarm) and the identified `joint_maps` (empty without maps).
+    pub(crate) fn of_poses(
+        p: &'a crate::calibration::PerPose,
+        history: &'a [(u32, f64)],
+        joint_maps: &'a [crate::calibration::maps::MapCurve],
+    ) -> Self {
+        Self {
+            history,
+            title: "absolute position error per calibration pose",
+            lines: &p.lines,
+            orientation_lines: &p.orientation_lines,
+            before: &p.before,
+            after: &p.after,
+            orientation_before: &p.orientation_before,
+            orientation_after: &p.orientation_after,
+            validation_before: &p.validation_before,
+            validation_after: &p.validation_after,
+            validation_positions: &p.validation_position_mm,
+            validation_predicted: &p.validation_predicted_rms_mm,
+            joint_maps,
+        }
+    }
+
     /// `true` when the validation poses have positions to map.
     fn has_workspace(&self) -> bool {
         !self.validation_positions.is_empty()
@@ -525,28 +549,10 @@ pub fn stage_calibration(
     calibrated: &crate::calibration::Calibrated,
 ) -> crate::Result<()> {
     let result = &calibrated.result;
-    let p = &result.per_pose;
     let history = (result.swarm.as_ref()).map_or(&[][..], |s| s.history.as_slice());
     let joint_maps = (result.joint_maps.as_ref()).map_or(&[][..], |m| m.curves.as_slice());
-    stage_plots(
-        outputs,
-        dir,
-        &PlotData {
-            history,
-            title: "absolute position error per calibration pose",
-            lines: &p.lines,
-            orientation_lines: &p.orientation_lines,
-            before: &p.before,
-            after: &p.after,
-            orientation_before: &p.orientation_before,
-            orientation_after: &p.orientation_after,
-            validation_before: &p.validation_before,
-            validation_after: &p.validation_after,
-            validation_positions: &p.validation_position_mm,
-            validation_predicted: &p.validation_predicted_rms_mm,
-            joint_maps,
-        },
-    )
+    let plots = PlotData::of_poses(&result.per_pose, history, joint_maps);
+    stage_plots(outputs, dir, &plots)
 }
 
 /// Stages into `dir` (see [`crate::io::outputs::Outputs`]), each as SVG and PNG: `convergence` (with
