@@ -110,6 +110,14 @@ fn fit(
     (problem.kinematics(&fit.x).unwrap(), fit)
 }
 
+/// The sockets' known distance: 50 mm (the authors' caliper), weight 4 (balls scattered about
+/// 0.1 mm, the distance known to 0.05 mm: `(0.1 / 0.05)^2`), between a placement's sockets 0, 1.
+const GAUGE: KnownDistance<f64> = KnownDistance {
+    points: [0, 1],
+    mm: 50.0,
+    weight: 4.0,
+};
+
 /// The linearly interpolated `p` quantile of `values` (numpy's default).
 fn quantile(values: &[f64], p: f64) -> f64 {
     let mut sorted = values.to_vec();
@@ -251,16 +259,11 @@ fn pandas_trained_on_one_placement_tested_on_the_others() {
 fn the_known_distance_holds_the_scale() {
     let dir = tempfile::tempdir().unwrap();
     let panda = panda_with_ball(dir.path());
-    let gauge = KnownDistance {
-        points: [0, 1],
-        mm: 50.0,
-        weight: 4.0,
-    };
     for (robot, train, authors, within) in [
         ("panda_3", "frontcenter", 0.221, 1.01),
         ("panda_2", "front_center", 0.427, 1.03),
     ] {
-        let results = train_and_test(&panda, robot, train, Some(gauge));
+        let results = train_and_test(&panda, robot, train, Some(GAUGE));
         let (mae, _) = means(&results);
         assert!(mae <= authors * within, "{robot}: {mae} mm");
     }
@@ -268,11 +271,7 @@ fn the_known_distance_holds_the_scale() {
 
 /// The touches of several placements, each placement's two sockets its own two points (2i and
 /// 2i + 1), with each placement's known distance.
-fn placements(
-    robot: &str,
-    names: &[&str],
-    weight: f64,
-) -> (Vec<Touch<f64, Dyn>>, Vec<KnownDistance<f64>>) {
+fn placements(robot: &str, names: &[&str]) -> (Vec<Touch<f64, Dyn>>, Vec<KnownDistance<f64>>) {
     let mut all = Vec::new();
     let mut gauges = Vec::new();
     for (i, name) in names.iter().enumerate() {
@@ -283,11 +282,30 @@ fn placements(
         }));
         gauges.push(KnownDistance {
             points: [base, base + 1],
-            mm: 50.0,
-            weight,
+            ..GAUGE
         });
     }
     (all, gauges)
+}
+
+/// Each placement of `robot` left out in turn: the test MAE (authors' rule) of the geometry fitted
+/// to all the others (their sockets and distances), printed with every point's and the distance
+/// error.
+fn left_out_maes(panda: &Robot<f64, Dyn>, robot: &str, names: &[&str]) -> Vec<f64> {
+    let set = identifiable(panda, true);
+    names
+        .iter()
+        .map(|left_out| {
+            let others: Vec<&str> = names.iter().copied().filter(|n| n != left_out).collect();
+            let (training, gauges) = placements(robot, &others);
+            let (fitted, _) = fit(panda, &set, &training, &gauges);
+            let (mae, all, distance) = figures(&fitted, &touches(robot, left_out));
+            println!(
+                "{robot} without {left_out}: test MAE {mae:.4} mm (every point {all:.4}), distance error {distance:.3} mm"
+            );
+            mae
+        })
+        .collect()
 }
 
 /// Leave one placement out (issue 54): trained on all other placements (their sockets and
@@ -301,27 +319,14 @@ fn placements(
 fn leave_one_placement_out() {
     let dir = tempfile::tempdir().unwrap();
     let panda = panda_with_ball(dir.path());
-    let set = identifiable(&panda, true);
     for (robot, one_placement) in [("panda_3", 0.2208), ("panda_2", 0.4378)] {
         let mut names: Vec<String> = std::fs::read_dir(format!("{DATA}/{robot}"))
             .unwrap()
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
             .collect();
         names.sort();
-        let mut maes = Vec::new();
-        for left_out in &names {
-            let others: Vec<&str> = (names.iter())
-                .filter(|n| *n != left_out)
-                .map(String::as_str)
-                .collect();
-            let (training, gauges) = placements(robot, &others, 4.0);
-            let (fitted, _) = fit(&panda, &set, &training, &gauges);
-            let (mae, all, distance) = figures(&fitted, &touches(robot, left_out));
-            println!(
-                "{robot} without {left_out}: test MAE {mae:.4} mm (every point {all:.4}), distance error {distance:.3} mm"
-            );
-            maes.push(mae);
-        }
+        let names: Vec<&str> = names.iter().map(String::as_str).collect();
+        let maes = left_out_maes(&panda, robot, &names);
         let mean = maes.iter().sum::<f64>() / maes.len() as f64;
         let worst = maes.iter().fold(0.0f64, |m, v| m.max(*v));
         println!(
@@ -345,25 +350,8 @@ fn leave_one_placement_out() {
 fn panda_1_placements_disagree() {
     let dir = tempfile::tempdir().unwrap();
     let panda = panda_with_ball(dir.path());
-    let gauge = KnownDistance {
-        points: [0, 1],
-        mm: 50.0,
-        weight: 4.0,
-    };
-    let (front_alone, _) = means(&train_and_test(&panda, "panda_1", "front", Some(gauge)));
-    let set = identifiable(&panda, true);
-    let names = ["back-high", "front", "right"];
-    let mut left_out_maes = Vec::new();
-    for left_out in names {
-        let others: Vec<&str> = names.iter().copied().filter(|n| *n != left_out).collect();
-        let (training, gauges) = placements("panda_1", &others, 4.0);
-        let (fitted, _) = fit(&panda, &set, &training, &gauges);
-        let (mae, all, distance) = figures(&fitted, &touches("panda_1", left_out));
-        println!(
-            "panda_1 without {left_out}: test MAE {mae:.4} mm (every point {all:.4}), distance error {distance:.3} mm"
-        );
-        left_out_maes.push(mae);
-    }
+    let (front_alone, _) = means(&train_and_test(&panda, "panda_1", "front", Some(GAUGE)));
+    let left_out_maes = left_out_maes(&panda, "panda_1", &["back-high", "front", "right"]);
     let mean = left_out_maes.iter().sum::<f64>() / 3.0;
     println!("panda_1: front alone {front_alone:.4} mm, leave one placement out {mean:.4} mm");
     assert!(mean > front_alone + 0.1, "{mean} vs {front_alone}");

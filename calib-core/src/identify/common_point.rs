@@ -335,6 +335,8 @@ where
                 }
             }
         }
+        // A distance's centres are computed again (the loop above kept none: the core has no heap
+        // for a run-time number of points); it costs the touches of its two points once more.
         for d in self.distances {
             let [a, b] = d.points;
             let w = d.weight.sqrt();
