@@ -24,11 +24,80 @@ use std::fmt::Display;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
-    /// An input the library refuses: an option's value, a file's content, or a combination of
-    /// inputs that cannot give a result it could stand behind. The message names the input and
-    /// says how to fix it.
-    #[error("{0}")]
-    Refused(String),
+    /// An option's value the library refuses: out of its range, not finite, of the wrong count,
+    /// or meaningless for these inputs. The message says what to give instead.
+    #[error("{message}")]
+    InvalidOption {
+        /// The option, by its command-line flag (`--poses`, `--near-deg`).
+        option: String,
+        /// What is wrong and what to give, for people.
+        message: String,
+    },
+    /// An input's content the library refuses: a line of a data, candidates, targets, plan or
+    /// socket file, a section of a robot file or report, data that do not come from this robot
+    /// as stated. The message names the file (and line) and says how to fix it.
+    #[error("{message}")]
+    InvalidInput {
+        /// The input: a file's path (as given), or what it is ("the data", "the candidates").
+        input: String,
+        /// What is wrong and how to fix it, for people.
+        message: String,
+    },
+    /// What this robot or model cannot do, or an output cannot carry: a joint count outside a
+    /// method's range, gravity compliance on a robot it is not modelled for, joint maps in a
+    /// format without them.
+    #[error("{message}")]
+    Unsupported {
+        /// The feature or output refused, such as `gravity compliance` or `UR kinematics file`.
+        feature: String,
+        /// Why and what to do instead, for people.
+        message: String,
+    },
+    /// Too few measurements, equations or candidates for what was asked.
+    #[error("{message}")]
+    TooFew {
+        /// How many there are (poses, equations or candidates, as the message says).
+        have: usize,
+        /// How many are needed.
+        need: usize,
+        /// What to add or ask for instead, for people.
+        message: String,
+    },
+    /// Parameters the data cannot determine, found where no rank is computed (a singular
+    /// information matrix or posterior, a parameter that changes no residual).
+    #[error("{message}")]
+    Undetermined {
+        /// The parameters found undetermined (`dd2`), empty when the matrix does not say which.
+        parameters: Vec<String>,
+        /// What to change, for people.
+        message: String,
+    },
+    /// Identified joint maps or gravity compliance that fail their plausibility bounds; nothing
+    /// was written.
+    #[error("{message}")]
+    ImplausibleModel {
+        /// The bound that failed, naming the value.
+        problem: String,
+        /// The likely causes and what to do, for people.
+        message: String,
+    },
+    /// An output path the library will not write: a directory, an input, another output's path.
+    #[error("{message}")]
+    Output {
+        /// The path as given.
+        path: std::path::PathBuf,
+        /// Why, and what to give instead, for people.
+        message: String,
+    },
+    /// An outside program the library needs (the headless browser that prints PDFs) is missing
+    /// or failed.
+    #[error("{message}")]
+    ExternalProgram {
+        /// The program, such as `chromium`.
+        program: String,
+        /// What happened and what to do instead, for people.
+        message: String,
+    },
     /// A computation that could not finish (a matrix lost its definiteness, a value is not
     /// finite); the message says which.
     #[error("{0}")]
@@ -149,11 +218,67 @@ pub enum Error {
 /// The library's result type.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
-/// An input refused with a message that says what to change: `Error::Refused(format!(...))`.
+/// A refusal of the kind its first word names, with a message (`format!` arguments) that says
+/// what to change:
+///
+/// - `refused!(option "--poses"; "...")`: [`Error::InvalidOption`];
+/// - `refused!(input path.display(); "...")`: [`Error::InvalidInput`];
+/// - `refused!(unsupported "gravity compliance"; "...")`: [`Error::Unsupported`];
+/// - `refused!(too_few have, need; "...")`: [`Error::TooFew`];
+/// - `refused!(undetermined names; "...")`: [`Error::Undetermined`] (`names`: `Vec<String>`);
+/// - `refused!(implausible problem; "...")`: [`Error::ImplausibleModel`];
+/// - `refused!(output path; "...")`: [`Error::Output`] (`path`: anything `AsRef<Path>`);
+/// - `refused!(program "chromium"; "...")`: [`Error::ExternalProgram`].
 #[macro_export]
 macro_rules! refused {
-    ($($message:tt)*) => {
-        $crate::error::Error::Refused(format!($($message)*))
+    (option $option:expr; $($message:tt)*) => {
+        $crate::error::Error::InvalidOption {
+            option: $option.to_string(),
+            message: format!($($message)*),
+        }
+    };
+    (input $input:expr; $($message:tt)*) => {
+        $crate::error::Error::InvalidInput {
+            input: $input.to_string(),
+            message: format!($($message)*),
+        }
+    };
+    (unsupported $feature:expr; $($message:tt)*) => {
+        $crate::error::Error::Unsupported {
+            feature: $feature.to_string(),
+            message: format!($($message)*),
+        }
+    };
+    (too_few $have:expr, $need:expr; $($message:tt)*) => {
+        $crate::error::Error::TooFew {
+            have: $have,
+            need: $need,
+            message: format!($($message)*),
+        }
+    };
+    (undetermined $parameters:expr; $($message:tt)*) => {
+        $crate::error::Error::Undetermined {
+            parameters: $parameters,
+            message: format!($($message)*),
+        }
+    };
+    (implausible $problem:expr; $($message:tt)*) => {
+        $crate::error::Error::ImplausibleModel {
+            problem: $problem.to_string(),
+            message: format!($($message)*),
+        }
+    };
+    (output $path:expr; $($message:tt)*) => {
+        $crate::error::Error::Output {
+            path: ::std::convert::AsRef::<::std::path::Path>::as_ref(&$path).to_path_buf(),
+            message: format!($($message)*),
+        }
+    };
+    (program $program:expr; $($message:tt)*) => {
+        $crate::error::Error::ExternalProgram {
+            program: $program.to_string(),
+            message: format!($($message)*),
+        }
     };
 }
 
@@ -207,17 +332,6 @@ impl<T, E: Into<Error>> Context<T> for std::result::Result<T, E> {
     }
 }
 
-/// A missing value is refused with the context as its message.
-impl<T> Context<T> for Option<T> {
-    fn context(self, context: impl Display) -> Result<T> {
-        self.ok_or_else(|| Error::Refused(context.to_string()))
-    }
-
-    fn with_context<C: Display>(self, f: impl FnOnce() -> C) -> Result<T> {
-        self.ok_or_else(|| Error::Refused(f().to_string()))
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -238,7 +352,5 @@ mod tests {
             cause = c.source();
         }
         assert_eq!(chain, ["calibrating", "robot file r.toml", "no such file"]);
-        let missing: Result<u8> = None.context("no pose given");
-        assert_eq!(missing.unwrap_err().to_string(), "no pose given");
     }
 }

@@ -53,7 +53,8 @@
 //!   written there, from the model; the maps' sections come from `calibration/maps.rs`), emitted
 //!   by [`calibration::Calibrated::robot_toml`];
 //! - the plausibility: `calibration/plausibility.rs`; the refusals a caller can tell apart:
-//!   [`Error`] (`OptionConflict`, `Unidentifiable`, `Implausible`, `NoHeldOut`).
+//!   [`Error`] (every refusal a variant with its data: `InvalidOption`, `InvalidInput`,
+//!   `Unsupported`, `TooFew`, `Unidentifiable`, `Implausible`, ..., made by [`refused!`]).
 //!
 //! A measurement is today a pose (6-DoF or position) in a tracker's frame
 //! (`identify::objective::Measurement` of the core, read by `io/tracker_data.rs`). What least

@@ -5,9 +5,11 @@ The host library of the calib toolkit (the same code as the ``calib`` command li
 calibration (``calibrate``, with the options of ``calib calibrate`` as typed keyword arguments and
 the same defaults), its JSON report as a dict and its HTML certificate. Units are in the names: mm,
 rad. Errors are ``CalibError`` (``InputError``: an input refused, with how to fix it, among them
-``OptionConflictError``, ``UnidentifiableError`` and ``NoHeldOutError``; ``NumericalError``: a
-computation that cannot stand behind its result, among them ``ImplausibleError``), each with its
-data as attributes.
+``OptionError``, ``OptionConflictError``, ``InvalidInputError``, ``UnsupportedError``,
+``TooFewError``, ``UnidentifiableError``, ``UndeterminedError`` and ``NoHeldOutError``;
+``NumericalError``: a computation that cannot stand behind its result, among them
+``ImplausibleError``; ``OutputError`` and ``ExternalProgramError``), each with its data as
+attributes.
 """
 
 import csv as _csv
@@ -24,6 +26,13 @@ from ._calib import (
     CalibrationResult,
     Dataset,
     ImplausibleError,
+    OptionError,
+    InvalidInputError,
+    UnsupportedError,
+    TooFewError,
+    UndeterminedError,
+    OutputError,
+    ExternalProgramError,
     InputError,
     NoHeldOutError,
     NumericalError,
@@ -137,6 +146,13 @@ __all__ = [
     "CalibrationResult",
     "Dataset",
     "ImplausibleError",
+    "OptionError",
+    "InvalidInputError",
+    "UnsupportedError",
+    "TooFewError",
+    "UndeterminedError",
+    "OutputError",
+    "ExternalProgramError",
     "InputError",
     "NoHeldOutError",
     "OptionConflictError",

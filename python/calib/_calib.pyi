@@ -12,6 +12,13 @@ __all__ = [
     "CalibrationResult",
     "Dataset",
     "ImplausibleError",
+    "OptionError",
+    "InvalidInputError",
+    "UnsupportedError",
+    "TooFewError",
+    "UndeterminedError",
+    "OutputError",
+    "ExternalProgramError",
     "InputError",
     "NoHeldOutError",
     "NumericalError",
@@ -53,6 +60,50 @@ class UnidentifiableError(InputError):
 
 class NoHeldOutError(InputError):
     """An acceptance criterion (``accept=``) with no held-out poses."""
+
+class OptionError(InputError):
+    """An option's value refused (out of range, not finite, the wrong count)."""
+
+    option: str
+    """The option, by the command line's flag (``--poses``)."""
+
+class InvalidInputError(InputError):
+    """An input's content refused (a file's line, a section, data not from this robot)."""
+
+    input: str
+    """The file (as given) or the input (``"the data"``, ``"joints_rad"``)."""
+
+class UnsupportedError(InputError):
+    """What this robot or model cannot do, or an output cannot carry."""
+
+    feature: str
+    """The feature or output, such as ``"gravity compliance"``."""
+
+class TooFewError(InputError):
+    """Too few poses, equations or candidates for what was asked."""
+
+    have: int
+    """How many there are."""
+    need: int
+    """How many are needed."""
+
+class UndeterminedError(InputError):
+    """Parameters the data cannot determine, found by a singular matrix."""
+
+    undetermined: list[str]
+    """The parameters found undetermined, where the matrix says which (else empty)."""
+
+class OutputError(CalibError):
+    """An output path that is not written (a directory, an input, another output's path)."""
+
+    path: str
+    """The path as given."""
+
+class ExternalProgramError(CalibError):
+    """An outside program the toolkit needs (a headless browser for PDFs) is missing or failed."""
+
+    program: str
+    """The program, such as ``"chromium"``."""
 
 class ImplausibleError(NumericalError):
     """A result that fails the plausibility check; nothing is returned."""

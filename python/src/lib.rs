@@ -61,6 +61,49 @@ pyo3::create_exception!(
     "A result that fails the plausibility check (nothing is returned): `.problems` says why, `.parameters` holds the refused values (mm, rad) by name."
 );
 
+pyo3::create_exception!(
+    _calib,
+    OptionError,
+    InputError,
+    "An option's value refused (out of range, not finite, the wrong count): `.option` names it (by the command line's flag)."
+);
+pyo3::create_exception!(
+    _calib,
+    InvalidInputError,
+    InputError,
+    "An input's content refused (a file's line, a section, data that do not come from this robot): `.input` names the file or input."
+);
+pyo3::create_exception!(
+    _calib,
+    UnsupportedError,
+    InputError,
+    "What this robot or model cannot do, or an output cannot carry: `.feature` names it."
+);
+pyo3::create_exception!(
+    _calib,
+    TooFewError,
+    InputError,
+    "Too few poses, equations or candidates: `.have` of `.need`."
+);
+pyo3::create_exception!(
+    _calib,
+    UndeterminedError,
+    InputError,
+    "Parameters the data cannot determine, found by a singular matrix: `.undetermined` names them where known (else empty)."
+);
+pyo3::create_exception!(
+    _calib,
+    OutputError,
+    CalibError,
+    "An output path that is not written (a directory, an input, another output's path): `.path`."
+);
+pyo3::create_exception!(
+    _calib,
+    ExternalProgramError,
+    CalibError,
+    "An outside program the toolkit needs (the headless browser that prints PDFs) is missing or failed: `.program`."
+);
+
 /// The exception class of the library's typed refusals, with their data as attributes; `None`
 /// for the others.
 fn typed_error(error: &host_tools::Error, message: &str) -> Option<PyErr> {
@@ -86,6 +129,50 @@ fn typed_error(error: &host_tools::Error, message: &str) -> Option<PyErr> {
                 err
             }
             E::NoHeldOut(_) => NoHeldOutError::new_err(message.to_string()),
+            E::InvalidOption { option, .. } => {
+                let err = OptionError::new_err(message.to_string());
+                err.value(py).setattr("option", option.clone())?;
+                err
+            }
+            E::InvalidInput { input, .. } => {
+                let err = InvalidInputError::new_err(message.to_string());
+                err.value(py).setattr("input", input.clone())?;
+                err
+            }
+            E::Unsupported { feature, .. } => {
+                let err = UnsupportedError::new_err(message.to_string());
+                err.value(py).setattr("feature", feature.clone())?;
+                err
+            }
+            E::TooFew { have, need, .. } => {
+                let err = TooFewError::new_err(message.to_string());
+                let value = err.value(py);
+                value.setattr("have", *have)?;
+                value.setattr("need", *need)?;
+                err
+            }
+            E::Undetermined { parameters, .. } => {
+                let err = UndeterminedError::new_err(message.to_string());
+                err.value(py).setattr("undetermined", parameters.clone())?;
+                err
+            }
+            E::ImplausibleModel { problem, .. } => {
+                let err = ImplausibleError::new_err(message.to_string());
+                let value = err.value(py);
+                value.setattr("problems", vec![problem.clone()])?;
+                value.setattr("parameters", PyDict::new(py))?;
+                err
+            }
+            E::Output { path, .. } => {
+                let err = OutputError::new_err(message.to_string());
+                err.value(py).setattr("path", path.display().to_string())?;
+                err
+            }
+            E::ExternalProgram { program, .. } => {
+                let err = ExternalProgramError::new_err(message.to_string());
+                err.value(py).setattr("program", program.clone())?;
+                err
+            }
             E::Implausible {
                 problems, result, ..
             } => {
@@ -514,7 +601,7 @@ impl Robot {
             let mut cells = cells;
             cells.resize(count * 16, 0.0);
             let mut out = Array3::<f64>::from_shape_vec((count, 4, 4), cells)
-                .map_err(|e| host_tools::Error::Refused(e.to_string()))?;
+                .map_err(|e| host_tools::refused!(input "joints_rad"; "joints_rad: {e}"))?;
             for (i, q) in all.chunks_exact(columns).enumerate() {
                 let m = kinematics
                     .pose(q, &|| format!("joints_rad row {i}"))?
@@ -1557,6 +1644,16 @@ fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
     )?;
     m.add("NoHeldOutError", m.py().get_type::<NoHeldOutError>())?;
     m.add("ImplausibleError", m.py().get_type::<ImplausibleError>())?;
+    m.add("OptionError", m.py().get_type::<OptionError>())?;
+    m.add("InvalidInputError", m.py().get_type::<InvalidInputError>())?;
+    m.add("UnsupportedError", m.py().get_type::<UnsupportedError>())?;
+    m.add("TooFewError", m.py().get_type::<TooFewError>())?;
+    m.add("UndeterminedError", m.py().get_type::<UndeterminedError>())?;
+    m.add("OutputError", m.py().get_type::<OutputError>())?;
+    m.add(
+        "ExternalProgramError",
+        m.py().get_type::<ExternalProgramError>(),
+    )?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

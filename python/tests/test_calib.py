@@ -169,8 +169,10 @@ def test_bad_inputs_raise_the_documented_exceptions():
     with pytest.raises(calib.InputError, match=r"joints_rad: shape \[3, 5\]: the robot Universal Robots UR10 has 6 joints"):
         calib.Dataset.from_arrays(np.zeros((3, 5)), np.zeros((3, 3)), robot=robot)
     # Without a robot, the joint count is checked against the robot the data are used with.
-    with pytest.raises(calib.InputError, match="has 5 joint columns, the robot Universal Robots UR10 has 6 joints"):
+    with pytest.raises(calib.InvalidInputError, match="has 5 joint columns, the robot Universal Robots UR10 has 6 joints") as bad:
         calib.calibrate(robot, calib.Dataset.from_arrays(np.zeros((3, 5)), np.zeros((3, 3))))
+    # Issue 53, item 4: the refusal's kind is its class, with its data as attributes.
+    assert bad.value.input == "<memory>"
     with pytest.raises(calib.InputError, match=r"positions_mm: shape \[3, 2\], expected \(3, 3\)"):
         calib.Dataset.from_arrays(np.zeros((3, 6)), np.zeros((3, 2)), robot=robot)
     q = np.zeros((3, 6))
@@ -215,8 +217,9 @@ def test_export_gives_the_bytes_calib_export_writes(tmp_path):
         assert robot.export(fmt, **kwargs) == out.read_bytes(), fmt
     # Two joint names for six joints: refused in the command's words.
     done = run_calib("export", "--params", UR10, "--format", "urdf", "--joint-names", "a,b", "--out", tmp_path / "x.urdf")
-    with pytest.raises(calib.InputError) as refused:
+    with pytest.raises(calib.OptionError) as refused:
         robot.export("urdf", joint_names=["a", "b"])
+    assert refused.value.option == "--joint-names"
     assert str(refused.value).splitlines()[0] == done.stderr.splitlines()[0].removeprefix("Error: ")
     with pytest.raises(calib.InputError, match="invalid value 'pdf'"):
         robot.export("pdf")

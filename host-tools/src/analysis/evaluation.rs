@@ -66,7 +66,7 @@ pub fn evaluate_model(
                 ));
             }
             if dataset.robot.file.measurement.is_none() {
-                return Err(crate::refused!(
+                return Err(crate::refused!(option "--stored-registration";
                     "--stored-registration: {} has no [measurement] section, no registration to use: give a model \
                      identified on tracker data (calibrate writes it), or fit the frames (--fit-frames)",
                     dataset.robot.model.path.display()
@@ -100,7 +100,7 @@ pub fn evaluate(
         .unwrap_or_else(|| robot.clone());
     if frames == Frames::None {
         if fit_poses.is_some() {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option "--fit-poses";
                 "--fit-poses needs frames to fit: the data are evaluated in the base frame (--fit-frames none)"
             ));
         }
@@ -110,7 +110,7 @@ pub fn evaluate(
     let (fitting, evaluated, separate) = match fit_poses {
         Some(count) => {
             if count < 3 || count >= n {
-                return Err(crate::refused!(
+                return Err(crate::refused!(option "--fit-poses";
                     "--fit-poses {count}: give at least 3 poses to fit the frames and leave at least one of the {n} poses to evaluate"
                 ));
             }

@@ -342,7 +342,7 @@ pub(crate) fn analyse(
     let set = crate::model::counts::analysable_set(mask)?;
     let count = set.len();
     if dataset.rows() < count {
-        return Err(crate::refused!(
+        return Err(crate::refused!(too_few dataset.rows(), count;
             "{} poses give {} equations, fewer than the {count} identified parameters",
             dataset.measurements().len(),
             dataset.rows()

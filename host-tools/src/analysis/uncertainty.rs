@@ -373,7 +373,7 @@ pub(crate) fn recorded_covariance(
     let entry = (file.calibration.as_ref())
         .and_then(|c| c.covariance.as_ref())
         .ok_or_else(|| {
-            crate::refused!(
+            crate::refused!(input path.display();
                 "{}: has no [calibration.covariance]: give a robot file identified by calib calibrate with least squares \
                  (--method lm or ipso+lm) on the geometry",
                 path.display()
@@ -381,7 +381,7 @@ pub(crate) fn recorded_covariance(
         })?;
     let joints = file.joint.len();
     let n = entry.parameters.len();
-    let bad = |why: String| crate::refused!("{}: [calibration.covariance]: {why}", path.display());
+    let bad = |why: String| crate::refused!(input path.display(); "{}: [calibration.covariance]: {why}", path.display());
     let mut mask = calib_core::ParameterMask::empty_for(
         calib_core::model::joint_count(joints).ok_or_else(|| bad(format!("{joints} joints")))?,
     );
@@ -461,8 +461,9 @@ pub fn at_poses(
     poses
         .iter()
         .map(|q| {
-            let q = calib_core::model::JointVec::from_slice(q)
-                .ok_or_else(|| crate::refused!("more than 9 joints"))?;
+            let q = calib_core::model::JointVec::from_slice(q).ok_or_else(
+                || crate::refused!(unsupported "more than 9 joints"; "more than 9 joints"),
+            )?;
             let angles = JointAngles::new(&q)?;
             let (position, orientation) = pose_covariance(&kinematics, &set, &covariance, &angles);
             Ok(PoseSd::of(&(along_base(position), along_base(orientation))))

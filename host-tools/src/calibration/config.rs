@@ -422,12 +422,12 @@ impl CalibrationConfig {
         }
         let (c1, c2) = (self.swarm.c1, self.swarm.c2);
         if !(c1 > 0.0 && c2 > 0.0 && c1 + c2 > 4.0 && (c1 + c2).is_finite()) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option "--c1";
                 "--c1 {c1} and --c2 {c2}: the constriction factor needs both positive with c1 + c2 > 4 (the paper's: 2.05 each)"
             ));
         }
         if !SWARM_SIZES.contains(&self.swarm.particles) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option "--swarm";
                 "--swarm {} is out of range; choose {} to {} particles (paper: 20)",
                 self.swarm.particles,
                 SWARM_SIZES.start(),
@@ -441,7 +441,7 @@ impl CalibrationConfig {
             ("--bound-factor", self.swarm.bound_factor),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(crate::refused!(
+                return Err(crate::refused!(option name;
                     "{name} must be a finite number >= 0, got {v}"
                 ));
             }
@@ -449,7 +449,7 @@ impl CalibrationConfig {
         if let Some(scale) = self.loss_scale_mm
             && !(scale.is_finite() && scale > 0.0)
         {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option "--loss-scale-mm";
                 "--loss-scale-mm must be a finite number > 0, got {scale}"
             ));
         }

@@ -205,7 +205,7 @@ pub(crate) fn check_robot_file(
 ) -> crate::Result<()> {
     gravity(robot, config)?;
     if robot.file.joint_maps.is_some() || robot.file.compliance.is_some() {
-        return Err(crate::refused!(
+        return Err(crate::refused!(input robot.model.path.display();
             "{}: the robot file already has joint maps or compliance; identify new ones from the nominal robot file or the \
              geometric calibration's file (to keep its model and re-fit only the frames: --identify frames)",
             robot.model.path.display()
@@ -222,13 +222,13 @@ fn gravity(robot: &ActualRobot, config: &CalibrationConfig) -> crate::Result<Opt
     }
     let joints = robot.model.robot.joints.len();
     if joints != JOINTS {
-        return Err(crate::refused!(
+        return Err(crate::refused!(unsupported "gravity compliance";
             "--model joint-maps+compliance: gravity compliance is modelled for {JOINTS}-joint robots (the torsion and \
              tilt gains of joints 1 to 4 of a 6R arm); this robot has {joints} joints: calibrate with --model joint-maps"
         ));
     }
     let Some(dynamics) = &robot.file.dynamics else {
-        return Err(crate::refused!(
+        return Err(crate::refused!(input robot.model.path.display();
             "{}: --model joint-maps+compliance needs the robot's link masses and centres of mass: add a [dynamics] \
              section (gravity_mps2, one [[dynamics.link]] per joint with mass_kg and com_mm, and [dynamics.tool] for \
              the probe or reflector; host-tools/robots/ur10.toml has the UR10's)",
@@ -238,7 +238,7 @@ fn gravity(robot: &ActualRobot, config: &CalibrationConfig) -> crate::Result<Opt
     dynamics
         .to_gravity()
         .map(Some)
-        .map_err(|e| crate::refused!("{}: {e}", robot.model.path.display()))
+        .map_err(|e| crate::refused!(input robot.model.path.display(); "{}: {e}", robot.model.path.display()))
 }
 
 /// `robot` (its frames registered) with the joint maps and compliance `found` (the compliance
@@ -474,7 +474,7 @@ fn kept_maps(
     let robot = found_model(robot, found, gravity);
     let maps = JointMapsSection::new(&found.maps, ranges);
     maps.to_maps(robot.model.robot.joints.len()).map_err(|problem| {
-        crate::refused!(
+        crate::refused!(implausible problem;
             "the identified joint maps are not plausible ({problem}); nothing was written. The poses may not move \
              that joint enough, or hold an outlier: calibrate with --model geometric, or measure more varied poses"
         )
@@ -483,7 +483,7 @@ fn kept_maps(
         Some(c) => {
             let section = crate::model::compliance::ComplianceSection::new(&c.gains);
             section.to_gains().map_err(|problem| {
-                crate::refused!(
+                crate::refused!(implausible problem;
                     "the identified gravity compliance is not plausible ({problem}); nothing was written. The poses may \
                      not load the joints differently enough: calibrate with --model joint-maps, or measure more varied poses"
                 )

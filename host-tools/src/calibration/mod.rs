@@ -627,7 +627,7 @@ fn identified_mask(
         Identify::Geometry => Ok(mask),
         Identify::Frames => {
             if !frames.base() {
-                return Err(crate::refused!(
+                return Err(crate::refused!(option "--identify";
                     "--identify frames re-registers the frames of a measurement setup: the data must be in a tracker's frame (--frames base or base+tool), not in the base frame"
                 ));
             }

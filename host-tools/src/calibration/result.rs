@@ -492,7 +492,7 @@ impl Report {
     pub fn read(path: &std::path::Path) -> crate::Result<Self> {
         let text = crate::io::input::read_text(path, crate::io::input::Input::Data)?;
         serde_json::from_str(&text).map_err(|e| {
-            crate::refused!(
+            crate::refused!(input path.display();
                 "{}: not a JSON report of calib calibrate that this version reads ({e}); write one with calib calibrate --report \
                  (a report written by another version renders with that version)",
                 path.display()
@@ -504,7 +504,7 @@ impl Report {
     /// noise of a plan (`calib plan --noise-from`). Refused when least squares did not run.
     pub fn residuals(&self, source: &std::path::Path) -> crate::Result<crate::planning::Residuals> {
         let Some(least_squares) = &self.least_squares else {
-            return Err(crate::refused!(
+            return Err(crate::refused!(input source.display();
                 "{}: no least-squares stage (the calibration ran the swarm alone), so no residuals to take the noise from; give --noise-mm",
                 source.display()
             ));

@@ -211,7 +211,7 @@ impl Session {
             }
             HoldOut::PlanVerify => {
                 if verify.is_empty() {
-                    return Err(crate::refused!(
+                    return Err(crate::refused!(input data;
                         "{data}: the hold-out is a plan's verification poses, and the data have none (no row with role verify)"
                     ));
                 }

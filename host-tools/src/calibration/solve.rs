@@ -486,7 +486,7 @@ fn lm_error(error: LmError, set: &ParameterSet<Dyn, Dyn>) -> crate::Error {
                 .get(usize::from(i))
                 .map(ToString::to_string)
                 .unwrap_or_default();
-            crate::refused!(
+            crate::refused!(undetermined vec![name.to_string()];
                 "the data cannot determine {name}: it changes no residual; remove it from the identified parameters"
             )
         }

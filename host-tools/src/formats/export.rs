@@ -251,7 +251,7 @@ pub fn export(
         if urdf.geometry_only {
             return Ok(());
         }
-        Err(crate::refused!(
+        Err(crate::refused!(unsupported what;
             "{source}: the model has {beyond}, which {what} cannot carry: exported, it would be less accurate \
              than the model (Series B: 0.43 against 0.21 mm held out). Pass --geometry-only to export the geometry \
              anyway, or use --format block for the controller"
@@ -272,7 +272,7 @@ pub fn export(
         ExportFormat::UrKinematicsYaml => {
             let joints = model.robot.joints.len();
             if joints != JOINTS {
-                return Err(crate::refused!(
+                return Err(crate::refused!(unsupported "UR kinematics file";
                     "{source}: a UR kinematics file describes a {JOINTS}-joint UR robot; this one has {joints} joints"
                 ));
             }
@@ -306,7 +306,7 @@ fn geometry_formats(
         ExportFormat::Json => serde_json::to_vec_pretty(file)?,
         ExportFormat::Urdf => crate::formats::urdf::urdf(&model.robot, urdf, &source)?.into_bytes(),
         ExportFormat::UrKinematicsYaml => {
-            return Err(crate::refused!(
+            return Err(crate::refused!(unsupported "UR kinematics file";
                 "{source}: a UR kinematics file describes a {JOINTS}-joint UR robot; this one has {} joints",
                 model.robot.joints.len()
             ));

@@ -60,7 +60,9 @@ fn values_of(value: &str, slot: usize, at: &str) -> crate::Result<[f64; JOINTS]>
         .trim()
         .strip_prefix('[')
         .and_then(|v| v.strip_suffix(']'))
-        .with_context(|| format!("{}: {} must be a list [v1, ..., v6]", at, KEYS[slot]))?;
+        .ok_or_else(
+            || crate::refused!(input at; "{}: {} must be a list [v1, ..., v6]", at, KEYS[slot]),
+        )?;
     let values = list
         .split(',')
         .map(|v| {
@@ -68,8 +70,8 @@ fn values_of(value: &str, slot: usize, at: &str) -> crate::Result<[f64; JOINTS]>
                 .parse::<f64>()
                 .ok()
                 .filter(|v| v.is_finite())
-                .with_context(|| {
-                    format!(
+                .ok_or_else(|| {
+                    crate::refused!(input at;
                         "{}: {}: \"{}\" is not a finite number",
                         at,
                         KEYS[slot],
@@ -80,7 +82,7 @@ fn values_of(value: &str, slot: usize, at: &str) -> crate::Result<[f64; JOINTS]>
         .collect::<crate::Result<Vec<f64>>>()?;
     let bound = BOUNDS[slot];
     if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| v.abs() > bound.0) {
-        return Err(crate::refused!(
+        return Err(crate::refused!(input at;
             "{}: {}[{}] = {v:e} {}: beyond {} (a real calibration's deltas are far smaller)",
             at,
             KEYS[slot],
@@ -90,7 +92,7 @@ fn values_of(value: &str, slot: usize, at: &str) -> crate::Result<[f64; JOINTS]>
         ));
     }
     values.try_into().map_err(|v: Vec<f64>| {
-        crate::refused!(
+        crate::refused!(input at;
             "{}: {} has {} values, expected {JOINTS}",
             at,
             KEYS[slot],
@@ -143,12 +145,12 @@ impl UrCalibration {
             }
             let values = values_of(value, slot, &at())?;
             if found[slot].replace(values).is_some() {
-                return Err(crate::refused!("{}: {} is given twice", at(), KEYS[slot]));
+                return Err(crate::refused!(input at(); "{}: {} is given twice", at(), KEYS[slot]));
             }
         }
         let get = |slot: usize| {
-            found[slot].with_context(|| {
-                format!(
+            found[slot].ok_or_else(|| {
+                crate::refused!(input path.display();
                     "{}: no {} in a [mounting] section: not a UR controller's calibration.conf",
                     path.display(),
                     KEYS[slot]
@@ -167,13 +169,13 @@ impl UrCalibration {
     /// deltas, in mm and rad (with its base and tool).
     pub fn classic_dh(&self, nominal: &Robot<f64, Dyn>) -> crate::Result<Robot<f64, Dyn>> {
         if nominal.joints.len() != JOINTS {
-            return Err(crate::refused!(
+            return Err(crate::refused!(unsupported "UR calibration";
                 "a UR calibration describes a {JOINTS}-joint UR robot; the nominal robot has {} joints",
                 nominal.joints.len()
             ));
         }
         if let Some(j) = nominal.joints.iter().position(|j| j.beta != 0.0) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(input "the nominal robot file";
                 "the nominal robot file must be in classic DH, as UR publishes it (beta = 0), but joint {} has beta {} deg",
                 j + 1,
                 nominal.joints[j].beta.to_degrees()
@@ -259,7 +261,7 @@ pub fn import(nominal: &Robot<f64, Dyn>, calibration: &UrCalibration) -> crate::
         max_change_mm = max_change_mm.max((n.translation.vector - b.translation.vector).norm());
     }
     if !(max_position_mm <= POSITION_TOLERANCE_MM && max_rotation_rad <= ROTATION_TOLERANCE_RAD) {
-        return Err(crate::refused!(
+        return Err(crate::refused!(unsupported "UR calibration";
             "the Hayati parameters reproduce the UR calibration only to {max_position_mm:.3e} mm and \
              {max_rotation_rad:.3e} rad (needed: {POSITION_TOLERANCE_MM:e} mm, {ROTATION_TOLERANCE_RAD:e} rad): \
              is the nominal robot file the robot's model (UR5, UR10, UR10e, ...)?"

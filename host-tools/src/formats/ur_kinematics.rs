@@ -51,18 +51,18 @@ fn x_part(joint: &MdhJoint<f64>) -> IsometryMatrix3<f64> {
 /// is no UR).
 pub fn segments(robot: &Robot<f64, Dyn>) -> crate::Result<Vec<IsometryMatrix3<f64>>> {
     let (Some(last), Some(first)) = (robot.joints.last(), robot.joints.first()) else {
-        return Err(crate::refused!(
+        return Err(crate::refused!(unsupported "UR kinematics file";
             "a UR kinematics file describes a {JOINTS}-joint UR robot; this one has none"
         ));
     };
     if robot.joints.len() != JOINTS {
-        return Err(crate::refused!(
+        return Err(crate::refused!(unsupported "UR kinematics file";
             "a UR kinematics file describes a {JOINTS}-joint UR robot; this one has {} joints",
             robot.joints.len()
         ));
     }
     if last.a != 0.0 || last.alpha != 0.0 || last.beta != 0.0 {
-        return Err(crate::refused!(
+        return Err(crate::refused!(unsupported "UR kinematics file";
             "the model has a fixed transform after joint 6 (a6 = {} mm, alpha6 = {} deg, beta6 = {} deg), \
              for which a UR kinematics file has no frame (its tool0 is joint 6's frame). Export the URDF \
              instead (--format urdf, exact), or calibrate without them (identify = [\"theta\", \"d\"] for joint 6 \

@@ -133,7 +133,12 @@ impl UrdfSettings {
     /// (letters, digits, `_ - . /`), so that they need no escaping in XML.
     pub fn check(&self, count: usize) -> crate::Result<()> {
         if self.links.len() != count || self.joints.len() != count {
-            return Err(crate::refused!(
+            let option = if self.links.len() != count {
+                "--link-names"
+            } else {
+                "--joint-names"
+            };
+            return Err(crate::refused!(option option;
                 "--link-names and --joint-names need {count} names each (one per joint), got {} and {}",
                 self.links.len(),
                 self.joints.len()
@@ -144,17 +149,19 @@ impl UrdfSettings {
         let [flange_joint, tool_joint] = self.fixed_joints();
         let mut joints: Vec<&str> = self.joints.iter().map(String::as_str).collect();
         joints.extend([flange_joint.as_str(), tool_joint.as_str()]);
-        for names in [&links, &joints] {
+        for (names, option) in [(&links, "--link-names"), (&joints, "--joint-names")] {
             for (i, name) in names.iter().enumerate() {
                 if names[..i].contains(name) {
-                    return Err(crate::refused!("the URDF name \"{name}\" is used twice"));
+                    return Err(
+                        crate::refused!(option option; "the URDF name \"{name}\" is used twice"),
+                    );
                 }
                 let plain = !name.is_empty()
                     && name
                         .chars()
                         .all(|c| c.is_ascii_alphanumeric() || "_-./".contains(c));
                 if !plain {
-                    return Err(crate::refused!(
+                    return Err(crate::refused!(option option;
                         "the URDF name \"{name}\" must be letters, digits and _ - . / only"
                     ));
                 }

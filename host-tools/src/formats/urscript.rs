@@ -33,13 +33,13 @@ pub fn movej_program(
         ("--settle-s", motion.settle_s, true),
     ] {
         if !(value.is_finite() && (value > 0.0 || (least && value == 0.0))) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option name;
                 "{name} must be a finite number > 0, got {value}"
             ));
         }
     }
     if let Some((comment, q)) = targets.iter().find(|(_, q)| q.len() != 6) {
-        return Err(crate::refused!(
+        return Err(crate::refused!(unsupported "--urscript";
             "--urscript drives a Universal Robots arm (6 joints); {} has {} joints: write \
              --joint-targets for this robot's controller instead",
             crate::io::text::one_line(comment),

@@ -536,7 +536,7 @@ impl Outputs {
             }
         }
         let Some((temporary, file)) = created else {
-            return Err(crate::refused!(
+            return Err(crate::refused!(output path;
                 "writing {} ({name}): {MAX_TEMPORARY_TRIES} names for its temporary file are taken in {}; remove the files named .{stem}.calib-*.tmp there",
                 path.display(),
                 dir.display()
@@ -568,7 +568,7 @@ impl Outputs {
             .to_string_lossy()
             .ends_with(std::path::is_separator)
         {
-            return Err(crate::refused!(
+            return Err(crate::refused!(output path;
                 "{name} {}: ends with a path separator, so it names a directory; give the path of a file",
                 path.display()
             ));
@@ -576,7 +576,7 @@ impl Outputs {
         let target = resolved(path);
         let is_link = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
         if is_link && std::fs::metadata(path).is_err() {
-            return Err(crate::refused!(
+            return Err(crate::refused!(output path;
                 "{name} {}: a symbolic link to a missing file; give the path of a file",
                 path.display()
             ));
@@ -584,7 +584,7 @@ impl Outputs {
         let permissions = match std::fs::metadata(&target) {
             Ok(meta) if meta.is_file() => Some(meta.permissions()),
             Ok(_) => {
-                return Err(crate::refused!(
+                return Err(crate::refused!(output path;
                     "{name} {}: not a regular file (a directory, device or FIFO); give the path of a file",
                     path.display()
                 ));
@@ -593,14 +593,14 @@ impl Outputs {
             Err(e) => return Err(e).with_context(|| format!("{name} {}", path.display())),
         };
         if let Some(other) = self.staged.iter().find(|s| s.target == target) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(output path;
                 "{name} and {} name the same file {}; give each output its own path",
                 other.name,
                 path.display()
             ));
         }
         if let Some((input, _)) = self.inputs.iter().find(|(_, p)| *p == target) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(output path;
                 "{name} {} is the input {input}; writing it would destroy the input, give another path",
                 path.display()
             ));

@@ -611,7 +611,7 @@ impl RobotFile {
     /// `simulate`), so that no result silently leaves it out.
     pub fn refuse_compliance(&self, path: &Path, what: &str) -> crate::Result<()> {
         if self.compliance.is_some() {
-            return Err(crate::refused!(
+            return Err(crate::refused!(unsupported "gravity compliance";
                 "{}: this robot file has gravity compliance ([compliance], from calibrate --model joint-maps+compliance), \
                  which {what} cannot apply yet; leaving it out would make the result silently less accurate. \
                  Use a file without it here (calibrate --model geometric or joint-maps)",
@@ -625,7 +625,7 @@ impl RobotFile {
     /// yet), so that no result silently leaves the maps out.
     pub fn refuse_joint_maps(&self, path: &Path, what: &str) -> crate::Result<()> {
         if self.joint_maps.is_some() {
-            return Err(crate::refused!(
+            return Err(crate::refused!(unsupported "joint maps";
                 "{}: this robot file has joint maps ([joint_maps], from calibrate --model joint-maps), \
                  which {what} cannot apply yet; leaving them out would make the result silently less accurate. \
                  Use the geometric calibration's file (calibrate --model geometric) here",

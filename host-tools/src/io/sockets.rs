@@ -58,7 +58,7 @@ pub fn read_layout(dir: &Path, joints: usize) -> crate::Result<Vec<Placement>> {
     }
     folders.sort();
     if folders.is_empty() {
-        return Err(crate::refused!(
+        return Err(crate::refused!(input dir.display();
             "{}: no placement folders: the layout is {}/<placement>/hole_0.csv, hole_1.csv, ...",
             dir.display(),
             dir.display()
@@ -85,7 +85,7 @@ fn read_placement(folder: &Path, joints: usize) -> crate::Result<Placement> {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     if sockets.is_empty() {
-        return Err(crate::refused!(
+        return Err(crate::refused!(input folder.display();
             "{}: no hole_0.csv: a placement folder holds one file per socket, hole_0.csv, hole_1.csv, ...",
             folder.display()
         ));
@@ -99,7 +99,7 @@ fn read_placement(folder: &Path, joints: usize) -> crate::Result<Placement> {
             .count()
     });
     if listed != sockets.len() {
-        return Err(crate::refused!(
+        return Err(crate::refused!(input folder.display();
             "{}: {listed} hole files, but hole_{} is missing: number the sockets' files hole_0.csv, hole_1.csv, ... without a gap",
             folder.display(),
             sockets.len()

@@ -280,7 +280,7 @@ impl TrackerData {
             .iter()
             .any(|r| r.rotation.is_some() != (orientation != OrientationColumns::None))
         {
-            return Err(crate::refused!(
+            return Err(crate::refused!(input "poses";
                 "either every pose has an orientation or none has"
             ));
         }

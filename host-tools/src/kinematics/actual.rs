@@ -41,7 +41,7 @@ impl ActualRobot {
         let model = file.to_model(path)?;
         let joints = model.robot.joints.len();
         if joints != crate::JOINTS && file.compliance.is_some() {
-            return Err(crate::refused!(
+            return Err(crate::refused!(unsupported "gravity compliance";
                 "{}: gravity compliance is modelled for {}-joint robots; this robot has {joints} joints: remove [compliance]",
                 path.display(),
                 crate::JOINTS

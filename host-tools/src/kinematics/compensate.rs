@@ -106,7 +106,7 @@ impl Request {
             return Ok(());
         }
         if has_closed_form(nominal) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option self.stated_bounds.join(" and ");
                 "{} bound the numerical inverse kinematics of robots without a closed form, and this robot has one (its configuration is the branch): drop {}",
                 self.stated_bounds.join(" and "),
                 if self.stated_bounds.len() == 1 {
@@ -118,7 +118,7 @@ impl Request {
         }
         let joints = nominal.joints.len();
         if joints != 7 && self.stated_bounds.contains(&"--max-arm-angle-deg") {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option "--max-arm-angle-deg";
                 "--max-arm-angle-deg bounds the arm angle of a 7-joint arm, and this robot has {joints} joints: drop it"
             ));
         }
@@ -499,12 +499,12 @@ impl Start {
         }
         let path = targets.path.display();
         if targets.joints == nominal.joints.len() {
-            return Err(crate::refused!(
+            return Err(crate::refused!(input path;
                 "{path}: has both the controller's joints, which name each target's configuration, and a configuration column; give one of them"
             ));
         }
         if request.configuration.is_some() && !request.configuration_is_default {
-            return Err(crate::refused!(
+            return Err(crate::refused!(input path;
                 "{path}: its configuration column names the targets' configurations, and so does --branch or --near-deg; give one of them (leave the option out)"
             ));
         }
@@ -513,7 +513,7 @@ impl Start {
                 // The robot file's default for the rows that name none.
                 return Self::of(nominal, planned, targets, request).map(Some);
             }
-            return Err(crate::refused!(
+            return Err(crate::refused!(input path;
                 "{path}:{}: target {} names no configuration while others do: fill its configuration column",
                 r.line,
                 r.id
@@ -534,7 +534,7 @@ impl Start {
         let joints = nominal.joints.len();
         if targets.joints == joints {
             if request.configuration.is_some() {
-                return Err(crate::refused!(
+                return Err(crate::refused!(input targets.path.display();
                     "{}: the targets carry the controller's joints (q1_deg..q{joints}_deg), which name their configuration; give either the joints or a configuration (--branch, --near-deg), not both",
                     targets.path.display()
                 ));
@@ -544,18 +544,20 @@ impl Start {
             return Ok(Self::Given(joints));
         }
         match &request.configuration {
-            None => Err(crate::refused!(
+            None => Err(crate::refused!(option "--near-deg";
                 "{}: the targets carry no joints, so the arm configuration to reach them in must be named: --near-deg q1,...,q{joints} (the configuration of that posture, e.g. the robot's home), or --branch 0-7 (closed form: bit 4 shoulder back, bit 2 elbow down, bit 1 wrist flipped); or give the controller's joints as q1_deg..q{joints}_deg; or state the robot's default in its file: [compensation] near_deg = [...]",
                 targets.path.display()
             )),
-            Some(Configuration::Branch(branch)) if *branch >= BRANCHES => Err(crate::refused!(
-                "--branch must be 0 to {}, got {branch}",
-                BRANCHES - 1
-            )),
+            Some(Configuration::Branch(branch)) if *branch >= BRANCHES => {
+                Err(crate::refused!(option "--branch";
+                    "--branch must be 0 to {}, got {branch}",
+                    BRANCHES - 1
+                ))
+            }
             Some(Configuration::Branch(branch)) => Ok(Self::Branch(*branch, None)),
             Some(Configuration::Near(posture)) => {
                 if posture.len() != joints {
-                    return Err(crate::refused!(
+                    return Err(crate::refused!(option "--near-deg";
                         "--near-deg has {} values; the robot has {joints} joints",
                         posture.len()
                     ));
@@ -567,7 +569,7 @@ impl Start {
                     .find(|(_, (q, l))| !l.contains(**q))
                     .map(|(j, (q, _))| (j, q))
                 {
-                    return Err(crate::refused!(
+                    return Err(crate::refused!(option "--near-deg";
                         "--near-deg: q{} = {:.3} deg is outside the joint limits of the robot",
                         j + 1,
                         q.to_degrees()
@@ -582,10 +584,10 @@ impl Start {
                         true,
                     )
                     .map(|c| Self::Numerical(Box::new(c)))
-                    .map_err(|e| crate::refused!("--near-deg: {e}")),
+                    .map_err(|e| crate::refused!(option "--near-deg"; "--near-deg: {e}")),
                     Some(branches) => match branches.first() {
                         Some(branch) => Ok(Self::Branch(*branch, Some(*posture))),
-                        None => Err(crate::refused!(
+                        None => Err(crate::refused!(option "--near-deg";
                             "--near-deg: the posture is at a singularity where the closed form cannot tell its configuration (the wrist centre on the first axis); name a posture away from it, or --branch"
                         )),
                     },

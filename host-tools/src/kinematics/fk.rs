@@ -55,7 +55,7 @@ pub fn forward_deg(kinematics: &FileKinematics, joints_deg: &[f64]) -> crate::Re
     let model = &kinematics.actual.model;
     let joints = model.robot.joints.len();
     if joints_deg.len() != joints {
-        return Err(crate::refused!(
+        return Err(crate::refused!(option "--joints-deg";
             "--joints-deg has {} values, the robot {} has {joints} joints",
             joints_deg.len(),
             model.name
@@ -64,7 +64,7 @@ pub fn forward_deg(kinematics: &FileKinematics, joints_deg: &[f64]) -> crate::Re
     let mut q = vec![0.0; joints];
     for (i, (qi, deg)) in q.iter_mut().zip(joints_deg).enumerate() {
         if !deg.is_finite() {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option "--joints-deg";
                 "--joints-deg: q{} = {deg} is not a finite number",
                 i + 1
             ));
@@ -72,7 +72,7 @@ pub fn forward_deg(kinematics: &FileKinematics, joints_deg: &[f64]) -> crate::Re
         // As in tracker data: beyond ten turns a reading is a unit or typing error (and its
         // sine and cosine no longer mean anything).
         if deg.abs() > crate::io::tracker_data::MAX_JOINT_DEG {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option "--joints-deg";
                 "--joints-deg: q{} = {deg:e} deg is beyond ten turns ({} deg); give the joint readings in degrees",
                 i + 1,
                 crate::io::tracker_data::MAX_JOINT_DEG
@@ -82,7 +82,7 @@ pub fn forward_deg(kinematics: &FileKinematics, joints_deg: &[f64]) -> crate::Re
     }
     for (i, (qi, limits)) in q.iter().zip(&model.robot.limits).enumerate() {
         if !limits.contains(*qi) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option "--joints-deg";
                 "--joints-deg: q{} = {} deg is outside the joint limits [{}, {}] deg of {}",
                 i + 1,
                 qi.to_degrees(),
@@ -133,7 +133,7 @@ impl FileKinematics {
     pub fn pose(&self, q_rad: &[f64], what: &dyn Fn() -> String) -> crate::Result<Pose<f64>> {
         let joints = self.joints();
         if q_rad.len() != joints {
-            return Err(crate::refused!(
+            return Err(crate::refused!(input what();
                 "{}: {} joint values, the robot {} has {joints} joints",
                 what(),
                 q_rad.len(),
@@ -142,14 +142,14 @@ impl FileKinematics {
         }
         for (i, q) in q_rad.iter().enumerate() {
             if !q.is_finite() {
-                return Err(crate::refused!(
+                return Err(crate::refused!(input what();
                     "{}: q{} = {q} is not a finite number",
                     what(),
                     i + 1
                 ));
             }
             if q.to_degrees().abs() > crate::io::tracker_data::MAX_JOINT_DEG {
-                return Err(crate::refused!(
+                return Err(crate::refused!(input what();
                     "{}: q{} = {q:e} rad is beyond ten turns; give the joint readings in radians",
                     what(),
                     i + 1
@@ -157,7 +157,7 @@ impl FileKinematics {
             }
         }
         if let Some(outside) = self.actual.model.outside_limits(q_rad) {
-            return Err(crate::refused!("{}: {outside}", what()));
+            return Err(crate::refused!(input what(); "{}: {outside}", what()));
         }
         let readings = JointVec::<f64>::from_fn(joints, |j| q_rad[j]);
         let q = self.actual.kinematic_angles(&readings);

@@ -110,7 +110,7 @@ impl CompensationRequest {
             "calib compensate's --robot (the nominal model the controller plans with)",
         )?;
         if file.joint.len() < MIN_JOINTS {
-            return Err(crate::refused!(
+            return Err(crate::refused!(unsupported "compensation";
                 "{}: compensation puts the tool on 6-DoF target poses (position and orientation), which \
                  takes at least {MIN_JOINTS} joints; this robot has {}, so the identified robot generally \
                  cannot reach a pose its nominal model reaches (calibrate, check, evaluate, verify, fk \
@@ -162,7 +162,7 @@ impl CompensationRequest {
                 }
                 (None, Some(branch)) => Some(Configuration::Branch(branch)),
                 _ => {
-                    return Err(crate::refused!(
+                    return Err(crate::refused!(input robot;
                         "{robot}: [compensation] states the configuration of targets without joints: give near_deg = [...] (a posture, deg) or branch = 0-7, one of them"
                     ));
                 }
@@ -174,7 +174,7 @@ impl CompensationRequest {
             ("--near-within-deg", self.near_within_deg, 360.0),
         ] {
             if let Some(v) = value.filter(|v| !(0.0..=most).contains(v)) {
-                return Err(crate::refused!("{flag} {v}: give 0 to {most} deg"));
+                return Err(crate::refused!(option flag; "{flag} {v}: give 0 to {most} deg"));
             }
         }
         let stated_bounds = [
@@ -257,14 +257,14 @@ impl CompensationRequest {
             TargetsFrame::Base => {}
         }
         if targets.rows_without_orientation() {
-            return Err(crate::refused!(
+            return Err(crate::refused!(input self.targets.display();
                 "{}: targets need an orientation (qw..qz or rx_deg..rz_deg)",
                 self.targets.display()
             ));
         }
         let joints = nominal.robot.joints.len();
         if targets.joints != 0 && targets.joints != joints {
-            return Err(crate::refused!(
+            return Err(crate::refused!(input self.targets.display();
                 "{}: has {} joint columns; give all of q1_deg..q{joints}_deg as start values, or none",
                 self.targets.display(),
                 targets.joints
@@ -276,7 +276,7 @@ impl CompensationRequest {
             ("--max-joint-correction-deg", self.max_joint_correction_deg),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(crate::refused!(
+                return Err(crate::refused!(option name;
                     "{name} must be a finite number > 0, got {v}"
                 ));
             }
@@ -301,13 +301,13 @@ fn targets_into_base(
     targets_path: &Path,
 ) -> crate::Result<()> {
     if targets.base_frame {
-        return Err(crate::refused!(
+        return Err(crate::refused!(input targets_path.display();
             "{}: says '# frame: base', but --targets-frame tracker says the targets are in the tracker's frame; remove one",
             targets_path.display()
         ));
     }
     let Some(measurement) = &params.measurement else {
-        return Err(crate::refused!(
+        return Err(crate::refused!(input "the robot file";
             "{}: has no [measurement] section, the registration of the tracker that --targets-frame tracker maps the targets \
              through: give a file calibrated on data in the tracker's frame, or targets in the base frame",
             params_path.display()
@@ -340,7 +340,7 @@ fn nominal_poses_of(
     };
     let joints = nominal.robot.joints.len();
     if targets.joints != joints {
-        return Err(crate::refused!(
+        return Err(crate::refused!(input path.display();
             "{}: has {} joint columns, the robot {} has {joints} joints",
             path.display(),
             targets.joints,
@@ -349,10 +349,11 @@ fn nominal_poses_of(
     }
     let kinematics = calib_core::Kinematics::nominal(&nominal.robot)?;
     for record in &mut targets.records {
-        let q = calib_core::model::JointVec::from_slice(&record.q)
-            .ok_or_else(|| crate::refused!("{}: more than 9 joints", path.display()))?;
+        let q = calib_core::model::JointVec::from_slice(&record.q).ok_or_else(
+            || crate::refused!(input path.display(); "{}: more than 9 joints", path.display()),
+        )?;
         if let Some(outside) = nominal.outside_limits(&record.q) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(input path.display();
                 "{}:{}: {outside}",
                 path.display(),
                 record.line
@@ -370,12 +371,12 @@ fn nominal_poses_of(
 /// The configuration of the posture `deg` (deg), named `what` in errors.
 fn near(deg: &[f64], what: &str) -> crate::Result<Configuration> {
     if let Some(v) = deg.iter().find(|v| !v.is_finite()) {
-        return Err(crate::refused!("{what}: {v} is not a finite angle"));
+        return Err(crate::refused!(option what; "{what}: {v} is not a finite angle"));
     }
     let Some(q) = calib_core::model::JointVec::from_slice(
         &deg.iter().map(|v| v.to_radians()).collect::<Vec<_>>(),
     ) else {
-        return Err(crate::refused!(
+        return Err(crate::refused!(option what;
             "{what} has {} values; at most 9 joints",
             deg.len()
         ));

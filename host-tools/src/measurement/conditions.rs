@@ -70,13 +70,13 @@ impl MeasurementConditions {
             .map(|t| t.mass_kg);
         let payload = match (payload_kg, file_payload) {
             (Some(kg), _) if !PAYLOAD_KG.contains(&kg) => {
-                return Err(crate::refused!(
+                return Err(crate::refused!(option "--payload-kg";
                     "--payload-kg {kg} is not a payload of 0 to {} kg",
                     PAYLOAD_KG.end()
                 ));
             }
             (Some(kg), Some(file)) if (kg - file).abs() > 1e-9 => {
-                return Err(crate::refused!(
+                return Err(crate::refused!(option "--payload-kg";
                     "--payload-kg {kg} differs from the {file} kg the robot file's [dynamics] tool carries \
                      while measured: give one of them (or correct [dynamics.tool] mass_kg)"
                 ));

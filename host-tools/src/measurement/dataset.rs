@@ -161,7 +161,7 @@ impl Dataset {
         let data = data_file.path.clone();
         let data = data.as_path();
         if data_file.joints != joints {
-            return Err(crate::refused!(
+            return Err(crate::refused!(input data.display();
                 "{}:{}: has {} joint columns, the robot {} has {joints} joints",
                 data.display(),
                 data_file.header_line,
@@ -170,7 +170,7 @@ impl Dataset {
             ));
         }
         if !data_file.records.is_empty() && data_file.records.iter().all(|r| r.weight == 0.0) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(input data.display();
                 "{}: every pose has weight 0, so no pose counts; give the poses to use a weight above 0",
                 data.display()
             ));
@@ -180,7 +180,7 @@ impl Dataset {
             let q = joint_readings(r);
             for (i, (qi, limits)) in q.iter().zip(&actual.model.robot.limits).enumerate() {
                 if !limits.contains(*qi) {
-                    return Err(crate::refused!(
+                    return Err(crate::refused!(input data.display();
                         "{}:{}: column q{}: {:.4} deg is outside the joint limits [{}, {}] deg of {}",
                         data.display(),
                         r.line,
@@ -371,14 +371,14 @@ pub(crate) fn mask(len: usize, indices: &[usize]) -> Vec<bool> {
 /// random with `seed` (deterministic), are held out.
 pub fn split(dataset: &Dataset, fraction: f64, seed: u64) -> crate::Result<(Dataset, Dataset)> {
     if !(fraction > 0.0 && fraction < 1.0) {
-        return Err(crate::refused!(
+        return Err(crate::refused!(option "--validate";
             "--validate must be a fraction between 0 and 1, got {fraction}"
         ));
     }
     let n = dataset.readings.len();
     let held = ((n as f64) * fraction).round() as usize;
     if held == 0 || held >= n {
-        return Err(crate::refused!(
+        return Err(crate::refused!(option "--validate";
             "--validate {fraction} of {n} poses leaves no pose on one side"
         ));
     }

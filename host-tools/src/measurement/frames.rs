@@ -497,7 +497,7 @@ fn measured_model(
     how: &str,
 ) -> crate::Result<crate::io::robot_file::RobotModel> {
     file.to_model(&inputs.robot.model.path).map_err(|e| match e {
-        crate::io::robot_file::RobotFileError::Invalid { message, .. } => crate::refused!(
+        crate::io::robot_file::RobotFileError::Invalid { message, .. } => crate::refused!(input inputs.data.path.display();
             "{}: the tracker and tool frames {how} from these data are not physically plausible ({message}). \
              The positions do not come from this robot in one rigid tracker frame: check the units of the \
              positions (a data profile, --profile), the joint order and signs against the robot file {}, \
@@ -530,7 +530,7 @@ fn with_fitted_frames(
     let fitted_inputs = inputs.for_robot(&registered_robot);
     let frame_parameters = frame_mask.count();
     if !(1..=12).contains(&frame_parameters) {
-        return Err(crate::refused!(
+        return Err(crate::refused!(option "--identify";
             "{frame_parameters} frame parameters; the two frames have 1 to 12"
         ));
     }
@@ -576,7 +576,7 @@ pub fn prepare(
         frames.tool(),
     )?;
     if registration.rms_mm > MAX_REGISTRATION_RMS_MM {
-        return Err(crate::refused!(
+        return Err(crate::refused!(input inputs.data.path.display();
             "{}: the nominal robot registered onto the measurements leaves {:.1} mm RMS ({:.1} mm max), \
              far above the few millimetres of a robot's geometric errors (limit {MAX_REGISTRATION_RMS_MM} mm). \
              Check the units and Euler convention of the data (a data profile, --profile), the joint order \
@@ -736,7 +736,7 @@ pub(crate) fn check_base_frame(dataset: &Seen<'_>) -> crate::Result<()> {
          of a data profile, and whether the data are in the base frame at all (--frames base+tool)"
             .to_string()
     };
-    Err(crate::refused!(
+    Err(crate::refused!(input dataset.data.path.display();
         "{}: the data are said to be in the robot's base frame, but the model of {} misses them by {rms:.1} mm RMS, \
          far beyond the few millimetres of a robot's geometric errors. Likely: {likely}",
         dataset.data.path.display(),

@@ -71,12 +71,12 @@ pub fn merge(
     let pairs = match (by, log) {
         (MatchBy::Time, Some(log)) => pairs_by_time(plan, measured, log, tolerance_rad)?,
         (MatchBy::Time, None) => {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option "--robot-log";
                 "merging by time needs the robot's log of when it stood at each planned pose (--robot-log)"
             ));
         }
         (_, Some(_)) => {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option "--robot-log";
                 "a robot log pairs points by time; merge --by time, or leave the log out"
             ));
         }
@@ -95,7 +95,7 @@ pub fn merge(
         roles.push(planned.role.unwrap_or(Role::Fill));
     }
     if rows.iter().any(|r| r.rotation.is_some()) != rows.iter().all(|r| r.rotation.is_some()) {
-        return Err(crate::refused!(
+        return Err(crate::refused!(input measured.path.display();
             "{}: some points have an orientation and some do not",
             measured.path.display()
         ));
@@ -140,7 +140,7 @@ fn pairs_by_time<'a>(
     let (log_path, data_path) = (log.log.path.display(), measured.path.display());
     for (file, path) in [(log.log, &log_path), (measured, &data_path)] {
         if !file.has_times {
-            return Err(crate::refused!(
+            return Err(crate::refused!(input path;
                 "{path} has no time column (time_s or time_ms); merge by time needs one in the export and in the log \
                  (map the tracker's timestamp to time_s in a data profile)"
             ));
@@ -173,7 +173,7 @@ fn pairs_by_time<'a>(
             .filter(|(away, _)| *away <= log.tolerance_s)
             .map(|(_, p)| p)
             .ok_or_else(|| {
-                crate::refused!(
+                crate::refused!(input log_path;
                     "{log_path}:{}: the robot stood at the planned pose {} at {t} s, but {data_path} has no point within \
                      --time-tolerance-s {} of it{}: was the pose measured, and do both clocks count from the same epoch?",
                     entry.line,
@@ -186,7 +186,7 @@ fn pairs_by_time<'a>(
                 )
             })?;
         if let Some(other) = claimed.insert(point.line, (entry.line, &planned.id)) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(input data_path;
                 "{data_path}:{}: the point is the nearest in time to two planned poses, {} (log line {}) and {} (log \
                  line {}); one of them was not measured: make --time-tolerance-s smaller than the time between poses",
                 point.line,
@@ -217,7 +217,7 @@ fn ids_agree_with_order(plan: &TrackerData, measured: &TrackerData) -> crate::Re
     let contradiction = (plan.records.iter().zip(&measured.records))
         .find(|(planned, point)| planned.id != point.id);
     match contradiction {
-        Some((planned, point)) => Err(crate::refused!(
+        Some((planned, point)) => Err(crate::refused!(input measured.path.display();
             "{}:{}: the point {} is the planned pose {}'s by order (line {} of {}): the export's ids \
              contradict its order (a pose skipped, repeated or measured out of turn); merge --by id",
             measured.path.display(),
@@ -241,7 +241,7 @@ fn pairs<'a, 'b>(
     match by {
         MatchBy::Order => {
             if plan.records.len() != measured.records.len() {
-                return Err(crate::refused!(
+                return Err(crate::refused!(input data_path;
                     "{data_path} has {} points and the plan {plan_path} {} poses: a pose was skipped or measured twice, \
                      so the order does not pair them; give the export an id column and merge --by id",
                     measured.records.len(),
@@ -253,14 +253,14 @@ fn pairs<'a, 'b>(
         }
         MatchBy::Id => {
             if !measured.has_ids {
-                return Err(crate::refused!(
+                return Err(crate::refused!(input data_path;
                     "{data_path} has no id column naming the planned poses; merge --by order, or export the point names as id"
                 ));
             }
             let mut by_id = std::collections::HashMap::new();
             for point in &measured.records {
                 if let Some(other) = by_id.insert(point.id.as_str(), point) {
-                    return Err(crate::refused!(
+                    return Err(crate::refused!(input data_path;
                         "{data_path}:{}: id {} was measured before, on line {}; keep one of them",
                         point.line,
                         point.id,
@@ -271,7 +271,7 @@ fn pairs<'a, 'b>(
             let mut out = Vec::with_capacity(plan.records.len());
             for planned in &plan.records {
                 let point = by_id.remove(planned.id.as_str()).ok_or_else(|| {
-                    crate::refused!(
+                    crate::refused!(input plan_path;
                         "{plan_path}:{}: the planned pose {} has no point in {data_path}; measure it, or delete its row from the plan",
                         planned.line,
                         planned.id
@@ -280,7 +280,7 @@ fn pairs<'a, 'b>(
                 out.push((planned, point));
             }
             if let Some(point) = by_id.values().min_by_key(|p| p.line) {
-                return Err(crate::refused!(
+                return Err(crate::refused!(input data_path;
                     "{data_path}:{}: the point {} names no pose of the plan {plan_path} ({} such points)",
                     point.line,
                     point.id,
@@ -289,7 +289,7 @@ fn pairs<'a, 'b>(
             }
             Ok(out)
         }
-        MatchBy::Time => Err(crate::refused!(
+        MatchBy::Time => Err(crate::refused!(option "--robot-log";
             "merging by time needs the robot's log (--robot-log)"
         )),
     }
@@ -306,7 +306,7 @@ fn check_joints(
         return Ok(());
     }
     if point.q.len() != planned.q.len() {
-        return Err(crate::refused!(
+        return Err(crate::refused!(input measured.path.display();
             "{}:{}: has {} joints, the plan {}",
             measured.path.display(),
             point.line,
@@ -322,7 +322,7 @@ fn check_joints(
         .map(|(j, (a, b))| (j, (a - b).abs()))
         .max_by(|a, b| a.1.total_cmp(&b.1));
     if let Some((j, difference)) = worst.filter(|(_, d)| *d > tolerance_rad || d.is_nan()) {
-        return Err(crate::refused!(
+        return Err(crate::refused!(input measured.path.display();
             "{}:{}: q{} = {:.4} deg, but the planned pose {} it is paired with has {:.4} deg ({:.4} deg apart, more \
              than --tolerance-deg {:.4}): the points are not in the plan's order, or the robot was elsewhere",
             measured.path.display(),

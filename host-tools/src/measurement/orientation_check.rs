@@ -131,7 +131,7 @@ pub fn check(dataset: &Dataset, euler: &EulerConvention) -> crate::Result<()> {
                 .join("; ")
         )
     };
-    Err(crate::refused!(
+    Err(crate::refused!(input dataset.data.path.display();
         "{}: the measured orientations do not move as the robot does: the rotation between two poses differs \
          from the nominal model's by {disagreement:.2} deg (median; a robot's geometric errors explain a degree or two). \
          The orientations were read as {}; {agree}",

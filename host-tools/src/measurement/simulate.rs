@@ -111,10 +111,10 @@ impl SimulationConfig {
     /// An error naming the first setting out of range (by its command-line flag).
     pub fn check(&self) -> crate::Result<()> {
         if self.poses == 0 {
-            return Err(crate::refused!("--poses must be at least 1"));
+            return Err(crate::refused!(option "--poses"; "--poses must be at least 1"));
         }
         if self.poses > MAX_POSES {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option "--poses";
                 "--poses {} is more than the {MAX_POSES} poses a simulation may have (about 160 \
                  bytes of CSV and 500 bytes of memory each); simulate in parts with other seeds",
                 self.poses
@@ -126,7 +126,7 @@ impl SimulationConfig {
             ("--orientation-sigma-rad", self.orientation_sigma_rad),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(crate::refused!(
+                return Err(crate::refused!(option name;
                     "{name} must be a finite number >= 0, got {v}"
                 ));
             }
@@ -155,7 +155,7 @@ impl SimulationConfig {
                 .flatten()
                 .find(|v| v.abs() > max || v.is_nan())
             {
-                return Err(crate::refused!(
+                return Err(crate::refused!(option name;
                     "{name}: {v:e} {unit} is beyond +-{max} {unit}; give the frame in mm and deg"
                 ));
             }
@@ -284,7 +284,7 @@ fn true_errors(
         TrueErrors::Table2 => {
             let joints = model.robot.joints.len();
             if joints != JOINTS {
-                return Err(crate::refused!(
+                return Err(crate::refused!(unsupported "--errors table2";
                     "Table 2 of the paper holds the errors of a {JOINTS}-joint robot; this robot has {joints} joints: use --errors random"
                 ));
             }
@@ -320,9 +320,9 @@ fn measure(
 ) -> crate::Result<Vec<PoseRow>> {
     let mut rows = Vec::with_capacity(config.poses);
     let position_noise = Normal::new(0.0, config.position_sigma_mm)
-        .map_err(|e| crate::refused!("position noise: {e}"))?;
+        .map_err(|e| crate::refused!(option "--noise-mm"; "position noise: {e}"))?;
     let orientation_noise = Normal::new(0.0, config.orientation_sigma_rad)
-        .map_err(|e| crate::refused!("orientation noise: {e}"))?;
+        .map_err(|e| crate::refused!(option "--noise-deg"; "orientation noise: {e}"))?;
     let joints = model.robot.joints.len();
     let count = config.commanded.as_ref().map_or(config.poses, Vec::len);
     for i in 0..count {
@@ -330,7 +330,7 @@ fn measure(
         let commanded = config.commanded.as_ref().and_then(|c| c.get(i));
         if let Some((id, given)) = commanded {
             if given.len() != joints {
-                return Err(crate::refused!(
+                return Err(crate::refused!(input "the commanded configurations";
                     "commanded configuration {id} has {} joints, the robot {joints}",
                     given.len()
                 ));
@@ -349,7 +349,7 @@ fn measure(
                     (-std::f64::consts::PI, std::f64::consts::PI)
                 };
             *qi = Uniform::new_inclusive(lo, hi)
-                .map_err(|e| crate::refused!("joint range [{lo}, {hi}] rad: {e}"))?
+                .map_err(|e| crate::refused!(input "the robot's joint limits"; "joint range [{lo}, {hi}] rad: {e}"))?
                 .sample(rng);
         }
         // The robot moves to the commanded joints plus noise; the file records the commanded ones.

@@ -95,7 +95,7 @@ pub struct FileCompliance {
 /// `Ok` for a robot of [`JOINTS`] joints, the one the gravity model describes.
 fn check_joints(joints: usize) -> crate::Result<()> {
     if joints != JOINTS {
-        return Err(crate::refused!(
+        return Err(crate::refused!(unsupported "gravity compliance";
             "gravity compliance is modelled for {JOINTS}-joint robots; this robot has {joints} joints"
         ));
     }
@@ -128,8 +128,9 @@ impl Gravity {
             mass_kg: T::of(*m),
             centre_mm: [T::of(c.x), T::of(c.y), T::of(c.z)],
         };
-        let count = calib_core::model::joint_count(joints)
-            .ok_or_else(|| crate::refused!("{joints} joints are too many"))?;
+        let count = calib_core::model::joint_count(joints).ok_or_else(
+            || crate::refused!(unsupported "gravity compliance"; "{joints} joints are too many"),
+        )?;
         let mut per_joint = count.table([T::zero(); 3]);
         for (gain, value) in GAINS.iter().zip(gains) {
             let (j, axis) = match gain {

@@ -17,7 +17,7 @@ pub const JOINT_COUNTS: std::ops::RangeInclusive<usize> = 2..=calib_core::model:
 pub fn joint_count(joints: usize) -> crate::Result<Dyn> {
     match calib_core::model::joint_count(joints) {
         Some(count) if JOINT_COUNTS.contains(&joints) => Ok(count),
-        _ => Err(crate::refused!(
+        _ => Err(crate::refused!(unsupported "joint count";
             "the robot file has {joints} joints; this command handles {} to {} joints",
             JOINT_COUNTS.start(),
             JOINT_COUNTS.end()
@@ -57,7 +57,7 @@ pub fn analysable_set(mask: &ParameterMask<Dyn>) -> crate::Result<ParameterSet<D
 fn parameter_set(mask: &ParameterMask<Dyn>, limit: usize) -> crate::Result<ParameterSet<Dyn, Dyn>> {
     let count = mask.count();
     if !(1..=limit).contains(&count) {
-        return Err(crate::refused!(
+        return Err(crate::refused!(unsupported "parameter count";
             "{count} identified parameters; calib supports 1 to {limit} for a robot of {} joints",
             mask.joint_count().value()
         ));

@@ -14,7 +14,7 @@ pub(super) fn checked_candidates(
     settings.check()?;
     let joints = file.joint.len();
     if let Some((id, q)) = candidates.iter().find(|(_, q)| q.len() != joints) {
-        return Err(crate::refused!(
+        return Err(crate::refused!(input format!("candidate {id}");
             "candidate {id} has {} joint values, the robot has {joints} joints",
             q.len()
         ));
@@ -23,7 +23,7 @@ pub(super) fn checked_candidates(
     // an overflow.
     let wanted = settings.poses.saturating_add(settings.verify);
     if candidates.len() < wanted {
-        return Err(crate::refused!(
+        return Err(crate::refused!(too_few candidates.len(), wanted;
             "{} candidates cannot give {} fitted and {} verification poses; give more candidates (--generate N or a longer --candidates file) or ask for fewer poses",
             candidates.len(),
             settings.poses,
@@ -60,7 +60,7 @@ pub fn generate(
     let robot: Robot<f64, Dyn> = file.to_model(robot_path)?.robot;
     let joints = robot.joints.len();
     if joints > calib_core::identify::halton::MAX_DIMENSION {
-        return Err(crate::refused!(
+        return Err(crate::refused!(unsupported "--generate";
             "--generate handles up to {} joints",
             calib_core::identify::halton::MAX_DIMENSION
         ));
@@ -95,7 +95,7 @@ pub fn generate(
         out.push((format!("C{:04}", out.len() + 1), q.to_vec()));
     }
     if out.len() < count {
-        return Err(crate::refused!(
+        return Err(crate::refused!(option "--box-mm";
             "only {} of {count} generated configurations put the tool point in the box {} mm (base frame); widen the box or give candidates (--candidates)",
             out.len(),
             box_mm

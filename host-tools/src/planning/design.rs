@@ -47,7 +47,7 @@ pub(super) fn d_optimal_core(
             }
         }
         let Some((i, _)) = best else {
-            return Err(crate::refused!(
+            return Err(crate::refused!(too_few chosen.len(), wanted;
                 "only {} candidates are at least {} deg apart; lower --min-distance-deg or give more candidates",
                 chosen.len(),
                 settings.min_distance_deg
@@ -85,7 +85,7 @@ pub(super) fn fill_and_verify(
                     .find(|i| far_enough(q, chosen, *i, settings))
             };
             let Some(i) = next else {
-                return Err(crate::refused!(
+                return Err(crate::refused!(too_few chosen.len(), wanted;
                     "only {} candidates are at least {} deg apart, {wanted} are needed; lower --min-distance-deg or give more candidates",
                     chosen.len(),
                     settings.min_distance_deg

@@ -113,10 +113,12 @@ pub(super) fn unit_scaled(
         .iter()
         .position(|s| s.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater))
     {
-        return Err(crate::refused!(
-            "{} changes no measurement at any candidate; leave it out of the robot file's identify list",
-            info.parameters[j]
-        ));
+        return Err(
+            crate::refused!(undetermined vec![info.parameters[j].to_string()];
+                "{} changes no measurement at any candidate; leave it out of the robot file's identify list",
+                info.parameters[j]
+            ),
+        );
     }
     let scaled = info
         .rows

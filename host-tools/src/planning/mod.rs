@@ -123,35 +123,35 @@ impl PlanSettings {
     /// The settings' own checks, with the flag to change.
     pub fn check(&self) -> crate::Result<()> {
         if self.poses == 0 {
-            return Err(crate::refused!("--poses must be at least 1"));
+            return Err(crate::refused!(option "--poses"; "--poses must be at least 1"));
         }
         if self.core > self.poses {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option "--core";
                 "--core {} is more than --poses {}: the core is part of the fitted poses",
                 self.core,
                 self.poses
             ));
         }
         if !(self.min_distance_deg.is_finite() && self.min_distance_deg >= 0.0) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option "--min-distance-deg";
                 "--min-distance-deg must be 0 or more degrees, got {}",
                 self.min_distance_deg
             ));
         }
         if !(self.noise_mm.is_finite() && self.noise_mm > 0.0 && self.noise_mm < 100.0) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option "--noise-mm";
                 "the noise level must be above 0 and below 100 mm, got {} (--noise-mm: the tracker's and the robot's repeatability, 1 sigma per coordinate)",
                 self.noise_mm
             ));
         }
         if !(self.noise_deg.is_finite() && self.noise_deg > 0.0 && self.noise_deg < 10.0) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option "--noise-deg";
                 "the orientation noise must be above 0 and below 10 deg, got {} (--noise-deg)",
                 self.noise_deg
             ));
         }
         if !(self.k.is_finite() && self.k > 0.0) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(option "--k";
                 "--k must be a positive weight (mm^2/rad^2), got {}",
                 self.k
             ));
@@ -290,12 +290,14 @@ pub fn plan(
     let parameters = info.parameters.len();
     let rows = settings.measure.rows();
     if settings.poses.saturating_mul(rows) <= parameters {
-        return Err(crate::refused!(
-            "{} poses give {} equations for {parameters} identified parameters: a fit needs more equations than parameters (to estimate its own noise); plan at least {} poses",
-            settings.poses,
-            settings.poses.saturating_mul(rows),
-            parameters / rows + 1
-        ));
+        return Err(
+            crate::refused!(too_few settings.poses.saturating_mul(rows), parameters + 1;
+                "{} poses give {} equations for {parameters} identified parameters: a fit needs more equations than parameters (to estimate its own noise); plan at least {} poses",
+                settings.poses,
+                settings.poses.saturating_mul(rows),
+                parameters / rows + 1
+            ),
+        );
     }
     let (scale, scaled) = unit_scaled(&info, candidates.len())?;
     let mut chosen = d_optimal_core(&scaled, &q, settings)?;

@@ -105,7 +105,7 @@ pub(super) fn parameter_covariance(
         .cholesky()
         .map(|c| c.inverse())
     else {
-        return Err(crate::refused!(
+        return Err(crate::refused!(undetermined Vec::<String>::new();
             "the fitted poses do not determine every parameter (singular information matrix); plan more poses or a smaller identify list"
         ));
     };
@@ -272,7 +272,7 @@ pub fn leverages(
         .cholesky()
         .map(|c| c.inverse())
     else {
-        return Err(crate::refused!(
+        return Err(crate::refused!(undetermined Vec::<String>::new();
             "the fitted poses do not determine every parameter"
         ));
     };

@@ -13,7 +13,7 @@ pub use crate::formats::urscript::Motion;
 /// is not a 6-joint arm (URScript drives Universal Robots), or a settle time of 0.
 pub fn urscript(plan: &Plan, robot: &str, motion: &Motion) -> crate::Result<String> {
     if !(motion.settle_s.is_finite() && motion.settle_s > 0.0) {
-        return Err(crate::refused!(
+        return Err(crate::refused!(option "--settle-s";
             "--settle-s must be a finite number > 0, got {}",
             motion.settle_s
         ));

@@ -80,7 +80,7 @@ impl Residuals {
     fn levels(&self) -> crate::Result<(f64, f64)> {
         let (rows, parameters) = (f64::from(self.rows), self.parameters as f64);
         if rows.partial_cmp(&parameters) != Some(std::cmp::Ordering::Greater) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(input self.source.display();
                 "{}: the calibration has no residual degrees of freedom",
                 self.source.display()
             ));
@@ -223,7 +223,7 @@ impl PlanRequest {
                     }
                     (Some([a, b, c, d, e, f]), false) => {
                         if !(a < b && c < d && e < f) {
-                            return Err(crate::refused!(
+                            return Err(crate::refused!(option "--box-mm";
                                 "--box-mm: each minimum must be below its maximum"
                             ));
                         }
@@ -241,7 +241,7 @@ impl PlanRequest {
                     ]),
                 };
                 if *count > MAX_CANDIDATES {
-                    return Err(crate::refused!(
+                    return Err(crate::refused!(option "--generate";
                         "--generate {count}: at most {MAX_CANDIDATES} candidates"
                     ));
                 }
@@ -249,7 +249,7 @@ impl PlanRequest {
             }
         };
         if candidates.len() > MAX_CANDIDATES {
-            return Err(crate::refused!(
+            return Err(crate::refused!(input "the candidates";
                 "{} candidates: at most {MAX_CANDIDATES} (thin them out)",
                 candidates.len()
             ));
@@ -271,7 +271,7 @@ fn read_candidates(
     let model = file.to_model(robot)?;
     for r in &records {
         if let Some(outside) = model.outside_limits(&r.q) {
-            return Err(crate::refused!(
+            return Err(crate::refused!(input path.display();
                 "{}:{}: candidate {}: {outside}; remove it or correct the limits",
                 path.display(),
                 r.line,

@@ -28,7 +28,7 @@ pub const PRINT_TIMEOUT_S: u64 = 120;
 /// installed, or when it writes no PDF (its error output quoted).
 pub fn print(html: &str) -> crate::Result<Vec<u8>> {
     let Some(browser) = browser() else {
-        return Err(crate::refused!(
+        return Err(crate::refused!(program "chromium";
             "writing a PDF needs a headless Chromium (chromium, chromium-browser or google-chrome on the PATH; \
              apt-get install chromium), and none was found; write --html and print it to PDF from any browser"
         ));
@@ -41,15 +41,15 @@ fn print_with(html: &str, browser: &str, timeout_s: u64) -> crate::Result<Vec<u8
     // Private (0700) and removed on every exit, an interruption included: the page may be a
     // private report's copy.
     let scratch = crate::io::outputs::scratch_dir("calib-pdf")
-        .map_err(|e| crate::refused!("cannot make a scratch directory: {e}"))?;
+        .map_err(|e| crate::refused!(program "chromium"; "cannot make a scratch directory: {e}"))?;
     let page = scratch.0.join("report.html");
     let pdf = scratch.0.join("report.pdf");
     std::fs::write(&page, html)
-        .map_err(|e| crate::refused!("cannot write {}: {e}", page.display()))?;
+        .map_err(|e| crate::refused!(program "chromium"; "cannot write {}: {e}", page.display()))?;
     let stderr = run(browser, (&scratch.0, &page, &pdf), timeout_s)?;
     let bytes = std::fs::read(&pdf).unwrap_or_default();
     if !bytes.starts_with(b"%PDF-") {
-        return Err(crate::refused!("{browser} wrote no PDF: {}", stderr.trim()));
+        return Err(crate::refused!(program browser; "{browser} wrote no PDF: {}", stderr.trim()));
     }
     Ok(bytes)
 }
@@ -63,7 +63,7 @@ fn run(
 ) -> crate::Result<String> {
     let errors = scratch.join("browser.err");
     let stderr = std::fs::File::create(&errors)
-        .map_err(|e| crate::refused!("cannot write {}: {e}", errors.display()))?;
+        .map_err(|e| crate::refused!(program browser; "cannot write {}: {e}", errors.display()))?;
     let mut child = Command::new(browser)
         .args([
             "--headless",
@@ -85,7 +85,7 @@ fn run(
         .stdout(std::process::Stdio::null())
         .stderr(stderr)
         .spawn()
-        .map_err(|e| crate::refused!("cannot run {browser}: {e}"))?;
+        .map_err(|e| crate::refused!(program browser; "cannot run {browser}: {e}"))?;
     let start = std::time::Instant::now();
     loop {
         match child.try_wait() {
@@ -96,7 +96,7 @@ fn run(
             Ok(None) | Err(_) => {
                 let _ = child.kill();
                 let _ = child.wait();
-                return Err(crate::refused!(
+                return Err(crate::refused!(program browser;
                     "{browser} did not print the page within {timeout_s} s and was stopped; write --html and print it from a browser"
                 ));
             }

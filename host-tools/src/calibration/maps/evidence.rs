@@ -364,10 +364,12 @@ impl<'a> System<'a> {
         };
         let geometry = parameters.len() + active.len();
         if harmonics == 0 {
-            return Err(crate::refused!("joint maps need at least one harmonic"));
+            return Err(
+                crate::refused!(option "--harmonics"; "joint maps need at least one harmonic"),
+            );
         }
         if rows <= geometry + 1 {
-            return Err(crate::refused!(
+            return Err(crate::refused!(too_few rows, geometry + 2;
                 "{} poses give {rows} equations for {geometry} geometric parameters: too few for joint maps",
                 poses.len()
             ));
@@ -377,7 +379,7 @@ impl<'a> System<'a> {
             .iter()
             .map(|p| {
                 set.index_of(*p).ok_or_else(|| {
-                    crate::refused!("parameter {p:?} is not a parameter of the robot")
+                    crate::refused!(input "the identified parameters"; "parameter {p:?} is not a parameter of the robot")
                 })
             })
             .collect::<crate::Result<_>>()?;
@@ -553,7 +555,7 @@ fn evidence(
             }
         }
         let Some(cholesky) = precision.cholesky() else {
-            return Err(crate::refused!(
+            return Err(crate::refused!(undetermined Vec::<String>::new();
                 "joint maps: the posterior is singular (a geometric parameter is not determined)"
             ));
         };
@@ -630,7 +632,7 @@ fn restricted(
     let k_inv = k_chol.inverse();
     let k_inv_a = &k_inv * a;
     let Some(m_chol) = (a.transpose() * &k_inv_a).cholesky() else {
-        return Err(crate::refused!(
+        return Err(crate::refused!(undetermined Vec::<String>::new();
             "joint maps: the posterior is singular (a geometric parameter is not determined)"
         ));
     };

@@ -141,7 +141,7 @@ impl PlanOptions {
                     None => None,
                     Some(&[a, b, c, d, e, f]) => Some([a, b, c, d, e, f]),
                     Some(_) => {
-                        return Err(host_tools::refused!(
+                        return Err(host_tools::refused!(option "--box-mm";
                             "--box-mm takes six values: XMIN,XMAX,YMIN,YMAX,ZMIN,ZMAX"
                         ));
                     }
@@ -153,7 +153,7 @@ impl PlanOptions {
                 }
             }
             (None, None) => {
-                return Err(host_tools::refused!(
+                return Err(host_tools::refused!(option "--candidates";
                     "give the candidates: --candidates FILE or --generate N"
                 ));
             }
@@ -167,7 +167,7 @@ impl PlanOptions {
                 Noise::Residuals(host_tools::calibration::Report::read(path)?.residuals(path)?)
             }
             (None, None) => {
-                return Err(host_tools::refused!(
+                return Err(host_tools::refused!(option "--noise-mm";
                     "give the noise level: --noise-mm or --noise-from"
                 ));
             }
