@@ -33,7 +33,7 @@ fn export(file: &str, scalar: BlockScalar, sequence: u32) -> Vec<u8> {
     let robot_file = RobotFile::read(&path).unwrap();
     let model: RobotModel = robot_file.to_model(&path).unwrap();
     let maps = robot_file.joint_maps(&path).unwrap();
-    let compliance = robot_file.gravity_compliance(&path).unwrap();
+    let compliance = robot_file.gravity_compliance(&path, 6).unwrap();
     parameter_block(
         &model.robot,
         maps.as_ref(),

@@ -67,8 +67,8 @@
 //! kind (issue 53's item 7, open).
 #![deny(missing_docs)]
 
-/// The joint count of the models defined for 6R arms only: gravity compliance (the gains of
-/// joints 1 to 4), the paper's Table 2, the UR formats; and the default of the generic types.
+/// The joint count of the models defined for 6R arms only: the paper's Table 2, the UR formats;
+/// and the default of the generic types.
 /// Every command takes 2 to 9 joints ([`model::counts::JOINT_COUNTS`]).
 pub const JOINTS: usize = 6;
 

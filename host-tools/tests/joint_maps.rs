@@ -771,7 +771,10 @@ fn a_file_with_compliance_is_applied_or_refused_never_ignored() {
         assert!(!d.join(file).exists(), "{file}");
     }
     // The parameter block holds the compliance: masses and gains as the file has them.
-    let c = file.gravity_compliance(&d.join("c.toml")).unwrap().unwrap();
+    let c = file
+        .gravity_compliance(&d.join("c.toml"), 6)
+        .unwrap()
+        .unwrap();
     let maps = file.joint_maps(&d.join("c.toml")).unwrap().unwrap();
     ok(&calib_in(
         d,
@@ -809,8 +812,8 @@ fn a_file_with_compliance_is_applied_or_refused_never_ignored() {
         &[-100.0f64, -60.0, 30.0, -100.0, -50.0, 10.0].map(f64::to_radians),
     )
     .unwrap();
-    let gravity = file.dynamics.as_ref().unwrap().to_gravity().unwrap();
-    let gains = file.compliance.as_ref().unwrap().to_gains().unwrap();
+    let gravity = file.dynamics.as_ref().unwrap().to_gravity(6).unwrap();
+    let gains = file.compliance.as_ref().unwrap().to_gains(6).unwrap();
     let columns = host_tools::model::compliance::columns(
         &gravity,
         &model.robot,

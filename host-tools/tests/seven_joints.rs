@@ -171,8 +171,8 @@ fn six_joint_models_refuse_a_seven_joint_robot_with_a_reason() {
         "--truth-out",
         &truth,
     ]));
-    // Joint maps are identified for any joint count (issue 37); the gravity compliance's gains
-    // are those of a 6R arm.
+    // Joint maps are identified for any joint count (issue 37), and so is the gravity compliance
+    // (issue 53): it needs the robot's masses, which the iiwa's file does not carry.
     let identified = at(dir.path(), "maps.toml");
     let out = ok(&calib(&[
         "calibrate",
@@ -199,10 +199,40 @@ fn six_joint_models_refuse_a_seven_joint_robot_with_a_reason() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("gravity compliance is modelled for 6-joint robots")
-            && err.contains("7 joints"),
+        err.contains("needs the robot's link masses and centres of mass"),
         "{err}"
     );
+    // With masses (about the iiwa 14's published link masses) the calibration runs with its 14
+    // gains; these simulated data are exact and hold no compliance, so the cross-validation
+    // keeps every map at zero and the result is the geometric calibration, without
+    // [compliance]. (The recovery of a 7-joint arm's gains: host-tools' unit test
+    // `known_compliance_of_a_seven_joint_arm_is_recovered_within_its_posterior_uncertainty`.)
+    let links: String = [4.0, 4.0, 3.0, 2.7, 1.7, 1.8, 0.3]
+        .iter()
+        .map(|m| format!("[[dynamics.link]]\nmass_kg = {m}\ncom_mm = [0.0, -30.0, 60.0]\n"))
+        .collect();
+    let with_masses = at(dir.path(), "iiwa-masses.toml");
+    let text = std::fs::read_to_string(ROBOT).unwrap();
+    std::fs::write(
+        &with_masses,
+        format!("{text}\n[dynamics]\ngravity_mps2 = [0.0, 0.0, -9.81]\n{links}"),
+    )
+    .unwrap();
+    let compliant = at(dir.path(), "compliance.toml");
+    let out = ok(&calib(&[
+        "calibrate",
+        "--robot",
+        &with_masses,
+        "--data",
+        &data,
+        "--model",
+        "joint-maps+compliance",
+        "--out",
+        &compliant,
+    ]));
+    assert!(out.contains("every map is kept at zero"), "{out}");
+    let file = host_tools::io::robot_file::RobotFile::read(Path::new(&compliant)).unwrap();
+    assert!(file.compliance.is_none() && file.dynamics.is_some());
 }
 
 /// Joint maps on a 7-joint arm (issue 37) reach the controller: the iiwa's nominal file with a

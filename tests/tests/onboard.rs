@@ -158,7 +158,7 @@ fn model_job_matches_the_f64_core(block: &[u8], file: &str, expected_file: &str,
         let robot_file = RobotFile::read(&path).unwrap();
         let model: RobotModel = robot_file.to_model(&path).unwrap();
         let maps = robot_file.joint_maps(&path).unwrap();
-        let compliance = robot_file.gravity_compliance(&path).unwrap();
+        let compliance = robot_file.gravity_compliance(&path, 6).unwrap();
         let exported = parameter_block(
             &model.robot,
             maps.as_ref(),

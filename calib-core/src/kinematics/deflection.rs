@@ -74,6 +74,29 @@ impl<T: Real, N: JointCount> Compliance<T, N> {
         Ok((pose, deflection))
     }
 
+    /// What gain `axis` ([`TILT_X`], [`TILT_Y`], [`TORSION`]) of joint `joint` (0-based)
+    /// multiplies: the deflection of `geometry` at kinematic angles `t` (rad) by these masses with
+    /// that gain at 1 urad per N m and every other gain zero. The deflection is linear in the
+    /// gains ([`Compliance::deflect`]'s is the sum of these columns times the gains, to
+    /// rounding), so the host's identification fits the gains on these columns: the
+    /// controller's own evaluation, so that what is fitted is what is applied. `None` for a
+    /// joint or axis out of range; error: a non-finite angle.
+    ///
+    /// [`TILT_X`]: crate::model::compliance::TILT_X
+    /// [`TILT_Y`]: crate::model::compliance::TILT_Y
+    /// [`TORSION`]: crate::model::compliance::TORSION
+    pub fn gain_column(
+        &self,
+        geometry: &Kinematics<T, N>,
+        t: &N::Table<T>,
+        (joint, axis): (usize, usize),
+    ) -> Result<Option<Deflection<T>>, KinematicsError> {
+        match self.with_unit_gain(joint, axis) {
+            Some(unit) => Ok(Some(unit.deflect(geometry, t)?.1)),
+            None => Ok(None),
+        }
+    }
+
     /// The deflected end pose of `geometry` at kinematic angles `t` (rad).
     pub fn forward(
         &self,
@@ -257,6 +280,28 @@ mod tests {
         let turned = moved.rotation.matrix() * pose.rotation.matrix().transpose();
         let expected = Rotation3::new(d.rotation);
         assert!((turned - expected.matrix()).norm() < 1e-15);
+    }
+
+    /// The deflection is linear in the gains: the columns times the gains sum to it.
+    #[test]
+    fn the_gain_columns_sum_to_the_deflection() {
+        let geometry = Kinematics::new(&er10l_c10(), &table2()).unwrap();
+        let c = ur_like();
+        let q = [0.3, -0.4, 0.5, 0.2, 0.9, -0.3];
+        let (_, d) = c.deflect(&geometry, &q).unwrap();
+        let mut sum = Deflection::zero();
+        for (j, gains) in c.gains().iter().enumerate() {
+            for (axis, k) in gains.iter().enumerate() {
+                let column = c.gain_column(&geometry, &q, (j, axis)).unwrap().unwrap();
+                sum.translation += column.translation * *k;
+                sum.rotation += column.rotation * *k;
+            }
+        }
+        assert!((sum.translation - d.translation).norm() < 1e-15 * 1e3);
+        assert!((sum.rotation - d.rotation).norm() < 1e-18 * 1e3);
+        assert!(d.translation.norm() > 0.01);
+        assert_eq!(c.gain_column(&geometry, &q, (6, 0)).unwrap(), None);
+        assert_eq!(c.gain_column(&geometry, &q, (0, 3)).unwrap(), None);
     }
 
     #[test]

@@ -203,6 +203,15 @@ impl<T: Real, N: JointCount> Compliance<T, N> {
     pub fn gains(&self) -> &N::Table<[T; 3]> {
         &self.gains
     }
+
+    /// These masses with one gain of 1 urad per N m, gain `axis` ([`TILT_X`], [`TILT_Y`],
+    /// [`TORSION`]) of joint `joint` (0-based), and every other gain zero; `None` for a joint or
+    /// axis out of range, or a gravity outside [`GRAVITY_RANGE_MPS2`].
+    pub fn with_unit_gain(&self, joint: usize, axis: usize) -> Option<Self> {
+        let mut gains = self.joint_count().table([T::zero(); 3]);
+        *gains.as_mut_slice().get_mut(joint)?.get_mut(axis)? = T::one();
+        Self::new(self.gravity_mps2, self.links, self.load, gains).ok()
+    }
 }
 
 #[cfg(test)]

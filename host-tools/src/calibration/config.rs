@@ -303,8 +303,9 @@ pub enum ErrorModel {
     #[value(name = "joint-maps")]
     #[serde(rename = "joint-maps")]
     JointMaps,
-    /// The joint maps and gravity compliance (torsion of joints 2-4, bearing tilt of joints
-    /// 1-4; [`crate::model::compliance`]) from the robot file's `[dynamics]` masses.
+    /// The joint maps and gravity compliance (bearing tilts of every joint but the wrist's last
+    /// two, torsion of the same but joint 1; [`crate::model::compliance::gains`]) from the robot
+    /// file's `[dynamics]` masses.
     #[value(name = "joint-maps+compliance")]
     #[serde(rename = "joint-maps+compliance")]
     JointMapsCompliance,

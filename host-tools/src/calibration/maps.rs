@@ -11,7 +11,6 @@ use super::ErrorModel;
 use super::OUTLIER_DEVIATIONS;
 use super::solve::Identification;
 use super::{CalibrationConfig, Stage};
-use crate::JOINTS;
 use crate::kinematics::actual::ActualRobot;
 use crate::measurement::dataset::{Dataset, Seen};
 use crate::model::compliance::{self, Gravity};
@@ -163,6 +162,8 @@ fn maps_cross_validation(
             let angles = found.maps.apply(&q);
             let mut predicted = model.forward(&angles).ok()?.translation.vector;
             if let (Some(gravity), Some(c)) = (gravity, &found.compliance) {
+                // The columns' sum, not the controller's model: a fold's gains are not
+                // bounded (an implausible one is refused only in the kept model).
                 let columns = compliance::columns(gravity, robot, &found.errors, &angles).ok()?;
                 let d = compliance::displacement(&columns, &c.gains);
                 predicted += Vector3::new(d[0], d[1], d[2]);
@@ -221,12 +222,6 @@ fn gravity(robot: &ActualRobot, config: &CalibrationConfig) -> crate::Result<Opt
         return Ok(None);
     }
     let joints = robot.model.robot.joints.len();
-    if joints != JOINTS {
-        return Err(crate::refused!(unsupported "gravity compliance";
-            "--model joint-maps+compliance: gravity compliance is modelled for {JOINTS}-joint robots (the torsion and \
-             tilt gains of joints 1 to 4 of a 6R arm); this robot has {joints} joints: calibrate with --model joint-maps"
-        ));
-    }
     let Some(dynamics) = &robot.file.dynamics else {
         return Err(crate::refused!(input robot.model.path.display();
             "{}: --model joint-maps+compliance needs the robot's link masses and centres of mass: add a [dynamics] \
@@ -236,7 +231,7 @@ fn gravity(robot: &ActualRobot, config: &CalibrationConfig) -> crate::Result<Opt
         ));
     };
     dynamics
-        .to_gravity()
+        .to_gravity(joints)
         .map(Some)
         .map_err(|e| crate::refused!(input robot.model.path.display(); "{}: {e}", robot.model.path.display()))
 }
@@ -253,8 +248,8 @@ fn found_model(
         maps: Some(found.maps.clone()),
         compliance: match (gravity, &found.compliance) {
             (Some(gravity), Some(c)) => Some(compliance::FileCompliance {
-                gravity: *gravity,
-                gains: c.gains,
+                gravity: gravity.clone(),
+                gains: c.gains.clone(),
             }),
             _ => None,
         },
@@ -345,8 +340,8 @@ pub(crate) fn add_joint_maps(
         left_out_lines,
         geometric_calibration,
         geometric_validation,
-        compliance: found.compliance.map(|c| {
-            compliance::GAINS
+        compliance: found.compliance.as_ref().map(|c| {
+            compliance::gains(ranges.len())
                 .iter()
                 .zip(c.gains.iter().zip(&c.sd))
                 .map(|(g, (v, sd))| (g.to_string(), *v, *sd))
@@ -481,8 +476,9 @@ fn kept_maps(
     })?;
     let compliance = match &found.compliance {
         Some(c) => {
-            let section = crate::model::compliance::ComplianceSection::new(&c.gains);
-            section.to_gains().map_err(|problem| {
+            let joints = robot.model.robot.joints.len();
+            let section = crate::model::compliance::ComplianceSection::new(&c.gains, joints);
+            section.to_gains(joints).map_err(|problem| {
                 crate::refused!(implausible problem;
                     "the identified gravity compliance is not plausible ({problem}); nothing was written. The poses may \
                      not load the joints differently enough: calibrate with --model joint-maps, or measure more varied poses"

@@ -229,9 +229,8 @@ pub fn format_name(format: ExportFormat) -> String {
 
 /// `file` (an identified robot file of any joint count) in `format`; `scalar` and `sequence` for the
 /// block, `urdf` for the URDF (names; whether a file with joint maps or compliance may be
-/// exported as its geometry alone, also for the UR YAML). The block carries the joint maps of any
-/// joint count and the gravity compliance of a 6-joint robot; the UR kinematics file is for
-/// 6-joint robots.
+/// exported as its geometry alone, also for the UR YAML). The block carries the joint maps and
+/// the gravity compliance of any joint count; the UR kinematics file is for 6-joint robots.
 pub fn export(
     file: &RobotFile,
     model: &RobotModel,

@@ -419,10 +419,10 @@ impl RobotFile {
             maps.to_maps(count.value()).map_err(invalid)?;
         }
         if let Some(dynamics) = &self.dynamics {
-            dynamics.to_gravity().map_err(invalid)?;
+            dynamics.to_gravity(count.value()).map_err(invalid)?;
         }
         if let Some(compliance) = &self.compliance {
-            compliance.to_gains().map_err(invalid)?;
+            compliance.to_gains(count.value()).map_err(invalid)?;
             if self.dynamics.is_none() {
                 return Err(invalid(
                     "[compliance] needs the [dynamics] it was identified with".to_string(),
@@ -583,11 +583,12 @@ impl RobotFile {
             .transpose()
     }
 
-    /// The gravity compliance of the file (`[compliance]` with the `[dynamics]` it was identified
-    /// with), checked; `None` without it.
+    /// The gravity compliance of the file of a robot of `joints` joints (`[compliance]` with the
+    /// `[dynamics]` it was identified with), checked; `None` without it.
     pub fn gravity_compliance(
         &self,
         path: &Path,
+        joints: usize,
     ) -> Result<Option<crate::model::compliance::FileCompliance>, RobotFileError> {
         let invalid = |message: String| RobotFileError::Invalid {
             path: path.to_owned(),
@@ -602,8 +603,8 @@ impl RobotFile {
             ));
         };
         Ok(Some(crate::model::compliance::FileCompliance {
-            gravity: dynamics.to_gravity().map_err(invalid)?,
-            gains: section.to_gains().map_err(invalid)?,
+            gravity: dynamics.to_gravity(joints).map_err(invalid)?,
+            gains: section.to_gains(joints).map_err(invalid)?,
         }))
     }
 

@@ -40,17 +40,10 @@ impl ActualRobot {
     pub fn from_file(file: RobotFile, path: &Path) -> crate::Result<Self> {
         let model = file.to_model(path)?;
         let joints = model.robot.joints.len();
-        if joints != crate::JOINTS && file.compliance.is_some() {
-            return Err(crate::refused!(unsupported "gravity compliance";
-                "{}: gravity compliance is modelled for {}-joint robots; this robot has {joints} joints: remove [compliance]",
-                path.display(),
-                crate::JOINTS
-            ));
-        }
         Ok(Self {
             model,
             maps: file.joint_maps(path)?,
-            compliance: file.gravity_compliance(path)?,
+            compliance: file.gravity_compliance(path, joints)?,
             file,
         })
     }
@@ -64,7 +57,7 @@ impl ActualRobot {
             file,
             model,
             maps: self.maps.clone(),
-            compliance: self.compliance,
+            compliance: self.compliance.clone(),
         }
     }
 
@@ -105,12 +98,13 @@ impl ActualRobot {
         let Some(compliance) = &self.compliance else {
             return Ok(None);
         };
-        let columns =
-            crate::model::compliance::columns(&compliance.gravity, robot, errors, angles)?;
-        Ok(Some(crate::model::compliance::displacement(
-            &columns,
+        let gravity = &compliance.gravity;
+        Ok(Some(gravity.deflection(
             &compliance.gains,
-        )))
+            robot,
+            errors,
+            angles,
+        )?))
     }
 
     /// `pose`, the end pose of this robot's nominal geometry at the kinematic angles `angles`

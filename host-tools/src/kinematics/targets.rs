@@ -202,8 +202,8 @@ impl CompensationRequest {
     }
 
     /// The outcomes for the identified robot `actual` (the file `params`), `nominal` the model
-    /// the controller plans with: of its geometry, or, with joint maps or gravity compliance (the
-    /// compliance a 6R arm's, refused for other counts), of the controller's whole model.
+    /// the controller plans with: of its geometry, or, with joint maps or gravity compliance, of
+    /// the controller's whole model.
     fn compensate_with(
         &self,
         (nominal, actual): (RobotModel, &ActualRobot),

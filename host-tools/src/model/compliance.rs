@@ -8,8 +8,10 @@
 //!
 //! `phi_j = t_j (z_j . M_j) z_j + x_j (x_j . M_j) x_j' + y_j (y_j . M_j) y_j'`,
 //!
-//! with `z_j` the joint's axis and `x_j`, `y_j` the other axes of the frame it turns in: a torsion
-//! `t_j` for joints 2-4 and two bearing tilts for joints 1-4, 11 gains in urad per N m. The end
+//! with `z_j` the joint's axis and `x_j`, `y_j` the other axes of the frame it turns in: two
+//! bearing tilts for every joint but the last two (the wrist, which carries little) and a torsion
+//! for the same joints but the first (whose axis is vertical on a robot standing upright), in
+//! urad per N m ([`gains`]: 11 gains on a 6-joint arm, joints 1-4; 14 on a 7-joint arm). The end
 //! point moves by `sum_j phi_j x (p - o_j)` and turns by `sum_j phi_j` (first order: the
 //! deflections are below 1 mrad, the neglected terms below 1e-5 mm). A gain whose moment
 //! component vanishes in every pose (on a UR, joint 2's tilt about the vertical axis) is not
@@ -17,7 +19,8 @@
 //!
 //! The robot file holds the masses and the gains in its `[dynamics]` and `[compliance]` sections
 //! ([`sections`]); the gains' columns of the pose's motion, which the identification fits and
-//! [`displacement`] sums, are in [`columns`](mod@columns).
+//! [`displacement`] sums, are the core's (`Compliance::gain_column`, the deflection the
+//! controller applies), gathered in [`columns`](mod@columns).
 
 pub mod columns;
 pub mod sections;
@@ -25,28 +28,21 @@ pub mod sections;
 pub use columns::{columns, displacement};
 pub use sections::{ComplianceSection, DynamicsSection, MassEntry};
 
-use crate::JOINTS;
 use calib_core::model::JointCount;
 use nalgebra::Dyn;
 use nalgebra::Vector3;
 
-/// The identified gains, in this order.
-pub const GAINS: [Gain; 11] = [
-    Gain::TiltX(1),
-    Gain::TiltY(1),
-    Gain::Torsion(2),
-    Gain::TiltX(2),
-    Gain::TiltY(2),
-    Gain::Torsion(3),
-    Gain::TiltX(3),
-    Gain::TiltY(3),
-    Gain::Torsion(4),
-    Gain::TiltX(4),
-    Gain::TiltY(4),
-];
-
-/// Number of gains.
-pub(crate) const GAIN_COUNT: usize = GAINS.len();
+/// The identified gains of a robot of `joints` joints, in this order: per joint `j` from 1 to
+/// `joints - 2`, the tilt about x, the tilt about y, and (from joint 2) the torsion. A 6-joint
+/// arm has 11 (joints 1-4), a 7-joint arm 14 (joints 1-5); fewer than 3 joints have none.
+pub fn gains(joints: usize) -> Vec<Gain> {
+    (1..=joints.saturating_sub(2))
+        .flat_map(|j| {
+            let torsion = (j > 1).then_some(Gain::Torsion(j));
+            torsion.into_iter().chain([Gain::TiltX(j), Gain::TiltY(j)])
+        })
+        .collect()
+}
 
 /// Largest plausible gain, urad per N m (a 100 N m moment would turn a joint by 0.1 rad).
 pub const MAX_GAIN_URAD_PER_NM: f64 = 1000.0;
@@ -72,39 +68,43 @@ impl std::fmt::Display for Gain {
     }
 }
 
+impl Gain {
+    /// The joint (1-based) and the core's index of the gain among its three
+    /// (`calib_core::model::compliance::{TILT_X, TILT_Y, TORSION}`).
+    pub fn slot(&self) -> (usize, usize) {
+        use calib_core::model::compliance::{TILT_X, TILT_Y, TORSION};
+        match *self {
+            Self::TiltX(j) => (j, TILT_X),
+            Self::TiltY(j) => (j, TILT_Y),
+            Self::Torsion(j) => (j, TORSION),
+        }
+    }
+}
+
 /// Masses and gravity, checked.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Gravity {
     /// Gravity in the base frame, m/s^2.
     pub gravity: Vector3<f64>,
-    /// Per link: mass (kg) and centre (mm, in the frame after the joint's transform).
-    pub links: [(f64, Vector3<f64>); JOINTS],
+    /// Per link (link 1, moved by joint 1, first): mass (kg) and centre (mm, in the frame after
+    /// the joint's transform).
+    pub links: Vec<(f64, Vector3<f64>)>,
     /// The flange's load: mass (kg) and centre (mm, flange frame).
     pub tool: (f64, Vector3<f64>),
 }
 
 /// The gravity compliance of an identified robot file: its masses and gains.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct FileCompliance {
     /// The masses (`[dynamics]`).
     pub gravity: Gravity,
-    /// The gains, urad/(N m), in the order of [`GAINS`] (`[compliance]`).
-    pub gains: [f64; GAIN_COUNT],
-}
-
-/// `Ok` for a robot of [`JOINTS`] joints, the one the gravity model describes.
-fn check_joints(joints: usize) -> crate::Result<()> {
-    if joints != JOINTS {
-        return Err(crate::refused!(unsupported "gravity compliance";
-            "gravity compliance is modelled for {JOINTS}-joint robots; this robot has {joints} joints"
-        ));
-    }
-    Ok(())
+    /// The gains, urad/(N m), in the order of [`gains`] (`[compliance]`).
+    pub gains: Vec<f64>,
 }
 
 impl FileCompliance {
-    /// The core's model, in scalar `T`, for a robot of `joints` joints: refused unless it has
-    /// [`JOINTS`] (the gains are those of a 6R arm's joints 1 to 4).
+    /// The core's model, in scalar `T`, for a robot of `joints` joints: refused unless the
+    /// masses are of that many links and the robot has gains ([`gains`]).
     pub fn to_core<T: calib_core::Real>(
         &self,
         joints: usize,
@@ -114,38 +114,64 @@ impl FileCompliance {
 }
 
 impl Gravity {
-    /// The core's model of these masses with `gains` (urad/(N m), in the order of [`GAINS`]), in
+    /// The end point's motion `[v (mm); w (rad)]` under these masses with `gains` (urad/(N m),
+    /// in the order of [`gains`]) at kinematic angles `angles` (rad) of the geometry
+    /// `robot + errors`: the controller's deflection (the core's `Compliance::deflect`), in f64.
+    pub fn deflection(
+        &self,
+        gains: &[f64],
+        robot: &calib_core::Robot<f64, Dyn>,
+        errors: &calib_core::ParameterErrors<f64, Dyn>,
+        angles: &calib_core::model::JointVec<f64>,
+    ) -> crate::Result<[f64; 6]> {
+        let kinematics = calib_core::Kinematics::new(robot, errors)?;
+        let model = self.to_core::<f64>(gains, robot.joints.len())?;
+        let (_, d) = model.deflect(&kinematics, angles)?;
+        let (v, w) = (d.translation, d.rotation);
+        Ok([v.x, v.y, v.z, w.x, w.y, w.z])
+    }
+
+    /// `Ok` for a robot of `joints` joints: one mass per link, and gains to identify.
+    fn check_joints(&self, joints: usize) -> crate::Result<()> {
+        if gains(joints).is_empty() {
+            return Err(crate::refused!(unsupported "gravity compliance";
+                "gravity compliance turns the joints before the wrist's last two, and this robot has {joints} joints"
+            ));
+        }
+        if self.links.len() != joints {
+            return Err(crate::refused!(unsupported "gravity compliance";
+                "[dynamics] has {} links, and this robot has {joints} joints: give one [[dynamics.link]] per joint",
+                self.links.len()
+            ));
+        }
+        Ok(())
+    }
+
+    /// The core's model of these masses with `gains` (urad/(N m), in the order of [`gains`]), in
     /// scalar `T`: what the controller evaluates (`calib_core::model::compliance`), for a robot
-    /// of `joints` joints; refused unless it has [`JOINTS`].
+    /// of `joints` joints (refused unless the masses are of that many links).
     pub fn to_core<T: calib_core::Real>(
         &self,
-        gains: &[f64; GAIN_COUNT],
+        gains: &[f64],
         joints: usize,
     ) -> crate::Result<calib_core::model::compliance::Compliance<T, Dyn>> {
-        check_joints(joints)?;
-        use calib_core::model::compliance::{Compliance, PointMass, TILT_X, TILT_Y, TORSION};
+        self.check_joints(joints)?;
+        use calib_core::model::compliance::{Compliance, PointMass};
         let mass = |(m, c): &(f64, Vector3<f64>)| PointMass {
             mass_kg: T::of(*m),
             centre_mm: [T::of(c.x), T::of(c.y), T::of(c.z)],
         };
-        let count = calib_core::model::joint_count(joints).ok_or_else(
-            || crate::refused!(unsupported "gravity compliance"; "{joints} joints are too many"),
-        )?;
+        let count = crate::model::counts::joint_count(joints)?;
         let mut per_joint = count.table([T::zero(); 3]);
-        for (gain, value) in GAINS.iter().zip(gains) {
-            let (j, axis) = match gain {
-                Gain::TiltX(j) => (j, TILT_X),
-                Gain::TiltY(j) => (j, TILT_Y),
-                Gain::Torsion(j) => (j, TORSION),
-            };
+        for (gain, value) in self::gains(joints).iter().zip(gains) {
+            let (j, axis) = gain.slot();
             if let Some(slot) = per_joint.get_mut(j - 1).and_then(|g| g.get_mut(axis)) {
                 *slot = T::of(*value);
             }
         }
-        let none = (0.0, Vector3::zeros());
         let mut links = count.table(PointMass::none());
-        for (j, link) in links.iter_mut().enumerate() {
-            *link = mass(self.links.get(j).unwrap_or(&none));
+        for (link, entry) in links.iter_mut().zip(&self.links) {
+            *link = mass(entry);
         }
         Ok(Compliance::new(
             [self.gravity.x, self.gravity.y, self.gravity.z].map(T::of),
@@ -159,6 +185,7 @@ impl Gravity {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::JOINTS;
     use calib_core::model::JointVec;
     use calib_core::{Kinematics, ParameterErrors};
 
@@ -174,7 +201,7 @@ mod tests {
         )))
         .unwrap();
         let file = crate::io::robot_file::RobotFile::read(&model.path).unwrap();
-        let gravity = file.dynamics.as_ref().unwrap().to_gravity().unwrap();
+        let gravity = file.dynamics.as_ref().unwrap().to_gravity(JOINTS).unwrap();
         let mut robot = model.robot;
         robot.base = calib_core::FramePose {
             xyz: [1500.0, -300.0, 200.0],
@@ -221,7 +248,7 @@ mod tests {
         )))
         .unwrap()
         .robot;
-        let mut links = [(0.0, Vector3::zeros()); JOINTS];
+        let mut links = vec![(0.0, Vector3::zeros()); JOINTS];
         // 10 kg at the elbow end of link 2 (its frame origin), nothing else.
         links[1] = (10.0, Vector3::zeros());
         let gravity = Gravity {

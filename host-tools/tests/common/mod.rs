@@ -100,7 +100,9 @@ pub fn compensated_misses(
     let maps = file.joint_maps(actual).unwrap();
     let real = no_errors(&file);
     let model: RobotModel = file.to_model(actual).unwrap();
-    let compliance = file.gravity_compliance(actual).unwrap();
+    let compliance = file
+        .gravity_compliance(actual, model.robot.joints.len())
+        .unwrap();
     let rows: Vec<PoseRow> = readings
         .iter()
         .enumerate()

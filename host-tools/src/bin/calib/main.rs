@@ -250,7 +250,7 @@ fn print_json_or_text<T: serde::Serialize>(
 }
 
 /// `calib fk`: the end pose of a robot file for joint readings in degrees (2 to 9 joints, with
-/// their joint maps; gravity compliance for 6-joint robots).
+/// their joint maps and gravity compliance).
 fn forward_kinematics(robot: &Path, joints_deg: &[f64], json: bool) -> anyhow::Result<()> {
     let file = host_tools::io::robot_file::RobotFile::read(robot)?;
     host_tools::model::counts::joint_count(file.joint.len())?;

@@ -1,8 +1,8 @@
 //! The robot file's sections of the gravity compliance: `[dynamics]` (the masses gravity pulls
 //! on) and `[compliance]` (an identified file's gains), read back with every value checked.
 
-use super::{GAIN_COUNT, GAINS, Gain, Gravity, MAX_GAIN_URAD_PER_NM};
-use crate::JOINTS;
+use super::{Gain, Gravity, MAX_GAIN_URAD_PER_NM, gains};
+use crate::model::counts::JOINT_COUNTS;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
@@ -31,12 +31,12 @@ pub struct DynamicsSection {
 }
 
 impl DynamicsSection {
-    /// The masses, checked: one link per joint, masses 0-1000 kg, centres within 5 m, gravity
-    /// 9-10.5 m/s^2. The error names the field.
-    pub fn to_gravity(&self) -> Result<Gravity, String> {
-        if self.link.len() != JOINTS {
+    /// The masses, checked: one link per joint of a robot of `joints` joints, masses 0-1000 kg,
+    /// centres within 5 m, gravity 9-10.5 m/s^2. The error names the field.
+    pub fn to_gravity(&self, joints: usize) -> Result<Gravity, String> {
+        if self.link.len() != joints || !JOINT_COUNTS.contains(&joints) {
             return Err(format!(
-                "[dynamics]: {} [[dynamics.link]] tables, expected {JOINTS} (one per joint)",
+                "[dynamics]: {} [[dynamics.link]] tables, expected {joints} (one per joint)",
                 self.link.len()
             ));
         }
@@ -62,10 +62,9 @@ impl DynamicsSection {
             }
             Ok((m.mass_kg, Vector3::from(m.com_mm)))
         };
-        let mut links = [(0.0, Vector3::zeros()); JOINTS];
-        for (j, (slot, entry)) in links.iter_mut().zip(&self.link).enumerate() {
-            *slot = check(format!("link {}", j + 1), entry)?;
-        }
+        let links = (self.link.iter().enumerate())
+            .map(|(j, entry)| check(format!("link {}", j + 1), entry))
+            .collect::<Result<Vec<_>, String>>()?;
         let tool = match &self.tool {
             Some(t) => check("tool".into(), t)?,
             None => (0.0, Vector3::zeros()),
@@ -78,28 +77,28 @@ impl DynamicsSection {
     }
 }
 
-/// The `[compliance]` section of an identified robot file, urad per N m, joint 1 first (zero
-/// where not identified).
+/// The `[compliance]` section of an identified robot file, urad per N m, one value per joint,
+/// joint 1 first (zero where the model has no gain: [`gains`]).
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ComplianceSection {
-    /// Torsion gains (joints 2-4).
+    /// Torsion gains (joints 2 to N - 2).
     pub torsion_urad_per_nm: Vec<f64>,
-    /// Tilt gains about x (joints 1-4).
+    /// Tilt gains about x (joints 1 to N - 2).
     pub tilt_x_urad_per_nm: Vec<f64>,
-    /// Tilt gains about y (joints 1-4).
+    /// Tilt gains about y (joints 1 to N - 2).
     pub tilt_y_urad_per_nm: Vec<f64>,
 }
 
 impl ComplianceSection {
-    /// The section of `gains` (in the order of [`GAINS`]).
-    pub fn new(gains: &[f64; GAIN_COUNT]) -> Self {
+    /// The section of `values` (in the order of [`gains`]) of a robot of `joints` joints.
+    pub fn new(values: &[f64], joints: usize) -> Self {
         let mut out = Self {
-            torsion_urad_per_nm: vec![0.0; JOINTS],
-            tilt_x_urad_per_nm: vec![0.0; JOINTS],
-            tilt_y_urad_per_nm: vec![0.0; JOINTS],
+            torsion_urad_per_nm: vec![0.0; joints],
+            tilt_x_urad_per_nm: vec![0.0; joints],
+            tilt_y_urad_per_nm: vec![0.0; joints],
         };
-        for (gain, value) in GAINS.iter().zip(gains) {
+        for (gain, value) in gains(joints).iter().zip(values) {
             let (list, j) = match gain {
                 Gain::Torsion(j) => (&mut out.torsion_urad_per_nm, j),
                 Gain::TiltX(j) => (&mut out.tilt_x_urad_per_nm, j),
@@ -110,41 +109,42 @@ impl ComplianceSection {
         out
     }
 
-    /// The gains, checked: finite, within [`MAX_GAIN_URAD_PER_NM`], zero where the model has no
-    /// gain. The error names the gain.
-    pub fn to_gains(&self) -> Result<[f64; GAIN_COUNT], String> {
+    /// The gains of a robot of `joints` joints, checked: finite, within
+    /// [`MAX_GAIN_URAD_PER_NM`], zero where the model has no gain. The error names the gain.
+    pub fn to_gains(&self, joints: usize) -> Result<Vec<f64>, String> {
         for (name, list) in [
             ("torsion_urad_per_nm", &self.torsion_urad_per_nm),
             ("tilt_x_urad_per_nm", &self.tilt_x_urad_per_nm),
             ("tilt_y_urad_per_nm", &self.tilt_y_urad_per_nm),
         ] {
-            if list.len() != JOINTS {
+            if list.len() != joints {
                 return Err(format!(
-                    "[compliance]: {name} has {} values, expected {JOINTS}",
+                    "[compliance]: {name} has {} values, expected {joints} (one per joint)",
                     list.len()
                 ));
             }
         }
-        let gains: [f64; GAIN_COUNT] = std::array::from_fn(|i| match GAINS[i] {
-            Gain::Torsion(j) => self.torsion_urad_per_nm[j - 1],
-            Gain::TiltX(j) => self.tilt_x_urad_per_nm[j - 1],
-            Gain::TiltY(j) => self.tilt_y_urad_per_nm[j - 1],
-        });
-        if let Some((gain, value)) = GAINS
-            .iter()
-            .zip(&gains)
+        let model = gains(joints);
+        let values: Vec<f64> = (model.iter())
+            .map(|gain| match gain {
+                Gain::Torsion(j) => self.torsion_urad_per_nm[j - 1],
+                Gain::TiltX(j) => self.tilt_x_urad_per_nm[j - 1],
+                Gain::TiltY(j) => self.tilt_y_urad_per_nm[j - 1],
+            })
+            .collect();
+        if let Some((gain, value)) = (model.iter().zip(&values))
             .find(|(_, v)| !(v.is_finite() && v.abs() <= MAX_GAIN_URAD_PER_NM))
         {
             return Err(format!(
                 "[compliance]: the {gain} is {value} urad/(N m), beyond the plausible +-{MAX_GAIN_URAD_PER_NM}"
             ));
         }
-        if ComplianceSection::new(&gains) != *self {
-            return Err(
-                "[compliance]: a gain is set where the model has none (torsion: joints 2-4; tilts: joints 1-4)"
-                    .into(),
-            );
+        if ComplianceSection::new(&values, joints) != *self {
+            let last = joints.saturating_sub(2);
+            return Err(format!(
+                "[compliance]: a gain is set where the model has none (torsion: joints 2-{last}; tilts: joints 1-{last})"
+            ));
         }
-        Ok(gains)
+        Ok(values)
     }
 }

@@ -150,7 +150,7 @@ impl CompensateOptions {
 }
 
 /// Runs `calib compensate` for the robot file's joint count (6 to 9 joints, fewer are refused
-/// with the reason; joint maps for every count, gravity compliance for 6-joint robots).
+/// with the reason; joint maps and gravity compliance for every count).
 pub fn compensate(options: &CompensateOptions) -> anyhow::Result<Summary> {
     let file = RobotFile::read(&options.robot)?;
     let params = RobotFile::read(&options.params)?;

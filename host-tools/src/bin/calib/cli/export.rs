@@ -52,8 +52,8 @@ pub struct ExportOptions {
     pub geometry_only: bool,
 }
 
-/// Runs `calib export`; returns the number of bytes written. Robots of 2 to 9 joints; joint
-/// maps, gravity compliance and the UR kinematics file for 6-joint robots.
+/// Runs `calib export`; returns the number of bytes written. Robots of 2 to 9 joints, with their
+/// joint maps and gravity compliance; the UR kinematics file for 6-joint robots.
 pub fn export(options: &ExportOptions) -> anyhow::Result<usize> {
     let file = RobotFile::read(&options.params)?;
     let bytes = export_bytes(options, &file)?;
