@@ -153,3 +153,41 @@ fn data_with_the_wrong_joint_count_names_the_header_line() {
         "{err}"
     );
 }
+
+/// Issue 53, item 6: verify fits what the calibration's own stages register and select (the
+/// session's `register_and_select`, an ill-conditioned set kept): on Series B's positions as
+/// many parameters (25: the geometry's 16 the positions determine, the base's 6, the
+/// reflector's 3) as `calibrate --method lm --keep-ill-conditioned` identifies.
+#[test]
+fn verify_fits_the_parameters_the_calibration_selects() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = ["--robot", UR10, "--data", SERIES_B, "--profile", POSITION];
+    let out = calib_in(dir.path(), &[&["verify", "--json"], &input[..]].concat());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let report = dir.path().join("r.json");
+    let report_arg = report.to_str().unwrap();
+    let calibrate = [
+        "calibrate",
+        "--method",
+        "lm",
+        "--keep-ill-conditioned",
+        "--report",
+        report_arg,
+    ];
+    let done = calib_in(dir.path(), &[&calibrate[..], &input[..]].concat());
+    assert!(
+        done.status.success(),
+        "{}",
+        String::from_utf8_lossy(&done.stderr)
+    );
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let identified = r["parameters"].as_object().unwrap();
+    assert_eq!(v["parameters"].as_u64().unwrap() as usize, identified.len());
+    assert_eq!(identified.len(), 25);
+}

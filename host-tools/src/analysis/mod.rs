@@ -11,5 +11,4 @@ pub mod identifiability;
 pub mod reference;
 pub mod truth;
 pub mod uncertainty;
-pub mod verify;
 pub mod workspace;

@@ -68,6 +68,7 @@ pub mod plausibility;
 mod result;
 mod session;
 mod solve;
+pub mod verify;
 
 pub use config::swarm_without_swarm;
 pub use config::{

@@ -1,7 +1,7 @@
 //! `calib verify`: the same calibration by the f32 core, the f64 core and the reference
-//! optimiser ([`host_tools::analysis::verify`]); exits non-zero past the documented tolerances.
+//! optimiser ([`host_tools::calibration::verify`]); exits non-zero past the documented tolerances.
 
-use host_tools::analysis::verify::Verification;
+use host_tools::calibration::verify::Verification;
 
 /// Options of `calib verify`.
 #[derive(Clone, Debug, clap::Args)]
@@ -34,7 +34,7 @@ pub fn verify(options: &VerifyOptions) -> anyhow::Result<Verification> {
     let k = crate::cli::weight_for(options.k, &all.data, &options.input.data)?;
     let (calibration, validation) =
         host_tools::measurement::dataset::split(&all, options.validate, options.validate_seed)?;
-    Ok(host_tools::analysis::verify::verify(
+    Ok(host_tools::calibration::verify::verify(
         &calibration,
         &validation,
         options.frames,

@@ -3,7 +3,8 @@
 //! the reference kinematics), and their largest differences in parameters and validation error.
 //!
 //! All three fit the same parameters from the same start (zero errors on the robot with its
-//! frames registered and fitted, as `calib calibrate` prepares it) by least squares.
+//! frames registered and fitted, and the parameters selected, by the calibration's own stages)
+//! by least squares.
 
 use crate::error::Context;
 use crate::measurement::dataset::{Dataset, Seen};
@@ -129,26 +130,34 @@ impl Verification {
 }
 
 /// Calibrates the poses of `calibration` by least squares with the f32 core, the f64 core and
-/// the reference optimiser (frames prepared as a calibration does; `frames`: `None` chooses from
-/// the data) and compares the three, also on the held-out `validation` poses.
+/// the reference optimiser and compares the three, also on the held-out `validation` poses. The
+/// robot and the parameters come from the session's own stages, as `calib calibrate --method lm
+/// --keep-ill-conditioned` with `frames` (`None` choosing from the data) and the weight `k` has
+/// them: the frames registered, a stored probe's undetermined parameters held, the parameters
+/// the data cannot determine refused. An ill-conditioned set is kept (where the optimisers may
+/// legitimately part, which the verification says) rather than thinned as `calibrate` does.
 pub fn verify(
     calibration: &Dataset,
     validation: &Dataset,
     frames: Option<Frames>,
     k: f64,
 ) -> crate::Result<Verification> {
-    let frames = Frames::chosen(frames, &calibration.data);
-    let (robot, _, mask) =
-        crate::measurement::frames::prepare(frames, &calibration.as_given()?, k)?;
-    let (mask, _) =
-        crate::analysis::identifiability::default_mask(&calibration.seen_by(&robot)?, mask, k)?;
+    let config = super::CalibrationConfig {
+        method: super::Method::Lm,
+        frames,
+        k,
+        keep_ill_conditioned: true,
+        ..super::CalibrationConfig::default()
+    };
+    let registered = super::register_and_select(calibration, &config)?;
     // A robot file's gravity compliance is held fixed and taken off the measured poses at the
     // registered frames: all three fit the same geometry to the same poses.
-    let zero = ParameterErrors::zeros_for(mask.joint_count());
+    let robot = &registered.robot;
+    let zero = ParameterErrors::zeros_for(robot.model.robot.joint_count());
     run(
-        &calibration.seen_by_geometry(&robot, &zero)?,
-        &validation.seen_by_geometry(&robot, &zero)?,
-        &mask,
+        &calibration.seen_by_geometry(robot, &zero)?,
+        &validation.seen_by_geometry(robot, &zero)?,
+        &registered.selection.mask,
         k,
     )
 }
