@@ -13,7 +13,7 @@ use calib_core::model::JointVec;
 use calib_core::model::parameters::{FrameParameter, JointParameter};
 use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterSet, Robot};
 use host_tools::io::robot_file::RobotFile;
-use nalgebra::{Dyn, Vector3};
+use nalgebra::Dyn;
 use std::path::Path;
 
 const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/mukca-sockets");
@@ -118,53 +118,15 @@ const GAUGE: KnownDistance<f64> = KnownDistance {
     weight: 4.0,
 };
 
-/// The linearly interpolated `p` quantile of `values` (numpy's default).
-fn quantile(values: &[f64], p: f64) -> f64 {
-    let mut sorted = values.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    let rank = p * (sorted.len() - 1) as f64;
-    let (low, high) = (rank.floor() as usize, rank.ceil() as usize);
-    sorted[low] + (sorted[high] - sorted[low]) * (rank - low as f64)
-}
-
 /// The figures of a placement under `model`: (MAE by the authors' rule, MAE of every point,
-/// distance error), mm. The authors' rule keeps, per socket, the points within 2 interquartile
-/// ranges of the quartiles on every axis, and averages the distances from the kept points' mean
-/// over both sockets.
+/// distance error), mm, by the library's `analysis::consistency`. The authors' rule keeps, per
+/// socket, the points within 2 interquartile ranges of the quartiles on every axis, and averages
+/// the distances from the kept points' mean over both sockets.
 fn figures(model: &Kinematics<f64, Dyn>, touches: &[Touch<f64, Dyn>]) -> (f64, f64, f64) {
-    let (mut kept_sum, mut kept_count, mut all_sum) = (0.0, 0, 0.0);
-    let mut centres = Vec::new();
-    for hole in 0..2 {
-        let balls: Vec<Vector3<f64>> = (touches.iter())
-            .filter(|t| t.point == hole)
-            .map(|t| model.forward_angles(&t.angles).translation.vector)
-            .collect();
-        let mean =
-            |points: &[Vector3<f64>]| points.iter().sum::<Vector3<f64>>() / points.len() as f64;
-        let centre = mean(&balls);
-        all_sum += balls.iter().map(|b| (b - centre).norm()).sum::<f64>();
-        let bounds: Vec<(f64, f64)> = (0..3)
-            .map(|axis| {
-                let values: Vec<f64> = balls.iter().map(|b| b[axis]).collect();
-                let (q1, q3) = (quantile(&values, 0.25), quantile(&values, 0.75));
-                (q1 - 2.0 * (q3 - q1), q3 + 2.0 * (q3 - q1))
-            })
-            .collect();
-        let kept: Vec<Vector3<f64>> = (balls.iter())
-            .filter(|b| (0..3).all(|a| (bounds[a].0..=bounds[a].1).contains(&b[a])))
-            .copied()
-            .collect();
-        let kept_centre = mean(&kept);
-        kept_sum += kept.iter().map(|b| (b - kept_centre).norm()).sum::<f64>();
-        kept_count += kept.len();
-        centres.push(kept_centre);
-    }
-    let distance = ((centres[0] - centres[1]).norm() - 50.0).abs();
-    (
-        kept_sum / kept_count as f64,
-        all_sum / touches.len() as f64,
-        distance,
-    )
+    let c = host_tools::analysis::consistency::consistency(model, touches, &[GAUGE]);
+    assert_eq!(c.sockets.len(), 2);
+    assert_eq!(c.distortion_mm.len(), 1);
+    (c.authors_mean_mm, c.mean_mm, c.distortion_mm[0].1.abs())
 }
 
 /// Fits the geometry on `train` of `robot` and returns, per other placement, (placement, MAE by

@@ -6,6 +6,7 @@
 
 pub mod accuracy;
 pub mod caveats;
+pub mod consistency;
 pub mod evaluation;
 pub mod identifiability;
 pub mod reference;
