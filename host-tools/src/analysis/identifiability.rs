@@ -4,6 +4,7 @@
 //! ill-conditioned pose set.
 
 use crate::measurement::dataset::{Dataset, Seen};
+use crate::measurement::kind::{MeasurementKind, Poses};
 
 use calib_core::identify::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability, Status};
 use calib_core::identify::lm::LeastSquares;
@@ -24,7 +25,7 @@ fn named_pairs<S: serde::Serializer>(pairs: &[(Parameter, f64)], s: S) -> Result
 }
 
 /// Serialises a parameter as its name.
-fn named<S: serde::Serializer>(parameter: &Parameter, s: S) -> Result<S::Ok, S::Error> {
+pub(crate) fn named<S: serde::Serializer>(parameter: &Parameter, s: S) -> Result<S::Ok, S::Error> {
     s.collect_str(parameter)
 }
 
@@ -36,7 +37,7 @@ fn by_name(name: &str) -> Result<Parameter, String> {
 }
 
 /// Reads a parameter written by [`named`].
-fn from_name<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Parameter, D::Error> {
+pub(crate) fn from_name<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Parameter, D::Error> {
     let name = String::deserialize(d)?;
     by_name(&name).map_err(serde::de::Error::custom)
 }
@@ -127,7 +128,7 @@ pub(crate) fn default_mask(
 /// twist and zero of joint 6 left out; a subset of the poses may keep the twist instead).
 /// `None`: 6-DoF data (orientations tell them apart), no such parameter, or the reflector
 /// farther from the axis.
-fn reflector_on_last_axis(
+pub(crate) fn reflector_on_last_axis(
     dataset: &Seen<'_>,
     mask: &ParameterMask<Dyn>,
     k: f64,
@@ -222,6 +223,10 @@ pub struct IdentifiabilityReport {
     /// identification (before this analysis).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reflector_on_last_axis: Option<ReflectorOnAxis>,
+    /// The parameters the kind of measurement leaves free whatever the data's spread (touches:
+    /// joint 1's turn and lift, the last joint's, the base), left out before this analysis.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub left_free: Vec<crate::measurement::kind::FreeParameter>,
 }
 
 impl IdentifiabilityReport {
@@ -339,21 +344,30 @@ pub(crate) fn analyse(
     mask: &ParameterMask<Dyn>,
     k: f64,
 ) -> crate::Result<IdentifiabilityReport> {
+    analyse_kind(&Poses { seen: dataset, k }, mask)
+}
+
+/// The identifiability of the parameters selected by `mask` on measurements of any kind, at the
+/// kind's nominal model: the core's analysis of the kind's Jacobian.
+pub fn analyse_kind<K: MeasurementKind>(
+    kind: &K,
+    mask: &ParameterMask<Dyn>,
+) -> crate::Result<IdentifiabilityReport> {
     let set = crate::model::counts::analysable_set(mask)?;
     let count = set.len();
-    if dataset.rows() < count {
-        return Err(crate::refused!(too_few dataset.rows(), count;
-            "{} poses give {} equations, fewer than the {count} identified parameters",
-            dataset.measurements().len(),
-            dataset.rows()
+    if kind.equations() < count {
+        return Err(crate::refused!(too_few kind.equations(), count;
+            "{} {} give {} equations, fewer than the {count} identified parameters",
+            kind.count(),
+            kind.noun(),
+            kind.equations()
         ));
     }
-    let problem = dataset.problem(set, k)?;
-    let set = problem.set();
-    let least_squares = LeastSquares::new(&problem);
-    let r = least_squares.jacobian_factor(&set.zeros())?;
-    let id = Identifiability::from_factor(&r, dataset.measurements().len(), DEFAULT_RANK_TOLERANCE);
     let names = set.parameters().to_vec();
+    let residuals = kind.residuals(set)?;
+    let least_squares = LeastSquares::new(&residuals);
+    let r = least_squares.jacobian_factor(&DVector::zeros(count))?;
+    let id = Identifiability::from_factor(&r, kind.count(), DEFAULT_RANK_TOLERANCE);
     let mut undetermined = Vec::new();
     for index in id.pivots.iter().skip(id.rank) {
         let (Some(parameter), Some(status)) = (names.get(*index), id.status.get(*index)) else {
@@ -400,6 +414,7 @@ pub(crate) fn analyse(
         undetermined,
         names,
         reflector_on_last_axis: None,
+        left_free: Vec::new(),
     })
 }
 

@@ -62,12 +62,14 @@
 mod config;
 pub mod cross_validation;
 mod evaluation;
+pub mod fit;
 mod identified_file;
 pub mod maps;
 pub mod plausibility;
 mod result;
 mod session;
 mod solve;
+pub mod touches;
 pub mod verify;
 
 pub use config::swarm_without_swarm;
@@ -85,11 +87,12 @@ pub use result::{
     Stage, SwarmSummary, lm_stop, swarm_stop,
 };
 
-use crate::analysis::identifiability::{IdentifiabilityReport, analyse};
+use crate::analysis::identifiability::{IdentifiabilityReport, analyse_kind};
 use crate::io::robot_file::RobotFile;
 use crate::measurement::conditions::MeasurementConditions;
 use crate::measurement::dataset::{Dataset, Seen};
 use crate::measurement::frames::{Frames, FramesReport};
+use crate::measurement::kind::MeasurementKind;
 use crate::planning::Measure;
 use calib_core::{Parameter, ParameterMask};
 use evaluation::Evaluation;
@@ -661,11 +664,28 @@ pub fn select_parameters(
     mask: ParameterMask<Dyn>,
     config: &CalibrationConfig,
 ) -> crate::Result<Selection> {
-    let analysed = |mask: &ParameterMask<Dyn>| analyse(dataset, mask, config.k);
-    let (mut mask, reflector) =
-        crate::analysis::identifiability::default_mask(dataset, mask, config.k)?;
+    let poses = crate::measurement::kind::Poses {
+        seen: dataset,
+        k: config.k,
+    };
+    select_parameters_of(&poses, mask, config)
+}
+
+/// [`select_parameters`] on measurements of any kind: what the kind leaves free whatever the
+/// data's spread taken out first (and reported), then the analysis of the kind's Jacobian.
+pub fn select_parameters_of<K: MeasurementKind>(
+    kind: &K,
+    mut mask: ParameterMask<Dyn>,
+    config: &CalibrationConfig,
+) -> crate::Result<Selection> {
+    let analysed = |mask: &ParameterMask<Dyn>| analyse_kind(kind, mask);
+    let left_free = kind.left_free(&mask, config.k)?;
+    for parameter in left_free.all() {
+        mask.set(parameter, false);
+    }
     let mut initial = analysed(&mask)?;
-    initial.reflector_on_last_axis = reflector;
+    initial.reflector_on_last_axis = left_free.reflector_on_last_axis;
+    initial.left_free = left_free.parameters;
     let mut identifiability = initial.clone();
     let mut dropped = Vec::new();
     if identifiability.rank < identifiability.parameters {

@@ -327,7 +327,7 @@ impl CalibrationResult {
 }
 
 /// An identified parameter as the report states it: its name and its entry.
-fn reported(p: &IdentifiedParameter) -> (String, ParameterEntry) {
+pub(super) fn reported(p: &IdentifiedParameter) -> (String, ParameterEntry) {
     let entry = ParameterEntry {
         value: p.value,
         unit: unit_of(p.parameter).to_string(),

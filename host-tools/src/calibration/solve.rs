@@ -195,7 +195,7 @@ fn solve(
 }
 
 /// The identified values of `set` with their standard errors, when least squares gave them.
-fn identified_parameters(
+pub(super) fn identified_parameters(
     set: &ParameterSet<Dyn, Dyn>,
     best: &DVector<f64>,
     standard_errors: Option<&DVector<f64>>,
@@ -478,7 +478,7 @@ pub(crate) fn median(v: &mut [f64]) -> f64 {
 }
 
 /// A least-squares error in the user's terms (parameter names, not indices).
-fn lm_error(error: LmError, set: &ParameterSet<Dyn, Dyn>) -> crate::Error {
+pub(super) fn lm_error(error: LmError, set: &ParameterSet<Dyn, Dyn>) -> crate::Error {
     match error {
         LmError::UnobservableParameter(i) => {
             let name = set

@@ -5,6 +5,11 @@
 //! placement of the tool, each `hole_<n>.csv` in it one socket; the core fits them as common
 //! points (`calib_core::identify::common_point`).
 //!
+//! Our own format is one CSV file of every touch ([`read_touches_csv`]): a header
+//! `placement,socket,q1_deg,...,qN_deg`, then one touch per line, the placement a name, the socket
+//! a number from 0, the joints in degrees as in our tracker CSV; lines starting with `#` are
+//! comments.
+//!
 //! Every file is read whole and checked before anything is used: a line of another joint count
 //! than the robot's, a value that is not a finite number, a placement without `hole_0.csv` or
 //! with a gap in its numbering, a file without readings are refused naming the file and line.
@@ -165,6 +170,134 @@ pub fn read_socket(path: &Path, joints: usize) -> Result<Socket, DataError> {
     })
 }
 
+/// The touches of our CSV file at `path` (see the module) for a robot of `joints` joints, as
+/// placements in the order they first appear, their sockets by number. Refused, naming the file
+/// and line: a header other than `placement,socket,q1_deg,...`, a line of another field count, an
+/// empty placement name, a socket that is not a number, a joint value that is not a finite
+/// number, a placement whose socket numbers have a gap, no touches.
+pub fn read_touches_csv(path: &Path, joints: usize) -> Result<Vec<Placement>, DataError> {
+    let text = read_text(path, Input::Data).map_err(|source| DataError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let at = |line: u64, column: Option<String>, message: String| DataError::At {
+        path: path.to_path_buf(),
+        line,
+        column,
+        message,
+    };
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    let expected: Vec<String> = ["placement".to_string(), "socket".to_string()]
+        .into_iter()
+        .chain((1..=joints).map(|j| format!("q{j}_deg")))
+        .collect();
+    let mut header = false;
+    let mut placements: Vec<(String, Vec<Vec<Reading>>)> = Vec::new();
+    for (index, text_line) in text.lines().enumerate() {
+        let line = index as u64 + 1;
+        let trimmed = text_line.trim();
+        if trimmed.is_empty() || trimmed.starts_with('#') {
+            continue;
+        }
+        let fields: Vec<&str> = trimmed.split(',').map(str::trim).collect();
+        if !header {
+            if fields != expected {
+                return Err(at(
+                    line,
+                    None,
+                    format!(
+                        "the header is \"{trimmed}\"; a touch file of a {joints}-joint robot starts with {}",
+                        expected.join(",")
+                    ),
+                ));
+            }
+            header = true;
+            continue;
+        }
+        if fields.len() != expected.len() {
+            return Err(at(
+                line,
+                None,
+                format!(
+                    "has {} fields, the header {}: placement, socket, then the {joints} joints in degrees",
+                    fields.len(),
+                    expected.len()
+                ),
+            ));
+        }
+        let name = fields[0];
+        if name.is_empty() {
+            return Err(at(
+                line,
+                Some("placement".into()),
+                "no placement name".into(),
+            ));
+        }
+        let socket: usize = fields[1]
+            .parse()
+            .ok()
+            .filter(|s| *s < 1000)
+            .ok_or_else(|| {
+                at(
+                    line,
+                    Some("socket".into()),
+                    format!("\"{}\" is not a socket number (0, 1, ...)", fields[1]),
+                )
+            })?;
+        let mut q_rad = Vec::with_capacity(joints);
+        for (j, field) in fields[2..].iter().enumerate() {
+            let value = field
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| {
+                    at(
+                        line,
+                        Some(expected[j + 2].clone()),
+                        format!("\"{field}\" is not a finite number (degrees)"),
+                    )
+                })?;
+            q_rad.push(value.to_radians());
+        }
+        let index = match placements.iter().position(|(n, _)| n == name) {
+            Some(i) => i,
+            None => {
+                placements.push((name.to_string(), Vec::new()));
+                placements.len() - 1
+            }
+        };
+        let sockets = &mut placements[index].1;
+        if sockets.len() <= socket {
+            sockets.resize_with(socket + 1, Vec::new);
+        }
+        sockets[socket].push(Reading { line, q_rad });
+    }
+    if placements.is_empty() {
+        return Err(at(
+            1,
+            None,
+            "no touches: the file has no lines after its header".into(),
+        ));
+    }
+    placements
+        .into_iter()
+        .map(|(name, sockets)| {
+            if let Some(gap) = sockets.iter().position(Vec::is_empty) {
+                return Err(at(1, Some("socket".into()), format!(
+                    "placement {name} has no touch of socket {gap} but touches of socket {}: number the sockets 0, 1, ... without a gap",
+                    sockets.len() - 1
+                )));
+            }
+            Ok(Placement {
+                name,
+                sockets: (sockets.into_iter())
+                    .map(|readings| Socket { path: path.to_path_buf(), readings })
+                    .collect(),
+            })
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -245,5 +378,69 @@ mod tests {
         std::fs::remove_file(placement.join("hole_3.csv")).unwrap();
         let read = read_layout(empty.path(), 3).unwrap();
         assert_eq!((read.len(), read[0].sockets.len()), (1, 2));
+    }
+
+    /// Our CSV: read as the bundled layout reads (the same configurations, degrees converted),
+    /// and bad lines refused with the file and line.
+    #[test]
+    fn our_csv_reads_what_the_layout_reads() {
+        let layout = read_layout(Path::new(PANDA_3), 7).unwrap();
+        let mut csv = String::from(
+            "# panda_3 converted\nplacement,socket,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,q7_deg\n",
+        );
+        for p in &layout {
+            for (s, socket) in p.sockets.iter().enumerate() {
+                for r in &socket.readings {
+                    let q: Vec<String> = r
+                        .q_rad
+                        .iter()
+                        .map(|v| format!("{:?}", v.to_degrees()))
+                        .collect();
+                    csv.push_str(&format!("{},{s},{}\n", p.name, q.join(",")));
+                }
+            }
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("touches.csv");
+        std::fs::write(&path, &csv).unwrap();
+        let read = read_touches_csv(&path, 7).unwrap();
+        assert_eq!(read.len(), layout.len());
+        for (a, b) in read.iter().zip(&layout) {
+            assert_eq!(a.name, b.name);
+            assert_eq!(a.sockets.len(), b.sockets.len());
+            for (x, y) in a.sockets.iter().zip(&b.sockets) {
+                assert_eq!(x.readings.len(), y.readings.len());
+                for (u, v) in x.readings.iter().zip(&y.readings) {
+                    for (p, q) in u.q_rad.iter().zip(&v.q_rad) {
+                        assert!((p - q).abs() < 1e-15, "{p} {q}");
+                    }
+                }
+            }
+        }
+        let refused = |text: &str| {
+            std::fs::write(&path, text).unwrap();
+            read_touches_csv(&path, 2).unwrap_err().to_string()
+        };
+        let e = refused("placement,socket,q1,q2\n");
+        assert!(e.contains(":1: the header is"), "{e}");
+        let e = refused("placement,socket,q1_deg,q2_deg\nfront,0,1.0\n");
+        assert!(e.contains(":2: has 3 fields"), "{e}");
+        let e = refused("placement,socket,q1_deg,q2_deg\nfront,x,1.0,2.0\n");
+        assert!(
+            e.contains(":2: column socket: \"x\" is not a socket number"),
+            "{e}"
+        );
+        let e = refused("placement,socket,q1_deg,q2_deg\nfront,0,1.0,inf\n");
+        assert!(
+            e.contains(":2: column q2_deg: \"inf\" is not a finite number"),
+            "{e}"
+        );
+        let e = refused("placement,socket,q1_deg,q2_deg\nfront,1,1.0,2.0\n");
+        assert!(
+            e.contains("placement front has no touch of socket 0"),
+            "{e}"
+        );
+        let e = refused("placement,socket,q1_deg,q2_deg\n");
+        assert!(e.contains("no touches"), "{e}");
     }
 }

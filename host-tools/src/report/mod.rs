@@ -6,5 +6,6 @@ pub mod pdf;
 pub mod plots;
 pub mod tables;
 mod text;
+pub mod touches;
 
 pub use text::evaluation;

@@ -54,6 +54,9 @@ enum Command {
     /// candidate joint configurations, predict the accuracy they give, and write the plan as a
     /// tracker CSV to be filled by the tracker software.
     Plan(crate::cli::plan::PlanOptions),
+    /// Identify the geometry without an instrument: a ball on the flange touched in sockets
+    /// from many configurations (joint readings only), with a known distance between sockets.
+    Sockets(crate::cli::sockets::SocketsOptions),
     /// Print which identified parameters the data determine (identifiability), without calibrating.
     Check(CheckOptions),
     /// Print the Table 3 statistics of any robot model on any data.
@@ -230,6 +233,13 @@ fn run(command: Command) -> anyhow::Result<()> {
             }
         }
         Command::Demo(options) => crate::cli::demo::demo(&options)?,
+        Command::Sockets(options) => {
+            let text = crate::cli::sockets::sockets(&options)?;
+            crate::cli::print_text(format_args!("{text}"))?;
+            for path in [&options.out, &options.report].into_iter().flatten() {
+                crate::cli::print_line(format_args!("wrote {}", path.display()))?;
+            }
+        }
         Command::Calibrate(options) => calibrate_command(options)?,
     }
     Ok(())

@@ -150,17 +150,27 @@ pub(crate) fn to_standard(
         ))
     };
     // The flange's Rz(theta_F) Tz(d_F).
-    let tool = match flange {
-        Some(f) if f.d_mm != 0.0 || f.theta_deg != 0.0 => {
-            let last = Isometry3::from_parts(
-                Translation3::new(0.0, 0.0, f.d_mm),
-                UnitQuaternion::from_euler_angles(0.0, 0.0, f.theta_deg.to_radians()),
-            );
-            Some(frame_entry(
-                &(last * tool.map_or(Isometry3::identity(), FrameEntry::isometry)),
-            ))
-        }
-        _ => tool.cloned(),
+    let tool = match flange_isometry(flange) {
+        Some(last) => Some(frame_entry(
+            &(last * tool.map_or(Isometry3::identity(), FrameEntry::isometry)),
+        )),
+        None => tool.cloned(),
     };
     (converted, base, tool)
+}
+
+/// The flange row's `Rz(theta_F) Tz(d_F)` (`None` when it is the identity).
+fn flange_isometry(flange: Option<&CraigFlangeEntry>) -> Option<Isometry3<f64>> {
+    match flange {
+        Some(f) if f.d_mm != 0.0 || f.theta_deg != 0.0 => Some(Isometry3::from_parts(
+            Translation3::new(0.0, 0.0, f.d_mm),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, f.theta_deg.to_radians()),
+        )),
+        _ => None,
+    }
+}
+
+/// The mechanical flange in our last joint's frame, as a frame entry (`None`: the identity).
+pub(crate) fn flange(flange: Option<&CraigFlangeEntry>) -> Option<FrameEntry> {
+    flange_isometry(flange).map(|f| frame_entry(&f))
 }

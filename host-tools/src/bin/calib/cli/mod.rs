@@ -12,6 +12,7 @@ pub mod merge;
 pub mod plan;
 pub mod report;
 pub mod simulate;
+pub mod sockets;
 pub mod uncertainty;
 pub mod verify;
 

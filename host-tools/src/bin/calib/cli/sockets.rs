@@ -1,0 +1,117 @@
+//! `calib sockets`: calibration without an instrument, from a ball touched in sockets (joint
+//! readings only), through the library's [`TouchSession`].
+
+use host_tools::calibration::CalibrationConfig;
+use host_tools::calibration::touches::{Gauge, TouchCalibrated, TouchSession};
+use host_tools::io::outputs::Outputs;
+use host_tools::io::robot_file::RobotFile;
+use std::path::PathBuf;
+
+/// Options of `calib sockets`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct SocketsOptions {
+    /// Robot model file (TOML): the nominal model; its identify lists (or the default rule)
+    /// select the joints' parameters.
+    #[arg(long, value_name = "FILE")]
+    pub robot: PathBuf,
+    /// The touches: a folder in the MUKCa layout (<placement>/hole_0.csv, hole_1.csv, ...:
+    /// radians, no header) or our CSV file (placement,socket,q1_deg,...; see USAGE).
+    #[arg(long, value_name = "PATH")]
+    pub data: PathBuf,
+    /// The ball's centre in the flange frame, nominal, mm (identified with the geometry).
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        required = true
+    )]
+    pub ball_mm: Vec<f64>,
+    /// The placements fitted, comma-separated (default: all); the others are held out and
+    /// judged.
+    #[arg(long, value_name = "NAMES", value_delimiter = ',')]
+    pub train: Vec<String>,
+    /// The known distance between two sockets of every placement, mm (MUKCa: 50): fixes the
+    /// scale, which touches alone leave free.
+    #[arg(long, value_name = "MM")]
+    pub distance: Option<f64>,
+    /// The standard uncertainty of that distance, mm.
+    #[arg(long, value_name = "MM", default_value_t = 0.05, requires = "distance")]
+    pub distance_sd: f64,
+    /// The two sockets the distance is between.
+    #[arg(long, value_name = "A,B", value_delimiter = ',', default_values_t = [0u16, 1], requires = "distance")]
+    pub distance_between: Vec<u16>,
+    /// Keep parameters the configurations barely determine (default: dropped while the scaled
+    /// condition number exceeds 1000, as for tracker data).
+    #[arg(long)]
+    pub keep_ill_conditioned: bool,
+    /// Write the identified robot file here (the joints' errors; base and tool as given).
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+    /// Write the JSON report here.
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
+}
+
+/// Runs `calib sockets`: calibrates, writes the outputs asked for, returns the text to print.
+pub fn sockets(options: &SocketsOptions) -> anyhow::Result<String> {
+    let [x, y, z] = options.ball_mm[..] else {
+        anyhow::bail!(
+            "--ball-mm: give the ball's centre as three numbers X,Y,Z in mm, not {}",
+            options.ball_mm.len()
+        );
+    };
+    let [a, b] = options.distance_between[..] else {
+        anyhow::bail!("--distance-between: give two socket numbers A,B, such as 0,1");
+    };
+    let robot = RobotFile::read(&options.robot)?;
+    let joints = robot.joint.len();
+    host_tools::model::counts::joint_count(joints)?;
+    let placements = if options.data.is_dir() {
+        host_tools::io::sockets::read_layout(&options.data, joints)?
+    } else {
+        host_tools::io::sockets::read_touches_csv(&options.data, joints)?
+    };
+    let session = TouchSession {
+        robot,
+        robot_path: options.robot.clone(),
+        ball_mm: [x, y, z],
+        placements,
+        train: options.train.clone(),
+        gauge: options.distance.map(|mm| Gauge {
+            sockets: [a, b],
+            mm,
+            sd_mm: options.distance_sd,
+        }),
+        config: CalibrationConfig {
+            keep_ill_conditioned: options.keep_ill_conditioned,
+            ..CalibrationConfig::default()
+        },
+    };
+    let calibrated = session.run()?;
+    write_outputs(options, &session, &calibrated)?;
+    Ok(host_tools::report::touches::touches_text(&calibrated))
+}
+
+/// Writes the identified robot file and the report, all or nothing.
+fn write_outputs(
+    options: &SocketsOptions,
+    session: &TouchSession,
+    calibrated: &TouchCalibrated,
+) -> anyhow::Result<()> {
+    let mut outputs = Outputs::new(&[("--robot", &options.robot), ("--data", &options.data)]);
+    if let Some(out) = &options.out {
+        let header = format!(
+            "{} identified by calib sockets (least squares on touches in sockets) from {}.\nValues are nominal + identified errors; [calibration.errors] lists the joints' errors and [calibration.std_errors] their standard errors, in mm and rad. The ball and the sockets are the measurement setup, not written here.",
+            session.robot.name,
+            options.data.display()
+        );
+        outputs.stage("--out", out, calibrated.file.to_toml(&header).as_bytes())?;
+    }
+    if let Some(report) = &options.report {
+        let json = serde_json::to_string_pretty(&calibrated.report(session))?;
+        outputs.stage("--report", report, format!("{json}\n").as_bytes())?;
+    }
+    outputs.commit()?;
+    Ok(())
+}

@@ -1,0 +1,337 @@
+//! Calibration without an instrument (issue 54): a ball on the flange touched in sockets from
+//! many arm configurations, joint readings only, with known distances between the sockets. The
+//! measurements are the [`Touches`] kind; the stages are the ones every kind shares: what the kind
+//! leaves free taken out and the rest checked on its Jacobian ([`super::select_parameters_of`]),
+//! least squares from the nominal model with covariance and standard errors
+//! ([`super::fit::least_squares_of`]), and the kind's held-out statistic (consistency and
+//! distortion, [`crate::analysis::consistency`]) per placement, fitted and held out.
+//!
+//! A known distance fixes the scale the touches alone leave free. Its weight against the touches
+//! is the ratio of their uncertainties, squared: the touches' scatter is estimated from a fit
+//! without the distance (the residual standard deviation per coordinate, mm), the distance's is
+//! given (`sd_mm`).
+//!
+//! What leaves: the identified geometry as a robot file (the joints' errors with their standard
+//! errors; the controller's base and tool as given, the sockets and the ball are the measurement
+//! setup) and the figures, under their own names: never absolute accuracy.
+
+use super::fit::{KindFit, least_squares_of};
+use super::{CalibrationConfig, Selection, select_parameters_of};
+use crate::analysis::consistency::Consistency;
+use crate::io::robot_file::RobotFile;
+use crate::io::sockets::Placement;
+use crate::measurement::kind::{MeasurementKind, Touches};
+use calib_core::identify::common_point::{KnownDistance, Touch};
+use calib_core::model::JointVec;
+use calib_core::model::parameters::FrameParameter;
+use calib_core::{Kinematics, Parameter};
+use nalgebra::Dyn;
+use serde::Serialize;
+use std::path::PathBuf;
+
+/// A known distance between two sockets of every placement (such as MUKCa's 50 mm between
+/// `hole_0` and `hole_1`), with its standard uncertainty.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Gauge {
+    /// The two sockets, numbered as their files (`hole_<n>.csv`).
+    pub sockets: [u16; 2],
+    /// The distance between their centres, mm.
+    pub mm: f64,
+    /// Its standard uncertainty, mm (> 0).
+    pub sd_mm: f64,
+}
+
+/// One calibration from touches: the robot, the ball, the placements, which are fitted.
+#[derive(Clone, Debug)]
+pub struct TouchSession {
+    /// The nominal robot file.
+    pub robot: RobotFile,
+    /// Where it was read from (named in errors and in the identified file).
+    pub robot_path: PathBuf,
+    /// The ball's centre in the flange frame, nominal, mm (identified with the geometry).
+    pub ball_mm: [f64; 3],
+    /// The placements of the sockets, with their touches.
+    pub placements: Vec<Placement>,
+    /// The placements fitted (by name); the others are held out. Empty: every placement fitted.
+    pub train: Vec<String>,
+    /// The known distance between sockets of every placement, if any.
+    pub gauge: Option<Gauge>,
+    /// The settings used: `lm_iterations`, `keep_ill_conditioned` (touches of one placement
+    /// determine the scale weakly by nature: keep the set, and see the condition reported).
+    pub config: CalibrationConfig,
+}
+
+/// The figures of one placement: consistency and distortion under the nominal and the
+/// identified model.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PlacementFigures {
+    /// The placement's name.
+    pub placement: String,
+    /// Under the nominal model.
+    pub nominal: Consistency,
+    /// Under the identified model.
+    pub identified: Consistency,
+}
+
+/// A calibration from touches: the identified file and what was found.
+#[derive(Clone, Debug)]
+pub struct TouchCalibrated {
+    /// The identified robot file: nominal plus the joints' identified errors, with their
+    /// standard errors; the controller's base and tool as given.
+    pub file: RobotFile,
+    /// The fit: the parameters with their standard errors, least squares, time.
+    pub fit: KindFit,
+    /// The ball's centre in the flange frame, identified, mm.
+    pub ball_mm: [f64; 3],
+    /// The parameters selected and the analysis (what touches leave free, what the data could
+    /// not determine, the condition).
+    pub selection: Selection,
+    /// The gauge's weight against a touch's coordinate: `(touch sd / gauge sd)^2`.
+    pub gauge_weight: Option<f64>,
+    /// The touches' scatter per coordinate estimated without the gauge, mm.
+    pub touch_sd_mm: Option<f64>,
+    /// The fitted placements' figures.
+    pub fitted: Vec<PlacementFigures>,
+    /// The held-out placements' figures.
+    pub held_out: Vec<PlacementFigures>,
+}
+
+/// Touches and known distances, as the core's common points take them.
+type CommonPointData = (Vec<Touch<f64, Dyn>>, Vec<KnownDistance<f64>>);
+
+/// The touches of `placements` as the core's common points, every placement's sockets points of
+/// their own (placement `p`'s socket `s` is point `offset_p + s`), and the gauge between each
+/// placement's two sockets.
+fn touches_of(
+    placements: &[&Placement],
+    gauge: Option<(&Gauge, f64)>,
+) -> crate::Result<CommonPointData> {
+    let mut touches = Vec::new();
+    let mut distances = Vec::new();
+    let mut offset = 0u16;
+    for placement in placements {
+        for (s, socket) in placement.sockets.iter().enumerate() {
+            let point = offset + s as u16;
+            for reading in &socket.readings {
+                let q = JointVec::from_slice(&reading.q_rad).ok_or_else(|| {
+                    crate::refused!(input socket.path.display();
+                        "{}:{}: not a joint vector", socket.path.display(), reading.line)
+                })?;
+                let touch = Touch::new(&q, point, 1.0).map_err(|e| {
+                    crate::refused!(input socket.path.display();
+                        "{}:{}: {e}", socket.path.display(), reading.line)
+                })?;
+                touches.push(touch);
+            }
+        }
+        if let Some((g, weight)) = gauge {
+            let count = placement.sockets.len() as u16;
+            if g.sockets.iter().all(|s| *s < count) {
+                distances.push(KnownDistance {
+                    points: g.sockets.map(|s| offset + s),
+                    mm: g.mm,
+                    weight,
+                });
+            }
+        }
+        offset = offset.saturating_add(placement.sockets.len() as u16);
+    }
+    Ok((touches, distances))
+}
+
+impl TouchSession {
+    /// Calibrates: fits the placements of `train` (all without), judges every placement.
+    pub fn run(&self) -> crate::Result<TouchCalibrated> {
+        self.check()?;
+        // The ball is given in the mechanical flange's frame (after a Craig file's flange row):
+        // the model with the ball as its tool, the flange to express the identified ball back.
+        let flange = self.robot.flange_isometry();
+        let mut robot = self.robot.to_model(&self.robot_path)?;
+        let ball = flange * nalgebra::Point3::from(self.ball_mm);
+        robot.robot.tool = calib_core::FramePose {
+            xyz: ball.coords.into(),
+            rpy: flange.rotation.euler_angles().into(),
+        };
+        let (robot, mask) = (robot.robot, robot.mask);
+        let (fitted, held): (Vec<&Placement>, Vec<&Placement>) = (self.placements.iter())
+            .partition(|p| self.train.is_empty() || self.train.contains(&p.name));
+        let mut mask = mask;
+        for axis in [FrameParameter::Tx, FrameParameter::Ty, FrameParameter::Tz] {
+            mask.set(Parameter::Tool(axis), true);
+        }
+        let config = CalibrationConfig {
+            auto_mask: true,
+            ..self.config.clone()
+        };
+        // The touches' scatter, from a fit without the gauge: the gauge's weight.
+        let (touch_sd_mm, gauge) = match &self.gauge {
+            Some(g) => {
+                let (touches, _) = touches_of(&fitted, None)?;
+                let kind = Touches {
+                    robot: &robot,
+                    touches: &touches,
+                    distances: &[],
+                };
+                let selection = select_parameters_of(&kind, mask, &config)?;
+                let sd = least_squares_of(&kind, &selection, &config)?.sigma_mm;
+                (Some(sd), Some((g, (sd / g.sd_mm).powi(2))))
+            }
+            None => (None, None),
+        };
+        let (touches, distances) = touches_of(&fitted, gauge)?;
+        let kind = Touches {
+            robot: &robot,
+            touches: &touches,
+            distances: &distances,
+        };
+        let selection = select_parameters_of(&kind, mask, &config)?;
+        let fit = least_squares_of(&kind, &selection, &config)?;
+        let identified = Kinematics::new(&robot, &fit.errors)?;
+        let nominal = Kinematics::nominal(&robot)?;
+        let figures = |placements: &[&Placement]| -> crate::Result<Vec<PlacementFigures>> {
+            (placements.iter())
+                .map(|p| {
+                    let (touches, distances) = touches_of(&[p], gauge)?;
+                    let kind = Touches {
+                        robot: &robot,
+                        touches: &touches,
+                        distances: &distances,
+                    };
+                    Ok(PlacementFigures {
+                        placement: p.name.clone(),
+                        nominal: kind.statistic(&nominal)?,
+                        identified: kind.statistic(&identified)?,
+                    })
+                })
+                .collect()
+        };
+        let ball = flange.inverse_transform_point(&identified.tool().translation.vector.into());
+        Ok(TouchCalibrated {
+            file: self.identified_file(&fit),
+            ball_mm: ball.coords.into(),
+            fitted: figures(&fitted)?,
+            held_out: figures(&held)?,
+            fit,
+            selection,
+            gauge_weight: gauge.map(|(_, w)| w),
+            touch_sd_mm,
+        })
+    }
+
+    /// Refuses what cannot be calibrated: no placement, a placement to fit that is not in the
+    /// data, nothing left to fit, a gauge without a positive uncertainty or length.
+    fn check(&self) -> crate::Result<()> {
+        let names: Vec<&str> = self.placements.iter().map(|p| p.name.as_str()).collect();
+        for name in &self.train {
+            if !names.contains(&name.as_str()) {
+                return Err(crate::refused!(option "--train";
+                    "--train {name}: no such placement; the data have {}", names.join(", ")));
+            }
+        }
+        if names.is_empty() {
+            return Err(crate::refused!(input "the touches"; "no placements of sockets to fit"));
+        }
+        if let Some(g) = &self.gauge {
+            if !(g.mm.is_finite() && g.mm > 0.0 && g.sd_mm.is_finite() && g.sd_mm > 0.0) {
+                return Err(crate::refused!(option "--distance";
+                    "--distance {} mm +- {} mm: give a positive length and a positive standard uncertainty",
+                    g.mm, g.sd_mm));
+            }
+            if g.sockets[0] == g.sockets[1] {
+                return Err(crate::refused!(option "--distance-between";
+                    "--distance-between {0},{0}: a distance is between two different sockets", g.sockets[0]));
+            }
+        }
+        if !self.ball_mm.iter().all(|v| v.is_finite()) {
+            return Err(
+                crate::refused!(option "--ball-mm"; "--ball-mm: give three finite numbers, mm"),
+            );
+        }
+        Ok(())
+    }
+
+    /// The identified robot file: the joints' identified errors (and standard errors) on the
+    /// nominal file; its base and tool are the controller's, as given (the ball is the
+    /// measurement setup: in the report, not in the controller's tool).
+    fn identified_file(&self, fit: &KindFit) -> RobotFile {
+        let is_joint = |p: &Parameter| matches!(p, Parameter::Joint { .. });
+        let mut joints = fit.errors;
+        joints.base = calib_core::FrameErrors::default();
+        joints.tool = calib_core::FrameErrors::default();
+        let std_errors: Vec<(Parameter, f64)> = (fit.parameters.iter())
+            .filter(|p| is_joint(&p.parameter))
+            .filter_map(|p| p.std_error.map(|s| (p.parameter, s)))
+            .collect();
+        self.robot.with_errors(
+            &joints,
+            fit.parameters.iter().map(|p| p.parameter).filter(is_joint),
+            &std_errors,
+            "least squares (touches in sockets)",
+            &self.robot_path.display().to_string(),
+        )
+    }
+}
+
+/// The JSON report of a calibration from touches (`calib sockets --report`).
+#[derive(Clone, Debug, Serialize)]
+pub struct TouchReport {
+    /// The robot file calibrated.
+    pub robot: PathBuf,
+    /// The placements fitted.
+    pub fitted_placements: Vec<String>,
+    /// The identified parameters (name -> value, unit, standard error), the ball's offset among
+    /// them as `tool_tx`, `tool_ty`, `tool_tz`.
+    pub parameters: super::Parameters,
+    /// The ball's centre in the flange frame, identified, mm.
+    pub ball_mm: [f64; 3],
+    /// The known distance, its weight against a touch's coordinate and the touches' scatter
+    /// it was weighed by.
+    pub gauge: Option<Gauge>,
+    /// `(touch sd / gauge sd)^2`.
+    pub gauge_weight: Option<f64>,
+    /// The touches' scatter per coordinate, fitted without the gauge, mm.
+    pub touch_sd_mm: Option<f64>,
+    /// What the touches leave free and what the data could not determine.
+    pub identifiability: crate::analysis::identifiability::IdentifiabilityReport,
+    /// Parameters dropped as undetermined by these data.
+    pub dropped: Vec<String>,
+    /// Least squares.
+    pub least_squares: super::LeastSquaresReport,
+    /// Wall-clock time of the fit, s.
+    pub seconds: f64,
+    /// Consistency and distortion of the fitted placements (not accuracy).
+    pub fitted: Vec<PlacementFigures>,
+    /// Consistency and distortion of the held-out placements (not accuracy).
+    pub held_out: Vec<PlacementFigures>,
+}
+
+impl TouchCalibrated {
+    /// The JSON report of this calibration of `session`'s data.
+    pub fn report(&self, session: &TouchSession) -> TouchReport {
+        TouchReport {
+            robot: session.robot_path.clone(),
+            fitted_placements: self.fitted.iter().map(|f| f.placement.clone()).collect(),
+            parameters: self
+                .fit
+                .parameters
+                .iter()
+                .map(super::result::reported)
+                .collect(),
+            ball_mm: self.ball_mm,
+            gauge: session.gauge,
+            gauge_weight: self.gauge_weight,
+            touch_sd_mm: self.touch_sd_mm,
+            identifiability: self.selection.identifiability.clone(),
+            dropped: self
+                .selection
+                .dropped
+                .iter()
+                .map(ToString::to_string)
+                .collect(),
+            least_squares: self.fit.least_squares.clone(),
+            seconds: self.fit.seconds,
+            fitted: self.fitted.clone(),
+            held_out: self.held_out.clone(),
+        }
+    }
+}

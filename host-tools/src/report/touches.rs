@@ -1,0 +1,95 @@
+//! A calibration from touches as text: the fit in a few lines, what the touches leave free and
+//! what the data could not determine, then per placement the consistency and distortion under
+//! the nominal and the identified model, fitted and held out. Consistency is not accuracy: the
+//! text says so where the figures start.
+
+use crate::calibration::touches::{PlacementFigures, TouchCalibrated};
+
+/// The text `calib sockets` prints.
+pub fn touches_text(calibrated: &TouchCalibrated) -> String {
+    let fit = &calibrated.fit;
+    let l = &fit.least_squares;
+    let id = &calibrated.selection.identifiability;
+    let mut text = format!(
+        "calibration from touches: {} parameters by least squares ({} iterations, {}, {:.3} s), residual sd {:.4} mm per coordinate\n",
+        fit.parameters.len(),
+        l.iterations,
+        l.stop,
+        fit.seconds,
+        fit.sigma_mm
+    );
+    if let (Some(w), Some(sd)) = (calibrated.gauge_weight, calibrated.touch_sd_mm) {
+        text.push_str(&format!(
+            "known distance weighed {w:.3} against a touch's coordinate: the touches scatter {sd:.4} mm per coordinate without it\n"
+        ));
+    }
+    let [x, y, z] = calibrated.ball_mm;
+    text.push_str(&format!(
+        "ball centre in the flange frame: {x:.4}, {y:.4}, {z:.4} mm (measurement setup: not written into the controller's tool)\n"
+    ));
+    text.push_str("\nleft free by touches, whatever the configurations:\n");
+    for f in &id.left_free {
+        text.push_str(&format!("  {}: {}\n", f.parameter, f.why));
+    }
+    if !calibrated.selection.dropped.is_empty() {
+        let dropped: Vec<String> = (calibrated.selection.dropped.iter())
+            .map(ToString::to_string)
+            .collect();
+        text.push_str(&format!(
+            "dropped, barely determined by these configurations: {} (scaled condition number {} -> {})\n",
+            dropped.join(", "),
+            id.condition_number.map_or("infinite".into(), |c| format!("{c:.3e}")),
+            id.condition_number_after_drop.map_or("infinite".into(), |c| format!("{c:.3e}"))
+        ));
+    }
+    text.push_str("\nidentified errors (mm, rad) and standard errors:\n");
+    for p in &fit.parameters {
+        let sd = p
+            .std_error
+            .map_or(String::new(), |s| format!(" +- {s:.3e}"));
+        text.push_str(&format!(
+            "  {:<10} {:+.6e}{sd}\n",
+            p.parameter.to_string(),
+            p.value
+        ));
+    }
+    text.push_str(
+        "\nconsistency (distance of each ball centre from its socket's mean; not absolute accuracy), mm:\n\
+         placement                 nominal mean  identified mean    p95  authors' rule  distance error\n",
+    );
+    let rows = |title: &str, figures: &[PlacementFigures], text: &mut String| {
+        if figures.is_empty() {
+            return;
+        }
+        text.push_str(&format!("{title}:\n"));
+        for f in figures {
+            let distortion = f
+                .identified
+                .distortion_mm
+                .first()
+                .map_or("-".into(), |(_, e)| format!("{e:+.4}"));
+            text.push_str(&format!(
+                "  {:<24} {:>12.4} {:>16.4} {:>6.4} {:>14.4} {:>15}\n",
+                f.placement,
+                f.nominal.mean_mm,
+                f.identified.mean_mm,
+                f.identified.p95_mm,
+                f.identified.authors_mean_mm,
+                distortion
+            ));
+        }
+    };
+    rows("fitted", &calibrated.fitted, &mut text);
+    rows("held out", &calibrated.held_out, &mut text);
+    if !calibrated.held_out.is_empty() {
+        let n = calibrated.held_out.len() as f64;
+        let mean =
+            |f: fn(&PlacementFigures) -> f64| calibrated.held_out.iter().map(f).sum::<f64>() / n;
+        text.push_str(&format!(
+            "held-out mean: {:.4} mm every touch, {:.4} mm by the authors' rule\n",
+            mean(|f| f.identified.mean_mm),
+            mean(|f| f.identified.authors_mean_mm)
+        ));
+    }
+    text
+}
