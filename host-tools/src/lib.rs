@@ -22,7 +22,8 @@
 //!   robot as a model, the typed result, the provenance) and its pipeline of stages (frames,
 //!   selection, solve, joint maps and their evidence solver, one evaluation, cross-validation,
 //!   plausibility); each stage takes the model of the robot the one before returned;
-//! - [`report`]: the text and HTML reports and their plots.
+//! - [`report`]: the text and HTML reports and their plots, and a calibration from touches as
+//!   text.
 //!
 //! The `calib` command line (`src/bin/calib/`) is not part of the library: its `cli/` turns clap
 //! options into the configurations above, reads and writes the files, and prints.
@@ -56,15 +57,17 @@
 //!   [`Error`] (every refusal a variant with its data: `InvalidOption`, `InvalidInput`,
 //!   `Unsupported`, `TooFew`, `Unidentifiable`, `Implausible`, ..., made by [`refused!`]).
 //!
-//! A measurement is today a pose (6-DoF or position) in a tracker's frame
-//! (`identify::objective::Measurement` of the core, read by `io/tracker_data.rs`). What least
-//! squares minimises is a kind of measurement in the core (`identify::residuals::Residuals`:
-//! its rows, their Jacobian, one norm per measurement; measured poses are the core's `Problem`,
-//! a ball touched in unknown sockets its `identify::common_point::CommonPoints`), so a new
-//! kind's residual is one implementation there and the solver does not change. The host's stages
-//! still take poses: the frames a kind leaves free (`measurement/frames.rs`), its held-out
-//! statistic (`calibration/evaluation.rs`) and the reading of its data (`io/`) are not yet per
-//! kind (issue 53's item 7, open).
+//! A kind of measurement is one place: its residual and Jacobian in the core
+//! (`identify::residuals::Residuals`: measured poses are the core's `Problem`, a ball touched in
+//! unknown sockets its `identify::common_point::CommonPoints`), and on the host an implementation
+//! of [`measurement::kind::MeasurementKind`] in `measurement/kind.rs` (what it leaves free
+//! whatever the data's spread, its held-out statistic), with its reader in `io/`. The stages every
+//! kind shares take the trait: the selection ([`calibration::select_parameters_of`], on
+//! [`analysis::identifiability::analyse_kind`]) and least squares with its covariance
+//! ([`calibration::fit::least_squares_of`]); a calibration from touches
+//! ([`calibration::touches::TouchSession`]) is those stages and the kind's statistic per
+//! placement. What only poses have stays with poses: the tracker's frames, the swarm, the robust
+//! loss, the joint maps and compliance, Table 3 and the plan check (the `Session`'s stages).
 #![deny(missing_docs)]
 
 /// The joint count of the models defined for 6R arms only: the paper's Table 2, the UR formats;

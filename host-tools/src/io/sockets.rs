@@ -6,9 +6,9 @@
 //! points (`calib_core::identify::common_point`).
 //!
 //! Our own format is one CSV file of every touch ([`read_touches_csv`]): a header
-//! `placement,socket,q1_deg,...,qN_deg`, then one touch per line, the placement a name, the socket
-//! a number from 0, the joints in degrees as in our tracker CSV; lines starting with `#` are
-//! comments.
+//! `placement,socket,q1_deg,...,qN_deg` (or `q1_rad,...`), then one touch per line, the placement
+//! a name, the socket a number from 0, the joints in the header's unit as in our tracker CSV;
+//! lines starting with `#` are comments.
 //!
 //! Every file is read whole and checked before anything is used: a line of another joint count
 //! than the robot's, a value that is not a finite number, a placement without `hole_0.csv` or
@@ -172,7 +172,7 @@ pub fn read_socket(path: &Path, joints: usize) -> Result<Socket, DataError> {
 
 /// The touches of our CSV file at `path` (see the module) for a robot of `joints` joints, as
 /// placements in the order they first appear, their sockets by number. Refused, naming the file
-/// and line: a header other than `placement,socket,q1_deg,...`, a line of another field count, an
+/// and line: a header other than `placement,socket,q1_deg,...` (or `_rad`), a line of another field count, an
 /// empty placement name, a socket that is not a number, a joint value that is not a finite
 /// number, a placement whose socket numbers have a gap, no touches.
 pub fn read_touches_csv(path: &Path, joints: usize) -> Result<Vec<Placement>, DataError> {
@@ -187,10 +187,14 @@ pub fn read_touches_csv(path: &Path, joints: usize) -> Result<Vec<Placement>, Da
         message,
     };
     let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
-    let expected: Vec<String> = ["placement".to_string(), "socket".to_string()]
-        .into_iter()
-        .chain((1..=joints).map(|j| format!("q{j}_deg")))
-        .collect();
+    let header_in = |unit: &str| -> Vec<String> {
+        ["placement".to_string(), "socket".to_string()]
+            .into_iter()
+            .chain((1..=joints).map(|j| format!("q{j}_{unit}")))
+            .collect()
+    };
+    let mut expected = header_in("deg");
+    let mut degrees = true;
     let mut header = false;
     let mut placements: Vec<(String, Vec<Vec<Reading>>)> = Vec::new();
     for (index, text_line) in text.lines().enumerate() {
@@ -201,12 +205,14 @@ pub fn read_touches_csv(path: &Path, joints: usize) -> Result<Vec<Placement>, Da
         }
         let fields: Vec<&str> = trimmed.split(',').map(str::trim).collect();
         if !header {
-            if fields != expected {
+            if fields == header_in("rad") {
+                (expected, degrees) = (header_in("rad"), false);
+            } else if fields != expected {
                 return Err(at(
                     line,
                     None,
                     format!(
-                        "the header is \"{trimmed}\"; a touch file of a {joints}-joint robot starts with {}",
+                        "the header is \"{trimmed}\"; a touch file of a {joints}-joint robot starts with {} (or the joints in _rad)",
                         expected.join(",")
                     ),
                 ));
@@ -219,7 +225,7 @@ pub fn read_touches_csv(path: &Path, joints: usize) -> Result<Vec<Placement>, Da
                 line,
                 None,
                 format!(
-                    "has {} fields, the header {}: placement, socket, then the {joints} joints in degrees",
+                    "has {} fields, the header {}: placement, socket, then the {joints} joints",
                     fields.len(),
                     expected.len()
                 ),
@@ -254,10 +260,10 @@ pub fn read_touches_csv(path: &Path, joints: usize) -> Result<Vec<Placement>, Da
                     at(
                         line,
                         Some(expected[j + 2].clone()),
-                        format!("\"{field}\" is not a finite number (degrees)"),
+                        format!("\"{field}\" is not a finite number"),
                     )
                 })?;
-            q_rad.push(value.to_radians());
+            q_rad.push(if degrees { value.to_radians() } else { value });
         }
         let index = match placements.iter().position(|(n, _)| n == name) {
             Some(i) => i,
@@ -442,5 +448,8 @@ mod tests {
         );
         let e = refused("placement,socket,q1_deg,q2_deg\n");
         assert!(e.contains("no touches"), "{e}");
+        std::fs::write(&path, "placement,socket,q1_rad,q2_rad\nfront,0,0.5,-1.5\n").unwrap();
+        let rad = read_touches_csv(&path, 2).unwrap();
+        assert_eq!(rad[0].sockets[0].readings[0].q_rad, [0.5, -1.5]);
     }
 }
