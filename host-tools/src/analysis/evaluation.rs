@@ -96,15 +96,13 @@ pub fn evaluate(
 ) -> crate::Result<Evaluation> {
     let k = calib_core::identify::objective::DEFAULT_K;
     let n = dataset.readings.len();
-    let setup = crate::measurement::frames::with_identified_probe(robot, frames)?
-        .unwrap_or_else(|| robot.clone());
     if frames == Frames::None {
         if fit_poses.is_some() {
             return Err(crate::refused!(option "--fit-poses";
                 "--fit-poses needs frames to fit: the data are evaluated in the base frame (--fit-frames none)"
             ));
         }
-        return in_the_base_frame(&setup, dataset);
+        return in_the_base_frame(robot, dataset);
     }
     let parts;
     let (fitting, evaluated, separate) = match fit_poses {
@@ -121,8 +119,13 @@ pub fn evaluate(
         }
         None => (dataset, dataset, false),
     };
-    let (robot, report, _) =
-        crate::measurement::frames::prepare(frames, &fitting.seen_by(&setup)?, k)?;
+    // The calibration's registration stage, on the poses that fit the frames.
+    let crate::measurement::frames::RegisteredSetup {
+        setup,
+        robot,
+        report,
+        ..
+    } = crate::measurement::frames::register_setup(robot, frames, fitting, k)?;
     let (robot, report, seen) = if robot.compliance.is_some() {
         // The frames again, from the given ones, on the poses with the compliance taken off
         // (evaluated in the frames just fitted: its direction of gravity and lever arms), so that

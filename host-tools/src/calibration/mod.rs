@@ -229,13 +229,14 @@ fn register_and_select(dataset: &Dataset, config: &CalibrationConfig) -> crate::
     // With only the base fitted, the probe identified with the file's model stays the tool (as in
     // `evaluate --fit-frames base`); the file written keeps the given controller frames and
     // records the probe in its measurement setup.
-    let given = &dataset.robot;
-    let probe = given.identified_probe().cloned();
-    let setup = crate::measurement::frames::with_identified_probe(given, frames)?;
-    let probe_kept = setup.is_some();
-    let setup = setup.unwrap_or_else(|| given.clone());
-    let (robot, mut frames_report, mask) =
-        crate::measurement::frames::prepare(frames, &dataset.seen_by(&setup)?, config.k)?;
+    let probe = dataset.robot.identified_probe().cloned();
+    let crate::measurement::frames::RegisteredSetup {
+        setup,
+        probe_kept,
+        robot,
+        report: mut frames_report,
+        mask,
+    } = crate::measurement::frames::register_setup(&dataset.robot, frames, dataset, config.k)?;
     let mask = identified_mask(mask, frames, config)?;
     let seen = dataset.seen_by(&robot)?;
     let selection = select_parameters(&seen, mask, config)?;

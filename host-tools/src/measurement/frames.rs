@@ -540,6 +540,44 @@ fn with_fitted_frames(
     Ok(fitted)
 }
 
+/// The registration stage a calibration and an evaluation share: the measurement setup of
+/// `robot` for `frames` ([`with_identified_probe`]: with only the base fitted, an identified
+/// probe stays the tool), then the frames registered and fitted on `dataset` with the geometry
+/// held ([`prepare`]).
+pub struct RegisteredSetup {
+    /// The robot the frames were registered from: `robot`, or it in its measurement setup.
+    pub setup: ActualRobot,
+    /// `true` when an identified probe was kept as the tool.
+    pub probe_kept: bool,
+    /// The robot with the registered and fitted frames.
+    pub robot: ActualRobot,
+    /// The frames' report.
+    pub report: FramesReport,
+    /// The parameters identified with these frames.
+    pub mask: ParameterMask<Dyn>,
+}
+
+/// Registers `frames` of `robot` on `dataset` (orientation weight `k`, mm^2/rad^2): see
+/// [`RegisteredSetup`].
+pub fn register_setup(
+    robot: &ActualRobot,
+    frames: Frames,
+    dataset: &crate::measurement::dataset::Dataset,
+    k: f64,
+) -> crate::Result<RegisteredSetup> {
+    let setup = with_identified_probe(robot, frames)?;
+    let probe_kept = setup.is_some();
+    let setup = setup.unwrap_or_else(|| robot.clone());
+    let (registered, report, mask) = prepare(frames, &dataset.seen_by(&setup)?, k)?;
+    Ok(RegisteredSetup {
+        setup,
+        probe_kept,
+        robot: registered,
+        report,
+        mask,
+    })
+}
+
 /// The frames stage: registers the frames of the robot that sees `inputs` and fits them (its
 /// geometry held) by least squares. Returns that robot with the fitted frames (the robot itself
 /// when `frames` is none: the data are in its base frame), the report and the mask of identified
