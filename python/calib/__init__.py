@@ -19,6 +19,7 @@ from os import PathLike as _PathLike
 from typing import Any as _Any
 from typing import Mapping as _Mapping
 from typing import Optional as _Optional
+from typing import Sequence as _Sequence
 from typing import Union as _Union
 
 from ._calib import (
@@ -43,6 +44,7 @@ from ._calib import (
     __version__,
 )
 from ._calib import calibrate
+from ._calib import calibrate_touches_json as _calibrate_touches_json
 from ._calib import compensate_csv as _compensate_csv
 from ._calib import evaluate_json as _evaluate_json
 from ._calib import plan
@@ -73,6 +75,45 @@ def evaluate(
         )
     )
     return evaluation
+
+
+def calibrate_touches(
+    robot: Robot,
+    joints_rad: _Any,
+    placements: _Sequence[str],
+    sockets: _Sequence[int],
+    *,
+    ball_mm: tuple[float, float, float],
+    train: _Optional[_Sequence[str]] = None,
+    distance: _Optional[float] = None,
+    distance_sd: float = 0.05,
+    distance_between: tuple[int, int] = (0, 1),
+    keep_ill_conditioned: bool = False,
+) -> tuple[Robot, dict[str, _Any], str]:
+    """Calibrates ``robot`` without an instrument, as ``calib sockets`` does: a ball on the
+    flange touched in sockets. ``joints_rad`` (n, joints) the configurations (numpy array or
+    nested lists), ``placements`` (n) each touch's placement name, ``sockets`` (n) its socket
+    (0, 1, ...); ``ball_mm`` the ball's centre in the flange frame (mm); ``train`` the placements
+    fitted (default all; the others are held out); ``distance`` the known distance (mm) between
+    the sockets ``distance_between`` of every placement, with standard uncertainty
+    ``distance_sd`` (mm). Returns the identified robot, the report as a dict (``parameters``,
+    ``ball_mm``, ``identifiability`` with ``left_free``, ``fitted`` and ``held_out`` per placement:
+    consistency and distance error, never absolute accuracy) and the text ``calib sockets``
+    prints."""
+    identified, report, text = _calibrate_touches_json(
+        robot,
+        joints_rad,
+        list(placements),
+        list(sockets),
+        ball_mm=ball_mm,
+        train=None if train is None else list(train),
+        distance=distance,
+        distance_sd=distance_sd,
+        distance_between=distance_between,
+        keep_ill_conditioned=keep_ill_conditioned,
+    )
+    parsed: dict[str, _Any] = _json.loads(report)
+    return identified, parsed, text
 
 
 def compensate(
@@ -161,6 +202,7 @@ __all__ = [
     "Robot",
     "UnidentifiableError",
     "calibrate",
+    "calibrate_touches",
     "compensate",
     "evaluate",
     "plan",

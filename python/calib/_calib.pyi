@@ -28,6 +28,7 @@ __all__ = [
     "UnidentifiableError",
     "__version__",
     "calibrate",
+    "calibrate_touches_json",
     "compensate_csv",
     "evaluate_json",
     "plan",
@@ -294,6 +295,22 @@ def evaluate_json(
     stored_registration: bool = False,
 ) -> str:
     """``calib evaluate --json`` (the package's ``calib.evaluate`` returns the dict)."""
+
+def calibrate_touches_json(
+    robot: Robot,
+    joints_rad: Any,
+    placements: Sequence[str],
+    sockets: Sequence[int],
+    *,
+    ball_mm: tuple[float, float, float],
+    train: Optional[Sequence[str]] = None,
+    distance: Optional[float] = None,
+    distance_sd: float = 0.05,
+    distance_between: Optional[tuple[int, int]] = None,
+    keep_ill_conditioned: bool = False,
+) -> tuple[Robot, str, str]:
+    """``calib sockets`` from arrays: the identified robot, the JSON report (text) and the text
+    (the package's ``calib.calibrate_touches`` returns the report as a dict)."""
 
 @final
 class Plan:

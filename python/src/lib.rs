@@ -1308,6 +1308,103 @@ fn evaluate_json(
     serde_json::to_string(&evaluation).map_err(|e| py_error(e.into()))
 }
 
+/// Calibrates `robot` from a ball touched in sockets (`calib sockets`): `joints_rad` (n, joints)
+/// the configurations, `placements` (n) the placement of each touch, `sockets` (n) its socket
+/// (0, 1, ...); `ball_mm` the ball's centre in the flange frame; `train` the placements fitted
+/// (default all); `distance` (mm) the known distance between sockets `distance_between` of every
+/// placement (default sockets 0 and 1), with standard uncertainty `distance_sd` (mm). Returns the identified robot, the
+/// JSON report (text; the package's `calibrate_touches` gives the dict) and the text `calib
+/// sockets` prints. The library's `TouchSession`, nothing written.
+#[pyfunction]
+#[pyo3(signature = (
+    robot, joints_rad, placements, sockets, *, ball_mm, train = None, distance = None,
+    distance_sd = 0.05, distance_between = None, keep_ill_conditioned = false
+))]
+#[allow(clippy::too_many_arguments)]
+fn calibrate_touches_json(
+    py: Python<'_>,
+    robot: &Robot,
+    joints_rad: &Bound<'_, PyAny>,
+    placements: Vec<String>,
+    sockets: Vec<usize>,
+    ball_mm: [f64; 3],
+    train: Option<Vec<String>>,
+    distance: Option<f64>,
+    distance_sd: f64,
+    distance_between: Option<(u16, u16)>,
+    keep_ill_conditioned: bool,
+) -> PyResult<(Robot, String, String)> {
+    let (a, b) = distance_between.unwrap_or((0, 1));
+    use host_tools::calibration::touches::{Gauge, TouchSession};
+    use host_tools::io::sockets::{Reading, group_touches};
+    let q = numbers::<numpy::Ix2>("joints_rad", joints_rad)?;
+    let q = q.as_array();
+    let (n, joints) = (q.nrows(), robot.file.joint.len());
+    if q.ncols() != joints {
+        return input(format!(
+            "joints_rad: {} columns, the robot has {joints} joints: one row of joint readings (rad) per touch",
+            q.ncols()
+        ));
+    }
+    if placements.len() != n || sockets.len() != n {
+        return input(format!(
+            "placements ({}) and sockets ({}) need one entry per row of joints_rad ({n})",
+            placements.len(),
+            sockets.len()
+        ));
+    }
+    if n > MAX_POSES || sockets.iter().any(|s| *s >= 1000) {
+        return input(format!(
+            "at most {MAX_POSES} touches and socket numbers below 1000"
+        ));
+    }
+    let mut touches = Vec::with_capacity(n);
+    for (i, (name, socket)) in placements.into_iter().zip(sockets).enumerate() {
+        let row: Vec<f64> = q.row(i).to_vec();
+        if let Some(j) = row.iter().position(|v| !v.is_finite()) {
+            return input(format!(
+                "joints_rad[{i}, {j}] is {}: every reading must be a finite number (rad)",
+                row[j]
+            ));
+        }
+        let reading = Reading {
+            line: i as u64 + 1,
+            q_rad: row,
+        };
+        touches.push((name, socket, reading));
+    }
+    let path = PathBuf::from("<memory>");
+    let placements = group_touches(touches, &path).map_err(|e| py_error(e.into()))?;
+    let session = TouchSession {
+        robot: robot.file.clone(),
+        robot_path: robot.path.clone(),
+        ball_mm,
+        placements,
+        train: train.unwrap_or_default(),
+        gauge: distance.map(|mm| Gauge {
+            sockets: [a, b],
+            mm,
+            sd_mm: distance_sd,
+        }),
+        config: host_tools::calibration::CalibrationConfig {
+            keep_ill_conditioned,
+            ..Default::default()
+        },
+    };
+    let calibrated = py
+        .detach(|| session.run())
+        .map_err(|e| py_error(e.into()))?;
+    let report =
+        serde_json::to_string(&calibrated.report(&session)).map_err(|e| py_error(e.into()))?;
+    let text = host_tools::report::touches::touches_text(&calibrated);
+    let identified = Robot {
+        file: calibrated.file,
+        path: PathBuf::from("<identified from touches>"),
+        on_disk: false,
+    };
+    Ok((identified, report, text))
+}
+
 /// A measurement plan (`calib plan`): the poses to measure in order, their roles, the prediction.
 #[pyclass(module = "calib", name = "Plan", frozen)]
 struct Plan {
@@ -1630,6 +1727,7 @@ fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(evaluate_json, m)?)?;
     m.add_function(wrap_pyfunction!(plan, m)?)?;
     m.add_function(wrap_pyfunction!(compensate_csv, m)?)?;
+    m.add_function(wrap_pyfunction!(calibrate_touches_json, m)?)?;
     m.add_class::<Plan>()?;
     m.add("CalibError", m.py().get_type::<CalibError>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;

@@ -624,3 +624,34 @@ def test_refusals_are_exception_classes_with_their_data():
     e = refused.value
     assert any(p.startswith("da2 = -12.0000 mm is beyond the plausible 5") for p in e.problems), e.problems
     assert abs(e.parameters["da2"] + 12.0) < 1e-6
+
+
+def test_touches_from_numpy_equal_calib_sockets(tmp_path):
+    """Issue 54: the panda_3 touches given as numpy arrays (read here with numpy, independently
+    of the toolkit's reader) calibrate as ``calib sockets`` on the folder does: the same report."""
+    panda = ROOT / "host-tools/robots/franka-panda.toml"
+    folder = ROOT / "host-tools/data/mukca-sockets/panda_3"
+    ball = (0.025171, -0.084766, 133.528298)
+    report = tmp_path / "sockets.json"
+    done = run_calib("sockets", "--robot", panda, "--data", folder, "--ball-mm", ",".join(map(str, ball)),
+                     "--train", "frontcenter", "--distance", "50", "--report", report)
+    assert done.returncode == 0, done.stderr
+    cli = json.loads(report.read_text())
+    rows, names, sockets = [], [], []
+    for placement in sorted(p.name for p in folder.iterdir() if p.is_dir()):
+        for socket in (0, 1):
+            q = np.loadtxt(folder / placement / f"hole_{socket}.csv", delimiter=",", ndmin=2)
+            rows.append(q)
+            names += [placement] * len(q)
+            sockets += [socket] * len(q)
+    joints = np.vstack(rows)
+    robot, py, text = calib.calibrate_touches(calib.Robot.from_file(panda), joints, names, sockets,
+                                              ball_mm=ball, train=["frontcenter"], distance=50.0)
+    assert py["parameters"] == cli["parameters"]
+    assert py["held_out"] == cli["held_out"]
+    held = [f["identified"]["authors_mean_mm"] for f in py["held_out"]]
+    assert abs(sum(held) / len(held) - 0.2190) < 5e-5
+    assert "not absolute accuracy" in text
+    assert "dalpha2" in robot.to_toml()
+    with pytest.raises(calib.InputError, match="placements \\(3\\) and sockets"):
+        calib.calibrate_touches(calib.Robot.from_file(panda), joints, names[:3], sockets, ball_mm=ball)

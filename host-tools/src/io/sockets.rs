@@ -196,7 +196,7 @@ pub fn read_touches_csv(path: &Path, joints: usize) -> Result<Vec<Placement>, Da
     let mut expected = header_in("deg");
     let mut degrees = true;
     let mut header = false;
-    let mut placements: Vec<(String, Vec<Vec<Reading>>)> = Vec::new();
+    let mut touches = Vec::new();
     for (index, text_line) in text.lines().enumerate() {
         let line = index as u64 + 1;
         let trimmed = text_line.trim();
@@ -265,10 +265,31 @@ pub fn read_touches_csv(path: &Path, joints: usize) -> Result<Vec<Placement>, Da
                 })?;
             q_rad.push(if degrees { value.to_radians() } else { value });
         }
-        let index = match placements.iter().position(|(n, _)| n == name) {
+        touches.push((name.to_string(), socket, Reading { line, q_rad }));
+    }
+    if touches.is_empty() {
+        return Err(at(
+            1,
+            None,
+            "no touches: the file has no lines after its header".into(),
+        ));
+    }
+    group_touches(touches, path)
+}
+
+/// Touches as placements: `touches` (placement name, socket number, reading) grouped by
+/// placement in the order they first appear, each placement's sockets by number; `path` names
+/// the source (a file, or `<memory>`). Refused: a placement whose socket numbers have a gap.
+pub fn group_touches(
+    touches: Vec<(String, usize, Reading)>,
+    path: &Path,
+) -> Result<Vec<Placement>, DataError> {
+    let mut placements: Vec<(String, Vec<Vec<Reading>>)> = Vec::new();
+    for (name, socket, reading) in touches {
+        let index = match placements.iter().position(|(n, _)| *n == name) {
             Some(i) => i,
             None => {
-                placements.push((name.to_string(), Vec::new()));
+                placements.push((name, Vec::new()));
                 placements.len() - 1
             }
         };
@@ -276,28 +297,29 @@ pub fn read_touches_csv(path: &Path, joints: usize) -> Result<Vec<Placement>, Da
         if sockets.len() <= socket {
             sockets.resize_with(socket + 1, Vec::new);
         }
-        sockets[socket].push(Reading { line, q_rad });
-    }
-    if placements.is_empty() {
-        return Err(at(
-            1,
-            None,
-            "no touches: the file has no lines after its header".into(),
-        ));
+        sockets[socket].push(reading);
     }
     placements
         .into_iter()
         .map(|(name, sockets)| {
             if let Some(gap) = sockets.iter().position(Vec::is_empty) {
-                return Err(at(1, Some("socket".into()), format!(
-                    "placement {name} has no touch of socket {gap} but touches of socket {}: number the sockets 0, 1, ... without a gap",
-                    sockets.len() - 1
-                )));
+                return Err(DataError::At {
+                    path: path.to_path_buf(),
+                    line: 1,
+                    column: Some("socket".into()),
+                    message: format!(
+                        "placement {name} has no touch of socket {gap} but touches of socket {}: number the sockets 0, 1, ... without a gap",
+                        sockets.len() - 1
+                    ),
+                });
             }
             Ok(Placement {
                 name,
                 sockets: (sockets.into_iter())
-                    .map(|readings| Socket { path: path.to_path_buf(), readings })
+                    .map(|readings| Socket {
+                        path: path.to_path_buf(),
+                        readings,
+                    })
                     .collect(),
             })
         })
