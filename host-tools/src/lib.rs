@@ -60,10 +60,10 @@
 //! A kind of measurement is one place: its residual and Jacobian in the core
 //! (`identify::residuals::Residuals`: measured poses are the core's `Problem`, a ball touched in
 //! unknown sockets its `identify::common_point::CommonPoints`), and on the host an implementation
-//! of [`measurement::kind::MeasurementKind`] in `measurement/kind.rs` (what it leaves free
+//! of [`analysis::kind::MeasurementKind`] in `analysis/kind.rs` (what it leaves free
 //! whatever the data's spread, its held-out statistic), with its reader in `io/`. The stages every
 //! kind shares take the trait: the selection ([`calibration::select_parameters_of`], on
-//! [`analysis::identifiability::analyse_kind`]) and least squares with its covariance
+//! [`analysis::kind::analyse_kind`]) and least squares with its covariance
 //! ([`calibration::fit::least_squares_of`]); a calibration from touches
 //! ([`calibration::touches::TouchSession`]) is those stages and the kind's statistic per
 //! placement. What only poses have stays with poses: the tracker's frames, the swarm, the robust

@@ -93,7 +93,7 @@ def calibrate_touches(
     """Calibrates ``robot`` without an instrument, as ``calib sockets`` does: a ball on the
     flange touched in sockets. ``joints_rad`` (n, joints) the configurations (numpy array or
     nested lists), ``placements`` (n) each touch's placement name, ``sockets`` (n) its socket
-    (0, 1, ...); ``ball_mm`` the ball's centre in the flange frame (mm); ``train`` the placements
+    (0, 1, ...); ``ball_mm`` the ball's centre in the robot file's tool frame (its flange without a [tool]; mm); ``train`` the placements
     fitted (default all; the others are held out); ``distance`` the known distance (mm) between
     the sockets ``distance_between`` of every placement, with standard uncertainty
     ``distance_sd`` (mm). Returns the identified robot, the report as a dict (``parameters``,

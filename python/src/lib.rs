@@ -1310,7 +1310,7 @@ fn evaluate_json(
 
 /// Calibrates `robot` from a ball touched in sockets (`calib sockets`): `joints_rad` (n, joints)
 /// the configurations, `placements` (n) the placement of each touch, `sockets` (n) its socket
-/// (0, 1, ...); `ball_mm` the ball's centre in the flange frame; `train` the placements fitted
+/// (0, 1, ...); `ball_mm` the ball's centre in the robot file's tool frame (its flange without a `[tool]`); `train` the placements fitted
 /// (default all); `distance` (mm) the known distance between sockets `distance_between` of every
 /// placement (default sockets 0 and 1), with standard uncertainty `distance_sd` (mm). Returns the identified robot, the
 /// JSON report (text; the package's `calibrate_touches` gives the dict) and the text `calib

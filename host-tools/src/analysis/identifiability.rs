@@ -4,10 +4,10 @@
 //! ill-conditioned pose set.
 
 use crate::measurement::dataset::{Dataset, Seen};
-use crate::measurement::kind::{MeasurementKind, Poses};
 
 use calib_core::identify::identifiability::{DEFAULT_RANK_TOLERANCE, Identifiability, Status};
 use calib_core::identify::lm::LeastSquares;
+use calib_core::identify::residuals::Residuals;
 use calib_core::{Kinematics, Parameter, ParameterMask};
 use nalgebra::DVector;
 use nalgebra::Dyn;
@@ -173,6 +173,21 @@ pub(crate) fn reflector_on_last_axis(
     }))
 }
 
+/// A parameter a kind of measurement cannot determine whatever the spread of the data, and why
+/// (`analysis::kind`).
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct FreeParameter {
+    /// The parameter (its name in JSON).
+    #[serde(
+        rename = "name",
+        serialize_with = "named",
+        deserialize_with = "from_name"
+    )]
+    pub parameter: Parameter,
+    /// Why these measurements leave it free.
+    pub why: String,
+}
+
 /// A parameter the data do not determine.
 #[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Undetermined {
@@ -226,7 +241,7 @@ pub struct IdentifiabilityReport {
     /// The parameters the kind of measurement leaves free whatever the data's spread (touches:
     /// joint 1's turn and lift, the last joint's, the base), left out before this analysis.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub left_free: Vec<crate::measurement::kind::FreeParameter>,
+    pub left_free: Vec<FreeParameter>,
 }
 
 impl IdentifiabilityReport {
@@ -344,30 +359,31 @@ pub(crate) fn analyse(
     mask: &ParameterMask<Dyn>,
     k: f64,
 ) -> crate::Result<IdentifiabilityReport> {
-    analyse_kind(&Poses { seen: dataset, k }, mask)
-}
-
-/// The identifiability of the parameters selected by `mask` on measurements of any kind, at the
-/// kind's nominal model: the core's analysis of the kind's Jacobian.
-pub fn analyse_kind<K: MeasurementKind>(
-    kind: &K,
-    mask: &ParameterMask<Dyn>,
-) -> crate::Result<IdentifiabilityReport> {
     let set = crate::model::counts::analysable_set(mask)?;
     let count = set.len();
-    if kind.equations() < count {
-        return Err(crate::refused!(too_few kind.equations(), count;
-            "{} {} give {} equations, fewer than the {count} identified parameters",
-            kind.count(),
-            kind.noun(),
-            kind.equations()
+    if dataset.rows() < count {
+        return Err(crate::refused!(too_few dataset.rows(), count;
+            "{} poses give {} equations, fewer than the {count} identified parameters",
+            dataset.measurements().len(),
+            dataset.rows()
         ));
     }
     let names = set.parameters().to_vec();
-    let residuals = kind.residuals(set)?;
-    let least_squares = LeastSquares::new(&residuals);
+    let problem = dataset.problem(set, k)?;
+    analyse_residuals(&problem, names, dataset.measurements().len())
+}
+
+/// The identifiability of the parameters `names` of `residuals` (of any kind of measurement,
+/// `measurements` of them) at zero errors: the core's analysis of their Jacobian.
+pub fn analyse_residuals<R: Residuals<Real = f64, Dim = Dyn>>(
+    residuals: &R,
+    names: Vec<Parameter>,
+    measurements: usize,
+) -> crate::Result<IdentifiabilityReport> {
+    let count = names.len();
+    let least_squares = LeastSquares::new(residuals);
     let r = least_squares.jacobian_factor(&DVector::zeros(count))?;
-    let id = Identifiability::from_factor(&r, kind.count(), DEFAULT_RANK_TOLERANCE);
+    let id = Identifiability::from_factor(&r, measurements, DEFAULT_RANK_TOLERANCE);
     let mut undetermined = Vec::new();
     for index in id.pivots.iter().skip(id.rank) {
         let (Some(parameter), Some(status)) = (names.get(*index), id.status.get(*index)) else {

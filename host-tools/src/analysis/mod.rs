@@ -1,6 +1,7 @@
 //! What a model and a dataset say beyond the fit: the accuracy on held-out poses as a certificate
 //! states it, where in the workspace the error remains and the caveats that limit it, the uncertainty of a prediction propagated from the parameters' covariance, the
-//! identifiability of the parameters, the
+//! identifiability of the parameters, the kinds of measurement the calibration is generic over
+//! (poses, touches in sockets), the
 //! evaluation of a model on new poses, the comparison against a known truth, and the verification
 //! of the core's calibration against the independent float64 reference.
 
@@ -9,6 +10,7 @@ pub mod caveats;
 pub mod consistency;
 pub mod evaluation;
 pub mod identifiability;
+pub mod kind;
 pub mod reference;
 pub mod truth;
 pub mod uncertainty;

@@ -6,7 +6,7 @@
 
 use super::result::{LeastSquaresReport, lm_stop};
 use super::{CalibrationConfig, IdentifiedParameter, Selection};
-use crate::measurement::kind::MeasurementKind;
+use crate::analysis::kind::MeasurementKind;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
 use calib_core::identify::residuals::Residuals;
 use calib_core::{ParameterErrors, ParameterSet};

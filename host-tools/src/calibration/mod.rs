@@ -87,12 +87,13 @@ pub use result::{
     Stage, SwarmSummary, lm_stop, swarm_stop,
 };
 
-use crate::analysis::identifiability::{IdentifiabilityReport, analyse_kind};
+use crate::analysis::identifiability::IdentifiabilityReport;
+use crate::analysis::kind::MeasurementKind;
+use crate::analysis::kind::analyse_kind;
 use crate::io::robot_file::RobotFile;
 use crate::measurement::conditions::MeasurementConditions;
 use crate::measurement::dataset::{Dataset, Seen};
 use crate::measurement::frames::{Frames, FramesReport};
-use crate::measurement::kind::MeasurementKind;
 use crate::planning::Measure;
 use calib_core::{Parameter, ParameterMask};
 use evaluation::Evaluation;
@@ -665,7 +666,7 @@ pub fn select_parameters(
     mask: ParameterMask<Dyn>,
     config: &CalibrationConfig,
 ) -> crate::Result<Selection> {
-    let poses = crate::measurement::kind::Poses {
+    let poses = crate::analysis::kind::Poses {
         seen: dataset,
         k: config.k,
     };

@@ -18,9 +18,9 @@
 use super::fit::{KindFit, least_squares_of};
 use super::{CalibrationConfig, Selection, select_parameters_of};
 use crate::analysis::consistency::Consistency;
+use crate::analysis::kind::{MeasurementKind, Touches};
 use crate::io::robot_file::RobotFile;
 use crate::io::sockets::Placement;
-use crate::measurement::kind::{MeasurementKind, Touches};
 use calib_core::identify::common_point::{KnownDistance, Touch};
 use calib_core::model::JointVec;
 use calib_core::model::parameters::FrameParameter;
@@ -48,7 +48,8 @@ pub struct TouchSession {
     pub robot: RobotFile,
     /// Where it was read from (named in errors and in the identified file).
     pub robot_path: PathBuf,
-    /// The ball's centre in the flange frame, nominal, mm (identified with the geometry).
+    /// The ball's centre in the robot file's tool frame (its flange when the file gives no
+    /// `[tool]`), nominal, mm (identified with the geometry).
     pub ball_mm: [f64; 3],
     /// The placements of the sockets, with their touches.
     pub placements: Vec<Placement>,
@@ -81,7 +82,7 @@ pub struct TouchCalibrated {
     pub file: RobotFile,
     /// The fit: the parameters with their standard errors, least squares, time.
     pub fit: KindFit,
-    /// The ball's centre in the flange frame, identified, mm.
+    /// The ball's centre in the robot file's tool frame, identified, mm.
     pub ball_mm: [f64; 3],
     /// The parameters selected and the analysis (what touches leave free, what the data could
     /// not determine, the condition).
@@ -143,14 +144,15 @@ impl TouchSession {
     /// Calibrates: fits the placements of `train` (all without), judges every placement.
     pub fn run(&self) -> crate::Result<TouchCalibrated> {
         self.check()?;
-        // The ball is given in the mechanical flange's frame (after a Craig file's flange row):
-        // the model with the ball as its tool, the flange to express the identified ball back.
-        let flange = self.robot.flange_isometry();
+        // The ball is given in the robot file's tool frame (its flange, after a Craig file's flange
+        // row, when the file gives no [tool]): the model with the ball as its tool, and that frame
+        // to express the identified ball back.
         let mut robot = self.robot.to_model(&self.robot_path)?;
+        let flange = robot.robot.tool.isometry();
         let ball = flange * nalgebra::Point3::from(self.ball_mm);
         robot.robot.tool = calib_core::FramePose {
             xyz: ball.coords.into(),
-            rpy: flange.rotation.euler_angles().into(),
+            rpy: robot.robot.tool.rpy,
         };
         let (robot, mask) = (robot.robot, robot.mask);
         let (fitted, held): (Vec<&Placement>, Vec<&Placement>) = (self.placements.iter())
@@ -282,7 +284,7 @@ pub struct TouchReport {
     /// The identified parameters (name -> value, unit, standard error), the ball's offset among
     /// them as `tool_tx`, `tool_ty`, `tool_tz`.
     pub parameters: super::Parameters,
-    /// The ball's centre in the flange frame, identified, mm.
+    /// The ball's centre in the robot file's tool frame, identified, mm.
     pub ball_mm: [f64; 3],
     /// The known distance, its weight against a touch's coordinate and the touches' scatter
     /// it was weighed by.

@@ -167,13 +167,6 @@ pub struct RobotFile {
     /// Tool frame (default identity).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tool: Option<FrameEntry>,
-    /// After reading a file in Craig's convention with a `[craig_flange]` row: its `Rz(theta_F)
-    /// Tz(d_F)`, from our last joint's frame to the mechanical flange, which `tool` then includes
-    /// (`None`: the flange is our last joint's frame). Never written: a file written is in our
-    /// convention, its `[tool]` from the last joint's frame. A ball or probe given in the flange
-    /// frame is placed through it ([`RobotFile::flange_isometry`]).
-    #[serde(skip)]
-    pub flange: Option<FrameEntry>,
     /// Present in a file of identified (or simulated true) parameters: the errors that were added
     /// to the nominal model to give the values above.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -325,7 +318,6 @@ impl RobotFile {
                 file.base.as_ref(),
                 file.tool.as_ref(),
             );
-            file.flange = craig::flange(file.craig_flange.as_ref());
             (file.joint, file.base, file.tool) = (joints, base, tool);
             file.craig_joint.clear();
             file.craig_flange = None;
@@ -703,13 +695,6 @@ impl RobotFile {
             errors.set(parameter, value);
         }
         Ok(errors)
-    }
-
-    /// The mechanical flange in our last joint's frame: [`RobotFile::flange`], or the identity.
-    pub fn flange_isometry(&self) -> nalgebra::Isometry3<f64> {
-        self.flange
-            .as_ref()
-            .map_or(nalgebra::Isometry3::identity(), FrameEntry::isometry)
     }
 
     /// The file of the actual robot `nominal + errors`: every joint value, base and tool replaced

@@ -220,52 +220,9 @@ pub fn read_touches_csv(path: &Path, joints: usize) -> Result<Vec<Placement>, Da
             header = true;
             continue;
         }
-        if fields.len() != expected.len() {
-            return Err(at(
-                line,
-                None,
-                format!(
-                    "has {} fields, the header {}: placement, socket, then the {joints} joints",
-                    fields.len(),
-                    expected.len()
-                ),
-            ));
-        }
-        let name = fields[0];
-        if name.is_empty() {
-            return Err(at(
-                line,
-                Some("placement".into()),
-                "no placement name".into(),
-            ));
-        }
-        let socket: usize = fields[1]
-            .parse()
-            .ok()
-            .filter(|s| *s < 1000)
-            .ok_or_else(|| {
-                at(
-                    line,
-                    Some("socket".into()),
-                    format!("\"{}\" is not a socket number (0, 1, ...)", fields[1]),
-                )
-            })?;
-        let mut q_rad = Vec::with_capacity(joints);
-        for (j, field) in fields[2..].iter().enumerate() {
-            let value = field
-                .parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| {
-                    at(
-                        line,
-                        Some(expected[j + 2].clone()),
-                        format!("\"{field}\" is not a finite number"),
-                    )
-                })?;
-            q_rad.push(if degrees { value.to_radians() } else { value });
-        }
-        touches.push((name.to_string(), socket, Reading { line, q_rad }));
+        let touch = touch_of_line(&fields, (&expected, degrees), line)
+            .map_err(|(column, message)| at(line, column, message))?;
+        touches.push(touch);
     }
     if touches.is_empty() {
         return Err(at(
@@ -275,6 +232,51 @@ pub fn read_touches_csv(path: &Path, joints: usize) -> Result<Vec<Placement>, Da
         ));
     }
     group_touches(touches, path)
+}
+
+/// One line of our touch CSV, `fields` under the header `expected` (joints in degrees when
+/// `degrees`): (placement, socket, reading), or the column and why it is refused.
+fn touch_of_line(
+    fields: &[&str],
+    (expected, degrees): (&[String], bool),
+    line: u64,
+) -> Result<(String, usize, Reading), (Option<String>, String)> {
+    if fields.len() != expected.len() {
+        return Err((
+            None,
+            format!(
+                "has {} fields, the header {}: placement, socket, then the {} joints",
+                fields.len(),
+                expected.len(),
+                expected.len() - 2
+            ),
+        ));
+    }
+    let name = fields[0];
+    if name.is_empty() {
+        return Err((Some("placement".into()), "no placement name".into()));
+    }
+    let socket: usize = (fields[1].parse().ok())
+        .filter(|s| *s < 1000)
+        .ok_or_else(|| {
+            (
+                Some("socket".into()),
+                format!("\"{}\" is not a socket number (0, 1, ...)", fields[1]),
+            )
+        })?;
+    let mut q_rad = Vec::with_capacity(fields.len() - 2);
+    for (field, column) in fields[2..].iter().zip(&expected[2..]) {
+        let value = (field.parse::<f64>().ok())
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| {
+                (
+                    Some(column.clone()),
+                    format!("\"{field}\" is not a finite number"),
+                )
+            })?;
+        q_rad.push(if degrees { value.to_radians() } else { value });
+    }
+    Ok((name.to_string(), socket, Reading { line, q_rad }))
 }
 
 /// Touches as placements: `touches` (placement name, socket number, reading) grouped by

@@ -7,7 +7,6 @@
 pub mod conditions;
 pub mod dataset;
 pub mod frames;
-pub mod kind;
 pub mod merge;
 pub mod orientation_check;
 pub mod simulate;

@@ -7,43 +7,9 @@ use crate::calibration::touches::{PlacementFigures, TouchCalibrated};
 
 /// The text `calib sockets` prints.
 pub fn touches_text(calibrated: &TouchCalibrated) -> String {
-    let fit = &calibrated.fit;
-    let l = &fit.least_squares;
-    let id = &calibrated.selection.identifiability;
-    let mut text = format!(
-        "calibration from touches: {} parameters by least squares ({} iterations, {}, {:.3} s), residual sd {:.4} mm per coordinate\n",
-        fit.parameters.len(),
-        l.iterations,
-        l.stop,
-        fit.seconds,
-        fit.sigma_mm
-    );
-    if let (Some(w), Some(sd)) = (calibrated.gauge_weight, calibrated.touch_sd_mm) {
-        text.push_str(&format!(
-            "known distance weighed {w:.3} against a touch's coordinate: the touches scatter {sd:.4} mm per coordinate without it\n"
-        ));
-    }
-    let [x, y, z] = calibrated.ball_mm;
-    text.push_str(&format!(
-        "ball centre in the flange frame: {x:.4}, {y:.4}, {z:.4} mm (measurement setup: not written into the controller's tool)\n"
-    ));
-    text.push_str("\nleft free by touches, whatever the configurations:\n");
-    for f in &id.left_free {
-        text.push_str(&format!("  {}: {}\n", f.parameter, f.why));
-    }
-    if !calibrated.selection.dropped.is_empty() {
-        let dropped: Vec<String> = (calibrated.selection.dropped.iter())
-            .map(ToString::to_string)
-            .collect();
-        text.push_str(&format!(
-            "dropped, barely determined by these configurations: {} (scaled condition number {} -> {})\n",
-            dropped.join(", "),
-            id.condition_number.map_or("infinite".into(), |c| format!("{c:.3e}")),
-            id.condition_number_after_drop.map_or("infinite".into(), |c| format!("{c:.3e}"))
-        ));
-    }
+    let mut text = fit_text(calibrated);
     text.push_str("\nidentified errors (mm, rad) and standard errors:\n");
-    for p in &fit.parameters {
+    for p in &calibrated.fit.parameters {
         let sd = p
             .std_error
             .map_or(String::new(), |s| format!(" +- {s:.3e}"));
@@ -89,6 +55,46 @@ pub fn touches_text(calibrated: &TouchCalibrated) -> String {
             "held-out mean: {:.4} mm every touch, {:.4} mm by the authors' rule\n",
             mean(|f| f.identified.mean_mm),
             mean(|f| f.identified.authors_mean_mm)
+        ));
+    }
+    text
+}
+
+/// The fit, the ball and what was left free or dropped.
+fn fit_text(calibrated: &TouchCalibrated) -> String {
+    let fit = &calibrated.fit;
+    let l = &fit.least_squares;
+    let id = &calibrated.selection.identifiability;
+    let mut text = format!(
+        "calibration from touches: {} parameters by least squares ({} iterations, {}, {:.3} s), residual sd {:.4} mm per coordinate\n",
+        fit.parameters.len(),
+        l.iterations,
+        l.stop,
+        fit.seconds,
+        fit.sigma_mm
+    );
+    if let (Some(w), Some(sd)) = (calibrated.gauge_weight, calibrated.touch_sd_mm) {
+        text.push_str(&format!(
+            "known distance weighed {w:.3} against a touch's coordinate: the touches scatter {sd:.4} mm per coordinate without it\n"
+        ));
+    }
+    let [x, y, z] = calibrated.ball_mm;
+    text.push_str(&format!(
+        "ball centre in the robot file's tool frame (the flange without a [tool]): {x:.4}, {y:.4}, {z:.4} mm (measurement setup: not written into the controller's tool)\n"
+    ));
+    text.push_str("\nleft free by touches, whatever the configurations:\n");
+    for f in &id.left_free {
+        text.push_str(&format!("  {}: {}\n", f.parameter, f.why));
+    }
+    if !calibrated.selection.dropped.is_empty() {
+        let dropped: Vec<String> = (calibrated.selection.dropped.iter())
+            .map(ToString::to_string)
+            .collect();
+        text.push_str(&format!(
+            "dropped, barely determined by these configurations: {} (scaled condition number {} -> {})\n",
+            dropped.join(", "),
+            id.condition_number.map_or("infinite".into(), |c| format!("{c:.3e}")),
+            id.condition_number_after_drop.map_or("infinite".into(), |c| format!("{c:.3e}"))
         ));
     }
     text

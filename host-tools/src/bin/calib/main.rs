@@ -71,6 +71,9 @@ enum Command {
     /// Convert a Universal Robots controller's factory calibration (calibration.conf) into a
     /// robot file: the same geometry in Hayati parameters.
     ImportUrCalibration(crate::cli::import_ur::ImportUrOptions),
+    /// Convert a robot's URDF (the chain from a base link to a tip link) into a robot file whose
+    /// kinematics equal the URDF's.
+    ImportUrdf(crate::cli::import_urdf::ImportUrdfOptions),
     /// The identified model's predicted uncertainty (1 sigma) at joint configurations, from the
     /// parameters' covariance its robot file records.
     Uncertainty(crate::cli::uncertainty::UncertaintyOptions),
@@ -208,6 +211,10 @@ fn run(command: Command) -> anyhow::Result<()> {
             crate::cli::print_text(format_args!("{text}"))?;
         }
         Command::Merge(options) => merge(&options)?,
+        Command::ImportUrdf(options) => {
+            let text = crate::cli::import_urdf::import_urdf(&options)?;
+            crate::cli::print_text(format_args!("{text}"))?;
+        }
         Command::Uncertainty(options) => {
             let summary = crate::cli::uncertainty::uncertainty(&options)?;
             crate::cli::print_text(format_args!("{}", summary.text(&options.out)))?;

@@ -60,7 +60,7 @@ pub struct CraigFlangeEntry {
 }
 
 /// An isometry as a frame entry (the inverse of [`FrameEntry::isometry`]).
-fn frame_entry(frame: &Isometry3<f64>) -> FrameEntry {
+pub(crate) fn frame_entry(frame: &Isometry3<f64>) -> FrameEntry {
     let (roll, pitch, yaw) = frame.rotation.euler_angles();
     FrameEntry {
         xyz_mm: frame.translation.vector.into(),
@@ -168,9 +168,4 @@ fn flange_isometry(flange: Option<&CraigFlangeEntry>) -> Option<Isometry3<f64>> 
         )),
         _ => None,
     }
-}
-
-/// The mechanical flange in our last joint's frame, as a frame entry (`None`: the identity).
-pub(crate) fn flange(flange: Option<&CraigFlangeEntry>) -> Option<FrameEntry> {
-    flange_isometry(flange).map(|f| frame_entry(&f))
 }

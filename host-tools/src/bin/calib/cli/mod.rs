@@ -8,6 +8,7 @@ pub mod demo;
 pub mod evaluate;
 pub mod export;
 pub mod import_ur;
+pub mod import_urdf;
 pub mod merge;
 pub mod plan;
 pub mod report;

@@ -18,7 +18,8 @@ pub struct SocketsOptions {
     /// radians, no header) or our CSV file (placement,socket,q1_deg,...; see USAGE).
     #[arg(long, value_name = "PATH")]
     pub data: PathBuf,
-    /// The ball's centre in the flange frame, nominal, mm (identified with the geometry).
+    /// The ball's centre in the robot file's tool frame (its flange when the file gives no
+    /// [tool]), nominal, mm (identified with the geometry).
     #[arg(
         long,
         value_name = "X,Y,Z",

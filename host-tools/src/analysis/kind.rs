@@ -1,5 +1,5 @@
 //! The kinds of measurement a calibration is generic over. A kind states four things, and the
-//! stages they serve ([`crate::calibration::select_parameters_of`],
+//! stages they serve ([`analyse_kind`], [`crate::calibration::select_parameters_of`],
 //! [`crate::calibration::fit::least_squares_of`], the held-out figures) ask nothing else of it:
 //!
 //! - its residuals and their Jacobian, as the core's least squares takes them
@@ -20,28 +20,13 @@
 //! Two kinds today: measured poses in a tracker's frame ([`Poses`]) and a ball touched in
 //! sockets ([`Touches`]: common points and known distances between them).
 
-use crate::analysis::identifiability::ReflectorOnAxis;
+use crate::analysis::identifiability::{FreeParameter, IdentifiabilityReport, ReflectorOnAxis};
 use crate::measurement::dataset::Seen;
 use calib_core::identify::common_point::{CommonPoints, KnownDistance, Touch};
 use calib_core::identify::residuals::Residuals;
 use calib_core::model::parameters::{FrameParameter, JointParameter};
 use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, ParameterSet, Robot};
 use nalgebra::Dyn;
-use serde::Serialize;
-
-/// A parameter a kind of measurement cannot determine whatever the spread of the data, and why.
-#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
-pub struct FreeParameter {
-    /// The parameter (its name in JSON).
-    #[serde(
-        rename = "name",
-        serialize_with = "crate::analysis::identifiability::named",
-        deserialize_with = "crate::analysis::identifiability::from_name"
-    )]
-    pub parameter: Parameter,
-    /// Why these measurements leave it free.
-    pub why: String,
-}
 
 /// What a kind of measurement leaves free of a parameter mask.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -283,4 +268,27 @@ fn sockets<T: calib_core::scalar::Real>(touches: &[Touch<T, Dyn>]) -> usize {
     points.sort_unstable();
     points.dedup();
     points.len()
+}
+
+/// The identifiability of the parameters selected by `mask` on measurements of any kind, at the
+/// kind's nominal model: the core's analysis of the kind's Jacobian
+/// ([`crate::analysis::identifiability::analyse_residuals`]). Refused: fewer equations than
+/// parameters.
+pub fn analyse_kind<K: MeasurementKind>(
+    kind: &K,
+    mask: &ParameterMask<Dyn>,
+) -> crate::Result<IdentifiabilityReport> {
+    let set = crate::model::counts::analysable_set(mask)?;
+    let count = set.len();
+    if kind.equations() < count {
+        return Err(crate::refused!(too_few kind.equations(), count;
+            "{} {} give {} equations, fewer than the {count} identified parameters",
+            kind.count(),
+            kind.noun(),
+            kind.equations()
+        ));
+    }
+    let names = set.parameters().to_vec();
+    let residuals = kind.residuals(set)?;
+    crate::analysis::identifiability::analyse_residuals(&residuals, names, kind.count())
 }
