@@ -474,3 +474,59 @@ fn the_library_session_calibrates_from_touches() {
         );
     }
 }
+
+/// `dinova_1` (Kinova Gen3 lite), its robot imported from the authors' URDF and the ball of their
+/// `ball_link` (0.3886, -0.5823, 180.1962 mm from the flange), each placement trained in turn with
+/// the 50 mm: the touches scatter 0.77-2.6 mm per coordinate about the best geometry (the
+/// Pandas: 0.10-0.11 mm) and the models predict the other placements 3.7-6.2 mm off on average,
+/// trained on `front` worse than the nominal model on `lower_left` (9.90 against 5.61 mm):
+/// training on one placement over-fits this robot (issue 54; the authors name backlash).
+/// Measured and held here: every residual sd above 0.5 mm, every held-out mean above 3 mm.
+#[test]
+fn dinova_1_over_fits_one_placement() {
+    use host_tools::calibration::touches::{Gauge, TouchSession};
+    let urdf = format!("{DATA}/urdf/gen3lite.urdf");
+    let toml = host_tools::formats::urdf_import::import_urdf_file(
+        Path::new(&urdf),
+        "kinova_base_link",
+        "end_effector_link",
+    )
+    .unwrap();
+    let robot = RobotFile::parse(&toml, Path::new("gen3.toml")).unwrap();
+    let placements =
+        host_tools::io::sockets::read_layout(Path::new(&format!("{DATA}/dinova_1")), 6).unwrap();
+    let mut worse_than_nominal = 0;
+    for train in ["front", "left", "lower_left", "raised_back"] {
+        let calibrated = TouchSession {
+            robot: robot.clone(),
+            robot_path: "gen3.toml".into(),
+            ball_mm: [0.388606, -0.582285, 180.196206],
+            placements: placements.clone(),
+            train: vec![train.to_string()],
+            gauge: Some(Gauge {
+                sockets: [0, 1],
+                mm: 50.0,
+                sd_mm: 0.05,
+            }),
+            config: Default::default(),
+        }
+        .run()
+        .unwrap();
+        let held = &calibrated.held_out;
+        let mean = held
+            .iter()
+            .map(|f| f.identified.authors_mean_mm)
+            .sum::<f64>()
+            / held.len() as f64;
+        worse_than_nominal += (held.iter())
+            .filter(|f| f.identified.authors_mean_mm > f.nominal.authors_mean_mm)
+            .count();
+        println!(
+            "dinova_1 trained on {train}: residual sd {:.3} mm, held-out mean {mean:.3} mm, dropped {:?}",
+            calibrated.fit.sigma_mm, calibrated.selection.dropped
+        );
+        assert!(calibrated.fit.sigma_mm > 0.5, "{train}");
+        assert!(mean > 3.0, "{train}");
+    }
+    assert!(worse_than_nominal >= 1);
+}

@@ -2,7 +2,7 @@
 //! selection kept, fitted from zero errors by the core's Levenberg-Marquardt on the kind's
 //! residuals, with their covariance and standard errors. The tracker's solve adds to it what
 //! only poses have (the swarm, the robust loss and its outliers, the compliance rounds:
-//! [`super::solve`]); a new kind needs nothing here.
+//! `calibration/solve.rs`); a new kind needs nothing here.
 
 use super::result::{LeastSquaresReport, lm_stop};
 use super::{CalibrationConfig, IdentifiedParameter, Selection};

@@ -42,7 +42,7 @@ struct AxisLine {
 }
 
 /// The robot file of the chain of `urdf` (the file's text; `path` names it) from the link `base`
-/// to the link `tip`: its TOML text, which [`RobotFile::parse`] reads back.
+/// to the link `tip`: its TOML text, which [`crate::io::robot_file::RobotFile::parse`] reads back.
 pub fn import_urdf(text: &str, path: &Path, base: &str, tip: &str) -> crate::Result<String> {
     let refuse =
         |message: String| crate::refused!(input path.display(); "{}: {message}", path.display());

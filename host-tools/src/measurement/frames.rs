@@ -541,7 +541,7 @@ fn with_fitted_frames(
 }
 
 /// The registration stage a calibration and an evaluation share: the measurement setup of
-/// `robot` for `frames` ([`with_identified_probe`]: with only the base fitted, an identified
+/// `robot` for `frames` (`with_identified_probe`: with only the base fitted, an identified
 /// probe stays the tool), then the frames registered and fitted on `dataset` with the geometry
 /// held ([`prepare`]).
 pub struct RegisteredSetup {

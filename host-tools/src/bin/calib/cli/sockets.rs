@@ -14,12 +14,12 @@ pub struct SocketsOptions {
     /// select the joints' parameters.
     #[arg(long, value_name = "FILE")]
     pub robot: PathBuf,
-    /// The touches: a folder in the MUKCa layout (<placement>/hole_0.csv, hole_1.csv, ...:
+    /// The touches: a folder in the MUKCa layout (PLACEMENT/hole_0.csv, hole_1.csv, ...:
     /// radians, no header) or our CSV file (placement,socket,q1_deg,...; see USAGE).
     #[arg(long, value_name = "PATH")]
     pub data: PathBuf,
     /// The ball's centre in the robot file's tool frame (its flange when the file gives no
-    /// [tool]), nominal, mm (identified with the geometry).
+    /// tool), nominal, mm (identified with the geometry).
     #[arg(
         long,
         value_name = "X,Y,Z",
