@@ -360,17 +360,27 @@ pub(crate) fn analyse(
     k: f64,
 ) -> crate::Result<IdentifiabilityReport> {
     let set = crate::model::counts::analysable_set(mask)?;
-    let count = set.len();
-    if dataset.rows() < count {
-        return Err(crate::refused!(too_few dataset.rows(), count;
-            "{} poses give {} equations, fewer than the {count} identified parameters",
-            dataset.measurements().len(),
-            dataset.rows()
-        ));
-    }
+    enough_equations(
+        set.len(),
+        (dataset.measurements().len(), "poses", dataset.rows()),
+    )?;
     let names = set.parameters().to_vec();
     let problem = dataset.problem(set, k)?;
     analyse_residuals(&problem, names, dataset.measurements().len())
+}
+
+/// Refuses fewer equations than the `count` parameters: `measurements` `noun` (poses,
+/// touches) giving `equations` residual rows.
+pub(crate) fn enough_equations(
+    count: usize,
+    (measurements, noun, equations): (usize, &str, usize),
+) -> crate::Result<()> {
+    if equations < count {
+        return Err(crate::refused!(too_few equations, count;
+            "{measurements} {noun} give {equations} equations, fewer than the {count} identified parameters"
+        ));
+    }
+    Ok(())
 }
 
 /// The identifiability of the parameters `names` of `residuals` (of any kind of measurement,

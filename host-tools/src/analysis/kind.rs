@@ -279,15 +279,10 @@ pub fn analyse_kind<K: MeasurementKind>(
     mask: &ParameterMask<Dyn>,
 ) -> crate::Result<IdentifiabilityReport> {
     let set = crate::model::counts::analysable_set(mask)?;
-    let count = set.len();
-    if kind.equations() < count {
-        return Err(crate::refused!(too_few kind.equations(), count;
-            "{} {} give {} equations, fewer than the {count} identified parameters",
-            kind.count(),
-            kind.noun(),
-            kind.equations()
-        ));
-    }
+    crate::analysis::identifiability::enough_equations(
+        set.len(),
+        (kind.count(), kind.noun(), kind.equations()),
+    )?;
     let names = set.parameters().to_vec();
     let residuals = kind.residuals(set)?;
     crate::analysis::identifiability::analyse_residuals(&residuals, names, kind.count())

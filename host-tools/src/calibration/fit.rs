@@ -4,7 +4,7 @@
 //! only poses have (the swarm, the robust loss and its outliers, the compliance rounds:
 //! `calibration/solve.rs`); a new kind needs nothing here.
 
-use super::result::{LeastSquaresReport, lm_stop};
+use super::result::LeastSquaresReport;
 use super::{CalibrationConfig, IdentifiedParameter, Selection};
 use crate::analysis::kind::MeasurementKind;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
@@ -54,19 +54,7 @@ pub fn least_squares_of<K: MeasurementKind>(
     let standard_errors = fit.standard_errors();
     let parameters = super::solve::identified_parameters(&set, &fit.x, standard_errors.as_ref());
     let errors = set.unpack(&fit.x)?;
-    let least_squares = LeastSquaresReport {
-        iterations: fit.iterations,
-        evaluations: fit.evaluations,
-        stop: lm_stop(fit.stop).to_string(),
-        cost_initial: fit.initial_cost,
-        cost_final: fit.cost,
-        rows: fit.rows,
-        sigma_mm: fit.sigma(),
-        loss_scale_mm: None,
-        loss_scale_estimated: false,
-        outlier_position_mm: None,
-        outlier_rotation_deg: None,
-    };
+    let least_squares = LeastSquaresReport::of(&fit);
     Ok(KindFit {
         sigma_mm: fit.sigma(),
         covariance: fit.covariance(),

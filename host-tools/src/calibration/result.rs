@@ -79,6 +79,26 @@ pub struct LeastSquaresReport {
     pub outlier_rotation_deg: Option<f64>,
 }
 
+impl LeastSquaresReport {
+    /// The report of the plain (not robust) least-squares run `fit`: no loss scale, no outlier
+    /// thresholds.
+    pub fn of(fit: &calib_core::identify::lm::LmResult<f64, Dyn>) -> Self {
+        Self {
+            iterations: fit.iterations,
+            evaluations: fit.evaluations,
+            stop: lm_stop(fit.stop).to_string(),
+            cost_initial: fit.initial_cost,
+            cost_final: fit.cost,
+            rows: fit.rows,
+            sigma_mm: fit.sigma(),
+            loss_scale_mm: None,
+            loss_scale_estimated: false,
+            outlier_position_mm: None,
+            outlier_rotation_deg: None,
+        }
+    }
+}
+
 /// Table 3 statistics of a set of poses before and after calibration.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Stage {

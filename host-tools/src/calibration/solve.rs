@@ -6,7 +6,7 @@
 
 use super::{
     CalibrationConfig, IdentifiedParameter, LeastSquaresReport, LossChoice, ObjectiveValues,
-    Outlier, Selection, SwarmSummary, lm_stop,
+    Outlier, Selection, SwarmSummary,
 };
 use crate::kinematics::actual::ActualRobot;
 use crate::measurement::dataset::{Dataset, Seen};
@@ -371,19 +371,13 @@ fn least_squares(
     }
     let l = &robust.result;
     let report = LeastSquaresReport {
-        iterations: l.iterations,
-        evaluations: l.evaluations,
-        stop: lm_stop(l.stop).to_string(),
-        cost_initial: l.initial_cost,
-        cost_final: l.cost,
-        rows: l.rows,
-        sigma_mm: l.sigma(),
         loss_scale_mm: scale,
         loss_scale_estimated: estimated.is_some(),
         outlier_position_mm: estimated.map(|e| e.position_mm),
         outlier_rotation_deg: estimated
             .map(|e| e.rotation_rad.to_degrees())
             .filter(|d| d.is_finite()),
+        ..LeastSquaresReport::of(l)
     };
     Ok(Fit {
         result: robust.result,

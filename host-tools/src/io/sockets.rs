@@ -113,20 +113,30 @@ fn read_placement(folder: &Path, joints: usize) -> crate::Result<Placement> {
     Ok(Placement { name, sockets })
 }
 
-/// The readings of one socket file at `path` of a robot of `joints` joints: every non-empty line
-/// `joints` numbers (rad). Refused, naming the file and line: another count, a value that is not
-/// a finite number, no readings.
-pub fn read_socket(path: &Path, joints: usize) -> Result<Socket, DataError> {
-    let text = read_text(path, Input::Data).map_err(|source| DataError::Read {
+/// The text of the file at `path`, read whole within the data limit.
+fn text_of(path: &Path) -> Result<String, DataError> {
+    read_text(path, Input::Data).map_err(|source| DataError::Read {
         path: path.to_path_buf(),
         source,
-    })?;
-    let at = |line: u64, column: Option<String>, message: String| DataError::At {
+    })
+}
+
+/// A refusal of `path`'s `line` (and `column`) saying why.
+fn at(path: &Path, line: u64, column: Option<String>, message: String) -> DataError {
+    DataError::At {
         path: path.to_path_buf(),
         line,
         column,
         message,
-    };
+    }
+}
+
+/// The readings of one socket file at `path` of a robot of `joints` joints: every non-empty line
+/// `joints` numbers (rad). Refused, naming the file and line: another count, a value that is not
+/// a finite number, no readings.
+pub fn read_socket(path: &Path, joints: usize) -> Result<Socket, DataError> {
+    let text = text_of(path)?;
+    let at = |line: u64, column: Option<String>, message: String| at(path, line, column, message);
     let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
     // Split by lines here rather than by the csv crate, which skips empty lines without counting
     // them in its line numbers: a refusal must name the line an editor shows.
@@ -176,16 +186,8 @@ pub fn read_socket(path: &Path, joints: usize) -> Result<Socket, DataError> {
 /// empty placement name, a socket that is not a number, a joint value that is not a finite
 /// number, a placement whose socket numbers have a gap, no touches.
 pub fn read_touches_csv(path: &Path, joints: usize) -> Result<Vec<Placement>, DataError> {
-    let text = read_text(path, Input::Data).map_err(|source| DataError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let at = |line: u64, column: Option<String>, message: String| DataError::At {
-        path: path.to_path_buf(),
-        line,
-        column,
-        message,
-    };
+    let text = text_of(path)?;
+    let at = |line: u64, column: Option<String>, message: String| at(path, line, column, message);
     let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
     let header_in = |unit: &str| -> Vec<String> {
         ["placement".to_string(), "socket".to_string()]
@@ -305,15 +307,10 @@ pub fn group_touches(
         .into_iter()
         .map(|(name, sockets)| {
             if let Some(gap) = sockets.iter().position(Vec::is_empty) {
-                return Err(DataError::At {
-                    path: path.to_path_buf(),
-                    line: 1,
-                    column: Some("socket".into()),
-                    message: format!(
-                        "placement {name} has no touch of socket {gap} but touches of socket {}: number the sockets 0, 1, ... without a gap",
-                        sockets.len() - 1
-                    ),
-                });
+                return Err(at(path, 1, Some("socket".into()), format!(
+                    "placement {name} has no touch of socket {gap} but touches of socket {}: number the sockets 0, 1, ... without a gap",
+                    sockets.len() - 1
+                )));
             }
             Ok(Placement {
                 name,
