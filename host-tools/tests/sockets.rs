@@ -530,3 +530,33 @@ fn dinova_1_over_fits_one_placement() {
     }
     assert!(worse_than_nominal >= 1);
 }
+
+/// A known distance between sockets no placement has is refused, not silently dropped.
+#[test]
+fn a_distance_between_sockets_nobody_touched_is_refused() {
+    use host_tools::calibration::touches::{Gauge, TouchSession};
+    let session = TouchSession {
+        robot: RobotFile::read(Path::new(PANDA)).unwrap(),
+        robot_path: PANDA.into(),
+        ball_mm: ball_mm(),
+        placements: host_tools::io::sockets::read_layout(Path::new(&format!("{DATA}/panda_3")), 7)
+            .unwrap(),
+        train: vec!["frontcenter".into()],
+        gauge: Some(Gauge {
+            sockets: [0, 2],
+            mm: 50.0,
+            sd_mm: 0.05,
+        }),
+        config: Default::default(),
+    };
+    let e = session.run().unwrap_err();
+    assert!(
+        matches!(&e, host_tools::Error::InvalidOption { option, .. } if option == "--distance-between"),
+        "{e}"
+    );
+    assert!(
+        e.to_string()
+            .contains("no placement has both sockets (hole_0.csv and hole_2.csv)"),
+        "{e}"
+    );
+}

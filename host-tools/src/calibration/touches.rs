@@ -112,7 +112,7 @@ fn touches_of(
     let mut offset = 0u16;
     for placement in placements {
         for (s, socket) in placement.sockets.iter().enumerate() {
-            let point = offset + s as u16;
+            let point = offset.saturating_add(s as u16);
             for reading in &socket.readings {
                 let q = JointVec::from_slice(&reading.q_rad).ok_or_else(|| {
                     crate::refused!(input socket.path.display();
@@ -129,7 +129,7 @@ fn touches_of(
             let count = placement.sockets.len() as u16;
             if g.sockets.iter().all(|s| *s < count) {
                 distances.push(KnownDistance {
-                    points: g.sockets.map(|s| offset + s),
+                    points: g.sockets.map(|s| offset.saturating_add(s)),
                     mm: g.mm,
                     weight,
                 });
@@ -233,7 +233,19 @@ impl TouchSession {
         if names.is_empty() {
             return Err(crate::refused!(input "the touches"; "no placements of sockets to fit"));
         }
+        let sockets: usize = self.placements.iter().map(|p| p.sockets.len()).sum();
+        if sockets >= usize::from(u16::MAX) {
+            return Err(crate::refused!(unsupported "socket count";
+                "{sockets} sockets over all placements: at most {} in one calibration", u16::MAX - 1));
+        }
         if let Some(g) = &self.gauge {
+            let has_both =
+                |p: &Placement| g.sockets.iter().all(|s| usize::from(*s) < p.sockets.len());
+            if !self.placements.iter().any(has_both) {
+                return Err(crate::refused!(option "--distance-between";
+                    "--distance-between {},{}: no placement has both sockets (hole_{}.csv and hole_{}.csv)",
+                    g.sockets[0], g.sockets[1], g.sockets[0], g.sockets[1]));
+            }
             if !(g.mm.is_finite() && g.mm > 0.0 && g.sd_mm.is_finite() && g.sd_mm > 0.0) {
                 return Err(crate::refused!(option "--distance";
                     "--distance {} mm +- {} mm: give a positive length and a positive standard uncertainty",
