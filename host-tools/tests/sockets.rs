@@ -333,30 +333,14 @@ fn panda_1_placements_disagree() {
 /// and drops one parameter for it.
 #[test]
 fn the_library_session_calibrates_from_touches() {
-    use host_tools::calibration::touches::{Gauge, TouchSession};
+    use host_tools::calibration::touches::TouchSession;
     let dir = tempfile::tempdir().unwrap();
     let panda = panda_with_ball(dir.path());
     for (robot, train, authors, within) in [
         ("panda_3", "frontcenter", 0.221, 1.0),
         ("panda_2", "front_center", 0.427, 1.03),
     ] {
-        let session = TouchSession {
-            robot: RobotFile::read(Path::new(PANDA)).unwrap(),
-            robot_path: PANDA.into(),
-            ball_mm: ball_mm(),
-            placements: host_tools::io::sockets::read_layout(
-                Path::new(&format!("{DATA}/{robot}")),
-                7,
-            )
-            .unwrap(),
-            train: vec![train.to_string()],
-            gauge: Some(Gauge {
-                sockets: [0, 1],
-                mm: 50.0,
-                sd_mm: 0.05,
-            }),
-            config: Default::default(),
-        };
+        let session = panda_session(robot, train, [0, 1]);
         // The calibration's default drops what the data barely determine (as on tracker data).
         let thinned = session.run().unwrap();
         let held_out_mean = |c: &host_tools::calibration::touches::TouchCalibrated| {
@@ -534,21 +518,7 @@ fn dinova_1_over_fits_one_placement() {
 /// A known distance between sockets no placement has is refused, not silently dropped.
 #[test]
 fn a_distance_between_sockets_nobody_touched_is_refused() {
-    use host_tools::calibration::touches::{Gauge, TouchSession};
-    let session = TouchSession {
-        robot: RobotFile::read(Path::new(PANDA)).unwrap(),
-        robot_path: PANDA.into(),
-        ball_mm: ball_mm(),
-        placements: host_tools::io::sockets::read_layout(Path::new(&format!("{DATA}/panda_3")), 7)
-            .unwrap(),
-        train: vec!["frontcenter".into()],
-        gauge: Some(Gauge {
-            sockets: [0, 2],
-            mm: 50.0,
-            sd_mm: 0.05,
-        }),
-        config: Default::default(),
-    };
+    let session = panda_session("panda_3", "frontcenter", [0, 2]);
     let e = session.run().unwrap_err();
     assert!(
         matches!(&e, host_tools::Error::InvalidOption { option, .. } if option == "--distance-between"),
@@ -559,4 +529,27 @@ fn a_distance_between_sockets_nobody_touched_is_refused() {
             .contains("no placement has both sockets (hole_0.csv and hole_2.csv)"),
         "{e}"
     );
+}
+
+/// The library's session of the Panda `robot`'s placements with the authors' ball, trained on
+/// `train`, the 50 mm (+- 0.05 mm) between `sockets`, the default settings.
+fn panda_session(
+    robot: &str,
+    train: &str,
+    sockets: [u16; 2],
+) -> host_tools::calibration::touches::TouchSession {
+    host_tools::calibration::touches::TouchSession {
+        robot: RobotFile::read(Path::new(PANDA)).unwrap(),
+        robot_path: PANDA.into(),
+        ball_mm: ball_mm(),
+        placements: host_tools::io::sockets::read_layout(Path::new(&format!("{DATA}/{robot}")), 7)
+            .unwrap(),
+        train: vec![train.to_string()],
+        gauge: Some(host_tools::calibration::touches::Gauge {
+            sockets,
+            mm: 50.0,
+            sd_mm: 0.05,
+        }),
+        config: Default::default(),
+    }
 }

@@ -48,6 +48,14 @@ pub struct Consistency {
     pub distortion_mm: Vec<([u16; 2], f64)>,
 }
 
+/// The distinct points (sockets) `touches` name, in order.
+pub(crate) fn points(touches: &[Touch<f64, Dyn>]) -> Vec<u16> {
+    let mut points: Vec<u16> = touches.iter().map(|t| t.point).collect();
+    points.sort_unstable();
+    points.dedup();
+    points
+}
+
 /// The linearly interpolated `p` quantile of `values` (numpy's default); 0 for none.
 pub fn quantile(values: &[f64], p: f64) -> f64 {
     let mut sorted = values.to_vec();
@@ -99,9 +107,7 @@ pub fn consistency(
     touches: &[Touch<f64, Dyn>],
     known: &[KnownDistance<f64>],
 ) -> Consistency {
-    let mut points: Vec<u16> = touches.iter().map(|t| t.point).collect();
-    points.sort_unstable();
-    points.dedup();
+    let points = points(touches);
     let mut all = Vec::with_capacity(touches.len());
     let sockets: Vec<SocketConsistency> = (points.iter())
         .map(|point| {

@@ -160,7 +160,7 @@ impl<'a> MeasurementKind for Touches<'a> {
     }
 
     fn equations(&self) -> usize {
-        let sockets = sockets(self.touches);
+        let sockets = crate::analysis::consistency::points(self.touches).len();
         3 * self.touches.len().saturating_sub(sockets) + self.distances.len()
     }
 
@@ -260,14 +260,6 @@ fn scale_holder(
         }
     }
     best.map(|(_, p)| p)
-}
-
-/// The number of distinct sockets `touches` name.
-fn sockets<T: calib_core::scalar::Real>(touches: &[Touch<T, Dyn>]) -> usize {
-    let mut points: Vec<u16> = touches.iter().map(|t| t.point).collect();
-    points.sort_unstable();
-    points.dedup();
-    points.len()
 }
 
 /// The identifiability of the parameters selected by `mask` on measurements of any kind, at the

@@ -154,10 +154,9 @@ impl TouchSession {
             xyz: ball.coords.into(),
             rpy: robot.robot.tool.rpy,
         };
-        let (robot, mask) = (robot.robot, robot.mask);
+        let (robot, mut mask) = (robot.robot, robot.mask);
         let (fitted, held): (Vec<&Placement>, Vec<&Placement>) = (self.placements.iter())
             .partition(|p| self.train.is_empty() || self.train.contains(&p.name));
-        let mut mask = mask;
         for axis in [FrameParameter::Tx, FrameParameter::Ty, FrameParameter::Tz] {
             mask.set(Parameter::Tool(axis), true);
         }
