@@ -8,6 +8,7 @@
 pub mod accuracy;
 pub mod caveats;
 pub mod consistency;
+pub mod consistency_prediction;
 pub mod evaluation;
 pub mod identifiability;
 pub mod kind;

@@ -18,6 +18,7 @@
 use super::fit::{KindFit, least_squares_of};
 use super::{CalibrationConfig, Selection, select_parameters_of};
 use crate::analysis::consistency::Consistency;
+use crate::analysis::consistency_prediction::{PredictedConsistency, predict_consistency};
 use crate::analysis::kind::{MeasurementKind, Touches};
 use crate::io::robot_file::RobotFile;
 use crate::io::sockets::Placement;
@@ -72,6 +73,9 @@ pub struct PlacementFigures {
     pub nominal: Consistency,
     /// Under the identified model.
     pub identified: Consistency,
+    /// What the fit's scatter and covariance predict under the identified model, for a
+    /// held-out placement (`None`: fitted, or a singular covariance).
+    pub predicted: Option<PredictedConsistency>,
 }
 
 /// A calibration from touches: the identified file and what was found.
@@ -189,7 +193,7 @@ impl TouchSession {
         let fit = least_squares_of(&kind, &selection, &config)?;
         let identified = Kinematics::new(&robot, &fit.errors)?;
         let nominal = Kinematics::nominal(&robot)?;
-        let figures = |placements: &[&Placement]| -> crate::Result<Vec<PlacementFigures>> {
+        let figures = |placements: &[&Placement], held: bool| {
             (placements.iter())
                 .map(|p| {
                     let (touches, distances) = touches_of(&[p], gauge)?;
@@ -198,20 +202,24 @@ impl TouchSession {
                         touches: &touches,
                         distances: &distances,
                     };
+                    let predicted = (fit.covariance.as_ref().filter(|_| held)).and_then(|c| {
+                        predict_consistency(&identified, &fit.set, c, fit.sigma_mm, &touches)
+                    });
                     Ok(PlacementFigures {
                         placement: p.name.clone(),
                         nominal: kind.statistic(&nominal)?,
                         identified: kind.statistic(&identified)?,
+                        predicted,
                     })
                 })
-                .collect()
+                .collect::<crate::Result<Vec<PlacementFigures>>>()
         };
         let ball = flange.inverse_transform_point(&identified.tool().translation.vector.into());
         Ok(TouchCalibrated {
             file: self.identified_file(&fit),
             ball_mm: ball.coords.into(),
-            fitted: figures(&fitted)?,
-            held_out: figures(&held)?,
+            fitted: figures(&fitted, false)?,
+            held_out: figures(&held, true)?,
             fit,
             selection,
             gauge_weight: gauge.map(|(_, w)| w),

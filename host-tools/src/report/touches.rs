@@ -47,6 +47,21 @@ pub fn touches_text(calibrated: &TouchCalibrated) -> String {
     };
     rows("fitted", &calibrated.fitted, &mut text);
     rows("held out", &calibrated.held_out, &mut text);
+    let predicted: Vec<(&str, _)> = (calibrated.held_out.iter())
+        .filter_map(|f| Some((f.placement.as_str(), f.predicted?)))
+        .collect();
+    if !predicted.is_empty() {
+        text.push_str(
+            "predicted on the held-out placements from the fit's scatter and covariance (measured above: more means the model leaves something out), mm:\n\
+             placement                    mean    p95  scatter alone\n",
+        );
+        for (name, p) in predicted {
+            text.push_str(&format!(
+                "  {name:<24} {:>8.4} {:>6.4} {:>14.4}\n",
+                p.mean_mm, p.p95_mm, p.scatter_mean_mm
+            ));
+        }
+    }
     if !calibrated.held_out.is_empty() {
         let n = calibrated.held_out.len() as f64;
         let mean =
