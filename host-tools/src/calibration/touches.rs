@@ -78,6 +78,19 @@ pub struct PlacementFigures {
     pub predicted: Option<PredictedConsistency>,
 }
 
+/// The robot a calibration from touches fits: the nominal model with the ball as its tool.
+#[derive(Clone, Debug)]
+pub struct BallModel {
+    /// The nominal robot; its tool frame is the ball's centre.
+    pub robot: calib_core::Robot<f64, Dyn>,
+    /// The robot file's parameter mask.
+    pub mask: calib_core::ParameterMask<Dyn>,
+    /// The robot file's tool frame (its flange, after a Craig file's flange row, when the file
+    /// gives no `[tool]`), in the base frame: the ball is given in it and the identified ball is
+    /// expressed back in it.
+    pub flange: nalgebra::IsometryMatrix3<f64>,
+}
+
 /// A calibration from touches: the identified file and what was found.
 #[derive(Clone, Debug)]
 pub struct TouchCalibrated {
@@ -148,17 +161,11 @@ impl TouchSession {
     /// Calibrates: fits the placements of `train` (all without), judges every placement.
     pub fn run(&self) -> crate::Result<TouchCalibrated> {
         self.check()?;
-        // The ball is given in the robot file's tool frame (its flange, after a Craig file's flange
-        // row, when the file gives no [tool]): the model with the ball as its tool, and that frame
-        // to express the identified ball back.
-        let mut robot = self.robot.to_model(&self.robot_path)?;
-        let flange = robot.robot.tool.isometry();
-        let ball = flange * nalgebra::Point3::from(self.ball_mm);
-        robot.robot.tool = calib_core::FramePose {
-            xyz: ball.coords.into(),
-            rpy: robot.robot.tool.rpy,
-        };
-        let (robot, mut mask) = (robot.robot, robot.mask);
+        let BallModel {
+            robot,
+            mut mask,
+            flange,
+        } = self.ball_model()?;
         let (fitted, held): (Vec<&Placement>, Vec<&Placement>) = (self.placements.iter())
             .partition(|p| self.train.is_empty() || self.train.contains(&p.name));
         for axis in [FrameParameter::Tx, FrameParameter::Ty, FrameParameter::Tz] {
@@ -224,6 +231,23 @@ impl TouchSession {
             selection,
             gauge_weight: gauge.map(|(_, w)| w),
             touch_sd_mm,
+        })
+    }
+
+    /// The nominal model with the ball as its tool, the robot file's parameter mask, and the
+    /// frame the ball is given in.
+    pub fn ball_model(&self) -> crate::Result<BallModel> {
+        let mut robot = self.robot.to_model(&self.robot_path)?;
+        let flange = robot.robot.tool.isometry();
+        let ball = flange * nalgebra::Point3::from(self.ball_mm);
+        robot.robot.tool = calib_core::FramePose {
+            xyz: ball.coords.into(),
+            rpy: robot.robot.tool.rpy,
+        };
+        Ok(BallModel {
+            robot: robot.robot,
+            mask: robot.mask,
+            flange,
         })
     }
 

@@ -10,4 +10,5 @@ pub mod frames;
 pub mod merge;
 pub mod orientation_check;
 pub mod simulate;
+pub mod simulate_touches;
 pub mod statistics;

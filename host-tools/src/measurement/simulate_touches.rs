@@ -1,0 +1,163 @@
+//! Touches in sockets simulated with a known truth: what a robot with given geometric errors
+//! would record, for checking a calibration from touches against the truth it should find.
+//!
+//! The configurations come from real ones (a recorded layout, `templates`), so their spread is a
+//! real protocol's. Each socket is put where the true robot holds the ball on average over its
+//! template configurations (with a known distance, the second socket is moved along the line
+//! between the two to lie exactly that far from the first). Each configuration is then moved,
+//! by the least joint motion (Gauss-Newton on the ball's position, the joints' minimum-norm
+//! step `dq = J^T (J J^T)^-1 e` with `J` the position rows of the geometric Jacobian), until
+//! the true ball centre lies at its socket's centre plus the ball's play, drawn per touch from
+//! `N(0, play^2)` on every axis. The joint readings are recorded exactly.
+
+use crate::io::sockets::{Placement, Reading, Socket};
+use calib_core::model::JointVec;
+use calib_core::model::joint_count::JacobianColumns;
+use calib_core::{Kinematics, ParameterErrors, Robot};
+use nalgebra::{Dyn, Matrix3, Vector3};
+use rand_core::SeedableRng;
+use rand_distr::{Distribution, Normal};
+use rand_xoshiro::Xoshiro256PlusPlus;
+use std::path::PathBuf;
+
+/// Gauss-Newton steps at most per configuration (from a few mm off, three reach 1e-9 mm).
+const STEPS: usize = 20;
+
+/// How close the true ball must come to its target, mm.
+const REACHED_MM: f64 = 1e-9;
+
+/// What to simulate.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TouchSimulation {
+    /// The true errors of the robot (its tool frame is the ball's centre), mm and rad.
+    pub truth: ParameterErrors<f64, Dyn>,
+    /// The ball's play in its socket: the standard deviation of the ball centre's offset from
+    /// the socket's centre on every axis, mm.
+    pub play_sd_mm: f64,
+    /// A known distance between two sockets of every placement (socket numbers, mm).
+    pub gauge: Option<([u16; 2], f64)>,
+    /// Seed of the play's draws.
+    pub seed: u64,
+}
+
+/// The true socket centres of one simulated placement, mm (base frame).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimulatedPlacement {
+    /// The touches, as a recorded layout holds them.
+    pub placement: Placement,
+    /// The sockets' true centres, in socket order, mm.
+    pub centres_mm: Vec<[f64; 3]>,
+}
+
+/// The touches `robot` (the ball its tool) with `simulation.truth` would record near the
+/// configurations of `templates`. Refused: a negative or non-finite play, a gauge naming a
+/// socket a placement lacks, a configuration the true ball cannot be moved to its socket from.
+pub fn simulate_touches(
+    robot: &Robot<f64, Dyn>,
+    simulation: &TouchSimulation,
+    templates: &[Placement],
+) -> crate::Result<Vec<SimulatedPlacement>> {
+    if !(simulation.play_sd_mm.is_finite() && simulation.play_sd_mm >= 0.0) {
+        return Err(crate::refused!(option "play";
+            "a ball's play of {} mm: give a standard deviation of at least 0 mm", simulation.play_sd_mm));
+    }
+    let truth = Kinematics::new(robot, &simulation.truth)?;
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(simulation.seed);
+    let play = Normal::new(0.0, simulation.play_sd_mm)
+        .map_err(|e| crate::refused!(option "play"; "the ball's play: {e}"))?;
+    (templates.iter())
+        .map(|template| {
+            let centres = socket_centres(&truth, template, simulation.gauge)?;
+            let sockets = (template.sockets.iter().zip(&centres))
+                .enumerate()
+                .map(|(s, (socket, centre))| {
+                    let readings = (socket.readings.iter())
+                        .map(|r| {
+                            let target = centre + Vector3::from_fn(|_, _| play.sample(&mut rng));
+                            let q_rad = reach(&truth, &r.q_rad, &target).ok_or_else(|| {
+                                crate::refused!(input socket.path.display();
+                                    "{}:{}: the true ball cannot be moved to its socket from this configuration",
+                                    socket.path.display(), r.line)
+                            })?;
+                            Ok(Reading { line: r.line, q_rad })
+                        })
+                        .collect::<crate::Result<Vec<Reading>>>()?;
+                    Ok(Socket {
+                        path: PathBuf::from(format!("simulated/{}/hole_{s}.csv", template.name)),
+                        readings,
+                    })
+                })
+                .collect::<crate::Result<Vec<Socket>>>()?;
+            Ok(SimulatedPlacement {
+                placement: Placement {
+                    name: template.name.clone(),
+                    sockets,
+                },
+                centres_mm: centres.iter().map(|c| (*c).into()).collect(),
+            })
+        })
+        .collect()
+}
+
+/// The true ball centre at joint readings `q` (rad), mm.
+fn ball(truth: &Kinematics<f64, Dyn>, q: &[f64]) -> Option<Vector3<f64>> {
+    let q = JointVec::from_slice(q)?;
+    Some(truth.forward(&q).ok()?.translation.vector)
+}
+
+/// Each socket's centre: the true ball's mean over its template configurations; with a gauge,
+/// its second socket moved along the line from the first to lie the gauge's length from it.
+fn socket_centres(
+    truth: &Kinematics<f64, Dyn>,
+    template: &Placement,
+    gauge: Option<([u16; 2], f64)>,
+) -> crate::Result<Vec<Vector3<f64>>> {
+    let mut centres = Vec::with_capacity(template.sockets.len());
+    for socket in &template.sockets {
+        let mut sum = Vector3::zeros();
+        for r in &socket.readings {
+            sum += ball(truth, &r.q_rad).ok_or_else(|| {
+                crate::refused!(input socket.path.display();
+                    "{}:{}: not a joint vector of this robot", socket.path.display(), r.line)
+            })?;
+        }
+        centres.push(sum / socket.readings.len().max(1) as f64);
+    }
+    if let Some(([a, b], mm)) = gauge {
+        let (Some(first), Some(second)) = (
+            centres.get(usize::from(a)).copied(),
+            centres.get(usize::from(b)).copied(),
+        ) else {
+            return Err(crate::refused!(option "gauge";
+                "placement {}: no sockets {a} and {b} for the known distance", template.name));
+        };
+        let direction = (second - first).try_normalize(1e-9).ok_or_else(|| {
+            crate::refused!(input template.name.as_str();
+                "placement {}: sockets {a} and {b} coincide; no direction to set the distance along", template.name)
+        })?;
+        centres[usize::from(b)] = first + direction * mm;
+    }
+    Ok(centres)
+}
+
+/// The joint readings nearest `start` (rad; minimum-norm Gauss-Newton steps) at which the true
+/// ball lies at `target` (mm, within [`REACHED_MM`]), or `None`.
+fn reach(truth: &Kinematics<f64, Dyn>, start: &[f64], target: &Vector3<f64>) -> Option<Vec<f64>> {
+    let mut q = start.to_vec();
+    for _ in 0..STEPS {
+        let (pose, jacobian) = truth.geometric_jacobian(&JointVec::from_slice(&q)?).ok()?;
+        let error = target - pose.translation.vector;
+        if error.norm() < REACHED_MM {
+            return Some(q);
+        }
+        let rows: Vec<Vector3<f64>> = (0..q.len())
+            .map(|j| jacobian.column(j).fixed_rows::<3>(0).into_owned())
+            .collect();
+        let jjt: Matrix3<f64> = rows.iter().map(|c| c * c.transpose()).sum();
+        let y = jjt.try_inverse()? * error;
+        for (qj, c) in q.iter_mut().zip(&rows) {
+            *qj += c.dot(&y);
+        }
+    }
+    None
+}
