@@ -251,6 +251,32 @@ impl TouchSession {
         })
     }
 
+    /// Leave one placement out: each placement judged by a calibration of all the others (the
+    /// session's `train` ignored), in the data's order. Refused: fewer than two placements.
+    pub fn leave_one_out(&self) -> crate::Result<Vec<PlacementFigures>> {
+        if self.placements.len() < 2 {
+            return Err(crate::refused!(option "--leave-one-out";
+                "--leave-one-out: {} placement(s) in the data; leaving one out needs at least two",
+                self.placements.len()));
+        }
+        (self.placements.iter())
+            .map(|left_out| {
+                let fold = TouchSession {
+                    train: (self.placements.iter())
+                        .filter(|p| p.name != left_out.name)
+                        .map(|p| p.name.clone())
+                        .collect(),
+                    ..self.clone()
+                };
+                let mut calibrated = fold.run()?;
+                calibrated.held_out.pop().ok_or_else(|| {
+                    crate::refused!(input left_out.name.as_str();
+                        "placement {}: no figures left out", left_out.name)
+                })
+            })
+            .collect()
+    }
+
     /// Refuses what cannot be calibrated: no placement, a placement to fit that is not in the
     /// data, nothing left to fit, a gauge without a positive uncertainty or length.
     fn check(&self) -> crate::Result<()> {
@@ -348,6 +374,9 @@ pub struct TouchReport {
     pub fitted: Vec<PlacementFigures>,
     /// Consistency and distortion of the held-out placements (not accuracy).
     pub held_out: Vec<PlacementFigures>,
+    /// Leave one placement out (`calib sockets --leave-one-out`): each placement judged by a
+    /// calibration of all the others; empty when not asked for.
+    pub leave_one_out: Vec<PlacementFigures>,
 }
 
 impl TouchCalibrated {
@@ -377,6 +406,7 @@ impl TouchCalibrated {
             seconds: self.fit.seconds,
             fitted: self.fitted.clone(),
             held_out: self.held_out.clone(),
+            leave_one_out: Vec::new(),
         }
     }
 }

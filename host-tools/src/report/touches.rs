@@ -114,3 +114,53 @@ fn fit_text(calibrated: &TouchCalibrated) -> String {
     }
     text
 }
+
+/// Leave one placement out as text: each placement under a calibration of all the others, then
+/// the mean and the worst.
+pub fn leave_one_out_text(figures: &[PlacementFigures]) -> String {
+    let mut text = String::from(
+        "\nleave one placement out (each judged by a calibration of all the others; consistency, not accuracy), mm:\n\
+         placement                 identified mean    p95  authors' rule  distance error  predicted mean\n",
+    );
+    for f in figures {
+        let distortion =
+            (f.identified.distortion_mm.first()).map_or("-".into(), |(_, e)| format!("{e:+.4}"));
+        let predicted = f
+            .predicted
+            .map_or("-".into(), |p| format!("{:.4}", p.mean_mm));
+        text.push_str(&format!(
+            "  {:<24} {:>15.4} {:>6.4} {:>14.4} {:>15} {:>15}\n",
+            f.placement,
+            f.identified.mean_mm,
+            f.identified.p95_mm,
+            f.identified.authors_mean_mm,
+            distortion,
+            predicted
+        ));
+    }
+    let n = figures.len().max(1) as f64;
+    let (mean, authors) = (
+        figures.iter().map(|f| f.identified.mean_mm).sum::<f64>() / n,
+        figures
+            .iter()
+            .map(|f| f.identified.authors_mean_mm)
+            .sum::<f64>()
+            / n,
+    );
+    let worst = figures.iter().max_by(|a, b| {
+        a.identified
+            .authors_mean_mm
+            .total_cmp(&b.identified.authors_mean_mm)
+    });
+    text.push_str(&format!(
+        "mean: {mean:.4} mm every touch, {authors:.4} mm by the authors' rule"
+    ));
+    if let Some(w) = worst {
+        text.push_str(&format!(
+            "; worst: {} ({:.4} mm by the authors' rule)",
+            w.placement, w.identified.authors_mean_mm
+        ));
+    }
+    text.push('\n');
+    text
+}

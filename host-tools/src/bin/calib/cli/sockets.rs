@@ -2,7 +2,9 @@
 //! readings only), through the library's [`TouchSession`].
 
 use host_tools::calibration::CalibrationConfig;
-use host_tools::calibration::touches::{Gauge, TouchCalibrated, TouchSession};
+use host_tools::calibration::touches::{
+    Gauge, PlacementFigures, TouchCalibrated, TouchReport, TouchSession,
+};
 use host_tools::io::outputs::Outputs;
 use host_tools::io::robot_file::RobotFile;
 use std::path::PathBuf;
@@ -42,6 +44,10 @@ pub struct SocketsOptions {
     /// The two sockets the distance is between.
     #[arg(long, value_name = "A,B", value_delimiter = ',', default_values_t = [0u16, 1], requires = "distance")]
     pub distance_between: Vec<u16>,
+    /// Also judge each placement by a calibration of all the others (leave one placement
+    /// out), printed and in the report; the identified file is the one of --train.
+    #[arg(long)]
+    pub leave_one_out: bool,
     /// Keep parameters the configurations barely determine (default: dropped while the scaled
     /// condition number exceeds 1000, as for tracker data).
     #[arg(long)]
@@ -90,8 +96,17 @@ pub fn sockets(options: &SocketsOptions) -> anyhow::Result<String> {
         },
     };
     let calibrated = session.run()?;
-    write_outputs(options, &session, &calibrated)?;
-    Ok(host_tools::report::touches::touches_text(&calibrated))
+    let left_out = if options.leave_one_out {
+        session.leave_one_out()?
+    } else {
+        Vec::new()
+    };
+    write_outputs(options, &session, &calibrated, &left_out)?;
+    let mut text = host_tools::report::touches::touches_text(&calibrated);
+    if options.leave_one_out {
+        text.push_str(&host_tools::report::touches::leave_one_out_text(&left_out));
+    }
+    Ok(text)
 }
 
 /// Writes the identified robot file and the report, all or nothing.
@@ -99,6 +114,7 @@ fn write_outputs(
     options: &SocketsOptions,
     session: &TouchSession,
     calibrated: &TouchCalibrated,
+    left_out: &[PlacementFigures],
 ) -> anyhow::Result<()> {
     let mut outputs = Outputs::new(&[("--robot", &options.robot), ("--data", &options.data)]);
     if let Some(out) = &options.out {
@@ -110,7 +126,11 @@ fn write_outputs(
         outputs.stage("--out", out, calibrated.file.to_toml(&header).as_bytes())?;
     }
     if let Some(report) = &options.report {
-        let json = serde_json::to_string_pretty(&calibrated.report(session))?;
+        let contents = TouchReport {
+            leave_one_out: left_out.to_vec(),
+            ..calibrated.report(session)
+        };
+        let json = serde_json::to_string_pretty(&contents)?;
         outputs.stage("--report", report, format!("{json}\n").as_bytes())?;
     }
     outputs.commit()?;
