@@ -16,6 +16,23 @@
 //! A known distance between two points ([`KnownDistance`]: the two sockets of one printed tool)
 //! adds the row `sqrt(weight) (mm - |c_a - c_b|)` between their centres and fixes the scale.
 //!
+//! Plane contacts ([`CommonPoints::with_planes`]: the ball pressed on a flat surface from many
+//! configurations, a [`Touch`] whose `point` numbers the plane) are common planes: the ball's
+//! centres of a plane lie on one plane (the surface moved out by the ball's radius), unknown.
+//! It is eliminated the same way: for given parameters the best plane passes through the
+//! weighted mean `c_g` of its centres with the normal `n_g` of least weighted scatter (the
+//! eigenvector of the smallest eigenvalue of `S_g = sum w_i (p_i - c_g)(p_i - c_g)^T`), and the
+//! residual of a contact is its signed distance `r_i = sqrt(w_i) n_g^T d_i`, `d_i = p_i - c_g`:
+//! one row per contact, `contacts - 3` degrees of freedom per plane (planes with fewer than four
+//! contacts, or contacts along one line, give none). Its exact Jacobian row is
+//! `sqrt(w_i) (n_g^T G_i + d_i^T N)` with `G_i = J_i - mean_g J` and `N` the normal's own change,
+//! from the eigenvector's perturbation: `N = -(S_g - lambda I)^+ sum_j w_j (G_j (d_j^T n_g) +
+//! d_j (n_g^T G_j))` (the pseudo-inverse on the plane's two directions). Leaving `N` out
+//! (Kaufman's approximation) keeps the gradient exact but not the Gauss-Newton matrix: the
+//! contacts lie up to a hundred millimetres from their centre, and least squares then crawls.
+//! A plane determines one direction per contact where a socket determines three, and leaves
+//! free what common points do.
+//!
 //! What such data cannot determine: where the robot stands (a rigid motion of the base moves
 //! every point along: the base frame, and the first joint's `theta` and `d`, which turn and lift
 //! the whole arm about the first axis), what comes after the last axis apart from the ball's
@@ -33,7 +50,7 @@ use crate::model::parameters::{ParameterErrors, ParameterSet, ShapeError};
 use crate::model::{JointCount, JointTable, Robot, check_count};
 use crate::scalar::Real;
 use nalgebra::allocator::Allocator;
-use nalgebra::{DefaultAllocator, Dim, OMatrix, OVector, U3, U6, Vector3};
+use nalgebra::{DefaultAllocator, Dim, Matrix3, OMatrix, OVector, U3, U6, Vector3};
 
 /// One configuration of the arm with the ball in a socket.
 #[derive(Clone, Debug, PartialEq)]
@@ -105,6 +122,13 @@ impl core::fmt::Display for DistanceError {
 
 impl core::error::Error for DistanceError {}
 
+/// Which measurements a helper goes over: the touches of points or the contacts with planes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Group {
+    Points,
+    Planes,
+}
+
 /// The touches of one calibration with the robot and the identified parameters, checked once:
 /// the common-point kind of measurement for [`crate::identify::lm::LeastSquares`].
 #[derive(Clone, Debug)]
@@ -120,6 +144,10 @@ where
     points: u16,
     /// Known distances between the points.
     distances: &'a [KnownDistance<T>],
+    /// Contacts of the ball with planes, each `point` numbering its plane.
+    planes: &'a [Touch<T, N>],
+    /// One more than the largest plane number.
+    plane_count: u16,
 }
 
 impl<'a, T: Real, N: JointCount, D: Dim> CommonPoints<'a, T, N, D>
@@ -144,6 +172,8 @@ where
             touches,
             points,
             distances: &[],
+            planes: &[],
+            plane_count: 0,
         })
     }
 
@@ -167,6 +197,21 @@ where
             }
         }
         Ok(Self { distances, ..self })
+    }
+
+    /// The same problem with the ball's `contacts` with planes (each touch's `point` numbering
+    /// its plane, unknown): a row per contact, its distance from the best plane through its
+    /// plane's centres. Refused: a contact of another joint count than the robot's.
+    pub fn with_planes(self, contacts: &'a [Touch<T, N>]) -> Result<Self, ProblemError> {
+        for t in contacts {
+            check_count(self.model.joint_count().value(), t.angles.cos.len())?;
+        }
+        let plane_count = contacts.iter().map(|t| t.point).max().map_or(0, |p| p + 1);
+        Ok(Self {
+            planes: contacts,
+            plane_count,
+            ..self
+        })
     }
 
     /// The identified parameters.
@@ -203,8 +248,144 @@ where
         point: u16,
         left_out: &'s [bool],
     ) -> impl Iterator<Item = (usize, &'a Touch<T, N>)> + 's {
-        (self.touches.iter().enumerate())
+        self.of(Group::Points, point, left_out)
+    }
+
+    /// The touches (or plane contacts) of `point` (or plane) taken into account (not
+    /// `left_out`), with their measurement indices (the contacts' after the touches').
+    fn of<'s>(
+        &'s self,
+        group: Group,
+        point: u16,
+        left_out: &'s [bool],
+    ) -> impl Iterator<Item = (usize, &'a Touch<T, N>)> + 's {
+        let (touches, offset) = match group {
+            Group::Points => (self.touches, 0),
+            Group::Planes => (self.planes, self.touches.len()),
+        };
+        (touches.iter().enumerate())
+            .map(move |(i, t)| (i + offset, t))
             .filter(move |(i, t)| t.point == point && !is_left_out(left_out, *i))
+    }
+
+    /// The best plane through the centres `model` puts at the contacts of `plane`: their
+    /// weighted mean, the unit normal of least weighted scatter and `(S - lambda I)^+` on the
+    /// plane's directions; `None` below four contacts of positive weight (three always lie on a
+    /// plane), for contacts along one line, or when the eigen-solver does not settle.
+    fn best_plane(
+        &self,
+        model: &Kinematics<T, N>,
+        plane: u16,
+        left_out: &[bool],
+        robust: &[T],
+    ) -> Option<(Vector3<T>, Vector3<T>, Matrix3<T>)> {
+        let centre = self.mean(Group::Planes, model, plane, left_out, robust)?;
+        let mut scatter = Matrix3::zeros();
+        let mut contacts = 0u32;
+        for (i, t) in self.of(Group::Planes, plane, left_out) {
+            let w = t.weight * robust.get(i).copied().unwrap_or_else(T::one);
+            let d = model.forward_angles(&t.angles).translation.vector - centre;
+            scatter += d * d.transpose() * w;
+            contacts += u32::from(w > T::zero());
+        }
+        if contacts < 4 {
+            return None;
+        }
+        let eigen = scatter.try_symmetric_eigen(T::default_epsilon(), 200)?;
+        let (values, vectors) = (eigen.eigenvalues, eigen.eigenvectors);
+        let mut pairs = [
+            (values.x, vectors.column(0).into_owned()),
+            (values.y, vectors.column(1).into_owned()),
+            (values.z, vectors.column(2).into_owned()),
+        ];
+        pairs.sort_unstable_by(|a, b| a.0.partial_cmp(&b.0).unwrap_or(core::cmp::Ordering::Equal));
+        let [(smallest, normal), (middle, v), (largest, u)] = pairs;
+        // Contacts along a line (or at one point) leave the plane's turn about it free.
+        if middle - smallest <= largest * T::of(1e-12) {
+            return None;
+        }
+        let inverse =
+            v * v.transpose() / (middle - smallest) + u * u.transpose() / (largest - smallest);
+        Some((centre, normal, inverse))
+    }
+
+    /// The normal's change `N` (3 x parameters) of the plane through the contacts of `plane`:
+    /// `-(S - lambda I)^+ sum_j w_j (G_j (d_j^T n) + d_j (n^T G_j))`.
+    fn normal_jacobian(
+        &self,
+        model: &Kinematics<T, N>,
+        plane: u16,
+        (centre, normal, inverse): (&Vector3<T>, &Vector3<T>, &Matrix3<T>),
+        mean: &OMatrix<T, U3, D>,
+        (left_out, robust): (&[bool], &[T]),
+    ) -> OMatrix<T, U3, D> {
+        let set = self.model.set();
+        let mut sum = OMatrix::<T, U3, D>::zeros_generic(U3, set.dim());
+        for (i, t) in self.of(Group::Planes, plane, left_out) {
+            let w = t.weight * robust.get(i).copied().unwrap_or_else(T::one);
+            let (pose, twist) = model.parameter_jacobian(set, &t.angles);
+            let d = pose.translation.vector - centre;
+            let g = twist.fixed_rows::<3>(0) - mean;
+            let along = g.tr_mul(normal);
+            sum += g * (d.dot(normal) * w);
+            for (k, a) in along.iter().enumerate() {
+                let mut column = sum.column_mut(k);
+                column += d * (*a * w);
+            }
+        }
+        -(inverse * sum)
+    }
+
+    /// The plane contacts' rows: `sqrt(w) n^T (p - c)` per contact, its exact Jacobian row
+    /// `sqrt(w) (n^T G_i + d_i^T N)` when `with_jacobian`.
+    fn for_each_plane_row(
+        &self,
+        model: &Kinematics<T, N>,
+        left_out: &[bool],
+        robust: &[T],
+        with_jacobian: bool,
+        row: &mut impl FnMut(&OVector<T, D>, T),
+    ) {
+        let set = self.model.set();
+        let zero = set.zeros::<T>();
+        let mut scaled = zero.clone();
+        for plane in 0..self.plane_count {
+            let Some((centre, normal, inverse)) = self.best_plane(model, plane, left_out, robust)
+            else {
+                continue;
+            };
+            let jacobians = if with_jacobian {
+                (self.centre_and_jacobian_of(Group::Planes, model, plane, left_out, robust)).map(
+                    |(_, mean)| {
+                        let fitted = (&centre, &normal, &inverse);
+                        let turn =
+                            self.normal_jacobian(model, plane, fitted, &mean, (left_out, robust));
+                        (mean, turn)
+                    },
+                )
+            } else {
+                None
+            };
+            for (i, t) in self.of(Group::Planes, plane, left_out) {
+                let w = (t.weight * robust.get(i).copied().unwrap_or_else(T::one)).sqrt();
+                match &jacobians {
+                    Some((mean, turn)) => {
+                        let (pose, twist) = model.parameter_jacobian(set, &t.angles);
+                        let d = pose.translation.vector - centre;
+                        let gradient =
+                            (twist.fixed_rows::<3>(0) - mean).tr_mul(&normal) + turn.tr_mul(&d);
+                        for (s, g) in scaled.iter_mut().zip(gradient.iter()) {
+                            *s = *g * w;
+                        }
+                        row(&scaled, normal.dot(&d) * w);
+                    }
+                    None => {
+                        let p = model.forward_angles(&t.angles).translation.vector;
+                        row(&zero, normal.dot(&(p - centre)) * w);
+                    }
+                }
+            }
+        }
     }
 
     /// The weighted mean of the ball positions `model` predicts for the touches of `point`
@@ -216,8 +397,21 @@ where
         left_out: &[bool],
         robust: &[T],
     ) -> Option<Vector3<T>> {
+        self.mean(Group::Points, model, point, left_out, robust)
+    }
+
+    /// The weighted mean of the ball positions `model` predicts for the touches (or contacts) of
+    /// `point` (or plane) of `group`, or `None` when their weights sum to zero.
+    fn mean(
+        &self,
+        group: Group,
+        model: &Kinematics<T, N>,
+        point: u16,
+        left_out: &[bool],
+        robust: &[T],
+    ) -> Option<Vector3<T>> {
         let (mut sum, mut weights) = (Vector3::zeros(), T::zero());
-        for (i, t) in self.of_point(point, left_out) {
+        for (i, t) in self.of(group, point, left_out) {
             let w = t.weight * robust.get(i).copied().unwrap_or_else(T::one);
             sum += model.forward_angles(&t.angles).translation.vector * w;
             weights += w;
@@ -235,11 +429,23 @@ where
         left_out: &[bool],
         robust: &[T],
     ) -> Option<(Vector3<T>, OMatrix<T, U3, D>)> {
+        self.centre_and_jacobian_of(Group::Points, model, point, left_out, robust)
+    }
+
+    /// [`Self::centre_and_jacobian`] over the touches or the plane contacts.
+    fn centre_and_jacobian_of(
+        &self,
+        group: Group,
+        model: &Kinematics<T, N>,
+        point: u16,
+        left_out: &[bool],
+        robust: &[T],
+    ) -> Option<(Vector3<T>, OMatrix<T, U3, D>)> {
         let set = self.model.set();
         let mut sum = Vector3::zeros();
         let mut jacobian = OMatrix::<T, U3, D>::zeros_generic(U3, set.dim());
         let mut weights = T::zero();
-        for (i, t) in self.of_point(point, left_out) {
+        for (i, t) in self.of(group, point, left_out) {
             let w = t.weight * robust.get(i).copied().unwrap_or_else(T::one);
             let (pose, twist) = model.parameter_jacobian(set, &t.angles);
             sum += pose.translation.vector * w;
@@ -270,11 +476,12 @@ where
     }
 
     fn measurements(&self) -> usize {
-        self.touches.len()
+        self.touches.len() + self.planes.len()
     }
 
-    /// The degrees of freedom: 3 per touch, less 3 per point touched (its centre is fitted), and
-    /// 1 per known distance between points touched.
+    /// The degrees of freedom: 3 per touch, less 3 per point touched (its centre is fitted),
+    /// 1 per known distance between points touched, and 1 per plane contact less 3 per plane
+    /// of at least four contacts (its position and normal are fitted).
     fn rows(&self, left_out: &[bool]) -> u32 {
         let touched = |p: u16| self.of_point(p, left_out).next().is_some();
         let distances = (self.distances.iter())
@@ -285,6 +492,13 @@ where
             .map(|n| 3 * u32::try_from(n.saturating_sub(1)).unwrap_or(u32::MAX))
             .fold(0, u32::saturating_add)
             .saturating_add(u32::try_from(distances).unwrap_or(u32::MAX))
+            .saturating_add(
+                (0..self.plane_count)
+                    .map(|plane| self.of(Group::Planes, plane, left_out).count())
+                    .filter(|n| *n >= 4)
+                    .map(|n| u32::try_from(n - 3).unwrap_or(u32::MAX))
+                    .fold(0, u32::saturating_add),
+            )
     }
 
     fn for_each_row(
@@ -370,6 +584,7 @@ where
                 row(&zero, (d.mm - (ca - cb).norm()) * w);
             }
         }
+        self.for_each_plane_row(&model, left_out, robust, with_jacobian, &mut row);
     }
 
     /// The distance (mm) of each touch's ball from its point's centre (weights 1 for the centre).
@@ -382,6 +597,15 @@ where
             for (i, t) in self.of_point(point, left_out) {
                 let p = model.forward_angles(&t.angles).translation.vector;
                 visit(i, (centre - p).norm());
+            }
+        }
+        for plane in 0..self.plane_count {
+            let Some((centre, normal, _)) = self.best_plane(&model, plane, left_out, &[]) else {
+                continue;
+            };
+            for (i, t) in self.of(Group::Planes, plane, left_out) {
+                let p = model.forward_angles(&t.angles).translation.vector;
+                visit(i, normal.dot(&(p - centre)).abs());
             }
         }
     }
@@ -737,5 +961,140 @@ mod tests {
         for name in ["dd1", "dtheta1"] {
             assert!(with.iter().any(|n| n == name), "{with:?}");
         }
+    }
+
+    /// Contacts of the true robot's ball with three planes (normals along x, y and z through
+    /// points near the arm's reach), 16 each: the ball centre on the plane at in-plane offsets
+    /// of up to 120 mm, the flange turned by up to 0.5 rad (the numerical inverse kinematics of
+    /// the true robot, to 1e-9 mm).
+    fn contacts() -> Vec<Touch<f64, U6>> {
+        let truth = Kinematics::new(&robot(), &truth()).unwrap();
+        let reference = [0.3, -0.4, 0.6, 0.2, 0.9, -0.3];
+        let start = truth.forward(&reference).unwrap();
+        let settings = NumericalIkSettings {
+            position_tolerance_mm: 1e-9,
+            rotation_tolerance_rad: 1e-11,
+            ..NumericalIkSettings::default()
+        };
+        let limits = [JointLimits::unlimited(); 6];
+        let mut contacts = Vec::new();
+        for plane in 0..3usize {
+            let (u, v) = ((plane + 1) % 3, (plane + 2) % 3);
+            for k in 0..27 {
+                let mut offset = Vector3::zeros();
+                offset[plane] = [40.0, -60.0, 30.0][plane];
+                offset[u] = [-120.0, 0.0, 120.0][k % 3];
+                offset[v] = [-100.0, 10.0, 110.0][k / 3 % 3];
+                let turn = |i: usize| [-0.6, 0.0, 0.6][(k / 9 + i * (k % 3) + plane) % 3];
+                let turned =
+                    start.rotation * Rotation3::from_euler_angles(turn(0), turn(1), turn(2));
+                let target = Pose::from_parts((start.translation.vector + offset).into(), turned);
+                let ik =
+                    numerical_inverse_kinematics(&truth, &limits, &target, &reference, &settings)
+                        .unwrap();
+                contacts.push(Touch::new(&ik.q, plane as u16, 1.0).unwrap());
+            }
+        }
+        contacts
+    }
+
+    /// The plane contacts' Jacobian (the normal's turn included) is that of central
+    /// differences row by row, with unequal weights, to 1e-7 of its largest entry; and leaving
+    /// the turn out (Kaufman's approximation) would miss it by more than 1 %.
+    #[test]
+    fn the_plane_contacts_jacobian_is_that_of_the_residual() {
+        let robot = robot();
+        let contacts = contacts();
+        let set = identifiable();
+        let problem = CommonPoints::new(&robot, &ParameterErrors::zero(), set.clone(), &[])
+            .unwrap()
+            .with_planes(&contacts)
+            .unwrap();
+        let robust: Vec<f64> = (0..contacts.len())
+            .map(|i| 0.5 + (i % 5) as f64 / 4.0)
+            .collect();
+        let x = set.pack(&table2::<f64>()) * 0.5;
+        let (values, jacobian) = rows(&problem, &x, &robust, true);
+        assert_eq!(values.len(), contacts.len());
+        assert_eq!(values, rows(&problem, &x, &robust, false).0);
+        let largest = jacobian
+            .iter()
+            .flatten()
+            .fold(0.0f64, |m, v| m.max(v.abs()));
+        for k in 0..set.len() {
+            let h = if set.parameters()[k].is_angle() {
+                1e-7
+            } else {
+                1e-5
+            };
+            let (mut up, mut down) = (x.clone(), x.clone());
+            up[k] += h;
+            down[k] -= h;
+            let (plus, minus) = (
+                rows(&problem, &up, &robust, false).0,
+                rows(&problem, &down, &robust, false).0,
+            );
+            for (row, (p, m)) in plus.iter().zip(&minus).enumerate() {
+                let numeric = (p - m) / (2.0 * h);
+                let analytic = jacobian[row][k];
+                assert!(
+                    (numeric - analytic).abs() < 1e-7 * largest,
+                    "{}: row {row}: {analytic} against {numeric}",
+                    set.parameters()[k]
+                );
+            }
+        }
+        // Kaufman's rows: the same without the turn, n^T G_i.
+        let model = problem.kinematics(&x).unwrap();
+        let (_, normal, _) = problem.best_plane(&model, 0, &[], &robust).unwrap();
+        let (_, mean) =
+            (problem.centre_and_jacobian_of(Group::Planes, &model, 0, &[], &robust)).unwrap();
+        let (_, twist) = model.parameter_jacobian(problem.set(), &contacts[0].angles);
+        let kaufman = (twist.fixed_rows::<3>(0) - mean).tr_mul(&normal) * robust[0].sqrt();
+        let missed = (kaufman.iter().zip(&jacobian[0]))
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f64, f64::max);
+        assert!(missed > 0.01 * largest, "{missed} against {largest}");
+    }
+
+    /// Least squares on plane contacts alone puts every ball centre back on its plane (within
+    /// 1e-7 mm) and finds the true errors: three planes of different normals determine what
+    /// sockets do; the degrees of freedom are one per contact less three per plane.
+    #[test]
+    fn least_squares_puts_the_contacts_back_on_their_planes() {
+        let robot = robot();
+        let contacts = contacts();
+        let set = identifiable();
+        let problem = CommonPoints::new(&robot, &ParameterErrors::zero(), set.clone(), &[])
+            .unwrap()
+            .with_planes(&contacts)
+            .unwrap();
+        let least_squares = LeastSquares::new(&problem);
+        let start = set.zeros::<f64>();
+        let mut before = std::vec![0.0; contacts.len()];
+        least_squares
+            .pose_residual_norms(&start, &mut before)
+            .unwrap();
+        let fit = least_squares.solve(&start, &LmSettings::default()).unwrap();
+        let mut after = std::vec![0.0; contacts.len()];
+        least_squares
+            .pose_residual_norms(&fit.x, &mut after)
+            .unwrap();
+        let largest = |v: &[f64]| v.iter().fold(0.0f64, |m, d| m.max(*d));
+        std::println!(
+            "{} contacts, {} parameters: largest distance from the plane {:.3} -> {:.2e} mm, {} iterations",
+            contacts.len(),
+            set.len(),
+            largest(&before),
+            largest(&after),
+            fit.iterations
+        );
+        assert!(largest(&before) > 0.1, "{before:?}");
+        assert!(largest(&after) < 1e-7, "{after:?}");
+        assert_eq!(fit.rows, 81 - 3 * 3);
+        let (mm, rad) = set
+            .largest_differences(&fit.x, &set.pack(&truth()))
+            .unwrap();
+        assert!(mm < 1e-5 && rad < 1e-8, "{mm} mm, {rad} rad");
     }
 }
