@@ -1336,7 +1336,7 @@ fn calibrate_touches_json(
 ) -> PyResult<(Robot, String, String)> {
     let (a, b) = distance_between.unwrap_or((0, 1));
     use host_tools::calibration::touches::{Gauge, TouchSession};
-    use host_tools::io::sockets::{Reading, group_touches};
+    use host_tools::io::sockets::{Feature, Reading, group_touches};
     let q = numbers::<numpy::Ix2>("joints_rad", joints_rad)?;
     let q = q.as_array();
     let (n, joints) = (q.nrows(), robot.file.joint.len());
@@ -1374,7 +1374,8 @@ fn calibrate_touches_json(
         touches.push((name, socket, reading));
     }
     let path = PathBuf::from("<memory>");
-    let placements = group_touches(touches, &path).map_err(|e| py_error(e.into()))?;
+    let placements =
+        group_touches(touches, &path, Feature::Socket).map_err(|e| py_error(e.into()))?;
     let session = TouchSession {
         robot: robot.file.clone(),
         robot_path: robot.path.clone(),

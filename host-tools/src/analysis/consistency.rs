@@ -46,6 +46,57 @@ pub struct Consistency {
     /// Per known distance between two sockets touched here: its points, and the distance between
     /// their kept centres minus the known one, mm.
     pub distortion_mm: Vec<([u16; 2], f64)>,
+    /// Per plane touched here, how far the ball centres lie from their best plane.
+    pub planes: Vec<PlaneFlatness>,
+}
+
+/// How flat one plane's contacts are under a model: the distances of the ball centres from the
+/// plane fitted through them (least squares, orthogonal), mm. Like consistency, not accuracy.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PlaneFlatness {
+    /// The plane (the contacts' `point`).
+    pub plane: u16,
+    /// Its contacts.
+    pub contacts: usize,
+    /// Mean distance of the ball centres from the best plane, mm (0 below four contacts).
+    pub mean_mm: f64,
+    /// The 95th percentile of those distances, mm.
+    pub p95_mm: f64,
+}
+
+/// The flatness of `model`'s ball centres on each plane of `contacts` (their `point` numbering
+/// the plane): the distances from the best plane through them (the normal of least scatter).
+pub fn flatness(model: &Kinematics<f64, Dyn>, contacts: &[Touch<f64, Dyn>]) -> Vec<PlaneFlatness> {
+    (points(contacts).into_iter())
+        .map(|plane| {
+            let balls: Vec<Vector3<f64>> = (contacts.iter())
+                .filter(|t| t.point == plane)
+                .map(|t| model.forward_angles(&t.angles).translation.vector)
+                .collect();
+            let centre = mean(&balls);
+            let scatter: nalgebra::Matrix3<f64> = balls
+                .iter()
+                .map(|b| (b - centre) * (b - centre).transpose())
+                .sum();
+            let eigen = scatter.symmetric_eigen();
+            let smallest = eigen.eigenvalues.imin();
+            let normal = eigen.eigenvectors.column(smallest).into_owned();
+            let distances: Vec<f64> = if balls.len() < 4 {
+                vec![0.0; balls.len()]
+            } else {
+                balls
+                    .iter()
+                    .map(|b| normal.dot(&(b - centre)).abs())
+                    .collect()
+            };
+            PlaneFlatness {
+                plane,
+                contacts: balls.len(),
+                mean_mm: distances.iter().sum::<f64>() / distances.len().max(1) as f64,
+                p95_mm: quantile(&distances, 0.95),
+            }
+        })
+        .collect()
 }
 
 /// The distinct points (sockets) `touches` name, in order.
@@ -136,6 +187,7 @@ pub fn consistency(
         authors_mean_mm: sockets.iter().map(|s| s.kept_sum_mm).sum::<f64>() / kept.max(1) as f64,
         sockets,
         distortion_mm,
+        planes: Vec::new(),
     }
 }
 

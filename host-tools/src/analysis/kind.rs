@@ -123,9 +123,10 @@ impl<'a> MeasurementKind for Poses<'_, 'a> {
     }
 }
 
-/// A ball on the flange touched in sockets (common points) from several configurations, and
-/// known distances between the sockets: joint readings only, no instrument. The sockets'
-/// centres are not parameters (the core eliminates them); the ball's offset is the model's tool.
+/// A ball on the flange touched in sockets (common points) from several configurations, known
+/// distances between the sockets, and contacts of the ball with planes: joint readings only, no
+/// instrument. The sockets' centres and the planes are not parameters (the core eliminates
+/// them); the ball's offset is the model's tool.
 #[derive(Clone, Copy, Debug)]
 pub struct Touches<'a> {
     /// The nominal robot, the ball's nominal offset from the flange as its tool.
@@ -134,6 +135,8 @@ pub struct Touches<'a> {
     pub touches: &'a [Touch<f64, Dyn>],
     /// Known distances between sockets, mm.
     pub distances: &'a [KnownDistance<f64>],
+    /// Contacts with planes: configuration, plane (its `point`), weight.
+    pub planes: &'a [Touch<f64, Dyn>],
 }
 
 /// Why touches leave joint 1's turn and lift free.
@@ -156,16 +159,22 @@ impl<'a> MeasurementKind for Touches<'a> {
             .map_err(|e| crate::refused!(implausible format!("{e}"); "the touches' model: {e}"))?;
         points
             .with_distances(self.distances)
-            .map_err(|e| crate::refused!(input "the known distances"; "the known distances: {e}"))
+            .map_err(|e| crate::refused!(input "the known distances"; "the known distances: {e}"))?
+            .with_planes(self.planes)
+            .map_err(|e| crate::refused!(implausible format!("{e}"); "the plane contacts: {e}"))
     }
 
     fn equations(&self) -> usize {
         let sockets = crate::analysis::consistency::points(self.touches).len();
-        3 * self.touches.len().saturating_sub(sockets) + self.distances.len()
+        let planes: usize = (crate::analysis::consistency::points(self.planes).iter())
+            .map(|plane| self.planes.iter().filter(|t| t.point == *plane).count())
+            .map(|contacts| contacts.saturating_sub(3))
+            .sum();
+        3 * self.touches.len().saturating_sub(sockets) + self.distances.len() + planes
     }
 
     fn count(&self) -> usize {
-        self.touches.len()
+        self.touches.len() + self.planes.len()
     }
 
     fn noun(&self) -> &'static str {
@@ -225,11 +234,10 @@ impl<'a> MeasurementKind for Touches<'a> {
     }
 
     fn statistic(&self, model: &Kinematics<f64, Dyn>) -> crate::Result<Self::Statistic> {
-        Ok(crate::analysis::consistency::consistency(
-            model,
-            self.touches,
-            self.distances,
-        ))
+        let mut statistic =
+            crate::analysis::consistency::consistency(model, self.touches, self.distances);
+        statistic.planes = crate::analysis::consistency::flatness(model, self.planes);
+        Ok(statistic)
     }
 }
 

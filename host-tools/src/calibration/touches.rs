@@ -114,38 +114,70 @@ pub struct TouchCalibrated {
     pub held_out: Vec<PlacementFigures>,
 }
 
-/// Touches and known distances, as the core's common points take them.
-type CommonPointData = (Vec<Touch<f64, Dyn>>, Vec<KnownDistance<f64>>);
+/// Touches, known distances and plane contacts, as the core's common points take them.
+#[derive(Clone, Debug, Default)]
+struct ImplicitData {
+    touches: Vec<Touch<f64, Dyn>>,
+    distances: Vec<KnownDistance<f64>>,
+    planes: Vec<Touch<f64, Dyn>>,
+}
 
-/// The touches of `placements` as the core's common points, every placement's sockets points of
-/// their own (placement `p`'s socket `s` is point `offset_p + s`), and the gauge between each
-/// placement's two sockets.
+impl ImplicitData {
+    /// These data as the touches kind of `robot` (the ball its tool).
+    fn kind<'a>(&'a self, robot: &'a calib_core::Robot<f64, Dyn>) -> Touches<'a> {
+        Touches {
+            robot,
+            touches: &self.touches,
+            distances: &self.distances,
+            planes: &self.planes,
+        }
+    }
+}
+
+/// The readings of `socket` (a file of touches or contacts) as the core's touches of `point`.
+fn touches_in(
+    socket: &crate::io::sockets::Socket,
+    point: u16,
+    into: &mut Vec<Touch<f64, Dyn>>,
+) -> crate::Result<()> {
+    for reading in &socket.readings {
+        let q = JointVec::from_slice(&reading.q_rad).ok_or_else(|| {
+            crate::refused!(input socket.path.display();
+                "{}:{}: not a joint vector", socket.path.display(), reading.line)
+        })?;
+        let touch = Touch::new(&q, point, 1.0).map_err(|e| {
+            crate::refused!(input socket.path.display();
+                "{}:{}: {e}", socket.path.display(), reading.line)
+        })?;
+        into.push(touch);
+    }
+    Ok(())
+}
+
+/// The touches of `placements` as the core's common points and planes, every placement's
+/// sockets (and planes) points (planes) of their own (placement `p`'s socket `s` is point
+/// `offset_p + s`), and the gauge between each placement's two sockets.
 fn touches_of(
     placements: &[&Placement],
     gauge: Option<(&Gauge, f64)>,
-) -> crate::Result<CommonPointData> {
-    let mut touches = Vec::new();
-    let mut distances = Vec::new();
-    let mut offset = 0u16;
+) -> crate::Result<ImplicitData> {
+    let mut data = ImplicitData::default();
+    let (mut offset, mut plane_offset) = (0u16, 0u16);
     for placement in placements {
         for (s, socket) in placement.sockets.iter().enumerate() {
-            let point = offset.saturating_add(s as u16);
-            for reading in &socket.readings {
-                let q = JointVec::from_slice(&reading.q_rad).ok_or_else(|| {
-                    crate::refused!(input socket.path.display();
-                        "{}:{}: not a joint vector", socket.path.display(), reading.line)
-                })?;
-                let touch = Touch::new(&q, point, 1.0).map_err(|e| {
-                    crate::refused!(input socket.path.display();
-                        "{}:{}: {e}", socket.path.display(), reading.line)
-                })?;
-                touches.push(touch);
-            }
+            touches_in(socket, offset.saturating_add(s as u16), &mut data.touches)?;
+        }
+        for (k, plane) in placement.planes.iter().enumerate() {
+            touches_in(
+                plane,
+                plane_offset.saturating_add(k as u16),
+                &mut data.planes,
+            )?;
         }
         if let Some((g, weight)) = gauge {
             let count = placement.sockets.len() as u16;
             if g.sockets.iter().all(|s| *s < count) {
-                distances.push(KnownDistance {
+                data.distances.push(KnownDistance {
                     points: g.sockets.map(|s| offset.saturating_add(s)),
                     mm: g.mm,
                     weight,
@@ -153,8 +185,9 @@ fn touches_of(
             }
         }
         offset = offset.saturating_add(placement.sockets.len() as u16);
+        plane_offset = plane_offset.saturating_add(placement.planes.len() as u16);
     }
-    Ok((touches, distances))
+    Ok(data)
 }
 
 impl TouchSession {
@@ -178,24 +211,16 @@ impl TouchSession {
         // The touches' scatter, from a fit without the gauge: the gauge's weight.
         let (touch_sd_mm, gauge) = match &self.gauge {
             Some(g) => {
-                let (touches, _) = touches_of(&fitted, None)?;
-                let kind = Touches {
-                    robot: &robot,
-                    touches: &touches,
-                    distances: &[],
-                };
+                let data = touches_of(&fitted, None)?;
+                let kind = data.kind(&robot);
                 let selection = select_parameters_of(&kind, mask, &config)?;
                 let sd = least_squares_of(&kind, &selection, &config)?.sigma_mm;
                 (Some(sd), Some((g, (sd / g.sd_mm).powi(2))))
             }
             None => (None, None),
         };
-        let (touches, distances) = touches_of(&fitted, gauge)?;
-        let kind = Touches {
-            robot: &robot,
-            touches: &touches,
-            distances: &distances,
-        };
+        let data = touches_of(&fitted, gauge)?;
+        let kind = data.kind(&robot);
         let selection = select_parameters_of(&kind, mask, &config)?;
         let fit = least_squares_of(&kind, &selection, &config)?;
         let identified = Kinematics::new(&robot, &fit.errors)?;
@@ -203,14 +228,10 @@ impl TouchSession {
         let figures = |placements: &[&Placement], held: bool| {
             (placements.iter())
                 .map(|p| {
-                    let (touches, distances) = touches_of(&[p], gauge)?;
-                    let kind = Touches {
-                        robot: &robot,
-                        touches: &touches,
-                        distances: &distances,
-                    };
+                    let data = touches_of(&[p], gauge)?;
+                    let kind = data.kind(&robot);
                     let predicted = (fit.covariance.as_ref().filter(|_| held)).and_then(|c| {
-                        predict_consistency(&identified, &fit.set, c, fit.sigma_mm, &touches)
+                        predict_consistency(&identified, &fit.set, c, fit.sigma_mm, &data.touches)
                     });
                     Ok(PlacementFigures {
                         placement: p.name.clone(),
@@ -291,9 +312,10 @@ impl TouchSession {
             return Err(crate::refused!(input "the touches"; "no placements of sockets to fit"));
         }
         let sockets: usize = self.placements.iter().map(|p| p.sockets.len()).sum();
-        if sockets >= usize::from(u16::MAX) {
+        let planes: usize = self.placements.iter().map(|p| p.planes.len()).sum();
+        if sockets.max(planes) >= usize::from(u16::MAX) {
             return Err(crate::refused!(unsupported "socket count";
-                "{sockets} sockets over all placements: at most {} in one calibration", u16::MAX - 1));
+                "{sockets} sockets and {planes} planes over all placements: at most {} of each in one calibration", u16::MAX - 1));
         }
         if let Some(g) = &self.gauge {
             let has_both =

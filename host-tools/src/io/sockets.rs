@@ -5,10 +5,15 @@
 //! placement of the tool, each `hole_<n>.csv` in it one socket; the core fits them as common
 //! points (`calib_core::identify::common_point`).
 //!
+//! Contacts of the ball with planes (a flat surface touched from many configurations, the
+//! plane unknown) are read the same way: `plane_0.csv`, `plane_1.csv`, ... in a placement's
+//! folder, beside or instead of its sockets.
+//!
 //! Our own format is one CSV file of every touch ([`read_touches_csv`]): a header
 //! `placement,socket,q1_deg,...,qN_deg` (or `q1_rad,...`), then one touch per line, the placement
 //! a name, the socket a number from 0, the joints in the header's unit as in our tracker CSV;
-//! lines starting with `#` are comments.
+//! lines starting with `#` are comments. A file of plane contacts names its second column
+//! `plane` instead (`placement,plane,q1_deg,...`).
 //!
 //! Every file is read whole and checked before anything is used: a line of another joint count
 //! than the robot's, a value that is not a finite number, a placement without `hole_0.csv` or
@@ -27,7 +32,7 @@ pub struct Reading {
     pub q_rad: Vec<f64>,
 }
 
-/// The readings of one socket of a placement: one file.
+/// The readings of one socket (or one plane) of a placement: one file.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Socket {
     /// The file read.
@@ -44,6 +49,35 @@ pub struct Placement {
     pub name: String,
     /// The sockets, numbered as their files.
     pub sockets: Vec<Socket>,
+    /// The planes touched, numbered as their files (`plane_<n>.csv`): each one's contacts.
+    pub planes: Vec<Socket>,
+}
+
+/// What the touches of a file or a list touch: sockets (common points) or planes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Feature {
+    /// Sockets: the ball held at one point (`hole_<n>.csv`, the column `socket`).
+    Socket,
+    /// Planes: the ball pressed on one flat surface (`plane_<n>.csv`, the column `plane`).
+    Plane,
+}
+
+impl Feature {
+    /// The word of its files and column: `socket` or `plane`.
+    pub fn word(self) -> &'static str {
+        match self {
+            Self::Socket => "socket",
+            Self::Plane => "plane",
+        }
+    }
+
+    /// The prefix of its files in a placement's folder: `hole_` or `plane_`.
+    fn file_prefix(self) -> &'static str {
+        match self {
+            Self::Socket => "hole_",
+            Self::Plane => "plane_",
+        }
+    }
 }
 
 /// The placements in the folder `dir` (each sub-folder one, in name order) of a robot of
@@ -75,42 +109,61 @@ pub fn read_layout(dir: &Path, joints: usize) -> crate::Result<Vec<Placement>> {
         .collect()
 }
 
-/// The sockets of the placement folder `folder`: `hole_0.csv`, `hole_1.csv`, ... without a gap.
+/// The sockets and planes of the placement folder `folder`: `hole_0.csv`, `hole_1.csv`, ... and
+/// `plane_0.csv`, ... each without a gap; at least one of them.
 fn read_placement(folder: &Path, joints: usize) -> crate::Result<Placement> {
-    let mut sockets = Vec::new();
-    loop {
-        let path = folder.join(format!("hole_{}.csv", sockets.len()));
-        if !path.is_file() {
-            break;
-        }
-        sockets.push(read_socket(&path, joints)?);
-    }
     let name = folder
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    if sockets.is_empty() {
+    let sockets = read_numbered(folder, Feature::Socket, joints)?;
+    let planes = read_numbered(folder, Feature::Plane, joints)?;
+    if sockets.is_empty() && planes.is_empty() {
         return Err(crate::refused!(input folder.display();
-            "{}: no hole_0.csv: a placement folder holds one file per socket, hole_0.csv, hole_1.csv, ...",
+            "{}: no hole_0.csv or plane_0.csv: a placement folder holds one file per socket, hole_0.csv, hole_1.csv, ..., and one per plane, plane_0.csv, ...",
             folder.display()
         ));
+    }
+    Ok(Placement {
+        name,
+        sockets,
+        planes,
+    })
+}
+
+/// The files `<prefix>0.csv`, `<prefix>1.csv`, ... of `feature` in `folder`, without a gap.
+fn read_numbered(folder: &Path, feature: Feature, joints: usize) -> crate::Result<Vec<Socket>> {
+    let prefix = feature.file_prefix();
+    let mut read = Vec::new();
+    loop {
+        let path = folder.join(format!("{prefix}{}.csv", read.len()));
+        if !path.is_file() {
+            break;
+        }
+        read.push(read_socket(&path, joints)?);
     }
     let listed = std::fs::read_dir(folder).map_or(0, |entries| {
         (entries.filter_map(Result::ok))
             .filter(|e| {
                 let name = e.file_name().to_string_lossy().into_owned();
-                name.starts_with("hole_") && !name.contains("_pose") && name.ends_with(".csv")
+                name.starts_with(prefix) && !name.contains("_pose") && name.ends_with(".csv")
             })
             .count()
     });
-    if listed != sockets.len() {
+    if listed != read.len() {
+        let what = if feature == Feature::Socket {
+            "hole"
+        } else {
+            "plane"
+        };
         return Err(crate::refused!(input folder.display();
-            "{}: {listed} hole files, but hole_{} is missing: number the sockets' files hole_0.csv, hole_1.csv, ... without a gap",
+            "{}: {listed} {what} files, but {prefix}{}.csv is missing: number the {}s' files {prefix}0.csv, {prefix}1.csv, ... without a gap",
             folder.display(),
-            sockets.len()
+            read.len(),
+            feature.word()
         ));
     }
-    Ok(Placement { name, sockets })
+    Ok(read)
 }
 
 /// The text of the file at `path`, read whole within the data limit.
@@ -189,14 +242,14 @@ pub fn read_touches_csv(path: &Path, joints: usize) -> Result<Vec<Placement>, Da
     let text = text_of(path)?;
     let at = |line: u64, column: Option<String>, message: String| at(path, line, column, message);
     let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
-    let header_in = |unit: &str| -> Vec<String> {
-        ["placement".to_string(), "socket".to_string()]
+    let header_in = |feature: Feature, unit: &str| -> Vec<String> {
+        ["placement".to_string(), feature.word().to_string()]
             .into_iter()
             .chain((1..=joints).map(|j| format!("q{j}_{unit}")))
             .collect()
     };
-    let mut expected = header_in("deg");
-    let mut degrees = true;
+    let mut expected = header_in(Feature::Socket, "deg");
+    let (mut degrees, mut feature) = (true, Feature::Socket);
     let mut header = false;
     let mut touches = Vec::new();
     for (index, text_line) in text.lines().enumerate() {
@@ -207,18 +260,21 @@ pub fn read_touches_csv(path: &Path, joints: usize) -> Result<Vec<Placement>, Da
         }
         let fields: Vec<&str> = trimmed.split(',').map(str::trim).collect();
         if !header {
-            if fields == header_in("rad") {
-                (expected, degrees) = (header_in("rad"), false);
-            } else if fields != expected {
+            let known = [Feature::Socket, Feature::Plane]
+                .into_iter()
+                .flat_map(|f| [(f, "deg", true), (f, "rad", false)])
+                .find(|(f, unit, _)| fields == header_in(*f, unit));
+            let Some((f, unit, in_degrees)) = known else {
                 return Err(at(
                     line,
                     None,
                     format!(
-                        "the header is \"{trimmed}\"; a touch file of a {joints}-joint robot starts with {} (or the joints in _rad)",
+                        "the header is \"{trimmed}\"; a touch file of a {joints}-joint robot starts with {} (or the joints in _rad, or plane for socket in a file of plane contacts)",
                         expected.join(",")
                     ),
                 ));
-            }
+            };
+            (expected, degrees, feature) = (header_in(f, unit), in_degrees, f);
             header = true;
             continue;
         }
@@ -233,7 +289,7 @@ pub fn read_touches_csv(path: &Path, joints: usize) -> Result<Vec<Placement>, Da
             "no touches: the file has no lines after its header".into(),
         ));
     }
-    group_touches(touches, path)
+    group_touches(touches, path, feature)
 }
 
 /// One line of our touch CSV, `fields` under the header `expected` (joints in degrees when
@@ -247,9 +303,10 @@ fn touch_of_line(
         return Err((
             None,
             format!(
-                "has {} fields, the header {}: placement, socket, then the {} joints",
+                "has {} fields, the header {}: placement, {}, then the {} joints",
                 fields.len(),
                 expected.len(),
+                expected[1],
                 expected.len() - 2
             ),
         ));
@@ -262,8 +319,11 @@ fn touch_of_line(
         .filter(|s| *s < 1000)
         .ok_or_else(|| {
             (
-                Some("socket".into()),
-                format!("\"{}\" is not a socket number (0, 1, ...)", fields[1]),
+                Some(expected[1].clone()),
+                format!(
+                    "\"{}\" is not a {} number (0, 1, ...)",
+                    fields[1], expected[1]
+                ),
             )
         })?;
     let mut q_rad = Vec::with_capacity(fields.len() - 2);
@@ -281,12 +341,14 @@ fn touch_of_line(
     Ok((name.to_string(), socket, Reading { line, q_rad }))
 }
 
-/// Touches as placements: `touches` (placement name, socket number, reading) grouped by
-/// placement in the order they first appear, each placement's sockets by number; `path` names
-/// the source (a file, or `<memory>`). Refused: a placement whose socket numbers have a gap.
+/// Touches as placements: `touches` (placement name, socket or plane number, reading) of
+/// `feature` grouped by placement in the order they first appear, each placement's sockets (or
+/// planes) by number; `path` names the source (a file, or `<memory>`). Refused: a placement
+/// whose numbers have a gap.
 pub fn group_touches(
     touches: Vec<(String, usize, Reading)>,
     path: &Path,
+    feature: Feature,
 ) -> Result<Vec<Placement>, DataError> {
     let mut placements: Vec<(String, Vec<Vec<Reading>>)> = Vec::new();
     for (name, socket, reading) in touches {
@@ -307,19 +369,26 @@ pub fn group_touches(
         .into_iter()
         .map(|(name, sockets)| {
             if let Some(gap) = sockets.iter().position(Vec::is_empty) {
-                return Err(at(path, 1, Some("socket".into()), format!(
-                    "placement {name} has no touch of socket {gap} but touches of socket {}: number the sockets 0, 1, ... without a gap",
+                let word = feature.word();
+                return Err(at(path, 1, Some(word.into()), format!(
+                    "placement {name} has no touch of {word} {gap} but touches of {word} {}: number the {word}s 0, 1, ... without a gap",
                     sockets.len() - 1
                 )));
             }
+            let read: Vec<Socket> = (sockets.into_iter())
+                .map(|readings| Socket {
+                    path: path.to_path_buf(),
+                    readings,
+                })
+                .collect();
+            let (sockets, planes) = match feature {
+                Feature::Socket => (read, Vec::new()),
+                Feature::Plane => (Vec::new(), read),
+            };
             Ok(Placement {
                 name,
-                sockets: (sockets.into_iter())
-                    .map(|readings| Socket {
-                        path: path.to_path_buf(),
-                        readings,
-                    })
-                    .collect(),
+                sockets,
+                planes,
             })
         })
         .collect()
@@ -397,11 +466,31 @@ mod tests {
         std::fs::create_dir(&placement).unwrap();
         std::fs::write(placement.join("hole_1.csv"), "0.1,0.2,0.3\n").unwrap();
         let e = read_layout(empty.path(), 3).unwrap_err().to_string();
-        assert!(e.contains("front: no hole_0.csv"), "{e}");
+        assert!(
+            e.contains("front: 1 hole files, but hole_0.csv is missing"),
+            "{e}"
+        );
+        std::fs::remove_file(placement.join("hole_1.csv")).unwrap();
+        std::fs::write(placement.join("notes.txt"), "").unwrap();
+        let e = read_layout(empty.path(), 3).unwrap_err().to_string();
+        assert!(e.contains("front: no hole_0.csv or plane_0.csv"), "{e}");
+        // Plane contacts alone make a placement; a gap in their numbers is refused.
+        std::fs::write(placement.join("plane_0.csv"), "0.1,0.2,0.3\n0.2,0.2,0.3\n").unwrap();
+        let read = read_layout(empty.path(), 3).unwrap();
+        assert_eq!((read[0].sockets.len(), read[0].planes.len()), (0, 1));
+        assert_eq!(read[0].planes[0].readings[1].q_rad, [0.2, 0.2, 0.3]);
+        std::fs::write(placement.join("plane_2.csv"), "0.1,0.2,0.3\n").unwrap();
+        let e = read_layout(empty.path(), 3).unwrap_err().to_string();
+        assert!(
+            e.contains("2 plane files, but plane_1.csv is missing"),
+            "{e}"
+        );
+        std::fs::remove_file(placement.join("plane_2.csv")).unwrap();
+        std::fs::write(placement.join("hole_1.csv"), "0.1,0.2,0.3\n").unwrap();
         std::fs::write(placement.join("hole_0.csv"), "0.1,0.2,0.3\n").unwrap();
         std::fs::write(placement.join("hole_3.csv"), "0.1,0.2,0.3\n").unwrap();
         let e = read_layout(empty.path(), 3).unwrap_err().to_string();
-        assert!(e.contains("3 hole files, but hole_2 is missing"), "{e}");
+        assert!(e.contains("3 hole files, but hole_2.csv is missing"), "{e}");
         std::fs::remove_file(placement.join("hole_3.csv")).unwrap();
         let read = read_layout(empty.path(), 3).unwrap();
         assert_eq!((read.len(), read[0].sockets.len()), (1, 2));
@@ -472,5 +561,20 @@ mod tests {
         std::fs::write(&path, "placement,socket,q1_rad,q2_rad\nfront,0,0.5,-1.5\n").unwrap();
         let rad = read_touches_csv(&path, 2).unwrap();
         assert_eq!(rad[0].sockets[0].readings[0].q_rad, [0.5, -1.5]);
+        // A file of plane contacts: the column `plane`, read into the planes.
+        std::fs::write(&path, "placement,plane,q1_deg,q2_deg\ntable,0,90,-45\n").unwrap();
+        let planes = read_touches_csv(&path, 2).unwrap();
+        assert!(planes[0].sockets.is_empty());
+        assert_eq!(
+            planes[0].planes[0].readings[0].q_rad,
+            [90f64.to_radians(), (-45f64).to_radians()]
+        );
+        let e = refused("placement,plane,q1_deg,q2_deg\ntable,1,1.0,2.0\n");
+        assert!(e.contains("placement table has no touch of plane 0"), "{e}");
+        let e = refused("placement,plane,q1_deg,q2_deg\ntable,-1,1.0,2.0\n");
+        assert!(
+            e.contains(":2: column plane: \"-1\" is not a plane number"),
+            "{e}"
+        );
     }
 }

@@ -9,6 +9,10 @@
 //! step `dq = J^T (J J^T)^-1 e` with `J` the position rows of the geometric Jacobian), until
 //! the true ball centre lies at its socket's centre plus the ball's play, drawn per touch from
 //! `N(0, play^2)` on every axis. The joint readings are recorded exactly.
+//!
+//! Planes (given by their normals) pass through each placement's first socket; their contacts
+//! start from the same template configurations, the true ball moved onto the plane and spread
+//! over it by a grid of in-plane offsets (160 mm across), off it by the play along the normal.
 
 use crate::io::sockets::{Placement, Reading, Socket};
 use calib_core::model::JointVec;
@@ -36,6 +40,9 @@ pub struct TouchSimulation {
     pub play_sd_mm: f64,
     /// A known distance between two sockets of every placement (socket numbers, mm).
     pub gauge: Option<([u16; 2], f64)>,
+    /// The normals of planes every placement holds beside its sockets (unit vectors in the base
+    /// frame), each through the true centre of the placement's first socket.
+    pub planes: Vec<[f64; 3]>,
     /// Seed of the play's draws.
     pub seed: u64,
 }
@@ -88,15 +95,69 @@ pub fn simulate_touches(
                     })
                 })
                 .collect::<crate::Result<Vec<Socket>>>()?;
+            let planes = (simulation.planes.iter().enumerate())
+                .map(|(k, normal)| {
+                    let through = centres.first().copied().unwrap_or_else(Vector3::zeros);
+                    plane_contacts(&truth, template, (k, normal), through, (&play, &mut rng))
+                })
+                .collect::<crate::Result<Vec<Socket>>>()?;
             Ok(SimulatedPlacement {
                 placement: Placement {
                     name: template.name.clone(),
                     sockets,
+                    planes,
                 },
                 centres_mm: centres.iter().map(|c| (*c).into()).collect(),
             })
         })
         .collect()
+}
+
+/// In-plane offsets of the contacts, mm: a 5 x 5 grid over 160 mm, gone through in turn.
+const SPREAD_MM: [f64; 5] = [-80.0, -40.0, 0.0, 40.0, 80.0];
+
+/// The contacts of plane `k` (unit normal `normal`, through `through`, mm) near the template's
+/// configurations: each one's true ball projected onto the plane, moved in it by the next
+/// offset of a grid, then off it by the ball's play along the normal.
+fn plane_contacts(
+    truth: &Kinematics<f64, Dyn>,
+    template: &Placement,
+    (k, normal): (usize, &[f64; 3]),
+    through: Vector3<f64>,
+    (play, rng): (&Normal<f64>, &mut Xoshiro256PlusPlus),
+) -> crate::Result<Socket> {
+    let path = PathBuf::from(format!("simulated/{}/plane_{k}.csv", template.name));
+    let n = Vector3::from(*normal).try_normalize(1e-12).ok_or_else(
+        || crate::refused!(option "planes"; "plane {k}: its normal {normal:?} has no direction"),
+    )?;
+    let helper = if n.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let (u, v) = (
+        n.cross(&helper).normalize(),
+        n.cross(&n.cross(&helper)).normalize(),
+    );
+    let mut readings = Vec::new();
+    let every = template.sockets.iter().flat_map(|s| &s.readings);
+    for (i, r) in every.enumerate() {
+        let p = ball(truth, &r.q_rad).ok_or_else(|| {
+            crate::refused!(input path.display(); "{}: not a joint vector of this robot", r.line)
+        })?;
+        let on_plane = p - n * n.dot(&(p - through));
+        let grid = u * SPREAD_MM[i % 5] + v * SPREAD_MM[(i / 5) % 5];
+        let target = on_plane + grid + n * play.sample(rng);
+        let q_rad = reach(truth, &r.q_rad, &target).ok_or_else(|| {
+            crate::refused!(input path.display();
+                "{}: plane {k}: the true ball cannot be moved onto the plane from line {}", template.name, r.line)
+        })?;
+        readings.push(Reading {
+            line: r.line,
+            q_rad,
+        });
+    }
+    Ok(Socket { path, readings })
 }
 
 /// The true ball centre at joint readings `q` (rad), mm.

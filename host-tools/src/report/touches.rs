@@ -47,6 +47,7 @@ pub fn touches_text(calibrated: &TouchCalibrated) -> String {
     };
     rows("fitted", &calibrated.fitted, &mut text);
     rows("held out", &calibrated.held_out, &mut text);
+    text.push_str(&planes_text(calibrated));
     let predicted: Vec<(&str, _)> = (calibrated.held_out.iter())
         .filter_map(|f| Some((f.placement.as_str(), f.predicted?)))
         .collect();
@@ -162,5 +163,33 @@ pub fn leave_one_out_text(figures: &[PlacementFigures]) -> String {
         ));
     }
     text.push('\n');
+    text
+}
+
+/// The planes' flatness per placement, fitted and held out (nothing without plane contacts).
+fn planes_text(calibrated: &TouchCalibrated) -> String {
+    let every = || calibrated.fitted.iter().chain(&calibrated.held_out);
+    if every().all(|f| f.identified.planes.is_empty()) {
+        return String::new();
+    }
+    let mut text = String::from(
+        "planes (distance of each ball centre from its plane's best fit; not absolute accuracy), mm:\n\
+         placement                 plane  contacts  nominal mean  identified mean    p95\n",
+    );
+    let fitted = calibrated.fitted.len();
+    for (i, f) in every().enumerate() {
+        let role = if i < fitted { "fitted" } else { "held out" };
+        for (nominal, identified) in f.nominal.planes.iter().zip(&f.identified.planes) {
+            text.push_str(&format!(
+                "  {:<24} {:>6} {:>9} {:>13.4} {:>16.4} {:>6.4}  {role}\n",
+                f.placement,
+                identified.plane,
+                identified.contacts,
+                nominal.mean_mm,
+                identified.mean_mm,
+                identified.p95_mm
+            ));
+        }
+    }
     text
 }
