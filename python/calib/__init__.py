@@ -89,6 +89,8 @@ def calibrate_touches(
     distance_sd: float = 0.05,
     distance_between: tuple[int, int] = (0, 1),
     keep_ill_conditioned: bool = False,
+    feature: str = "socket",
+    leave_one_out: bool = False,
 ) -> tuple[Robot, dict[str, _Any], str]:
     """Calibrates ``robot`` without an instrument, as ``calib sockets`` does: a ball on the
     flange touched in sockets. ``joints_rad`` (n, joints) the configurations (numpy array or
@@ -96,10 +98,14 @@ def calibrate_touches(
     (0, 1, ...); ``ball_mm`` the ball's centre in the robot file's tool frame (its flange without a [tool]; mm); ``train`` the placements
     fitted (default all; the others are held out); ``distance`` the known distance (mm) between
     the sockets ``distance_between`` of every placement, with standard uncertainty
-    ``distance_sd`` (mm). Returns the identified robot, the report as a dict (``parameters``,
-    ``ball_mm``, ``identifiability`` with ``left_free``, ``fitted`` and ``held_out`` per placement:
-    consistency and distance error, never absolute accuracy) and the text ``calib sockets``
-    prints."""
+    ``distance_sd`` (mm). ``feature="plane"`` makes the rows contacts with planes (``sockets``
+    then numbers each placement's planes; mixing sockets and planes goes through a folder of
+    ``hole_<n>.csv`` and ``plane_<n>.csv``); ``leave_one_out=True`` also judges each placement by
+    a calibration of all the others (``report["leave_one_out"]``). Returns the identified robot,
+    the report as a dict (``parameters``, ``ball_mm``, ``identifiability`` with ``left_free``,
+    ``fitted`` and ``held_out`` per placement: consistency and distance error, never absolute
+    accuracy, and for held-out placements the ``predicted`` consistency) and the text ``calib
+    sockets`` prints."""
     identified, report, text = _calibrate_touches_json(
         robot,
         joints_rad,
@@ -111,6 +117,8 @@ def calibrate_touches(
         distance_sd=distance_sd,
         distance_between=distance_between,
         keep_ill_conditioned=keep_ill_conditioned,
+        feature=feature,
+        leave_one_out=leave_one_out,
     )
     parsed: dict[str, _Any] = _json.loads(report)
     return identified, parsed, text

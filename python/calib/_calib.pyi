@@ -308,6 +308,8 @@ def calibrate_touches_json(
     distance_sd: float = 0.05,
     distance_between: Optional[tuple[int, int]] = None,
     keep_ill_conditioned: bool = False,
+    feature: str = "socket",
+    leave_one_out: bool = False,
 ) -> tuple[Robot, str, str]:
     """``calib sockets`` from arrays: the identified robot, the JSON report (text) and the text
     (the package's ``calib.calibrate_touches`` returns the report as a dict)."""

@@ -1312,13 +1312,16 @@ fn evaluate_json(
 /// the configurations, `placements` (n) the placement of each touch, `sockets` (n) its socket
 /// (0, 1, ...); `ball_mm` the ball's centre in the robot file's tool frame (its flange without a `[tool]`); `train` the placements fitted
 /// (default all); `distance` (mm) the known distance between sockets `distance_between` of every
-/// placement (default sockets 0 and 1), with standard uncertainty `distance_sd` (mm). Returns the identified robot, the
+/// placement (default sockets 0 and 1), with standard uncertainty `distance_sd` (mm); `feature`
+/// `"plane"` makes the rows contacts with planes (`sockets` then numbers the planes);
+/// `leave_one_out` also judges each placement by a calibration of all the others. Returns the identified robot, the
 /// JSON report (text; the package's `calibrate_touches` gives the dict) and the text `calib
 /// sockets` prints. The library's `TouchSession`, nothing written.
 #[pyfunction]
 #[pyo3(signature = (
     robot, joints_rad, placements, sockets, *, ball_mm, train = None, distance = None,
-    distance_sd = 0.05, distance_between = None, keep_ill_conditioned = false
+    distance_sd = 0.05, distance_between = None, keep_ill_conditioned = false,
+    feature = "socket", leave_one_out = false
 ))]
 #[allow(clippy::too_many_arguments)]
 fn calibrate_touches_json(
@@ -1333,10 +1336,21 @@ fn calibrate_touches_json(
     distance_sd: f64,
     distance_between: Option<(u16, u16)>,
     keep_ill_conditioned: bool,
+    feature: &str,
+    leave_one_out: bool,
 ) -> PyResult<(Robot, String, String)> {
     let (a, b) = distance_between.unwrap_or((0, 1));
+    let feature = match feature {
+        "socket" => host_tools::io::sockets::Feature::Socket,
+        "plane" => host_tools::io::sockets::Feature::Plane,
+        other => {
+            return input(format!(
+                "feature {other:?}: \"socket\" (the rows touch sockets) or \"plane\" (contacts with planes)"
+            ));
+        }
+    };
     use host_tools::calibration::touches::{Gauge, TouchSession};
-    use host_tools::io::sockets::{Feature, Reading, group_touches};
+    use host_tools::io::sockets::{Reading, group_touches};
     let q = numbers::<numpy::Ix2>("joints_rad", joints_rad)?;
     let q = q.as_array();
     let (n, joints) = (q.nrows(), robot.file.joint.len());
@@ -1374,8 +1388,7 @@ fn calibrate_touches_json(
         touches.push((name, socket, reading));
     }
     let path = PathBuf::from("<memory>");
-    let placements =
-        group_touches(touches, &path, Feature::Socket).map_err(|e| py_error(e.into()))?;
+    let placements = group_touches(touches, &path, feature).map_err(|e| py_error(e.into()))?;
     let session = TouchSession {
         robot: robot.file.clone(),
         robot_path: robot.path.clone(),
@@ -1392,12 +1405,25 @@ fn calibrate_touches_json(
             ..Default::default()
         },
     };
-    let calibrated = py
-        .detach(|| session.run())
+    let (calibrated, left_out) = py
+        .detach(|| {
+            let calibrated = session.run()?;
+            let left_out = match leave_one_out {
+                true => session.leave_one_out()?,
+                false => Vec::new(),
+            };
+            Ok::<_, host_tools::Error>((calibrated, left_out))
+        })
         .map_err(|e| py_error(e.into()))?;
-    let report =
-        serde_json::to_string(&calibrated.report(&session)).map_err(|e| py_error(e.into()))?;
-    let text = host_tools::report::touches::touches_text(&calibrated);
+    let mut text = host_tools::report::touches::touches_text(&calibrated);
+    if leave_one_out {
+        text.push_str(&host_tools::report::touches::leave_one_out_text(&left_out));
+    }
+    let report = host_tools::calibration::touches::TouchReport {
+        leave_one_out: left_out,
+        ..calibrated.report(&session)
+    };
+    let report = serde_json::to_string(&report).map_err(|e| py_error(e.into()))?;
     let identified = Robot {
         file: calibrated.file,
         path: PathBuf::from("<identified from touches>"),

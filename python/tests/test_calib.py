@@ -655,3 +655,17 @@ def test_touches_from_numpy_equal_calib_sockets(tmp_path):
     assert "dalpha2" in robot.to_toml()
     with pytest.raises(calib.InputError, match="placements \\(3\\) and sockets"):
         calib.calibrate_touches(calib.Robot.from_file(panda), joints, names[:3], sockets, ball_mm=ball)
+    with pytest.raises(calib.InputError, match="feature \"hole\""):
+        calib.calibrate_touches(calib.Robot.from_file(panda), joints, names, sockets, ball_mm=ball,
+                                feature="hole")
+    # Leave one placement out from Python equals the command's.
+    done = run_calib("sockets", "--robot", panda, "--data", folder, "--ball-mm", ",".join(map(str, ball)),
+                     "--distance", "50", "--leave-one-out", "--report", report.with_suffix(".lopo.json"))
+    assert done.returncode == 0, done.stderr
+    cli = json.loads(report.with_suffix(".lopo.json").read_text())
+    _, py, text = calib.calibrate_touches(calib.Robot.from_file(panda), joints, names, sockets,
+                                          ball_mm=ball, distance=50.0, leave_one_out=True)
+    assert py["leave_one_out"] == cli["leave_one_out"]
+    left_out = [f["identified"]["authors_mean_mm"] for f in py["leave_one_out"]]
+    assert len(left_out) == 6 and abs(sum(left_out) / 6 - 0.1943) < 5e-5
+    assert "leave one placement out" in text

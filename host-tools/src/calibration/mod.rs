@@ -69,6 +69,7 @@ pub mod plausibility;
 mod result;
 mod session;
 mod solve;
+pub mod touch_plan;
 pub mod touches;
 pub mod verify;
 

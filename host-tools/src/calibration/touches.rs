@@ -116,15 +116,15 @@ pub struct TouchCalibrated {
 
 /// Touches, known distances and plane contacts, as the core's common points take them.
 #[derive(Clone, Debug, Default)]
-struct ImplicitData {
-    touches: Vec<Touch<f64, Dyn>>,
-    distances: Vec<KnownDistance<f64>>,
-    planes: Vec<Touch<f64, Dyn>>,
+pub(super) struct ImplicitData {
+    pub(super) touches: Vec<Touch<f64, Dyn>>,
+    pub(super) distances: Vec<KnownDistance<f64>>,
+    pub(super) planes: Vec<Touch<f64, Dyn>>,
 }
 
 impl ImplicitData {
     /// These data as the touches kind of `robot` (the ball its tool).
-    fn kind<'a>(&'a self, robot: &'a calib_core::Robot<f64, Dyn>) -> Touches<'a> {
+    pub(super) fn kind<'a>(&'a self, robot: &'a calib_core::Robot<f64, Dyn>) -> Touches<'a> {
         Touches {
             robot,
             touches: &self.touches,
@@ -157,7 +157,7 @@ fn touches_in(
 /// The touches of `placements` as the core's common points and planes, every placement's
 /// sockets (and planes) points (planes) of their own (placement `p`'s socket `s` is point
 /// `offset_p + s`), and the gauge between each placement's two sockets.
-fn touches_of(
+pub(super) fn touches_of(
     placements: &[&Placement],
     gauge: Option<(&Gauge, f64)>,
 ) -> crate::Result<ImplicitData> {

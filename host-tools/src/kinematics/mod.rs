@@ -6,4 +6,5 @@ pub mod actual;
 pub mod compensate;
 pub mod configuration;
 pub mod fk;
+pub mod reach;
 pub mod targets;

@@ -5,8 +5,7 @@
 //! real protocol's. Each socket is put where the true robot holds the ball on average over its
 //! template configurations (with a known distance, the second socket is moved along the line
 //! between the two to lie exactly that far from the first). Each configuration is then moved,
-//! by the least joint motion (Gauss-Newton on the ball's position, the joints' minimum-norm
-//! step `dq = J^T (J J^T)^-1 e` with `J` the position rows of the geometric Jacobian), until
+//! by the least joint motion ([`crate::kinematics::reach::reach_point`]), until
 //! the true ball centre lies at its socket's centre plus the ball's play, drawn per touch from
 //! `N(0, play^2)` on every axis. The joint readings are recorded exactly.
 //!
@@ -16,16 +15,12 @@
 
 use crate::io::sockets::{Placement, Reading, Socket};
 use calib_core::model::JointVec;
-use calib_core::model::joint_count::JacobianColumns;
 use calib_core::{Kinematics, ParameterErrors, Robot};
-use nalgebra::{Dyn, Matrix3, Vector3};
+use nalgebra::{Dyn, Vector3};
 use rand_core::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use std::path::PathBuf;
-
-/// Gauss-Newton steps at most per configuration (from a few mm off, three reach 1e-9 mm).
-const STEPS: usize = 20;
 
 /// How close the true ball must come to its target, mm.
 const REACHED_MM: f64 = 1e-9;
@@ -201,24 +196,7 @@ fn socket_centres(
     Ok(centres)
 }
 
-/// The joint readings nearest `start` (rad; minimum-norm Gauss-Newton steps) at which the true
-/// ball lies at `target` (mm, within [`REACHED_MM`]), or `None`.
+/// The joint readings nearest `start` at which the true ball lies at `target` (mm).
 fn reach(truth: &Kinematics<f64, Dyn>, start: &[f64], target: &Vector3<f64>) -> Option<Vec<f64>> {
-    let mut q = start.to_vec();
-    for _ in 0..STEPS {
-        let (pose, jacobian) = truth.geometric_jacobian(&JointVec::from_slice(&q)?).ok()?;
-        let error = target - pose.translation.vector;
-        if error.norm() < REACHED_MM {
-            return Some(q);
-        }
-        let rows: Vec<Vector3<f64>> = (0..q.len())
-            .map(|j| jacobian.column(j).fixed_rows::<3>(0).into_owned())
-            .collect();
-        let jjt: Matrix3<f64> = rows.iter().map(|c| c * c.transpose()).sum();
-        let y = jjt.try_inverse()? * error;
-        for (qj, c) in q.iter_mut().zip(&rows) {
-            *qj += c.dot(&y);
-        }
-    }
-    None
+    crate::kinematics::reach::reach_point(truth, start, target, REACHED_MM)
 }

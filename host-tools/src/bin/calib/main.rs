@@ -57,6 +57,9 @@ enum Command {
     /// Identify the geometry without an instrument: a ball on the flange touched in sockets
     /// from many configurations (joint readings only), with a known distance between sockets.
     Sockets(crate::cli::sockets::SocketsOptions),
+    /// Choose the configurations to record in each socket of a placement (greedy D-optimal
+    /// over the reachable ones) and predict what their calibration gives.
+    PlanSockets(crate::cli::plan_sockets::PlanSocketsOptions),
     /// Print which identified parameters the data determine (identifiability), without calibrating.
     Check(CheckOptions),
     /// Print the Table 3 statistics of any robot model on any data.
@@ -247,6 +250,7 @@ fn run(command: Command) -> anyhow::Result<()> {
                 crate::cli::print_line(format_args!("wrote {}", path.display()))?;
             }
         }
+        Command::PlanSockets(options) => crate::cli::plan_sockets::run(&options)?,
         Command::Calibrate(options) => calibrate_command(options)?,
     }
     Ok(())

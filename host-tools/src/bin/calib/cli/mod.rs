@@ -11,6 +11,7 @@ pub mod import_ur;
 pub mod import_urdf;
 pub mod merge;
 pub mod plan;
+pub mod plan_sockets;
 pub mod report;
 pub mod simulate;
 pub mod sockets;
