@@ -554,6 +554,44 @@ fn panda_session(
     }
 }
 
+/// Uniform random errors in every parameter of `set` (lengths within 0.3 mm, angles within 1
+/// mrad, the ball's offset within 0.5 mm), packed in the set's order.
+fn random_truth(set: &ParameterSet<Dyn, Dyn>, seed: u64) -> nalgebra::DVector<f64> {
+    use rand::RngExt;
+    use rand_core::SeedableRng;
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
+    nalgebra::DVector::from_iterator(
+        set.len(),
+        set.parameters().iter().map(|p| {
+            let half = match (p, host_tools::analysis::truth::unit_of(*p)) {
+                (Parameter::Tool(_), _) => 0.5,
+                (_, "mm") => 0.3,
+                _ => 1e-3,
+            };
+            rng.random_range(-half..half)
+        }),
+    )
+}
+
+/// How far a fit's parameters lie from the truth `truth_x` (packed as the fit's set) in its
+/// covariance: the Mahalanobis distance (squared) and the largest difference in standard errors.
+fn distance_from_truth(
+    fit: &host_tools::calibration::fit::KindFit,
+    truth_x: &nalgebra::DVector<f64>,
+) -> (f64, f64) {
+    let estimate =
+        nalgebra::DVector::from_iterator(truth_x.len(), fit.parameters.iter().map(|p| p.value));
+    let difference = estimate - truth_x;
+    let covariance = fit.covariance.clone().unwrap();
+    let mahalanobis = (difference.transpose()
+        * covariance.clone().cholesky().unwrap().inverse()
+        * &difference)[(0, 0)];
+    let worst_z = (0..truth_x.len())
+        .map(|i| difference[i].abs() / covariance[(i, i)].sqrt())
+        .fold(0.0, f64::max);
+    (mahalanobis, worst_z)
+}
+
 /// The `p` quantile of the chi-squared distribution with `k` degrees of freedom, by Wilson and
 /// Hilferty's cube-root approximation (within 1 % for `k` above 10); `z` the normal quantile.
 fn chi_squared_quantile(k: f64, z: f64) -> f64 {
@@ -572,25 +610,12 @@ fn chi_squared_quantile(k: f64, z: f64) -> f64 {
 #[test]
 fn simulated_touches_give_back_the_truth_within_their_uncertainty() {
     use host_tools::measurement::simulate_touches::{TouchSimulation, simulate_touches};
-    use rand::RngExt;
-    use rand_core::SeedableRng;
     let real_session = panda_session("panda_3", "frontcenter", [0, 1]);
     let real = real_session.run().unwrap();
     let set = real.fit.set.clone();
     let robot = real_session.ball_model().unwrap().robot;
     for (play, seed) in [(0.02, 1u64), (0.05, 2)] {
-        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
-        let truth_x = nalgebra::DVector::from_iterator(
-            set.len(),
-            set.parameters().iter().map(|p| {
-                let half = match (p, host_tools::analysis::truth::unit_of(*p)) {
-                    (Parameter::Tool(_), _) => 0.5,
-                    (_, "mm") => 0.3,
-                    _ => 1e-3,
-                };
-                rng.random_range(-half..half)
-            }),
-        );
+        let truth_x = random_truth(&set, seed);
         let simulation = TouchSimulation {
             truth: set.unpack(&truth_x).unwrap(),
             play_sd_mm: play,
@@ -605,18 +630,7 @@ fn simulated_touches_give_back_the_truth_within_their_uncertainty() {
         };
         let fitted = session.run().unwrap();
         assert_eq!(fitted.fit.set.parameters(), set.parameters());
-        let estimate = nalgebra::DVector::from_iterator(
-            set.len(),
-            fitted.fit.parameters.iter().map(|p| p.value),
-        );
-        let difference = estimate - &truth_x;
-        let covariance = fitted.fit.covariance.clone().unwrap();
-        let mahalanobis = (difference.transpose()
-            * covariance.clone().cholesky().unwrap().inverse()
-            * &difference)[(0, 0)];
-        let worst_z = (0..set.len())
-            .map(|i| difference[i].abs() / covariance[(i, i)].sqrt())
-            .fold(0.0, f64::max);
+        let (mahalanobis, worst_z) = distance_from_truth(&fitted.fit, &truth_x);
         let limit = chi_squared_quantile(set.len() as f64, 3.09);
         println!(
             "play {play} mm: {} parameters, Mahalanobis {mahalanobis:.2} (99.9 % point {limit:.1}), worst {worst_z:.2} standard errors, residual sd {:.4} mm",
@@ -723,8 +737,6 @@ fn leave_one_placement_out_through_calib_sockets() {
 fn plane_contacts_give_back_the_truth_within_their_uncertainty() {
     use host_tools::calibration::touches::TouchSession;
     use host_tools::measurement::simulate_touches::{TouchSimulation, simulate_touches};
-    use rand::RngExt;
-    use rand_core::SeedableRng;
     let template = panda_session("panda_3", "frontcenter", [0, 1]);
     let robot = template.ball_model().unwrap().robot;
     let cases: [(&str, Vec<[f64; 3]>, bool); 2] = [
@@ -761,36 +773,14 @@ fn plane_contacts_give_back_the_truth_within_their_uncertainty() {
             seed: 7,
         };
         let set = session_of(&nominal).run().unwrap().fit.set;
-        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
-        let truth_x = nalgebra::DVector::from_iterator(
-            set.len(),
-            set.parameters().iter().map(|p| {
-                let half = match (p, host_tools::analysis::truth::unit_of(*p)) {
-                    (Parameter::Tool(_), _) => 0.5,
-                    (_, "mm") => 0.3,
-                    _ => 1e-3,
-                };
-                rng.random_range(-half..half)
-            }),
-        );
+        let truth_x = random_truth(&set, 7);
         let simulation = TouchSimulation {
             truth: set.unpack(&truth_x).unwrap(),
             ..nominal
         };
         let fitted = session_of(&simulation).run().unwrap();
         assert_eq!(fitted.fit.set.parameters(), set.parameters(), "{case}");
-        let estimate = nalgebra::DVector::from_iterator(
-            set.len(),
-            fitted.fit.parameters.iter().map(|p| p.value),
-        );
-        let difference = estimate - &truth_x;
-        let covariance = fitted.fit.covariance.clone().unwrap();
-        let mahalanobis = (difference.transpose()
-            * covariance.clone().cholesky().unwrap().inverse()
-            * &difference)[(0, 0)];
-        let worst_z = (0..set.len())
-            .map(|i| difference[i].abs() / covariance[(i, i)].sqrt())
-            .fold(0.0, f64::max);
+        let (mahalanobis, worst_z) = distance_from_truth(&fitted.fit, &truth_x);
         let limit = chi_squared_quantile(set.len() as f64, 3.09);
         let flat = (fitted.fitted.iter())
             .flat_map(|f| &f.identified.planes)
@@ -898,8 +888,6 @@ fn calib_sockets_calibrates_from_plane_contacts() {
 fn a_plan_of_touches_predicts_what_its_calibration_measures() {
     use host_tools::calibration::touch_plan::{TouchPlanRequest, plan_touches};
     use host_tools::measurement::simulate_touches::{TouchSimulation, simulate_touches};
-    use rand::RngExt;
-    use rand_core::SeedableRng;
     let session = panda_session("panda_3", "frontcenter", [0, 1]);
     let ball = session.ball_model().unwrap();
     let nominal = Kinematics::nominal(&ball.robot).unwrap();
@@ -978,18 +966,7 @@ fn a_plan_of_touches_predicts_what_its_calibration_measures() {
         planes: Vec::new(),
     };
     let set = plan.set.clone();
-    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(11);
-    let truth_x = nalgebra::DVector::from_iterator(
-        set.len(),
-        set.parameters().iter().map(|p| {
-            let half = match (p, host_tools::analysis::truth::unit_of(*p)) {
-                (Parameter::Tool(_), _) => 0.5,
-                (_, "mm") => 0.3,
-                _ => 1e-3,
-            };
-            rng.random_range(-half..half)
-        }),
-    );
+    let truth_x = random_truth(&set, 11);
     let mut measured = Vec::new();
     for seed in [21, 22] {
         let simulation = TouchSimulation {

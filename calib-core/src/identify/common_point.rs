@@ -755,8 +755,19 @@ mod tests {
             .map(|i| 0.5 + (i % 5) as f64 / 4.0)
             .collect();
         let x = set.pack(&table2::<f64>()) * 0.5;
-        let (values, jacobian) = rows(&problem, &x, &robust, true);
-        assert_eq!(values, rows(&problem, &x, &robust, false).0);
+        assert_jacobian_of_differences(&problem, &x, &robust);
+    }
+
+    /// The Jacobian rows of `problem` at `x` (with `robust` weights) are those of central
+    /// differences of its residual rows, to 1e-7 of the largest entry; returns the rows.
+    fn assert_jacobian_of_differences(
+        problem: &CommonPoints<'_, f64, U6, Dyn>,
+        x: &OVector<f64, Dyn>,
+        robust: &[f64],
+    ) -> (Vec<f64>, Vec<Vec<f64>>) {
+        let set = problem.set();
+        let (values, jacobian) = rows(problem, x, robust, true);
+        assert_eq!(values, rows(problem, x, robust, false).0);
         let largest = jacobian
             .iter()
             .flatten()
@@ -772,8 +783,8 @@ mod tests {
             let mut down = x.clone();
             down[k] -= h;
             let (plus, minus) = (
-                rows(&problem, &up, &robust, false).0,
-                rows(&problem, &down, &robust, false).0,
+                rows(problem, &up, robust, false).0,
+                rows(problem, &down, robust, false).0,
             );
             for (row, (p, m)) in plus.iter().zip(&minus).enumerate() {
                 let numeric = (p - m) / (2.0 * h);
@@ -785,6 +796,25 @@ mod tests {
                 );
             }
         }
+        (values, jacobian)
+    }
+
+    /// Least squares on `problem` from zero errors: the fit, and the largest residual norm of
+    /// its `measurements` before and after.
+    fn fit_from_zero(
+        problem: &CommonPoints<'_, f64, U6, Dyn>,
+        measurements: usize,
+    ) -> (crate::identify::lm::LmResult<f64, Dyn>, f64, f64) {
+        let least_squares = LeastSquares::new(problem);
+        let start = problem.set().zeros::<f64>();
+        let largest = |x: &OVector<f64, Dyn>| {
+            let mut norms = std::vec![0.0; measurements];
+            least_squares.pose_residual_norms(x, &mut norms).unwrap();
+            norms.iter().fold(0.0f64, |m, d| m.max(*d))
+        };
+        let fit = least_squares.solve(&start, &LmSettings::default()).unwrap();
+        let (before, after) = (largest(&start), largest(&fit.x));
+        (fit, before, after)
     }
 
     /// Least squares from the nominal robot makes the three sockets one point each again: the
@@ -799,29 +829,15 @@ mod tests {
         let set = identifiable();
         let problem =
             CommonPoints::new(&robot, &ParameterErrors::zero(), set.clone(), &touches).unwrap();
-        let least_squares = LeastSquares::new(&problem);
-        let start = set.zeros::<f64>();
-        let mut before = std::vec![0.0; touches.len()];
-        least_squares
-            .pose_residual_norms(&start, &mut before)
-            .unwrap();
-        let fit = least_squares.solve(&start, &LmSettings::default()).unwrap();
-        let mut after = std::vec![0.0; touches.len()];
-        least_squares
-            .pose_residual_norms(&fit.x, &mut after)
-            .unwrap();
-        let largest = |v: &[f64]| v.iter().fold(0.0f64, |m, d| m.max(*d));
+        let (fit, before, after) = fit_from_zero(&problem, touches.len());
         std::println!(
-            "{} touches, {} parameters: largest distance from the centre {:.3} -> {:.2e} mm, {} iterations, {:?}",
+            "{} touches, {} parameters: largest distance from the centre {before:.3} -> {after:.2e} mm, {} iterations, {:?}",
             touches.len(),
             set.len(),
-            largest(&before),
-            largest(&after),
             fit.iterations,
             fit.stop
         );
-        assert!(largest(&before) > 0.4, "{before:?}");
-        assert!(largest(&after) < 1e-7, "{after:?}");
+        assert!(before > 0.4 && after < 1e-7, "{before} {after}");
         assert_eq!(fit.rows, 3 * (36 - 3));
         let truth = set.pack(&truth());
         let (mm, rad) = set.largest_differences(&fit.x, &truth).unwrap();
@@ -1014,36 +1030,12 @@ mod tests {
             .map(|i| 0.5 + (i % 5) as f64 / 4.0)
             .collect();
         let x = set.pack(&table2::<f64>()) * 0.5;
-        let (values, jacobian) = rows(&problem, &x, &robust, true);
+        let (values, jacobian) = assert_jacobian_of_differences(&problem, &x, &robust);
         assert_eq!(values.len(), contacts.len());
-        assert_eq!(values, rows(&problem, &x, &robust, false).0);
         let largest = jacobian
             .iter()
             .flatten()
             .fold(0.0f64, |m, v| m.max(v.abs()));
-        for k in 0..set.len() {
-            let h = if set.parameters()[k].is_angle() {
-                1e-7
-            } else {
-                1e-5
-            };
-            let (mut up, mut down) = (x.clone(), x.clone());
-            up[k] += h;
-            down[k] -= h;
-            let (plus, minus) = (
-                rows(&problem, &up, &robust, false).0,
-                rows(&problem, &down, &robust, false).0,
-            );
-            for (row, (p, m)) in plus.iter().zip(&minus).enumerate() {
-                let numeric = (p - m) / (2.0 * h);
-                let analytic = jacobian[row][k];
-                assert!(
-                    (numeric - analytic).abs() < 1e-7 * largest,
-                    "{}: row {row}: {analytic} against {numeric}",
-                    set.parameters()[k]
-                );
-            }
-        }
         // Kaufman's rows: the same without the turn, n^T G_i.
         let model = problem.kinematics(&x).unwrap();
         let (_, normal, _) = problem.best_plane(&model, 0, &[], &robust).unwrap();
@@ -1069,28 +1061,14 @@ mod tests {
             .unwrap()
             .with_planes(&contacts)
             .unwrap();
-        let least_squares = LeastSquares::new(&problem);
-        let start = set.zeros::<f64>();
-        let mut before = std::vec![0.0; contacts.len()];
-        least_squares
-            .pose_residual_norms(&start, &mut before)
-            .unwrap();
-        let fit = least_squares.solve(&start, &LmSettings::default()).unwrap();
-        let mut after = std::vec![0.0; contacts.len()];
-        least_squares
-            .pose_residual_norms(&fit.x, &mut after)
-            .unwrap();
-        let largest = |v: &[f64]| v.iter().fold(0.0f64, |m, d| m.max(*d));
+        let (fit, before, after) = fit_from_zero(&problem, contacts.len());
         std::println!(
-            "{} contacts, {} parameters: largest distance from the plane {:.3} -> {:.2e} mm, {} iterations",
+            "{} contacts, {} parameters: largest distance from the plane {before:.3} -> {after:.2e} mm, {} iterations",
             contacts.len(),
             set.len(),
-            largest(&before),
-            largest(&after),
             fit.iterations
         );
-        assert!(largest(&before) > 0.1, "{before:?}");
-        assert!(largest(&after) < 1e-7, "{after:?}");
+        assert!(before > 0.1 && after < 1e-7, "{before} {after}");
         assert_eq!(fit.rows, 81 - 3 * 3);
         let (mm, rad) = set
             .largest_differences(&fit.x, &set.pack(&truth()))

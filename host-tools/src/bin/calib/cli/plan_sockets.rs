@@ -3,7 +3,6 @@
 //! [`host_tools::calibration::touch_plan`].
 
 use host_tools::calibration::touch_plan::{TouchPlanRequest, plan_touches};
-use host_tools::calibration::touches::Gauge;
 use host_tools::io::outputs::Outputs;
 use host_tools::io::robot_file::RobotFile;
 use std::path::PathBuf;
@@ -42,15 +41,9 @@ pub struct PlanSocketsOptions {
     /// The touches' expected scatter per coordinate, mm (a printed MUKCa tool on a Panda: 0.1).
     #[arg(long, value_name = "MM", default_value_t = 0.1)]
     pub touch_sd: f64,
-    /// The known distance between two sockets, mm (MUKCa: 50).
-    #[arg(long, value_name = "MM")]
-    pub distance: Option<f64>,
-    /// The standard uncertainty of that distance, mm.
-    #[arg(long, value_name = "MM", default_value_t = 0.05, requires = "distance")]
-    pub distance_sd: f64,
-    /// The two sockets the distance is between.
-    #[arg(long, value_name = "A,B", value_delimiter = ',', default_values_t = [0u16, 1], requires = "distance")]
-    pub distance_between: Vec<u16>,
+    /// The known distance between sockets.
+    #[command(flatten)]
+    pub gauge: super::sockets::GaugeOptions,
     /// Write the planned configurations here (our touch CSV, joints in degrees).
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
@@ -69,9 +62,6 @@ pub fn plan_sockets(options: &PlanSocketsOptions) -> anyhow::Result<String> {
     let [x, y, z] = options.ball_mm[..] else {
         anyhow::bail!("--ball-mm: give the ball's centre as three numbers X,Y,Z in mm");
     };
-    let [a, b] = options.distance_between[..] else {
-        anyhow::bail!("--distance-between: give two socket numbers A,B, such as 0,1");
-    };
     let sockets_mm = (options.sockets.iter())
         .map(|s| three(s, "--socket"))
         .collect::<anyhow::Result<Vec<_>>>()?;
@@ -84,11 +74,7 @@ pub fn plan_sockets(options: &PlanSocketsOptions) -> anyhow::Result<String> {
         per_socket: options.per_socket,
         starts: options.starts,
         touch_sd_mm: options.touch_sd,
-        gauge: options.distance.map(|mm| Gauge {
-            sockets: [a, b],
-            mm,
-            sd_mm: options.distance_sd,
-        }),
+        gauge: options.gauge.gauge()?,
     };
     let plan = plan_touches(&request)?;
     if let Some(out) = &options.out {

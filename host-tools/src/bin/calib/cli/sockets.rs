@@ -34,16 +34,9 @@ pub struct SocketsOptions {
     /// judged.
     #[arg(long, value_name = "NAMES", value_delimiter = ',')]
     pub train: Vec<String>,
-    /// The known distance between two sockets of every placement, mm (MUKCa: 50): fixes the
-    /// scale, which touches alone leave free.
-    #[arg(long, value_name = "MM")]
-    pub distance: Option<f64>,
-    /// The standard uncertainty of that distance, mm.
-    #[arg(long, value_name = "MM", default_value_t = 0.05, requires = "distance")]
-    pub distance_sd: f64,
-    /// The two sockets the distance is between.
-    #[arg(long, value_name = "A,B", value_delimiter = ',', default_values_t = [0u16, 1], requires = "distance")]
-    pub distance_between: Vec<u16>,
+    /// The known distance between sockets.
+    #[command(flatten)]
+    pub gauge: GaugeOptions,
     /// Also judge each placement by a calibration of all the others (leave one placement
     /// out), printed and in the report; the identified file is the one of --train.
     #[arg(long)]
@@ -60,6 +53,36 @@ pub struct SocketsOptions {
     pub report: Option<PathBuf>,
 }
 
+/// The known distance between two sockets of every placement, as `calib sockets` and `calib
+/// plan-sockets` take it.
+#[derive(Clone, Debug, clap::Args)]
+pub struct GaugeOptions {
+    /// The known distance between two sockets of every placement, mm (MUKCa: 50): fixes the
+    /// scale, which touches alone leave free.
+    #[arg(long, value_name = "MM")]
+    pub distance: Option<f64>,
+    /// The standard uncertainty of that distance, mm.
+    #[arg(long, value_name = "MM", default_value_t = 0.05, requires = "distance")]
+    pub distance_sd: f64,
+    /// The two sockets the distance is between.
+    #[arg(long, value_name = "A,B", value_delimiter = ',', default_values_t = [0u16, 1], requires = "distance")]
+    pub distance_between: Vec<u16>,
+}
+
+impl GaugeOptions {
+    /// The gauge asked for, if any.
+    pub fn gauge(&self) -> anyhow::Result<Option<Gauge>> {
+        let [a, b] = self.distance_between[..] else {
+            anyhow::bail!("--distance-between: give two socket numbers A,B, such as 0,1");
+        };
+        Ok(self.distance.map(|mm| Gauge {
+            sockets: [a, b],
+            mm,
+            sd_mm: self.distance_sd,
+        }))
+    }
+}
+
 /// Runs `calib sockets`: calibrates, writes the outputs asked for, returns the text to print.
 pub fn sockets(options: &SocketsOptions) -> anyhow::Result<String> {
     let [x, y, z] = options.ball_mm[..] else {
@@ -67,9 +90,6 @@ pub fn sockets(options: &SocketsOptions) -> anyhow::Result<String> {
             "--ball-mm: give the ball's centre as three numbers X,Y,Z in mm, not {}",
             options.ball_mm.len()
         );
-    };
-    let [a, b] = options.distance_between[..] else {
-        anyhow::bail!("--distance-between: give two socket numbers A,B, such as 0,1");
     };
     let robot = RobotFile::read(&options.robot)?;
     let joints = robot.joint.len();
@@ -85,11 +105,7 @@ pub fn sockets(options: &SocketsOptions) -> anyhow::Result<String> {
         ball_mm: [x, y, z],
         placements,
         train: options.train.clone(),
-        gauge: options.distance.map(|mm| Gauge {
-            sockets: [a, b],
-            mm,
-            sd_mm: options.distance_sd,
-        }),
+        gauge: options.gauge.gauge()?,
         config: CalibrationConfig {
             keep_ill_conditioned: options.keep_ill_conditioned,
             ..CalibrationConfig::default()
