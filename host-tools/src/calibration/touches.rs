@@ -6,6 +6,9 @@
 //! ([`super::fit::least_squares_of`]), and the kind's held-out statistic (consistency and
 //! distortion, [`crate::analysis::consistency`]) per placement, fitted and held out.
 //!
+//! Contacts of the ball with planes (`plane_<n>.csv`, unknown planes) join the same fit as the
+//! core's common planes; their figure is each plane's flatness under the model.
+//!
 //! A known distance fixes the scale the touches alone leave free. Its weight against the touches
 //! is the ratio of their uncertainties, squared: the touches' scatter is estimated from a fit
 //! without the distance (the residual standard deviation per coordinate, mm), the distance's is

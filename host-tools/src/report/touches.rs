@@ -29,6 +29,13 @@ pub fn touches_text(calibrated: &TouchCalibrated) -> String {
         }
         text.push_str(&format!("{title}:\n"));
         for f in figures {
+            if f.identified.sockets.is_empty() {
+                text.push_str(&format!(
+                    "  {:<24} no sockets (planes below)\n",
+                    f.placement
+                ));
+                continue;
+            }
             let distortion = f
                 .identified
                 .distortion_mm
