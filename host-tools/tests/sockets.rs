@@ -891,25 +891,26 @@ fn a_plan_of_touches_predicts_what_its_calibration_measures() {
     let session = panda_session("panda_3", "frontcenter", [0, 1]);
     let ball = session.ball_model().unwrap();
     let nominal = Kinematics::nominal(&ball.robot).unwrap();
-    let front = session
-        .placements
-        .iter()
-        .find(|p| p.name == "frontcenter")
-        .unwrap();
-    let sockets_mm: Vec<[f64; 3]> = (front.sockets.iter())
-        .map(|s| {
-            let sum: nalgebra::Vector3<f64> = (s.readings.iter())
-                .map(|r| {
-                    nominal
-                        .forward(&JointVec::from_slice(&r.q_rad).unwrap())
-                        .unwrap()
-                        .translation
-                        .vector
-                })
-                .sum();
-            (sum / s.readings.len() as f64).into()
-        })
-        .collect();
+    let sockets_of = |name: &str| -> Vec<[f64; 3]> {
+        let placement = session.placements.iter().find(|p| p.name == name).unwrap();
+        (placement.sockets.iter())
+            .map(|s| {
+                let sum: nalgebra::Vector3<f64> = (s.readings.iter())
+                    .map(|r| {
+                        let q = JointVec::from_slice(&r.q_rad).unwrap();
+                        nominal.forward(&q).unwrap().translation.vector
+                    })
+                    .sum();
+                (sum / s.readings.len() as f64).into()
+            })
+            .collect()
+    };
+    let sockets_mm = sockets_of("frontcenter");
+    let next = vec![
+        sockets_of("backright")[0],
+        sockets_of("frontleft")[0],
+        [2000.0, 0.0, 0.0],
+    ];
     let request = TouchPlanRequest {
         robot: session.robot.clone(),
         robot_path: session.robot_path.clone(),
@@ -919,6 +920,7 @@ fn a_plan_of_touches_predicts_what_its_calibration_measures() {
         starts: 400,
         touch_sd_mm: 0.1,
         gauge: session.gauge,
+        next,
     };
     println!("sockets at {sockets_mm:.3?} mm");
     let started = std::time::Instant::now();
@@ -949,6 +951,22 @@ fn a_plan_of_touches_predicts_what_its_calibration_measures() {
         plan.first_reachable.distance_sd_mm.unwrap()
     );
     assert!(planned < first);
+    // The next placement: out of reach last, the others ranked by what they add.
+    for n in &plan.next {
+        println!(
+            "next placement at {:.1?} mm: {} reachable, geometric mean standard error {:?} (plan alone {planned:.3e})",
+            n.first_socket_mm, n.reachable, n.geometric_std_error
+        );
+    }
+    assert_eq!(plan.next.len(), 3);
+    assert_eq!(plan.next[2].first_socket_mm, [2000.0, 0.0, 0.0]);
+    assert!(plan.next[2].geometric_std_error.is_none() && plan.next[2].reachable == 0);
+    assert!(
+        plan.next[..2]
+            .iter()
+            .all(|n| n.geometric_std_error.unwrap() < planned)
+    );
+    assert!(plan.next[0].geometric_std_error <= plan.next[1].geometric_std_error);
     // The planned touches simulated with a known truth, calibrated, and touched again.
     let as_placement = |name: &str| host_tools::io::sockets::Placement {
         name: name.into(),

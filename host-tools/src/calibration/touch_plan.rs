@@ -49,6 +49,23 @@ pub struct TouchPlanRequest {
     pub touch_sd_mm: f64,
     /// The known distance between two sockets, if any.
     pub gauge: Option<Gauge>,
+    /// Candidate places for the next placement of the sockets: where its first socket would go
+    /// (the others keep their offsets from it), base frame, mm. Each is planned the same way
+    /// and ranked by what it adds to this plan.
+    pub next: Vec<[f64; 3]>,
+}
+
+/// A candidate place for the next placement, with what it would add.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NextPlacement {
+    /// Where its first socket goes, base frame, mm.
+    pub first_socket_mm: [f64; 3],
+    /// Candidates reaching its least reachable socket within the joint limits.
+    pub reachable: usize,
+    /// The geometric mean of the parameters' predicted standard errors (mm and rad mixed, so
+    /// only for comparing places) with its planned touches added to the plan's; `None` when a
+    /// socket is out of reach.
+    pub geometric_std_error: Option<f64>,
 }
 
 /// One configuration to record.
@@ -88,6 +105,8 @@ pub struct TouchPlan {
     pub predicted: TouchPrediction,
     /// The same for the first reachable candidates in Halton order.
     pub first_reachable: TouchPrediction,
+    /// The candidate places of the next placement, best first (out of reach last).
+    pub next: Vec<NextPlacement>,
 }
 
 /// Plans the touches of `request`. Refused: no socket, fewer than four configurations per
@@ -141,7 +160,22 @@ pub fn plan_touches(request: &TouchPlanRequest) -> crate::Result<TouchPlan> {
         })
         .collect::<crate::Result<_>>()?;
     let gauge = request.gauge.zip(weight);
-    let chosen = greedy(&jacobians, request, gauge);
+    let none = DMatrix::zeros(set.len(), set.len());
+    let chosen = greedy(
+        &jacobians,
+        (&request.sockets_mm, request.per_socket),
+        gauge,
+        &none,
+    );
+    let base = information(&sums_of(&jacobians, &chosen), gauge, &request.sockets_mm);
+    let context = Context {
+        nominal: &nominal,
+        robot: &ball.robot,
+        starts: &starts,
+        set: &set,
+        gauge,
+    };
+    let next = rank_next(&context, request, &base)?;
     let touches: Vec<PlannedTouch> = (chosen.iter().enumerate())
         .flat_map(|(s, picks)| {
             let candidates = &candidates[s];
@@ -166,7 +200,90 @@ pub fn plan_touches(request: &TouchPlanRequest) -> crate::Result<TouchPlan> {
         set,
         left_free: selection.identifiability.left_free.clone(),
         dropped: selection.dropped.clone(),
+        next,
     })
+}
+
+/// What planning another placement needs: the nominal model (the ball its tool), the starts,
+/// the identified set, the gauge with its weight.
+struct Context<'a> {
+    nominal: &'a Kinematics<f64, Dyn>,
+    robot: &'a calib_core::Robot<f64, Dyn>,
+    starts: &'a [(String, Vec<f64>)],
+    set: &'a ParameterSet<Dyn, Dyn>,
+    gauge: Option<(Gauge, f64)>,
+}
+
+/// The candidate places of the next placement, each planned greedily on top of the plan's
+/// information `base`, ranked by the geometric mean of the predicted standard errors.
+fn rank_next(
+    context: &Context<'_>,
+    request: &TouchPlanRequest,
+    base: &DMatrix<f64>,
+) -> crate::Result<Vec<NextPlacement>> {
+    let first = Vector3::from(request.sockets_mm[0]);
+    let mut ranked = Vec::with_capacity(request.next.len());
+    for at in &request.next {
+        let shift = Vector3::from(*at) - first;
+        let sockets: Vec<[f64; 3]> = (request.sockets_mm.iter())
+            .map(|s| (Vector3::from(*s) + shift).into())
+            .collect();
+        let candidates: Vec<Vec<Vec<f64>>> = (sockets.iter())
+            .map(|socket| reachable(context.nominal, context.robot, context.starts, socket))
+            .collect();
+        let reachable = candidates.iter().map(Vec::len).min().unwrap_or(0);
+        let geometric_std_error = if reachable < request.per_socket {
+            None
+        } else {
+            let jacobians: Vec<Vec<DMatrix<f64>>> = (candidates.iter())
+                .map(|socket| {
+                    (socket.iter())
+                        .map(|q| position_jacobian(context.nominal, context.set, q))
+                        .collect()
+                })
+                .collect::<crate::Result<_>>()?;
+            let picks = greedy(
+                &jacobians,
+                (&sockets, request.per_socket),
+                context.gauge,
+                base,
+            );
+            let info = base + information(&sums_of(&jacobians, &picks), context.gauge, &sockets);
+            (info.try_inverse()).map(|inverse| {
+                let sigma = request.touch_sd_mm;
+                let logs: f64 = (0..inverse.nrows())
+                    .map(|k| (inverse[(k, k)].max(1e-300) * sigma * sigma).sqrt().ln())
+                    .sum();
+                (logs / inverse.nrows().max(1) as f64).exp()
+            })
+        };
+        ranked.push(NextPlacement {
+            first_socket_mm: *at,
+            reachable,
+            geometric_std_error,
+        });
+    }
+    ranked.sort_by(|a, b| {
+        let key = |n: &NextPlacement| n.geometric_std_error.unwrap_or(f64::INFINITY);
+        key(a).total_cmp(&key(b))
+    });
+    Ok(ranked)
+}
+
+/// Per socket, the sums of the candidates `picks` of `jacobians`.
+fn sums_of(jacobians: &[Vec<DMatrix<f64>>], picks: &[Vec<usize>]) -> Vec<Sums> {
+    let p = (jacobians.iter().flatten()).next().map_or(0, |j| j.ncols());
+    (picks.iter().zip(jacobians))
+        .map(|(picked, socket)| {
+            let mut sum = (DMatrix::zeros(p, p), DMatrix::zeros(3, p), 0);
+            for j in picked.iter().filter_map(|i| socket.get(*i)) {
+                sum.0 += j.transpose() * j;
+                sum.1 += j;
+                sum.2 += 1;
+            }
+            sum
+        })
+        .collect()
 }
 
 impl TouchPlan {
@@ -219,9 +336,39 @@ impl TouchPlan {
         text.push('\n');
         text.push_str(&line("planned", &self.predicted));
         text.push_str(&line("first reachable", &self.first_reachable));
+        text.push_str(&self.next_text());
         text.push_str(
             "the configurations are checked against the joint limits only: check each for collisions (the table, the sockets' tool) before moving there\n",
         );
+        text
+    }
+
+    /// The candidate places of the next placement, best first, against the plan alone.
+    fn next_text(&self) -> String {
+        if self.next.is_empty() {
+            return String::new();
+        }
+        let logs: Vec<f64> = self
+            .predicted
+            .std_errors
+            .iter()
+            .map(|(_, s)| s.ln())
+            .collect();
+        let alone = (logs.iter().sum::<f64>() / logs.len().max(1) as f64).exp();
+        let mut text = format!(
+            "\nthe next placement (its first socket at, mm; the others keep their offsets): geometric mean of the standard errors with it, against {alone:.3e} for this plan alone\n"
+        );
+        for n in &self.next {
+            let [x, y, z] = n.first_socket_mm;
+            let figure = n.geometric_std_error.map_or(
+                format!(
+                    "out of reach ({} candidates reach its least reachable socket)",
+                    n.reachable
+                ),
+                |g| format!("{g:.3e} ({:.2} of the plan alone)", g / alone),
+            );
+            text.push_str(&format!("  {x:.1}, {y:.1}, {z:.1}: {figure}\n"));
+        }
         text
     }
 
@@ -365,18 +512,20 @@ fn log_det(info: &DMatrix<f64>) -> f64 {
     })
 }
 
-/// Greedy D-optimal choice: one candidate per socket in turn, the one raising `log det` most,
-/// until every socket has `per_socket`. Candidates' indices per socket, in the order chosen.
+/// Greedy D-optimal choice: one candidate per socket in turn, the one raising `log det` most
+/// (with the information `base` of touches already planned elsewhere), until every socket has
+/// `per_socket`. Candidates' indices per socket, in the order chosen.
 fn greedy(
     jacobians: &[Vec<DMatrix<f64>>],
-    request: &TouchPlanRequest,
+    (sockets_mm, per_socket): (&[[f64; 3]], usize),
     gauge: Option<(Gauge, f64)>,
+    base: &DMatrix<f64>,
 ) -> Vec<Vec<usize>> {
     let p = (jacobians.iter().flatten()).next().map_or(0, |j| j.ncols());
     let mut sums: Vec<Sums> =
         vec![(DMatrix::zeros(p, p), DMatrix::zeros(3, p), 0); jacobians.len()];
     let mut chosen: Vec<Vec<usize>> = vec![Vec::new(); jacobians.len()];
-    for _ in 0..request.per_socket {
+    for _ in 0..per_socket {
         for (s, socket) in jacobians.iter().enumerate() {
             let mut best: Option<(f64, usize)> = None;
             for (i, j) in socket.iter().enumerate() {
@@ -387,7 +536,7 @@ fn greedy(
                 trial[s].0 += j.transpose() * j;
                 trial[s].1 += j;
                 trial[s].2 += 1;
-                let value = log_det(&information(&trial, gauge, &request.sockets_mm));
+                let value = log_det(&(information(&trial, gauge, sockets_mm) + base));
                 if best.is_none_or(|(b, _)| value > b) {
                     best = Some((value, i));
                 }
@@ -418,19 +567,7 @@ fn prediction(
     request: &TouchPlanRequest,
     gauge: Option<(Gauge, f64)>,
 ) -> crate::Result<TouchPrediction> {
-    let p = set.len();
-    let sums: Vec<Sums> = (picks.iter().enumerate())
-        .map(|(s, picked)| {
-            let mut sum = (DMatrix::zeros(p, p), DMatrix::zeros(3, p), 0);
-            for i in picked {
-                let j = &candidates.jacobians[s][*i];
-                sum.0 += j.transpose() * j;
-                sum.1 += j;
-                sum.2 += 1;
-            }
-            sum
-        })
-        .collect();
+    let sums = sums_of(&candidates.jacobians, picks);
     let sigma = request.touch_sd_mm;
     let covariance = information(&sums, gauge, &request.sockets_mm)
         .try_inverse()

@@ -44,6 +44,11 @@ pub struct PlanSocketsOptions {
     /// The known distance between sockets.
     #[command(flatten)]
     pub gauge: super::sockets::GaugeOptions,
+    /// A candidate place for the next placement: where its first socket would go (the others
+    /// keep their offsets), base frame, mm; once per candidate. Each is planned the same way and
+    /// ranked by what it adds.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true)]
+    pub next: Vec<String>,
     /// Write the planned configurations here (our touch CSV, joints in degrees).
     #[arg(long, value_name = "FILE")]
     pub out: Option<PathBuf>,
@@ -75,6 +80,9 @@ pub fn plan_sockets(options: &PlanSocketsOptions) -> anyhow::Result<String> {
         starts: options.starts,
         touch_sd_mm: options.touch_sd,
         gauge: options.gauge.gauge()?,
+        next: (options.next.iter())
+            .map(|s| three(s, "--next"))
+            .collect::<anyhow::Result<Vec<_>>>()?,
     };
     let plan = plan_touches(&request)?;
     if let Some(out) = &options.out {
