@@ -139,26 +139,9 @@ pub fn plan_touches(request: &TouchPlanRequest) -> crate::Result<TouchPlan> {
     let weight = request
         .gauge
         .map(|g| (request.touch_sd_mm / g.sd_mm).powi(2));
-    let everything = placement_of(&candidates);
-    let data = touches_of(&[&everything], request.gauge.as_ref().zip(weight))?;
-    let mut mask = ball.mask;
-    for axis in [FrameParameter::Tx, FrameParameter::Ty, FrameParameter::Tz] {
-        mask.set(Parameter::Tool(axis), true);
-    }
-    let config = CalibrationConfig {
-        auto_mask: true,
-        ..CalibrationConfig::default()
-    };
-    let selection = select_parameters_of(&data.kind(&ball.robot), mask, &config)?;
+    let selection = selection_of(&ball, &candidates, request.gauge.as_ref().zip(weight))?;
     let set = crate::model::counts::solvable_set(&selection.mask)?;
-    let jacobians: Vec<Vec<DMatrix<f64>>> = (candidates.iter())
-        .map(|socket| {
-            socket
-                .iter()
-                .map(|q| position_jacobian(&nominal, &set, q))
-                .collect()
-        })
-        .collect::<crate::Result<_>>()?;
+    let jacobians = jacobians_of(&nominal, &set, &candidates)?;
     let gauge = request.gauge.zip(weight);
     let none = DMatrix::zeros(set.len(), set.len());
     let chosen = greedy(
@@ -177,12 +160,10 @@ pub fn plan_touches(request: &TouchPlanRequest) -> crate::Result<TouchPlan> {
     };
     let next = rank_next(&context, request, &base)?;
     let touches: Vec<PlannedTouch> = (chosen.iter().enumerate())
-        .flat_map(|(s, picks)| {
-            let candidates = &candidates[s];
-            picks.iter().map(move |i| PlannedTouch {
-                socket: s as u16,
-                q_rad: candidates[*i].clone(),
-            })
+        .flat_map(|(s, picks)| picks.iter().map(move |i| (s, *i)))
+        .map(|(s, i)| PlannedTouch {
+            socket: s as u16,
+            q_rad: candidates[s][i].clone(),
         })
         .collect();
     let first: Vec<Vec<usize>> = vec![(0..request.per_socket).collect(); candidates.len()];
@@ -202,6 +183,41 @@ pub fn plan_touches(request: &TouchPlanRequest) -> crate::Result<TouchPlan> {
         dropped: selection.dropped.clone(),
         next,
     })
+}
+
+/// The parameters a calibration from every candidate would identify: the robot file's, the
+/// ball's offset, less what touches leave free and what the candidates barely determine.
+fn selection_of(
+    ball: &super::touches::BallModel,
+    candidates: &[Vec<Vec<f64>>],
+    gauge: Option<(&Gauge, f64)>,
+) -> crate::Result<super::Selection> {
+    let everything = placement_of(candidates);
+    let data = touches_of(&[&everything], gauge)?;
+    let mut mask = ball.mask;
+    for axis in [FrameParameter::Tx, FrameParameter::Ty, FrameParameter::Tz] {
+        mask.set(Parameter::Tool(axis), true);
+    }
+    let config = CalibrationConfig {
+        auto_mask: true,
+        ..CalibrationConfig::default()
+    };
+    select_parameters_of(&data.kind(&ball.robot), mask, &config)
+}
+
+/// The ball's position Jacobians of every candidate, per socket.
+fn jacobians_of(
+    nominal: &Kinematics<f64, Dyn>,
+    set: &ParameterSet<Dyn, Dyn>,
+    candidates: &[Vec<Vec<f64>>],
+) -> crate::Result<Vec<Vec<DMatrix<f64>>>> {
+    (candidates.iter())
+        .map(|socket| {
+            (socket.iter())
+                .map(|q| position_jacobian(nominal, set, q))
+                .collect()
+        })
+        .collect()
 }
 
 /// What planning another placement needs: the nominal model (the ball its tool), the starts,
@@ -235,13 +251,7 @@ fn rank_next(
         let geometric_std_error = if reachable < request.per_socket {
             None
         } else {
-            let jacobians: Vec<Vec<DMatrix<f64>>> = (candidates.iter())
-                .map(|socket| {
-                    (socket.iter())
-                        .map(|q| position_jacobian(context.nominal, context.set, q))
-                        .collect()
-                })
-                .collect::<crate::Result<_>>()?;
+            let jacobians = jacobians_of(context.nominal, context.set, &candidates)?;
             let picks = greedy(
                 &jacobians,
                 (&sockets, request.per_socket),
