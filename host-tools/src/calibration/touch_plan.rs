@@ -27,7 +27,7 @@ use calib_core::identify::common_point::Touch;
 use calib_core::model::JointVec;
 use calib_core::model::parameters::FrameParameter;
 use calib_core::{Kinematics, Parameter, ParameterSet};
-use nalgebra::{DMatrix, Dyn, Vector3};
+use nalgebra::{DMatrix, DVector, Dyn, Vector3};
 use std::path::PathBuf;
 
 /// What to plan.
@@ -477,12 +477,12 @@ fn position_jacobian(
     set: &ParameterSet<Dyn, Dyn>,
     q: &[f64],
 ) -> crate::Result<DMatrix<f64>> {
-    let touch = Touch::new(
-        &JointVec::from_slice(q).unwrap_or_else(|| JointVec::from_fn(q.len(), |_| 0.0)),
-        0,
-        1.0,
-    )
-    .map_err(|e| crate::refused!(implausible format!("{e}"); "a planned configuration: {e}"))?;
+    let q = JointVec::from_slice(q).ok_or_else(|| {
+        crate::refused!(implausible "joint count".to_string();
+            "a planned configuration of {} joints: not a joint vector", q.len())
+    })?;
+    let touch = Touch::new(&q, 0, 1.0)
+        .map_err(|e| crate::refused!(implausible format!("{e}"); "a planned configuration: {e}"))?;
     let (_, twist) = nominal.parameter_jacobian(set, &touch.angles);
     Ok(DMatrix::from_fn(3, set.len(), |r, c| twist[(r, c)]))
 }
@@ -497,18 +497,23 @@ fn information(sums: &[Sums], gauge: Option<(Gauge, f64)>, sockets: &[[f64; 3]])
     for (s, m, n) in sums.iter().filter(|s| s.2 > 0) {
         info += s - m.transpose() * m / *n as f64;
     }
-    if let Some((g, w)) = gauge {
-        let [a, b] = g.sockets.map(usize::from);
-        if let (Some(sa), Some(sb)) = (
-            sums.get(a).filter(|s| s.2 > 0),
-            sums.get(b).filter(|s| s.2 > 0),
-        ) {
-            let u = (Vector3::from(sockets[a]) - Vector3::from(sockets[b])).normalize();
-            let row = (&sa.1 / sa.2 as f64 - &sb.1 / sb.2 as f64).transpose() * u;
-            info += &row * row.transpose() * w;
-        }
+    if let Some((row, w)) = gauge.and_then(|(g, w)| Some((gauge_row(sums, &g, sockets)?, w))) {
+        info += &row * row.transpose() * w;
     }
     info
+}
+
+/// The known distance's Jacobian row (over the parameters) between its sockets' centres,
+/// `u^T (mean J_a - mean J_b)` with `u` the unit vector from socket `b` to `a`; `None` while a
+/// socket has no touch.
+fn gauge_row(sums: &[Sums], gauge: &Gauge, sockets: &[[f64; 3]]) -> Option<DVector<f64>> {
+    let [a, b] = gauge.sockets.map(usize::from);
+    let (sa, sb) = (
+        sums.get(a).filter(|s| s.2 > 0)?,
+        sums.get(b).filter(|s| s.2 > 0)?,
+    );
+    let u = (Vector3::from(*sockets.get(a)?) - Vector3::from(*sockets.get(b)?)).normalize();
+    Some((&sa.1 / sa.2 as f64 - &sb.1 / sb.2 as f64).transpose() * u)
 }
 
 /// `log det` of `info` with a tiny ridge (so that the first picks, which cannot determine
@@ -599,11 +604,7 @@ fn prediction(
         })
         .collect();
     let distance_sd_mm = gauge.and_then(|(g, _)| {
-        let [a, b] = g.sockets.map(usize::from);
-        let (sa, sb) = (sums.get(a)?, sums.get(b)?);
-        let u = (Vector3::from(request.sockets_mm[a]) - Vector3::from(request.sockets_mm[b]))
-            .normalize();
-        let row = (&sa.1 / sa.2 as f64 - &sb.1 / sb.2 as f64).transpose() * u;
+        let row = gauge_row(&sums, &g, &request.sockets_mm)?;
         Some(
             (row.transpose() * &covariance * &row)[(0, 0)]
                 .max(0.0)
