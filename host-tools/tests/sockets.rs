@@ -1015,3 +1015,155 @@ fn a_plan_of_touches_predicts_what_its_calibration_measures() {
         "{mean} against {consistency:?}"
     );
 }
+
+/// The certificate of a calibration from touches (issue 54, item 3): `calib sockets --html` on
+/// `panda_3` trained on `frontcenter`, parsed as HTML. Every held-out placement's row shows the
+/// JSON report's figures (to the printed digit), the summary's held-out mean is their mean and
+/// the distance's worst error is the report's largest, the page says these are not absolute
+/// accuracy and names every parameter left free and dropped, the scale's source, and the inputs
+/// with the SHA-256 of their bytes; `calib report --from` renders the same page from the JSON.
+/// Without the known distance it says the scale is not determined. No external reference.
+#[test]
+fn the_certificate_of_touches_states_what_they_are() {
+    use scraper::{Html, Selector};
+    use sha2::Digest as _;
+    let dir = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str], name: &str| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_calib"))
+            .current_dir(dir.path())
+            .args([
+                "sockets",
+                "--robot",
+                PANDA,
+                "--data",
+                &format!("{DATA}/panda_3"),
+            ])
+            .args([
+                "--ball-mm",
+                "0.025171,-0.084766,133.528298",
+                "--train",
+                "frontcenter",
+            ])
+            .args([
+                "--report",
+                &format!("{name}.json"),
+                "--html",
+                &format!("{name}.html"),
+            ])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let page = std::fs::read_to_string(dir.path().join(format!("{name}.html"))).unwrap();
+        let json: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join(format!("{name}.json"))).unwrap(),
+        )
+        .unwrap();
+        (page, json)
+    };
+    let (page, json) = run(&["--distance", "50"], "gauged");
+    let html = Html::parse_document(&page);
+    let cells = |css: &str| -> Vec<String> {
+        let s = Selector::parse(css).unwrap();
+        html.select(&s)
+            .map(|e| e.text().collect::<String>())
+            .collect()
+    };
+    let rows: Vec<Vec<String>> = {
+        let row = Selector::parse("table tr").unwrap();
+        let td = Selector::parse("td").unwrap();
+        (html.select(&row))
+            .map(|r| r.select(&td).map(|c| c.text().collect()).collect())
+            .collect()
+    };
+    let held = json["held_out"].as_array().unwrap();
+    assert_eq!(held.len(), 5);
+    let mut mean = 0.0;
+    for f in held {
+        let name = f["placement"].as_str().unwrap();
+        let identified = f["identified"]["mean_mm"].as_f64().unwrap();
+        let p95 = f["identified"]["p95_mm"].as_f64().unwrap();
+        let predicted = f["predicted"]["mean_mm"].as_f64().unwrap();
+        mean += identified / held.len() as f64;
+        let row = rows
+            .iter()
+            .find(|r| r.first().map(String::as_str) == Some(name))
+            .unwrap_or_else(|| panic!("no row for {name}"));
+        assert_eq!(row[3], format!("{identified:.4}"), "{row:?}");
+        assert_eq!(row[4], format!("{p95:.4}"), "{row:?}");
+        assert_eq!(row[7], format!("{predicted:.4}"), "{row:?}");
+    }
+    let paragraphs = cells("p").join("\n");
+    assert!(paragraphs.contains(&format!("Held-out consistency (mean over the held-out placements of each one's mean distance from the socket): {mean:.4} mm")), "{paragraphs}");
+    let worst = (held.iter())
+        .map(|f| {
+            f["identified"]["distortion_mm"][0][1]
+                .as_f64()
+                .unwrap()
+                .abs()
+        })
+        .fold(0.0, f64::max);
+    assert!(
+        paragraphs.contains(&format!("at most {worst:.4} mm")),
+        "{paragraphs}"
+    );
+    assert!(paragraphs.contains("not absolute accuracy"));
+    let undetermined = cells("#undetermined + ul li").join("\n");
+    for free in json["identifiability"]["left_free"].as_array().unwrap() {
+        assert!(
+            undetermined.contains(free["name"].as_str().unwrap()),
+            "{undetermined}"
+        );
+    }
+    for dropped in json["dropped"].as_array().unwrap() {
+        assert!(
+            undetermined.contains(dropped.as_str().unwrap()),
+            "{undetermined}"
+        );
+    }
+    assert!(undetermined.contains("base frame") && undetermined.contains("known distance alone"));
+    // The inputs: the robot file and the twelve files of touches, hashed as sha256sum would.
+    let inputs = json["inputs"].as_array().unwrap();
+    assert_eq!(inputs.len(), 1 + 12);
+    for input in inputs {
+        let bytes = std::fs::read(input["path"].as_str().unwrap()).unwrap();
+        let hash: String = (sha2::Sha256::digest(&bytes).iter())
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        assert_eq!(input["sha256"], hash.as_str());
+        assert!(page.contains(&hash));
+    }
+    assert!(!page.contains("http") && !page.contains("<script") && !page.contains("src="));
+    // Rendered again from the JSON report: the same page but for the rendering's date.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_calib"))
+        .current_dir(dir.path())
+        .args(["report", "--from", "gauged.json", "--html", "again.html"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let again = std::fs::read_to_string(dir.path().join("again.html")).unwrap();
+    let body = |p: &str| {
+        p.lines()
+            .filter(|l| !l.contains("rendered by"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    assert_eq!(body(&again), body(&page));
+    // Without the distance: the scale is not certified. Printed to a PDF where Chromium is.
+    let printed = host_tools::report::pdf::browser().is_some();
+    let (free, _) = run(if printed { &["--pdf", "free.pdf"] } else { &[] }, "free");
+    assert!(free.contains("The scale is not determined"));
+    assert!(free.contains("none: the scale is not determined"));
+    if printed {
+        let pdf = std::fs::read(dir.path().join("free.pdf")).unwrap();
+        assert!(pdf.starts_with(b"%PDF-"));
+    }
+}

@@ -14,7 +14,7 @@ use nalgebra::{Dyn, Vector3};
 use serde::Serialize;
 
 /// The consistency of one socket's touches, mm.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct SocketConsistency {
     /// The socket (the touches' point).
     pub point: u16,
@@ -33,7 +33,7 @@ pub struct SocketConsistency {
 }
 
 /// Consistency and distortion of a model on a set of touches (a placement), mm.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Consistency {
     /// Per socket, in the order of their points.
     pub sockets: Vec<SocketConsistency>,
@@ -52,7 +52,7 @@ pub struct Consistency {
 
 /// How flat one plane's contacts are under a model: the distances of the ball centres from the
 /// plane fitted through them (least squares, orthogonal), mm. Like consistency, not accuracy.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct PlaneFlatness {
     /// The plane (the contacts' `point`).
     pub plane: u16,

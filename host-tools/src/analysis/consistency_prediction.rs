@@ -28,7 +28,7 @@ use serde::Serialize;
 const DRAWS: usize = 512;
 
 /// The consistency a fit predicts on a placement, mm.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct PredictedConsistency {
     /// Expected mean distance of a ball centre from its socket's mean, mm.
     pub mean_mm: f64,

@@ -35,7 +35,7 @@ use std::path::PathBuf;
 
 /// A known distance between two sockets of every placement (such as MUKCa's 50 mm between
 /// `hole_0` and `hole_1`), with its standard uncertainty.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct Gauge {
     /// The two sockets, numbered as their files (`hole_<n>.csv`).
     pub sockets: [u16; 2],
@@ -68,7 +68,7 @@ pub struct TouchSession {
 
 /// The figures of one placement: consistency and distortion under the nominal and the
 /// identified model.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct PlacementFigures {
     /// The placement's name.
     pub placement: String,
@@ -115,6 +115,8 @@ pub struct TouchCalibrated {
     pub fitted: Vec<PlacementFigures>,
     /// The held-out placements' figures.
     pub held_out: Vec<PlacementFigures>,
+    /// When the calibration finished, RFC 3339 (UTC, to the second).
+    pub calibrated_at: String,
 }
 
 /// Touches, known distances and plane contacts, as the core's common points take them.
@@ -255,6 +257,8 @@ impl TouchSession {
             selection,
             gauge_weight: gauge.map(|(_, w)| w),
             touch_sd_mm,
+            calibrated_at: humantime::format_rfc3339_seconds(std::time::SystemTime::now())
+                .to_string(),
         })
     }
 
@@ -368,8 +372,9 @@ impl TouchSession {
     }
 }
 
-/// The JSON report of a calibration from touches (`calib sockets --report`).
-#[derive(Clone, Debug, Serialize)]
+/// The JSON report of a calibration from touches (`calib sockets --report`), which `calib
+/// report --from` renders as a certificate ([`crate::report::touch_certificate`]).
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct TouchReport {
     /// The robot file calibrated.
     pub robot: PathBuf,
@@ -402,6 +407,32 @@ pub struct TouchReport {
     /// Leave one placement out (`calib sockets --leave-one-out`): each placement judged by a
     /// calibration of all the others; empty when not asked for.
     pub leave_one_out: Vec<PlacementFigures>,
+    /// When the calibration finished, RFC 3339 (UTC, to the second).
+    #[serde(default)]
+    pub calibrated_at: String,
+    /// The software that wrote the report: its version and the git commit it was built from.
+    #[serde(default)]
+    pub software: String,
+    /// The command line that ran the calibration (empty for a library call).
+    #[serde(default)]
+    pub command_line: Vec<String>,
+    /// The input files (the robot file, every file of touches read) with their SHA-256; empty
+    /// for data from memory.
+    #[serde(default)]
+    pub inputs: Vec<crate::io::provenance::InputFile>,
+}
+
+impl TouchReport {
+    /// The JSON report at `path` (written by `calib sockets --report`). Refused, naming the
+    /// field and line, when it is not one this version reads.
+    pub fn read(path: &std::path::Path) -> crate::Result<Self> {
+        let text = crate::io::input::read_text(path, crate::io::input::Input::Data)?;
+        serde_json::from_str(&text).map_err(|e| {
+            crate::refused!(input path.display();
+                "{}: not a JSON report of calib sockets that this version reads ({e}); write one with calib sockets --report",
+                path.display())
+        })
+    }
 }
 
 impl TouchCalibrated {
@@ -432,6 +463,14 @@ impl TouchCalibrated {
             fitted: self.fitted.clone(),
             held_out: self.held_out.clone(),
             leave_one_out: Vec::new(),
+            calibrated_at: self.calibrated_at.clone(),
+            software: format!(
+                "calib {} (commit {})",
+                env!("CARGO_PKG_VERSION"),
+                env!("CALIB_COMMIT")
+            ),
+            command_line: Vec::new(),
+            inputs: Vec::new(),
         }
     }
 }

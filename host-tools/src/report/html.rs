@@ -60,7 +60,7 @@ pub const SECTIONS: [&str; 12] = [
 ];
 
 /// Text escaped for HTML.
-fn esc(text: &str) -> String {
+pub(crate) fn esc(text: &str) -> String {
     text.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
@@ -69,7 +69,7 @@ fn esc(text: &str) -> String {
 
 /// A number of the report with `digits` decimals, or "-" when it is not a finite number (which
 /// the JSON report writes as `null`).
-fn num(value: f64, digits: usize) -> String {
+pub(crate) fn num(value: f64, digits: usize) -> String {
     if value.is_finite() {
         format!("{value:.digits$}")
     } else {
@@ -78,12 +78,12 @@ fn num(value: f64, digits: usize) -> String {
 }
 
 /// An optional number of the report with `digits` decimals, or "-" when absent.
-fn opt(value: Option<f64>, digits: usize) -> String {
+pub(crate) fn opt(value: Option<f64>, digits: usize) -> String {
     value.map_or_else(|| "-".to_string(), |v| num(v, digits))
 }
 
 /// Texts as a list: "none" when empty, else joined by commas (escaped).
-fn list<T: AsRef<str>>(items: &[T]) -> String {
+pub(crate) fn list<T: AsRef<str>>(items: &[T]) -> String {
     if items.is_empty() {
         return "none".to_string();
     }
@@ -154,7 +154,7 @@ pub(crate) fn shell_word(word: &str) -> String {
 }
 
 /// The input files with their SHA-256 (`inputs`), as a table; nothing when the report has none.
-fn inputs(files: &[InputFile]) -> String {
+pub(crate) fn inputs(files: &[InputFile]) -> String {
     if files.is_empty() {
         return String::new();
     }
@@ -184,7 +184,7 @@ fn calibration_date(report: &Report) -> String {
 }
 
 /// The stylesheet: readable on screen and on paper.
-const STYLE: &str = "body{font-family:sans-serif;max-width:60em;margin:2em auto;padding:0 1em;color:#111}\
+pub(crate) const STYLE: &str = "body{font-family:sans-serif;max-width:60em;margin:2em auto;padding:0 1em;color:#111}\
 h1{border-bottom:2px solid #333}h2{margin-top:2em;border-bottom:1px solid #999}\
 table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #bbb;padding:0.2em 0.6em;text-align:right}\
 th{background:#eee}td:first-child,th:first-child,td[colspan]{text-align:left}\

@@ -6,6 +6,7 @@ pub mod pdf;
 pub mod plots;
 pub mod tables;
 mod text;
+pub mod touch_certificate;
 pub mod touches;
 
 pub use text::evaluation;

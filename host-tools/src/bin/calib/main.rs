@@ -243,10 +243,12 @@ fn run(command: Command) -> anyhow::Result<()> {
             }
         }
         Command::Demo(options) => crate::cli::demo::demo(&options)?,
-        Command::Sockets(options) => {
+        Command::Sockets(mut options) => {
+            options.command_line = std::env::args().collect();
             let text = crate::cli::sockets::sockets(&options)?;
             crate::cli::print_text(format_args!("{text}"))?;
-            for path in [&options.out, &options.report].into_iter().flatten() {
+            let written = [&options.out, &options.report, &options.html, &options.pdf];
+            for path in written.into_iter().flatten() {
                 crate::cli::print_line(format_args!("wrote {}", path.display()))?;
             }
         }

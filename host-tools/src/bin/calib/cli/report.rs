@@ -1,6 +1,7 @@
 //! `calib report`: a calibration's JSON report (`calibrate --report`) rendered again, as the
 //! self-contained HTML page of `calibrate --html` ([`host_tools::report::html`]), and printed to a PDF
-//! ([`host_tools::report::pdf`]).
+//! ([`host_tools::report::pdf`]); a calibration from touches (`sockets --report`) as its
+//! certificate ([`host_tools::report::touch_certificate`]).
 
 use host_tools::io::outputs::Outputs;
 use std::path::PathBuf;
@@ -8,7 +9,7 @@ use std::path::PathBuf;
 /// Options of `calib report`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct ReportOptions {
-    /// The JSON report of a calibration (calib calibrate --report).
+    /// The JSON report of a calibration (calib calibrate --report or calib sockets --report).
     #[arg(long, value_name = "FILE")]
     pub from: PathBuf,
     /// The HTML page to write.
@@ -22,9 +23,7 @@ pub struct ReportOptions {
 
 /// Runs `calib report`: writes the HTML page and/or the PDF asked for, all or nothing.
 pub fn report(options: &ReportOptions) -> anyhow::Result<()> {
-    let report = host_tools::calibration::Report::read(&options.from)?;
-    let page =
-        host_tools::report::html::render(&report, &host_tools::report::html::Rendering::now())?;
+    let page = page(&options.from)?;
     let pdf = match &options.pdf {
         Some(_) => Some(host_tools::report::pdf::print(&page)?),
         None => None,
@@ -38,4 +37,22 @@ pub fn report(options: &ReportOptions) -> anyhow::Result<()> {
     }
     outputs.commit()?;
     Ok(())
+}
+
+/// The page of the report at `from`: a tracker calibration's report, or a calibration from
+/// touches' certificate (a report naming `fitted_placements`, refused with that kind's message).
+fn page(from: &std::path::Path) -> anyhow::Result<String> {
+    use host_tools::report::{html, touch_certificate};
+    let rendering = html::Rendering::now();
+    match host_tools::calibration::Report::read(from) {
+        Ok(report) => Ok(html::render(&report, &rendering)?),
+        Err(tracker) => {
+            let bytes = host_tools::io::input::read(from, host_tools::io::input::Input::Data)?;
+            if !String::from_utf8_lossy(&bytes).contains("\"fitted_placements\"") {
+                return Err(tracker.into());
+            }
+            let report = host_tools::calibration::touches::TouchReport::read(from)?;
+            Ok(touch_certificate::render(&report, &rendering)?)
+        }
+    }
 }

@@ -51,6 +51,18 @@ pub struct SocketsOptions {
     /// Write the JSON report here.
     #[arg(long, value_name = "FILE")]
     pub report: Option<PathBuf>,
+    /// Write the certificate here: one self-contained HTML page stating consistency and the
+    /// known distance's error (never as absolute accuracy) and what the data could not
+    /// determine (also from the JSON report: calib report --from).
+    #[arg(long, value_name = "FILE")]
+    pub html: Option<PathBuf>,
+    /// The certificate printed to a PDF on A4 (needs a headless Chromium: chromium,
+    /// chromium-browser or google-chrome).
+    #[arg(long, value_name = "FILE")]
+    pub pdf: Option<PathBuf>,
+    /// The command line, for the report (set by the `calib` binary; empty otherwise).
+    #[arg(skip)]
+    pub command_line: Vec<String>,
 }
 
 /// The known distance between two sockets of every placement, as `calib sockets` and `calib
@@ -125,7 +137,7 @@ pub fn sockets(options: &SocketsOptions) -> anyhow::Result<String> {
     Ok(text)
 }
 
-/// Writes the identified robot file and the report, all or nothing.
+/// Writes the identified robot file, the report and the certificate, all or nothing.
 fn write_outputs(
     options: &SocketsOptions,
     session: &TouchSession,
@@ -133,6 +145,12 @@ fn write_outputs(
     left_out: &[PlacementFigures],
 ) -> anyhow::Result<()> {
     let mut outputs = Outputs::new(&[("--robot", &options.robot), ("--data", &options.data)]);
+    let contents = TouchReport {
+        leave_one_out: left_out.to_vec(),
+        command_line: options.command_line.clone(),
+        inputs: input_files(options, session)?,
+        ..calibrated.report(session)
+    };
     if let Some(out) = &options.out {
         let header = format!(
             "{} identified by calib sockets (least squares on touches in sockets) from {}.\nValues are nominal + identified errors; [calibration.errors] lists the joints' errors and [calibration.std_errors] their standard errors, in mm and rad. The ball and the sockets are the measurement setup, not written here.",
@@ -142,13 +160,39 @@ fn write_outputs(
         outputs.stage("--out", out, calibrated.file.to_toml(&header).as_bytes())?;
     }
     if let Some(report) = &options.report {
-        let contents = TouchReport {
-            leave_one_out: left_out.to_vec(),
-            ..calibrated.report(session)
-        };
         let json = serde_json::to_string_pretty(&contents)?;
         outputs.stage("--report", report, format!("{json}\n").as_bytes())?;
     }
+    if options.html.is_some() || options.pdf.is_some() {
+        let rendering = host_tools::report::html::Rendering::now();
+        let page = host_tools::report::touch_certificate::render(&contents, &rendering)?;
+        if let Some(pdf) = &options.pdf {
+            outputs.stage("--pdf", pdf, &host_tools::report::pdf::print(&page)?)?;
+        }
+        if let Some(html) = &options.html {
+            outputs.stage("--html", html, page.as_bytes())?;
+        }
+    }
     outputs.commit()?;
     Ok(())
+}
+
+/// The input files with their SHA-256: the robot file, then every file of touches read (a
+/// folder's files one by one).
+fn input_files(
+    options: &SocketsOptions,
+    session: &TouchSession,
+) -> anyhow::Result<Vec<host_tools::io::provenance::InputFile>> {
+    use host_tools::io::provenance::InputFile;
+    let mut files = vec![InputFile::of("--robot", &options.robot)?];
+    if options.data.is_dir() {
+        for placement in &session.placements {
+            for file in placement.sockets.iter().chain(&placement.planes) {
+                files.push(InputFile::of("--data", &file.path)?);
+            }
+        }
+    } else {
+        files.push(InputFile::of("--data", &options.data)?);
+    }
+    Ok(files)
 }
