@@ -1167,3 +1167,157 @@ fn the_certificate_of_touches_states_what_they_are() {
         assert!(pdf.starts_with(b"%PDF-"));
     }
 }
+
+/// Tracker positions and touches in one calibration (issue 54, item 5), with known truth: the
+/// Panda with random errors in the 23 parameters `panda_3` determines, its touches simulated on
+/// the six placements (play 0.03 mm, 50 mm between the sockets), and twelve positions of the
+/// same ball measured by a tracker 2.5 m away and turned 120 degrees (0.02 mm per coordinate) at
+/// real configurations; fitted on `frontcenter` with the tracker positions. The geometry equals
+/// the truth within its covariance (Mahalanobis distance below chi-squared's 99.9 % point over
+/// the shared parameters, none more than four standard errors off), the robot is placed in the
+/// tracker's frame (which touches alone cannot do) to within 0.1 mm and 0.1 mrad, and the
+/// tracker fixes the scale: the identified lengths' standard errors fall against the touches
+/// alone. Fewer than three tracker positions are refused.
+#[test]
+fn tracker_positions_and_touches_in_one_calibration() {
+    use host_tools::calibration::mixed::{MixedSession, TrackerPoint};
+    use host_tools::measurement::simulate_touches::{TouchSimulation, simulate_touches};
+    use rand::RngExt;
+    use rand_core::SeedableRng;
+    let real_session = panda_session("panda_3", "frontcenter", [0, 1]);
+    let set = real_session.run().unwrap().fit.set.clone();
+    let robot = real_session.ball_model().unwrap().robot;
+    // The tracker: 2.5 m away, turned 120 degrees about its vertical, 0.02 mm per coordinate.
+    let tracker = nalgebra::IsometryMatrix3::new(
+        nalgebra::Vector3::new(2500.0, 300.0, -400.0),
+        nalgebra::Vector3::new(0.0, 0.0, 120f64.to_radians()),
+    );
+    // The touches and the tracker positions a robot with the errors `truth_x` (of `set`) gives.
+    let simulate = |set: &ParameterSet<Dyn, Dyn>, truth_x: &nalgebra::DVector<f64>| {
+        let truth = set.unpack(truth_x).unwrap();
+        let simulation = TouchSimulation {
+            truth: truth.clone(),
+            play_sd_mm: 0.03,
+            gauge: Some(([0, 1], 50.0)),
+            planes: Vec::new(),
+            seed: 7,
+        };
+        let simulated = simulate_touches(&robot, &simulation, &real_session.placements).unwrap();
+        let true_model = Kinematics::new(&robot, &truth).unwrap();
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
+        let points: Vec<TrackerPoint> = (real_session.placements.iter())
+            .flat_map(|p| p.sockets.iter().map(|s| s.readings[0].q_rad.clone()))
+            .map(|q| {
+                let q_vec = JointVec::from_slice(&q).unwrap();
+                let ball = true_model.forward(&q_vec).unwrap().translation.vector;
+                let noise = nalgebra::Vector3::from_fn(|_, _| {
+                    0.02 * (-2.0 * rng.random::<f64>().ln()).sqrt()
+                        * (std::f64::consts::TAU * rng.random::<f64>()).cos()
+                });
+                let measured = tracker * nalgebra::Point3::from(ball) + noise;
+                TrackerPoint {
+                    q_rad: q,
+                    position_mm: measured.coords.into(),
+                }
+            })
+            .collect::<Vec<_>>();
+        let touches = host_tools::calibration::touches::TouchSession {
+            placements: simulated.into_iter().map(|s| s.placement).collect(),
+            ..panda_session("panda_3", "frontcenter", [0, 1])
+        };
+        let alone = touches.run().unwrap();
+        let mixed = MixedSession {
+            touches,
+            tracker: points.clone(),
+            tracker_sd_mm: 0.02,
+        }
+        .run()
+        .unwrap();
+        (alone, mixed, points)
+    };
+    // The mixed fit selects its own set (the tracker changes what is barely determined): the
+    // truth is drawn again with errors only in the parameters both fits identify.
+    let first = simulate(&set, &random_truth(&set, 7)).1.calibrated.fit.set;
+    let mut truth_x = random_truth(&set, 7);
+    for (i, p) in set.parameters().iter().enumerate() {
+        if !first.parameters().contains(p) {
+            truth_x[i] = 0.0;
+        }
+    }
+    let (alone, mixed, points) = simulate(&set, &truth_x);
+    let tracker_figures = mixed.tracker.clone();
+    let mixed = mixed.calibrated;
+    assert_eq!(points.len(), 12);
+    let truth_of =
+        |p: &Parameter| (set.parameters().iter().position(|q| q == p)).map_or(0.0, |i| truth_x[i]);
+    // The identified geometry and ball against the truth, in the mixed fit's covariance (the
+    // base, measurement setup, judged below as a pose).
+    let covariance = mixed.fit.covariance.clone().unwrap();
+    let shared: Vec<usize> = (mixed.fit.set.parameters().iter().enumerate())
+        .filter(|(_, p)| !matches!(p, Parameter::Base(_)))
+        .map(|(i, _)| i)
+        .collect();
+    let difference = nalgebra::DVector::from_iterator(
+        shared.len(),
+        (shared.iter()).map(|m| {
+            let p = &mixed.fit.parameters[*m];
+            p.value - truth_of(&p.parameter)
+        }),
+    );
+    let block = nalgebra::DMatrix::from_fn(shared.len(), shared.len(), |r, c| {
+        covariance[(shared[r], shared[c])]
+    });
+    let mahalanobis = (difference.transpose()
+        * block.clone().cholesky().unwrap().inverse()
+        * &difference)[(0, 0)];
+    let worst_z = (0..shared.len())
+        .map(|i| difference[i].abs() / block[(i, i)].sqrt())
+        .fold(0.0, f64::max);
+    let limit = chi_squared_quantile(shared.len() as f64, 3.09);
+    // Where the robot stands: the identified registration against the tracker's true pose.
+    let registration = calib_core::FramePose {
+        xyz: tracker_figures.registration_xyz_mm,
+        rpy: tracker_figures.registration_rpy_rad,
+    }
+    .isometry();
+    let offset_mm = (registration.translation.vector - tracker.translation.vector).norm();
+    let turn_rad = (registration.rotation.inverse() * tracker.rotation).angle();
+    // The lengths' standard errors, mixed against the touches alone.
+    let length_se = |fit: &host_tools::calibration::fit::KindFit| -> f64 {
+        let logs: Vec<f64> = (fit.parameters.iter())
+            .filter(|p| {
+                matches!(
+                    p.parameter,
+                    Parameter::Joint {
+                        kind: JointParameter::A | JointParameter::D,
+                        ..
+                    }
+                )
+            })
+            .map(|p| p.std_error.unwrap().ln())
+            .collect();
+        (logs.iter().sum::<f64>() / logs.len() as f64).exp()
+    };
+    println!(
+        "mixed: {} parameters ({} of the geometry and the ball), Mahalanobis {mahalanobis:.2} (99.9 % point {limit:.1}), worst {worst_z:.2} standard errors; registration off by {offset_mm:.4} mm and {turn_rad:.2e} rad; tracker residual RMS {:.4} mm; lengths' standard errors (geometric mean) {:.3e} mm against {:.3e} mm from the touches alone; touch weight {:.4} (touch sd {:.4} mm)",
+        mixed.fit.set.len(),
+        shared.len(),
+        tracker_figures.rms_mm,
+        length_se(&mixed.fit),
+        length_se(&alone.fit),
+        tracker_figures.touch_weight,
+        mixed.touch_sd_mm.unwrap()
+    );
+    assert!(mahalanobis < limit && worst_z < 4.0);
+    assert!(offset_mm < 0.1 && turn_rad < 1e-4);
+    assert!(length_se(&mixed.fit) < 0.8 * length_se(&alone.fit));
+    assert!(tracker_figures.rms_mm < 0.05);
+    // Two tracker positions cannot place the robot: refused, saying so.
+    let two = MixedSession {
+        touches: panda_session("panda_3", "frontcenter", [0, 1]),
+        tracker: points[..2].to_vec(),
+        tracker_sd_mm: 0.02,
+    };
+    let error = two.run().unwrap_err().to_string();
+    assert!(error.contains("at least three"), "{error}");
+}

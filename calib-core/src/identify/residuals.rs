@@ -10,7 +10,9 @@
 //!   pose), the pose error of docs/ARCHITECTURE.md, each row scaled by `sqrt(weight)`;
 //! - common points ([`crate::identify::common_point::CommonPoints`]): a point of the tool (a
 //!   ball) held at one unknown point (a socket) from several configurations, its rows the
-//!   distances of each predicted point from the group's mean.
+//!   distances of each predicted point from the group's mean;
+//! - two kinds in one fit ([`Stacked`]): the rows of the first, then those of the second, over
+//!   one parameter vector (tracker positions and touches sharing the joints' parameters).
 //!
 //! [`LeastSquares`]: crate::identify::lm::LeastSquares
 
@@ -175,5 +177,102 @@ where
             };
             visit(index, norm);
         }
+    }
+}
+
+/// Two kinds of measurement in one fit over one parameter vector: the rows (and measurements) of
+/// `first`, then those of `second`. Each keeps its own weights; a measurement index past
+/// `first`'s measurements is `second`'s, in `left_out` and `robust` as in the norms visited.
+/// Both must be built on the same parameter set ([`Stacked::new`] checks their dimensions).
+#[derive(Clone, Debug)]
+pub struct Stacked<A, B> {
+    /// The first kind (its rows come first).
+    pub first: A,
+    /// The second kind.
+    pub second: B,
+}
+
+impl<A, B> Stacked<A, B>
+where
+    A: Residuals,
+    B: Residuals<Real = A::Real, Dim = A::Dim>,
+    DefaultAllocator: Allocator<A::Dim>,
+{
+    /// Both kinds in one fit. Refused: their parameter vectors differ in length.
+    pub fn new(first: A, second: B) -> Result<Self, ShapeError> {
+        if first.parameters() != second.parameters() {
+            return Err(ShapeError {
+                expected: first.parameters(),
+                got: second.parameters(),
+            });
+        }
+        Ok(Self { first, second })
+    }
+
+    /// The measurement masks (or weights) of `first` and of `second` in `all`.
+    fn split<'m, V>(&self, all: &'m [V]) -> (&'m [V], &'m [V]) {
+        let at = self.first.measurements().min(all.len());
+        all.split_at_checked(at).unwrap_or((all, &[]))
+    }
+}
+
+impl<A, B> Residuals for Stacked<A, B>
+where
+    A: Residuals,
+    B: Residuals<Real = A::Real, Dim = A::Dim>,
+    DefaultAllocator: Allocator<A::Dim>,
+{
+    type Real = A::Real;
+    type Dim = A::Dim;
+
+    fn dim(&self) -> A::Dim {
+        self.first.dim()
+    }
+
+    fn parameters(&self) -> usize {
+        self.first.parameters()
+    }
+
+    fn check_shape(&self, x: &OVector<A::Real, A::Dim>) -> Result<(), ShapeError> {
+        self.first.check_shape(x)?;
+        self.second.check_shape(x)
+    }
+
+    fn measurements(&self) -> usize {
+        self.first.measurements() + self.second.measurements()
+    }
+
+    fn rows(&self, left_out: &[bool]) -> u32 {
+        let (a, b) = self.split(left_out);
+        self.first.rows(a).saturating_add(self.second.rows(b))
+    }
+
+    fn for_each_row(
+        &self,
+        x: &OVector<A::Real, A::Dim>,
+        left_out: &[bool],
+        robust: &[A::Real],
+        with_jacobian: bool,
+        mut row: impl FnMut(&OVector<A::Real, A::Dim>, A::Real),
+    ) {
+        let (left_a, left_b) = self.split(left_out);
+        let (robust_a, robust_b) = self.split(robust);
+        self.first
+            .for_each_row(x, left_a, robust_a, with_jacobian, &mut row);
+        self.second
+            .for_each_row(x, left_b, robust_b, with_jacobian, &mut row);
+    }
+
+    fn for_each_norm(
+        &self,
+        x: &OVector<A::Real, A::Dim>,
+        left_out: &[bool],
+        mut visit: impl FnMut(usize, A::Real),
+    ) {
+        let (left_a, left_b) = self.split(left_out);
+        let offset = self.first.measurements();
+        self.first.for_each_norm(x, left_a, &mut visit);
+        self.second
+            .for_each_norm(x, left_b, |index, norm| visit(offset + index, norm));
     }
 }

@@ -17,8 +17,9 @@
 //! A new kind (points on a plane, say) is an implementation of the trait here, beside its
 //! residuals in the core; the selection and the fit do not change.
 //!
-//! Two kinds today: measured poses in a tracker's frame ([`Poses`]) and a ball touched in
-//! sockets ([`Touches`]: common points and known distances between them).
+//! Three kinds today: measured poses in a tracker's frame ([`Poses`]), a ball touched in
+//! sockets ([`Touches`]: common points and known distances between them), and both in one fit
+//! ([`Mixed`]: a tracker's positions of the same ball with its touches).
 
 use crate::analysis::identifiability::{FreeParameter, IdentifiabilityReport, ReflectorOnAxis};
 use crate::measurement::dataset::Seen;
@@ -238,6 +239,78 @@ impl<'a> MeasurementKind for Touches<'a> {
             crate::analysis::consistency::consistency(model, self.touches, self.distances);
         statistic.planes = crate::analysis::consistency::flatness(model, self.planes);
         Ok(statistic)
+    }
+}
+
+/// A tracker's positions of the ball on the flange and touches of the same ball in sockets, in
+/// one fit over the joints' parameters, the ball's offset and the base frame (the tracker's
+/// registration): a few tracker points fix where the robot stands and the scale, many touches
+/// the rest. Each tracker coordinate weighs 1; the touches and distances carry their weights
+/// against it (`(tracker sd / touch sd)^2`).
+#[derive(Clone, Copy, Debug)]
+pub struct Mixed<'a> {
+    /// The tracker's positions of the ball, position-only (the robot's base frame registered in
+    /// the tracker's: `touches.robot`'s base).
+    pub positions: &'a [calib_core::identify::objective::Measurement<f64, Dyn>],
+    /// The touches, their robot the ball's (base: the tracker's registration).
+    pub touches: Touches<'a>,
+}
+
+/// Why tracker positions of the ball and touches leave joint 1's turn and lift free.
+const WITH_THE_BASE: &str = "turns or lifts the whole arm about joint 1's axis, as the base frame (the tracker's registration, identified) does: the base holds it";
+
+impl<'a> MeasurementKind for Mixed<'a> {
+    type Residuals<'r>
+        = calib_core::identify::residuals::Stacked<
+        calib_core::Problem<'r, f64, Dyn, Dyn>,
+        CommonPoints<'r, f64, Dyn, Dyn>,
+    >
+    where
+        Self: 'r;
+    type Statistic = crate::analysis::consistency::Consistency;
+
+    fn residuals(&self, set: ParameterSet<Dyn, Dyn>) -> crate::Result<Self::Residuals<'_>> {
+        let fixed = ParameterErrors::zeros_for(self.touches.robot.joint_count());
+        let tracker =
+            calib_core::Problem::new(self.touches.robot, &fixed, set.clone(), self.positions, 0.0)?;
+        let touches = self.touches.residuals(set)?;
+        calib_core::identify::residuals::Stacked::new(tracker, touches).map_err(
+            |e| crate::refused!(implausible format!("{e}"); "tracker positions and touches: {e}"),
+        )
+    }
+
+    fn equations(&self) -> usize {
+        3 * self.positions.len() + self.touches.equations()
+    }
+
+    fn count(&self) -> usize {
+        self.positions.len() + self.touches.count()
+    }
+
+    fn noun(&self) -> &'static str {
+        "tracker positions and touches"
+    }
+
+    fn left_free(&self, mask: &ParameterMask<Dyn>, k: f64) -> crate::Result<LeftFree> {
+        let touches = self.touches.left_free(mask, k)?;
+        let parameters = (touches.parameters.into_iter())
+            .filter(|f| !matches!(f.parameter, Parameter::Base(_)) && f.why != SCALE)
+            .map(|f| match f.parameter {
+                Parameter::Joint { joint: 1, .. } => FreeParameter {
+                    why: WITH_THE_BASE.to_string(),
+                    ..f
+                },
+                _ => f,
+            })
+            .collect();
+        Ok(LeftFree {
+            parameters,
+            reflector_on_last_axis: None,
+        })
+    }
+
+    fn statistic(&self, model: &Kinematics<f64, Dyn>) -> crate::Result<Self::Statistic> {
+        self.touches.statistic(model)
     }
 }
 

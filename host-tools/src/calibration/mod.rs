@@ -65,6 +65,7 @@ mod evaluation;
 pub mod fit;
 mod identified_file;
 pub mod maps;
+pub mod mixed;
 pub mod plausibility;
 mod result;
 mod session;

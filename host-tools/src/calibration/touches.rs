@@ -195,6 +195,58 @@ pub(super) fn touches_of(
     Ok(data)
 }
 
+/// The touches' scatter per coordinate, mm: the residual standard deviation of a fit of the
+/// touches of `placements` alone (no distance), the parameters of `mask` selected as for the
+/// calibration.
+pub(super) fn touch_scatter(
+    robot: &calib_core::Robot<f64, Dyn>,
+    placements: &[&Placement],
+    mask: &calib_core::ParameterMask<Dyn>,
+    config: &CalibrationConfig,
+) -> crate::Result<f64> {
+    let data = touches_of(placements, None)?;
+    let kind = data.kind(robot);
+    let selection = select_parameters_of(&kind, mask.clone(), config)?;
+    Ok(least_squares_of(&kind, &selection, config)?.sigma_mm)
+}
+
+/// What placements are judged by: the ball's robot, its identified geometry, the fit (for the
+/// prediction) and the gauge with its weight.
+pub(super) struct Judged<'a> {
+    pub(super) robot: &'a calib_core::Robot<f64, Dyn>,
+    pub(super) identified: &'a Kinematics<f64, Dyn>,
+    pub(super) fit: &'a KindFit,
+    pub(super) gauge: Option<(&'a Gauge, f64)>,
+}
+
+impl Judged<'_> {
+    /// The figures of each of `placements` under the nominal and the identified model, with the
+    /// prediction when `held` out.
+    pub(super) fn figures(
+        &self,
+        placements: &[&Placement],
+        held: bool,
+    ) -> crate::Result<Vec<PlacementFigures>> {
+        let nominal = Kinematics::nominal(self.robot)?;
+        (placements.iter())
+            .map(|p| {
+                let data = touches_of(&[p], self.gauge)?;
+                let kind = data.kind(self.robot);
+                let fit = self.fit;
+                let predicted = (fit.covariance.as_ref().filter(|_| held)).and_then(|c| {
+                    predict_consistency(self.identified, &fit.set, c, fit.sigma_mm, &data.touches)
+                });
+                Ok(PlacementFigures {
+                    placement: p.name.clone(),
+                    nominal: kind.statistic(&nominal)?,
+                    identified: kind.statistic(self.identified)?,
+                    predicted,
+                })
+            })
+            .collect()
+    }
+}
+
 impl TouchSession {
     /// Calibrates: fits the placements of `train` (all without), judges every placement.
     pub fn run(&self) -> crate::Result<TouchCalibrated> {
@@ -214,45 +266,30 @@ impl TouchSession {
             ..self.config.clone()
         };
         // The touches' scatter, from a fit without the gauge: the gauge's weight.
-        let (touch_sd_mm, gauge) = match &self.gauge {
-            Some(g) => {
-                let data = touches_of(&fitted, None)?;
-                let kind = data.kind(&robot);
-                let selection = select_parameters_of(&kind, mask, &config)?;
-                let sd = least_squares_of(&kind, &selection, &config)?.sigma_mm;
-                (Some(sd), Some((g, (sd / g.sd_mm).powi(2))))
-            }
-            None => (None, None),
+        let touch_sd_mm = match &self.gauge {
+            Some(_) => Some(touch_scatter(&robot, &fitted, &mask, &config)?),
+            None => None,
         };
+        let gauge = (self.gauge.as_ref())
+            .zip(touch_sd_mm)
+            .map(|(g, sd)| (g, (sd / g.sd_mm).powi(2)));
         let data = touches_of(&fitted, gauge)?;
         let kind = data.kind(&robot);
         let selection = select_parameters_of(&kind, mask, &config)?;
         let fit = least_squares_of(&kind, &selection, &config)?;
         let identified = Kinematics::new(&robot, &fit.errors)?;
-        let nominal = Kinematics::nominal(&robot)?;
-        let figures = |placements: &[&Placement], held: bool| {
-            (placements.iter())
-                .map(|p| {
-                    let data = touches_of(&[p], gauge)?;
-                    let kind = data.kind(&robot);
-                    let predicted = (fit.covariance.as_ref().filter(|_| held)).and_then(|c| {
-                        predict_consistency(&identified, &fit.set, c, fit.sigma_mm, &data.touches)
-                    });
-                    Ok(PlacementFigures {
-                        placement: p.name.clone(),
-                        nominal: kind.statistic(&nominal)?,
-                        identified: kind.statistic(&identified)?,
-                        predicted,
-                    })
-                })
-                .collect::<crate::Result<Vec<PlacementFigures>>>()
+        let judged = Judged {
+            robot: &robot,
+            identified: &identified,
+            fit: &fit,
+            gauge,
         };
         let ball = flange.inverse_transform_point(&identified.tool().translation.vector.into());
         Ok(TouchCalibrated {
             file: self.identified_file(&fit),
             ball_mm: ball.coords.into(),
-            fitted: figures(&fitted, false)?,
-            held_out: figures(&held, true)?,
+            fitted: judged.figures(&fitted, false)?,
+            held_out: judged.figures(&held, true)?,
             fit,
             selection,
             gauge_weight: gauge.map(|(_, w)| w),
@@ -307,7 +344,7 @@ impl TouchSession {
 
     /// Refuses what cannot be calibrated: no placement, a placement to fit that is not in the
     /// data, nothing left to fit, a gauge without a positive uncertainty or length.
-    fn check(&self) -> crate::Result<()> {
+    pub(super) fn check(&self) -> crate::Result<()> {
         let names: Vec<&str> = self.placements.iter().map(|p| p.name.as_str()).collect();
         for name in &self.train {
             if !names.contains(&name.as_str()) {
@@ -353,7 +390,7 @@ impl TouchSession {
     /// The identified robot file: the joints' identified errors (and standard errors) on the
     /// nominal file; its base and tool are the controller's, as given (the ball is the
     /// measurement setup: in the report, not in the controller's tool).
-    fn identified_file(&self, fit: &KindFit) -> RobotFile {
+    pub(super) fn identified_file(&self, fit: &KindFit) -> RobotFile {
         let is_joint = |p: &Parameter| matches!(p, Parameter::Joint { .. });
         let mut joints = fit.errors;
         joints.base = calib_core::FrameErrors::default();

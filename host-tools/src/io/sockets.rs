@@ -15,6 +15,10 @@
 //! lines starting with `#` are comments. A file of plane contacts names its second column
 //! `plane` instead (`placement,plane,q1_deg,...`).
 //!
+//! Tracker positions of the same ball, for a calibration that mixes them with touches
+//! ([`read_tracker_csv`]): a header `q1_deg,...,qN_deg,x_mm,y_mm,z_mm` (or the joints in `_rad`),
+//! one position per line, the ball's centre in the tracker's frame, mm.
+//!
 //! Every file is read whole and checked before anything is used: a line of another joint count
 //! than the robot's, a value that is not a finite number, a placement without `hole_0.csv` or
 //! with a gap in its numbering, a file without readings are refused naming the file and line.
@@ -577,4 +581,104 @@ mod tests {
             "{e}"
         );
     }
+}
+
+/// One position of the ball measured by a tracker (for a calibration that mixes tracker
+/// positions with touches).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrackerPoint {
+    /// The joint readings, rad.
+    pub q_rad: Vec<f64>,
+    /// The ball's centre in the tracker's frame, mm.
+    pub position_mm: [f64; 3],
+}
+
+/// The tracker positions of our CSV file at `path` for a robot of `joints` joints: a header
+/// `q1_deg,...,qN_deg,x_mm,y_mm,z_mm` (or the joints in `_rad`), then one position per line;
+/// lines starting with `#` are comments. Refused, naming the file and line: another header, a
+/// line of another field count, a value that is not a finite number, no positions.
+pub fn read_tracker_csv(path: &Path, joints: usize) -> Result<Vec<TrackerPoint>, DataError> {
+    let text = text_of(path)?;
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    let header_in = |unit: &str| -> Vec<String> {
+        ((1..=joints).map(|j| format!("q{j}_{unit}")))
+            .chain(["x_mm", "y_mm", "z_mm"].map(String::from))
+            .collect()
+    };
+    let mut reader = csv::ReaderBuilder::new()
+        .comment(Some(b'#'))
+        .trim(csv::Trim::All)
+        .flexible(true)
+        .from_reader(text.as_bytes());
+    let header: Vec<String> = (reader.headers())
+        .map_err(|e| at(path, 1, None, format!("unreadable header: {e}")))?
+        .iter()
+        .map(String::from)
+        .collect();
+    let degrees = header == header_in("deg");
+    if !degrees && header != header_in("rad") {
+        return Err(at(
+            path,
+            1,
+            None,
+            format!(
+                "the header is \"{}\"; a file of tracker positions of a {joints}-joint robot starts with {} (or the joints in _rad)",
+                header.join(","),
+                header_in("deg").join(",")
+            ),
+        ));
+    }
+    let mut points = Vec::new();
+    for record in reader.records() {
+        let record = record.map_err(|e| {
+            let line = e.position().map_or(0, csv::Position::line);
+            at(path, line, None, format!("unreadable line: {e}"))
+        })?;
+        let line = record.position().map_or(0, csv::Position::line);
+        if record.len() != header.len() {
+            return Err(at(
+                path,
+                line,
+                None,
+                format!(
+                    "has {} fields, the header {}: the {joints} joints, then x_mm, y_mm, z_mm",
+                    record.len(),
+                    header.len()
+                ),
+            ));
+        }
+        let mut values = Vec::with_capacity(record.len());
+        for (field, column) in record.iter().zip(&header) {
+            let value = field
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| {
+                    at(
+                        path,
+                        line,
+                        Some(column.clone()),
+                        format!("\"{field}\" is not a finite number"),
+                    )
+                })?;
+            values.push(value);
+        }
+        let (q, xyz) = values.split_at(joints);
+        points.push(TrackerPoint {
+            q_rad: q
+                .iter()
+                .map(|v| if degrees { v.to_radians() } else { *v })
+                .collect(),
+            position_mm: [xyz[0], xyz[1], xyz[2]],
+        });
+    }
+    if points.is_empty() {
+        return Err(at(
+            path,
+            1,
+            None,
+            "no positions: the file has no lines after its header".into(),
+        ));
+    }
+    Ok(points)
 }
