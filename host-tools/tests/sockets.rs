@@ -1321,3 +1321,107 @@ fn tracker_positions_and_touches_in_one_calibration() {
     let error = two.run().unwrap_err().to_string();
     assert!(error.contains("at least three"), "{error}");
 }
+
+/// `calib sockets --tracker` on the real `panda_3` touches with twelve tracker positions of the
+/// ball at real configurations, computed from the touches' own calibration and moved into a
+/// tracker's frame (2 m away, turned 90 degrees): the command places the robot in that frame to
+/// within 0.05 mm, fits the positions to under 0.1 mm RMS, writes the tracker's figures in the
+/// report and the certificate, and hashes the tracker file among the inputs. A file of tracker
+/// positions with a wrong header or two positions is refused, naming the file and line.
+#[test]
+fn calib_sockets_fits_tracker_positions_with_the_touches() {
+    let dir = tempfile::tempdir().unwrap();
+    let session = panda_session("panda_3", "frontcenter", [0, 1]);
+    let touches = session.run().unwrap();
+    let robot = session.ball_model().unwrap().robot;
+    let model = Kinematics::new(&robot, &touches.fit.errors).unwrap();
+    let tracker = nalgebra::IsometryMatrix3::new(
+        nalgebra::Vector3::new(2000.0, -500.0, 100.0),
+        nalgebra::Vector3::new(0.0, 0.0, 90f64.to_radians()),
+    );
+    let header = "q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,q7_deg,x_mm,y_mm,z_mm\n";
+    let mut csv = header.to_string();
+    for p in &session.placements {
+        for s in &p.sockets {
+            let q = &s.readings[0].q_rad;
+            let ball = model.forward(&JointVec::from_slice(q).unwrap()).unwrap();
+            let m = tracker * nalgebra::Point3::from(ball.translation.vector);
+            let degrees: Vec<String> = q.iter().map(|v| format!("{:.9}", v.to_degrees())).collect();
+            csv.push_str(&format!(
+                "{},{:.6},{:.6},{:.6}\n",
+                degrees.join(","),
+                m.x,
+                m.y,
+                m.z
+            ));
+        }
+    }
+    std::fs::write(dir.path().join("tracker.csv"), &csv).unwrap();
+    let calib = |tracker_file: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_calib"))
+            .current_dir(dir.path())
+            .args([
+                "sockets",
+                "--robot",
+                PANDA,
+                "--data",
+                &format!("{DATA}/panda_3"),
+            ])
+            .args([
+                "--ball-mm",
+                "0.025171,-0.084766,133.528298",
+                "--train",
+                "frontcenter",
+            ])
+            .args(["--distance", "50", "--tracker", tracker_file])
+            .args(["--report", "r.json", "--html", "c.html"])
+            .output()
+            .unwrap()
+    };
+    let out = calib("tracker.csv");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("r.json")).unwrap()).unwrap();
+    let t = &json["tracker"];
+    let xyz: Vec<f64> = (0..3)
+        .map(|i| t["registration_xyz_mm"][i].as_f64().unwrap())
+        .collect();
+    let offset = (nalgebra::Vector3::from_column_slice(&xyz) - tracker.translation.vector).norm();
+    let yaw = t["registration_rpy_rad"][2].as_f64().unwrap();
+    println!(
+        "calib sockets --tracker: registration off by {offset:.4} mm, yaw {:.5} deg; positions RMS {:.4} mm, largest {:.4} mm; touch weight {:.4}",
+        yaw.to_degrees(),
+        t["rms_mm"].as_f64().unwrap(),
+        t["max_mm"].as_f64().unwrap(),
+        t["touch_weight"].as_f64().unwrap()
+    );
+    assert_eq!(t["positions"], 12);
+    assert!(offset < 0.05 && (yaw.to_degrees() - 90.0).abs() < 0.01);
+    assert!(t["rms_mm"].as_f64().unwrap() < 0.1);
+    let inputs = json["inputs"].as_array().unwrap();
+    assert_eq!(inputs.last().unwrap()["flag"], "--tracker");
+    let page = std::fs::read_to_string(dir.path().join("c.html")).unwrap();
+    assert!(page.contains("Tracker positions of the ball</b>: 12 fitted"));
+    assert!(page.contains("determined by the 12 tracker positions"));
+    assert!(!page.contains("The scale rests on the known distance alone"));
+    // Refused, naming the file and line: a wrong header; two positions.
+    std::fs::write(dir.path().join("bad.csv"), csv.replace("x_mm", "x")).unwrap();
+    let out = calib("bad.csv");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("bad.csv:1:"),
+        "{stderr}"
+    );
+    let two: String = csv.lines().take(3).map(|l| format!("{l}\n")).collect();
+    std::fs::write(dir.path().join("two.csv"), two).unwrap();
+    let out = calib("two.csv");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("at least three"),
+        "{stderr}"
+    );
+}

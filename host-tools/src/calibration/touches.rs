@@ -457,6 +457,9 @@ pub struct TouchReport {
     /// for data from memory.
     #[serde(default)]
     pub inputs: Vec<crate::io::provenance::InputFile>,
+    /// With tracker positions of the ball in the fit (`calib sockets --tracker`): what they add.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tracker: Option<super::mixed::TrackerFigures>,
 }
 
 impl TouchReport {
@@ -508,6 +511,7 @@ impl TouchCalibrated {
             ),
             command_line: Vec::new(),
             inputs: Vec::new(),
+            tracker: None,
         }
     }
 }

@@ -85,6 +85,17 @@ fn summary(page: &mut String, report: &TouchReport, robot: &str) -> crate::Resul
         report.least_squares.iterations,
         report.seconds,
     )?;
+    if let Some(t) = &report.tracker {
+        writeln!(
+            page,
+            "<p><b>Tracker positions of the ball</b>: {} fitted with the touches (the tracker's standard uncertainty {} mm per coordinate as given; a touch's coordinate weighs {} against one). Their residuals, RMS {} mm, largest {} mm, are of positions fitted, not held out: they show the fit, not the accuracy elsewhere.</p>",
+            t.positions,
+            num(t.sd_mm, 4),
+            num(t.touch_weight, 4),
+            num(t.rms_mm, 4),
+            num(t.max_mm, 4)
+        )?;
+    }
     if let Some(mean) = held_out_mean(&report.held_out) {
         writeln!(
             page,
@@ -230,6 +241,22 @@ fn placement_row(f: &PlacementFigures) -> String {
 /// What the data could not determine, in words: the base and the scale, then the parameters the
 /// touches leave free and those dropped as barely determined.
 fn undetermined(page: &mut String, report: &TouchReport) -> crate::Result<()> {
+    if let Some(t) = &report.tracker {
+        let [x, y, z] = t.registration_xyz_mm;
+        let [roll, pitch, yaw] = t.registration_rpy_rad.map(f64::to_degrees);
+        writeln!(
+            page,
+            "<h2 id=\"undetermined\">Not determined by these data</h2>\n<ul>\n<li>Where the robot stands and the scale are determined by the {} tracker positions: the robot's base in the tracker's frame is {}, {}, {} mm, roll {}, pitch {}, yaw {} deg (measurement setup; the controller's base is kept as given).</li>",
+            t.positions,
+            num(x, 4),
+            num(y, 4),
+            num(z, 4),
+            num(roll, 5),
+            num(pitch, 5),
+            num(yaw, 5)
+        )?;
+        return parameter_items(page, report);
+    }
     let scale = match &report.gauge {
         Some(g) => format!(
             "The scale rests on the known distance alone ({} mm +- {} mm): a short distance against the arm's reach, so lengths are determined only as well as it is.",
@@ -242,6 +269,12 @@ fn undetermined(page: &mut String, report: &TouchReport) -> crate::Result<()> {
         page,
         "<h2 id=\"undetermined\">Not determined by these data</h2>\n<ul>\n<li>Where the robot stands in the cell (its base frame): the sockets' positions are unknown and move with it. The controller's base is kept as given.</li>\n<li>{scale}</li>"
     )?;
+    parameter_items(page, report)
+}
+
+/// The parameters left free (with why), dropped and undetermined, as list items, and the end
+/// of the list.
+fn parameter_items(page: &mut String, report: &TouchReport) -> crate::Result<()> {
     for free in &report.identifiability.left_free {
         writeln!(
             page,

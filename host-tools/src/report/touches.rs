@@ -200,3 +200,16 @@ fn planes_text(calibrated: &TouchCalibrated) -> String {
     }
     text
 }
+
+/// What the tracker positions of a mixed calibration add: where the robot stands in the
+/// tracker's frame (measurement setup) and how well the positions fit.
+pub fn tracker_text(tracker: &crate::calibration::mixed::TrackerFigures) -> String {
+    let [x, y, z] = tracker.registration_xyz_mm;
+    let [roll, pitch, yaw] = tracker.registration_rpy_rad.map(f64::to_degrees);
+    format!(
+        "\ntracker positions of the ball: {} fitted with the touches (tracker sd {:.4} mm per coordinate; a touch's coordinate weighs {:.4} against one), residual RMS {:.4} mm, largest {:.4} mm\n\
+         the robot's base in the tracker's frame (measurement setup, not written as the controller's base): {x:.4}, {y:.4}, {z:.4} mm, roll {roll:.5}, pitch {pitch:.5}, yaw {yaw:.5} deg\n\
+         the tracker positions place the robot and fix the scale: the base and the lengths are determined, not left free\n",
+        tracker.positions, tracker.sd_mm, tracker.touch_weight, tracker.rms_mm, tracker.max_mm
+    )
+}

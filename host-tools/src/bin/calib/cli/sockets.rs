@@ -2,6 +2,7 @@
 //! readings only), through the library's [`TouchSession`].
 
 use host_tools::calibration::CalibrationConfig;
+use host_tools::calibration::mixed::TrackerFigures;
 use host_tools::calibration::touches::{
     Gauge, PlacementFigures, TouchCalibrated, TouchReport, TouchSession,
 };
@@ -39,8 +40,18 @@ pub struct SocketsOptions {
     pub gauge: GaugeOptions,
     /// Also judge each placement by a calibration of all the others (leave one placement
     /// out), printed and in the report; the identified file is the one of --train.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "tracker")]
     pub leave_one_out: bool,
+    /// Positions of the same ball measured by a laser tracker, fitted with the touches: a CSV
+    /// file with the header q1_deg,...,qN_deg,x_mm,y_mm,z_mm (or the joints in _rad), the
+    /// ball's centre in the tracker's frame. At least three, spread: they place the robot in
+    /// the tracker's frame and fix the scale, which touches alone cannot.
+    #[arg(long, value_name = "FILE")]
+    pub tracker: Option<PathBuf>,
+    /// The tracker's standard uncertainty per coordinate, mm (its weight against the touches,
+    /// whose scatter is estimated from the data).
+    #[arg(long, value_name = "MM", default_value_t = 0.02, requires = "tracker")]
+    pub tracker_sd: f64,
     /// Keep parameters the configurations barely determine (default: dropped while the scaled
     /// condition number exceeds 1000, as for tracker data).
     #[arg(long)]
@@ -123,14 +134,33 @@ pub fn sockets(options: &SocketsOptions) -> anyhow::Result<String> {
             ..CalibrationConfig::default()
         },
     };
-    let calibrated = session.run()?;
+    let (calibrated, tracker) = match &options.tracker {
+        Some(path) => {
+            let mixed = host_tools::calibration::mixed::MixedSession {
+                tracker: host_tools::io::sockets::read_tracker_csv(path, joints)?,
+                tracker_sd_mm: options.tracker_sd,
+                touches: session.clone(),
+            }
+            .run()?;
+            (mixed.calibrated, Some(mixed.tracker))
+        }
+        None => (session.run()?, None),
+    };
     let left_out = if options.leave_one_out {
         session.leave_one_out()?
     } else {
         Vec::new()
     };
-    write_outputs(options, &session, &calibrated, &left_out)?;
+    write_outputs(
+        options,
+        &session,
+        (&calibrated, tracker.as_ref()),
+        &left_out,
+    )?;
     let mut text = host_tools::report::touches::touches_text(&calibrated);
+    if let Some(tracker) = &tracker {
+        text.push_str(&host_tools::report::touches::tracker_text(tracker));
+    }
     if options.leave_one_out {
         text.push_str(&host_tools::report::touches::leave_one_out_text(&left_out));
     }
@@ -141,14 +171,20 @@ pub fn sockets(options: &SocketsOptions) -> anyhow::Result<String> {
 fn write_outputs(
     options: &SocketsOptions,
     session: &TouchSession,
-    calibrated: &TouchCalibrated,
+    (calibrated, tracker): (&TouchCalibrated, Option<&TrackerFigures>),
     left_out: &[PlacementFigures],
 ) -> anyhow::Result<()> {
-    let mut outputs = Outputs::new(&[("--robot", &options.robot), ("--data", &options.data)]);
+    let mut inputs = vec![
+        ("--robot", options.robot.as_path()),
+        ("--data", &options.data),
+    ];
+    inputs.extend(options.tracker.as_deref().map(|t| ("--tracker", t)));
+    let mut outputs = Outputs::new(&inputs);
     let contents = TouchReport {
         leave_one_out: left_out.to_vec(),
         command_line: options.command_line.clone(),
         inputs: input_files(options, session)?,
+        tracker: tracker.cloned(),
         ..calibrated.report(session)
     };
     if let Some(out) = &options.out {
@@ -193,6 +229,9 @@ fn input_files(
         }
     } else {
         files.push(InputFile::of("--data", &options.data)?);
+    }
+    if let Some(tracker) = &options.tracker {
+        files.push(InputFile::of("--tracker", tracker)?);
     }
     Ok(files)
 }
