@@ -91,6 +91,9 @@ def calibrate_touches(
     keep_ill_conditioned: bool = False,
     feature: str = "socket",
     leave_one_out: bool = False,
+    tracker_joints_rad: _Any = None,
+    tracker_xyz_mm: _Any = None,
+    tracker_sd: float = 0.02,
 ) -> tuple[Robot, dict[str, _Any], str]:
     """Calibrates ``robot`` without an instrument, as ``calib sockets`` does: a ball on the
     flange touched in sockets. ``joints_rad`` (n, joints) the configurations (numpy array or
@@ -101,7 +104,11 @@ def calibrate_touches(
     ``distance_sd`` (mm). ``feature="plane"`` makes the rows contacts with planes (``sockets``
     then numbers each placement's planes; mixing sockets and planes goes through a folder of
     ``hole_<n>.csv`` and ``plane_<n>.csv``); ``leave_one_out=True`` also judges each placement by
-    a calibration of all the others (``report["leave_one_out"]``). Returns the identified robot,
+    a calibration of all the others (``report["leave_one_out"]``). ``tracker_joints_rad`` (m,
+    joints) and ``tracker_xyz_mm`` (m, 3): positions of the same ball measured by a laser tracker
+    (its frame, mm; at least three), fitted with the touches at the tracker's standard
+    uncertainty ``tracker_sd`` (mm per coordinate); they place the robot in the tracker's frame
+    and fix the scale (``report["tracker"]``). Returns the identified robot,
     the report as a dict (``parameters``, ``ball_mm``, ``identifiability`` with ``left_free``,
     ``fitted`` and ``held_out`` per placement: consistency and distance error, never absolute
     accuracy, and for held-out placements the ``predicted`` consistency) and the text ``calib
@@ -119,6 +126,9 @@ def calibrate_touches(
         keep_ill_conditioned=keep_ill_conditioned,
         feature=feature,
         leave_one_out=leave_one_out,
+        tracker_joints_rad=tracker_joints_rad,
+        tracker_xyz_mm=tracker_xyz_mm,
+        tracker_sd=tracker_sd,
     )
     parsed: dict[str, _Any] = _json.loads(report)
     return identified, parsed, text

@@ -310,6 +310,9 @@ def calibrate_touches_json(
     keep_ill_conditioned: bool = False,
     feature: str = "socket",
     leave_one_out: bool = False,
+    tracker_joints_rad: Any = None,
+    tracker_xyz_mm: Any = None,
+    tracker_sd: float = 0.02,
 ) -> tuple[Robot, str, str]:
     """``calib sockets`` from arrays: the identified robot, the JSON report (text) and the text
     (the package's ``calib.calibrate_touches`` returns the report as a dict)."""

@@ -1314,14 +1314,18 @@ fn evaluate_json(
 /// (default all); `distance` (mm) the known distance between sockets `distance_between` of every
 /// placement (default sockets 0 and 1), with standard uncertainty `distance_sd` (mm); `feature`
 /// `"plane"` makes the rows contacts with planes (`sockets` then numbers the planes);
-/// `leave_one_out` also judges each placement by a calibration of all the others. Returns the identified robot, the
+/// `leave_one_out` also judges each placement by a calibration of all the others;
+/// `tracker_joints_rad` (m, joints) and `tracker_xyz_mm` (m, 3) positions of the same ball
+/// measured by a tracker (its frame, mm; at least three), fitted with the touches at the
+/// tracker's standard uncertainty `tracker_sd` (mm per coordinate). Returns the identified robot, the
 /// JSON report (text; the package's `calibrate_touches` gives the dict) and the text `calib
 /// sockets` prints. The library's `TouchSession`, nothing written.
 #[pyfunction]
 #[pyo3(signature = (
     robot, joints_rad, placements, sockets, *, ball_mm, train = None, distance = None,
     distance_sd = 0.05, distance_between = None, keep_ill_conditioned = false,
-    feature = "socket", leave_one_out = false
+    feature = "socket", leave_one_out = false, tracker_joints_rad = None, tracker_xyz_mm = None,
+    tracker_sd = 0.02
 ))]
 #[allow(clippy::too_many_arguments)]
 fn calibrate_touches_json(
@@ -1338,7 +1342,16 @@ fn calibrate_touches_json(
     keep_ill_conditioned: bool,
     feature: &str,
     leave_one_out: bool,
+    tracker_joints_rad: Option<&Bound<'_, PyAny>>,
+    tracker_xyz_mm: Option<&Bound<'_, PyAny>>,
+    tracker_sd: f64,
 ) -> PyResult<(Robot, String, String)> {
+    let tracker = tracker_points(robot, tracker_joints_rad, tracker_xyz_mm)?;
+    if tracker.is_some() && leave_one_out {
+        return input(
+            "leave_one_out with tracker positions: leave one placement out judges touches alone; drop one of them".to_string(),
+        );
+    }
     let (a, b) = distance_between.unwrap_or((0, 1));
     let feature = match feature {
         "socket" => host_tools::io::sockets::Feature::Socket,
@@ -1405,22 +1418,37 @@ fn calibrate_touches_json(
             ..Default::default()
         },
     };
-    let (calibrated, left_out) = py
+    let (calibrated, tracker, left_out) = py
         .detach(|| {
-            let calibrated = session.run()?;
+            let (calibrated, tracker) = match tracker {
+                Some(points) => {
+                    let mixed = host_tools::calibration::mixed::MixedSession {
+                        touches: session.clone(),
+                        tracker: points,
+                        tracker_sd_mm: tracker_sd,
+                    }
+                    .run()?;
+                    (mixed.calibrated, Some(mixed.tracker))
+                }
+                None => (session.run()?, None),
+            };
             let left_out = match leave_one_out {
                 true => session.leave_one_out()?,
                 false => Vec::new(),
             };
-            Ok::<_, host_tools::Error>((calibrated, left_out))
+            Ok::<_, host_tools::Error>((calibrated, tracker, left_out))
         })
         .map_err(|e| py_error(e.into()))?;
     let mut text = host_tools::report::touches::touches_text(&calibrated);
+    if let Some(tracker) = &tracker {
+        text.push_str(&host_tools::report::touches::tracker_text(tracker));
+    }
     if leave_one_out {
         text.push_str(&host_tools::report::touches::leave_one_out_text(&left_out));
     }
     let report = host_tools::calibration::touches::TouchReport {
         leave_one_out: left_out,
+        tracker,
         ..calibrated.report(&session)
     };
     let report = serde_json::to_string(&report).map_err(|e| py_error(e.into()))?;
@@ -1430,6 +1458,49 @@ fn calibrate_touches_json(
         on_disk: false,
     };
     Ok((identified, report, text))
+}
+
+/// The tracker positions of `calibrate_touches_json` (both arrays or neither): one row of joint
+/// readings (rad) and one position (mm) each, finite, as many of each.
+fn tracker_points(
+    robot: &Robot,
+    joints_rad: Option<&Bound<'_, PyAny>>,
+    xyz_mm: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Option<Vec<host_tools::io::sockets::TrackerPoint>>> {
+    let (q, xyz) = match (joints_rad, xyz_mm) {
+        (None, None) => return Ok(None),
+        (Some(q), Some(xyz)) => (
+            numbers::<numpy::Ix2>("tracker_joints_rad", q)?,
+            numbers::<numpy::Ix2>("tracker_xyz_mm", xyz)?,
+        ),
+        _ => {
+            return input(
+                "tracker_joints_rad and tracker_xyz_mm: give both (one row each per tracker position) or neither".to_string(),
+            );
+        }
+    };
+    let (q, xyz) = (q.as_array(), xyz.as_array());
+    let joints = robot.file.joint.len();
+    if q.ncols() != joints || xyz.ncols() != 3 || q.nrows() != xyz.nrows() || q.nrows() > MAX_POSES {
+        return input(format!(
+            "tracker_joints_rad ({} x {}) and tracker_xyz_mm ({} x {}): one row per position, {joints} joint readings (rad) and x, y, z (mm), at most {MAX_POSES}",
+            q.nrows(), q.ncols(), xyz.nrows(), xyz.ncols()
+        ));
+    }
+    let mut points = Vec::with_capacity(q.nrows());
+    for (row, position) in q.rows().into_iter().zip(xyz.rows()) {
+        if row.iter().chain(position.iter()).any(|v| !v.is_finite()) {
+            return input(format!(
+                "tracker position {}: every reading and coordinate must be a finite number",
+                points.len()
+            ));
+        }
+        points.push(host_tools::io::sockets::TrackerPoint {
+            q_rad: row.to_vec(),
+            position_mm: [position[0], position[1], position[2]],
+        });
+    }
+    Ok(Some(points))
 }
 
 /// A measurement plan (`calib plan`): the poses to measure in order, their roles, the prediction.

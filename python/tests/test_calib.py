@@ -669,3 +669,49 @@ def test_touches_from_numpy_equal_calib_sockets(tmp_path):
     left_out = [f["identified"]["authors_mean_mm"] for f in py["leave_one_out"]]
     assert len(left_out) == 6 and abs(sum(left_out) / 6 - 0.1943) < 5e-5
     assert "leave one placement out" in text
+
+
+def test_tracker_positions_with_touches_equal_calib_sockets(tmp_path):
+    """Issue 54, item 5: twelve tracker positions of the ball (the touches' own calibration's
+    geometry and ball, computed here with numpy from ``Robot.fk``, moved 2 m and turned 90 degrees) fitted with
+    the panda_3 touches from numpy equal ``calib sockets --tracker`` on the same files."""
+    panda = ROOT / "host-tools/robots/franka-panda.toml"
+    folder = ROOT / "host-tools/data/mukca-sockets/panda_3"
+    ball = (0.025171, -0.084766, 133.528298)
+    rows, names, sockets = [], [], []
+    for placement in sorted(p.name for p in folder.iterdir() if p.is_dir()):
+        for socket in (0, 1):
+            q = np.loadtxt(folder / placement / f"hole_{socket}.csv", delimiter=",", ndmin=2)
+            rows.append(q)
+            names += [placement] * len(q)
+            sockets += [socket] * len(q)
+    joints = np.vstack(rows)
+    identified, first, _ = calib.calibrate_touches(calib.Robot.from_file(panda), joints, names, sockets,
+                                                   ball_mm=ball, train=["frontcenter"], distance=50.0)
+    q_tracker = np.vstack([r[0] for r in rows])
+    flange = identified.fk(q_tracker)
+    balls = flange[:, :3, :3] @ np.array(first["ball_mm"]) + flange[:, :3, 3]
+    turn = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    measured = balls @ turn.T + np.array([2000.0, -500.0, 100.0])
+    header = ",".join([f"q{j}_rad" for j in range(1, 8)] + ["x_mm", "y_mm", "z_mm"])
+    tracker = tmp_path / "tracker.csv"
+    np.savetxt(tracker, np.hstack([q_tracker, measured]), delimiter=",", header=header, comments="",
+               fmt="%.12f")
+    report = tmp_path / "mixed.json"
+    done = run_calib("sockets", "--robot", panda, "--data", folder, "--ball-mm", ",".join(map(str, ball)),
+                     "--train", "frontcenter", "--distance", "50", "--tracker", tracker, "--report", report)
+    assert done.returncode == 0, done.stderr
+    cli = json.loads(report.read_text())
+    # The values the command read: the file's decimals, parsed by numpy.
+    written = np.loadtxt(tracker, delimiter=",", skiprows=1)
+    _, py, text = calib.calibrate_touches(calib.Robot.from_file(panda), joints, names, sockets,
+                                          ball_mm=ball, train=["frontcenter"], distance=50.0,
+                                          tracker_joints_rad=written[:, :7], tracker_xyz_mm=written[:, 7:])
+    assert py["parameters"] == cli["parameters"]
+    assert py["tracker"] == cli["tracker"]
+    assert py["tracker"]["positions"] == 12 and py["tracker"]["rms_mm"] < 0.1
+    assert np.allclose(py["tracker"]["registration_xyz_mm"], [2000.0, -500.0, 100.0], atol=0.05)
+    assert "tracker positions of the ball: 12" in text
+    with pytest.raises(calib.InputError, match="give both"):
+        calib.calibrate_touches(calib.Robot.from_file(panda), joints, names, sockets, ball_mm=ball,
+                                tracker_joints_rad=q_tracker)
