@@ -1196,7 +1196,7 @@ fn tracker_positions_and_touches_in_one_calibration() {
     let simulate = |set: &ParameterSet<Dyn, Dyn>, truth_x: &nalgebra::DVector<f64>| {
         let truth = set.unpack(truth_x).unwrap();
         let simulation = TouchSimulation {
-            truth: truth.clone(),
+            truth,
             play_sd_mm: 0.03,
             gauge: Some(([0, 1], 50.0)),
             planes: Vec::new(),

@@ -13,6 +13,7 @@
 //! written as the controller's base.
 
 use super::fit::least_squares_of;
+pub use super::touches::TrackerFigures;
 use super::touches::{BallModel, Judged, TouchCalibrated, TouchSession, touch_scatter, touches_of};
 use super::{CalibrationConfig, select_parameters_of};
 use crate::analysis::kind::Mixed;
@@ -49,27 +50,6 @@ pub struct MixedCalibrated {
     pub tracker: TrackerFigures,
 }
 
-/// What a calibration's tracker positions add to its touches: where the robot stands in the
-/// tracker's frame, and how well the positions fit.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct TrackerFigures {
-    /// The tracker positions fitted.
-    pub positions: usize,
-    /// The tracker's standard uncertainty per coordinate, mm (as given).
-    pub sd_mm: f64,
-    /// A touch coordinate's weight against a tracker coordinate: `(tracker sd / touch sd)^2`.
-    pub touch_weight: f64,
-    /// The robot's base frame in the tracker's frame, identified (measurement setup): the
-    /// translation, mm.
-    pub registration_xyz_mm: [f64; 3],
-    /// Its roll, pitch and yaw, rad (`R = Rz(yaw) Ry(pitch) Rx(roll)`).
-    pub registration_rpy_rad: [f64; 3],
-    /// RMS of the positions' residuals (distance) under the identified model, mm.
-    pub rms_mm: f64,
-    /// The largest, mm.
-    pub max_mm: f64,
-}
-
 impl MixedSession {
     /// Calibrates: the touches of the fitted placements and every tracker position in one fit;
     /// every placement judged as a calibration from touches judges it.
@@ -95,7 +75,7 @@ impl MixedSession {
         };
         let (fitted, held): (Vec<&Placement>, Vec<&Placement>) = (session.placements.iter())
             .partition(|p| session.train.is_empty() || session.train.contains(&p.name));
-        let mut touch_mask = mask.clone();
+        let mut touch_mask = mask;
         for axis in FrameParameter::ALL {
             touch_mask.set(Parameter::Base(axis), false);
         }

@@ -206,7 +206,7 @@ pub(super) fn touch_scatter(
 ) -> crate::Result<f64> {
     let data = touches_of(placements, None)?;
     let kind = data.kind(robot);
-    let selection = select_parameters_of(&kind, mask.clone(), config)?;
+    let selection = select_parameters_of(&kind, *mask, config)?;
     Ok(least_squares_of(&kind, &selection, config)?.sigma_mm)
 }
 
@@ -409,6 +409,27 @@ impl TouchSession {
     }
 }
 
+/// What a calibration's tracker positions add to its touches: where the robot stands in the
+/// tracker's frame, and how well the positions fit.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TrackerFigures {
+    /// The tracker positions fitted.
+    pub positions: usize,
+    /// The tracker's standard uncertainty per coordinate, mm (as given).
+    pub sd_mm: f64,
+    /// A touch coordinate's weight against a tracker coordinate: `(tracker sd / touch sd)^2`.
+    pub touch_weight: f64,
+    /// The robot's base frame in the tracker's frame, identified (measurement setup): the
+    /// translation, mm.
+    pub registration_xyz_mm: [f64; 3],
+    /// Its roll, pitch and yaw, rad (`R = Rz(yaw) Ry(pitch) Rx(roll)`).
+    pub registration_rpy_rad: [f64; 3],
+    /// RMS of the positions' residuals (distance) under the identified model, mm.
+    pub rms_mm: f64,
+    /// The largest, mm.
+    pub max_mm: f64,
+}
+
 /// The JSON report of a calibration from touches (`calib sockets --report`), which `calib
 /// report --from` renders as a certificate ([`crate::report::touch_certificate`]).
 #[derive(Clone, Debug, Serialize, serde::Deserialize)]
@@ -459,7 +480,7 @@ pub struct TouchReport {
     pub inputs: Vec<crate::io::provenance::InputFile>,
     /// With tracker positions of the ball in the fit (`calib sockets --tracker`): what they add.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub tracker: Option<super::mixed::TrackerFigures>,
+    pub tracker: Option<TrackerFigures>,
 }
 
 impl TouchReport {

@@ -634,43 +634,12 @@ pub fn read_tracker_csv(path: &Path, joints: usize) -> Result<Vec<TrackerPoint>,
             let line = e.position().map_or(0, csv::Position::line);
             at(path, line, None, format!("unreadable line: {e}"))
         })?;
-        let line = record.position().map_or(0, csv::Position::line);
-        if record.len() != header.len() {
-            return Err(at(
-                path,
-                line,
-                None,
-                format!(
-                    "has {} fields, the header {}: the {joints} joints, then x_mm, y_mm, z_mm",
-                    record.len(),
-                    header.len()
-                ),
-            ));
-        }
-        let mut values = Vec::with_capacity(record.len());
-        for (field, column) in record.iter().zip(&header) {
-            let value = field
-                .parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| {
-                    at(
-                        path,
-                        line,
-                        Some(column.clone()),
-                        format!("\"{field}\" is not a finite number"),
-                    )
-                })?;
-            values.push(value);
-        }
-        let (q, xyz) = values.split_at(joints);
-        points.push(TrackerPoint {
-            q_rad: q
-                .iter()
-                .map(|v| if degrees { v.to_radians() } else { *v })
-                .collect(),
-            position_mm: [xyz[0], xyz[1], xyz[2]],
-        });
+        points.push(tracker_point(&record, &header, degrees, joints).map_err(
+            |(column, message)| {
+                let line = record.position().map_or(0, csv::Position::line);
+                at(path, line, column, message)
+            },
+        )?);
     }
     if points.is_empty() {
         return Err(at(
@@ -681,4 +650,49 @@ pub fn read_tracker_csv(path: &Path, joints: usize) -> Result<Vec<TrackerPoint>,
         ));
     }
     Ok(points)
+}
+
+/// One line of a tracker-position file under `header` (joints in degrees when `degrees`), or
+/// the column and why it is refused.
+fn tracker_point(
+    record: &csv::StringRecord,
+    header: &[String],
+    degrees: bool,
+    joints: usize,
+) -> Result<TrackerPoint, (Option<String>, String)> {
+    if record.len() != header.len() {
+        return Err((
+            None,
+            format!(
+                "has {} fields, the header {}: the {joints} joints, then x_mm, y_mm, z_mm",
+                record.len(),
+                header.len()
+            ),
+        ));
+    }
+    let mut values = Vec::with_capacity(record.len());
+    for (field, column) in record.iter().zip(header) {
+        let value = (field.parse::<f64>().ok())
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| {
+                (
+                    Some(column.clone()),
+                    format!("\"{field}\" is not a finite number"),
+                )
+            })?;
+        values.push(value);
+    }
+    let (q, xyz) = values.split_at(joints.min(values.len()));
+    let [x, y, z] = xyz[..] else {
+        return Err((
+            None,
+            "three coordinates x_mm, y_mm, z_mm after the joints".into(),
+        ));
+    };
+    Ok(TrackerPoint {
+        q_rad: (q.iter())
+            .map(|v| if degrees { v.to_radians() } else { *v })
+            .collect(),
+        position_mm: [x, y, z],
+    })
 }
