@@ -1016,6 +1016,29 @@ fn a_plan_of_touches_predicts_what_its_calibration_measures() {
     );
 }
 
+/// `calib sockets` on `panda_3` trained on `frontcenter` (the authors' ball), run in `dir`, with
+/// the options `extra`.
+fn calib_sockets_on_panda_3(dir: &Path, extra: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_calib"))
+        .current_dir(dir)
+        .args([
+            "sockets",
+            "--robot",
+            PANDA,
+            "--data",
+            &format!("{DATA}/panda_3"),
+        ])
+        .args([
+            "--ball-mm",
+            "0.025171,-0.084766,133.528298",
+            "--train",
+            "frontcenter",
+        ])
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
 /// The certificate of a calibration from touches (issue 54, item 3): `calib sockets --html` on
 /// `panda_3` trained on `frontcenter`, parsed as HTML. Every held-out placement's row shows the
 /// JSON report's figures (to the printed digit), the summary's held-out mean is their mean and
@@ -1029,30 +1052,9 @@ fn the_certificate_of_touches_states_what_they_are() {
     use sha2::Digest as _;
     let dir = tempfile::tempdir().unwrap();
     let run = |extra: &[&str], name: &str| {
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_calib"))
-            .current_dir(dir.path())
-            .args([
-                "sockets",
-                "--robot",
-                PANDA,
-                "--data",
-                &format!("{DATA}/panda_3"),
-            ])
-            .args([
-                "--ball-mm",
-                "0.025171,-0.084766,133.528298",
-                "--train",
-                "frontcenter",
-            ])
-            .args([
-                "--report",
-                &format!("{name}.json"),
-                "--html",
-                &format!("{name}.html"),
-            ])
-            .args(extra)
-            .output()
-            .unwrap();
+        let html = format!("{name}.html");
+        let written = ["--report", &format!("{name}.json"), "--html", &html];
+        let out = calib_sockets_on_panda_3(dir.path(), &[&written[..], extra].concat());
         assert!(
             out.status.success(),
             "{}",
@@ -1358,25 +1360,19 @@ fn calib_sockets_fits_tracker_positions_with_the_touches() {
     }
     std::fs::write(dir.path().join("tracker.csv"), &csv).unwrap();
     let calib = |tracker_file: &str| {
-        std::process::Command::new(env!("CARGO_BIN_EXE_calib"))
-            .current_dir(dir.path())
-            .args([
-                "sockets",
-                "--robot",
-                PANDA,
-                "--data",
-                &format!("{DATA}/panda_3"),
-            ])
-            .args([
-                "--ball-mm",
-                "0.025171,-0.084766,133.528298",
-                "--train",
-                "frontcenter",
-            ])
-            .args(["--distance", "50", "--tracker", tracker_file])
-            .args(["--report", "r.json", "--html", "c.html"])
-            .output()
-            .unwrap()
+        calib_sockets_on_panda_3(
+            dir.path(),
+            &[
+                "--distance",
+                "50",
+                "--tracker",
+                tracker_file,
+                "--report",
+                "r.json",
+                "--html",
+                "c.html",
+            ],
+        )
     };
     let out = calib("tracker.csv");
     assert!(

@@ -626,6 +626,19 @@ def test_refusals_are_exception_classes_with_their_data():
     assert abs(e.parameters["da2"] + 12.0) < 1e-6
 
 
+def _touches_of(folder):
+    """The touches of a MUKCa folder read with numpy (independently of the toolkit's reader):
+    each socket file's rows, and per row its placement's name and its socket."""
+    rows, names, sockets = [], [], []
+    for placement in sorted(p.name for p in folder.iterdir() if p.is_dir()):
+        for socket in (0, 1):
+            q = np.loadtxt(folder / placement / f"hole_{socket}.csv", delimiter=",", ndmin=2)
+            rows.append(q)
+            names += [placement] * len(q)
+            sockets += [socket] * len(q)
+    return rows, names, sockets
+
+
 def test_touches_from_numpy_equal_calib_sockets(tmp_path):
     """Issue 54: the panda_3 touches given as numpy arrays (read here with numpy, independently
     of the toolkit's reader) calibrate as ``calib sockets`` on the folder does: the same report."""
@@ -637,13 +650,7 @@ def test_touches_from_numpy_equal_calib_sockets(tmp_path):
                      "--train", "frontcenter", "--distance", "50", "--report", report)
     assert done.returncode == 0, done.stderr
     cli = json.loads(report.read_text())
-    rows, names, sockets = [], [], []
-    for placement in sorted(p.name for p in folder.iterdir() if p.is_dir()):
-        for socket in (0, 1):
-            q = np.loadtxt(folder / placement / f"hole_{socket}.csv", delimiter=",", ndmin=2)
-            rows.append(q)
-            names += [placement] * len(q)
-            sockets += [socket] * len(q)
+    rows, names, sockets = _touches_of(folder)
     joints = np.vstack(rows)
     robot, py, text = calib.calibrate_touches(calib.Robot.from_file(panda), joints, names, sockets,
                                               ball_mm=ball, train=["frontcenter"], distance=50.0)
@@ -678,13 +685,7 @@ def test_tracker_positions_with_touches_equal_calib_sockets(tmp_path):
     panda = ROOT / "host-tools/robots/franka-panda.toml"
     folder = ROOT / "host-tools/data/mukca-sockets/panda_3"
     ball = (0.025171, -0.084766, 133.528298)
-    rows, names, sockets = [], [], []
-    for placement in sorted(p.name for p in folder.iterdir() if p.is_dir()):
-        for socket in (0, 1):
-            q = np.loadtxt(folder / placement / f"hole_{socket}.csv", delimiter=",", ndmin=2)
-            rows.append(q)
-            names += [placement] * len(q)
-            sockets += [socket] * len(q)
+    rows, names, sockets = _touches_of(folder)
     joints = np.vstack(rows)
     identified, first, _ = calib.calibrate_touches(calib.Robot.from_file(panda), joints, names, sockets,
                                                    ball_mm=ball, train=["frontcenter"], distance=50.0)

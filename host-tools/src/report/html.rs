@@ -120,13 +120,7 @@ pub fn render(report: &Report, rendering: &Rendering) -> crate::Result<String> {
     outliers(&mut page, report)?;
     frames(&mut page, report)?;
     settings(&mut page, report)?;
-    let command_line = match report.command_line.is_empty() {
-        true => "-".to_string(),
-        false => (report.command_line.iter())
-            .map(|w| esc(&shell_word(w)))
-            .collect::<Vec<_>>()
-            .join(" "),
-    };
+    let command_line = command_line_html(&report.command_line);
     writeln!(
         page,
         "<h2 id=\"software\">Software</h2>\n<p>Calibrated by {} with the command line <code>{command_line}</code>; rendered by {} (robot geometric calibration toolkit) {}.</p>\n{}</body>\n</html>",
@@ -136,6 +130,18 @@ pub fn render(report: &Report, rendering: &Rendering) -> crate::Result<String> {
         inputs(&report.inputs)
     )?;
     Ok(page)
+}
+
+/// A recorded command line as HTML, each word as a shell reads it back ([`shell_word`]), or
+/// "-" when none was recorded (a library call).
+pub(crate) fn command_line_html(words: &[String]) -> String {
+    match words.is_empty() {
+        true => "-".to_string(),
+        false => (words.iter())
+            .map(|w| esc(&shell_word(w)))
+            .collect::<Vec<_>>()
+            .join(" "),
+    }
 }
 
 /// One word of a command line as a POSIX shell reads it back: as it is when it holds only

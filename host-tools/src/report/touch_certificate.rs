@@ -10,7 +10,7 @@
 //! last axis, the scale without a known distance, the parameters dropped), and gives the
 //! parameters with their standard errors, the inputs' SHA-256 and the software.
 
-use super::html::{Rendering, STYLE, esc, inputs, num, opt, shell_word};
+use super::html::{Rendering, STYLE, command_line_html, esc, inputs, num, opt};
 use crate::calibration::touches::{PlacementFigures, TouchReport};
 use std::fmt::Write as _;
 
@@ -37,13 +37,7 @@ pub fn render(report: &TouchReport, rendering: &Rendering) -> crate::Result<Stri
     undetermined(&mut page, report)?;
     parameters(&mut page, report)?;
     identifiability(&mut page, report)?;
-    let command_line = match report.command_line.is_empty() {
-        true => "-".to_string(),
-        false => (report.command_line.iter())
-            .map(|w| esc(&shell_word(w)))
-            .collect::<Vec<_>>()
-            .join(" "),
-    };
+    let command_line = command_line_html(&report.command_line);
     let software = match report.software.as_str() {
         "" => "-".to_string(),
         s => esc(s),
