@@ -1481,10 +1481,14 @@ fn tracker_points(
     };
     let (q, xyz) = (q.as_array(), xyz.as_array());
     let joints = robot.file.joint.len();
-    if q.ncols() != joints || xyz.ncols() != 3 || q.nrows() != xyz.nrows() || q.nrows() > MAX_POSES {
+    if q.ncols() != joints || xyz.ncols() != 3 || q.nrows() != xyz.nrows() || q.nrows() > MAX_POSES
+    {
         return input(format!(
             "tracker_joints_rad ({} x {}) and tracker_xyz_mm ({} x {}): one row per position, {joints} joint readings (rad) and x, y, z (mm), at most {MAX_POSES}",
-            q.nrows(), q.ncols(), xyz.nrows(), xyz.ncols()
+            q.nrows(),
+            q.ncols(),
+            xyz.nrows(),
+            xyz.ncols()
         ));
     }
     let mut points = Vec::with_capacity(q.nrows());
