@@ -492,6 +492,7 @@ fn dinova_1_over_fits_one_placement() {
                 mm: 50.0,
                 sd_mm: 0.05,
             }),
+            datums: Vec::new(),
             config: Default::default(),
         }
         .run()
@@ -550,6 +551,7 @@ fn panda_session(
             mm: 50.0,
             sd_mm: 0.05,
         }),
+        datums: Vec::new(),
         config: Default::default(),
     }
 }
@@ -1419,5 +1421,103 @@ fn calib_sockets_fits_tracker_positions_with_the_touches() {
     assert!(
         !out.status.success() && stderr.contains("at least three"),
         "{stderr}"
+    );
+}
+
+/// A datum plane (issue 54, item 1: points on a known plane): the Panda with random errors in
+/// the 23 parameters `panda_3` determines, its touches simulated on the six placements (play
+/// 0.03 mm, 50 mm between the sockets) and, on `frontcenter`, 68 contacts with the horizontal
+/// plane through its first socket, given as known (`DatumPlane`, the plane's true offset).
+/// Fitted on `frontcenter`: the known plane sees where the arm stands along its normal, so
+/// joint 1's lift (`dd1`, left free by touches alone) is identified; the geometry equals the
+/// truth within its covariance and the contacts lie on the known plane to the play. Without
+/// the datum (the same contacts as an unknown plane), `dd1` stays free.
+#[test]
+fn a_datum_plane_determines_the_lift_touches_leave_free() {
+    use host_tools::calibration::touches::{DatumPlane, TouchSession};
+    use host_tools::measurement::simulate_touches::{TouchSimulation, simulate_touches};
+    let real_session = panda_session("panda_3", "frontcenter", [0, 1]);
+    let set = real_session.run().unwrap().fit.set.clone();
+    let robot = real_session.ball_model().unwrap().robot;
+    let truth_x = random_truth(&set, 11);
+    let simulation = TouchSimulation {
+        truth: set.unpack(&truth_x).unwrap(),
+        play_sd_mm: 0.03,
+        gauge: Some(([0, 1], 50.0)),
+        planes: vec![[0.0, 0.0, 1.0]],
+        seed: 11,
+    };
+    let simulated = simulate_touches(&robot, &simulation, &real_session.placements).unwrap();
+    let table_z = (simulated.iter())
+        .find(|s| s.placement.name == "frontcenter")
+        .unwrap()
+        .centres_mm[0][2];
+    let placements: Vec<_> = (simulated.into_iter())
+        .map(|s| {
+            let mut placement = s.placement;
+            if placement.name != "frontcenter" {
+                placement.planes.clear();
+            }
+            placement
+        })
+        .collect();
+    let session = TouchSession {
+        placements,
+        datums: vec![DatumPlane {
+            plane: 0,
+            normal: [0.0, 0.0, 1.0],
+            offset_mm: table_z,
+        }],
+        ..panda_session("panda_3", "frontcenter", [0, 1])
+    };
+    let fitted = session.run().unwrap();
+    let lift = Parameter::Joint {
+        joint: 1,
+        kind: JointParameter::D,
+    };
+    let truth_of =
+        |p: &Parameter| (set.parameters().iter().position(|q| q == p)).map_or(0.0, |i| truth_x[i]);
+    let n = fitted.fit.set.len();
+    let difference = nalgebra::DVector::from_iterator(
+        n,
+        (fitted.fit.parameters.iter()).map(|p| p.value - truth_of(&p.parameter)),
+    );
+    let covariance = fitted.fit.covariance.clone().unwrap();
+    let mahalanobis = (difference.transpose()
+        * covariance.clone().cholesky().unwrap().inverse()
+        * &difference)[(0, 0)];
+    let worst_z = (0..n)
+        .map(|i| difference[i].abs() / covariance[(i, i)].sqrt())
+        .fold(0.0, f64::max);
+    let limit = chi_squared_quantile(n as f64, 3.09);
+    let dd1 = (fitted.fit.parameters.iter())
+        .find(|p| p.parameter == lift)
+        .expect("dd1 identified with the datum");
+    let on_plane = &fitted.fitted[0].identified.known_planes[0];
+    println!(
+        "datum plane: {n} parameters, dd1 {:+.4} +- {:.4} mm (truth 0), Mahalanobis {mahalanobis:.2} (99.9 % point {limit:.1}), worst {worst_z:.2} standard errors; {} contacts off the known plane {:.4} mm mean (nominal {:.4})",
+        dd1.value,
+        dd1.std_error.unwrap(),
+        on_plane.contacts,
+        on_plane.mean_mm,
+        fitted.fitted[0].nominal.known_planes[0].mean_mm
+    );
+    assert!(mahalanobis < limit && worst_z < 4.0);
+    assert!(on_plane.mean_mm < 0.05 && on_plane.contacts >= 25);
+    // The same contacts as an unknown plane: the lift is left free.
+    let unknown = TouchSession {
+        datums: Vec::new(),
+        ..session
+    }
+    .run()
+    .unwrap();
+    assert!(!unknown.fit.set.parameters().contains(&lift));
+    assert!(
+        unknown
+            .selection
+            .identifiability
+            .left_free
+            .iter()
+            .any(|f| f.parameter == lift)
     );
 }

@@ -1413,6 +1413,7 @@ fn calibrate_touches_json(
             mm,
             sd_mm: distance_sd,
         }),
+        datums: Vec::new(),
         config: host_tools::calibration::CalibrationConfig {
             keep_ill_conditioned,
             ..Default::default()

@@ -17,6 +17,7 @@ pub mod common_point;
 pub mod halton;
 pub mod identifiability;
 pub mod ipso;
+pub mod known_plane;
 pub mod lm;
 pub mod objective;
 mod problem;

@@ -48,6 +48,10 @@ pub struct Consistency {
     pub distortion_mm: Vec<([u16; 2], f64)>,
     /// Per plane touched here, how far the ball centres lie from their best plane.
     pub planes: Vec<PlaneFlatness>,
+    /// Per known plane touched here, how far the ball centres lie from it (not from their best
+    /// plane: a known plane's distance is the model's error along its normal).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub known_planes: Vec<PlaneFlatness>,
 }
 
 /// How flat one plane's contacts are under a model: the distances of the ball centres from the
@@ -62,6 +66,35 @@ pub struct PlaneFlatness {
     pub mean_mm: f64,
     /// The 95th percentile of those distances, mm.
     pub p95_mm: f64,
+}
+
+/// How far `model`'s ball centres of `contacts` lie from the known `planes` each names (its
+/// `point` an index of `planes`), per plane touched: mean and 95th percentile of the absolute
+/// distances, mm.
+pub fn off_known_planes(
+    model: &Kinematics<f64, Dyn>,
+    contacts: &[Touch<f64, Dyn>],
+    planes: &[calib_core::identify::known_plane::KnownPlane<f64>],
+) -> Vec<PlaneFlatness> {
+    (points(contacts).into_iter())
+        .filter_map(|plane| {
+            let known = planes.get(usize::from(plane))?;
+            let normal = Vector3::from(known.normal);
+            let distances: Vec<f64> = (contacts.iter())
+                .filter(|t| t.point == plane)
+                .map(|t| {
+                    let p = model.forward_angles(&t.angles).translation.vector;
+                    (normal.dot(&p) - known.offset_mm).abs()
+                })
+                .collect();
+            Some(PlaneFlatness {
+                plane,
+                contacts: distances.len(),
+                mean_mm: distances.iter().sum::<f64>() / distances.len().max(1) as f64,
+                p95_mm: quantile(&distances, 0.95),
+            })
+        })
+        .collect()
 }
 
 /// The flatness of `model`'s ball centres on each plane of `contacts` (their `point` numbering
@@ -188,6 +221,7 @@ pub fn consistency(
         sockets,
         distortion_mm,
         planes: Vec::new(),
+        known_planes: Vec::new(),
     }
 }
 

@@ -24,7 +24,8 @@
 use crate::analysis::identifiability::{FreeParameter, IdentifiabilityReport, ReflectorOnAxis};
 use crate::measurement::dataset::Seen;
 use calib_core::identify::common_point::{CommonPoints, KnownDistance, Touch};
-use calib_core::identify::residuals::Residuals;
+use calib_core::identify::known_plane::{KnownPlane, KnownPlaneContacts};
+use calib_core::identify::residuals::{Residuals, Stacked};
 use calib_core::model::parameters::{FrameParameter, JointParameter};
 use calib_core::{Kinematics, Parameter, ParameterErrors, ParameterMask, ParameterSet, Robot};
 use nalgebra::Dyn;
@@ -138,6 +139,11 @@ pub struct Touches<'a> {
     pub distances: &'a [KnownDistance<f64>],
     /// Contacts with planes: configuration, plane (its `point`), weight.
     pub planes: &'a [Touch<f64, Dyn>],
+    /// Contacts with known planes: configuration, plane (its `point`, an index of
+    /// `known_planes`), weight.
+    pub known_contacts: &'a [Touch<f64, Dyn>],
+    /// The known planes, in the robot's base frame.
+    pub known_planes: &'a [KnownPlane<f64>],
 }
 
 /// Why touches leave joint 1's turn and lift free.
@@ -149,20 +155,31 @@ const BALL_HAS_NO_ORIENTATION: &str = "a ball is a point: its orientation change
 
 impl<'a> MeasurementKind for Touches<'a> {
     type Residuals<'r>
-        = CommonPoints<'r, f64, Dyn, Dyn>
+        = Stacked<CommonPoints<'r, f64, Dyn, Dyn>, KnownPlaneContacts<'r, f64, Dyn, Dyn>>
     where
         Self: 'r;
     type Statistic = crate::analysis::consistency::Consistency;
 
     fn residuals(&self, set: ParameterSet<Dyn, Dyn>) -> crate::Result<Self::Residuals<'_>> {
         let fixed = ParameterErrors::zeros_for(self.robot.joint_count());
-        let points = CommonPoints::new(self.robot, &fixed, set, self.touches)
+        let points = CommonPoints::new(self.robot, &fixed, set.clone(), self.touches)
             .map_err(|e| crate::refused!(implausible format!("{e}"); "the touches' model: {e}"))?;
-        points
+        let points = points
             .with_distances(self.distances)
             .map_err(|e| crate::refused!(input "the known distances"; "the known distances: {e}"))?
             .with_planes(self.planes)
-            .map_err(|e| crate::refused!(implausible format!("{e}"); "the plane contacts: {e}"))
+            .map_err(|e| crate::refused!(implausible format!("{e}"); "the plane contacts: {e}"))?;
+        let known = KnownPlaneContacts::new(
+            self.robot,
+            &fixed,
+            set,
+            self.known_contacts,
+            self.known_planes,
+        )
+        .map_err(|e| crate::refused!(input "the known planes"; "the known planes: {e}"))?;
+        Stacked::new(points, known).map_err(
+            |e| crate::refused!(implausible format!("{e}"); "touches and known planes: {e}"),
+        )
     }
 
     fn equations(&self) -> usize {
@@ -171,11 +188,14 @@ impl<'a> MeasurementKind for Touches<'a> {
             .map(|plane| self.planes.iter().filter(|t| t.point == *plane).count())
             .map(|contacts| contacts.saturating_sub(3))
             .sum();
-        3 * self.touches.len().saturating_sub(sockets) + self.distances.len() + planes
+        3 * self.touches.len().saturating_sub(sockets)
+            + self.distances.len()
+            + planes
+            + self.known_contacts.len()
     }
 
     fn count(&self) -> usize {
-        self.touches.len() + self.planes.len()
+        self.touches.len() + self.planes.len() + self.known_contacts.len()
     }
 
     fn noun(&self) -> &'static str {
@@ -186,8 +206,13 @@ impl<'a> MeasurementKind for Touches<'a> {
         let last = u8::try_from(self.robot.joints.len()).unwrap_or(u8::MAX);
         let joint = |joint: u8, kind| Parameter::Joint { joint, kind };
         let mut free = Vec::new();
-        for kind in [JointParameter::Theta, JointParameter::D] {
-            free.push((joint(1, kind), ABOUT_JOINT_1));
+        // A known plane sees where the arm stands along its normal: joint 1's turn and lift
+        // are then left to the analysis of the Jacobian.
+        let known = !self.known_planes.is_empty();
+        if !known {
+            for kind in [JointParameter::Theta, JointParameter::D] {
+                free.push((joint(1, kind), ABOUT_JOINT_1));
+            }
         }
         for kind in [
             JointParameter::A,
@@ -211,14 +236,20 @@ impl<'a> MeasurementKind for Touches<'a> {
         ];
         const BASE: &str =
             "places the whole arm, and the sockets, unknown, move along: touches cannot see it";
+        const BASE_OF_KNOWN: &str =
+            "the controller's base, kept as given: the known planes are given in its frame";
         for axis in base {
-            free.push((Parameter::Base(axis), BASE));
+            free.push((
+                Parameter::Base(axis),
+                if known { BASE_OF_KNOWN } else { BASE },
+            ));
         }
         let mut free: Vec<(Parameter, &'static str)> = free
             .into_iter()
             .filter(|(p, _)| mask.contains(*p))
             .collect();
         if self.distances.is_empty()
+            && !known
             && let Some(length) = scale_holder(self.robot, mask, &free)
         {
             free.push((length, SCALE));
@@ -238,6 +269,11 @@ impl<'a> MeasurementKind for Touches<'a> {
         let mut statistic =
             crate::analysis::consistency::consistency(model, self.touches, self.distances);
         statistic.planes = crate::analysis::consistency::flatness(model, self.planes);
+        statistic.known_planes = crate::analysis::consistency::off_known_planes(
+            model,
+            self.known_contacts,
+            self.known_planes,
+        );
         Ok(statistic)
     }
 }
@@ -261,9 +297,9 @@ const WITH_THE_BASE: &str = "turns or lifts the whole arm about joint 1's axis, 
 
 impl<'a> MeasurementKind for Mixed<'a> {
     type Residuals<'r>
-        = calib_core::identify::residuals::Stacked<
+        = Stacked<
         calib_core::Problem<'r, f64, Dyn, Dyn>,
-        CommonPoints<'r, f64, Dyn, Dyn>,
+        <Touches<'a> as MeasurementKind>::Residuals<'r>,
     >
     where
         Self: 'r;

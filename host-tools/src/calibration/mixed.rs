@@ -79,11 +79,14 @@ impl MixedSession {
         for axis in FrameParameter::ALL {
             touch_mask.set(Parameter::Base(axis), false);
         }
-        let touch_sd_mm = touch_scatter(&robot, &fitted, &touch_mask, &config)?;
+        let touch_sd_mm = touch_scatter(&robot, (&fitted, &session.datums), &touch_mask, &config)?;
         let touch_weight = (self.tracker_sd_mm / touch_sd_mm).powi(2);
         let gauge = (session.gauge.as_ref()).map(|g| (g, (self.tracker_sd_mm / g.sd_mm).powi(2)));
-        let mut data = touches_of(&fitted, gauge)?;
-        for touch in data.touches.iter_mut().chain(data.planes.iter_mut()) {
+        let mut data = touches_of(&fitted, gauge, &session.datums)?;
+        for touch in (data.touches.iter_mut())
+            .chain(data.planes.iter_mut())
+            .chain(data.known_contacts.iter_mut())
+        {
             touch.weight = touch_weight;
         }
         let kind = Mixed {
@@ -93,26 +96,18 @@ impl MixedSession {
         let selection = select_parameters_of(&kind, mask, &config)?;
         let fit = least_squares_of(&kind, &selection, &config)?;
         let identified = Kinematics::new(&robot, &fit.errors)?;
-        let residuals: Vec<f64> = (positions.iter())
-            .map(|m| (identified.forward_angles(&m.angles).translation.vector - m.position).norm())
-            .collect();
         // The touches' figures in their own units: the gauge weighed against a touch.
         let judged = Judged {
             robot: &robot,
             identified: &identified,
             fit: &fit,
             gauge: gauge.map(|(g, w)| (g, w / touch_weight)),
+            datums: &session.datums,
         };
         let ball = flange.inverse_transform_point(&identified.tool().translation.vector.into());
-        let registration = frame_pose(identified.base());
         let tracker = TrackerFigures {
-            positions: positions.len(),
-            sd_mm: self.tracker_sd_mm,
             touch_weight,
-            registration_xyz_mm: registration.xyz,
-            registration_rpy_rad: registration.rpy,
-            rms_mm: (residuals.iter().map(|r| r * r).sum::<f64>() / residuals.len() as f64).sqrt(),
-            max_mm: residuals.iter().copied().fold(0.0, f64::max),
+            ..self.figures(&identified, &positions)
         };
         Ok(MixedCalibrated {
             calibrated: TouchCalibrated {
@@ -124,11 +119,35 @@ impl MixedSession {
                 touch_sd_mm: Some(touch_sd_mm),
                 calibrated_at: humantime::format_rfc3339_seconds(std::time::SystemTime::now())
                     .to_string(),
+                datums: session.datums.clone(),
                 fit,
                 selection,
             },
             tracker,
         })
+    }
+
+    /// The tracker's figures under `identified` (the touch weight left at 0 for the caller):
+    /// the registration and the positions' residuals.
+    fn figures(
+        &self,
+        identified: &Kinematics<f64, Dyn>,
+        positions: &[Measurement<f64, Dyn>],
+    ) -> TrackerFigures {
+        let residuals: Vec<f64> = (positions.iter())
+            .map(|m| (identified.forward_angles(&m.angles).translation.vector - m.position).norm())
+            .collect();
+        let registration = frame_pose(identified.base());
+        TrackerFigures {
+            positions: positions.len(),
+            sd_mm: self.tracker_sd_mm,
+            touch_weight: 0.0,
+            registration_xyz_mm: registration.xyz,
+            registration_rpy_rad: registration.rpy,
+            rms_mm: (residuals.iter().map(|r| r * r).sum::<f64>() / residuals.len().max(1) as f64)
+                .sqrt(),
+            max_mm: residuals.iter().copied().fold(0.0, f64::max),
+        }
     }
 
     /// The tracker's positions as the core's position-only measurements (weight 1). Refused:

@@ -121,6 +121,7 @@ pub fn plan_touches(request: &TouchPlanRequest) -> crate::Result<TouchPlan> {
         placements: Vec::new(),
         train: Vec::new(),
         gauge: request.gauge,
+        datums: Vec::new(),
         config: CalibrationConfig::default(),
     };
     let ball = session.ball_model()?;
@@ -193,7 +194,7 @@ fn selection_of(
     gauge: Option<(&Gauge, f64)>,
 ) -> crate::Result<super::Selection> {
     let everything = placement_of(candidates);
-    let data = touches_of(&[&everything], gauge)?;
+    let data = touches_of(&[&everything], gauge, &[])?;
     let mut mask = ball.mask;
     for axis in [FrameParameter::Tx, FrameParameter::Ty, FrameParameter::Tz] {
         mask.set(Parameter::Tool(axis), true);

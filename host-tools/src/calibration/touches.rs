@@ -45,6 +45,20 @@ pub struct Gauge {
     pub sd_mm: f64,
 }
 
+/// A plane of every placement whose place in the robot's base frame is known (a datum: the
+/// table the robot stands on, a surface plate measured once): its contacts (`plane_<n>.csv`)
+/// are judged by their distance from it, not from their best plane.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct DatumPlane {
+    /// The plane's number in every placement (`plane_<n>.csv`, the column `plane`).
+    pub plane: u16,
+    /// Its unit normal in the robot's base frame.
+    pub normal: [f64; 3],
+    /// Where the ball's centre lies on it (the surface moved out by the ball's radius): its
+    /// signed distance from the base's origin along the normal, mm.
+    pub offset_mm: f64,
+}
+
 /// One calibration from touches: the robot, the ball, the placements, which are fitted.
 #[derive(Clone, Debug)]
 pub struct TouchSession {
@@ -61,6 +75,8 @@ pub struct TouchSession {
     pub train: Vec<String>,
     /// The known distance between sockets of every placement, if any.
     pub gauge: Option<Gauge>,
+    /// Planes of the placements known in the robot's base frame (the others are unknown).
+    pub datums: Vec<DatumPlane>,
     /// The settings used: `lm_iterations`, `keep_ill_conditioned` (touches of one placement
     /// determine the scale weakly by nature: keep the set, and see the condition reported).
     pub config: CalibrationConfig,
@@ -117,6 +133,9 @@ pub struct TouchCalibrated {
     pub held_out: Vec<PlacementFigures>,
     /// When the calibration finished, RFC 3339 (UTC, to the second).
     pub calibrated_at: String,
+    /// The datum planes (known in the base frame); each placement's `known_planes` figures
+    /// are numbered by their index here.
+    pub datums: Vec<DatumPlane>,
 }
 
 /// Touches, known distances and plane contacts, as the core's common points take them.
@@ -125,6 +144,8 @@ pub(super) struct ImplicitData {
     pub(super) touches: Vec<Touch<f64, Dyn>>,
     pub(super) distances: Vec<KnownDistance<f64>>,
     pub(super) planes: Vec<Touch<f64, Dyn>>,
+    pub(super) known_contacts: Vec<Touch<f64, Dyn>>,
+    pub(super) known_planes: Vec<calib_core::identify::known_plane::KnownPlane<f64>>,
 }
 
 impl ImplicitData {
@@ -135,6 +156,8 @@ impl ImplicitData {
             touches: &self.touches,
             distances: &self.distances,
             planes: &self.planes,
+            known_contacts: &self.known_contacts,
+            known_planes: &self.known_planes,
         }
     }
 }
@@ -161,23 +184,36 @@ fn touches_in(
 
 /// The touches of `placements` as the core's common points and planes, every placement's
 /// sockets (and planes) points (planes) of their own (placement `p`'s socket `s` is point
-/// `offset_p + s`), and the gauge between each placement's two sockets.
+/// `offset_p + s`), and the gauge between each placement's two sockets; a plane of `datums`
+/// is known (its contacts name the datum's index), the others unknown.
 pub(super) fn touches_of(
     placements: &[&Placement],
     gauge: Option<(&Gauge, f64)>,
+    datums: &[DatumPlane],
 ) -> crate::Result<ImplicitData> {
-    let mut data = ImplicitData::default();
+    let mut data = ImplicitData {
+        known_planes: (datums.iter())
+            .map(|d| calib_core::identify::known_plane::KnownPlane {
+                normal: d.normal,
+                offset_mm: d.offset_mm,
+            })
+            .collect(),
+        ..ImplicitData::default()
+    };
     let (mut offset, mut plane_offset) = (0u16, 0u16);
     for placement in placements {
         for (s, socket) in placement.sockets.iter().enumerate() {
             touches_in(socket, offset.saturating_add(s as u16), &mut data.touches)?;
         }
         for (k, plane) in placement.planes.iter().enumerate() {
-            touches_in(
-                plane,
-                plane_offset.saturating_add(k as u16),
-                &mut data.planes,
-            )?;
+            match datums.iter().position(|d| usize::from(d.plane) == k) {
+                Some(datum) => touches_in(plane, datum as u16, &mut data.known_contacts)?,
+                None => touches_in(
+                    plane,
+                    plane_offset.saturating_add(k as u16),
+                    &mut data.planes,
+                )?,
+            }
         }
         if let Some((g, weight)) = gauge {
             let count = placement.sockets.len() as u16;
@@ -200,11 +236,11 @@ pub(super) fn touches_of(
 /// calibration.
 pub(super) fn touch_scatter(
     robot: &calib_core::Robot<f64, Dyn>,
-    placements: &[&Placement],
+    (placements, datums): (&[&Placement], &[DatumPlane]),
     mask: &calib_core::ParameterMask<Dyn>,
     config: &CalibrationConfig,
 ) -> crate::Result<f64> {
-    let data = touches_of(placements, None)?;
+    let data = touches_of(placements, None, datums)?;
     let kind = data.kind(robot);
     let selection = select_parameters_of(&kind, *mask, config)?;
     Ok(least_squares_of(&kind, &selection, config)?.sigma_mm)
@@ -217,6 +253,7 @@ pub(super) struct Judged<'a> {
     pub(super) identified: &'a Kinematics<f64, Dyn>,
     pub(super) fit: &'a KindFit,
     pub(super) gauge: Option<(&'a Gauge, f64)>,
+    pub(super) datums: &'a [DatumPlane],
 }
 
 impl Judged<'_> {
@@ -230,7 +267,7 @@ impl Judged<'_> {
         let nominal = Kinematics::nominal(self.robot)?;
         (placements.iter())
             .map(|p| {
-                let data = touches_of(&[p], self.gauge)?;
+                let data = touches_of(&[p], self.gauge, self.datums)?;
                 let kind = data.kind(self.robot);
                 let fit = self.fit;
                 let predicted = (fit.covariance.as_ref().filter(|_| held)).and_then(|c| {
@@ -267,13 +304,18 @@ impl TouchSession {
         };
         // The touches' scatter, from a fit without the gauge: the gauge's weight.
         let touch_sd_mm = match &self.gauge {
-            Some(_) => Some(touch_scatter(&robot, &fitted, &mask, &config)?),
+            Some(_) => Some(touch_scatter(
+                &robot,
+                (&fitted, &self.datums),
+                &mask,
+                &config,
+            )?),
             None => None,
         };
         let gauge = (self.gauge.as_ref())
             .zip(touch_sd_mm)
             .map(|(g, sd)| (g, (sd / g.sd_mm).powi(2)));
-        let data = touches_of(&fitted, gauge)?;
+        let data = touches_of(&fitted, gauge, &self.datums)?;
         let kind = data.kind(&robot);
         let selection = select_parameters_of(&kind, mask, &config)?;
         let fit = least_squares_of(&kind, &selection, &config)?;
@@ -283,6 +325,7 @@ impl TouchSession {
             identified: &identified,
             fit: &fit,
             gauge,
+            datums: &self.datums,
         };
         let ball = flange.inverse_transform_point(&identified.tool().translation.vector.into());
         Ok(TouchCalibrated {
@@ -296,6 +339,7 @@ impl TouchSession {
             touch_sd_mm,
             calibrated_at: humantime::format_rfc3339_seconds(std::time::SystemTime::now())
                 .to_string(),
+            datums: self.datums.clone(),
         })
     }
 
@@ -481,6 +525,10 @@ pub struct TouchReport {
     /// With tracker positions of the ball in the fit (`calib sockets --tracker`): what they add.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tracker: Option<TrackerFigures>,
+    /// The datum planes (known in the base frame); each placement's `known_planes` figures
+    /// are numbered by their index here.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub datums: Vec<DatumPlane>,
 }
 
 impl TouchReport {
@@ -533,6 +581,7 @@ impl TouchCalibrated {
             command_line: Vec::new(),
             inputs: Vec::new(),
             tracker: None,
+            datums: self.datums.clone(),
         }
     }
 }

@@ -205,6 +205,27 @@ fn consistency(page: &mut String, report: &TouchReport) -> crate::Result<()> {
             })
         })
         .collect();
+    let datums: Vec<String> = (report.fitted.iter().chain(&report.held_out))
+        .flat_map(|f| {
+            (f.identified.known_planes.iter()).map(move |p| {
+                let plane = (report.datums.get(usize::from(p.plane))).map_or(p.plane, |d| d.plane);
+                format!(
+                    "<tr><td>{} plane {plane}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                    esc(&f.placement),
+                    p.contacts,
+                    num(p.mean_mm, 4),
+                    num(p.p95_mm, 4)
+                )
+            })
+        })
+        .collect();
+    if !datums.is_empty() {
+        writeln!(
+            page,
+            "<table>\n<caption>Contacts with the datum planes, known in the base frame (distance from the known plane, mm)</caption>\n<tr><th>plane</th><th>contacts</th><th>mean</th><th>95 %</th></tr>\n{}\n</table>",
+            datums.join("\n")
+        )?;
+    }
     if !planes.is_empty() {
         writeln!(
             page,
@@ -259,9 +280,17 @@ fn undetermined(page: &mut String, report: &TouchReport) -> crate::Result<()> {
         ),
         None => "<b>The scale is not determined</b>: without a known distance, the touches are as consistent with the arm uniformly larger or smaller; lengths are not certified.".to_string(),
     };
+    let standing = match report.datums.is_empty() {
+        true => {
+            "Where the robot stands in the cell (its base frame): the sockets' positions are unknown and move with it. The controller's base is kept as given."
+        }
+        false => {
+            "The controller's base, kept as given: the datum planes are given in its frame, and they see where the arm stands along their normals (joint 1's turn and lift are then left to the analysis below)."
+        }
+    };
     writeln!(
         page,
-        "<h2 id=\"undetermined\">Not determined by these data</h2>\n<ul>\n<li>Where the robot stands in the cell (its base frame): the sockets' positions are unknown and move with it. The controller's base is kept as given.</li>\n<li>{scale}</li>"
+        "<h2 id=\"undetermined\">Not determined by these data</h2>\n<ul>\n<li>{standing}</li>\n<li>{scale}</li>"
     )?;
     parameter_items(page, report)
 }

@@ -176,10 +176,11 @@ pub fn leave_one_out_text(figures: &[PlacementFigures]) -> String {
 /// The planes' flatness per placement, fitted and held out (nothing without plane contacts).
 fn planes_text(calibrated: &TouchCalibrated) -> String {
     let every = || calibrated.fitted.iter().chain(&calibrated.held_out);
+    let mut text = datums_text(calibrated);
     if every().all(|f| f.identified.planes.is_empty()) {
-        return String::new();
+        return text;
     }
-    let mut text = String::from(
+    text.push_str(
         "planes (distance of each ball centre from its plane's best fit; not absolute accuracy), mm:\n\
          placement                 plane  contacts  nominal mean  identified mean    p95\n",
     );
@@ -191,6 +192,42 @@ fn planes_text(calibrated: &TouchCalibrated) -> String {
                 "  {:<24} {:>6} {:>9} {:>13.4} {:>16.4} {:>6.4}  {role}\n",
                 f.placement,
                 identified.plane,
+                identified.contacts,
+                nominal.mean_mm,
+                identified.mean_mm,
+                identified.p95_mm
+            ));
+        }
+    }
+    text
+}
+
+/// The contacts with datum planes (known in the base frame): each one's distance from its plane,
+/// nominal and identified, per placement.
+fn datums_text(calibrated: &TouchCalibrated) -> String {
+    let every = || calibrated.fitted.iter().chain(&calibrated.held_out);
+    if every().all(|f| f.identified.known_planes.is_empty()) {
+        return String::new();
+    }
+    let mut text = String::from(
+        "datum planes (distance of each ball centre from its known plane: the model's error along the normal), mm:\n\
+         placement                 plane  contacts  nominal mean  identified mean    p95\n",
+    );
+    let fitted = calibrated.fitted.len();
+    for (i, f) in every().enumerate() {
+        let role = if i < fitted { "fitted" } else { "held out" };
+        for (nominal, identified) in f
+            .nominal
+            .known_planes
+            .iter()
+            .zip(&f.identified.known_planes)
+        {
+            let plane = (calibrated.datums.get(usize::from(identified.plane)))
+                .map_or(identified.plane, |d| d.plane);
+            text.push_str(&format!(
+                "  {:<24} {:>6} {:>9} {:>13.4} {:>16.4} {:>6.4}  {role}\n",
+                f.placement,
+                plane,
                 identified.contacts,
                 nominal.mean_mm,
                 identified.mean_mm,

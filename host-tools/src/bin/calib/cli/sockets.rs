@@ -4,7 +4,7 @@
 use host_tools::calibration::CalibrationConfig;
 use host_tools::calibration::mixed::TrackerFigures;
 use host_tools::calibration::touches::{
-    Gauge, PlacementFigures, TouchCalibrated, TouchReport, TouchSession,
+    DatumPlane, Gauge, PlacementFigures, TouchCalibrated, TouchReport, TouchSession,
 };
 use host_tools::io::outputs::Outputs;
 use host_tools::io::robot_file::RobotFile;
@@ -42,6 +42,13 @@ pub struct SocketsOptions {
     /// out), printed and in the report; the identified file is the one of --train.
     #[arg(long, conflicts_with = "tracker")]
     pub leave_one_out: bool,
+    /// A plane known in the robot's base frame, repeatable: plane N (plane_N.csv, or N in the
+    /// column plane) of every placement lies where the ball's centre has NX x + NY y + NZ z =
+    /// OFFSET mm (the normal is normalised, OFFSET is along it; the surface moved out by the
+    /// ball's radius), such as 0:0,0,1,-10 for a table 10 mm below the base's origin less the
+    /// radius. Its contacts are judged against it, not against their best plane.
+    #[arg(long, value_name = "N:NX,NY,NZ,OFFSET", value_parser = parse_datum)]
+    pub datum_plane: Vec<DatumPlane>,
     /// Positions of the same ball measured by a laser tracker, fitted with the touches: a CSV
     /// file with the header q1_deg,...,qN_deg,x_mm,y_mm,z_mm (or the joints in _rad), the
     /// ball's centre in the tracker's frame. At least three, spread: they place the robot in
@@ -106,6 +113,35 @@ impl GaugeOptions {
     }
 }
 
+/// A datum plane as `--datum-plane` takes it: `N:NX,NY,NZ,OFFSET`, the normal normalised.
+fn parse_datum(text: &str) -> Result<DatumPlane, String> {
+    let usage = || {
+        format!(
+            "\"{text}\": give N:NX,NY,NZ,OFFSET, the plane's number, its normal in the base frame and the ball centre's offset along it in mm, such as 0:0,0,1,-10"
+        )
+    };
+    let (plane, rest) = text.split_once(':').ok_or_else(usage)?;
+    let plane: u16 = plane.trim().parse().map_err(|_| usage())?;
+    let numbers: Vec<f64> = (rest.split(','))
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| usage())?;
+    let [x, y, z, offset] = numbers[..] else {
+        return Err(usage());
+    };
+    let length = (x * x + y * y + z * z).sqrt();
+    if !(length.is_finite() && length > 0.0 && offset.is_finite()) {
+        return Err(format!(
+            "\"{text}\": the normal must be a finite non-zero vector and the offset a finite number of mm"
+        ));
+    }
+    Ok(DatumPlane {
+        plane,
+        normal: [x / length, y / length, z / length],
+        offset_mm: offset,
+    })
+}
+
 /// Runs `calib sockets`: calibrates, writes the outputs asked for, returns the text to print.
 pub fn sockets(options: &SocketsOptions) -> anyhow::Result<String> {
     let [x, y, z] = options.ball_mm[..] else {
@@ -129,6 +165,7 @@ pub fn sockets(options: &SocketsOptions) -> anyhow::Result<String> {
         placements,
         train: options.train.clone(),
         gauge: options.gauge.gauge()?,
+        datums: options.datum_plane.clone(),
         config: CalibrationConfig {
             keep_ill_conditioned: options.keep_ill_conditioned,
             ..CalibrationConfig::default()
@@ -234,4 +271,26 @@ fn input_files(
         files.push(InputFile::of("--tracker", tracker)?);
     }
     Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `--datum-plane N:NX,NY,NZ,OFFSET`: the normal normalised, the offset kept; a zero normal,
+    /// a missing number or no plane number refused with the form to give.
+    #[test]
+    fn a_datum_plane_as_the_command_line_gives_it() {
+        let datum = parse_datum("2:0,0,-2,-12.5").unwrap();
+        assert_eq!(datum.plane, 2);
+        assert_eq!(datum.normal, [0.0, 0.0, -1.0]);
+        assert_eq!(datum.offset_mm, -12.5);
+        assert!(parse_datum("0:0,0,0,1").unwrap_err().contains("non-zero"));
+        for bad in ["0,0,1,5", "0:0,0,1", "a:0,0,1,5", "0:0,0,1,x"] {
+            assert!(
+                parse_datum(bad).unwrap_err().contains("N:NX,NY,NZ,OFFSET"),
+                "{bad}"
+            );
+        }
+    }
 }
