@@ -1317,7 +1317,8 @@ fn evaluate_json(
 /// `leave_one_out` also judges each placement by a calibration of all the others;
 /// `tracker_joints_rad` (m, joints) and `tracker_xyz_mm` (m, 3) positions of the same ball
 /// measured by a tracker (its frame, mm; at least three), fitted with the touches at the
-/// tracker's standard uncertainty `tracker_sd` (mm per coordinate). Returns the identified robot, the
+/// tracker's standard uncertainty `tracker_sd` (mm per coordinate); `datum_planes` planes known in
+/// the base frame, `(plane, (nx, ny, nz), offset_mm)` each (`calib sockets --datum-plane`). Returns the identified robot, the
 /// JSON report (text; the package's `calibrate_touches` gives the dict) and the text `calib
 /// sockets` prints. The library's `TouchSession`, nothing written.
 #[pyfunction]
@@ -1325,7 +1326,7 @@ fn evaluate_json(
     robot, joints_rad, placements, sockets, *, ball_mm, train = None, distance = None,
     distance_sd = 0.05, distance_between = None, keep_ill_conditioned = false,
     feature = "socket", leave_one_out = false, tracker_joints_rad = None, tracker_xyz_mm = None,
-    tracker_sd = 0.02
+    tracker_sd = 0.02, datum_planes = None
 ))]
 #[allow(clippy::too_many_arguments)]
 fn calibrate_touches_json(
@@ -1345,6 +1346,7 @@ fn calibrate_touches_json(
     tracker_joints_rad: Option<&Bound<'_, PyAny>>,
     tracker_xyz_mm: Option<&Bound<'_, PyAny>>,
     tracker_sd: f64,
+    datum_planes: Option<Vec<(u16, [f64; 3], f64)>>,
 ) -> PyResult<(Robot, String, String)> {
     let tracker = tracker_points(robot, tracker_joints_rad, tracker_xyz_mm)?;
     if tracker.is_some() && leave_one_out {
@@ -1413,7 +1415,7 @@ fn calibrate_touches_json(
             mm,
             sd_mm: distance_sd,
         }),
-        datums: Vec::new(),
+        datums: datums(datum_planes.unwrap_or_default())?,
         config: host_tools::calibration::CalibrationConfig {
             keep_ill_conditioned,
             ..Default::default()
@@ -1459,6 +1461,30 @@ fn calibrate_touches_json(
         on_disk: false,
     };
     Ok((identified, report, text))
+}
+
+/// The datum planes of `calibrate_touches_json`: (plane, normal, offset in mm) each, the normal
+/// normalised as `calib sockets --datum-plane` does. Refused: a zero or non-finite normal, an
+/// offset not finite.
+fn datums(
+    planes: Vec<(u16, [f64; 3], f64)>,
+) -> PyResult<Vec<host_tools::calibration::touches::DatumPlane>> {
+    planes
+        .into_iter()
+        .map(|(plane, [x, y, z], offset_mm)| {
+            let length = (x * x + y * y + z * z).sqrt();
+            if !(length.is_finite() && length > 0.0 && offset_mm.is_finite()) {
+                return input(format!(
+                    "datum_planes: plane {plane}: the normal must be a finite non-zero vector and the offset a finite number of mm"
+                ));
+            }
+            Ok(host_tools::calibration::touches::DatumPlane {
+                plane,
+                normal: [x / length, y / length, z / length],
+                offset_mm,
+            })
+        })
+        .collect()
 }
 
 /// The tracker positions of `calibrate_touches_json` (both arrays or neither): one row of joint

@@ -716,3 +716,37 @@ def test_tracker_positions_with_touches_equal_calib_sockets(tmp_path):
     with pytest.raises(calib.InputError, match="give both"):
         calib.calibrate_touches(calib.Robot.from_file(panda), joints, names, sockets, ball_mm=ball,
                                 tracker_joints_rad=q_tracker)
+
+
+def test_datum_planes_from_numpy_equal_calib_sockets(tmp_path):
+    """Issue 54, item 1: contacts given as planes (panda_3's ``frontcenter`` touches, each socket
+    a plane's contacts), plane 0 a datum (horizontal, 18.1 mm above the base): ``calib sockets
+    --datum-plane`` on a CSV and ``calibrate_touches(datum_planes=...)`` on the same rows give the
+    same report, and the datum's contacts are judged against it."""
+    panda = ROOT / "host-tools/robots/franka-panda.toml"
+    folder = ROOT / "host-tools/data/mukca-sockets/panda_3"
+    ball = (0.025171, -0.084766, 133.528298)
+    rows = [np.loadtxt(folder / "frontcenter" / f"hole_{s}.csv", delimiter=",", ndmin=2) for s in (0, 1)]
+    joints = np.vstack(rows)
+    planes = [0] * len(rows[0]) + [1] * len(rows[1])
+    data = tmp_path / "planes.csv"
+    header = ",".join(["placement", "plane"] + [f"q{j}_rad" for j in range(1, 8)])
+    lines = [header] + [",".join(["frontcenter", str(p)] + [repr(float(v)) for v in q]) for p, q in zip(planes, joints)]
+    data.write_text("\n".join(lines) + "\n")
+    report = tmp_path / "datum.json"
+    done = run_calib("sockets", "--robot", panda, "--data", data, "--ball-mm", ",".join(map(str, ball)),
+                     "--datum-plane", "0:0,0,1,18.1", "--report", report)
+    assert done.returncode == 0, done.stderr
+    cli = json.loads(report.read_text())
+    _, py, text = calib.calibrate_touches(calib.Robot.from_file(panda), joints, ["frontcenter"] * len(planes),
+                                          planes, ball_mm=ball, feature="plane",
+                                          datum_planes=[(0, (0.0, 0.0, 1.0), 18.1)])
+    assert py["parameters"] == cli["parameters"]
+    assert py["fitted"] == cli["fitted"]
+    assert py["datums"] == [{"plane": 0, "normal": [0.0, 0.0, 1.0], "offset_mm": 18.1}]
+    known = py["fitted"][0]["identified"]["known_planes"]
+    assert len(known) == 1 and known[0]["contacts"] == len(rows[0])
+    assert "datum planes" in text
+    with pytest.raises(calib.InputError, match="non-zero vector"):
+        calib.calibrate_touches(calib.Robot.from_file(panda), joints, ["frontcenter"] * len(planes), planes,
+                                ball_mm=ball, feature="plane", datum_planes=[(0, (0.0, 0.0, 0.0), 1.0)])
