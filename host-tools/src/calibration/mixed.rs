@@ -105,10 +105,7 @@ impl MixedSession {
             datums: &session.datums,
         };
         let ball = flange.inverse_transform_point(&identified.tool().translation.vector.into());
-        let tracker = TrackerFigures {
-            touch_weight,
-            ..self.figures(&identified, &positions)
-        };
+        let tracker = self.figures(&identified, &positions, touch_weight);
         Ok(MixedCalibrated {
             calibrated: TouchCalibrated {
                 file: session.identified_file(&fit),
@@ -127,12 +124,13 @@ impl MixedSession {
         })
     }
 
-    /// The tracker's figures under `identified` (the touch weight left at 0 for the caller):
-    /// the registration and the positions' residuals.
+    /// The tracker's figures under `identified`, a touch weighing `touch_weight`: the
+    /// registration and the positions' residuals.
     fn figures(
         &self,
         identified: &Kinematics<f64, Dyn>,
         positions: &[Measurement<f64, Dyn>],
+        touch_weight: f64,
     ) -> TrackerFigures {
         let residuals: Vec<f64> = (positions.iter())
             .map(|m| (identified.forward_angles(&m.angles).translation.vector - m.position).norm())
@@ -141,7 +139,7 @@ impl MixedSession {
         TrackerFigures {
             positions: positions.len(),
             sd_mm: self.tracker_sd_mm,
-            touch_weight: 0.0,
+            touch_weight,
             registration_xyz_mm: registration.xyz,
             registration_rpy_rad: registration.rpy,
             rms_mm: (residuals.iter().map(|r| r * r).sum::<f64>() / residuals.len().max(1) as f64)

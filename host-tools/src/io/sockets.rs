@@ -332,14 +332,7 @@ fn touch_of_line(
         })?;
     let mut q_rad = Vec::with_capacity(fields.len() - 2);
     for (field, column) in fields[2..].iter().zip(&expected[2..]) {
-        let value = (field.parse::<f64>().ok())
-            .filter(|v| v.is_finite())
-            .ok_or_else(|| {
-                (
-                    Some(column.clone()),
-                    format!("\"{field}\" is not a finite number"),
-                )
-            })?;
+        let value = finite_field(field, column)?;
         q_rad.push(if degrees { value.to_radians() } else { value });
     }
     Ok((name.to_string(), socket, Reading { line, q_rad }))
@@ -672,15 +665,7 @@ fn tracker_point(
     }
     let mut values = Vec::with_capacity(record.len());
     for (field, column) in record.iter().zip(header) {
-        let value = (field.parse::<f64>().ok())
-            .filter(|v| v.is_finite())
-            .ok_or_else(|| {
-                (
-                    Some(column.clone()),
-                    format!("\"{field}\" is not a finite number"),
-                )
-            })?;
-        values.push(value);
+        values.push(finite_field(field, column)?);
     }
     let (q, xyz) = values.split_at(joints.min(values.len()));
     let [x, y, z] = xyz[..] else {
@@ -695,4 +680,16 @@ fn tracker_point(
             .collect(),
         position_mm: [x, y, z],
     })
+}
+
+/// The finite number in `field` of `column`, or the column and why it is refused.
+fn finite_field(field: &str, column: &str) -> Result<f64, (Option<String>, String)> {
+    (field.parse::<f64>().ok())
+        .filter(|v| v.is_finite())
+        .ok_or_else(|| {
+            (
+                Some(column.to_string()),
+                format!("\"{field}\" is not a finite number"),
+            )
+        })
 }
