@@ -260,3 +260,74 @@ fn an_error_in_a_craig_row_names_the_row() {
     );
     assert!(!e.contains("joint 3"), "{e}");
 }
+
+/// The Panda's `[dynamics]` (centres converted into our frames) give the gravity torques of
+/// franka_description's inertials in Craig's link frames, computed here from the published
+/// table: each joint's torsion column (the end frame's turn per urad/(N m)) is `1e-6 tau_j z_j`,
+/// `tau_j = z_j . sum_{k >= j} m_k (c_k - o_j) x g`.
+#[test]
+fn franka_panda_masses_give_the_published_gravity_torques() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/franka-panda.toml");
+    let file = RobotFile::read(&path).unwrap();
+    let model = file.to_model(&path).unwrap();
+    let gravity = file.dynamics.as_ref().unwrap().to_gravity(7).unwrap();
+    let rows: [(f64, f64, f64); 7] = [
+        (0.0, 0.0, 333.0),
+        (-90.0, 0.0, 0.0),
+        (90.0, 0.0, 316.0),
+        (90.0, 82.5, 0.0),
+        (-90.0, -82.5, 384.0),
+        (90.0, 0.0, 0.0),
+        (90.0, 88.0, 0.0),
+    ];
+    // franka_description: kg, and m in Craig's frame i.
+    let inertials: [(f64, [f64; 3]); 7] = [
+        (4.970684, [3.875e-3, 2.081e-3, -4.762e-2]),
+        (0.646926, [-3.141e-3, -2.872e-2, 3.495e-3]),
+        (3.228604, [2.7518e-2, 3.9252e-2, -6.6502e-2]),
+        (3.587895, [-5.317e-2, 1.04419e-1, 2.7454e-2]),
+        (1.225946, [-1.1953e-2, 4.1065e-2, -3.8437e-2]),
+        (1.666555, [6.0149e-2, -1.4117e-2, -1.0517e-2]),
+        (0.735522, [1.0517e-2, -4.252e-3, 6.1597e-2]),
+    ];
+    let errors = calib_core::ParameterErrors::zeros_for(model.robot.joint_count());
+    let gains = host_tools::model::compliance::gains(7);
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(11);
+    let mut worst = 0.0f64;
+    for _ in 0..200 {
+        let q: [f64; 7] = std::array::from_fn(|_| rng.random_range(-2.5..2.5));
+        let frames: Vec<Matrix4<f64>> = (rows.iter().zip(q))
+            .scan(Matrix4::identity(), |t, (row, qi)| {
+                *t *= craig(*row, qi);
+                Some(*t)
+            })
+            .collect();
+        let centre = |k: usize| {
+            let c = inertials[k].1.map(|v| v * 1000.0);
+            frames[k].transform_point(&c.into()).coords
+        };
+        let g = Vector3::new(0.0, 0.0, -9.81);
+        for (index, gain) in gains.iter().enumerate() {
+            let host_tools::model::compliance::Gain::Torsion(j) = *gain else {
+                continue;
+            };
+            let (z, o) = (
+                frames[j - 1].fixed_view::<3, 1>(0, 2).into_owned(),
+                frames[j - 1].fixed_view::<3, 1>(0, 3).into_owned(),
+            );
+            let moment: Vector3<f64> = (j - 1..7)
+                .map(|k| ((centre(k) - o) * 1e-3).cross(&g) * inertials[k].0)
+                .sum();
+            let expected = z * (1e-6 * z.dot(&moment));
+            let mut unit = vec![0.0; gains.len()];
+            unit[index] = 1.0;
+            let q = calib_core::model::JointVec::from_slice(&q).unwrap();
+            let d = gravity
+                .deflection(&unit, &model.robot, &errors, &q)
+                .unwrap();
+            worst = worst.max((Vector3::new(d[3], d[4], d[5]) - expected).norm());
+        }
+    }
+    println!("Panda torsion columns from the converted masses: worst {worst:e} rad per urad/(N m)");
+    assert!(worst < 1e-15, "{worst:e}");
+}
