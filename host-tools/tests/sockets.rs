@@ -494,6 +494,7 @@ fn dinova_1_over_fits_one_placement() {
             }),
             datums: Vec::new(),
             config: Default::default(),
+            compliance: false,
         }
         .run()
         .unwrap();
@@ -553,6 +554,7 @@ fn panda_session(
         }),
         datums: Vec::new(),
         config: Default::default(),
+        compliance: false,
     }
 }
 
@@ -1520,4 +1522,244 @@ fn a_datum_plane_determines_the_lift_touches_leave_free() {
             .iter()
             .any(|f| f.parameter == lift)
     );
+}
+
+/// The authors' rule (per socket, the points within 2 interquartile ranges of the quartiles on
+/// every axis; the mean distance from the kept points' mean over the sockets), computed here
+/// from ball positions, mm.
+fn authors_mae(sockets: &[Vec<nalgebra::Vector3<f64>>]) -> f64 {
+    use host_tools::analysis::consistency::quantile;
+    let (mut sum, mut count) = (0.0, 0usize);
+    for balls in sockets {
+        let axis = |k: usize| balls.iter().map(|b| b[k]).collect::<Vec<f64>>();
+        let bounds: Vec<(f64, f64)> = (0..3)
+            .map(|k| {
+                let (q1, q3) = (quantile(&axis(k), 0.25), quantile(&axis(k), 0.75));
+                (q1 - 2.0 * (q3 - q1), q3 + 2.0 * (q3 - q1))
+            })
+            .collect();
+        let kept: Vec<&nalgebra::Vector3<f64>> = (balls.iter())
+            .filter(|b| (0..3).all(|k| b[k] >= bounds[k].0 && b[k] <= bounds[k].1))
+            .collect();
+        let mean = kept.iter().copied().sum::<nalgebra::Vector3<f64>>() / kept.len() as f64;
+        sum += kept.iter().map(|b| (*b - mean).norm()).sum::<f64>();
+        count += kept.len();
+    }
+    sum / count as f64
+}
+
+/// The joints' torsion under gravity on the real Pandas (`calib sockets --compliance`, the
+/// library's session): trained on one placement as the authors were, it earns its place on
+/// left-out touches of that placement, its gains are not negative, and the held-out placements
+/// come out below the authors' calibrated models (0.221 and 0.427 mm) and below our geometry
+/// alone. Measured: `panda_3` 0.1726 mm (geometry 0.2190; 20 % below the authors is 0.177),
+/// `panda_2` 0.4121 (0.4380). The held-out figure is recomputed here from the identified robot
+/// file as written (its geometry and its `[compliance]`) through the controller's deflection
+/// (`Compliance::forward`), to within the fit's stated difference from it.
+#[test]
+fn the_joints_torsion_earns_its_place_on_the_real_pandas() {
+    for (robot, train, authors) in [
+        ("panda_3", "frontcenter", 0.221),
+        ("panda_2", "front_center", 0.427),
+    ] {
+        let geometry = panda_session(robot, train, [0, 1]).run().unwrap();
+        let session = host_tools::calibration::touches::TouchSession {
+            compliance: true,
+            ..panda_session(robot, train, [0, 1])
+        };
+        let calibrated = session.run().unwrap();
+        let torsion = calibrated.torsion.clone().unwrap();
+        let held = |c: &host_tools::calibration::touches::TouchCalibrated| {
+            let h = &c.held_out;
+            h.iter().map(|f| f.identified.authors_mean_mm).sum::<f64>() / h.len() as f64
+        };
+        let (ours, alone) = (held(&calibrated), held(&geometry));
+        println!(
+            "{robot} on {train}: held out {ours:.4} mm (geometry alone {alone:.4}, authors {authors}); left-out touches {:.4} -> {:.4} mm; gains {:?} +- {:?} urad/(N m) for joints {:?}; controller {:.1e} mm",
+            torsion.cross_validated_mm[0],
+            torsion.cross_validated_mm[1],
+            torsion.gains_urad_per_nm,
+            torsion.std_errors_urad_per_nm,
+            torsion.joints,
+            torsion.controller_difference_mm
+        );
+        assert!(torsion.kept && torsion.cross_validated_mm[1] < torsion.cross_validated_mm[0]);
+        assert!(
+            torsion
+                .gains_urad_per_nm
+                .iter()
+                .all(|g| (0.0..=1000.0).contains(g))
+        );
+        assert!(ours < authors && ours < alone, "{ours} {alone}");
+        // The identified file through the controller's model.
+        let path = Path::new("identified.toml");
+        let file = &calibrated.file;
+        let mut actual = file.to_model(path).unwrap().robot;
+        let flange = actual.tool.isometry();
+        actual.tool = calib_core::FramePose {
+            xyz: (flange * nalgebra::Point3::from(calibrated.ball_mm))
+                .coords
+                .into(),
+            rpy: actual.tool.rpy,
+        };
+        let compliance = (file.gravity_compliance(path, 7).unwrap().unwrap())
+            .to_core::<f64>(7)
+            .unwrap();
+        let geometry_of_file = Kinematics::nominal(&actual).unwrap();
+        let mut worst = 0.0f64;
+        for figures in &calibrated.held_out {
+            let placement = (session.placements.iter())
+                .find(|p| p.name == figures.placement)
+                .unwrap();
+            let balls: Vec<Vec<nalgebra::Vector3<f64>>> = (placement.sockets.iter())
+                .map(|s| {
+                    (s.readings.iter())
+                        .map(|r| {
+                            let q = calib_core::model::JointVec::from_slice(&r.q_rad).unwrap();
+                            let pose = compliance.forward(&geometry_of_file, &q).unwrap();
+                            pose.translation.vector
+                        })
+                        .collect()
+                })
+                .collect();
+            let recomputed = authors_mae(&balls);
+            worst = worst.max((recomputed - figures.identified.authors_mean_mm).abs());
+        }
+        println!(
+            "  recomputed through the controller's deflection: worst difference {worst:.1e} mm"
+        );
+        assert!(
+            worst <= torsion.controller_difference_mm.max(1e-9),
+            "{worst}"
+        );
+    }
+}
+
+/// Known truth for the torsion: the Panda with random errors in the 23 parameters `panda_3`
+/// determines and its joints 3 and 4 twisted by 40 and 20 urad per N m under gravity (the
+/// readings are what the arm reads where the twisted arm puts the ball at its socket), touches
+/// with 0.03 mm play on the six placements, fitted on `frontcenter` with `compliance`. The
+/// torsion is kept, each gain lies within four standard errors of the truth, the geometry
+/// within the chi-squared 99.9 % point; with no torsion in the truth, any gain fitted lies
+/// within four standard errors of zero.
+#[test]
+fn simulated_torsion_is_given_back_within_its_uncertainty() {
+    use host_tools::calibration::torsion::TorsionModel;
+    use host_tools::measurement::simulate_touches::{TouchSimulation, simulate_touches};
+    let real_session = panda_session("panda_3", "frontcenter", [0, 1]);
+    let real = real_session.run().unwrap();
+    let set = real.fit.set.clone();
+    let robot = real_session.ball_model().unwrap().robot;
+    let file = RobotFile::read(Path::new(PANDA)).unwrap();
+    let model =
+        TorsionModel::new(file.dynamics.as_ref().unwrap().to_gravity(7).unwrap(), 7).unwrap();
+    assert_eq!(model.joints(), vec![2, 3, 4, 5]);
+    for (truth_gains, seed) in [([0.0, 40.0, 20.0, 0.0], 5u64), ([0.0; 4], 6)] {
+        let truth_x = random_truth(&set, seed);
+        let truth = set.unpack(&truth_x).unwrap();
+        let simulation = TouchSimulation {
+            truth: truth.clone(),
+            play_sd_mm: 0.03,
+            gauge: Some(([0, 1], 50.0)),
+            planes: Vec::new(),
+            seed,
+        };
+        let mut placements: Vec<_> =
+            simulate_touches(&robot, &simulation, &real_session.placements)
+                .unwrap()
+                .into_iter()
+                .map(|s| s.placement)
+                .collect();
+        // The readings: q = q_kinematic - turns(q) k, solved by iteration.
+        for reading in placements
+            .iter_mut()
+            .flat_map(|p| p.sockets.iter_mut())
+            .flat_map(|s| s.readings.iter_mut())
+        {
+            let kinematic = reading.q_rad.clone();
+            for _ in 0..4 {
+                let q = calib_core::model::JointVec::from_slice(&reading.q_rad).unwrap();
+                let turns = model.turns((&robot, &truth), &q).unwrap();
+                reading.q_rad = kinematic.clone();
+                for ((joint, _), (turn, gain)) in
+                    model.torsions.iter().zip(turns.iter().zip(&truth_gains))
+                {
+                    reading.q_rad[joint - 1] -= turn * gain;
+                }
+            }
+        }
+        let session = host_tools::calibration::touches::TouchSession {
+            placements,
+            compliance: true,
+            ..panda_session("panda_3", "frontcenter", [0, 1])
+        };
+        let fitted = session.run().unwrap();
+        let torsion = fitted.torsion.clone().unwrap();
+        println!(
+            "truth {truth_gains:?}: kept {}, gains {:?} +- {:?}, left-out touches {:.4} -> {:.4} mm",
+            torsion.kept,
+            torsion.gains_urad_per_nm,
+            torsion.std_errors_urad_per_nm,
+            torsion.cross_validated_mm[0],
+            torsion.cross_validated_mm[1]
+        );
+        for ((gain, se), truth) in (torsion.gains_urad_per_nm.iter())
+            .zip(&torsion.std_errors_urad_per_nm)
+            .zip(&truth_gains)
+        {
+            if let Some(se) = se {
+                assert!(
+                    (gain - truth).abs() < 4.0 * se,
+                    "{gain} +- {se} against {truth}"
+                );
+            }
+        }
+        if truth_gains[1] > 0.0 {
+            assert!(torsion.kept && torsion.fitted[1] && torsion.fitted[2]);
+            let (mahalanobis, worst_z) = distance_from_truth(&fitted.fit, &truth_x);
+            let limit = chi_squared_quantile(set.len() as f64, 3.09);
+            println!(
+                "  geometry: Mahalanobis {mahalanobis:.2} (99.9 % point {limit:.1}), worst {worst_z:.2} standard errors"
+            );
+            assert!(mahalanobis < limit && worst_z < 4.0);
+        }
+    }
+}
+
+/// `--compliance` needs the robot file's masses: without `[dynamics]` it is refused, naming
+/// the section and the file, and nothing is written.
+#[test]
+fn compliance_without_masses_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(PANDA).unwrap();
+    let cut = text.find("[dynamics]").unwrap();
+    let start = text[..cut].rfind("\n\n").unwrap();
+    let robot = dir.path().join("panda-without-masses.toml");
+    std::fs::write(&robot, &text[..start]).unwrap();
+    let out = dir.path().join("identified.toml");
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_calib"))
+        .args(["sockets", "--robot"])
+        .arg(&robot)
+        .args([
+            "--data",
+            &format!("{DATA}/panda_3"),
+            "--ball-mm",
+            "0.025171,-0.084766,133.528298",
+        ])
+        .args([
+            "--train",
+            "frontcenter",
+            "--distance",
+            "50",
+            "--compliance",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    println!("{stderr}");
+    assert!(!output.status.success());
+    assert!(stderr.contains("[dynamics]") && stderr.contains("panda-without-masses.toml"));
+    assert!(!out.exists());
 }

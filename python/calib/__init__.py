@@ -95,6 +95,7 @@ def calibrate_touches(
     tracker_xyz_mm: _Any = None,
     tracker_sd: float = 0.02,
     datum_planes: _Optional[_Sequence[tuple[int, tuple[float, float, float], float]]] = None,
+    compliance: bool = False,
 ) -> tuple[Robot, dict[str, _Any], str]:
     """Calibrates ``robot`` without an instrument, as ``calib sockets`` does: a ball on the
     flange touched in sockets. ``joints_rad`` (n, joints) the configurations (numpy array or
@@ -111,7 +112,9 @@ def calibrate_touches(
     uncertainty ``tracker_sd`` (mm per coordinate); they place the robot in the tracker's frame
     and fix the scale (``report["tracker"]``). ``datum_planes``: planes known in the robot's base
     frame, ``(plane, (nx, ny, nz), offset_mm)`` each, as ``calib sockets --datum-plane`` takes
-    them. Returns the identified robot,
+    them. ``compliance=True`` also fits the joints' torsion under gravity from the robot file's
+    ``[dynamics]`` masses, kept only when it predicts left-out touches better
+    (``report["torsion"]``), as ``calib sockets --compliance``. Returns the identified robot,
     the report as a dict (``parameters``, ``ball_mm``, ``identifiability`` with ``left_free``,
     ``fitted`` and ``held_out`` per placement: consistency and distance error, never absolute
     accuracy, and for held-out placements the ``predicted`` consistency) and the text ``calib
@@ -133,6 +136,7 @@ def calibrate_touches(
         tracker_xyz_mm=tracker_xyz_mm,
         tracker_sd=tracker_sd,
         datum_planes=None if datum_planes is None else list(datum_planes),
+        compliance=compliance,
     )
     parsed: dict[str, _Any] = _json.loads(report)
     return identified, parsed, text

@@ -314,6 +314,7 @@ def calibrate_touches_json(
     tracker_xyz_mm: Any = None,
     tracker_sd: float = 0.02,
     datum_planes: Optional[Sequence[tuple[int, tuple[float, float, float], float]]] = None,
+    compliance: bool = False,
 ) -> tuple[Robot, str, str]:
     """``calib sockets`` from arrays: the identified robot, the JSON report (text) and the text
     (the package's ``calib.calibrate_touches`` returns the report as a dict)."""

@@ -1318,7 +1318,8 @@ fn evaluate_json(
 /// `tracker_joints_rad` (m, joints) and `tracker_xyz_mm` (m, 3) positions of the same ball
 /// measured by a tracker (its frame, mm; at least three), fitted with the touches at the
 /// tracker's standard uncertainty `tracker_sd` (mm per coordinate); `datum_planes` planes known in
-/// the base frame, `(plane, (nx, ny, nz), offset_mm)` each (`calib sockets --datum-plane`). Returns the identified robot, the
+/// the base frame, `(plane, (nx, ny, nz), offset_mm)` each (`calib sockets --datum-plane`);
+/// `compliance` the joints' torsion under gravity (`calib sockets --compliance`). Returns the identified robot, the
 /// JSON report (text; the package's `calibrate_touches` gives the dict) and the text `calib
 /// sockets` prints. The library's `TouchSession`, nothing written.
 #[pyfunction]
@@ -1326,7 +1327,7 @@ fn evaluate_json(
     robot, joints_rad, placements, sockets, *, ball_mm, train = None, distance = None,
     distance_sd = 0.05, distance_between = None, keep_ill_conditioned = false,
     feature = "socket", leave_one_out = false, tracker_joints_rad = None, tracker_xyz_mm = None,
-    tracker_sd = 0.02, datum_planes = None
+    tracker_sd = 0.02, datum_planes = None, compliance = false
 ))]
 #[allow(clippy::too_many_arguments)]
 fn calibrate_touches_json(
@@ -1347,6 +1348,7 @@ fn calibrate_touches_json(
     tracker_xyz_mm: Option<&Bound<'_, PyAny>>,
     tracker_sd: f64,
     datum_planes: Option<Vec<(u16, [f64; 3], f64)>>,
+    compliance: bool,
 ) -> PyResult<(Robot, String, String)> {
     let tracker = tracker_points(robot, tracker_joints_rad, tracker_xyz_mm)?;
     if tracker.is_some() && leave_one_out {
@@ -1420,6 +1422,7 @@ fn calibrate_touches_json(
             keep_ill_conditioned,
             ..Default::default()
         },
+        compliance,
     };
     let (calibrated, tracker, left_out) = py
         .detach(|| {

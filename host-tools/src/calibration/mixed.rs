@@ -56,6 +56,10 @@ impl MixedSession {
     pub fn run(&self) -> crate::Result<MixedCalibrated> {
         let session = &self.touches;
         session.check()?;
+        if session.compliance {
+            return Err(crate::refused!(unsupported "--compliance with --tracker";
+                "--compliance with tracker positions: the joints' torsion is fitted from touches alone; leave out --tracker or --compliance"));
+        }
         let BallModel {
             mut robot,
             mut mask,
@@ -103,6 +107,7 @@ impl MixedSession {
             fit: &fit,
             gauge: gauge.map(|(g, w)| (g, w / touch_weight)),
             datums: &session.datums,
+            torsion: None,
         };
         let ball = flange.inverse_transform_point(&identified.tool().translation.vector.into());
         let tracker = self.figures(&identified, &positions, touch_weight);
@@ -117,6 +122,7 @@ impl MixedSession {
                 calibrated_at: humantime::format_rfc3339_seconds(std::time::SystemTime::now())
                     .to_string(),
                 datums: session.datums.clone(),
+                torsion: None,
                 fit,
                 selection,
             },

@@ -70,6 +70,7 @@ pub mod plausibility;
 mod result;
 mod session;
 mod solve;
+pub mod torsion;
 pub mod touch_plan;
 pub mod touches;
 pub mod verify;

@@ -123,6 +123,7 @@ pub fn plan_touches(request: &TouchPlanRequest) -> crate::Result<TouchPlan> {
         gauge: request.gauge,
         datums: Vec::new(),
         config: CalibrationConfig::default(),
+        compliance: false,
     };
     let ball = session.ball_model()?;
     let nominal = Kinematics::nominal(&ball.robot)?;

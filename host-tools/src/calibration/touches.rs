@@ -19,6 +19,7 @@
 //! setup) and the figures, under their own names: never absolute accuracy.
 
 use super::fit::{KindFit, least_squares_of};
+use super::torsion::{Rated, TorsionModel, TorsionReport, Turned, try_torsion};
 use super::{CalibrationConfig, Selection, select_parameters_of};
 use crate::analysis::consistency::Consistency;
 use crate::analysis::consistency_prediction::{PredictedConsistency, predict_consistency};
@@ -80,6 +81,10 @@ pub struct TouchSession {
     /// The settings used: `lm_iterations`, `keep_ill_conditioned` (touches of one placement
     /// determine the scale weakly by nature: keep the set, and see the condition reported).
     pub config: CalibrationConfig,
+    /// Try the joints' torsion under gravity with the geometry (`calib sockets --compliance`;
+    /// the robot file's `[dynamics]` masses), kept when it predicts left-out touches better
+    /// ([`super::torsion`]).
+    pub compliance: bool,
 }
 
 /// The figures of one placement: consistency and distortion under the nominal and the
@@ -136,7 +141,12 @@ pub struct TouchCalibrated {
     /// The datum planes (known in the base frame); each placement's `known_planes` figures
     /// are numbered by their index here.
     pub datums: Vec<DatumPlane>,
+    /// The joints' torsion under gravity, when tried (`compliance`).
+    pub torsion: Option<TorsionReport>,
 }
+
+/// The joints' torsion tried in a fit: its model, its report, and the gains (urad per N m).
+type TriedTorsion = (TorsionModel, TorsionReport, Vec<f64>);
 
 /// Touches, known distances and plane contacts, as the core's common points take them.
 #[derive(Clone, Debug, Default)]
@@ -254,6 +264,9 @@ pub(super) struct Judged<'a> {
     pub(super) fit: &'a KindFit,
     pub(super) gauge: Option<(&'a Gauge, f64)>,
     pub(super) datums: &'a [DatumPlane],
+    /// The torsions kept and their gains (urad per N m): the identified model turns the
+    /// readings by them.
+    pub(super) torsion: Option<(&'a TorsionModel, &'a [f64])>,
 }
 
 impl Judged<'_> {
@@ -269,14 +282,22 @@ impl Judged<'_> {
             .map(|p| {
                 let data = touches_of(&[p], self.gauge, self.datums)?;
                 let kind = data.kind(self.robot);
+                let turned = match self.torsion {
+                    Some((model, gains)) => {
+                        Some(Rated::new(kind, model, &self.fit.errors)?.turned(gains))
+                    }
+                    None => None,
+                };
+                let identified = turned.as_ref().map_or(kind, Turned::kind);
                 let fit = self.fit;
                 let predicted = (fit.covariance.as_ref().filter(|_| held)).and_then(|c| {
-                    predict_consistency(self.identified, &fit.set, c, fit.sigma_mm, &data.touches)
+                    let touches = identified.touches;
+                    predict_consistency(self.identified, &fit.set, c, fit.sigma_mm, touches)
                 });
                 Ok(PlacementFigures {
                     placement: p.name.clone(),
                     nominal: kind.statistic(&nominal)?,
-                    identified: kind.statistic(self.identified)?,
+                    identified: identified.statistic(self.identified)?,
                     predicted,
                 })
             })
@@ -318,18 +339,30 @@ impl TouchSession {
         let data = touches_of(&fitted, gauge, &self.datums)?;
         let kind = data.kind(&robot);
         let selection = select_parameters_of(&kind, mask, &config)?;
-        let fit = least_squares_of(&kind, &selection, &config)?;
+        let (fit, torsion) = self.fit(kind, &selection, &config)?;
         let identified = Kinematics::new(&robot, &fit.errors)?;
+        let kept = (torsion.as_ref())
+            .and_then(|(model, report, gains)| report.kept.then_some((model, gains.as_slice())));
         let judged = Judged {
             robot: &robot,
             identified: &identified,
             fit: &fit,
             gauge,
             datums: &self.datums,
+            torsion: kept,
         };
         let ball = flange.inverse_transform_point(&identified.tool().translation.vector.into());
+        let mut file = self.identified_file(&fit);
+        if let Some((model, gains)) = kept {
+            let joints = robot.joints.len();
+            let all = model.all_gains(joints, gains);
+            file.compliance = Some(crate::model::compliance::ComplianceSection::new(
+                &all, joints,
+            ));
+        }
         Ok(TouchCalibrated {
-            file: self.identified_file(&fit),
+            torsion: torsion.as_ref().map(|(_, report, _)| report.clone()),
+            file,
             ball_mm: ball.coords.into(),
             fitted: judged.figures(&fitted, false)?,
             held_out: judged.figures(&held, true)?,
@@ -341,6 +374,35 @@ impl TouchSession {
                 .to_string(),
             datums: self.datums.clone(),
         })
+    }
+
+    /// The fit of the parameters of `selection` to `kind`: the geometry's alone, or with the
+    /// joints' torsion when asked for (with its model, report and gains; the geometry's fit is
+    /// the torsion's only when kept).
+    fn fit(
+        &self,
+        kind: Touches<'_>,
+        selection: &Selection,
+        config: &CalibrationConfig,
+    ) -> crate::Result<(KindFit, Option<TriedTorsion>)> {
+        if !self.compliance {
+            return Ok((least_squares_of(&kind, selection, config)?, None));
+        }
+        let joints = kind.robot.joints.len();
+        let gravity = (self.robot.dynamics.as_ref())
+            .ok_or_else(|| crate::refused!(option "--compliance";
+                "--compliance: {} has no [dynamics] (the links' masses and centres the gravity moments come from); add it, as robots/franka-panda.toml has", self.robot_path.display()))?
+            .to_gravity(joints)
+            .map_err(|e| crate::refused!(input self.robot_path.display(); "{}: {e}", self.robot_path.display()))?;
+        let model = TorsionModel::new(gravity, joints)?;
+        let nominal = calib_core::ParameterErrors::zeros_for(kind.robot.joint_count());
+        let rated = Rated::new(kind, &model, &nominal)?;
+        let (report, fit) = try_torsion(&rated, &model, selection, config)?;
+        let geometry = match report.kept {
+            true => fit.geometry,
+            false => least_squares_of(&kind, selection, config)?,
+        };
+        Ok((geometry, Some((model, report, fit.gains))))
     }
 
     /// The nominal model with the ball as its tool, the robot file's parameter mask, and the
@@ -529,6 +591,9 @@ pub struct TouchReport {
     /// are numbered by their index here.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub datums: Vec<DatumPlane>,
+    /// The joints' torsion under gravity, when tried (`calib sockets --compliance`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub torsion: Option<TorsionReport>,
 }
 
 impl TouchReport {
@@ -582,6 +647,7 @@ impl TouchCalibrated {
             inputs: Vec::new(),
             tracker: None,
             datums: self.datums.clone(),
+            torsion: self.torsion.clone(),
         }
     }
 }

@@ -19,6 +19,9 @@ pub fn touches_text(calibrated: &TouchCalibrated) -> String {
             p.value
         ));
     }
+    if let Some(torsion) = &calibrated.torsion {
+        text.push_str(&torsion_text(torsion));
+    }
     text.push_str(
         "\nconsistency (distance of each ball centre from its socket's mean; not absolute accuracy), mm:\n\
          placement                 nominal mean  identified mean    p95  authors' rule  distance error\n",
@@ -249,4 +252,38 @@ pub fn tracker_text(tracker: &crate::calibration::mixed::TrackerFigures) -> Stri
          the tracker positions place the robot and fix the scale: the base and the lengths are determined, not left free\n",
         tracker.positions, tracker.sd_mm, tracker.touch_weight, tracker.rms_mm, tracker.max_mm
     )
+}
+
+/// The joints' torsion under gravity: whether it earned its place, the gains.
+pub fn torsion_text(torsion: &crate::calibration::torsion::TorsionReport) -> String {
+    let [geometry, with] = torsion.cross_validated_mm;
+    let mut text = format!(
+        "\njoints' torsion under gravity ({}): left-out touches of the fitted placements predicted to {geometry:.4} mm by the geometry alone, {with:.4} mm with the torsions fitted ({} folds): {}\n",
+        if torsion.kept { "kept" } else { "not kept" },
+        crate::calibration::torsion::FOLDS,
+        if torsion.kept {
+            "the identified model turns the joints by them"
+        } else {
+            "the geometry alone is the calibration; the gains below are not applied"
+        }
+    );
+    for (((joint, gain), se), fitted) in (torsion.joints.iter())
+        .zip(&torsion.gains_urad_per_nm)
+        .zip(&torsion.std_errors_urad_per_nm)
+        .zip(&torsion.fitted)
+    {
+        let what = match (fitted, se) {
+            (true, Some(se)) => format!("{gain:.1} +- {se:.1} urad per N m"),
+            (true, None) => format!("{gain:.1} urad per N m"),
+            (false, _) => {
+                "0 (did not predict left-out touches better, or came out negative)".to_string()
+            }
+        };
+        text.push_str(&format!("  torsion of joint {joint}: {what}\n"));
+    }
+    text.push_str(&format!(
+        "  largest turn of a joint over the fitted touches {:.3} mrad; the controller's first-order deflection differs from the fitted turns by at most {:.4} mm there\n",
+        torsion.largest_turn_mrad, torsion.controller_difference_mm
+    ));
+    text
 }
