@@ -1658,7 +1658,7 @@ fn simulated_torsion_is_given_back_within_its_uncertainty() {
         let truth_x = random_truth(&set, seed);
         let truth = set.unpack(&truth_x).unwrap();
         let simulation = TouchSimulation {
-            truth: truth.clone(),
+            truth,
             play_sd_mm: 0.03,
             gauge: Some(([0, 1], 50.0)),
             planes: Vec::new(),
