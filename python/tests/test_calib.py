@@ -678,6 +678,31 @@ def test_touches_from_numpy_equal_calib_sockets(tmp_path):
     assert "leave one placement out" in text
 
 
+def test_torsion_from_numpy_equals_calib_sockets_compliance(tmp_path):
+    """Issue 54: the joints' torsion under gravity from Python (``compliance=True``) equals
+    ``calib sockets --compliance`` on the same panda_3 touches: the same gains, the same held-out
+    figures, the identified robot carrying the torsions in its ``[compliance]``."""
+    panda = ROOT / "host-tools/robots/franka-panda.toml"
+    folder = ROOT / "host-tools/data/mukca-sockets/panda_3"
+    ball = (0.025171, -0.084766, 133.528298)
+    report = tmp_path / "torsion.json"
+    done = run_calib("sockets", "--robot", panda, "--data", folder, "--ball-mm", ",".join(map(str, ball)),
+                     "--train", "frontcenter", "--distance", "50", "--compliance", "--report", report)
+    assert done.returncode == 0, done.stderr
+    cli = json.loads(report.read_text())
+    rows, names, sockets = _touches_of(folder)
+    robot, py, text = calib.calibrate_touches(calib.Robot.from_file(panda), np.vstack(rows), names, sockets,
+                                              ball_mm=ball, train=["frontcenter"], distance=50.0,
+                                              compliance=True)
+    assert py["torsion"] == cli["torsion"]
+    assert py["held_out"] == cli["held_out"]
+    assert py["torsion"]["kept"] and py["torsion"]["joints"] == [2, 3, 4, 5]
+    assert all(g >= 0.0 for g in py["torsion"]["gains_urad_per_nm"])
+    held = [f["identified"]["authors_mean_mm"] for f in py["held_out"]]
+    assert sum(held) / len(held) < 0.221  # the authors' calibrated model on the same split
+    assert "[compliance]" in robot.to_toml() and "joints' torsion under gravity (kept)" in text
+
+
 def test_tracker_positions_with_touches_equal_calib_sockets(tmp_path):
     """Issue 54, item 5: twelve tracker positions of the ball (the touches' own calibration's
     geometry and ball, computed here with numpy from ``Robot.fk``, moved 2 m and turned 90 degrees) fitted with

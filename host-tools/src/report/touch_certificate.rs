@@ -36,6 +36,7 @@ pub fn render(report: &TouchReport, rendering: &Rendering) -> crate::Result<Stri
     consistency(&mut page, report)?;
     undetermined(&mut page, report)?;
     parameters(&mut page, report)?;
+    torsion(&mut page, report)?;
     identifiability(&mut page, report)?;
     let command_line = command_line_html(&report.command_line);
     let software = match report.software.as_str() {
@@ -343,6 +344,45 @@ fn parameters(page: &mut String, report: &TouchReport) -> crate::Result<()> {
             entry
                 .std_error
                 .map_or("-".to_string(), |s| format!("{s:.3e}"))
+        )?;
+    }
+    writeln!(page, "</table>")?;
+    Ok(())
+}
+
+/// The joints' torsion under gravity, when tried: whether it earned its place and the gains.
+fn torsion(page: &mut String, report: &TouchReport) -> crate::Result<()> {
+    let Some(t) = &report.torsion else {
+        return Ok(());
+    };
+    let [geometry, with] = t.cross_validated_mm;
+    let verdict = if t.kept {
+        "kept: the identified model (and the controller, from the identified file's <code>[compliance]</code>) turns each joint by its gain times the gravity moment about its axis"
+    } else {
+        "not kept: the calibration is the geometry's alone, the gains below are not applied"
+    };
+    writeln!(
+        page,
+        "<h2 id=\"torsion\">Joints' torsion under gravity</h2>\n<p>Tried with the geometry and {verdict}. Left-out touches of the fitted placements ({} folds) predicted to {geometry:.4} mm by the geometry alone, {with:.4} mm with the torsions fitted; a torsion stays only when it predicts them better, and none is negative. Largest turn over the fitted touches {:.3} mrad; the controller's first-order deflection differs from the fitted turns by at most {:.4} mm there.</p>\n<table>\n<tr><th>joint</th><th>gain (urad per N m)</th><th>standard error</th></tr>",
+        crate::calibration::torsion::FOLDS,
+        t.largest_turn_mrad,
+        t.controller_difference_mm
+    )?;
+    for (((joint, gain), se), fitted) in (t.joints.iter())
+        .zip(&t.gains_urad_per_nm)
+        .zip(&t.std_errors_urad_per_nm)
+        .zip(&t.fitted)
+    {
+        let (gain, se) = match fitted {
+            true => (
+                format!("{gain:.1}"),
+                se.map_or("-".to_string(), |s| format!("{s:.1}")),
+            ),
+            false => ("0 (not fitted)".to_string(), "-".to_string()),
+        };
+        writeln!(
+            page,
+            "<tr><td>{joint}</td><td>{gain}</td><td>{se}</td></tr>"
         )?;
     }
     writeln!(page, "</table>")?;
