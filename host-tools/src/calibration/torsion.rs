@@ -7,7 +7,7 @@
 //! `j`'s axis (N m, from the robot file's `[dynamics]` masses at the nominal geometry) and `k_j`
 //! the gain (urad per N m), the torsion gain of [`crate::model::compliance`] (the controller's
 //! `Compliance`). The torsions of joints 2 to N - 2 (the gains the controller applies) are
-//! identified with the geometry in one least-squares fit ([`TorsionTouches`]: the touches at the
+//! identified with the geometry in one least-squares fit (`TorsionTouches`: the touches at the
 //! turned readings; the gains' columns by central differences, the geometry's the core's).
 //!
 //! Two guards against over-fitting one placement (a crude try with seven free gains fitted
@@ -530,7 +530,7 @@ fn cross_validated(
 
 /// Which torsions earn their place on `rated` (the fitted touches), and the fit with them:
 /// from every torsion, the one whose removal predicts the left-out touches best is removed
-/// while that improves the prediction (backward elimination on [`cross_validated`]); the
+/// while that improves the prediction (backward elimination on `cross_validated`); the
 /// torsion is kept when what remains predicts better than the geometry alone.
 pub fn try_torsion(
     rated: &Rated<'_>,
