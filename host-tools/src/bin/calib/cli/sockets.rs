@@ -60,9 +60,9 @@ pub struct SocketsOptions {
     #[arg(long, value_name = "MM", default_value_t = 0.02, requires = "tracker")]
     pub tracker_sd: f64,
     /// Also fit the joints' torsion under gravity (joints 2 to N - 2, gains in urad per N m,
-    /// not negative; the moments from the robot file's [dynamics] masses), kept only when it
+    /// not negative; the moments from the robot file's `[dynamics]` masses), kept only when it
     /// predicts left-out touches of the fitted placements better (five folds); the identified
-    /// file then carries it as [compliance].
+    /// file then carries it as `[compliance]`.
     #[arg(long, conflicts_with = "tracker")]
     pub compliance: bool,
     /// Keep parameters the configurations barely determine (default: dropped while the scaled
