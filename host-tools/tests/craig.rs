@@ -72,6 +72,18 @@ fn worst_difference(
     (position, rotation)
 }
 
+/// Franka's published table (alpha_{i-1} deg, a_{i-1} mm, d_i mm), written here again from the
+/// documentation, not from the file; the flange row is `(0, 0, 107)`.
+const PANDA_CRAIG_ROWS: [(f64, f64, f64); 7] = [
+    (0.0, 0.0, 333.0),
+    (-90.0, 0.0, 0.0),
+    (90.0, 0.0, 316.0),
+    (90.0, 82.5, 0.0),
+    (-90.0, -82.5, 384.0),
+    (90.0, 0.0, 0.0),
+    (90.0, 88.0, 0.0),
+];
+
 fn read7(relative: &str) -> RobotModel {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(relative);
     RobotFile::read(&path).unwrap().to_model(&path).unwrap()
@@ -80,17 +92,7 @@ fn read7(relative: &str) -> RobotModel {
 #[test]
 fn franka_panda_from_its_published_craig_table_to_1e_9_mm() {
     let model = read7("robots/franka-panda.toml");
-    // Franka's published table (alpha_{i-1} deg, a_{i-1} mm, d_i mm) and the flange, written
-    // here again from the documentation, not from the file.
-    let rows: [(f64, f64, f64); 7] = [
-        (0.0, 0.0, 333.0),
-        (-90.0, 0.0, 0.0),
-        (90.0, 0.0, 316.0),
-        (90.0, 82.5, 0.0),
-        (-90.0, -82.5, 384.0),
-        (90.0, 0.0, 0.0),
-        (90.0, 88.0, 0.0),
-    ];
+    let rows = PANDA_CRAIG_ROWS;
     let (position, rotation) = worst_difference(&model, 2000, |q| {
         let chain = rows
             .iter()
@@ -271,15 +273,7 @@ fn franka_panda_masses_give_the_published_gravity_torques() {
     let file = RobotFile::read(&path).unwrap();
     let model = file.to_model(&path).unwrap();
     let gravity = file.dynamics.as_ref().unwrap().to_gravity(7).unwrap();
-    let rows: [(f64, f64, f64); 7] = [
-        (0.0, 0.0, 333.0),
-        (-90.0, 0.0, 0.0),
-        (90.0, 0.0, 316.0),
-        (90.0, 82.5, 0.0),
-        (-90.0, -82.5, 384.0),
-        (90.0, 0.0, 0.0),
-        (90.0, 88.0, 0.0),
-    ];
+    let rows = PANDA_CRAIG_ROWS;
     // franka_description: kg, and m in Craig's frame i.
     let inertials: [(f64, [f64; 3]); 7] = [
         (4.970684, [3.875e-3, 2.081e-3, -4.762e-2]),

@@ -1762,4 +1762,22 @@ fn compliance_without_masses_is_refused() {
     assert!(!output.status.success());
     assert!(stderr.contains("[dynamics]") && stderr.contains("panda-without-masses.toml"));
     assert!(!out.exists());
+    // Too few touches per socket to judge the torsion on left-out ones.
+    let mut session = host_tools::calibration::touches::TouchSession {
+        compliance: true,
+        train: vec!["frontcenter".into(), "backcenter".into()],
+        ..panda_session("panda_3", "frontcenter", [0, 1])
+    };
+    for placement in session
+        .placements
+        .iter_mut()
+        .filter(|p| p.name == "backcenter")
+    {
+        placement.sockets[1].readings.truncate(4);
+    }
+    let error = session.run().unwrap_err().to_string();
+    assert!(
+        error.contains("has 4 touches") && error.contains("at least 5"),
+        "{error}"
+    );
 }

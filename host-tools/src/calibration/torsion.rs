@@ -428,6 +428,8 @@ pub fn fit_with_torsion(
     mut active: Vec<bool>,
 ) -> crate::Result<TorsionFit> {
     let set = crate::model::counts::solvable_set(&selection.mask)?;
+    // The rows of the turned touches are those of these touches: refused here, not in the fit.
+    rated.turned(&[]).kind().residuals(set.clone())?;
     loop {
         let residuals = TorsionTouches {
             rated,
@@ -538,6 +540,14 @@ pub fn try_torsion(
     selection: &Selection,
     config: &CalibrationConfig,
 ) -> crate::Result<(TorsionReport, TorsionFit)> {
+    let mut counts = std::collections::BTreeMap::<u16, usize>::new();
+    for t in &rated.lists[0] {
+        *counts.entry(t.point).or_insert(0) += 1;
+    }
+    if let Some(n) = counts.values().find(|n| **n < FOLDS) {
+        return Err(crate::refused!(option "--compliance";
+            "--compliance: a socket of the fitted placements has {n} touches; the torsion is judged on touches left out in {FOLDS} folds, so give each socket at least {FOLDS}"));
+    }
     let none = vec![false; rated.joints.len()];
     let geometry = cross_validated(rated, selection, config, &none)?;
     let mut active = vec![true; rated.joints.len()];
