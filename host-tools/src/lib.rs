@@ -86,5 +86,6 @@ pub mod kinematics;
 pub mod measurement;
 pub mod model;
 pub mod planning;
+pub mod registry;
 pub mod report;
 pub mod runtime;

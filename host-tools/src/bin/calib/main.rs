@@ -86,6 +86,9 @@ enum Command {
     /// Calibrate with the f32 core, the f64 core and the independent reference optimiser and
     /// compare; exits with status 1 when a difference is past its documented tolerance.
     Verify(crate::cli::verify::VerifyOptions),
+    /// Keep every calibration of every robot in one SQLite file (--db, calib.db by default):
+    /// register a report with the files beside it, list, show, export.
+    Registry(crate::cli::registry::RegistryOptions),
     /// Run the paper's experiment and a realistic cell on simulated data, no input files needed;
     /// prints the tables and writes data, reports and plots into a directory.
     Demo(crate::cli::demo::DemoOptions),
@@ -253,6 +256,7 @@ fn run(command: Command) -> anyhow::Result<()> {
             }
         }
         Command::PlanSockets(options) => crate::cli::plan_sockets::run(&options)?,
+        Command::Registry(options) => crate::cli::registry::run(&options)?,
         Command::Calibrate(options) => calibrate_command(options)?,
     }
     Ok(())

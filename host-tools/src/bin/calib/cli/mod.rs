@@ -12,6 +12,7 @@ pub mod import_urdf;
 pub mod merge;
 pub mod plan;
 pub mod plan_sockets;
+pub mod registry;
 pub mod report;
 pub mod simulate;
 pub mod sockets;

@@ -1,0 +1,257 @@
+//! `calib registry`: every calibration of every robot in one SQLite file (`--db`, `calib.db` by
+//! default): register a report with the files beside it, list, show, export
+//! ([`host_tools::registry`]).
+
+use host_tools::io::outputs::Outputs;
+use host_tools::registry::record::{NewRecord, Record, RecordFiles, Summary};
+use host_tools::registry::{Access, DEFAULT_PATH, Registry};
+use std::path::PathBuf;
+
+/// `calib registry`'s options.
+#[derive(Debug, clap::Args)]
+pub struct RegistryOptions {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: RegistryCommand,
+}
+
+/// The registry file, as every `calib registry` command takes it.
+#[derive(Debug, Clone, clap::Args)]
+pub struct Db {
+    /// The registry: an SQLite file, created readable and writable by you only on the first
+    /// registration.
+    #[arg(long, value_name = "FILE", default_value = DEFAULT_PATH)]
+    pub db: PathBuf,
+}
+
+/// The registry's commands.
+#[derive(Debug, clap::Subcommand)]
+pub enum RegistryCommand {
+    /// Register a calibration: its JSON report (calib calibrate --report or calib sockets
+    /// --report) and the files beside it, hashed.
+    Add(AddOptions),
+    /// List the registered calibrations, of one robot with --serial.
+    List(ListOptions),
+    /// Show one registered calibration whole.
+    Show(ShowOptions),
+    /// Write every record as JSON (reports included) or CSV (one line per calibration).
+    Export(ExportOptions),
+}
+
+/// `calib registry add`.
+#[derive(Debug, clap::Args)]
+pub struct AddOptions {
+    /// The calibration's JSON report.
+    #[arg(value_name = "REPORT.json")]
+    pub report: PathBuf,
+    /// The identified robot file it wrote (--out): kept whole in the record.
+    #[arg(long, value_name = "FILE")]
+    pub identified: Option<PathBuf>,
+    /// Its certificate (HTML or PDF): its SHA-256 is kept.
+    #[arg(long, value_name = "FILE")]
+    pub certificate: Option<PathBuf>,
+    /// The controller's parameter block (calib export --format block): its SHA-256 is kept.
+    #[arg(long, value_name = "FILE")]
+    pub block: Option<PathBuf>,
+    /// The robot's serial number (needed when the report does not state it; must equal it
+    /// when it does).
+    #[arg(long, value_name = "SERIAL")]
+    pub serial: Option<String>,
+    /// The robot's model (default: the identified file's name, else the report's robot).
+    #[arg(long, value_name = "MODEL")]
+    pub model: Option<String>,
+    /// The registry.
+    #[command(flatten)]
+    pub db: Db,
+}
+
+/// `calib registry list`.
+#[derive(Debug, clap::Args)]
+pub struct ListOptions {
+    /// Only this robot's calibrations.
+    #[arg(long, value_name = "SERIAL")]
+    pub serial: Option<String>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// The registry.
+    #[command(flatten)]
+    pub db: Db,
+}
+
+/// `calib registry show`.
+#[derive(Debug, clap::Args)]
+pub struct ShowOptions {
+    /// The record's number (calib registry list).
+    #[arg(value_name = "ID")]
+    pub id: i64,
+    /// Print the record as JSON (its report included).
+    #[arg(long)]
+    pub json: bool,
+    /// The registry.
+    #[command(flatten)]
+    pub db: Db,
+}
+
+/// The formats `calib registry export` writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Format {
+    /// Every record whole, reports included.
+    Json,
+    /// One line per calibration: robot, dates, held-out figure, the files' SHA-256.
+    Csv,
+}
+
+/// `calib registry export`.
+#[derive(Debug, clap::Args)]
+pub struct ExportOptions {
+    /// The format.
+    #[arg(long, value_enum)]
+    pub format: Format,
+    /// Write it here (an existing file is replaced whole, as by every command).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// The registry.
+    #[command(flatten)]
+    pub db: Db,
+}
+
+/// Runs a registry command and prints what it found or did.
+pub fn run(options: &RegistryOptions) -> anyhow::Result<()> {
+    let text = text_of(options)?;
+    crate::cli::print_text(format_args!("{text}"))
+}
+
+/// Runs a registry command; the text to print.
+fn text_of(options: &RegistryOptions) -> anyhow::Result<String> {
+    Ok(match &options.command {
+        RegistryCommand::Add(o) => {
+            let record = NewRecord::from_files(&RecordFiles {
+                report: Some(&o.report),
+                identified: o.identified.as_deref(),
+                certificate: o.certificate.as_deref(),
+                block: o.block.as_deref(),
+                serial: o.serial.as_deref(),
+                model: o.model.as_deref(),
+            })?;
+            let id = Registry::open(&o.db.db, Access::Write)?.add(&record)?;
+            format!(
+                "registered record {id}: robot {} ({}), {} calibration of {}, report SHA-256 {}, in {}\n",
+                record.serial,
+                record.model,
+                record.kind.name(),
+                empty_as_unknown(&record.calibrated_at),
+                record.report_sha256,
+                o.db.db.display()
+            )
+        }
+        RegistryCommand::List(o) => {
+            let list = Registry::open(&o.db.db, Access::Read)?.list(o.serial.as_deref())?;
+            match o.json {
+                true => format!("{}\n", serde_json::to_string_pretty(&list)?),
+                false => list_text(&list),
+            }
+        }
+        RegistryCommand::Show(o) => {
+            let record = Registry::open(&o.db.db, Access::Read)?.show(o.id)?;
+            match o.json {
+                true => host_tools::registry::export::json(std::slice::from_ref(&record))?,
+                false => show_text(&record),
+            }
+        }
+        RegistryCommand::Export(o) => {
+            let records = Registry::open(&o.db.db, Access::Read)?.all()?;
+            let text = match o.format {
+                Format::Json => host_tools::registry::export::json(&records)?,
+                Format::Csv => host_tools::registry::export::csv(&records)?,
+            };
+            let mut outputs = Outputs::new(&[("--db", o.db.db.as_path())]);
+            outputs.stage("--out", &o.out, text.as_bytes())?;
+            outputs.commit()?;
+            format!("wrote {} records to {}\n", records.len(), o.out.display())
+        }
+    })
+}
+
+/// "unknown" for an empty date.
+fn empty_as_unknown(text: &str) -> &str {
+    if text.is_empty() {
+        "unknown date"
+    } else {
+        text
+    }
+}
+
+/// The listing as a table.
+fn list_text(list: &[Summary]) -> String {
+    if list.is_empty() {
+        return "no calibrations registered\n".to_string();
+    }
+    let mut text = format!(
+        "{:>6}  {:<16} {:<24} {:<8} {:<22} {:>12}  software\n",
+        "id", "serial", "model", "kind", "calibrated at", "held out, mm"
+    );
+    for s in list {
+        text.push_str(&format!(
+            "{:>6}  {:<16} {:<24} {:<8} {:<22} {:>12}  {}\n",
+            s.id,
+            s.serial,
+            s.model,
+            s.kind.name(),
+            empty_as_unknown(&s.calibrated_at),
+            s.held_out_mm.map_or("-".to_string(), |v| format!("{v:.4}")),
+            s.software
+        ));
+    }
+    text.push_str("held out: a tracker calibration's held-out position error (median, after); touches' held-out consistency (mean, the authors' rule; not accuracy)\n");
+    text
+}
+
+/// One record for people.
+fn show_text(r: &Record) -> String {
+    let c = &r.calibration;
+    let hash = |v: &Option<String>| v.clone().unwrap_or_else(|| "-".to_string());
+    let mut text = format!(
+        "record {}: robot {} ({}), {} calibration\ncalibrated at {}, registered at {}, by {}\nheld out: {}\nreport SHA-256 {}\nidentified file SHA-256 {}\ncertificate SHA-256 {}\ncontroller block SHA-256 {}\ncovariance: {}\ninputs:\n",
+        r.id,
+        c.serial,
+        c.model,
+        c.kind.name(),
+        empty_as_unknown(&c.calibrated_at),
+        r.registered_at,
+        c.software,
+        c.held_out_mm
+            .map_or("nothing held out".to_string(), |v| format!("{v:.4} mm")),
+        c.report_sha256,
+        hash(&c.identified_sha256),
+        hash(&c.certificate_sha256),
+        hash(&c.block_sha256),
+        if c.covariance.is_null() {
+            "not recorded"
+        } else {
+            "recorded"
+        }
+    );
+    for input in c.inputs.as_array().into_iter().flatten() {
+        let field = |k: &str| {
+            input
+                .get(k)
+                .and_then(|v| v.as_str())
+                .unwrap_or("-")
+                .to_string()
+        };
+        text.push_str(&format!(
+            "  {} {}  {}\n",
+            field("flag"),
+            field("path"),
+            field("sha256")
+        ));
+    }
+    if let Some(toml) = &c.identified_toml {
+        text.push_str(&format!(
+            "identified robot file ({} lines) kept whole (--json prints it)\n",
+            toml.lines().count()
+        ));
+    }
+    text
+}

@@ -1,0 +1,365 @@
+//! The registry (issue 55): every calibration of every robot in one SQLite file (`calib.db` by
+//! default), so that "which calibration is on this controller, and is the robot still within
+//! it?" has an answer that lasts.
+//!
+//! One record per calibration ([`record`]), keyed by the robot's serial and model: the
+//! identified model as the robot file writes it, the covariance, the held-out figures, the
+//! inputs' and the certificate's and the controller block's SHA-256, dates and software. The
+//! database is SQLite (bundled: nothing to install), because a record must never be lost or half
+//! written: each registration is one transaction (`BEGIN IMMEDIATE`, so two writers queue
+//! instead of failing; a writer waits up to [`BUSY_TIMEOUT`]), and SQLite's journal makes a
+//! process killed in the middle leave the previous state. The file is created readable and
+//! writable by its owner only (0600).
+//!
+//! The schema is versioned (`PRAGMA user_version`, [`SCHEMA_VERSION`]) and the file marked as
+//! ours (`PRAGMA application_id`, [`APPLICATION_ID`]): a file of a newer schema is refused with
+//! its version named, an SQLite file of another program or a file that is not a database at all
+//! is refused, never altered; an older schema is migrated forward in one transaction.
+
+pub mod export;
+pub mod record;
+
+use record::{Kind, NewRecord, Record, Summary};
+use rusqlite::{Connection, OpenFlags, OptionalExtension as _, TransactionBehavior, params};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// The schema this version writes and reads.
+pub const SCHEMA_VERSION: i64 = 1;
+
+/// `PRAGMA application_id` of a registry: "CALB".
+pub const APPLICATION_ID: i64 = 0x4341_4C42;
+
+/// The registry's file when `--db` is not given.
+pub const DEFAULT_PATH: &str = "calib.db";
+
+/// How long a writer waits for another to finish.
+pub const BUSY_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// The migrations: entry `n` takes schema `n` to `n + 1`.
+const MIGRATIONS: [&str; 1] = ["CREATE TABLE calibration (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    serial TEXT NOT NULL,
+    model TEXT NOT NULL,
+    kind TEXT NOT NULL CHECK (kind IN ('tracker', 'touches')),
+    calibrated_at TEXT NOT NULL,
+    registered_at TEXT NOT NULL,
+    software TEXT NOT NULL,
+    held_out_mm REAL,
+    held_out TEXT NOT NULL,
+    covariance TEXT NOT NULL,
+    inputs TEXT NOT NULL,
+    identified_toml TEXT,
+    identified_sha256 TEXT,
+    certificate_sha256 TEXT,
+    block_sha256 TEXT,
+    report TEXT NOT NULL,
+    report_sha256 TEXT NOT NULL,
+    UNIQUE (serial, report_sha256)
+);
+CREATE INDEX calibration_by_robot ON calibration (serial, calibrated_at, id);"];
+
+/// What a command does with the registry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Access {
+    /// Lists, shows, exports: the file must exist and is opened read-only.
+    Read,
+    /// Registers: the file is created (0600) when it does not exist, and migrated.
+    Write,
+}
+
+/// An open registry.
+#[derive(Debug)]
+pub struct Registry {
+    connection: Connection,
+    path: PathBuf,
+}
+
+impl Registry {
+    /// Opens the registry at `path` for `access`. Refused, naming the file: a file that is not
+    /// an SQLite database, an SQLite database of another program, a newer schema, a missing
+    /// file for reading, a file or folder the user cannot write for writing.
+    pub fn open(path: &Path, access: Access) -> crate::Result<Self> {
+        let exists = path.exists();
+        if access == Access::Read && !exists {
+            return Err(crate::refused!(input path.display();
+                "{}: no registry there; register a calibration first (calib registry add REPORT.json --db {})", path.display(), path.display()));
+        }
+        if access == Access::Write && !exists {
+            create_private(path)?;
+        }
+        let read_only = std::fs::metadata(path).is_ok_and(|m| m.permissions().readonly());
+        if access == Access::Write && read_only {
+            return Err(crate::refused!(output path;
+                "{}: the registry is read-only (its mode has no write bit): make it writable (chmod u+w) or name another with --db; nothing was written", path.display()));
+        }
+        let flags = match access {
+            Access::Read => OpenFlags::SQLITE_OPEN_READ_ONLY,
+            Access::Write => OpenFlags::SQLITE_OPEN_READ_WRITE,
+        } | OpenFlags::SQLITE_OPEN_NO_MUTEX;
+        let connection = Connection::open_with_flags(path, flags)
+            .map_err(|e| database_error(path, "cannot open it", &e))?;
+        connection
+            .busy_timeout(BUSY_TIMEOUT)
+            .map_err(|e| database_error(path, "cannot open it", &e))?;
+        let mut registry = Self {
+            connection,
+            path: path.to_owned(),
+        };
+        registry.check_and_migrate(access)?;
+        Ok(registry)
+    }
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Refuses a foreign or newer file; migrates an older or new one (writing only).
+    fn check_and_migrate(&mut self, access: Access) -> crate::Result<()> {
+        let (application, version, tables) = self.header()?;
+        let path = self.path.display();
+        if application != APPLICATION_ID && (application != 0 || tables > 0) {
+            return Err(crate::refused!(input path;
+                "{path}: an SQLite database of another program ({tables} tables, application id {application:#x}; a registry's is {APPLICATION_ID:#x}), not a calib registry; name a registry file or a new path with --db"));
+        }
+        if version > SCHEMA_VERSION {
+            return Err(crate::refused!(input path;
+                "{path}: a registry of schema version {version}, written by a newer calib; this calib reads versions up to {SCHEMA_VERSION}: use the newer calib"));
+        }
+        if version == SCHEMA_VERSION {
+            return Ok(());
+        }
+        if access == Access::Read {
+            return Err(crate::refused!(input path;
+                "{path}: a registry of schema version {version}; register a calibration with this calib (calib registry add) to bring it to version {SCHEMA_VERSION}"));
+        }
+        let transaction = (self.connection)
+            .transaction_with_behavior(TransactionBehavior::Immediate)
+            .map_err(|e| database_error(&self.path, "cannot start migrating it", &e))?;
+        // Another process may have migrated it meanwhile: read the version again, inside.
+        let version: i64 = transaction
+            .pragma_query_value(None, "user_version", |row| row.get(0))
+            .map_err(|e| database_error(&self.path, "cannot read its schema version", &e))?;
+        for migration in MIGRATIONS
+            .iter()
+            .skip(usize::try_from(version).unwrap_or(0))
+        {
+            transaction
+                .execute_batch(migration)
+                .map_err(|e| database_error(&self.path, "cannot migrate it", &e))?;
+        }
+        transaction
+            .execute_batch(&format!(
+                "PRAGMA application_id = {APPLICATION_ID}; PRAGMA user_version = {SCHEMA_VERSION};"
+            ))
+            .map_err(|e| database_error(&self.path, "cannot mark its schema", &e))?;
+        transaction
+            .commit()
+            .map_err(|e| database_error(&self.path, "cannot migrate it", &e))
+    }
+
+    /// `(application id, schema version, tables)` of the file.
+    fn header(&self) -> crate::Result<(i64, i64, i64)> {
+        let read = |pragma: &str| -> rusqlite::Result<i64> {
+            self.connection
+                .pragma_query_value(None, pragma, |row| row.get(0))
+        };
+        let tables = || -> rusqlite::Result<i64> {
+            self.connection
+                .query_row("SELECT count(*) FROM sqlite_master", [], |row| row.get(0))
+        };
+        let all = || -> rusqlite::Result<(i64, i64, i64)> {
+            Ok((read("application_id")?, read("user_version")?, tables()?))
+        };
+        all().map_err(|e| database_error(&self.path, "cannot read it", &e))
+    }
+
+    /// Registers `record`; its number. Refused: the same report already registered for this
+    /// serial (its number named), a write the file or the disk refuses.
+    pub fn add(&mut self, record: &NewRecord) -> crate::Result<i64> {
+        let now = humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string();
+        let path = self.path.clone();
+        let failed =
+            |e: &rusqlite::Error| database_error(&path, "cannot register the calibration", e);
+        let transaction = (self.connection)
+            .transaction_with_behavior(TransactionBehavior::Immediate)
+            .map_err(|e| failed(&e))?;
+        let existing: Option<i64> = transaction
+            .query_row(
+                "SELECT id FROM calibration WHERE serial = ?1 AND report_sha256 = ?2",
+                params![record.serial, record.report_sha256],
+                |row| row.get(0),
+            )
+            .optional()
+            .map_err(|e| failed(&e))?;
+        if let Some(id) = existing {
+            return Err(crate::refused!(input self.path.display();
+                "{}: this report (SHA-256 {}) is already registered for robot {} as record {id}",
+                self.path.display(), record.report_sha256, record.serial));
+        }
+        let json = |v: &serde_json::Value| v.to_string();
+        transaction
+            .execute(
+                "INSERT INTO calibration (serial, model, kind, calibrated_at, registered_at, software,
+                     held_out_mm, held_out, covariance, inputs, identified_toml, identified_sha256,
+                     certificate_sha256, block_sha256, report, report_sha256)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16)",
+                params![
+                    record.serial,
+                    record.model,
+                    record.kind.name(),
+                    record.calibrated_at,
+                    now,
+                    record.software,
+                    record.held_out_mm,
+                    json(&record.held_out),
+                    json(&record.covariance),
+                    json(&record.inputs),
+                    record.identified_toml,
+                    record.identified_sha256,
+                    record.certificate_sha256,
+                    record.block_sha256,
+                    record.report,
+                    record.report_sha256,
+                ],
+            )
+            .map_err(|e| failed(&e))?;
+        let id = transaction.last_insert_rowid();
+        transaction.commit().map_err(|e| failed(&e))?;
+        Ok(id)
+    }
+
+    /// Every record's summary (of robot `serial` only, when given), by serial, then date, then
+    /// number.
+    pub fn list(&self, serial: Option<&str>) -> crate::Result<Vec<Summary>> {
+        let failed = |e: &rusqlite::Error| database_error(&self.path, "cannot list it", e);
+        let mut statement = (self.connection)
+            .prepare(
+                "SELECT id, serial, model, kind, calibrated_at, held_out_mm, software FROM calibration
+                 WHERE ?1 IS NULL OR serial = ?1 ORDER BY serial, calibrated_at, id",
+            )
+            .map_err(|e| failed(&e))?;
+        let rows = statement
+            .query_map(params![serial], |row| {
+                Ok(Summary {
+                    id: row.get(0)?,
+                    serial: row.get(1)?,
+                    model: row.get(2)?,
+                    kind: kind_of(row.get_ref(3)?.as_str()?),
+                    calibrated_at: row.get(4)?,
+                    held_out_mm: row.get(5)?,
+                    software: row.get(6)?,
+                })
+            })
+            .map_err(|e| failed(&e))?;
+        rows.collect::<rusqlite::Result<Vec<_>>>()
+            .map_err(|e| failed(&e))
+    }
+
+    /// The record `id`, whole. Refused: no such record.
+    pub fn show(&self, id: i64) -> crate::Result<Record> {
+        let failed = |e: &rusqlite::Error| database_error(&self.path, "cannot read a record", e);
+        let record = (self.connection)
+            .query_row(
+                "SELECT id, registered_at, serial, model, kind, calibrated_at, software, held_out_mm,
+                     held_out, covariance, inputs, identified_toml, identified_sha256,
+                     certificate_sha256, block_sha256, report, report_sha256
+                 FROM calibration WHERE id = ?1",
+                params![id],
+                record_of_row,
+            )
+            .optional()
+            .map_err(|e| failed(&e))?;
+        record.ok_or_else(|| {
+            crate::refused!(option "ID";
+                "{}: no record {id}; calib registry list --db {} lists them", self.path.display(), self.path.display())
+        })
+    }
+
+    /// Every record, whole, in the order of [`Registry::list`].
+    pub fn all(&self) -> crate::Result<Vec<Record>> {
+        (self.list(None)?.iter())
+            .map(|summary| self.show(summary.id))
+            .collect()
+    }
+}
+
+/// The kind stored in a row (the schema's CHECK admits only these two).
+fn kind_of(name: &str) -> Kind {
+    Kind::from_name(name).unwrap_or(Kind::Tracker)
+}
+
+/// A full record from a row of [`Registry::show`]'s query.
+fn record_of_row(row: &rusqlite::Row<'_>) -> rusqlite::Result<Record> {
+    let json = |i: usize| -> rusqlite::Result<serde_json::Value> {
+        let text: String = row.get(i)?;
+        serde_json::from_str(&text).map_err(|e| {
+            rusqlite::Error::FromSqlConversionFailure(i, rusqlite::types::Type::Text, Box::new(e))
+        })
+    };
+    Ok(Record {
+        id: row.get(0)?,
+        registered_at: row.get(1)?,
+        calibration: NewRecord {
+            serial: row.get(2)?,
+            model: row.get(3)?,
+            kind: kind_of(row.get_ref(4)?.as_str()?),
+            calibrated_at: row.get(5)?,
+            software: row.get(6)?,
+            held_out_mm: row.get(7)?,
+            held_out: json(8)?,
+            covariance: json(9)?,
+            inputs: json(10)?,
+            identified_toml: row.get(11)?,
+            identified_sha256: row.get(12)?,
+            certificate_sha256: row.get(13)?,
+            block_sha256: row.get(14)?,
+            report: row.get(15)?,
+            report_sha256: row.get(16)?,
+        },
+    })
+}
+
+/// Creates an empty file at `path` readable and writable by its owner only (another process
+/// creating it at the same moment is fine: the file then exists).
+fn create_private(path: &Path) -> crate::Result<()> {
+    use std::os::unix::fs::OpenOptionsExt as _;
+    match std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(0o600)
+        .open(path)
+    {
+        Ok(_) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(()),
+        Err(e) => Err(crate::refused!(output path;
+            "{}: cannot create the registry ({e}); choose a folder you can write with --db", path.display())),
+    }
+}
+
+/// The message of a database error on `path` while `doing`, with what to do about it.
+fn database_error(path: &Path, doing: &str, error: &rusqlite::Error) -> crate::Error {
+    use rusqlite::ErrorCode;
+    let shown = path.display();
+    let code = error.sqlite_error_code();
+    let advice = match code {
+        Some(ErrorCode::NotADatabase) => {
+            return crate::refused!(input shown;
+                "{shown}: not a calib registry (not an SQLite database); name a registry file or a new path with --db");
+        }
+        Some(ErrorCode::DatabaseCorrupt) => "the file is damaged: restore it from a backup",
+        Some(ErrorCode::ReadOnly) | Some(ErrorCode::PermissionDenied) => {
+            "the file (or its folder, where SQLite writes its journal) is read-only for you: make it writable or name another with --db"
+        }
+        Some(ErrorCode::DiskFull) => {
+            "the disk is full: free space and register again (nothing was written)"
+        }
+        Some(ErrorCode::DatabaseBusy) | Some(ErrorCode::DatabaseLocked) => {
+            "another process held it too long: try again"
+        }
+        Some(ErrorCode::CannotOpen) => "check that the path and its folder exist and are yours",
+        _ => "nothing was written",
+    };
+    crate::refused!(output path; "{shown}: {doing}: {error}; {advice}")
+}

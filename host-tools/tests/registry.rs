@@ -1,0 +1,471 @@
+//! The registry (issue 55, item 1): calibrations registered, listed, shown and exported from a
+//! real calibration's files, each field checked against the files themselves; foreign, newer,
+//! damaged and read-only files refused and left as they were; two processes registering at once;
+//! a registration killed in the middle.
+
+mod common;
+
+use common::{ROBOT, calib, calib_in, ok, simulate};
+use sha2::Digest as _;
+use std::path::{Path, PathBuf};
+
+const PANDA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/franka-panda.toml");
+const PANDA_3: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/mukca-sockets/panda_3");
+
+fn sha256_of(path: &Path) -> String {
+    sha2::Sha256::digest(std::fs::read(path).unwrap())
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+fn s(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+/// A calibration from touches (`panda_3` on `frontcenter`) with its report, identified file and
+/// certificate in `dir`.
+fn touches_calibration(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
+    let (report, identified, html) = (
+        dir.join("touches.json"),
+        dir.join("panda-3.toml"),
+        dir.join("panda-3.html"),
+    );
+    ok(&calib(&[
+        "sockets",
+        "--robot",
+        PANDA,
+        "--data",
+        PANDA_3,
+        "--ball-mm",
+        "0.025171,-0.084766,133.528298",
+        "--train",
+        "frontcenter",
+        "--distance",
+        "50",
+        "--report",
+        s(&report),
+        "--out",
+        s(&identified),
+        "--html",
+        s(&html),
+    ]));
+    (report, identified, html)
+}
+
+/// A tracker calibration of simulated ER10L-C10 data, its robot file stating the serial
+/// `ER-0042`, with its report and identified file in `dir`.
+fn tracker_calibration(dir: &Path) -> (PathBuf, PathBuf) {
+    let robot = dir.join("er10l-serial.toml");
+    let text = std::fs::read_to_string(ROBOT).unwrap();
+    std::fs::write(&robot, format!("serial = \"ER-0042\"\n{text}")).unwrap();
+    let (data, _) = simulate(dir, "sim", &["--poses", "60", "--seed", "3"]);
+    let (report, identified) = (dir.join("tracker.json"), dir.join("er10l-identified.toml"));
+    ok(&calib(&[
+        "calibrate",
+        "--robot",
+        s(&robot),
+        "--data",
+        s(&data),
+        "--method",
+        "lm",
+        "--validate",
+        "0.75",
+        "--report",
+        s(&report),
+        "--out",
+        s(&identified),
+    ]));
+    (report, identified)
+}
+
+#[test]
+fn calibrations_are_registered_listed_shown_and_exported() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("fleet.db");
+    let (touches, panda_file, html) = touches_calibration(dir.path());
+    let (tracker, er_file) = tracker_calibration(dir.path());
+    // The touches' report states no serial.
+    let refused = calib(&["registry", "add", s(&touches), "--db", s(&db)]);
+    assert!(!refused.status.success());
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("--serial"));
+    assert!(!db.exists(), "a refused registration creates no registry");
+    let out = ok(&calib(&[
+        "registry",
+        "add",
+        s(&touches),
+        "--serial",
+        "PANDA-3",
+        "--identified",
+        s(&panda_file),
+        "--certificate",
+        s(&html),
+        "--db",
+        s(&db),
+    ]));
+    assert!(out.contains("registered record 1"), "{out}");
+    use std::os::unix::fs::PermissionsExt as _;
+    assert_eq!(
+        std::fs::metadata(&db).unwrap().permissions().mode() & 0o777,
+        0o600
+    );
+    // The tracker report states its serial: a different --serial is refused, none is fine.
+    let wrong = calib(&[
+        "registry",
+        "add",
+        s(&tracker),
+        "--serial",
+        "X",
+        "--db",
+        s(&db),
+    ]);
+    assert!(String::from_utf8_lossy(&wrong.stderr).contains("ER-0042"));
+    ok(&calib(&[
+        "registry",
+        "add",
+        s(&tracker),
+        "--identified",
+        s(&er_file),
+        "--db",
+        s(&db),
+    ]));
+    // The same report again is refused, naming the record.
+    let again = calib(&["registry", "add", s(&tracker), "--db", s(&db)]);
+    assert!(
+        String::from_utf8_lossy(&again.stderr)
+            .contains("already registered for robot ER-0042 as record 2")
+    );
+    // The listing and the records against the files.
+    let list: serde_json::Value =
+        serde_json::from_str(&ok(&calib(&["registry", "list", "--json", "--db", s(&db)]))).unwrap();
+    let list = list.as_array().unwrap();
+    assert_eq!(list.len(), 2);
+    let touches_json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&touches).unwrap()).unwrap();
+    let held: Vec<f64> = (touches_json["held_out"].as_array().unwrap().iter())
+        .map(|f| f["identified"]["authors_mean_mm"].as_f64().unwrap())
+        .collect();
+    let mean = held.iter().sum::<f64>() / held.len() as f64;
+    let panda = list.iter().find(|r| r["serial"] == "PANDA-3").unwrap();
+    assert_eq!(panda["kind"], "touches");
+    assert_eq!(panda["held_out_mm"].as_f64().unwrap(), mean);
+    let shown: serde_json::Value = serde_json::from_str(&ok(&calib(&[
+        "registry",
+        "show",
+        "1",
+        "--json",
+        "--db",
+        s(&db),
+    ])))
+    .unwrap();
+    let record = &shown[0];
+    assert_eq!(record["report_sha256"], sha256_of(&touches));
+    assert_eq!(record["identified_sha256"], sha256_of(&panda_file));
+    assert_eq!(record["certificate_sha256"], sha256_of(&html));
+    assert_eq!(
+        record["identified_toml"],
+        std::fs::read_to_string(&panda_file).unwrap()
+    );
+    assert_eq!(record["report"], touches_json);
+    assert_eq!(record["model"], "Franka Emika Panda");
+    let tracker_json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&tracker).unwrap()).unwrap();
+    let shown: serde_json::Value = serde_json::from_str(&ok(&calib(&[
+        "registry",
+        "show",
+        "2",
+        "--json",
+        "--db",
+        s(&db),
+    ])))
+    .unwrap();
+    assert_eq!(shown[0]["covariance"], tracker_json["covariance"]);
+    assert_eq!(shown[0]["held_out"], tracker_json["held_out"]);
+    assert_eq!(
+        shown[0]["held_out_mm"].as_f64().unwrap(),
+        tracker_json["held_out"]["after"]["position"]["p50_mm"]
+            .as_f64()
+            .unwrap()
+    );
+    let text = ok(&calib(&[
+        "registry",
+        "list",
+        "--serial",
+        "ER-0042",
+        "--db",
+        s(&db),
+    ]));
+    assert!(
+        text.contains("ER-0042") && !text.contains("PANDA-3"),
+        "{text}"
+    );
+    let missing = calib(&["registry", "show", "7", "--db", s(&db)]);
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("no record 7"));
+    // Exports: CSV and JSON.
+    let csv_path = dir.path().join("fleet.csv");
+    ok(&calib(&[
+        "registry",
+        "export",
+        "--format",
+        "csv",
+        "--out",
+        s(&csv_path),
+        "--db",
+        s(&db),
+    ]));
+    let mut reader = csv::Reader::from_path(&csv_path).unwrap();
+    let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
+    assert_eq!(rows.len(), 2);
+    assert_eq!(
+        &rows[0][8],
+        sha256_of(&tracker).as_str(),
+        "by serial: ER-0042 first"
+    );
+    let first = std::fs::read(&csv_path).unwrap();
+    ok(&calib(&[
+        "registry",
+        "export",
+        "--format",
+        "csv",
+        "--out",
+        s(&csv_path),
+        "--db",
+        s(&db),
+    ]));
+    assert_eq!(
+        std::fs::read(&csv_path).unwrap(),
+        first,
+        "replaced whole, the same records"
+    );
+    let into_db = calib(&[
+        "registry",
+        "export",
+        "--format",
+        "csv",
+        "--out",
+        s(&db),
+        "--db",
+        s(&db),
+    ]);
+    assert!(
+        !into_db.status.success(),
+        "the registry is never an export's target"
+    );
+    let json_path = dir.path().join("fleet.json");
+    ok(&calib(&[
+        "registry",
+        "export",
+        "--format",
+        "json",
+        "--out",
+        s(&json_path),
+        "--db",
+        s(&db),
+    ]));
+    let all: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json_path).unwrap()).unwrap();
+    assert_eq!(all.as_array().unwrap().len(), 2);
+}
+
+#[test]
+fn foreign_newer_damaged_and_read_only_files_are_refused_and_left_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let (touches, _, _) = touches_calibration(dir.path());
+    let add = |db: &Path| {
+        calib(&[
+            "registry",
+            "add",
+            s(&touches),
+            "--serial",
+            "P3",
+            "--db",
+            s(db),
+        ])
+    };
+    let refused = |db: &Path, expected: &str| {
+        let before = std::fs::read(db).unwrap();
+        let out = add(db);
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        println!("{stderr}");
+        assert!(
+            !out.status.success() && stderr.contains(expected),
+            "{stderr}"
+        );
+        assert_eq!(
+            std::fs::read(db).unwrap(),
+            before,
+            "{} changed",
+            db.display()
+        );
+        let listed = calib(&["registry", "list", "--db", s(db)]);
+        assert!(!listed.status.success());
+    };
+    // Not a database.
+    let text = dir.path().join("notes.db");
+    std::fs::write(&text, "a text file, not a database\n".repeat(200)).unwrap();
+    refused(&text, "not a calib registry (not an SQLite database)");
+    // Another program's SQLite database.
+    let foreign = dir.path().join("foreign.db");
+    {
+        let c = rusqlite::Connection::open(&foreign).unwrap();
+        c.execute_batch("CREATE TABLE orders (id INTEGER); INSERT INTO orders VALUES (1);")
+            .unwrap();
+    }
+    refused(&foreign, "an SQLite database of another program");
+    // A registry of a newer schema.
+    let newer = dir.path().join("newer.db");
+    ok(&add(&newer));
+    {
+        let c = rusqlite::Connection::open(&newer).unwrap();
+        c.execute_batch("PRAGMA user_version = 99;").unwrap();
+    }
+    refused(&newer, "schema version 99, written by a newer calib");
+    // A damaged registry: its pages overwritten past the header.
+    let damaged = dir.path().join("damaged.db");
+    ok(&add(&damaged));
+    let mut bytes = std::fs::read(&damaged).unwrap();
+    for b in bytes.iter_mut().skip(100) {
+        *b = 0x5a;
+    }
+    std::fs::write(&damaged, &bytes).unwrap();
+    refused(&damaged, "damaged.db");
+    // A read-only registry: refused for writing, still listed.
+    let read_only = dir.path().join("read-only.db");
+    ok(&add(&read_only));
+    use std::os::unix::fs::PermissionsExt as _;
+    std::fs::set_permissions(&read_only, std::fs::Permissions::from_mode(0o400)).unwrap();
+    let before = std::fs::read(&read_only).unwrap();
+    let out = calib(&[
+        "registry",
+        "add",
+        s(&touches),
+        "--serial",
+        "OTHER",
+        "--db",
+        s(&read_only),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("read-only"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read(&read_only).unwrap(), before);
+    assert!(ok(&calib(&["registry", "list", "--db", s(&read_only)])).contains("P3"));
+    // No registry at all: listing says so, and creates nothing.
+    let none = dir.path().join("none.db");
+    let out = calib(&["registry", "list", "--db", s(&none)]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no registry there"));
+    assert!(!none.exists());
+}
+
+/// Two processes registering at once: every registration lands, numbered once each.
+#[test]
+fn two_processes_register_at_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let (touches, _, _) = touches_calibration(dir.path());
+    let db = dir.path().join("shared.db");
+    let writers: Vec<std::thread::JoinHandle<Vec<bool>>> = (0..2)
+        .map(|w| {
+            let (touches, db) = (touches.clone(), db.clone());
+            std::thread::spawn(move || {
+                (0..12)
+                    .map(|i| {
+                        let serial = format!("W{w}-{i}");
+                        calib(&[
+                            "registry",
+                            "add",
+                            s(&touches),
+                            "--serial",
+                            &serial,
+                            "--db",
+                            s(&db),
+                        ])
+                        .status
+                        .success()
+                    })
+                    .collect()
+            })
+        })
+        .collect();
+    for writer in writers {
+        assert!(writer.join().unwrap().iter().all(|ok| *ok));
+    }
+    let list: serde_json::Value =
+        serde_json::from_str(&ok(&calib(&["registry", "list", "--json", "--db", s(&db)]))).unwrap();
+    let mut ids: Vec<i64> = (list.as_array().unwrap().iter())
+        .map(|r| r["id"].as_i64().unwrap())
+        .collect();
+    ids.sort_unstable();
+    assert_eq!(ids, (1..=24).collect::<Vec<i64>>());
+}
+
+/// Registrations killed (SIGKILL) at random moments: the registry stays whole (SQLite's
+/// integrity check), and every record in it is complete (its report hashes to its SHA-256).
+#[test]
+fn a_registration_killed_midway_leaves_the_registry_whole() {
+    use rand::{RngExt, SeedableRng};
+    let dir = tempfile::tempdir().unwrap();
+    let (touches, _, _) = touches_calibration(dir.path());
+    let db = dir.path().join("killed.db");
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(9);
+    let mut finished = 0;
+    for i in 0..30 {
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_calib"))
+            .args([
+                "registry",
+                "add",
+                s(&touches),
+                "--serial",
+                &format!("K{i}"),
+                "--db",
+                s(&db),
+            ])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_micros(
+            rng.random_range(0..15_000),
+        ));
+        let _ = child.kill();
+        if child.wait().unwrap().success() {
+            finished += 1;
+        }
+    }
+    let c = rusqlite::Connection::open(&db).unwrap();
+    let check: String = c
+        .query_row("PRAGMA integrity_check", [], |r| r.get(0))
+        .unwrap();
+    assert_eq!(check, "ok");
+    let mut statement = c
+        .prepare("SELECT report, report_sha256 FROM calibration")
+        .unwrap();
+    let rows: Vec<(String, String)> = statement
+        .query_map([], |r| Ok((r.get(0)?, r.get(1)?)))
+        .unwrap()
+        .map(Result::unwrap)
+        .collect();
+    let expected = sha256_of(&touches);
+    println!(
+        "{finished} of 30 registrations finished before their kill; {} records",
+        rows.len()
+    );
+    assert!(rows.len() >= finished);
+    for (report, sha) in &rows {
+        assert_eq!(sha, &expected);
+        assert_eq!(report.as_bytes(), std::fs::read(&touches).unwrap());
+    }
+    // And the registry still takes registrations.
+    ok(&calib_in(
+        dir.path(),
+        &[
+            "registry",
+            "add",
+            s(&touches),
+            "--serial",
+            "AFTER",
+            "--db",
+            s(&db),
+        ],
+    ));
+}
