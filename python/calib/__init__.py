@@ -48,6 +48,9 @@ from ._calib import calibrate_touches_json as _calibrate_touches_json
 from ._calib import compensate_csv as _compensate_csv
 from ._calib import evaluate_json as _evaluate_json
 from ._calib import plan
+from ._calib import registry_add
+from ._calib import registry_list_json as _registry_list_json
+from ._calib import registry_show_json as _registry_show_json
 
 
 def evaluate(
@@ -208,6 +211,23 @@ def _columns_as_csv(columns: _Mapping[str, _Any]) -> str:
     return out.getvalue()
 
 
+def registry_list(db: _Union[str, "_PathLike[str]"] = "calib.db", serial: _Optional[str] = None) -> list[dict[str, _Any]]:
+    """The calibrations registered in ``db`` (of robot ``serial`` only, when given), as ``calib
+    registry list --json`` gives them: one dict per calibration (``id``, ``serial``, ``model``,
+    ``kind``, ``calibrated_at``, ``held_out_mm``, ``software``), by robot and date. A pandas
+    frame is ``pandas.DataFrame(calib.registry_list(db))``."""
+    parsed: list[dict[str, _Any]] = _json.loads(_registry_list_json(db, serial))
+    return parsed
+
+
+def registry_show(id: int, db: _Union[str, "_PathLike[str]"] = "calib.db") -> dict[str, _Any]:
+    """The registered calibration ``id`` of ``db`` whole, as ``calib registry show --json`` gives
+    it: the report (parsed), the identified robot file, the files' SHA-256, the held-out figures
+    and the covariance."""
+    parsed: list[dict[str, _Any]] = _json.loads(_registry_show_json(id, db))
+    return parsed[0]
+
+
 __all__ = [
     "CalibError",
     "CalibrationResult",
@@ -232,5 +252,8 @@ __all__ = [
     "compensate",
     "evaluate",
     "plan",
+    "registry_add",
+    "registry_list",
+    "registry_show",
     "__version__",
 ]

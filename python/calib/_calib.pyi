@@ -32,6 +32,9 @@ __all__ = [
     "compensate_csv",
     "evaluate_json",
     "plan",
+    "registry_add",
+    "registry_list_json",
+    "registry_show_json",
 ]
 
 class CalibError(Exception):
@@ -318,6 +321,24 @@ def calibrate_touches_json(
 ) -> tuple[Robot, str, str]:
     """``calib sockets`` from arrays: the identified robot, the JSON report (text) and the text
     (the package's ``calib.calibrate_touches`` returns the report as a dict)."""
+
+def registry_add(
+    report: Union[str, PathLike[str]],
+    *,
+    db: Optional[Union[str, PathLike[str]]] = None,
+    serial: Optional[str] = None,
+    model: Optional[str] = None,
+    identified: Optional[Union[str, PathLike[str]]] = None,
+    certificate: Optional[Union[str, PathLike[str]]] = None,
+    block: Optional[Union[str, PathLike[str]]] = None,
+) -> int:
+    """``calib registry add``: registers the calibration of ``report``; the record's number."""
+
+def registry_list_json(db: Optional[Union[str, PathLike[str]]] = None, serial: Optional[str] = None) -> str:
+    """``calib registry list --json`` as text."""
+
+def registry_show_json(id: int, db: Optional[Union[str, PathLike[str]]] = None) -> str:
+    """``calib registry show --json`` as text."""
 
 @final
 class Plan:

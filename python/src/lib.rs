@@ -1849,6 +1849,71 @@ fn finite<'a>(
     Ok(())
 }
 
+/// `calib registry add`: registers the calibration of the JSON report `report` in the registry
+/// `db` (default `calib.db`; created readable and writable by you only), with the identified robot file, the
+/// certificate and the controller block beside it (hashed); `serial` when the report states none.
+/// Returns the record's number.
+#[pyfunction]
+#[pyo3(signature = (report, *, db = None, serial = None, model = None, identified = None, certificate = None, block = None))]
+#[allow(clippy::too_many_arguments)]
+fn registry_add(
+    py: Python<'_>,
+    report: PathBuf,
+    db: Option<PathBuf>,
+    serial: Option<String>,
+    model: Option<String>,
+    identified: Option<PathBuf>,
+    certificate: Option<PathBuf>,
+    block: Option<PathBuf>,
+) -> PyResult<i64> {
+    let db = db.unwrap_or_else(|| PathBuf::from(host_tools::registry::DEFAULT_PATH));
+    use host_tools::registry::{Access, Registry, record::NewRecord, record::RecordFiles};
+    py.detach(|| -> host_tools::Result<i64> {
+        let record = NewRecord::from_files(&RecordFiles {
+            report: Some(&report),
+            identified: identified.as_deref(),
+            certificate: certificate.as_deref(),
+            block: block.as_deref(),
+            serial: serial.as_deref(),
+            model: model.as_deref(),
+        })?;
+        Registry::open(&db, Access::Write)?.add(&record)
+    })
+    .map_err(|e| py_error(e.into()))
+}
+
+/// `calib registry list --json`: the registered calibrations of `db` (of robot `serial` only,
+/// when given) as JSON text (the package's `registry_list` returns the dicts).
+#[pyfunction]
+#[pyo3(signature = (db = None, serial = None))]
+fn registry_list_json(
+    py: Python<'_>,
+    db: Option<PathBuf>,
+    serial: Option<String>,
+) -> PyResult<String> {
+    let db = db.unwrap_or_else(|| PathBuf::from(host_tools::registry::DEFAULT_PATH));
+    use host_tools::registry::{Access, Registry};
+    py.detach(|| -> anyhow::Result<String> {
+        let list = Registry::open(&db, Access::Read)?.list(serial.as_deref())?;
+        Ok(serde_json::to_string(&list)?)
+    })
+    .map_err(py_error)
+}
+
+/// `calib registry show --json`: the record `id` of `db` whole, as JSON text (its report parsed;
+/// the package's `registry_show` returns the dict).
+#[pyfunction]
+#[pyo3(signature = (id, db = None))]
+fn registry_show_json(py: Python<'_>, id: i64, db: Option<PathBuf>) -> PyResult<String> {
+    let db = db.unwrap_or_else(|| PathBuf::from(host_tools::registry::DEFAULT_PATH));
+    use host_tools::registry::{Access, Registry};
+    py.detach(|| -> host_tools::Result<String> {
+        let record = Registry::open(&db, Access::Read)?.show(id)?;
+        host_tools::registry::export::json(std::slice::from_ref(&record))
+    })
+    .map_err(|e| py_error(e.into()))
+}
+
 /// The module.
 #[pymodule]
 fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -1860,6 +1925,9 @@ fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(plan, m)?)?;
     m.add_function(wrap_pyfunction!(compensate_csv, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate_touches_json, m)?)?;
+    m.add_function(wrap_pyfunction!(registry_add, m)?)?;
+    m.add_function(wrap_pyfunction!(registry_list_json, m)?)?;
+    m.add_function(wrap_pyfunction!(registry_show_json, m)?)?;
     m.add_class::<Plan>()?;
     m.add("CalibError", m.py().get_type::<CalibError>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;

@@ -775,3 +775,33 @@ def test_datum_planes_from_numpy_equal_calib_sockets(tmp_path):
     with pytest.raises(calib.InputError, match="non-zero vector"):
         calib.calibrate_touches(calib.Robot.from_file(panda), joints, ["frontcenter"] * len(planes), planes,
                                 ball_mm=ball, feature="plane", datum_planes=[(0, (0.0, 0.0, 0.0), 1.0)])
+
+
+def test_registry_from_python_equals_calib_registry(tmp_path):
+    """Issue 55, item 8: a calibration registered from Python is the record ``calib registry``
+    lists and shows; the report's SHA-256 is the file's; a foreign file is refused as from the
+    command line."""
+    import hashlib
+    panda = ROOT / "host-tools/robots/franka-panda.toml"
+    folder = ROOT / "host-tools/data/mukca-sockets/panda_3"
+    report, identified, db = tmp_path / "touches.json", tmp_path / "panda-3.toml", tmp_path / "fleet.db"
+    done = run_calib("sockets", "--robot", panda, "--data", folder, "--ball-mm", "0.025171,-0.084766,133.528298",
+                     "--train", "frontcenter", "--distance", "50", "--report", report, "--out", identified)
+    assert done.returncode == 0, done.stderr
+    assert calib.registry_add(report, db=db, serial="PANDA-3", identified=identified) == 1
+    done = run_calib("registry", "list", "--json", "--db", db)
+    assert done.returncode == 0, done.stderr
+    assert calib.registry_list(db) == json.loads(done.stdout)
+    record = calib.registry_show(1, db=db)
+    assert record["report_sha256"] == hashlib.sha256(report.read_bytes()).hexdigest()
+    assert record["identified_toml"] == identified.read_text()
+    assert record["report"] == json.loads(report.read_text())
+    import pandas
+    frame = pandas.DataFrame(calib.registry_list(db, serial="PANDA-3"))
+    assert list(frame["id"]) == [1] and frame["kind"][0] == "touches"
+    with pytest.raises(calib.InputError, match="already registered for robot PANDA-3 as record 1"):
+        calib.registry_add(report, db=db, serial="PANDA-3")
+    foreign = tmp_path / "notes.db"
+    foreign.write_text("not a database\n" * 100)
+    with pytest.raises(calib.InputError, match="not a calib registry"):
+        calib.registry_list(foreign)
