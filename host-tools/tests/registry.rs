@@ -203,16 +203,19 @@ fn calibrations_are_registered_listed_shown_and_exported() {
     assert!(String::from_utf8_lossy(&missing.stderr).contains("no record 7"));
     // Exports: CSV and JSON.
     let csv_path = dir.path().join("fleet.csv");
-    ok(&calib(&[
-        "registry",
-        "export",
-        "--format",
-        "csv",
-        "--out",
-        s(&csv_path),
-        "--db",
-        s(&db),
-    ]));
+    let export_csv = || {
+        ok(&calib(&[
+            "registry",
+            "export",
+            "--format",
+            "csv",
+            "--out",
+            s(&csv_path),
+            "--db",
+            s(&db),
+        ]))
+    };
+    export_csv();
     let mut reader = csv::Reader::from_path(&csv_path).unwrap();
     let rows: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
     assert_eq!(rows.len(), 2);
@@ -222,16 +225,7 @@ fn calibrations_are_registered_listed_shown_and_exported() {
         "by serial: ER-0042 first"
     );
     let first = std::fs::read(&csv_path).unwrap();
-    ok(&calib(&[
-        "registry",
-        "export",
-        "--format",
-        "csv",
-        "--out",
-        s(&csv_path),
-        "--db",
-        s(&db),
-    ]));
+    export_csv();
     assert_eq!(
         std::fs::read(&csv_path).unwrap(),
         first,

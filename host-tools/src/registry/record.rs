@@ -161,6 +161,27 @@ impl NewRecord {
         Ok(record)
     }
 
+    /// A record of the report `text` with nothing else known yet.
+    fn blank(text: &str) -> Self {
+        Self {
+            serial: String::new(),
+            model: String::new(),
+            kind: Kind::Tracker,
+            calibrated_at: String::new(),
+            software: String::new(),
+            held_out_mm: None,
+            held_out: serde_json::Value::Null,
+            covariance: serde_json::Value::Null,
+            inputs: serde_json::Value::Null,
+            identified_toml: None,
+            identified_sha256: None,
+            certificate_sha256: None,
+            block_sha256: None,
+            report: text.to_string(),
+            report_sha256: String::new(),
+        }
+    }
+
     /// A tracker calibration's record (serial from its conditions, empty when not stated).
     fn of_tracker(report: &Report, text: &str) -> crate::Result<Self> {
         Ok(Self {
@@ -175,12 +196,7 @@ impl NewRecord {
             held_out: to_json(&report.held_out)?,
             covariance: to_json(&report.covariance)?,
             inputs: to_json(&report.inputs)?,
-            identified_toml: None,
-            identified_sha256: None,
-            certificate_sha256: None,
-            block_sha256: None,
-            report: text.to_string(),
-            report_sha256: String::new(),
+            ..Self::blank(text)
         })
     }
 
@@ -190,21 +206,14 @@ impl NewRecord {
             .map(|f| f.identified.authors_mean_mm)
             .collect();
         Ok(Self {
-            serial: String::new(),
             model: report.robot.display().to_string(),
             kind: Kind::Touches,
             calibrated_at: report.calibrated_at.clone(),
             software: report.software.clone(),
             held_out_mm: (!held.is_empty()).then(|| held.iter().sum::<f64>() / held.len() as f64),
             held_out: to_json(&report.held_out)?,
-            covariance: serde_json::Value::Null,
             inputs: to_json(&report.inputs)?,
-            identified_toml: None,
-            identified_sha256: None,
-            certificate_sha256: None,
-            block_sha256: None,
-            report: text.to_string(),
-            report_sha256: String::new(),
+            ..Self::blank(text)
         })
     }
 }
