@@ -159,20 +159,18 @@ impl Registry {
             .map_err(|e| database_error(&self.path, "cannot migrate it", &e))
     }
 
-    /// `(application id, schema version, tables)` of the file.
+    /// `(application id, schema version, tables)` of the file, read in one statement (one read
+    /// transaction: another process's migration is seen whole or not at all).
     fn header(&self) -> crate::Result<(i64, i64, i64)> {
-        let read = |pragma: &str| -> rusqlite::Result<i64> {
-            self.connection
-                .pragma_query_value(None, pragma, |row| row.get(0))
-        };
-        let tables = || -> rusqlite::Result<i64> {
-            self.connection
-                .query_row("SELECT count(*) FROM sqlite_master", [], |row| row.get(0))
-        };
-        let all = || -> rusqlite::Result<(i64, i64, i64)> {
-            Ok((read("application_id")?, read("user_version")?, tables()?))
-        };
-        all().map_err(|e| database_error(&self.path, "cannot read it", &e))
+        (self.connection)
+            .query_row(
+                "SELECT (SELECT application_id FROM pragma_application_id),
+                        (SELECT user_version FROM pragma_user_version),
+                        (SELECT count(*) FROM sqlite_master)",
+                [],
+                |row| Ok((row.get(0)?, row.get(1)?, row.get(2)?)),
+            )
+            .map_err(|e| database_error(&self.path, "cannot read it", &e))
     }
 
     /// Registers `record`; its number. Refused: the same report already registered for this
