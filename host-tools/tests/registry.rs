@@ -180,6 +180,14 @@ fn calibrations_are_registered_listed_shown_and_exported() {
     ])))
     .unwrap();
     assert_eq!(shown[0]["covariance"], tracker_json["covariance"]);
+    let mut kept = tracker_json.clone();
+    for key in ["per_pose", "poses", "convergence"] {
+        assert!(kept.as_object_mut().unwrap().shift_remove(key).is_some());
+    }
+    assert_eq!(
+        shown[0]["report"], kept,
+        "the report without its per-pose lists"
+    );
     assert_eq!(shown[0]["held_out"], tracker_json["held_out"]);
     assert_eq!(
         shown[0]["held_out_mm"].as_f64().unwrap(),
@@ -394,7 +402,7 @@ fn two_processes_register_at_once() {
 }
 
 /// Registrations killed (SIGKILL) at random moments: the registry stays whole (SQLite's
-/// integrity check), and every record in it is complete (its report hashes to its SHA-256).
+/// integrity check), and every record in it is complete (its content there, its report the file's).
 #[test]
 fn a_registration_killed_midway_leaves_the_registry_whole() {
     use rand::{RngExt, SeedableRng};
@@ -432,9 +440,12 @@ fn a_registration_killed_midway_leaves_the_registry_whole() {
         .unwrap();
     assert_eq!(check, "ok");
     let mut statement = c
-        .prepare("SELECT report, report_sha256 FROM calibration")
+        .prepare(
+            "SELECT t.report, c.report_sha256 FROM calibration AS c
+             LEFT JOIN calibration_content AS t ON t.id = c.id",
+        )
         .unwrap();
-    let rows: Vec<(String, String)> = statement
+    let rows: Vec<(Option<String>, String)> = statement
         .query_map([], |r| Ok((r.get(0)?, r.get(1)?)))
         .unwrap()
         .map(Result::unwrap)
@@ -445,9 +456,19 @@ fn a_registration_killed_midway_leaves_the_registry_whole() {
         rows.len()
     );
     assert!(rows.len() >= finished);
+    let contents: i64 = c
+        .query_row("SELECT count(*) FROM calibration_content", [], |r| r.get(0))
+        .unwrap();
+    assert_eq!(contents, rows.len() as i64, "no content without its record");
+    let written: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&touches).unwrap()).unwrap();
     for (report, sha) in &rows {
         assert_eq!(sha, &expected);
-        assert_eq!(report.as_bytes(), std::fs::read(&touches).unwrap());
+        let report = report.as_deref().expect("no record without its content");
+        assert_eq!(
+            serde_json::from_str::<serde_json::Value>(report).unwrap(),
+            written
+        );
     }
     // And the registry still takes registrations.
     ok(&calib_in(

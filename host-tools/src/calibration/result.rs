@@ -511,7 +511,12 @@ impl Report {
     /// field and line, when it is not one this version reads.
     pub fn read(path: &std::path::Path) -> crate::Result<Self> {
         let text = crate::io::input::read_text(path, crate::io::input::Input::Data)?;
-        serde_json::from_str(&text).map_err(|e| {
+        Self::from_json(&text, path)
+    }
+
+    /// The report in `text`, read from `path` (named in messages).
+    pub fn from_json(text: &str, path: &std::path::Path) -> crate::Result<Self> {
+        serde_json::from_str(text).map_err(|e| {
             crate::refused!(input path.display();
                 "{}: not a JSON report of calib calibrate that this version reads ({e}); write one with calib calibrate --report \
                  (a report written by another version renders with that version)",

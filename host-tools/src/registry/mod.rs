@@ -25,7 +25,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// The schema this version writes and reads.
-pub const SCHEMA_VERSION: i64 = 1;
+pub const SCHEMA_VERSION: i64 = 2;
 
 /// `PRAGMA application_id` of a registry: "CALB".
 pub const APPLICATION_ID: i64 = 0x4341_4C42;
@@ -36,8 +36,15 @@ pub const DEFAULT_PATH: &str = "calib.db";
 /// How long a writer waits for another to finish.
 pub const BUSY_TIMEOUT: Duration = Duration::from_secs(30);
 
-/// The migrations: entry `n` takes schema `n` to `n + 1`.
-const MIGRATIONS: [&str; 1] = ["CREATE TABLE calibration (
+/// The migrations: entry `n` takes schema `n` to `n + 1` (a new file runs them all).
+///
+/// Version 1 kept each record in one row, the whole report in it. Version 2 keeps the short
+/// fields listings read in `calibration` and the long ones (held-out figures, covariance,
+/// inputs, identified file, report) in `calibration_content`, so that listing 100,000
+/// calibrations reads a few megabytes instead of every record's first page; and it keeps the
+/// report without its per-pose lists ([`record::NOT_KEPT`]).
+const MIGRATIONS: [&str; 2] = [
+    "CREATE TABLE calibration (
     id INTEGER PRIMARY KEY AUTOINCREMENT,
     serial TEXT NOT NULL,
     model TEXT NOT NULL,
@@ -57,7 +64,40 @@ const MIGRATIONS: [&str; 1] = ["CREATE TABLE calibration (
     report_sha256 TEXT NOT NULL,
     UNIQUE (serial, report_sha256)
 );
-CREATE INDEX calibration_by_robot ON calibration (serial, calibrated_at, id);"];
+CREATE INDEX calibration_by_robot ON calibration (serial, calibrated_at, id);",
+    "ALTER TABLE calibration RENAME TO calibration_v1;
+DROP INDEX calibration_by_robot;
+CREATE TABLE calibration (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    serial TEXT NOT NULL,
+    model TEXT NOT NULL,
+    kind TEXT NOT NULL CHECK (kind IN ('tracker', 'touches')),
+    calibrated_at TEXT NOT NULL,
+    registered_at TEXT NOT NULL,
+    software TEXT NOT NULL,
+    held_out_mm REAL,
+    identified_sha256 TEXT,
+    certificate_sha256 TEXT,
+    block_sha256 TEXT,
+    report_sha256 TEXT NOT NULL,
+    UNIQUE (serial, report_sha256)
+);
+CREATE TABLE calibration_content (
+    id INTEGER PRIMARY KEY REFERENCES calibration (id),
+    held_out TEXT NOT NULL,
+    covariance TEXT NOT NULL,
+    inputs TEXT NOT NULL,
+    identified_toml TEXT,
+    report TEXT NOT NULL
+);
+INSERT INTO calibration SELECT id, serial, model, kind, calibrated_at, registered_at, software,
+    held_out_mm, identified_sha256, certificate_sha256, block_sha256, report_sha256
+    FROM calibration_v1;
+INSERT INTO calibration_content SELECT id, held_out, covariance, inputs, identified_toml,
+    json_remove(report, '$.per_pose', '$.poses', '$.convergence') FROM calibration_v1;
+DROP TABLE calibration_v1;
+CREATE INDEX calibration_by_robot ON calibration (serial, calibrated_at, id);",
+];
 
 /// What a command does with the registry.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -200,9 +240,8 @@ impl Registry {
         transaction
             .execute(
                 "INSERT INTO calibration (serial, model, kind, calibrated_at, registered_at, software,
-                     held_out_mm, held_out, covariance, inputs, identified_toml, identified_sha256,
-                     certificate_sha256, block_sha256, report, report_sha256)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16)",
+                     held_out_mm, identified_sha256, certificate_sha256, block_sha256, report_sha256)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
                 params![
                     record.serial,
                     record.model,
@@ -211,15 +250,26 @@ impl Registry {
                     now,
                     record.software,
                     record.held_out_mm,
+                    record.identified_sha256,
+                    record.certificate_sha256,
+                    record.block_sha256,
+                    record.report_sha256,
+                ],
+            )
+            .map_err(|e| failed(&e))?;
+        let id = transaction.last_insert_rowid();
+        transaction
+            .execute(
+                "INSERT INTO calibration_content (id, held_out, covariance, inputs, identified_toml,
+                     report)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+                params![
+                    id,
                     json(&record.held_out),
                     json(&record.covariance),
                     json(&record.inputs),
                     record.identified_toml,
-                    record.identified_sha256,
-                    record.certificate_sha256,
-                    record.block_sha256,
                     record.report,
-                    record.report_sha256,
                 ],
             )
             .map_err(|e| failed(&e))?;
@@ -260,10 +310,7 @@ impl Registry {
         let failed = |e: &rusqlite::Error| database_error(&self.path, "cannot read a record", e);
         let record = (self.connection)
             .query_row(
-                "SELECT id, registered_at, serial, model, kind, calibrated_at, software, held_out_mm,
-                     held_out, covariance, inputs, identified_toml, identified_sha256,
-                     certificate_sha256, block_sha256, report, report_sha256
-                 FROM calibration WHERE id = ?1",
+                &format!("{RECORD_QUERY} WHERE c.id = ?1"),
                 params![id],
                 record_of_row,
             )
@@ -277,18 +324,33 @@ impl Registry {
 
     /// Every record, whole, in the order of [`Registry::list`].
     pub fn all(&self) -> crate::Result<Vec<Record>> {
-        (self.list(None)?.iter())
-            .map(|summary| self.show(summary.id))
-            .collect()
+        let failed = |e: &rusqlite::Error| database_error(&self.path, "cannot read a record", e);
+        let mut statement = (self.connection)
+            .prepare(&format!(
+                "{RECORD_QUERY} ORDER BY c.serial, c.calibrated_at, c.id"
+            ))
+            .map_err(|e| failed(&e))?;
+        let rows = statement
+            .query_map([], record_of_row)
+            .map_err(|e| failed(&e))?;
+        rows.collect::<rusqlite::Result<Vec<_>>>()
+            .map_err(|e| failed(&e))
     }
 }
+
+/// The query of whole records, in the column order [`record_of_row`] reads.
+const RECORD_QUERY: &str =
+    "SELECT c.id, c.registered_at, c.serial, c.model, c.kind, c.calibrated_at,
+        c.software, c.held_out_mm, t.held_out, t.covariance, t.inputs, t.identified_toml,
+        c.identified_sha256, c.certificate_sha256, c.block_sha256, t.report, c.report_sha256
+    FROM calibration AS c JOIN calibration_content AS t ON t.id = c.id";
 
 /// The kind stored in a row (the schema's CHECK admits only these two).
 fn kind_of(name: &str) -> Kind {
     Kind::from_name(name).unwrap_or(Kind::Tracker)
 }
 
-/// A full record from a row of [`Registry::show`]'s query.
+/// A full record from a row of [`RECORD_QUERY`].
 fn record_of_row(row: &rusqlite::Row<'_>) -> rusqlite::Result<Record> {
     let json = |i: usize| -> rusqlite::Result<serde_json::Value> {
         let text: String = row.get(i)?;
@@ -360,4 +422,69 @@ fn database_error(path: &Path, doing: &str, error: &rusqlite::Error) -> crate::E
         _ => "nothing was written",
     };
     crate::refused!(output path; "{shown}: {doing}: {error}; {advice}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A registry of schema 1 holding one record, as the calib of the ninth session wrote it,
+    /// comes through the migration to schema 2 with every field, the report without its
+    /// per-pose lists, and takes the next record under the next number.
+    #[test]
+    fn a_schema_1_registry_is_migrated_with_its_records() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("old.db");
+        let report = r#"{"robot":"ur10.toml","per_pose":[1,2,3],"poses":[{"line":2}],"convergence":[0.5],"seconds":0.25}"#;
+        {
+            let connection = Connection::open(&path).unwrap();
+            connection.execute_batch(MIGRATIONS[0]).unwrap();
+            connection
+                .execute_batch(&format!(
+                    "PRAGMA application_id = {APPLICATION_ID}; PRAGMA user_version = 1;"
+                ))
+                .unwrap();
+            connection
+                .execute(
+                    "INSERT INTO calibration VALUES (7, 'SN-1', 'UR10', 'tracker', '2026-11-01T10:00:00Z',
+                     '2026-11-02T10:00:00Z', 'calib 0.4', 0.385, '{\"n\":1}', '[[1.0]]', '[]', 'name = \"x\"',
+                     'aa', 'bb', 'cc', ?1, 'dd')",
+                    params![report],
+                )
+                .unwrap();
+        }
+        let mut registry = Registry::open(&path, Access::Write).unwrap();
+        let header = registry.header().unwrap();
+        assert_eq!(
+            header,
+            (APPLICATION_ID, 2, 5),
+            "two tables, sqlite_sequence, two indexes"
+        );
+        let record = registry.show(7).unwrap();
+        let c = &record.calibration;
+        assert_eq!(
+            (c.serial.as_str(), c.model.as_str(), c.kind, c.held_out_mm),
+            ("SN-1", "UR10", Kind::Tracker, Some(0.385))
+        );
+        assert_eq!(record.registered_at, "2026-11-02T10:00:00Z");
+        assert_eq!(c.held_out, serde_json::json!({"n": 1}));
+        assert_eq!(c.covariance, serde_json::json!([[1.0]]));
+        assert_eq!(c.identified_toml.as_deref(), Some("name = \"x\""));
+        let hashes = [&c.identified_sha256, &c.certificate_sha256, &c.block_sha256];
+        assert_eq!(
+            hashes.map(|h| h.as_deref()),
+            [Some("aa"), Some("bb"), Some("cc")]
+        );
+        assert_eq!(c.report_sha256, "dd");
+        let kept: serde_json::Value = serde_json::from_str(&c.report).unwrap();
+        assert_eq!(
+            kept,
+            serde_json::json!({"robot": "ur10.toml", "seconds": 0.25})
+        );
+        let mut next = c.clone();
+        next.report_sha256 = "ee".to_string();
+        assert_eq!(registry.add(&next).unwrap(), 8);
+        assert_eq!(registry.list(Some("SN-1")).unwrap().len(), 2);
+        assert_eq!(registry.all().unwrap()[1].calibration.report_sha256, "ee");
+    }
 }

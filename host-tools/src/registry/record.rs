@@ -69,9 +69,10 @@ pub struct NewRecord {
     pub certificate_sha256: Option<String>,
     /// The controller block's SHA-256 (`calib export --format block`), when given.
     pub block_sha256: Option<String>,
-    /// The report, as read.
+    /// The report as registered, compact, without the per-pose and per-iteration lists
+    /// ([`NOT_KEPT`]).
     pub report: String,
-    /// Its SHA-256.
+    /// The SHA-256 of the report file as registered (whole).
     pub report_sha256: String,
 }
 
@@ -115,11 +116,13 @@ impl NewRecord {
             || crate::refused!(option "REPORT"; "registry add: name the calibration's JSON report"),
         )?;
         let report = bytes_of("REPORT", report_path)?;
-        let text = String::from_utf8_lossy(&report).into_owned();
+        let text = String::from_utf8(report.clone()).map_err(|_| {
+            crate::refused!(input report_path.display(); "REPORT {}: not a JSON report (not UTF-8 text)", report_path.display())
+        })?;
         let mut record = if text.contains("\"fitted_placements\"") {
-            Self::of_touches(&TouchReport::read(report_path)?, &text)?
+            Self::of_touches(&TouchReport::from_json(&text, report_path)?, &text)?
         } else {
-            Self::of_tracker(&Report::read(report_path)?, &text)?
+            Self::of_tracker(&Report::from_json(&text, report_path)?, &text)?
         };
         record.report_sha256 = sha256(&report);
         let stated = record.serial.clone();
@@ -140,7 +143,7 @@ impl NewRecord {
             let text = String::from_utf8(bytes.clone()).map_err(|_| {
                 crate::refused!(input path.display(); "--identified {}: not a robot file (not UTF-8 text)", path.display())
             })?;
-            let file = crate::io::robot_file::RobotFile::read(path)?;
+            let file = crate::io::robot_file::RobotFile::parse(&text, path)?;
             if files.model.is_none() && !file.name.is_empty() {
                 record.model = file.name.clone();
             }
@@ -162,8 +165,8 @@ impl NewRecord {
     }
 
     /// A record of the report `text` with nothing else known yet.
-    fn blank(text: &str) -> Self {
-        Self {
+    fn blank(text: &str) -> crate::Result<Self> {
+        Ok(Self {
             serial: String::new(),
             model: String::new(),
             kind: Kind::Tracker,
@@ -177,9 +180,9 @@ impl NewRecord {
             identified_sha256: None,
             certificate_sha256: None,
             block_sha256: None,
-            report: text.to_string(),
+            report: kept_report(text)?,
             report_sha256: String::new(),
-        }
+        })
     }
 
     /// A tracker calibration's record (serial from its conditions, empty when not stated).
@@ -196,7 +199,7 @@ impl NewRecord {
             held_out: to_json(&report.held_out)?,
             covariance: to_json(&report.covariance)?,
             inputs: to_json(&report.inputs)?,
-            ..Self::blank(text)
+            ..Self::blank(text)?
         })
     }
 
@@ -213,9 +216,26 @@ impl NewRecord {
             held_out_mm: (!held.is_empty()).then(|| held.iter().sum::<f64>() / held.len() as f64),
             held_out: to_json(&report.held_out)?,
             inputs: to_json(&report.inputs)?,
-            ..Self::blank(text)
+            ..Self::blank(text)?
         })
     }
+}
+
+/// A report's parts that list every pose or iteration: recomputable from the inputs (whose
+/// SHA-256 the record keeps), and nine tenths of a tracker report (about 700 of 760 kB for 1495
+/// poses), so the registry does not keep them.
+pub const NOT_KEPT: [&str; 3] = ["per_pose", "poses", "convergence"];
+
+/// The report `text` as the registry keeps it: without [`NOT_KEPT`], compact JSON.
+fn kept_report(text: &str) -> crate::Result<String> {
+    let mut value: serde_json::Value = serde_json::from_str(text)
+        .map_err(|e| crate::numerical!("a report read once as JSON: {e}"))?;
+    if let Some(object) = value.as_object_mut() {
+        for key in NOT_KEPT {
+            object.shift_remove(key);
+        }
+    }
+    Ok(value.to_string())
 }
 
 /// A part of a report as a JSON value.
