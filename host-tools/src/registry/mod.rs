@@ -16,6 +16,7 @@
 //! its version named, an SQLite file of another program or a file that is not a database at all
 //! is refused, never altered; an older schema is migrated forward in one transaction.
 
+pub mod compare;
 pub mod export;
 pub mod record;
 

@@ -36,6 +36,31 @@ pub enum RegistryCommand {
     Show(ShowOptions),
     /// Write every record as JSON (reports included) or CSV (one line per calibration).
     Export(ExportOptions),
+    /// Compare two calibrations (of one robot, or of two robots of one model): each
+    /// parameter's change against both uncertainties, jointly (Mahalanobis), and what it moves
+    /// the tool by over the workspace. Both records need their identified files (add
+    /// --identified).
+    Compare(CompareOptions),
+}
+
+/// `calib registry compare`.
+#[derive(Debug, clap::Args)]
+pub struct CompareOptions {
+    /// The earlier (reference) calibration's record number.
+    #[arg(value_name = "A")]
+    pub a: i64,
+    /// The calibration compared with it.
+    #[arg(value_name = "B")]
+    pub b: i64,
+    /// Configurations the tool's movement is computed at, spread over the joint limits.
+    #[arg(long, value_name = "N", default_value_t = host_tools::registry::compare::DEFAULT_POSES)]
+    pub poses: usize,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// The registry.
+    #[command(flatten)]
+    pub db: Db,
 }
 
 /// `calib registry add`.
@@ -157,6 +182,15 @@ fn text_of(options: &RegistryOptions) -> anyhow::Result<String> {
             match o.json {
                 true => host_tools::registry::export::json(std::slice::from_ref(&record))?,
                 false => show_text(&record),
+            }
+        }
+        RegistryCommand::Compare(o) => {
+            let registry = Registry::open(&o.db.db, Access::Read)?;
+            let (a, b) = (registry.show(o.a)?, registry.show(o.b)?);
+            let comparison = host_tools::registry::compare::compare(&a, &b, o.poses)?;
+            match o.json {
+                true => format!("{}\n", serde_json::to_string_pretty(&comparison)?),
+                false => comparison.text(),
             }
         }
         RegistryCommand::Export(o) => {
