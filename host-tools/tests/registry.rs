@@ -631,3 +631,123 @@ fn compared_calibrations_are_judged_by_their_uncertainty() {
         "{stderr}"
     );
 }
+
+/// Item 5: is the right calibration on the controller? Blocks exported from the registered
+/// identified files (f32 with another sequence number, f64), the identified file itself, and the
+/// nominal model, each checked against robot ER-7's two calibrations: the latest passes, the
+/// older one is named with the newer (exit status 3), the nominal model matches none and the
+/// values that differ are those of the files.
+#[test]
+fn the_controllers_calibration_is_verified() {
+    use host_tools::io::robot_file::RobotFile;
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("fleet.db");
+    let mut file = RobotFile::read(Path::new(ROBOT)).unwrap();
+    file.serial = Some("ER-7".to_string());
+    let er7 = dir.path().join("er-7.toml");
+    std::fs::write(&er7, file.to_toml("ER-7")).unwrap();
+    file.joint[1].a_mm += 0.3;
+    let longer = dir.path().join("er-7-longer-a2.toml");
+    std::fs::write(&longer, file.to_toml("ER-7, a2 0.3 mm longer")).unwrap();
+    register_simulated(dir.path(), &db, &er7, 11);
+    register_simulated(dir.path(), &db, &longer, 12);
+    let block = |params: &Path, name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = vec![
+            "export",
+            "--params",
+            s(params),
+            "--format",
+            "block",
+            "--out",
+            s(&out),
+        ];
+        args.extend_from_slice(extra);
+        ok(&calib(&args));
+        out
+    };
+    let verify = |flag: &str, path: &Path| {
+        let out = calib(&[
+            "registry",
+            "verify",
+            "--serial",
+            "ER-7",
+            flag,
+            s(path),
+            "--json",
+            "--db",
+            s(&db),
+        ]);
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        (out.status.code(), json)
+    };
+    let (older, latest) = (
+        dir.path().join("s11-id.toml"),
+        dir.path().join("s12-id.toml"),
+    );
+    let (code, v) = verify(
+        "--block",
+        &block(&latest, "latest.block", &["--sequence", "9"]),
+    );
+    assert_eq!(
+        (code, &v["matched"]["id"], &v["matched"]["how"]),
+        (Some(0), &2.into(), &"same model".into())
+    );
+    let f64_block = block(&latest, "latest-f64.block", &["--scalar", "f64"]);
+    assert_eq!(verify("--block", &f64_block).0, Some(0));
+    let (code, v) = verify("--robot", &latest);
+    assert_eq!(
+        (code, &v["matched"]["how"]),
+        (Some(0), &"identical file".into())
+    );
+    let (code, v) = verify("--block", &block(&older, "older.block", &[]));
+    assert_eq!(
+        (code, &v["matched"]["id"], &v["latest"]),
+        (Some(3), &1.into(), &2.into())
+    );
+    let text = String::from_utf8(
+        calib(&[
+            "registry",
+            "verify",
+            "--serial",
+            "ER-7",
+            "--robot",
+            s(&older),
+            "--db",
+            s(&db),
+        ])
+        .stdout,
+    )
+    .unwrap();
+    assert!(
+        text.contains("NOT THE LATEST: it holds record 1") && text.contains("record 2"),
+        "{text}"
+    );
+    // The nominal model: no match; the values that differ are the files'.
+    let (code, v) = verify(
+        "--block",
+        &block(&er7, "nominal.block", &["--scalar", "f64"]),
+    );
+    assert_eq!((code, &v["matched"]), (Some(3), &serde_json::Value::Null));
+    let nearest = &v["nearest"];
+    let id = nearest["id"].as_i64().unwrap();
+    let registered = RobotFile::read(if id == 1 { &older } else { &latest }).unwrap();
+    let nominal = RobotFile::read(&er7).unwrap();
+    let a2 = (nearest["differences"].as_array().unwrap().iter())
+        .find(|d| d["value"] == "a2")
+        .unwrap();
+    assert_eq!(a2["given"].as_f64().unwrap(), nominal.joint[1].a_mm);
+    assert_eq!(a2["registered"].as_f64().unwrap(), registered.joint[1].a_mm);
+    println!("nominal model against the registry: {nearest}");
+    let other = calib(&[
+        "registry",
+        "verify",
+        "--serial",
+        "ER-8",
+        "--robot",
+        s(&er7),
+        "--db",
+        s(&db),
+    ]);
+    assert!(String::from_utf8_lossy(&other.stderr).contains("no calibration of robot ER-8"));
+}

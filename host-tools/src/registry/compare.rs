@@ -445,10 +445,17 @@ impl Comparison {
                 "two robots of one model (ISO 9283 exchangeability)"
             }
         );
-        text.push_str(&format!(
+        text.push_str(&self.parameters_text());
+        text.push_str(&self.movement.text());
+        text
+    }
+
+    /// The parameters' table, the count of changes and the joint test.
+    fn parameters_text(&self) -> String {
+        let mut text = format!(
             "{:<10} {:>12} {:>12} {:>12} {:>10} {:>7}  unit\n",
             "parameter", "a", "b", "b - a", "sd", "z"
-        ));
+        );
         for c in &self.parameters {
             let optional = |v: Option<f64>, digits: usize| {
                 v.map_or("-".to_string(), |v| format!("{v:.digits$}"))
@@ -488,15 +495,25 @@ impl Comparison {
             ),
             None => "jointly: not judged (a calibration records standard errors only, no covariance)\n".to_string(),
         });
-        let m = &self.movement;
-        text.push_str(&format!(
+        text
+    }
+}
+
+impl Movement {
+    /// The movement for people.
+    fn text(&self) -> String {
+        let m = self;
+        let mut text = format!(
             "the tool moves by {:.4} mm on average, {:.4} mm at 95 %, {:.4} mm at most (at {} deg) over {} configurations spread over the joint limits\n",
             m.mean_mm,
             m.p95_mm,
             m.max_mm,
-            (m.max_pose_deg.iter()).map(|q| format!("{q:.1}")).collect::<Vec<_>>().join(", "),
+            (m.max_pose_deg.iter())
+                .map(|q| format!("{q:.1}"))
+                .collect::<Vec<_>>()
+                .join(", "),
             m.poses
-        ));
+        );
         if let (Some(rms), Some(beyond)) = (m.uncertainty_rms_mm, m.beyond_band) {
             text.push_str(&format!(
                 "the two calibrations' uncertainty alone would move it by {rms:.4} mm RMS on average; the movement lies beyond its 95 % band at {:.1} % of the configurations\n",

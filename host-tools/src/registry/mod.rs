@@ -19,6 +19,7 @@
 pub mod compare;
 pub mod export;
 pub mod record;
+pub mod verify;
 
 use record::{Kind, NewRecord, Record, Summary};
 use rusqlite::{Connection, OpenFlags, OptionalExtension as _, TransactionBehavior, params};
@@ -217,6 +218,12 @@ impl Registry {
     /// Registers `record`; its number. Refused: the same report already registered for this
     /// serial (its number named), a write the file or the disk refuses.
     pub fn add(&mut self, record: &NewRecord) -> crate::Result<i64> {
+        Ok(self.add_all(std::slice::from_ref(record))?[0])
+    }
+
+    /// Registers `records` in one transaction (all or none); their numbers. Refused as
+    /// [`Registry::add`] for any of them.
+    pub fn add_all(&mut self, records: &[NewRecord]) -> crate::Result<Vec<i64>> {
         let now = humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string();
         let path = self.path.clone();
         let failed =
@@ -224,59 +231,11 @@ impl Registry {
         let transaction = (self.connection)
             .transaction_with_behavior(TransactionBehavior::Immediate)
             .map_err(|e| failed(&e))?;
-        let existing: Option<i64> = transaction
-            .query_row(
-                "SELECT id FROM calibration WHERE serial = ?1 AND report_sha256 = ?2",
-                params![record.serial, record.report_sha256],
-                |row| row.get(0),
-            )
-            .optional()
-            .map_err(|e| failed(&e))?;
-        if let Some(id) = existing {
-            return Err(crate::refused!(input self.path.display();
-                "{}: this report (SHA-256 {}) is already registered for robot {} as record {id}",
-                self.path.display(), record.report_sha256, record.serial));
-        }
-        let json = |v: &serde_json::Value| v.to_string();
-        transaction
-            .execute(
-                "INSERT INTO calibration (serial, model, kind, calibrated_at, registered_at, software,
-                     held_out_mm, identified_sha256, certificate_sha256, block_sha256, report_sha256)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
-                params![
-                    record.serial,
-                    record.model,
-                    record.kind.name(),
-                    record.calibrated_at,
-                    now,
-                    record.software,
-                    record.held_out_mm,
-                    record.identified_sha256,
-                    record.certificate_sha256,
-                    record.block_sha256,
-                    record.report_sha256,
-                ],
-            )
-            .map_err(|e| failed(&e))?;
-        let id = transaction.last_insert_rowid();
-        transaction
-            .execute(
-                "INSERT INTO calibration_content (id, held_out, covariance, inputs, identified_toml,
-                     report)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
-                params![
-                    id,
-                    json(&record.held_out),
-                    json(&record.covariance),
-                    json(&record.inputs),
-                    record.identified_toml,
-                    record.report,
-                ],
-            )
-            .map_err(|e| failed(&e))?;
-        let id = transaction.last_insert_rowid();
+        let ids = (records.iter())
+            .map(|record| insert(&transaction, record, &now, &path))
+            .collect::<crate::Result<Vec<i64>>>()?;
         transaction.commit().map_err(|e| failed(&e))?;
-        Ok(id)
+        Ok(ids)
     }
 
     /// Every record's summary (of robot `serial` only, when given), by serial, then date, then
@@ -323,6 +282,22 @@ impl Registry {
         })
     }
 
+    /// Every record of robot `serial`, whole, in the order of [`Registry::list`] (oldest
+    /// first).
+    pub fn robot(&self, serial: &str) -> crate::Result<Vec<Record>> {
+        let failed = |e: &rusqlite::Error| database_error(&self.path, "cannot read a record", e);
+        let mut statement = (self.connection)
+            .prepare(&format!(
+                "{RECORD_QUERY} WHERE c.serial = ?1 ORDER BY c.calibrated_at, c.id"
+            ))
+            .map_err(|e| failed(&e))?;
+        let rows = statement
+            .query_map(params![serial], record_of_row)
+            .map_err(|e| failed(&e))?;
+        rows.collect::<rusqlite::Result<Vec<_>>>()
+            .map_err(|e| failed(&e))
+    }
+
     /// Every record, whole, in the order of [`Registry::list`].
     pub fn all(&self) -> crate::Result<Vec<Record>> {
         let failed = |e: &rusqlite::Error| database_error(&self.path, "cannot read a record", e);
@@ -345,6 +320,71 @@ const RECORD_QUERY: &str =
         c.software, c.held_out_mm, t.held_out, t.covariance, t.inputs, t.identified_toml,
         c.identified_sha256, c.certificate_sha256, c.block_sha256, t.report, c.report_sha256
     FROM calibration AS c JOIN calibration_content AS t ON t.id = c.id";
+
+/// Inserts `record`, registered at `now`, in `transaction`; its number.
+fn insert(
+    transaction: &rusqlite::Transaction<'_>,
+    record: &NewRecord,
+    now: &str,
+    path: &Path,
+) -> crate::Result<i64> {
+    let failed = |e: &rusqlite::Error| database_error(path, "cannot register the calibration", e);
+    let existing: Option<i64> = transaction
+        .query_row(
+            "SELECT id FROM calibration WHERE serial = ?1 AND report_sha256 = ?2",
+            params![record.serial, record.report_sha256],
+            |row| row.get(0),
+        )
+        .optional()
+        .map_err(|e| failed(&e))?;
+    if let Some(id) = existing {
+        return Err(crate::refused!(input path.display();
+            "{}: this report (SHA-256 {}) is already registered for robot {} as record {id}",
+            path.display(), record.report_sha256, record.serial));
+    }
+    let json = |v: &serde_json::Value| v.to_string();
+    transaction
+        .prepare_cached(
+            "INSERT INTO calibration (serial, model, kind, calibrated_at, registered_at, software,
+                 held_out_mm, identified_sha256, certificate_sha256, block_sha256, report_sha256)
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
+        )
+        .and_then(|mut statement| {
+            statement.execute(params![
+                record.serial,
+                record.model,
+                record.kind.name(),
+                record.calibrated_at,
+                now,
+                record.software,
+                record.held_out_mm,
+                record.identified_sha256,
+                record.certificate_sha256,
+                record.block_sha256,
+                record.report_sha256,
+            ])
+        })
+        .map_err(|e| failed(&e))?;
+    let id = transaction.last_insert_rowid();
+    transaction
+        .prepare_cached(
+            "INSERT INTO calibration_content (id, held_out, covariance, inputs, identified_toml,
+                 report)
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+        )
+        .and_then(|mut statement| {
+            statement.execute(params![
+                id,
+                json(&record.held_out),
+                json(&record.covariance),
+                json(&record.inputs),
+                record.identified_toml,
+                record.report,
+            ])
+        })
+        .map_err(|e| failed(&e))?;
+    Ok(id)
+}
 
 /// The kind stored in a row (the schema's CHECK admits only these two).
 fn kind_of(name: &str) -> Kind {

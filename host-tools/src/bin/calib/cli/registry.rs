@@ -41,6 +41,33 @@ pub enum RegistryCommand {
     /// the tool by over the workspace. Both records need their identified files (add
     /// --identified).
     Compare(CompareOptions),
+    /// Is the right calibration on the controller? Check a controller's parameter block (or a
+    /// robot file) against the robot's registered calibrations: which record it holds, whether
+    /// that is the latest, and if none, what differs from the nearest. Exits with status 3
+    /// unless it holds the latest.
+    Verify(VerifyOptions),
+}
+
+/// `calib registry verify`.
+#[derive(Debug, clap::Args)]
+#[command(group(clap::ArgGroup::new("given").required(true).args(["block", "robot"])))]
+pub struct VerifyOptions {
+    /// The robot's serial number.
+    #[arg(long, value_name = "SERIAL")]
+    pub serial: String,
+    /// The parameter block read back from the controller (as calib export --format block
+    /// writes it, f32 or f64).
+    #[arg(long, value_name = "FILE")]
+    pub block: Option<PathBuf>,
+    /// A robot file (the one the controller's software was given).
+    #[arg(long, value_name = "FILE")]
+    pub robot: Option<PathBuf>,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// The registry.
+    #[command(flatten)]
+    pub db: Db,
 }
 
 /// `calib registry compare`.
@@ -141,10 +168,40 @@ pub struct ExportOptions {
     pub db: Db,
 }
 
-/// Runs a registry command and prints what it found or did.
+/// The exit status of `calib registry verify` when the controller does not hold the robot's
+/// latest calibration (as `calib calibrate` exits when an acceptance criterion is not met).
+pub const NOT_VERIFIED: i32 = 3;
+
+/// Runs a registry command and prints what it found or did; `verify` exits with
+/// [`NOT_VERIFIED`] when it did not pass.
 pub fn run(options: &RegistryOptions) -> anyhow::Result<()> {
+    if let RegistryCommand::Verify(o) = &options.command {
+        if !verify(o)? {
+            let _ = std::io::Write::flush(&mut std::io::stdout());
+            std::process::exit(NOT_VERIFIED);
+        }
+        return Ok(());
+    }
     let text = text_of(options)?;
     crate::cli::print_text(format_args!("{text}"))
+}
+
+/// `calib registry verify`: prints the verdict; whether it passed.
+fn verify(o: &VerifyOptions) -> anyhow::Result<bool> {
+    use host_tools::registry::verify::{Given, verify};
+    let records = Registry::open(&o.db.db, Access::Read)?.robot(&o.serial)?;
+    let given = match (&o.block, &o.robot) {
+        (Some(block), _) => Given::Block(block.clone()),
+        (None, Some(robot)) => Given::Robot(robot.clone()),
+        (None, None) => anyhow::bail!("give --block FILE or --robot FILE"),
+    };
+    let verification = verify(&o.serial, &records, &given)?;
+    let text = match o.json {
+        true => format!("{}\n", serde_json::to_string_pretty(&verification)?),
+        false => verification.text(&records),
+    };
+    crate::cli::print_text(format_args!("{text}"))?;
+    Ok(verification.passed)
 }
 
 /// Runs a registry command; the text to print.
@@ -193,6 +250,7 @@ fn text_of(options: &RegistryOptions) -> anyhow::Result<String> {
                 false => comparison.text(),
             }
         }
+        RegistryCommand::Verify(_) => String::new(),
         RegistryCommand::Export(o) => {
             let records = Registry::open(&o.db.db, Access::Read)?.all()?;
             let text = match o.format {
