@@ -751,3 +751,197 @@ fn the_controllers_calibration_is_verified() {
     ]);
     assert!(String::from_utf8_lossy(&other.stderr).contains("no calibration of robot ER-8"));
 }
+
+/// Item 3: shift checks. A calibration in a tracker's frame (60 simulated poses, 0.02 mm
+/// noise), then four checks of 10 poses each, a week apart: the same robot (passes), the base
+/// moved 0.3 mm along the tracker's x, joint 3's zero moved 0.02 deg, the probe moved by
+/// (0.2, 0, 0.1) mm on the flange. Each drift exits with status 3 and names its cause with the
+/// change the simulation made (within 10 %); the drift rate equals the least-squares line
+/// through the recorded means; the same data twice are refused and not recorded.
+#[test]
+fn shift_checks_name_the_cause_and_state_the_drift() {
+    use host_tools::io::robot_file::RobotFile;
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("cell.db");
+    let mut file = RobotFile::read(Path::new(ROBOT)).unwrap();
+    file.serial = Some("ER-7".to_string());
+    let er7 = dir.path().join("er-7.toml");
+    std::fs::write(&er7, file.to_toml("ER-7")).unwrap();
+    file.joint[2].theta_offset_deg += 0.02;
+    let zero = dir.path().join("er-7-zero3.toml");
+    std::fs::write(&zero, file.to_toml("ER-7, joint 3's zero moved")).unwrap();
+    let simulate = |robot: &Path, name: &str, poses: &str, seed: &str, extra: &[&str]| {
+        let data = dir.path().join(format!("{name}.csv"));
+        let truth = dir.path().join(format!("{name}-truth.toml"));
+        let mut args = vec![
+            "simulate",
+            "--robot",
+            s(robot),
+            "--poses",
+            poses,
+            "--seed",
+            seed,
+            "--position-sigma-mm",
+            "0.02",
+            "--position-only",
+            "--tracker-rpy-deg",
+            "0,0,30",
+            "--out",
+            s(&data),
+            "--truth-out",
+            s(&truth),
+        ];
+        args.extend_from_slice(extra);
+        if !extra.contains(&"--tracker-xyz-mm") {
+            args.extend_from_slice(&["--tracker-xyz-mm", "2000,500,300"]);
+        }
+        ok(&calib(&args));
+        data
+    };
+    let data = simulate(&er7, "calibration", "60", "3", &[]);
+    let (report, identified) = (dir.path().join("cal.json"), dir.path().join("cal-id.toml"));
+    ok(&calib(&[
+        "calibrate",
+        "--robot",
+        s(&er7),
+        "--data",
+        s(&data),
+        "--method",
+        "lm",
+        "--report",
+        s(&report),
+        "--out",
+        s(&identified),
+    ]));
+    ok(&calib(&[
+        "registry",
+        "add",
+        s(&report),
+        "--identified",
+        s(&identified),
+        "--db",
+        s(&db),
+    ]));
+    let check = |data: &Path, day: u32| {
+        let out = calib(&[
+            "check-shift",
+            "--serial",
+            "ER-7",
+            "--data",
+            s(data),
+            "--json",
+            "--db",
+            s(&db),
+            "--checked-at",
+            &format!("2026-11-{day:02}T06:00:00Z"),
+        ]);
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout)
+            .unwrap_or_else(|_| panic!("{}", String::from_utf8_lossy(&out.stderr)));
+        (out.status.code(), json)
+    };
+    let same = simulate(&er7, "same", "10", "50", &[]);
+    let (code, same_check) = check(&same, 1);
+    assert_eq!(
+        (code, &same_check["result"]["drifted"]),
+        (Some(0), &false.into())
+    );
+    type Case<'a> = (&'a Path, &'a [&'a str], &'a str, &'a [(&'a str, f64)]);
+    let cases: [Case<'_>; 3] = [
+        (
+            &er7,
+            &["--tracker-xyz-mm", "2000.3,500,300"],
+            "the base moved",
+            &[("base_tx", 0.3)],
+        ),
+        (&zero, &[], "joint 3's zero", &[("dtheta3", 0.02)]),
+        (
+            &er7,
+            &["--tool-xyz-mm", "0.2,0,0.1"],
+            "the tool or probe moved",
+            &[("tool_tx", 0.2), ("tool_tz", 0.1)],
+        ),
+    ];
+    let mut means = vec![same_check["result"]["mean_mm"].as_f64().unwrap()];
+    for (i, (robot, extra, cause, changes)) in cases.iter().enumerate() {
+        let data = simulate(
+            robot,
+            &format!("check{i}"),
+            "10",
+            &(51 + i).to_string(),
+            extra,
+        );
+        let (code, json) = check(&data, 8 + 7 * i as u32);
+        let result = &json["result"];
+        println!("{cause}: {}", result["cause"]);
+        assert_eq!(code, Some(3));
+        assert!(
+            result["cause"]["name"].as_str().unwrap().starts_with(cause),
+            "{result}"
+        );
+        for (name, expected) in *changes {
+            let fitted = (result["cause"]["change"].as_array().unwrap().iter())
+                .find(|c| c[0] == *name)
+                .unwrap()[1]
+                .as_f64()
+                .unwrap();
+            assert!(
+                (fitted - expected).abs() < 0.1 * expected,
+                "{name} {fitted}"
+            );
+        }
+        means.push(result["mean_mm"].as_f64().unwrap());
+    }
+    // The drift rate: the least-squares line through the four means, days 1, 8, 15, 22.
+    let days = [1.0, 8.0, 15.0, 22.0];
+    let (mt, my) = (
+        days.iter().sum::<f64>() / 4.0,
+        means.iter().sum::<f64>() / 4.0,
+    );
+    let slope = (days.iter().zip(&means))
+        .map(|(t, y)| (t - mt) * (y - my))
+        .sum::<f64>()
+        / days.iter().map(|t| (t - mt).powi(2)).sum::<f64>();
+    let (_, last) = check(&simulate(&er7, "later", "10", "60", &[]), 29);
+    assert_eq!(last["drift_rate"]["checks"], 5);
+    let days = [1.0, 8.0, 15.0, 22.0, 29.0];
+    means.push(last["result"]["mean_mm"].as_f64().unwrap());
+    let (mt, my) = (
+        days.iter().sum::<f64>() / 5.0,
+        means.iter().sum::<f64>() / 5.0,
+    );
+    let slope5 = (days.iter().zip(&means))
+        .map(|(t, y)| (t - mt) * (y - my))
+        .sum::<f64>()
+        / days.iter().map(|t| (t - mt).powi(2)).sum::<f64>();
+    let rate = last["drift_rate"]["mm_per_30_days"].as_f64().unwrap();
+    println!(
+        "drift rate {rate} mm per 30 days (four checks: {})",
+        slope * 30.0
+    );
+    assert!((rate - slope5 * 30.0).abs() < 1e-9);
+    // The same data again: refused, nothing recorded.
+    let again = calib(&[
+        "check-shift",
+        "--serial",
+        "ER-7",
+        "--data",
+        s(&same),
+        "--db",
+        s(&db),
+    ]);
+    assert!(
+        String::from_utf8_lossy(&again.stderr)
+            .contains("already checked against record 1 as shift check 1")
+    );
+    let listed = ok(&calib(&[
+        "registry",
+        "checks",
+        "--serial",
+        "ER-7",
+        "--json",
+        "--db",
+        s(&db),
+    ]));
+    let listed: serde_json::Value = serde_json::from_str(&listed).unwrap();
+    assert_eq!(listed["checks"].as_array().unwrap().len(), 5);
+}

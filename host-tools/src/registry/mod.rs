@@ -19,6 +19,7 @@
 pub mod compare;
 pub mod export;
 pub mod record;
+pub mod shift;
 pub mod verify;
 
 use record::{Kind, NewRecord, Record, Summary};
@@ -27,7 +28,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// The schema this version writes and reads.
-pub const SCHEMA_VERSION: i64 = 2;
+pub const SCHEMA_VERSION: i64 = 3;
 
 /// `PRAGMA application_id` of a registry: "CALB".
 pub const APPLICATION_ID: i64 = 0x4341_4C42;
@@ -44,8 +45,9 @@ pub const BUSY_TIMEOUT: Duration = Duration::from_secs(30);
 /// fields listings read in `calibration` and the long ones (held-out figures, covariance,
 /// inputs, identified file, report) in `calibration_content`, so that listing 100,000
 /// calibrations reads a few megabytes instead of every record's first page; and it keeps the
-/// report without its per-pose lists ([`record::NOT_KEPT`]).
-const MIGRATIONS: [&str; 2] = [
+/// report without its per-pose lists ([`record::NOT_KEPT`]). Version 3 adds the shift checks
+/// ([`shift`]), each against the calibration it checked.
+const MIGRATIONS: [&str; 3] = [
     "CREATE TABLE calibration (
     id INTEGER PRIMARY KEY AUTOINCREMENT,
     serial TEXT NOT NULL,
@@ -99,6 +101,21 @@ INSERT INTO calibration_content SELECT id, held_out, covariance, inputs, identif
     json_remove(report, '$.per_pose', '$.poses', '$.convergence') FROM calibration_v1;
 DROP TABLE calibration_v1;
 CREATE INDEX calibration_by_robot ON calibration (serial, calibrated_at, id);",
+    "CREATE TABLE shift_check (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    calibration_id INTEGER NOT NULL REFERENCES calibration (id),
+    serial TEXT NOT NULL,
+    checked_at TEXT NOT NULL,
+    data_sha256 TEXT NOT NULL,
+    poses INTEGER NOT NULL,
+    mean_mm REAL NOT NULL,
+    max_mm REAL NOT NULL,
+    drifted INTEGER NOT NULL CHECK (drifted IN (0, 1)),
+    cause TEXT,
+    result TEXT NOT NULL,
+    UNIQUE (calibration_id, data_sha256)
+);
+CREATE INDEX shift_check_by_robot ON shift_check (serial, checked_at, id);",
 ];
 
 /// What a command does with the registry.
@@ -293,6 +310,83 @@ impl Registry {
             .map_err(|e| failed(&e))?;
         let rows = statement
             .query_map(params![serial], record_of_row)
+            .map_err(|e| failed(&e))?;
+        rows.collect::<rusqlite::Result<Vec<_>>>()
+            .map_err(|e| failed(&e))
+    }
+
+    /// Records the shift check `check`, measured at `checked_at` (RFC 3339); its number.
+    /// Refused: the same data already checked against the same calibration (its number named).
+    pub fn add_check(&mut self, check: &shift::ShiftCheck, checked_at: &str) -> crate::Result<i64> {
+        let path = self.path.clone();
+        let failed =
+            |e: &rusqlite::Error| database_error(&path, "cannot record the shift check", e);
+        let transaction = (self.connection)
+            .transaction_with_behavior(TransactionBehavior::Immediate)
+            .map_err(|e| failed(&e))?;
+        let existing: Option<i64> = transaction
+            .query_row(
+                "SELECT id FROM shift_check WHERE calibration_id = ?1 AND data_sha256 = ?2",
+                params![check.calibration, check.data_sha256],
+                |row| row.get(0),
+            )
+            .optional()
+            .map_err(|e| failed(&e))?;
+        if let Some(id) = existing {
+            return Err(crate::refused!(input check.data.as_str();
+                "{}: these data (SHA-256 {}) were already checked against record {} as shift check {id}; nothing recorded",
+                check.data, check.data_sha256, check.calibration));
+        }
+        let result = serde_json::to_string(check)
+            .map_err(|e| crate::numerical!("the shift check as JSON: {e}"))?;
+        transaction
+            .execute(
+                "INSERT INTO shift_check (calibration_id, serial, checked_at, data_sha256, poses,
+                     mean_mm, max_mm, drifted, cause, result)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
+                params![
+                    check.calibration,
+                    check.serial,
+                    checked_at,
+                    check.data_sha256,
+                    check.poses.len() as i64,
+                    check.mean_mm,
+                    check.max_mm,
+                    check.drifted,
+                    check.cause.as_ref().map(|c| c.name.clone()),
+                    result,
+                ],
+            )
+            .map_err(|e| failed(&e))?;
+        let id = transaction.last_insert_rowid();
+        transaction.commit().map_err(|e| failed(&e))?;
+        Ok(id)
+    }
+
+    /// Robot `serial`'s shift checks, oldest first.
+    pub fn checks(&self, serial: &str) -> crate::Result<Vec<shift::CheckSummary>> {
+        let failed =
+            |e: &rusqlite::Error| database_error(&self.path, "cannot list its shift checks", e);
+        let mut statement = (self.connection)
+            .prepare(
+                "SELECT id, calibration_id, serial, checked_at, poses, mean_mm, max_mm, drifted, cause
+                 FROM shift_check WHERE serial = ?1 ORDER BY checked_at, id",
+            )
+            .map_err(|e| failed(&e))?;
+        let rows = statement
+            .query_map(params![serial], |row| {
+                Ok(shift::CheckSummary {
+                    id: row.get(0)?,
+                    calibration: row.get(1)?,
+                    serial: row.get(2)?,
+                    checked_at: row.get(3)?,
+                    poses: row.get(4)?,
+                    mean_mm: row.get(5)?,
+                    max_mm: row.get(6)?,
+                    drifted: row.get(7)?,
+                    cause: row.get(8)?,
+                })
+            })
             .map_err(|e| failed(&e))?;
         rows.collect::<rusqlite::Result<Vec<_>>>()
             .map_err(|e| failed(&e))
@@ -498,8 +592,8 @@ mod tests {
         let header = registry.header().unwrap();
         assert_eq!(
             header,
-            (APPLICATION_ID, 2, 5),
-            "two tables, sqlite_sequence, two indexes"
+            (APPLICATION_ID, 3, 8),
+            "three tables, sqlite_sequence, four indexes"
         );
         let record = registry.show(7).unwrap();
         let c = &record.calibration;

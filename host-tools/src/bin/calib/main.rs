@@ -86,6 +86,11 @@ enum Command {
     /// Calibrate with the f32 core, the f64 core and the independent reference optimiser and
     /// compare; exits with status 1 when a difference is past its documented tolerance.
     Verify(crate::cli::verify::VerifyOptions),
+    /// Check the robot against its registered calibration with a short set of measured poses
+    /// (at the start of a shift): each pose against its predicted uncertainty, the likely cause
+    /// of a drift named, the check recorded and the drift over time stated. Exits with status
+    /// 3 on drift.
+    CheckShift(crate::cli::check_shift::CheckShiftOptions),
     /// Keep every calibration of every robot in one SQLite file (--db, calib.db by default):
     /// register a report with the files beside it, list, show, export.
     Registry(crate::cli::registry::RegistryOptions),
@@ -149,6 +154,17 @@ fn calibrate_command(mut options: CalibrateOptions) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `calib simulate`: simulates, writes, says what it wrote.
+fn simulate_command(settings: &Simulation) -> anyhow::Result<()> {
+    let poses = simulate::simulate(settings)?;
+    crate::cli::print_line(format_args!(
+        "wrote {} poses to {} and the true robot to {}",
+        poses,
+        settings.out.display(),
+        settings.truth_out.display()
+    ))
+}
+
 /// `calib compensate`: compensates, writes, says how many targets were compensated.
 fn compensate(options: &crate::cli::compensate::CompensateOptions) -> anyhow::Result<()> {
     let summary = crate::cli::compensate::compensate(options)?;
@@ -188,15 +204,7 @@ fn run(command: Command) -> anyhow::Result<()> {
             joints_deg,
             json,
         } => forward_kinematics(&robot, &joints_deg, json)?,
-        Command::Simulate(settings) => {
-            let poses = simulate::simulate(&settings)?;
-            crate::cli::print_line(format_args!(
-                "wrote {} poses to {} and the true robot to {}",
-                poses,
-                settings.out.display(),
-                settings.truth_out.display()
-            ))?;
-        }
+        Command::Simulate(settings) => simulate_command(&settings)?,
         Command::Compensate(options) => compensate(&options)?,
         Command::Export(options) => {
             let bytes = crate::cli::export::export(&options)?;
@@ -257,6 +265,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         }
         Command::PlanSockets(options) => crate::cli::plan_sockets::run(&options)?,
         Command::Registry(options) => crate::cli::registry::run(&options)?,
+        Command::CheckShift(options) => crate::cli::check_shift::run(&options)?,
         Command::Calibrate(options) => calibrate_command(options)?,
     }
     Ok(())

@@ -3,6 +3,7 @@
 
 pub mod calibrate;
 pub mod check;
+pub mod check_shift;
 pub mod compensate;
 pub mod demo;
 pub mod evaluate;

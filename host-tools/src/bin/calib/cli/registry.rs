@@ -46,6 +46,23 @@ pub enum RegistryCommand {
     /// that is the latest, and if none, what differs from the nearest. Exits with status 3
     /// unless it holds the latest.
     Verify(VerifyOptions),
+    /// List a robot's shift checks (calib check-shift) with the drift of their mean error over
+    /// time.
+    Checks(ChecksOptions),
+}
+
+/// `calib registry checks`.
+#[derive(Debug, clap::Args)]
+pub struct ChecksOptions {
+    /// The robot's serial number.
+    #[arg(long, value_name = "SERIAL")]
+    pub serial: String,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// The registry.
+    #[command(flatten)]
+    pub db: Db,
 }
 
 /// `calib registry verify`.
@@ -251,6 +268,19 @@ fn text_of(options: &RegistryOptions) -> anyhow::Result<String> {
             }
         }
         RegistryCommand::Verify(_) => String::new(),
+        RegistryCommand::Checks(o) => {
+            let checks = Registry::open(&o.db.db, Access::Read)?.checks(&o.serial)?;
+            let rate = host_tools::registry::shift::drift_rate(&checks);
+            match o.json {
+                true => format!(
+                    "{}\n",
+                    serde_json::to_string_pretty(
+                        &serde_json::json!({"checks": checks, "drift_rate": rate})
+                    )?
+                ),
+                false => checks_text(&o.serial, &checks, rate.as_ref()),
+            }
+        }
         RegistryCommand::Export(o) => {
             let records = Registry::open(&o.db.db, Access::Read)?.all()?;
             let text = match o.format {
@@ -344,6 +374,41 @@ fn show_text(r: &Record) -> String {
             "identified robot file ({} lines) kept whole (--json prints it)\n",
             toml.lines().count()
         ));
+    }
+    text
+}
+
+/// A robot's shift checks as a table, with the drift rate.
+fn checks_text(
+    serial: &str,
+    checks: &[host_tools::registry::shift::CheckSummary],
+    rate: Option<&host_tools::registry::shift::DriftRate>,
+) -> String {
+    if checks.is_empty() {
+        return format!("no shift checks of robot {serial} recorded\n");
+    }
+    let mut text = format!(
+        "{:>6}  {:>11}  {:<22} {:>5} {:>10} {:>10}  verdict\n",
+        "check", "calibration", "checked at", "poses", "mean, mm", "max, mm"
+    );
+    for c in checks {
+        text.push_str(&format!(
+            "{:>6}  {:>11}  {:<22} {:>5} {:>10.4} {:>10.4}  {}\n",
+            c.id,
+            c.calibration,
+            c.checked_at,
+            c.poses,
+            c.mean_mm,
+            c.max_mm,
+            match (c.drifted, &c.cause) {
+                (false, _) => "ok".to_string(),
+                (true, Some(cause)) => format!("DRIFT: {cause}"),
+                (true, None) => "DRIFT".to_string(),
+            }
+        ));
+    }
+    if let Some(rate) = rate {
+        text.push_str(&rate.text());
     }
     text
 }
