@@ -931,7 +931,7 @@ fn shift_checks_name_the_cause_and_state_the_drift() {
     ]);
     assert!(
         String::from_utf8_lossy(&again.stderr)
-            .contains("already checked against record 1 as shift check 1")
+            .contains("already checked against record 1 with these settings as shift check 1")
     );
     let listed = ok(&calib(&[
         "registry",
@@ -944,4 +944,102 @@ fn shift_checks_name_the_cause_and_state_the_drift() {
     ]));
     let listed: serde_json::Value = serde_json::from_str(&listed).unwrap();
     assert_eq!(listed["checks"].as_array().unwrap().len(), 5);
+}
+
+/// A shift check on real data: the UR10 calibrated on 50 poses of Series B, then checked with
+/// Series D (632 poses of a later session, the tracker placed elsewhere). Without re-registering
+/// the tracker, the base "moved" by metres; re-registered, the errors equal `calib evaluate
+/// --fit-frames base` (mean and largest to 1e-9 mm) and lie beyond the calibration's prediction:
+/// a drift, exit status 3.
+#[test]
+fn a_later_session_of_the_real_ur10_is_checked() {
+    let manifest = env!("CARGO_MANIFEST_DIR");
+    let (robot, profile) = (
+        format!("{manifest}/robots/ur10.toml"),
+        format!("{manifest}/profiles/ipa-ur10-lasertracker.toml"),
+    );
+    let data = |series: &str| format!("{manifest}/data/ipa-ur10-lasertracker/{series}.csv");
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("ur10.db");
+    let (report, identified) = (dir.path().join("b.json"), dir.path().join("b-id.toml"));
+    ok(&calib(&[
+        "calibrate",
+        "--robot",
+        &robot,
+        "--data",
+        &data("series-b-joint-configurations"),
+        "--profile",
+        &profile,
+        "--validate",
+        "0.9666",
+        "--report",
+        s(&report),
+        "--out",
+        s(&identified),
+    ]));
+    ok(&calib(&[
+        "registry",
+        "add",
+        s(&report),
+        "--identified",
+        s(&identified),
+        "--serial",
+        "UR10-IPA",
+        "--db",
+        s(&db),
+    ]));
+    let data_d = data("series-d-iso-cubes");
+    let check = |extra: &[&str]| {
+        let mut args = vec![
+            "check-shift",
+            "--serial",
+            "UR10-IPA",
+            "--data",
+            &data_d,
+            "--profile",
+            &profile,
+            "--json",
+            "--db",
+            s(&db),
+        ];
+        args.extend_from_slice(extra);
+        let out = calib(&args);
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout)
+            .unwrap_or_else(|_| panic!("{}", String::from_utf8_lossy(&out.stderr)));
+        (out.status.code(), json["result"].clone())
+    };
+    let (code, moved) = check(&["--checked-at", "2021-08-01T08:00:00Z"]);
+    assert_eq!(code, Some(3));
+    assert!(
+        moved["cause"]["name"]
+            .as_str()
+            .unwrap()
+            .starts_with("the base moved")
+    );
+    assert!(moved["mean_mm"].as_f64().unwrap() > 1000.0);
+    let (code, registered) = check(&["--register-tracker", "--checked-at", "2021-08-02T08:00:00Z"]);
+    let evaluation: serde_json::Value = serde_json::from_str(&ok(&calib(&[
+        "evaluate",
+        "--robot",
+        s(&identified),
+        "--data",
+        &data_d,
+        "--profile",
+        &profile,
+        "--fit-frames",
+        "base",
+        "--json",
+    ])))
+    .unwrap();
+    let (mean, max) = (
+        registered["mean_mm"].as_f64().unwrap(),
+        registered["max_mm"].as_f64().unwrap(),
+    );
+    println!(
+        "Series D against Series B's calibration, tracker re-registered: mean {mean} mm, largest {max} mm, {} of 632 beyond (chance allows {}), cause {}",
+        registered["beyond"], registered["beyond_allowed"], registered["cause"]
+    );
+    assert!((mean - evaluation["position_mm"]["mean"].as_f64().unwrap()).abs() < 1e-9);
+    assert!((max - evaluation["position_mm"]["max"].as_f64().unwrap()).abs() < 1e-9);
+    assert_eq!((code, &registered["drifted"]), (Some(3), &true.into()));
 }

@@ -107,13 +107,14 @@ CREATE INDEX calibration_by_robot ON calibration (serial, calibrated_at, id);",
     serial TEXT NOT NULL,
     checked_at TEXT NOT NULL,
     data_sha256 TEXT NOT NULL,
+    settings TEXT NOT NULL,
     poses INTEGER NOT NULL,
     mean_mm REAL NOT NULL,
     max_mm REAL NOT NULL,
     drifted INTEGER NOT NULL CHECK (drifted IN (0, 1)),
     cause TEXT,
     result TEXT NOT NULL,
-    UNIQUE (calibration_id, data_sha256)
+    UNIQUE (calibration_id, data_sha256, settings)
 );
 CREATE INDEX shift_check_by_robot ON shift_check (serial, checked_at, id);",
 ];
@@ -321,34 +322,38 @@ impl Registry {
         let path = self.path.clone();
         let failed =
             |e: &rusqlite::Error| database_error(&path, "cannot record the shift check", e);
+        let settings = serde_json::to_string(&check.settings)
+            .map_err(|e| crate::numerical!("the shift check's settings as JSON: {e}"))?;
         let transaction = (self.connection)
             .transaction_with_behavior(TransactionBehavior::Immediate)
             .map_err(|e| failed(&e))?;
         let existing: Option<i64> = transaction
             .query_row(
-                "SELECT id FROM shift_check WHERE calibration_id = ?1 AND data_sha256 = ?2",
-                params![check.calibration, check.data_sha256],
+                "SELECT id FROM shift_check
+                 WHERE calibration_id = ?1 AND data_sha256 = ?2 AND settings = ?3",
+                params![check.calibration, check.data_sha256, settings],
                 |row| row.get(0),
             )
             .optional()
             .map_err(|e| failed(&e))?;
         if let Some(id) = existing {
             return Err(crate::refused!(input check.data.as_str();
-                "{}: these data (SHA-256 {}) were already checked against record {} as shift check {id}; nothing recorded",
+                "{}: these data (SHA-256 {}) were already checked against record {} with these settings as shift check {id}; nothing recorded",
                 check.data, check.data_sha256, check.calibration));
         }
         let result = serde_json::to_string(check)
             .map_err(|e| crate::numerical!("the shift check as JSON: {e}"))?;
         transaction
             .execute(
-                "INSERT INTO shift_check (calibration_id, serial, checked_at, data_sha256, poses,
-                     mean_mm, max_mm, drifted, cause, result)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
+                "INSERT INTO shift_check (calibration_id, serial, checked_at, data_sha256, settings,
+                     poses, mean_mm, max_mm, drifted, cause, result)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)",
                 params![
                     check.calibration,
                     check.serial,
                     checked_at,
                     check.data_sha256,
+                    settings,
                     check.poses.len() as i64,
                     check.mean_mm,
                     check.max_mm,

@@ -6,9 +6,13 @@
 //! calibration's own measurement setup: its registered tracker placement and probe) is judged
 //! against its covariance `C = J S J^T + sigma^2 I` (the identified parameters' covariance `S`
 //! propagated as the certificate does, and the instrument's noise `sigma`, by default the
-//! calibration's own least-squares estimate): a pose has drifted when `e^T C^-1 e` exceeds the
-//! chi-square (3 degrees of freedom) point of `k` standard deviations (`k = 3`: 99.73 %, 14.16),
-//! or when `|e|` exceeds a stated limit in mm.
+//! calibration's own least-squares estimate). A pose lies beyond its prediction when `e^T C^-1 e`
+//! exceeds the chi-square (3 degrees of freedom) point of `k` standard deviations (`k = 3`:
+//! 99.73 %, 14.16). The robot has drifted when more poses lie beyond than chance gives at that
+//! level (the binomial distribution's count, so that one pose in ten past 3 standard deviations
+//! is not an alarm by itself), or when the errors together do (the sum of `e^T C^-1 e` over the
+//! poses against the chi-square point of `3 n` degrees of freedom: a small shift of every pose),
+//! or when any pose's `|e|` exceeds a stated limit in mm.
 //!
 //! The likely cause is the simplest change that explains the errors down to the noise: one
 //! joint's zero (1 parameter), the tool or probe moved on the flange (3), the robot's base moved
@@ -40,6 +44,9 @@ pub struct ShiftSettings {
     pub limit_mm: Option<f64>,
     /// The instrument's noise per coordinate, mm (`None`: the calibration's own estimate).
     pub noise_mm: Option<f64>,
+    /// The tracker was placed anew since the calibration: its placement is fitted on the
+    /// check's poses first (6 parameters), so a base that moved cannot be told from it.
+    pub register_tracker: bool,
 }
 
 impl Default for ShiftSettings {
@@ -48,6 +55,7 @@ impl Default for ShiftSettings {
             k: DEFAULT_K,
             limit_mm: None,
             noise_mm: None,
+            register_tracker: false,
         }
     }
 }
@@ -67,8 +75,10 @@ pub struct PoseCheck {
     pub predicted_rms_mm: f64,
     /// `e^T C^-1 e`.
     pub mahalanobis_squared: f64,
-    /// Beyond `k` standard deviations or the limit.
-    pub drifted: bool,
+    /// Beyond `k` standard deviations.
+    pub beyond: bool,
+    /// Beyond the limit in mm, when one is given.
+    pub over_limit: bool,
 }
 
 /// A cause fitted to the errors.
@@ -109,7 +119,16 @@ pub struct ShiftCheck {
     pub max_mm: f64,
     /// Every pose.
     pub poses: Vec<PoseCheck>,
-    /// Some pose drifted.
+    /// Poses beyond `k` standard deviations.
+    pub beyond: usize,
+    /// The most poses chance puts beyond `k` standard deviations at that level.
+    pub beyond_allowed: usize,
+    /// The sum of `e^T C^-1 e` over the poses.
+    pub mahalanobis_squared_sum: f64,
+    /// Its chi-square point of `k` standard deviations (`3 n` degrees of freedom).
+    pub sum_threshold: f64,
+    /// Drifted: more poses beyond than chance gives, the sum beyond its point, or a pose over
+    /// the limit.
     pub drifted: bool,
     /// The likely cause (when drifted): the simplest consistent one, else the one explaining
     /// most.
@@ -136,25 +155,10 @@ pub fn check(
         .map_err(|e| crate::refused!(input data.display(); "--data {}: {e}", data.display()))?;
     let tracker = crate::io::tracker_data::TrackerData::read_with(data, profile)?;
     let dataset = Dataset::from_data(file, &path, tracker)?;
-    let robot = match dataset.robot.file.measurement {
-        Some(_) => dataset.robot.in_measurement_setup()?,
-        None => dataset.robot.clone(),
-    };
     let noise = noise_of(record, settings)?;
+    let (robot, covariance) = model_of(&dataset, settings.register_tracker, &path)?;
     let kinematics = Kinematics::nominal(&robot.model.robot)?;
-    let covariance = match robot
-        .file
-        .calibration
-        .as_ref()
-        .and_then(|c| c.covariance.as_ref())
-    {
-        Some(_) => Some(crate::analysis::uncertainty::recorded_covariance(
-            &robot.file,
-            &path,
-        )?),
-        None => None,
-    };
-    let threshold = threshold_of(settings.k)?;
+    let (level, threshold) = threshold_of(settings.k)?;
     let seen = dataset.seen_by(&robot)?;
     let (poses, errors) = judge(
         &kinematics,
@@ -163,7 +167,16 @@ pub fn check(
         (noise, threshold, settings.limit_mm),
     );
     let n = poses.len().max(1) as f64;
-    let drifted = poses.iter().any(|p| p.drifted);
+    let beyond = poses.iter().filter(|p| p.beyond).count();
+    let beyond_allowed = allowed_by_chance(poses.len(), level)?;
+    let mahalanobis_squared_sum: f64 = poses.iter().map(|p| p.mahalanobis_squared).sum();
+    let fitted = if settings.register_tracker { 6.0 } else { 0.0 };
+    let sum_threshold = ChiSquared::new((3.0 * n - fitted).max(1.0))
+        .map_err(|e| crate::numerical!("chi-square: {e}"))?
+        .inverse_cdf(level);
+    let drifted = beyond > beyond_allowed
+        || mahalanobis_squared_sum > sum_threshold
+        || poses.iter().any(|p| p.over_limit);
     Ok(ShiftCheck {
         serial: record.calibration.serial.clone(),
         calibration: id,
@@ -175,37 +188,85 @@ pub fn check(
         mean_mm: poses.iter().map(|p| p.distance_mm).sum::<f64>() / n,
         max_mm: poses.iter().map(|p| p.distance_mm).fold(0.0, f64::max),
         cause: if drifted {
-            likely_cause(&kinematics, &errors)?
+            likely_cause(&kinematics, &errors, !settings.register_tracker)?
         } else {
             None
         },
         drifted,
+        beyond,
+        beyond_allowed,
+        mahalanobis_squared_sum,
+        sum_threshold,
         poses,
     })
 }
 
+/// The most of `n` poses that lie beyond the `level` point by chance: the largest count `c`
+/// with a probability of at least `c` such poses above `1 - level`.
+fn allowed_by_chance(n: usize, level: f64) -> crate::Result<usize> {
+    use statrs::distribution::DiscreteCDF as _;
+    let binomial = statrs::distribution::Binomial::new(1.0 - level, n as u64)
+        .map_err(|e| crate::numerical!("binomial: {e}"))?;
+    // P(X >= c + 1) = sf(c).
+    Ok((0..n as u64)
+        .find(|c| binomial.sf(*c) <= 1.0 - level)
+        .map_or(n, |c| c as usize))
+}
+
+/// The model the poses are predicted with (the calibration's measurement setup, or its tracker
+/// placement fitted anew with `register_tracker`) and its parameters' covariance, if recorded.
+fn model_of(
+    dataset: &Dataset,
+    register_tracker: bool,
+    path: &Path,
+) -> crate::Result<(crate::kinematics::actual::ActualRobot, Option<Covariance>)> {
+    let robot = match (register_tracker, &dataset.robot.file.measurement) {
+        (true, _) => {
+            let k = calib_core::identify::objective::DEFAULT_K;
+            let frames = crate::measurement::frames::Frames::Base;
+            crate::measurement::frames::register_setup(&dataset.robot, frames, dataset, k)?.robot
+        }
+        (false, Some(_)) => dataset.robot.in_measurement_setup()?,
+        (false, None) => dataset.robot.clone(),
+    };
+    let recorded = (robot.file.calibration.as_ref()).and_then(|c| c.covariance.as_ref());
+    let covariance = match recorded {
+        Some(_) => Some(crate::analysis::uncertainty::recorded_covariance(
+            &robot.file,
+            path,
+        )?),
+        None => None,
+    };
+    Ok((robot, covariance))
+}
+
+/// The identified parameters and their covariance (mm, rad).
+type Covariance = (ParameterSet<Dyn, Dyn>, DMatrix<f64>);
+
 /// A pose's angles, position error (mm) and variance per coordinate (mm^2).
 type PoseError = (JointAngles<f64, Dyn>, Vector3<f64>, f64);
 
-/// The chi-square (3 degrees of freedom) point of `k` standard deviations.
-fn threshold_of(k: f64) -> crate::Result<f64> {
+/// The probability `k` standard deviations cover, and its chi-square point (3 degrees of
+/// freedom).
+fn threshold_of(k: f64) -> crate::Result<(f64, f64)> {
     if !(k.is_finite() && k > 0.0) {
         return Err(
             crate::refused!(option "--k"; "--k {k}: give a positive number of standard deviations (3 by default)"),
         );
     }
     let p = statrs::function::erf::erf(k / std::f64::consts::SQRT_2);
-    Ok(ChiSquared::new(3.0)
+    let point = ChiSquared::new(3.0)
         .map_err(|e| crate::numerical!("chi-square: {e}"))?
-        .inverse_cdf(p))
+        .inverse_cdf(p);
+    Ok((p, point))
 }
 
 /// Each pose judged against its covariance (the parameters' `covariance` propagated, and the
-/// `noise`): drifted beyond `threshold` or `limit_mm`. Also each pose's angles, error and
+/// `noise`): beyond `threshold`, over `limit_mm`. Also each pose's angles, error and
 /// variance per coordinate, for the causes.
 fn judge(
     kinematics: &Kinematics<f64, Dyn>,
-    covariance: Option<&(ParameterSet<Dyn, Dyn>, DMatrix<f64>)>,
+    covariance: Option<&Covariance>,
     (measurements, rows): (
         &[calib_core::identify::objective::Measurement<f64, Dyn>],
         &[crate::io::tracker_data::Record],
@@ -232,7 +293,8 @@ fn judge(
             distance_mm: distance,
             predicted_rms_mm: c.trace().max(0.0).sqrt(),
             mahalanobis_squared: mahalanobis,
-            drifted: mahalanobis > threshold || limit_mm.is_some_and(|limit| distance > limit),
+            beyond: mahalanobis > threshold,
+            over_limit: limit_mm.is_some_and(|limit| distance > limit),
         });
         errors.push((m.angles, e, c.trace() / 3.0));
     }
@@ -259,8 +321,8 @@ fn noise_of(record: &Record, settings: ShiftSettings) -> crate::Result<f64> {
         })
 }
 
-/// The hypotheses, simplest first: each joint's zero, the tool, the base.
-fn hypotheses(joints: usize) -> Vec<(String, Vec<Parameter>)> {
+/// The hypotheses, simplest first: each joint's zero, the tool, the base (with `base`).
+fn hypotheses(joints: usize, base: bool) -> Vec<(String, Vec<Parameter>)> {
     let mut out: Vec<(String, Vec<Parameter>)> = (1..=joints)
         .map(|j| {
             let name = if j == 1 {
@@ -284,6 +346,9 @@ fn hypotheses(joints: usize) -> Vec<(String, Vec<Parameter>)> {
         "the tool or probe moved on the flange".to_string(),
         translation.iter().map(|k| Parameter::Tool(*k)).collect(),
     ));
+    if !base {
+        return out;
+    }
     out.push((
         "the base moved against the tracker (or the tracker against the base: the two look alike)"
             .to_string(),
@@ -299,6 +364,7 @@ fn hypotheses(joints: usize) -> Vec<(String, Vec<Parameter>)> {
 fn likely_cause(
     kinematics: &Kinematics<f64, Dyn>,
     errors: &[PoseError],
+    base: bool,
 ) -> crate::Result<Option<Cause>> {
     let rows = 3 * errors.len();
     let r = DVector::from_iterator(rows, errors.iter().flat_map(|(_, e, _)| e.iter().copied()));
@@ -307,7 +373,7 @@ fn likely_cause(
     let variance = errors.iter().map(|(_, _, v)| v).sum::<f64>() / errors.len().max(1) as f64;
     let joints = nalgebra::Dim::value(&kinematics.joint_count());
     let mut causes = Vec::new();
-    for (name, parameters) in hypotheses(joints) {
+    for (name, parameters) in hypotheses(joints, base) {
         let p = parameters.len();
         if rows <= p {
             continue;
@@ -380,25 +446,39 @@ impl ShiftCheck {
             self.noise_mm,
             self.settings.limit_mm.map_or(String::new(), |l| format!(" and the limit {l} mm"))
         ));
-        for p in self.poses.iter().filter(|p| p.drifted) {
+        for p in self.poses.iter().filter(|p| p.beyond || p.over_limit) {
             text.push_str(&format!(
-                "  drifted: line {}{}: {:.4} mm (predicted {:.4} mm RMS; {:.1} standard deviations)\n",
+                "  {}: line {}{}: {:.4} mm (predicted {:.4} mm RMS; {:.1} standard deviations)\n",
+                if p.over_limit {
+                    "over the limit"
+                } else {
+                    "beyond"
+                },
                 p.line,
-                if p.id.is_empty() { String::new() } else { format!(" ({})", p.id) },
+                if p.id.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", p.id)
+                },
                 p.distance_mm,
                 p.predicted_rms_mm,
                 p.mahalanobis_squared.sqrt()
             ));
         }
+        text.push_str(&format!(
+            "{} of {} poses beyond {} standard deviations (chance allows {}); all together: {:.1} against {:.1}\n",
+            self.beyond,
+            self.poses.len(),
+            self.settings.k,
+            self.beyond_allowed,
+            self.mahalanobis_squared_sum,
+            self.sum_threshold
+        ));
         if !self.drifted {
-            text.push_str("OK: every pose within its calibration's prediction\n");
+            text.push_str("OK: within its calibration's prediction\n");
             return text;
         }
-        text.push_str(&format!(
-            "DRIFT: {} of {} poses beyond their prediction\n",
-            self.poses.iter().filter(|p| p.drifted).count(),
-            self.poses.len()
-        ));
+        text.push_str("DRIFT: beyond its calibration's prediction\n");
         if let Some(c) = &self.cause {
             let values: Vec<String> = (c.change.iter())
                 .map(|(name, v, unit)| format!("{name} {v:+.4} {unit}"))
@@ -460,7 +540,7 @@ pub struct DriftRate {
 }
 
 /// The drift rate of the checks against the latest calibration checked; `None` with fewer than
-/// two such checks, or all at one moment.
+/// two such checks, or all within a day.
 pub fn drift_rate(checks: &[CheckSummary]) -> Option<DriftRate> {
     let calibration = checks.last()?.calibration;
     let points: Vec<(f64, f64)> = (checks.iter())
@@ -480,7 +560,10 @@ pub fn drift_rate(checks: &[CheckSummary]) -> Option<DriftRate> {
         points.iter().map(|p| p.1).sum::<f64>() / n,
     );
     let sxx: f64 = points.iter().map(|p| (p.0 - mt).powi(2)).sum();
-    if sxx <= 0.0 {
+    if points.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max)
+        - points.iter().map(|p| p.0).fold(f64::INFINITY, f64::min)
+        < 1.0
+    {
         return None;
     }
     let slope = points.iter().map(|p| (p.0 - mt) * (p.1 - my)).sum::<f64>() / sxx;

@@ -30,6 +30,10 @@ pub struct CheckShiftOptions {
     /// The instrument's noise per coordinate, mm (default: the calibration's own estimate).
     #[arg(long, value_name = "MM")]
     pub noise_mm: Option<f64>,
+    /// The tracker was placed anew since the calibration: fit its placement on these poses
+    /// first (a base that moved can then not be told from it).
+    #[arg(long)]
+    pub register_tracker: bool,
     /// When the poses were measured, RFC 3339 (default: now).
     #[arg(long, value_name = "TIME")]
     pub checked_at: Option<String>,
@@ -70,6 +74,7 @@ pub fn run(o: &CheckShiftOptions) -> anyhow::Result<()> {
         k: o.k,
         limit_mm: o.limit_mm,
         noise_mm: o.noise_mm,
+        register_tracker: o.register_tracker,
     };
     let result = check(record, &o.data, &profile, settings)?;
     let id = registry.add_check(&result, &checked_at)?;
