@@ -51,6 +51,9 @@ from ._calib import plan
 from ._calib import registry_add
 from ._calib import registry_list_json as _registry_list_json
 from ._calib import registry_show_json as _registry_show_json
+from ._calib import registry_compare_json as _registry_compare_json
+from ._calib import registry_verify_json as _registry_verify_json
+from ._calib import check_shift_json as _check_shift_json
 
 
 def evaluate(
@@ -228,6 +231,54 @@ def registry_show(id: int, db: _Union[str, "_PathLike[str]"] = "calib.db") -> di
     return parsed[0]
 
 
+def registry_compare(a: int, b: int, db: _Union[str, "_PathLike[str]"] = "calib.db", poses: int = 1000) -> dict[str, _Any]:
+    """Calibration ``b`` against calibration ``a`` of ``db``, as ``calib registry compare A B
+    --json`` gives it: each parameter's change with its standard deviation from both
+    calibrations' uncertainty (``parameters``), the joint Mahalanobis test (``joint_test``) and
+    the tool's movement over ``poses`` configurations (``movement``, mm)."""
+    parsed: dict[str, _Any] = _json.loads(_registry_compare_json(a, b, db, poses))
+    return parsed
+
+
+def registry_verify(
+    serial: str,
+    *,
+    block: _Optional[_Union[str, "_PathLike[str]"]] = None,
+    robot: _Optional[_Union[str, "_PathLike[str]"]] = None,
+    db: _Union[str, "_PathLike[str]"] = "calib.db",
+) -> dict[str, _Any]:
+    """Is the right calibration on the controller? A parameter block (``block``) or a robot file
+    (``robot``) against robot ``serial``'s calibrations, as ``calib registry verify --json``
+    gives it (``passed`` only for the latest calibration)."""
+    parsed: dict[str, _Any] = _json.loads(_registry_verify_json(serial, block=block, robot=robot, db=db))
+    return parsed
+
+
+def check_shift(
+    serial: str,
+    data: _Union[str, "_PathLike[str]"],
+    *,
+    profile: _Optional[_Union[str, "_PathLike[str]"]] = None,
+    record: _Optional[int] = None,
+    k: float = 3.0,
+    limit_mm: _Optional[float] = None,
+    noise_mm: _Optional[float] = None,
+    register_tracker: bool = False,
+    checked_at: _Optional[str] = None,
+    db: _Union[str, "_PathLike[str]"] = "calib.db",
+) -> dict[str, _Any]:
+    """``calib check-shift``: robot ``serial``'s poses in ``data`` against its registered
+    calibration, the check recorded in ``db``; as ``--json`` gives it (``result["drifted"]``,
+    ``result["cause"]``, ``drift_rate``). A drift is a result, not an exception."""
+    parsed: dict[str, _Any] = _json.loads(
+        _check_shift_json(
+            serial, data, profile=profile, record=record, k=k, limit_mm=limit_mm, noise_mm=noise_mm,
+            register_tracker=register_tracker, checked_at=checked_at, db=db,
+        )
+    )
+    return parsed
+
+
 __all__ = [
     "CalibError",
     "CalibrationResult",
@@ -252,8 +303,11 @@ __all__ = [
     "compensate",
     "evaluate",
     "plan",
+    "check_shift",
     "registry_add",
+    "registry_compare",
     "registry_list",
     "registry_show",
+    "registry_verify",
     "__version__",
 ]

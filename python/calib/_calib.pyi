@@ -35,6 +35,9 @@ __all__ = [
     "registry_add",
     "registry_list_json",
     "registry_show_json",
+    "registry_compare_json",
+    "registry_verify_json",
+    "check_shift_json",
 ]
 
 class CalibError(Exception):
@@ -339,6 +342,35 @@ def registry_list_json(db: Optional[Union[str, PathLike[str]]] = None, serial: O
 
 def registry_show_json(id: int, db: Optional[Union[str, PathLike[str]]] = None) -> str:
     """``calib registry show --json`` as text."""
+
+def registry_compare_json(
+    a: int, b: int, db: Optional[Union[str, PathLike[str]]] = None, poses: int = 1000
+) -> str:
+    """``calib registry compare A B --json`` as text."""
+
+def registry_verify_json(
+    serial: str,
+    *,
+    block: Optional[Union[str, PathLike[str]]] = None,
+    robot: Optional[Union[str, PathLike[str]]] = None,
+    db: Optional[Union[str, PathLike[str]]] = None,
+) -> str:
+    """``calib registry verify --json`` as text."""
+
+def check_shift_json(
+    serial: str,
+    data: Union[str, PathLike[str]],
+    *,
+    profile: Optional[Union[str, PathLike[str]]] = None,
+    record: Optional[int] = None,
+    k: float = 3.0,
+    limit_mm: Optional[float] = None,
+    noise_mm: Optional[float] = None,
+    register_tracker: bool = False,
+    checked_at: Optional[str] = None,
+    db: Optional[Union[str, PathLike[str]]] = None,
+) -> str:
+    """``calib check-shift --json`` as text."""
 
 @final
 class Plan:

@@ -1914,6 +1914,91 @@ fn registry_show_json(py: Python<'_>, id: i64, db: Option<PathBuf>) -> PyResult<
     .map_err(|e| py_error(e.into()))
 }
 
+/// `calib registry compare A B --json`: calibration `b` against calibration `a` as JSON text
+/// (the package's `registry_compare` returns the dict). `poses` defaults to
+/// [`host_tools::registry::compare::DEFAULT_POSES`], written out for Python's signature.
+#[pyfunction]
+#[pyo3(signature = (a, b, db = None, poses = 1000))]
+fn registry_compare_json(
+    py: Python<'_>,
+    a: i64,
+    b: i64,
+    db: Option<PathBuf>,
+    poses: usize,
+) -> PyResult<String> {
+    let db = db.unwrap_or_else(|| PathBuf::from(host_tools::registry::DEFAULT_PATH));
+    use host_tools::registry::{Access, Registry};
+    py.detach(|| -> anyhow::Result<String> {
+        let registry = Registry::open(&db, Access::Read)?;
+        let (a, b) = (registry.show(a)?, registry.show(b)?);
+        let comparison = host_tools::registry::compare::compare(&a, &b, poses)?;
+        Ok(serde_json::to_string(&comparison)?)
+    })
+    .map_err(py_error)
+}
+
+/// `calib registry verify --json`: a controller's parameter block (`block`) or a robot file
+/// (`robot`) against robot `serial`'s calibrations, as JSON text.
+#[pyfunction]
+#[pyo3(signature = (serial, *, block = None, robot = None, db = None))]
+fn registry_verify_json(
+    py: Python<'_>,
+    serial: String,
+    block: Option<PathBuf>,
+    robot: Option<PathBuf>,
+    db: Option<PathBuf>,
+) -> PyResult<String> {
+    let db = db.unwrap_or_else(|| PathBuf::from(host_tools::registry::DEFAULT_PATH));
+    use host_tools::registry::verify::{Given, verify};
+    use host_tools::registry::{Access, Registry};
+    py.detach(|| -> anyhow::Result<String> {
+        let given = match (block, robot) {
+            (Some(block), None) => Given::Block(block),
+            (None, Some(robot)) => Given::Robot(robot),
+            _ => anyhow::bail!("give block= or robot=, one of the two"),
+        };
+        let records = Registry::open(&db, Access::Read)?.robot(&serial)?;
+        Ok(serde_json::to_string(&verify(&serial, &records, &given)?)?)
+    })
+    .map_err(py_error)
+}
+
+/// `calib check-shift --json`: checks robot `serial` with the poses in `data`, records the
+/// check and states the drift rate, as JSON text. `k` defaults to
+/// [`host_tools::registry::shift::DEFAULT_K`], written out for Python's signature.
+#[pyfunction]
+#[pyo3(signature = (serial, data, *, profile = None, record = None, k = 3.0, limit_mm = None, noise_mm = None, register_tracker = false, checked_at = None, db = None))]
+#[allow(clippy::too_many_arguments)]
+fn check_shift_json(
+    py: Python<'_>,
+    serial: String,
+    data: PathBuf,
+    profile: Option<PathBuf>,
+    record: Option<i64>,
+    k: f64,
+    limit_mm: Option<f64>,
+    noise_mm: Option<f64>,
+    register_tracker: bool,
+    checked_at: Option<String>,
+    db: Option<PathBuf>,
+) -> PyResult<String> {
+    let db = db.unwrap_or_else(|| PathBuf::from(host_tools::registry::DEFAULT_PATH));
+    use host_tools::registry::shift::{ShiftSettings, check_and_record};
+    py.detach(|| -> anyhow::Result<String> {
+        let profile = host_tools::io::profile::DataProfile::load(profile.as_deref())?;
+        let settings = ShiftSettings {
+            k,
+            limit_mm,
+            noise_mm,
+            register_tracker,
+        };
+        let when = (record, checked_at.as_deref());
+        let recorded = check_and_record(&db, &serial, &data, &profile, when, settings)?;
+        Ok(serde_json::to_string(&recorded)?)
+    })
+    .map_err(py_error)
+}
+
 /// The module.
 #[pymodule]
 fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -1928,6 +2013,9 @@ fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(registry_add, m)?)?;
     m.add_function(wrap_pyfunction!(registry_list_json, m)?)?;
     m.add_function(wrap_pyfunction!(registry_show_json, m)?)?;
+    m.add_function(wrap_pyfunction!(registry_compare_json, m)?)?;
+    m.add_function(wrap_pyfunction!(registry_verify_json, m)?)?;
+    m.add_function(wrap_pyfunction!(check_shift_json, m)?)?;
     m.add_class::<Plan>()?;
     m.add("CalibError", m.py().get_type::<CalibError>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;

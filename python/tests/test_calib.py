@@ -805,3 +805,43 @@ def test_registry_from_python_equals_calib_registry(tmp_path):
     foreign.write_text("not a database\n" * 100)
     with pytest.raises(calib.InputError, match="not a calib registry"):
         calib.registry_list(foreign)
+
+
+def test_registry_compare_verify_and_shift_check_from_python(tmp_path):
+    """Issue 55, items 2, 3, 5 and 8: two calibrations of the real UR10 (Series B, two draws of 50
+    poses) compared, the controller's block verified and a later session (Series D) checked from
+    Python: each the command line's JSON."""
+    robot = ROOT / "host-tools/robots/ur10.toml"
+    folder = ROOT / "host-tools/data/ipa-ur10-lasertracker"
+    profile = ROOT / "host-tools/profiles/ipa-ur10-lasertracker.toml"
+    db = tmp_path / "ur10.db"
+    for name, seed in (("one", "1"), ("two", "2")):
+        done = run_calib("calibrate", "--robot", robot, "--data", folder / "series-b-joint-configurations.csv",
+                         "--profile", profile, "--validate", "0.9666", "--validate-seed", seed,
+                         "--report", tmp_path / f"{name}.json", "--out", tmp_path / f"{name}.toml")
+        assert done.returncode == 0, done.stderr
+        calib.registry_add(tmp_path / f"{name}.json", db=db, serial="UR10-IPA", identified=tmp_path / f"{name}.toml")
+    compared = calib.registry_compare(1, 2, db=db, poses=200)
+    done = run_calib("registry", "compare", "1", "2", "--poses", "200", "--json", "--db", db)
+    assert done.returncode == 0, done.stderr
+    assert compared == json.loads(done.stdout)
+    assert compared["same_robot"] and compared["joint_test"]["degrees_of_freedom"] > 0
+    block = tmp_path / "two.block"
+    done = run_calib("export", "--params", tmp_path / "two.toml", "--format", "block", "--out", block)
+    assert done.returncode == 0, done.stderr
+    verified = calib.registry_verify("UR10-IPA", block=block, db=db)
+    assert verified["passed"] and verified["matched"]["id"] == 2
+    older = calib.registry_verify("UR10-IPA", robot=tmp_path / "one.toml", db=db)
+    assert not older["passed"] and older["matched"]["how"] == "identical file" and older["latest"] == 2
+    checked = calib.check_shift("UR10-IPA", folder / "series-d-iso-cubes.csv", profile=profile,
+                                register_tracker=True, checked_at="2021-08-02T08:00:00Z", db=db)
+    assert checked["check"] == 1 and checked["result"]["drifted"]
+    done = run_calib("registry", "checks", "--serial", "UR10-IPA", "--json", "--db", db)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["checks"][0]["mean_mm"] == checked["result"]["mean_mm"]
+    # The defaults written out in the Python signatures are the command line's.
+    import inspect
+    assert f"[default: {inspect.signature(calib.registry_compare).parameters['poses'].default}]" in \
+        run_calib("registry", "compare", "--help").stdout
+    assert f"[default: {inspect.signature(calib.check_shift).parameters['k'].default:g}]" in \
+        run_calib("check-shift", "--help").stdout

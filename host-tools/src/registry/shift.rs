@@ -598,3 +598,60 @@ impl DriftRate {
         )
     }
 }
+
+/// A shift check run and recorded, as `calib check-shift` prints it with `--json`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Recorded {
+    /// The check's number in the registry.
+    pub check: i64,
+    /// When the poses were measured (RFC 3339).
+    pub checked_at: String,
+    /// The check.
+    pub result: ShiftCheck,
+    /// The drift rate of the robot's checks, this one included.
+    pub drift_rate: Option<DriftRate>,
+}
+
+/// Checks robot `serial` with the poses in `data` (through `profile`) against its calibration
+/// `record` (default: the latest) in the registry `db`, records the check as measured at
+/// `checked_at` (RFC 3339; default now) and states the drift rate. Refused: no such robot or
+/// record, a time that is not RFC 3339, and as [`check`] and [`super::Registry::add_check`].
+pub fn check_and_record(
+    db: &Path,
+    serial: &str,
+    data: &Path,
+    profile: &crate::io::profile::DataProfile,
+    (record, checked_at): (Option<i64>, Option<&str>),
+    settings: ShiftSettings,
+) -> crate::Result<Recorded> {
+    let checked_at = match checked_at {
+        Some(t) => {
+            humantime::parse_rfc3339_weak(t).map_err(|e| {
+                crate::refused!(option "--checked-at";
+                    "--checked-at {t}: {e}; give a time such as 2026-11-29T06:00:00Z")
+            })?;
+            t.to_string()
+        }
+        None => humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
+    };
+    let mut registry = super::Registry::open(db, super::Access::Write)?;
+    let records = registry.robot(serial)?;
+    let chosen = match record {
+        Some(id) => records.iter().find(|r| r.id == id).ok_or_else(|| {
+            crate::refused!(option "--record"; "--record {id}: no calibration record {id} of robot {serial}")
+        })?,
+        None => records.last().ok_or_else(|| {
+            crate::refused!(option "--serial";
+                "no calibration of robot {serial} is registered: register one (calib registry add) before checking it")
+        })?,
+    };
+    let result = check(chosen, data, profile, settings)?;
+    let id = registry.add_check(&result, &checked_at)?;
+    let drift_rate = drift_rate(&registry.checks(serial)?);
+    Ok(Recorded {
+        check: id,
+        checked_at,
+        result,
+        drift_rate,
+    })
+}

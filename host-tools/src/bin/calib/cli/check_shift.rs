@@ -2,8 +2,7 @@
 //! robot's registered calibration ([`host_tools::registry::shift`]); the check is recorded in
 //! the registry, and the drift of the checks over time stated.
 
-use host_tools::registry::shift::{ShiftSettings, check, drift_rate};
-use host_tools::registry::{Access, Registry};
+use host_tools::registry::shift::{ShiftSettings, check_and_record};
 use std::path::PathBuf;
 
 /// `calib check-shift`'s options.
@@ -21,10 +20,11 @@ pub struct CheckShiftOptions {
     /// Check against this calibration record (default: the robot's latest).
     #[arg(long, value_name = "ID")]
     pub record: Option<i64>,
-    /// A pose has drifted beyond this many standard deviations of its prediction.
+    /// A pose lies beyond its prediction past this many standard deviations (a drift: more
+    /// such poses than chance gives, or the errors together past their point).
     #[arg(long, value_name = "K", default_value_t = host_tools::registry::shift::DEFAULT_K)]
     pub k: f64,
-    /// A pose has drifted beyond this position error, mm (besides K).
+    /// A pose past this position error, mm, is a drift (besides K).
     #[arg(long, value_name = "MM")]
     pub limit_mm: Option<f64>,
     /// The instrument's noise per coordinate, mm (default: the calibration's own estimate).
@@ -50,25 +50,6 @@ pub const DRIFTED: i32 = 3;
 
 /// Runs the check, records it, prints it; exits with [`DRIFTED`] when a pose drifted.
 pub fn run(o: &CheckShiftOptions) -> anyhow::Result<()> {
-    let checked_at = match &o.checked_at {
-        Some(t) => {
-            humantime::parse_rfc3339_weak(t).map_err(|e| {
-                anyhow::anyhow!("--checked-at {t}: {e}; give a time such as 2026-11-29T06:00:00Z")
-            })?;
-            t.clone()
-        }
-        None => humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
-    };
-    let mut registry = Registry::open(&o.db.db, Access::Write)?;
-    let records = registry.robot(&o.serial)?;
-    let record = match o.record {
-        Some(id) => records.iter().find(|r| r.id == id).ok_or_else(|| {
-            anyhow::anyhow!("--record {id}: no calibration record {id} of robot {}", o.serial)
-        })?,
-        None => records.last().ok_or_else(|| {
-            anyhow::anyhow!("no calibration of robot {} is registered: register one (calib registry add) before checking it", o.serial)
-        })?,
-    };
     let profile = host_tools::io::profile::DataProfile::load(o.profile.as_deref())?;
     let settings = ShiftSettings {
         k: o.k,
@@ -76,25 +57,29 @@ pub fn run(o: &CheckShiftOptions) -> anyhow::Result<()> {
         noise_mm: o.noise_mm,
         register_tracker: o.register_tracker,
     };
-    let result = check(record, &o.data, &profile, settings)?;
-    let id = registry.add_check(&result, &checked_at)?;
-    let rate = drift_rate(&registry.checks(&o.serial)?);
+    let recorded = check_and_record(
+        &o.db.db,
+        &o.serial,
+        &o.data,
+        &profile,
+        (o.record, o.checked_at.as_deref()),
+        settings,
+    )?;
     let text = match o.json {
-        true => format!(
-            "{}\n",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "check": id, "checked_at": checked_at, "result": result, "drift_rate": rate
-            }))?
-        ),
+        true => format!("{}\n", serde_json::to_string_pretty(&recorded)?),
         false => format!(
-            "{}recorded as shift check {id} in {}\n{}",
-            result.text(),
+            "{}recorded as shift check {} in {}\n{}",
+            recorded.result.text(),
+            recorded.check,
             o.db.db.display(),
-            rate.map_or(String::new(), |r| r.text())
+            recorded
+                .drift_rate
+                .as_ref()
+                .map_or(String::new(), |r| r.text())
         ),
     };
     crate::cli::print_text(format_args!("{text}"))?;
-    if result.drifted {
+    if recorded.result.drifted {
         let _ = std::io::Write::flush(&mut std::io::stdout());
         std::process::exit(DRIFTED);
     }
