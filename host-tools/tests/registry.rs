@@ -944,6 +944,30 @@ fn shift_checks_name_the_cause_and_state_the_drift() {
     ]));
     let listed: serde_json::Value = serde_json::from_str(&listed).unwrap();
     assert_eq!(listed["checks"].as_array().unwrap().len(), 5);
+    // The trend: the calibration (no held-out poses: not drawn, and said), the five checks (two
+    // red and two green markers besides the legend's), the drift line labelled with its rate.
+    let svg = dir.path().join("trend.svg");
+    ok(&calib(&[
+        "registry",
+        "trend",
+        "--serial",
+        "ER-7",
+        "--out",
+        s(&svg),
+        "--db",
+        s(&db),
+    ]));
+    let svg = std::fs::read_to_string(&svg).unwrap();
+    assert_eq!(
+        svg.matches("<polygon").count(),
+        5 + 1,
+        "five checks and the legend's marker"
+    );
+    assert!(svg.contains("1 without a date or held-out figure, not drawn"));
+    assert!(
+        svg.contains(&format!("drift: {rate:+.4} mm per 30 days")),
+        "{rate}"
+    );
 }
 
 /// A shift check on real data: the UR10 calibrated on 50 poses of Series B, then checked with

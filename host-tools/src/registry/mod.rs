@@ -20,6 +20,7 @@ pub mod compare;
 pub mod export;
 pub mod record;
 pub mod shift;
+pub mod trend;
 pub mod verify;
 
 use record::{Kind, NewRecord, Record, Summary};

@@ -5,8 +5,8 @@
 //! Each pose's position error `e = measured - predicted` (the identified model in the
 //! calibration's own measurement setup: its registered tracker placement and probe) is judged
 //! against its covariance `C = J S J^T + sigma^2 I` (the identified parameters' covariance `S`
-//! propagated as the certificate does, and the instrument's noise `sigma`, by default the
-//! calibration's own least-squares estimate). A pose lies beyond its prediction when `e^T C^-1 e`
+//! propagated as the certificate does, and the instrument's noise `sigma`, by default estimated
+//! from the calibration's own position residuals). A pose lies beyond its prediction when `e^T C^-1 e`
 //! exceeds the chi-square (3 degrees of freedom) point of `k` standard deviations (`k = 3`:
 //! 99.73 %, 14.16). The robot has drifted when more poses lie beyond than chance gives at that
 //! level (the binomial distribution's count, so that one pose in ten past 3 standard deviations
@@ -301,7 +301,11 @@ fn judge(
     (poses, errors)
 }
 
-/// The noise per coordinate: given, else the calibration's least-squares estimate.
+/// The noise per coordinate, mm: given, else estimated from the calibration's own position
+/// residuals: their RMS length over the calibration poses, per coordinate (`/ sqrt 3`), and
+/// corrected for the parameters the fit took (`sqrt(rows / (rows - parameters))`). (Least
+/// squares' residual sigma would not do for 6-DoF data: it mixes the position rows with the
+/// orientation rows, in their weighting.)
 fn noise_of(record: &Record, settings: ShiftSettings) -> crate::Result<f64> {
     if let Some(noise) = settings.noise_mm {
         if !(noise.is_finite() && noise > 0.0) {
@@ -312,13 +316,16 @@ fn noise_of(record: &Record, settings: ShiftSettings) -> crate::Result<f64> {
     }
     let report: serde_json::Value =
         serde_json::from_str(&record.calibration.report).unwrap_or_default();
-    report["least_squares"]["sigma_mm"]
-        .as_f64()
-        .filter(|s| *s > 0.0)
-        .ok_or_else(|| {
-            crate::refused!(option "--noise-mm";
-                "record {}'s report states no noise estimate (least squares did not run): give --noise-mm, the instrument's noise per coordinate", record.id)
-        })
+    let rms = report["calibration"]["after"]["position_mm"]["rms"].as_f64();
+    let rows = report["least_squares"]["rows"].as_f64();
+    let parameters = report["parameters"].as_object().map(|p| p.len() as f64);
+    match (rms, rows, parameters) {
+        (Some(rms), Some(rows), Some(p)) if rms > 0.0 && rows > p => {
+            Ok(rms / 3f64.sqrt() * (rows / (rows - p)).sqrt())
+        }
+        _ => Err(crate::refused!(option "--noise-mm";
+            "record {}'s report states no least-squares fit to estimate the noise from: give --noise-mm, the instrument's noise per coordinate", record.id)),
+    }
 }
 
 /// The hypotheses, simplest first: each joint's zero, the tool, the base (with `base`).

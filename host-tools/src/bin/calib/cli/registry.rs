@@ -49,6 +49,23 @@ pub enum RegistryCommand {
     /// List a robot's shift checks (calib check-shift) with the drift of their mean error over
     /// time.
     Checks(ChecksOptions),
+    /// Plot one robot over time: its calibrations' held-out figures and its shift checks' mean
+    /// errors against the date, with the drift rate (SVG).
+    Trend(TrendOptions),
+}
+
+/// `calib registry trend`.
+#[derive(Debug, clap::Args)]
+pub struct TrendOptions {
+    /// The robot's serial number.
+    #[arg(long, value_name = "SERIAL")]
+    pub serial: String,
+    /// Write the SVG here (an existing file is replaced whole, as by every command).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// The registry.
+    #[command(flatten)]
+    pub db: Db,
 }
 
 /// `calib registry checks`.
@@ -268,19 +285,8 @@ fn text_of(options: &RegistryOptions) -> anyhow::Result<String> {
             }
         }
         RegistryCommand::Verify(_) => String::new(),
-        RegistryCommand::Checks(o) => {
-            let checks = Registry::open(&o.db.db, Access::Read)?.checks(&o.serial)?;
-            let rate = host_tools::registry::shift::drift_rate(&checks);
-            match o.json {
-                true => format!(
-                    "{}\n",
-                    serde_json::to_string_pretty(
-                        &serde_json::json!({"checks": checks, "drift_rate": rate})
-                    )?
-                ),
-                false => checks_text(&o.serial, &checks, rate.as_ref()),
-            }
-        }
+        RegistryCommand::Trend(o) => trend(o)?,
+        RegistryCommand::Checks(o) => checks(o)?,
         RegistryCommand::Export(o) => {
             let records = Registry::open(&o.db.db, Access::Read)?.all()?;
             let text = match o.format {
@@ -411,4 +417,37 @@ fn checks_text(
         text.push_str(&rate.text());
     }
     text
+}
+
+/// `calib registry trend`: writes the SVG; what it wrote.
+fn trend(o: &TrendOptions) -> anyhow::Result<String> {
+    let registry = Registry::open(&o.db.db, Access::Read)?;
+    let (calibrations, checks) = (registry.list(Some(&o.serial))?, registry.checks(&o.serial)?);
+    let rate = host_tools::registry::shift::drift_rate(&checks);
+    let svg = host_tools::registry::trend::svg(&o.serial, &calibrations, &checks, rate.as_ref())?;
+    let mut outputs = Outputs::new(&[("--db", o.db.db.as_path())]);
+    outputs.stage("--out", &o.out, svg.as_bytes())?;
+    outputs.commit()?;
+    Ok(format!(
+        "wrote {} ({} calibrations, {} shift checks of robot {})\n",
+        o.out.display(),
+        calibrations.len(),
+        checks.len(),
+        o.serial
+    ))
+}
+
+/// `calib registry checks`: the robot's shift checks and drift rate, as text or JSON.
+fn checks(o: &ChecksOptions) -> anyhow::Result<String> {
+    let checks = Registry::open(&o.db.db, Access::Read)?.checks(&o.serial)?;
+    let rate = host_tools::registry::shift::drift_rate(&checks);
+    Ok(match o.json {
+        true => format!(
+            "{}\n",
+            serde_json::to_string_pretty(
+                &serde_json::json!({"checks": checks, "drift_rate": rate})
+            )?
+        ),
+        false => checks_text(&o.serial, &checks, rate.as_ref()),
+    })
 }
