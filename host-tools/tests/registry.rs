@@ -485,6 +485,22 @@ fn a_registration_killed_midway_leaves_the_registry_whole() {
     ));
 }
 
+/// The ER10L-C10 file stating serial `ER-7` (`er-7.toml` in `dir`), and the same robot changed
+/// by `change` (`name` in `dir`, described by `comment`).
+fn er7_files(
+    dir: &Path,
+    (name, comment): (&str, &str),
+    change: impl FnOnce(&mut host_tools::io::robot_file::RobotFile),
+) -> (PathBuf, PathBuf) {
+    let mut file = host_tools::io::robot_file::RobotFile::read(Path::new(ROBOT)).unwrap();
+    file.serial = Some("ER-7".to_string());
+    let (er7, changed) = (dir.join("er-7.toml"), dir.join(name));
+    std::fs::write(&er7, file.to_toml("ER-7")).unwrap();
+    change(&mut file);
+    std::fs::write(&changed, file.to_toml(comment)).unwrap();
+    (er7, changed)
+}
+
 /// Simulated tracker data of `robot` (noise 0.02 mm, 2e-5 rad), calibrated against the
 /// ER10L-C10 file stating serial `ER-7` in `dir` and registered in `db` with its identified file.
 fn register_simulated(dir: &Path, db: &Path, robot: &Path, seed: u64) {
@@ -565,13 +581,11 @@ fn compared_calibrations_are_judged_by_their_uncertainty() {
     use host_tools::io::robot_file::RobotFile;
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("fleet.db");
-    let mut file = RobotFile::read(Path::new(ROBOT)).unwrap();
-    file.serial = Some("ER-7".to_string());
-    std::fs::write(dir.path().join("er-7.toml"), file.to_toml("ER-7")).unwrap();
-    file.joint[1].a_mm += 0.3;
-    let longer = dir.path().join("er-7-longer-a2.toml");
-    std::fs::write(&longer, file.to_toml("ER-7, a2 0.3 mm longer")).unwrap();
-    let er7 = dir.path().join("er-7.toml");
+    let (er7, longer) = er7_files(
+        dir.path(),
+        ("er-7-longer-a2.toml", "ER-7, a2 0.3 mm longer"),
+        |file| file.joint[1].a_mm += 0.3,
+    );
     for seed in 11..35 {
         register_simulated(dir.path(), &db, &er7, seed);
     }
@@ -642,13 +656,11 @@ fn the_controllers_calibration_is_verified() {
     use host_tools::io::robot_file::RobotFile;
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("fleet.db");
-    let mut file = RobotFile::read(Path::new(ROBOT)).unwrap();
-    file.serial = Some("ER-7".to_string());
-    let er7 = dir.path().join("er-7.toml");
-    std::fs::write(&er7, file.to_toml("ER-7")).unwrap();
-    file.joint[1].a_mm += 0.3;
-    let longer = dir.path().join("er-7-longer-a2.toml");
-    std::fs::write(&longer, file.to_toml("ER-7, a2 0.3 mm longer")).unwrap();
+    let (er7, longer) = er7_files(
+        dir.path(),
+        ("er-7-longer-a2.toml", "ER-7, a2 0.3 mm longer"),
+        |file| file.joint[1].a_mm += 0.3,
+    );
     register_simulated(dir.path(), &db, &er7, 11);
     register_simulated(dir.path(), &db, &longer, 12);
     let block = |params: &Path, name: &str, extra: &[&str]| {
@@ -760,16 +772,13 @@ fn the_controllers_calibration_is_verified() {
 /// through the recorded means; the same data twice are refused and not recorded.
 #[test]
 fn shift_checks_name_the_cause_and_state_the_drift() {
-    use host_tools::io::robot_file::RobotFile;
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("cell.db");
-    let mut file = RobotFile::read(Path::new(ROBOT)).unwrap();
-    file.serial = Some("ER-7".to_string());
-    let er7 = dir.path().join("er-7.toml");
-    std::fs::write(&er7, file.to_toml("ER-7")).unwrap();
-    file.joint[2].theta_offset_deg += 0.02;
-    let zero = dir.path().join("er-7-zero3.toml");
-    std::fs::write(&zero, file.to_toml("ER-7, joint 3's zero moved")).unwrap();
+    let (er7, zero) = er7_files(
+        dir.path(),
+        ("er-7-zero3.toml", "ER-7, joint 3's zero moved"),
+        |file| file.joint[2].theta_offset_deg += 0.02,
+    );
     let simulate = |robot: &Path, name: &str, poses: &str, seed: &str, extra: &[&str]| {
         let data = dir.path().join(format!("{name}.csv"));
         let truth = dir.path().join(format!("{name}-truth.toml"));

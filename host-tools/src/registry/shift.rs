@@ -153,7 +153,12 @@ pub fn check(
     let file = RobotFile::parse(text, &path)?;
     let bytes = crate::io::input::read(data, crate::io::input::Input::Data)
         .map_err(|e| crate::refused!(input data.display(); "--data {}: {e}", data.display()))?;
-    let tracker = crate::io::tracker_data::TrackerData::read_with(data, profile)?;
+    // Parsed from the bytes hashed: the check's SHA-256 is of the data it judged.
+    let text = std::str::from_utf8(&bytes).map_err(|e| {
+        crate::refused!(input data.display();
+            "--data {}: byte {} is not UTF-8 text; save the file as UTF-8", data.display(), e.valid_up_to())
+    })?;
+    let tracker = crate::io::tracker_data::TrackerData::parse_profiled(text, data, profile)?;
     let dataset = Dataset::from_data(file, &path, tracker)?;
     let noise = noise_of(record, settings)?;
     let (robot, covariance) = model_of(&dataset, settings.register_tracker, &path)?;

@@ -101,10 +101,12 @@ pub fn verify(serial: &str, records: &[Record], given: &Given) -> crate::Result<
         crate::refused!(option "--serial";
             "no calibration of robot {serial} is registered: calib registry list shows the serials")
     })?;
-    let path = match given {
-        Given::Block(p) | Given::Robot(p) => p,
+    use crate::io::input::Input;
+    let (path, kind) = match given {
+        Given::Block(p) => (p, Input::Data),
+        Given::Robot(p) => (p, Input::Document),
     };
-    let bytes = crate::io::input::read(path, crate::io::input::Input::Data)
+    let bytes = crate::io::input::read(path, kind)
         .map_err(|e| crate::refused!(input path.display(); "{}: {e}", path.display()))?;
     let hash = sha256(&bytes);
     let given_model = GivenModel::read(given, &bytes)?;
