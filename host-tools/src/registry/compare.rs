@@ -144,12 +144,10 @@ struct Identified {
 impl Identified {
     fn of(record: &Record) -> crate::Result<Self> {
         let c = &record.calibration;
-        let path = PathBuf::from(format!("record {} (its identified file)", record.id));
-        let text = c.identified_toml.as_deref().ok_or_else(|| {
+        let (file, path) = record.identified_file().ok_or_else(|| {
             crate::refused!(input format!("record {}", record.id);
                 "record {} keeps no identified robot file: register the calibration again with --identified FILE (the robot file calib calibrate or calib sockets wrote with --out)", record.id)
-        })?;
-        let file = RobotFile::parse(text, &path)?;
+        })??;
         let errors = file.calibration_errors(&path)?;
         let joints = file.joint.len();
         let listed = (file.calibration.as_ref().into_iter())

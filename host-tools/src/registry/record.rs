@@ -255,6 +255,22 @@ pub struct Record {
     pub calibration: NewRecord,
 }
 
+impl Record {
+    /// The identified robot file the record keeps, parsed, with the path messages name it by
+    /// (`record N (its identified file)`); `None` when it keeps none.
+    pub fn identified_file(
+        &self,
+    ) -> Option<crate::Result<(crate::io::robot_file::RobotFile, std::path::PathBuf)>> {
+        let text = self.calibration.identified_toml.as_deref()?;
+        let path = std::path::PathBuf::from(format!("record {} (its identified file)", self.id));
+        Some(
+            crate::io::robot_file::RobotFile::parse(text, &path)
+                .map(|file| (file, path))
+                .map_err(crate::Error::from),
+        )
+    }
+}
+
 /// A line of a listing.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Summary {

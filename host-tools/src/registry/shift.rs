@@ -23,14 +23,13 @@
 //! the one explaining most is stated as partial.
 
 use super::record::Record;
-use crate::io::robot_file::RobotFile;
 use crate::measurement::dataset::Dataset;
 use calib_core::{FrameParameter, JointAngles, JointParameter, Kinematics, Parameter};
 use calib_core::{ParameterMask, ParameterSet};
 use nalgebra::{DMatrix, DVector, Dyn, Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 use statrs::distribution::{ChiSquared, ContinuousCDF as _};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Standard deviations a pose may lie from its prediction, by default.
 pub const DEFAULT_K: f64 = 3.0;
@@ -145,12 +144,10 @@ pub fn check(
     settings: ShiftSettings,
 ) -> crate::Result<ShiftCheck> {
     let id = record.id;
-    let path = PathBuf::from(format!("record {id} (its identified file)"));
-    let text = record.calibration.identified_toml.as_deref().ok_or_else(|| {
+    let (file, path) = record.identified_file().ok_or_else(|| {
         crate::refused!(input format!("record {id}");
             "record {id} keeps no identified robot file to predict the poses with: register the calibration with --identified FILE")
-    })?;
-    let file = RobotFile::parse(text, &path)?;
+    })??;
     let bytes = crate::io::input::read(data, crate::io::input::Input::Data)
         .map_err(|e| crate::refused!(input data.display(); "--data {}: {e}", data.display()))?;
     // Parsed from the bytes hashed: the check's SHA-256 is of the data it judged.

@@ -111,12 +111,8 @@ pub fn verify(serial: &str, records: &[Record], given: &Given) -> crate::Result<
     let hash = sha256(&bytes);
     let given_model = GivenModel::read(given, &bytes)?;
     let identified: Vec<(&Record, RobotFile, PathBuf)> = (records.iter())
-        .filter_map(|r| {
-            let text = r.calibration.identified_toml.as_deref()?;
-            let path = PathBuf::from(format!("record {} (its identified file)", r.id));
-            Some(RobotFile::parse(text, &path).map(|f| (r, f, path)))
-        })
-        .collect::<Result<_, _>>()?;
+        .filter_map(|r| Some(r.identified_file()?.map(|(file, path)| (r, file, path))))
+        .collect::<crate::Result<_>>()?;
     let by_hash = records.iter().rev().find(|r| {
         let c = &r.calibration;
         c.block_sha256.as_deref() == Some(&hash) || c.identified_sha256.as_deref() == Some(&hash)
