@@ -1076,3 +1076,74 @@ fn a_later_session_of_the_real_ur10_is_checked() {
     assert!((max - evaluation["position_mm"]["max"].as_f64().unwrap()).abs() < 1e-9);
     assert_eq!((code, &registered["drifted"]), (Some(3), &true.into()));
 }
+
+/// `calib calibrate --registry`: the calibration registered as `calib registry add` would with its
+/// report, identified file and certificate (each SHA-256 the file's); refused before anything is
+/// calibrated without `--report`, for a robot file stating no serial, or with the registry named
+/// as one of the outputs.
+#[test]
+fn calibrate_registers_its_calibration() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("cell.db");
+    let robot = dir.path().join("er10l-serial.toml");
+    let text = std::fs::read_to_string(ROBOT).unwrap();
+    std::fs::write(&robot, format!("serial = \"ER-0042\"\n{text}")).unwrap();
+    let (data, _) = simulate(dir.path(), "sim", &["--poses", "40", "--seed", "3"]);
+    let (report, identified, html) = (
+        dir.path().join("r.json"),
+        dir.path().join("id.toml"),
+        dir.path().join("r.html"),
+    );
+    let calibrate = |robot: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "calibrate",
+            "--robot",
+            s(robot),
+            "--data",
+            s(&data),
+            "--method",
+            "lm",
+        ];
+        args.extend_from_slice(extra);
+        calib(&args)
+    };
+    let refused = calibrate(&robot, &["--registry", s(&db), "--out", s(&identified)]);
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("--registry needs --report"));
+    let refused = calibrate(
+        Path::new(ROBOT),
+        &["--registry", s(&db), "--report", s(&report)],
+    );
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("states no serial"));
+    let refused = calibrate(&robot, &["--registry", s(&report), "--report", s(&report)]);
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("is also --report"));
+    assert!(
+        !db.exists() && !report.exists() && !identified.exists(),
+        "nothing written"
+    );
+    let out = ok(&calibrate(
+        &robot,
+        &[
+            "--registry",
+            s(&db),
+            "--report",
+            s(&report),
+            "--out",
+            s(&identified),
+            "--html",
+            s(&html),
+        ],
+    ));
+    assert!(out.contains("registered record 1: robot ER-0042"), "{out}");
+    let shown: serde_json::Value = serde_json::from_str(&ok(&calib(&[
+        "registry",
+        "show",
+        "1",
+        "--json",
+        "--db",
+        s(&db),
+    ])))
+    .unwrap();
+    assert_eq!(shown[0]["report_sha256"], sha256_of(&report));
+    assert_eq!(shown[0]["identified_sha256"], sha256_of(&identified));
+    assert_eq!(shown[0]["certificate_sha256"], sha256_of(&html));
+}

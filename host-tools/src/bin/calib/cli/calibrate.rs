@@ -117,6 +117,11 @@ pub struct CalibrateOptions {
     /// Never show the progress bar (it is shown only on a terminal anyway).
     #[arg(long)]
     pub quiet: bool,
+    /// Register the calibration in this registry once its files are written, as calib registry
+    /// add does with the report, the identified file (--out) and the certificate (--html). Needs
+    /// --report and the robot file's serial.
+    #[arg(long, value_name = "FILE")]
+    pub registry: Option<PathBuf>,
 }
 
 impl CalibrateOptions {
@@ -164,6 +169,7 @@ impl CalibrateOptions {
 /// whether the acceptance criteria (if any) are met.
 pub fn calibrate_and_write(options: &CalibrateOptions) -> anyhow::Result<Written> {
     host_tools::model::counts::joint_count(options.input.joints()?)?;
+    let mut registry = registry_of(options)?;
     let calibrated = calibrate(options)?;
     // The files first: a closed or full standard output must not lose them.
     let written = write_outputs(&calibrated, &options.outputs())?;
@@ -171,10 +177,70 @@ pub fn calibrate_and_write(options: &CalibrateOptions) -> anyhow::Result<Written
     for path in written {
         text.push_str(&format!("wrote {}\n", path.display()));
     }
+    if let Some(registry) = &mut registry {
+        use host_tools::registry::record::{NewRecord, RecordFiles};
+        let record = NewRecord::from_files(&RecordFiles {
+            report: options.report.as_deref(),
+            identified: options.out.as_deref(),
+            certificate: options.html.as_deref(),
+            ..RecordFiles::default()
+        })?;
+        let id = registry.add(&record)?;
+        text.push_str(&format!(
+            "registered record {id}: robot {} in {}\n",
+            record.serial,
+            registry.path().display()
+        ));
+    }
     Ok(Written {
         text,
         accepted: calibrated.accepted(),
     })
+}
+
+/// The registry `--registry` names, opened (created when new) before anything is calibrated,
+/// so that a file that is not a registry is refused first. Refused: no `--report` (the registry
+/// keeps the report and its SHA-256), a robot file stating no serial.
+fn registry_of(
+    options: &CalibrateOptions,
+) -> anyhow::Result<Option<host_tools::registry::Registry>> {
+    use host_tools::registry::{Access, Registry};
+    let Some(db) = &options.registry else {
+        return Ok(None);
+    };
+    if options.report.is_none() {
+        bail!(
+            "--registry needs --report FILE: the registry keeps the report and its SHA-256; nothing was calibrated"
+        );
+    }
+    let paths = options.outputs();
+    let named = (paths.inputs.iter().map(|(flag, path)| (*flag, path))).chain(
+        [
+            ("--out", &paths.out),
+            ("--report", &paths.report),
+            ("--html", &paths.html),
+            ("--plot", &paths.plot),
+        ]
+        .into_iter()
+        .filter_map(|(flag, path)| Some((flag, path.as_ref()?))),
+    );
+    let absolute = |p: &std::path::Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    for (flag, path) in named {
+        if absolute(path) == absolute(db) {
+            bail!(
+                "--registry {} is also {flag}: name the registry apart from every input and output; nothing was calibrated",
+                db.display()
+            );
+        }
+    }
+    let robot = &options.input.robot;
+    if RobotFile::read(robot)?.serial.is_none() {
+        bail!(
+            "--registry: {} states no serial (serial = \"...\" in the robot file, as on the robot's plate); the registry keys calibrations by serial: add it, or register later with calib registry add --serial; nothing was calibrated",
+            robot.display()
+        );
+    }
+    Ok(Some(Registry::open(db, Access::Write)?))
 }
 
 /// What `calib calibrate` did, for the command to print and to set its exit status by.
