@@ -567,6 +567,12 @@ fn calibrate() {
         ("--html", Value("other.html")),
         ("--plot", Value("plots")),
         ("--quiet", Exempt("progress bars, shown on a terminal only")),
+        (
+            "--registry",
+            Exempt(
+                "adds a record to the named registry; the files written are unchanged (registry.rs: calibrate_registers_its_calibration)",
+            ),
+        ),
         INPUT_LIMIT,
     ];
     let options: Vec<_> = OTHER.iter().copied().chain(SWARM).collect();
