@@ -86,6 +86,7 @@ pub mod kinematics;
 pub mod measurement;
 pub mod model;
 pub mod planning;
+pub mod pose_test;
 pub mod registry;
 pub mod report;
 pub mod runtime;

@@ -18,6 +18,7 @@
 
 pub mod compare;
 pub mod export;
+pub mod pose_tests;
 pub mod record;
 pub mod shift;
 pub mod trend;
@@ -29,7 +30,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// The schema this version writes and reads.
-pub const SCHEMA_VERSION: i64 = 3;
+pub const SCHEMA_VERSION: i64 = 4;
 
 /// `PRAGMA application_id` of a registry: "CALB".
 pub const APPLICATION_ID: i64 = 0x4341_4C42;
@@ -47,8 +48,9 @@ pub const BUSY_TIMEOUT: Duration = Duration::from_secs(30);
 /// inputs, identified file, report) in `calibration_content`, so that listing 100,000
 /// calibrations reads a few megabytes instead of every record's first page; and it keeps the
 /// report without its per-pose lists ([`record::NOT_KEPT`]). Version 3 adds the shift checks
-/// ([`shift`]), each against the calibration it checked.
-const MIGRATIONS: [&str; 3] = [
+/// ([`shift`]), each against the calibration it checked. Version 4 adds the ISO 9283 pose tests
+/// ([`pose_tests`]).
+const MIGRATIONS: [&str; 4] = [
     "CREATE TABLE calibration (
     id INTEGER PRIMARY KEY AUTOINCREMENT,
     serial TEXT NOT NULL,
@@ -118,6 +120,19 @@ CREATE INDEX calibration_by_robot ON calibration (serial, calibrated_at, id);",
     UNIQUE (calibration_id, data_sha256, settings)
 );
 CREATE INDEX shift_check_by_robot ON shift_check (serial, checked_at, id);",
+    "CREATE TABLE pose_test (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    serial TEXT NOT NULL,
+    tested_at TEXT NOT NULL,
+    data_sha256 TEXT NOT NULL,
+    targets_sha256 TEXT NOT NULL,
+    cycles INTEGER NOT NULL,
+    ap_max_mm REAL NOT NULL,
+    rp_max_mm REAL NOT NULL,
+    result TEXT NOT NULL,
+    UNIQUE (serial, data_sha256, targets_sha256)
+);
+CREATE INDEX pose_test_by_robot ON pose_test (serial, tested_at, id);",
 ];
 
 /// What a command does with the registry.
@@ -598,8 +613,8 @@ mod tests {
         let header = registry.header().unwrap();
         assert_eq!(
             header,
-            (APPLICATION_ID, 3, 8),
-            "three tables, sqlite_sequence, four indexes"
+            (APPLICATION_ID, 4, 11),
+            "four tables, sqlite_sequence, six indexes"
         );
         let record = registry.show(7).unwrap();
         let c = &record.calibration;

@@ -43,7 +43,7 @@ impl Rendering {
 }
 
 /// The section identifiers of the page, in order (each an `<h2 id>`); tests and readers rely on
-/// them.
+/// them. A page with a pose test has [`POSE_TEST_SECTION`] after `accuracy`.
 pub const SECTIONS: [&str; 12] = [
     "summary",
     "conditions",
@@ -102,6 +102,20 @@ fn serde_name<T: serde::Serialize>(value: &T) -> String {
 
 /// The page for `report` (the JSON report of a calibration).
 pub fn render(report: &Report, rendering: &Rendering) -> crate::Result<String> {
+    render_with(report, rendering, None)
+}
+
+/// The section of an ISO 9283 pose test, after `accuracy` when the page has one
+/// ([`render_with`]).
+pub const POSE_TEST_SECTION: &str = "pose-test";
+
+/// The page for `report` with the ISO 9283 pose test `pose_test` measured on the calibrated
+/// robot ([`POSE_TEST_SECTION`], after the held-out accuracy).
+pub fn render_with(
+    report: &Report,
+    rendering: &Rendering,
+    pose_test: Option<&crate::pose_test::PoseTest>,
+) -> crate::Result<String> {
     let mut page = String::new();
     let robot = esc(&report.robot);
     let data = esc(&report.data);
@@ -112,6 +126,9 @@ pub fn render(report: &Report, rendering: &Rendering) -> crate::Result<String> {
     summary(&mut page, report, &robot, &data)?;
     conditions(&mut page, report.conditions.as_ref())?;
     accuracy(&mut page, report)?;
+    if let Some(test) = pose_test {
+        page.push_str(&super::pose_test::section(test)?);
+    }
     table3(&mut page, report)?;
     parameters(&mut page, report)?;
     identifiability(&mut page, report)?;

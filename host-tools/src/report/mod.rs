@@ -4,6 +4,7 @@
 pub mod html;
 pub mod pdf;
 pub mod plots;
+pub mod pose_test;
 pub mod tables;
 mod text;
 pub mod touch_certificate;

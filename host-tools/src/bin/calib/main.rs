@@ -94,6 +94,10 @@ enum Command {
     /// Keep every calibration of every robot in one SQLite file (--db, calib.db by default):
     /// register a report with the files beside it, list, show, export.
     Registry(crate::cli::registry::RegistryOptions),
+    /// The ISO 9283 pose test: plan the test cube, its five points and the program of n
+    /// cycles; evaluate the measured run (pose accuracy and repeatability AP, RP, distance AD,
+    /// RD, drift).
+    Iso9283(crate::cli::iso9283::Iso9283Options),
     /// Run the paper's experiment and a realistic cell on simulated data, no input files needed;
     /// prints the tables and writes data, reports and plots into a directory.
     Demo(crate::cli::demo::DemoOptions),
@@ -266,6 +270,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::PlanSockets(options) => crate::cli::plan_sockets::run(&options)?,
         Command::Registry(options) => crate::cli::registry::run(&options)?,
         Command::CheckShift(options) => crate::cli::check_shift::run(&options)?,
+        Command::Iso9283(options) => crate::cli::iso9283::run(&options)?,
         Command::Calibrate(options) => calibrate_command(options)?,
     }
     Ok(())

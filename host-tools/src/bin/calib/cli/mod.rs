@@ -10,6 +10,7 @@ pub mod evaluate;
 pub mod export;
 pub mod import_ur;
 pub mod import_urdf;
+pub mod iso9283;
 pub mod merge;
 pub mod plan;
 pub mod plan_sockets;

@@ -49,6 +49,9 @@ pub enum RegistryCommand {
     /// List a robot's shift checks (calib check-shift) with the drift of their mean error over
     /// time.
     Checks(ChecksOptions),
+    /// List a robot's ISO 9283 pose tests (calib iso9283 evaluate --registry): cycles, the
+    /// largest AP and RP; one whole with --id.
+    PoseTests(PoseTestsOptions),
     /// Plot one robot over time: its calibrations' held-out figures and its shift checks' mean
     /// errors against the date, with the drift rate (SVG).
     Trend(TrendOptions),
@@ -75,6 +78,23 @@ pub struct ChecksOptions {
     #[arg(long, value_name = "SERIAL")]
     pub serial: String,
     /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// The registry.
+    #[command(flatten)]
+    pub db: Db,
+}
+
+/// `calib registry pose-tests`.
+#[derive(Debug, clap::Args)]
+pub struct PoseTestsOptions {
+    /// The robot's serial number.
+    #[arg(long, value_name = "SERIAL")]
+    pub serial: String,
+    /// Show this test whole (its characteristics per point).
+    #[arg(long, value_name = "ID")]
+    pub id: Option<i64>,
+    /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
     /// The registry.
@@ -287,6 +307,7 @@ fn text_of(options: &RegistryOptions) -> anyhow::Result<String> {
         RegistryCommand::Verify(_) => String::new(),
         RegistryCommand::Trend(o) => trend(o)?,
         RegistryCommand::Checks(o) => checks(o)?,
+        RegistryCommand::PoseTests(o) => pose_tests(o)?,
         RegistryCommand::Export(o) => {
             let records = Registry::open(&o.db.db, Access::Read)?.all()?;
             let text = match o.format {
@@ -449,5 +470,27 @@ fn checks(o: &ChecksOptions) -> anyhow::Result<String> {
             )?
         ),
         false => checks_text(&o.serial, &checks, rate.as_ref()),
+    })
+}
+
+fn pose_tests(o: &PoseTestsOptions) -> anyhow::Result<String> {
+    let registry = Registry::open(&o.db.db, Access::Read)?;
+    let tests = registry.pose_tests(&o.serial)?;
+    if let Some(id) = o.id {
+        let test = match tests.iter().any(|t| t.id == id) {
+            true => registry.pose_test(id)?,
+            false => None,
+        };
+        let test = test
+            .ok_or_else(|| anyhow::anyhow!("--id {id}: no pose test {id} of robot {}", o.serial))?;
+        return Ok(match o.json {
+            true => format!("{}\n", serde_json::to_string_pretty(&test)?),
+            false => test.text(),
+        });
+    }
+    Ok(match (o.json, tests.is_empty()) {
+        (true, _) => format!("{}\n", serde_json::to_string_pretty(&tests)?),
+        (false, true) => format!("no pose tests of robot {} recorded\n", o.serial),
+        (false, false) => tests.iter().map(|t| t.line() + "\n").collect(),
     })
 }

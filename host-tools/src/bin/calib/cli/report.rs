@@ -19,16 +19,28 @@ pub struct ReportOptions {
     /// google-chrome).
     #[arg(long, value_name = "FILE")]
     pub pdf: Option<PathBuf>,
+    /// An ISO 9283 pose test of the calibrated robot (calib iso9283 evaluate --report), shown
+    /// after the held-out accuracy (tracker calibrations).
+    #[arg(long, value_name = "FILE")]
+    pub pose_test: Option<PathBuf>,
 }
 
 /// Runs `calib report`: writes the HTML page and/or the PDF asked for, all or nothing.
 pub fn report(options: &ReportOptions) -> anyhow::Result<()> {
-    let page = page(&options.from)?;
+    let pose_test = match &options.pose_test {
+        Some(path) => Some(pose_test_of(path)?),
+        None => None,
+    };
+    let page = page(&options.from, pose_test.as_ref())?;
     let pdf = match &options.pdf {
         Some(_) => Some(host_tools::report::pdf::print(&page)?),
         None => None,
     };
-    let mut outputs = Outputs::new(&[("--from", &options.from)]);
+    let mut inputs = vec![("--from", options.from.as_path())];
+    if let Some(path) = &options.pose_test {
+        inputs.push(("--pose-test", path.as_path()));
+    }
+    let mut outputs = Outputs::new(&inputs);
     if let Some(path) = &options.html {
         outputs.stage("--html", path, page.as_bytes())?;
     }
@@ -41,18 +53,39 @@ pub fn report(options: &ReportOptions) -> anyhow::Result<()> {
 
 /// The page of the report at `from`: a tracker calibration's report, or a calibration from
 /// touches' certificate (a report naming `fitted_placements`, refused with that kind's message).
-fn page(from: &std::path::Path) -> anyhow::Result<String> {
+fn page(
+    from: &std::path::Path,
+    pose_test: Option<&host_tools::pose_test::PoseTest>,
+) -> anyhow::Result<String> {
     use host_tools::report::{html, touch_certificate};
     let rendering = html::Rendering::now();
     match host_tools::calibration::Report::read(from) {
-        Ok(report) => Ok(html::render(&report, &rendering)?),
+        Ok(report) => Ok(html::render_with(&report, &rendering, pose_test)?),
         Err(tracker) => {
             let bytes = host_tools::io::input::read(from, host_tools::io::input::Input::Data)?;
             if !String::from_utf8_lossy(&bytes).contains("\"fitted_placements\"") {
                 return Err(tracker.into());
             }
+            if pose_test.is_some() {
+                anyhow::bail!(
+                    "--pose-test: {} is a calibration from touches, whose certificate does not show a pose test yet; render the test with calib iso9283 evaluate",
+                    from.display()
+                );
+            }
             let report = host_tools::calibration::touches::TouchReport::read(from)?;
             Ok(touch_certificate::render(&report, &rendering)?)
         }
     }
+}
+
+/// The pose test saved at `path` (calib iso9283 evaluate --report).
+fn pose_test_of(path: &std::path::Path) -> anyhow::Result<host_tools::pose_test::PoseTest> {
+    let bytes = host_tools::io::input::read(path, host_tools::io::input::Input::Data)
+        .map_err(|e| anyhow::anyhow!("--pose-test {}: {e}", path.display()))?;
+    serde_json::from_slice(&bytes).map_err(|e| {
+        anyhow::anyhow!(
+            "--pose-test {}: not the JSON of calib iso9283 evaluate --report ({e})",
+            path.display()
+        )
+    })
 }
