@@ -192,6 +192,26 @@ fn make_fixture(f: &Path) {
          [instrument]\nname = \"a laser tracker\"\nmpe_um = 15.0\nmpe_um_per_m = 6.0\n",
     )
     .unwrap();
+    // An ISO 9283 run of 6 cycles in the base frame.
+    std::fs::write(
+        f.join("iso-targets.csv"),
+        "id,x_mm,y_mm,z_mm,qw,qx,qy,qz\nP1,1000,0,500,1,0,0,0\nP2,900,-100,400,1,0,0,0\nP4,1100,100,600,1,0,0,0\n",
+    )
+    .unwrap();
+    let mut iso_run = String::from(
+        "# frame: base\nid,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,x_mm,y_mm,z_mm\n",
+    );
+    for c in 1..=6 {
+        let dx = 0.05 * c as f64;
+        for (point, x, y, z) in [
+            ("P1", 1000.0 + dx, 0.0, 500.0),
+            ("P4", 1100.3, 100.0, 600.0),
+            ("P2", 900.0, -100.0, 400.0 + dx),
+        ] {
+            iso_run.push_str(&format!("{point}-c{c},0,0,0,0,0,0,{x},{y},{z}\n"));
+        }
+    }
+    std::fs::write(f.join("iso-run.csv"), iso_run).unwrap();
     std::fs::write(
         f.join("log-profile-s.toml"),
         "description = \"the robot log, times read as s\"\ndelimiter = \",\"\n\n[columns]\n\
@@ -287,7 +307,7 @@ struct Written {
 }
 
 fn run(dir: &Path, command: &str, args: &[String]) -> Output {
-    let all: Vec<&str> = std::iter::once(command)
+    let all: Vec<&str> = (command.split(' '))
         .chain(args.iter().map(String::as_str))
         .collect();
     common::calib_in(dir, &all)
@@ -489,7 +509,9 @@ impl std::fmt::Debug for Variation {
 
 /// The long options `calib COMMAND --help` lists (without `--help`).
 fn help_options(command: &str) -> Vec<String> {
-    let out = common::calib(&[command, "--help"]);
+    let mut words: Vec<&str> = command.split(' ').collect();
+    words.push("--help");
+    let out = common::calib(&words);
     let text = common::ok(&out);
     text.lines()
         .filter_map(|line| {
@@ -1062,6 +1084,12 @@ fn the_small_commands() {
                 ("--from", REQUIRED),
                 ("--html", Value("s.html")),
                 ("--pdf", Exempt("needs Chromium: html_report.rs tests it")),
+                (
+                    "--pose-test",
+                    Exempt(
+                        "adds a section to the page, which this matrix compares by name only (pose_test.rs: the_certificate_shows_the_pose_test)",
+                    ),
+                ),
                 INPUT_LIMIT,
             ],
         },
@@ -1116,6 +1144,104 @@ fn the_small_commands() {
                     Exempt("the output folder: cli_demo_verify.rs runs the demo"),
                 ),
                 ("--quiet", Exempt("progress bars, shown on a terminal only")),
+                INPUT_LIMIT,
+            ],
+        },
+    ]);
+}
+
+#[test]
+fn the_iso9283_pose_test() {
+    assert_no_defects(&[
+        Matrix {
+            command: "iso9283 plan",
+            bases: &[&[
+                "--robot",
+                "{R}",
+                "--centre-mm",
+                "1200,0,800",
+                "--edge-mm",
+                "400",
+                "--near-deg",
+                "0,-30,30,0,60,0",
+                "--cycles",
+                "3",
+                "--targets",
+                "t.csv",
+                "--out",
+                "run.csv",
+                "--urscript",
+                "p.script",
+            ]],
+            options: &[
+                ("--robot", REQUIRED),
+                ("--centre-mm", Value("1200,0,700")),
+                ("--edge-mm", Value("300")),
+                ("--rpy-deg", Value("180,-20,0")),
+                ("--near-deg", Value("0,-20,30,0,60,0")),
+                ("--branch", Value("0")),
+                ("--cycles", Value("4")),
+                ("--targets", Value("t2.csv")),
+                ("--out", Value("run2.csv")),
+                ("--joint-targets", Value("jt.csv")),
+                ("--urscript", Value("q.script")),
+                ("--settle-s", Value("1")),
+                ("--speed-rad-s", Value("0.25")),
+                ("--acceleration-rad-s2", Value("0.25")),
+                INPUT_LIMIT,
+            ],
+        },
+        Matrix {
+            command: "iso9283 evaluate",
+            bases: &[
+                &[
+                    "--targets",
+                    "{F}/iso-targets.csv",
+                    "--data",
+                    "{F}/iso-run.csv",
+                    "--robot",
+                    "{R}",
+                    "--report",
+                    "t.json",
+                ],
+                &[
+                    "--targets",
+                    "{F}/iso-targets.csv",
+                    "--data",
+                    "{F}/iso-run.csv",
+                    "--robot",
+                    "{R}",
+                    "--registry",
+                    "r.db",
+                    "--serial",
+                    "ER-1",
+                ],
+            ],
+            options: &[
+                ("--targets", REQUIRED),
+                ("--data", REQUIRED),
+                ("--robot", REQUIRED),
+                ("--profile", Value("{F}/profile.toml")),
+                ("--report", Value("u.json")),
+                ("--json", Flag),
+                (
+                    "--registry",
+                    PerBase(
+                        &[None, Some(Value("s.db"))],
+                        "records under a serial, which the first base's robot file does not state",
+                    ),
+                ),
+                (
+                    "--serial",
+                    PerBase(&[None, Some(Value("ER-2"))], "needs --registry"),
+                ),
+                (
+                    "--tested-at",
+                    PerBase(
+                        &[None, Some(Value("2026-01-01T00:00:00Z"))],
+                        "needs --registry",
+                    ),
+                ),
                 INPUT_LIMIT,
             ],
         },

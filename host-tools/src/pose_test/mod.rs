@@ -46,6 +46,9 @@ pub struct PoseTest {
     pub targets_sha256: String,
     /// How the measurements were brought into the base frame, and what point they measure.
     pub setup: String,
+    /// The instrument that measured the run, as its data profile states it.
+    #[serde(default)]
+    pub instrument: Option<crate::io::profile::Instrument>,
     /// The characteristics.
     pub characteristics: characteristics::Characteristics,
 }
@@ -76,8 +79,25 @@ impl PoseTest {
             targets: targets.display().to_string(),
             targets_sha256: crate::registry::record::sha256(&target_bytes),
             setup: setup.text,
+            instrument: run.instrument.clone(),
             characteristics,
         })
+    }
+
+    /// The instrument in words: name, serial and maximum permissible error, or "not stated".
+    pub fn instrument_text(&self) -> String {
+        match &self.instrument {
+            None => "instrument not stated ([instrument] in the data profile)".to_string(),
+            Some(i) => format!(
+                "measured with {}{}, MPE {} um + {} um/m",
+                i.name.as_deref().unwrap_or("an instrument not named"),
+                i.serial
+                    .as_ref()
+                    .map_or(String::new(), |s| format!(" (serial {s})")),
+                i.mpe_um,
+                i.mpe_um_per_m
+            ),
+        }
     }
 
     /// The test for people: per point `AP` and `RP`, the distance and drift characteristics.
@@ -85,13 +105,14 @@ impl PoseTest {
         use std::fmt::Write as _;
         let c = &self.characteristics;
         let mut text = format!(
-            "ISO 9283 pose test of {}{} from {}\n  {}\n  point  cycles  AP mm    APx mm    APy mm    APz mm    RP mm\n",
+            "ISO 9283 pose test of {}{} from {}\n  {}\n  {}\n  point  cycles  AP mm    APx mm    APy mm    APz mm    RP mm\n",
             self.robot,
             self.serial
                 .as_ref()
                 .map_or(String::new(), |s| format!(" (serial {s})")),
             self.data,
-            self.setup
+            self.setup,
+            self.instrument_text()
         );
         for p in &c.points {
             let _ = writeln!(

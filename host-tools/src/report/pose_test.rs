@@ -12,12 +12,13 @@ pub fn section(test: &PoseTest) -> crate::Result<String> {
     let mut page = String::new();
     writeln!(
         page,
-        "<h2 id=\"pose-test\">ISO 9283 pose test</h2>\n<p>Run <code>{}</code> (SHA-256 <code>{}</code>) against the commanded poses <code>{}</code> (SHA-256 <code>{}</code>); {}.</p>",
+        "<h2 id=\"pose-test\">ISO 9283 pose test</h2>\n<p>Run <code>{}</code> (SHA-256 <code>{}</code>) against the commanded poses <code>{}</code> (SHA-256 <code>{}</code>); {}; {}.</p>",
         esc(&test.data),
         esc(&test.data_sha256),
         esc(&test.targets),
         esc(&test.targets_sha256),
-        esc(&test.setup)
+        esc(&test.setup),
+        esc(&test.instrument_text())
     )?;
     page.push_str("<table>\n<caption>Pose accuracy and repeatability per point (ISO 9283:1998, 7.2.1 and 7.2.2)</caption>\n<tr><th>point</th><th>cycles</th><th>AP, mm</th><th>APx, mm</th><th>APy, mm</th><th>APz, mm</th><th>RP, mm</th><th>AP a, b, c, deg</th><th>RP a, b, c, &plusmn;deg</th></tr>\n");
     for p in &c.points {
