@@ -24,9 +24,11 @@ fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
-/// The plan's targets (id, position, quaternion w x y z) and the joints (deg) of each point,
-/// from the targets file and the run file.
-fn plan_of(targets: &Path, run: &Path) -> Vec<(String, [f64; 3], [f64; 4], Vec<f64>)> {
+/// A planned point: id, position (mm), quaternion (w, x, y, z), joints (deg).
+type PlannedPoint = (String, [f64; 3], [f64; 4], Vec<f64>);
+
+/// The plan's targets and the joints of each point, from the targets file and the run file.
+fn plan_of(targets: &Path, run: &Path) -> Vec<PlannedPoint> {
     let text = std::fs::read_to_string(targets).unwrap();
     let run = std::fs::read_to_string(run).unwrap();
     (text.lines().filter(|l| l.starts_with('P')))

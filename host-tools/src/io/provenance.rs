@@ -46,6 +46,15 @@ impl InputFile {
     }
 }
 
+/// The SHA-256 of `bytes`, 64 lowercase hexadecimal digits.
+pub fn sha256(bytes: &[u8]) -> String {
+    use sha2::Digest as _;
+    sha2::Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
 /// The SHA-256 of the file at `path` as 64 lowercase hexadecimal digits, read in blocks (a data
 /// file may be large).
 pub(crate) fn sha256_hex(path: &Path) -> crate::Result<String> {

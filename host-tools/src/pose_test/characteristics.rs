@@ -12,9 +12,10 @@
 //! which the millidegree-level deviations of a robot are) and `RP_a = +-3 S_a`, ....
 //! Distance: per cycle `D_j = |x_j(P2) - x_j(P4)|` (the same cycle's two poses), `D_c` the
 //! commanded distance, `AD = mean(D) - D_c`, `RD = +-3 S_D`. Drift: `AP` and `RP` of `P1` over
-//! the first and over the last third of the cycles, `dAP = |AP_first - AP_last|`, `dRP = |RP_first
-//! - RP_last|` (the standard cycles for 8 hours after a warm-up; the run's length is the user's
-//! choice of cycles and its span in time is stated when the data carry times).
+//! the first and over the last third of the cycles, `dAP = |AP_first - AP_last|` and
+//! `dRP = |RP_first - RP_last|` (the standard cycles for 8 hours after a warm-up; the run's
+//! length is the user's choice of cycles and its span in time is stated when the data carry
+//! times).
 //!
 //! The measured point is the reflector or probe of the measurement setup; its commanded position
 //! is the target pose carried to it (`target * tool^-1 * probe`, the controller's tool and the

@@ -4,7 +4,6 @@
 use crate::calibration::Report;
 use crate::calibration::touches::TouchReport;
 use serde::{Deserialize, Serialize};
-use sha2::Digest as _;
 use std::path::Path;
 
 /// Which kind of calibration a record holds.
@@ -93,13 +92,7 @@ pub struct RecordFiles<'a> {
     pub model: Option<&'a str>,
 }
 
-/// The SHA-256 of `bytes`, 64 lowercase hexadecimal digits.
-pub fn sha256(bytes: &[u8]) -> String {
-    sha2::Sha256::digest(bytes)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
-}
+pub use crate::io::provenance::sha256;
 
 /// The bytes of `path` (an input the user named with `flag`), read whole.
 fn bytes_of(flag: &str, path: &Path) -> crate::Result<Vec<u8>> {

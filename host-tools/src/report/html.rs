@@ -59,38 +59,7 @@ pub const SECTIONS: [&str; 12] = [
     "software",
 ];
 
-/// Text escaped for HTML.
-pub(crate) fn esc(text: &str) -> String {
-    text.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
-}
-
-/// A number of the report with `digits` decimals, or "-" when it is not a finite number (which
-/// the JSON report writes as `null`).
-pub(crate) fn num(value: f64, digits: usize) -> String {
-    if value.is_finite() {
-        format!("{value:.digits$}")
-    } else {
-        "-".to_string()
-    }
-}
-
-/// An optional number of the report with `digits` decimals, or "-" when absent.
-pub(crate) fn opt(value: Option<f64>, digits: usize) -> String {
-    value.map_or_else(|| "-".to_string(), |v| num(v, digits))
-}
-
-/// Texts as a list: "none" when empty, else joined by commas (escaped).
-pub(crate) fn list<T: AsRef<str>>(items: &[T]) -> String {
-    if items.is_empty() {
-        return "none".to_string();
-    }
-    (items.iter().map(|t| esc(t.as_ref())))
-        .collect::<Vec<_>>()
-        .join(", ")
-}
+pub(crate) use super::markup::{esc, list, num, opt};
 
 /// The name a setting of the report is written with (its serde name), such as `joint-maps`.
 fn serde_name<T: serde::Serialize>(value: &T) -> String {

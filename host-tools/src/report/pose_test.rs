@@ -2,7 +2,7 @@
 //! (`calib report --pose-test`): per point `AP` (with its components) and `RP`, the distance
 //! characteristics, the drift, and what the run was and how it was measured.
 
-use super::html::{esc, num};
+use super::markup::{esc, num};
 use crate::pose_test::PoseTest;
 use std::fmt::Write as _;
 

@@ -102,13 +102,13 @@ pub struct EvaluateOptions {
     /// The commanded poses (the targets file of calib iso9283 plan, base frame).
     #[arg(long, value_name = "FILE")]
     pub targets: PathBuf,
-    /// The measured run (tracker data; ids <point>-c<cycle>, rows of a point in cycle order).
+    /// The measured run (tracker data; ids such as P3-c07: the point, then the cycle; rows of a point in cycle order).
     #[arg(long, value_name = "FILE")]
     pub data: PathBuf,
     /// The data profile the run is read through.
     #[arg(long, value_name = "FILE")]
     pub profile: Option<PathBuf>,
-    /// The robot's identified file (calib calibrate --out): its [measurement] places the
+    /// The robot's identified file (calib calibrate --out): its measurement section places the
     /// tracker and the probe; its tool is the controller's.
     #[arg(long, value_name = "FILE")]
     pub robot: PathBuf,
