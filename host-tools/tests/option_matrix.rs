@@ -1085,6 +1085,12 @@ fn the_small_commands() {
                 ("--html", Value("s.html")),
                 ("--pdf", Exempt("needs Chromium: html_report.rs tests it")),
                 (
+                    "--job",
+                    Exempt(
+                        "adds the job and signature lines to the page, which this matrix compares by name only (certificate.rs)",
+                    ),
+                ),
+                (
                     "--pose-test",
                     Exempt(
                         "adds a section to the page, which this matrix compares by name only (pose_test.rs: the_certificate_shows_the_pose_test)",

@@ -4,6 +4,7 @@
 //! (a ball held in unknown points, joint readings only).
 
 pub mod columns;
+pub mod dates;
 pub mod input;
 pub mod outputs;
 pub mod profile;

@@ -195,6 +195,12 @@ pub struct Instrument {
     /// The part that grows with the distance from the instrument, um per m.
     #[serde(default)]
     pub mpe_um_per_m: f64,
+    /// The number of the instrument's own calibration certificate.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub certificate: Option<String>,
+    /// The date the instrument's calibration falls due, `YYYY-MM-DD`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration_due: Option<String>,
 }
 
 impl Instrument {
@@ -217,7 +223,19 @@ impl Instrument {
                 self.mpe_um_per_m
             ));
         }
+        if let Some(due) = &self.calibration_due {
+            crate::io::dates::date(due)
+                .map_err(|e| format!("[instrument]: calibration_due = {due:?}: {e}"))?;
+        }
         Ok(())
+    }
+
+    /// Whether its calibration was due before `date` (`YYYY-MM-DD` or RFC 3339); `None` when
+    /// either date is unknown.
+    pub fn overdue_on(&self, date: &str) -> Option<bool> {
+        let due = crate::io::dates::date(self.calibration_due.as_deref()?).ok()?;
+        let on = crate::io::dates::date(date.get(..10)?).ok()?;
+        Some(on > due)
     }
 }
 

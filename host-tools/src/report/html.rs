@@ -71,31 +71,50 @@ fn serde_name<T: serde::Serialize>(value: &T) -> String {
 
 /// The page for `report` (the JSON report of a calibration).
 pub fn render(report: &Report, rendering: &Rendering) -> crate::Result<String> {
-    render_with(report, rendering, None)
+    render_with(report, rendering, Additions::default())
 }
 
 /// The section of an ISO 9283 pose test, after `accuracy` when the page has one
 /// ([`render_with`]).
 pub const POSE_TEST_SECTION: &str = "pose-test";
 
-/// The page for `report` with the ISO 9283 pose test `pose_test` measured on the calibrated
-/// robot ([`POSE_TEST_SECTION`], after the held-out accuracy).
+/// What a certificate shows beyond its calibration's report (`calib report --pose-test --job`).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Additions<'a> {
+    /// An ISO 9283 pose test of the calibrated robot ([`POSE_TEST_SECTION`], after the held-out
+    /// accuracy).
+    pub pose_test: Option<&'a crate::pose_test::PoseTest>,
+    /// The job: the certificate's number, customer, site, cell, operator, day of measurement and
+    /// approver (a table under the title, the header of every printed page, and the
+    /// [`APPROVAL_SECTION`] with its signature lines).
+    pub job: Option<&'a super::job::Job>,
+}
+
+/// The section of the signature lines, before `software` when the page has a job.
+pub const APPROVAL_SECTION: &str = "approval";
+
+/// The page for `report` with `additions`.
 pub fn render_with(
     report: &Report,
     rendering: &Rendering,
-    pose_test: Option<&crate::pose_test::PoseTest>,
+    additions: Additions<'_>,
 ) -> crate::Result<String> {
     let mut page = String::new();
     let robot = esc(&report.robot);
     let data = esc(&report.data);
     writeln!(
         page,
-        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>Calibration report: {robot}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n<h1>Robot calibration report</h1>"
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>Calibration report: {robot}</title>\n<style>{STYLE}</style>\n<style>@page{{@top-left{{content:\"{}\";font-family:sans-serif;font-size:8pt;color:#555}}}}</style>\n</head>\n<body>\n<h1>Robot calibration report</h1>",
+        super::markup::css_string(&page_header(report, additions.job))
     )?;
+    if let Some(job) = additions.job {
+        job_table(&mut page, job)?;
+    }
     summary(&mut page, report, &robot, &data)?;
-    conditions(&mut page, report.conditions.as_ref())?;
+    let measured_on = additions.job.and_then(|j| j.measured_on.as_deref());
+    conditions(&mut page, report.conditions.as_ref(), measured_on)?;
     accuracy(&mut page, report)?;
-    if let Some(test) = pose_test {
+    if let Some(test) = additions.pose_test {
         page.push_str(&super::pose_test::section(test)?);
     }
     table3(&mut page, report)?;
@@ -106,6 +125,9 @@ pub fn render_with(
     outliers(&mut page, report)?;
     frames(&mut page, report)?;
     settings(&mut page, report)?;
+    if let Some(job) = additions.job {
+        approval(&mut page, job)?;
+    }
     let command_line = command_line_html(&report.command_line);
     writeln!(
         page,
@@ -181,7 +203,7 @@ h1{border-bottom:2px solid #333}h2{margin-top:2em;border-bottom:1px solid #999}\
 table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #bbb;padding:0.2em 0.6em;text-align:right}\
 th{background:#eee}td:first-child,th:first-child,td[colspan]{text-align:left}\
 .note{color:#555}.bad{color:#a00;font-weight:bold}.pass{color:#060;border:2px solid #060;padding:0.4em}.fail{color:#a00;border:2px solid #a00;padding:0.4em}figure{margin:1em 0}svg{max-width:100%;height:auto}\
-@page{size:A4;margin:15mm}@media print{body{max-width:none;margin:0}h2{break-after:avoid}figure,table{break-inside:avoid}.poses{font-size:8pt}}";
+@page{size:A4;margin:18mm 15mm;@bottom-right{content:\"page \" counter(page) \" of \" counter(pages);font-family:sans-serif;font-size:8pt;color:#555}}.sign td{height:12mm;min-width:9em}@media print{body{max-width:none;margin:0}h2{break-after:avoid}figure,table{break-inside:avoid}.poses{font-size:8pt}}";
 
 fn summary(page: &mut String, report: &Report, robot: &str, data: &str) -> crate::Result<()> {
     let stage = |name: &str, stage: Option<&Stage>| -> String {
@@ -222,6 +244,82 @@ fn summary(page: &mut String, report: &Report, robot: &str, data: &str) -> crate
         page.push_str("<p class=\"note\">No poses were held out: the errors on the calibration poses flatter the model.</p>\n");
     }
     Ok(())
+}
+
+/// The header of every printed page: the certificate's number when the job states it, the robot
+/// and its serial.
+fn page_header(report: &Report, job: Option<&super::job::Job>) -> String {
+    let number = job.and_then(|j| j.certificate.as_deref());
+    let serial = (report.conditions.as_ref()).and_then(|c| c.robot_serial.as_deref());
+    format!(
+        "{}Robot calibration: {}{}",
+        number.map_or(String::new(), |n| format!("Certificate {n} - ")),
+        report.robot,
+        serial.map_or(String::new(), |s| format!(", serial {s}"))
+    )
+}
+
+/// A job's field, or a line to fill in by hand.
+fn field(value: Option<&String>) -> String {
+    value.map_or_else(
+        || "<span class=\"note\">not stated</span>".to_string(),
+        |v| esc(v),
+    )
+}
+
+/// The job under the title: certificate, customer, site, cell, operator, day of measurement.
+fn job_table(page: &mut String, job: &super::job::Job) -> crate::Result<()> {
+    writeln!(
+        page,
+        "<table>\n<tr><td>certificate</td><td>{}</td></tr>\n<tr><td>customer</td><td>{}</td></tr>\n<tr><td>site</td><td>{}</td></tr>\n\
+         <tr><td>cell</td><td>{}</td></tr>\n<tr><td>operator</td><td>{}</td></tr>\n<tr><td>measured on</td><td>{}</td></tr>\n</table>",
+        field(job.certificate.as_ref()),
+        field(job.customer.as_ref()),
+        field(job.site.as_ref()),
+        field(job.cell.as_ref()),
+        field(job.operator.as_ref()),
+        field(job.measured_on.as_ref())
+    )?;
+    Ok(())
+}
+
+/// The signature lines: measured by, approved by, accepted by the customer.
+fn approval(page: &mut String, job: &super::job::Job) -> crate::Result<()> {
+    let name = |v: Option<&String>| v.map_or(String::new(), |v| esc(v));
+    writeln!(
+        page,
+        "<h2 id=\"{APPROVAL_SECTION}\">Approval</h2>\n<table class=\"sign\">\n<tr><th>role</th><th>name</th><th>date</th><th>signature</th></tr>\n\
+         <tr><td>measured by</td><td>{}</td><td>{}</td><td></td></tr>\n<tr><td>approved by</td><td>{}</td><td></td><td></td></tr>\n\
+         <tr><td>accepted for {}</td><td></td><td></td><td></td></tr>\n</table>",
+        name(job.operator.as_ref()),
+        name(job.measured_on.as_ref()),
+        name(job.approver.as_ref()),
+        job.customer
+            .as_deref()
+            .map_or_else(|| "the customer".to_string(), esc)
+    )?;
+    Ok(())
+}
+
+/// The instrument's own calibration: its certificate and due date, said to be overdue when it
+/// was due before the measurement.
+fn instrument_calibration(i: &crate::io::profile::Instrument, measured_on: Option<&str>) -> String {
+    let certificate = i.certificate.as_deref().map_or_else(
+        || "calibration certificate not stated (<code>certificate</code> in <code>[instrument]</code>)".to_string(),
+        |c| format!("calibration certificate {}", esc(c)),
+    );
+    let due = match (
+        &i.calibration_due,
+        measured_on.and_then(|d| i.overdue_on(d)),
+    ) {
+        (None, _) => "due date not stated (<code>calibration_due</code>)".to_string(),
+        (Some(d), Some(true)) => format!(
+            "<span class=\"bad\">due {}: OVERDUE on the day of measurement</span>",
+            esc(d)
+        ),
+        (Some(d), _) => format!("due {}", esc(d)),
+    };
+    format!("{certificate}, {due}")
 }
 
 /// The held-out poses against the band predicted from the parameters' covariance.
@@ -288,7 +386,11 @@ fn named_rows(poses: &[NamedPose]) -> String {
 
 /// The conditions of the measurement (`conditions`): robot serial, payload, instrument, air
 /// temperature; what the inputs do not state says so and how to state it.
-fn conditions(page: &mut String, conditions: Option<&MeasurementConditions>) -> crate::Result<()> {
+fn conditions(
+    page: &mut String,
+    conditions: Option<&MeasurementConditions>,
+    measured_on: Option<&str>,
+) -> crate::Result<()> {
     page.push_str("<h2 id=\"conditions\">Measurement conditions</h2>\n");
     let Some(c) = conditions else {
         page.push_str("<p>Not recorded in this report.</p>\n");
@@ -315,11 +417,12 @@ fn conditions(page: &mut String, conditions: Option<&MeasurementConditions>) -> 
     let instrument = match &c.instrument {
         None => not_stated("<code>[instrument]</code> in the data profile"),
         Some(i) => format!(
-            "{}{}: maximum permissible error {}&nbsp;&micro;m + {}&nbsp;&micro;m/m",
+            "{}{}: maximum permissible error {}&nbsp;&micro;m + {}&nbsp;&micro;m/m; {}",
             i.name.as_deref().map_or_else(|| "unnamed".to_owned(), esc),
             (i.serial.as_deref()).map_or(String::new(), |s| format!(", serial {}", esc(s))),
             num(i.mpe_um, 1),
-            num(i.mpe_um_per_m, 1)
+            num(i.mpe_um_per_m, 1),
+            instrument_calibration(i, measured_on)
         ),
     };
     let temperature = match &c.temperature {

@@ -33,3 +33,13 @@ pub(crate) fn list<T: AsRef<str>>(items: &[T]) -> String {
         .collect::<Vec<_>>()
         .join(", ")
 }
+
+/// Text as a CSS string's content (inside `"..."` of a style sheet, which HTML does not decode):
+/// backslashes and quotes escaped, `<` as `\3C ` so that no `</style>` can end the sheet, line
+/// breaks as spaces.
+pub(crate) fn css_string(text: &str) -> String {
+    text.replace('\\', "\\\\")
+        .replace('\u{22}', "\\\u{22}")
+        .replace('<', "\\3C ")
+        .replace(['\n', '\r'], " ")
+}

@@ -2,6 +2,7 @@
 //! HTML report rendered from the JSON report (and printed to PDF), and the plots in it.
 
 pub mod html;
+pub mod job;
 mod markup;
 pub mod pdf;
 pub mod plots;

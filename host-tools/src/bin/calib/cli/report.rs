@@ -23,6 +23,11 @@ pub struct ReportOptions {
     /// after the held-out accuracy (tracker calibrations).
     #[arg(long, value_name = "FILE")]
     pub pose_test: Option<PathBuf>,
+    /// The job (TOML: certificate, customer, site, cell, operator, measured_on, approver): under
+    /// the title, in every printed page's header, and the approval's signature lines (tracker
+    /// calibrations).
+    #[arg(long, value_name = "FILE")]
+    pub job: Option<PathBuf>,
 }
 
 /// Runs `calib report`: writes the HTML page and/or the PDF asked for, all or nothing.
@@ -31,7 +36,15 @@ pub fn report(options: &ReportOptions) -> anyhow::Result<()> {
         Some(path) => Some(pose_test_of(path)?),
         None => None,
     };
-    let page = page(&options.from, pose_test.as_ref())?;
+    let job = match &options.job {
+        Some(path) => Some(host_tools::report::job::Job::read(path)?),
+        None => None,
+    };
+    let additions = host_tools::report::html::Additions {
+        pose_test: pose_test.as_ref(),
+        job: job.as_ref(),
+    };
+    let page = page(&options.from, additions)?;
     let pdf = match &options.pdf {
         Some(_) => Some(host_tools::report::pdf::print(&page)?),
         None => None,
@@ -39,6 +52,9 @@ pub fn report(options: &ReportOptions) -> anyhow::Result<()> {
     let mut inputs = vec![("--from", options.from.as_path())];
     if let Some(path) = &options.pose_test {
         inputs.push(("--pose-test", path.as_path()));
+    }
+    if let Some(path) = &options.job {
+        inputs.push(("--job", path.as_path()));
     }
     let mut outputs = Outputs::new(&inputs);
     if let Some(path) = &options.html {
@@ -55,20 +71,20 @@ pub fn report(options: &ReportOptions) -> anyhow::Result<()> {
 /// touches' certificate (a report naming `fitted_placements`, refused with that kind's message).
 fn page(
     from: &std::path::Path,
-    pose_test: Option<&host_tools::pose_test::PoseTest>,
+    additions: host_tools::report::html::Additions<'_>,
 ) -> anyhow::Result<String> {
     use host_tools::report::{html, touch_certificate};
     let rendering = html::Rendering::now();
     match host_tools::calibration::Report::read(from) {
-        Ok(report) => Ok(html::render_with(&report, &rendering, pose_test)?),
+        Ok(report) => Ok(html::render_with(&report, &rendering, additions)?),
         Err(tracker) => {
             let bytes = host_tools::io::input::read(from, host_tools::io::input::Input::Data)?;
             if !String::from_utf8_lossy(&bytes).contains("\"fitted_placements\"") {
                 return Err(tracker.into());
             }
-            if pose_test.is_some() {
+            if additions.pose_test.is_some() || additions.job.is_some() {
                 anyhow::bail!(
-                    "--pose-test: {} is a calibration from touches, whose certificate does not show a pose test yet; render the test with calib iso9283 evaluate",
+                    "--pose-test and --job: {} is a calibration from touches, whose certificate shows neither yet; drop them",
                     from.display()
                 );
             }
