@@ -87,6 +87,16 @@ pub struct Coverage {
     /// (in the JSON report as `per_pose.validation_predicted_rms_mm`).
     #[serde(skip)]
     pub model_rms_mm: Vec<f64>,
+    /// The signed position error of every pose, in order, mm (for the uncertainty budget).
+    #[serde(skip)]
+    pub errors_mm: Vec<[f64; 3]>,
+    /// Every pose's distance from the robot's base, in order, mm (for the budget's temperature).
+    #[serde(skip)]
+    pub reach_mm: Vec<f64>,
+    /// The instrument's noise per coordinate over the poses (RMS), mm, and the instrument in
+    /// words; `None` when the data profile states no instrument.
+    #[serde(skip)]
+    pub instrument: Option<(f64, String)>,
 }
 
 /// One held-out pose for [`coverage`]: its joint angles, its position error `measured -
@@ -145,6 +155,9 @@ pub(crate) fn coverage(
         noise_share_percent: 100.0 * noise_share / poses.len() as f64,
         rank_correlation: spearman(&model_rms_mm, &measured),
         model_rms_mm,
+        errors_mm: poses.iter().map(|p| [p.1.x, p.1.y, p.1.z]).collect(),
+        reach_mm: Vec::new(),
+        instrument: None,
     })
 }
 

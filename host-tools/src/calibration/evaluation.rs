@@ -195,9 +195,28 @@ pub(crate) fn held_out_coverage(
             (m.angles, error, r.line, noise(validation, m))
         })
         .collect();
-    Ok(crate::analysis::uncertainty::coverage(
-        (&actual, set, &covariance),
-        &poses,
-        source,
-    ))
+    // The distance from the base: the predicted point less the base frame's origin.
+    let base = nalgebra::Vector3::from(validation.robot.model.robot.base.xyz);
+    let reach = (validation.measurements().iter())
+        .map(|m| (actual.forward_angles(&m.angles).translation.vector - base).norm())
+        .collect();
+    let instrument_rms =
+        (poses.iter().map(|p| p.3 * p.3).sum::<f64>() / poses.len().max(1) as f64).sqrt();
+    let described = instrument.map(|i| {
+        format!(
+            "{}: MPE {} um + {} um/m",
+            i.name.as_deref().unwrap_or("the data profile's instrument"),
+            i.mpe_um,
+            i.mpe_um_per_m
+        )
+    });
+    Ok(
+        crate::analysis::uncertainty::coverage((&actual, set, &covariance), &poses, source).map(
+            |mut c| {
+                c.reach_mm = reach;
+                c.instrument = described.map(|d| (instrument_rms, d));
+                c
+            },
+        ),
+    )
 }

@@ -396,10 +396,10 @@ fn finish(
         mut per_pose,
         poses,
     } = evaluation;
-    let (uncertainty, held_out, acceptance) = held_out_statements(
+    let (uncertainty, held_out, acceptance, budget) = held_out_statements(
         (held_out, validation),
         (&identification, &identified),
-        (calibration, &mut per_pose),
+        (calibration, &calibration_stage, &conditions, &mut per_pose),
         config,
     )?;
     let plan_check = match (plan, validation_stage) {
@@ -445,12 +445,39 @@ fn finish(
         held_out,
         acceptance,
         uncertainty,
+        budget,
         significance: identified.significance,
         conditions: Some(conditions),
         caveats,
         covariance: identified.covariance,
     };
     refused_if_implausible(result, config)
+}
+
+/// The uncertainty budget of the accuracy statement ([`crate::analysis::budget`]): from the
+/// held-out band's inputs (`uncertainty`), the least squares' rows and parameters, the
+/// calibration poses' RMS position residual (`calibration`) and the temperatures seen; `None`
+/// without held-out poses or least squares.
+fn budget_of(
+    uncertainty: Option<&crate::analysis::uncertainty::Coverage>,
+    identification: &Identification,
+    calibration: &Stage,
+    conditions: &MeasurementConditions,
+) -> Option<crate::analysis::budget::UncertaintyBudget> {
+    let u = uncertainty?;
+    let rows = f64::from(identification.least_squares.as_ref()?.rows);
+    crate::analysis::budget::UncertaintyBudget::of(&crate::analysis::budget::BudgetInputs {
+        model_rms_mm: &u.model_rms_mm,
+        held_out_errors_mm: &u.errors_mm,
+        reach_mm: &u.reach_mm,
+        residual: (
+            calibration.after.position_mm.rms,
+            rows,
+            identification.set.len() as f64,
+        ),
+        instrument: u.instrument.clone(),
+        temperature_c: conditions.temperature.as_ref().map(|t| (t.min_c, t.max_c)),
+    })
 }
 
 /// `result`, or with problems of plausibility (unless the configuration accepts them) the
@@ -477,11 +504,13 @@ fn refused_if_implausible(
 /// What the held-out poses say of the model `identified`: against the band its covariance
 /// predicts (on the poses as the fit saw them; with the calibration poses for the instrument's
 /// noise), its accuracy (on the poses as the registered geometry sees them), the acceptance
-/// criteria judged on them.
+/// criteria judged on them, and the uncertainty budget of the accuracy statement (with the
+/// calibration poses' residual `stage` and the `conditions`' temperatures).
 type HeldOutStatements = (
     Option<crate::analysis::uncertainty::Coverage>,
     Option<crate::analysis::accuracy::HeldOutAccuracy>,
     Option<crate::analysis::accuracy::Acceptance>,
+    Option<crate::analysis::budget::UncertaintyBudget>,
 );
 
 /// [`HeldOutStatements`] of `identified` on `held_out` (as the fit saw them) and `validation` (as
@@ -489,7 +518,12 @@ type HeldOutStatements = (
 fn held_out_statements(
     (held_out, validation): (Option<&Seen<'_>>, Option<&Seen<'_>>),
     (identification, identified): (&Identification, &Identified),
-    (calibration, per_pose): (&Seen<'_>, &mut PerPose),
+    (calibration, stage, conditions, per_pose): (
+        &Seen<'_>,
+        &Stage,
+        &MeasurementConditions,
+        &mut PerPose,
+    ),
     config: &CalibrationConfig,
 ) -> crate::Result<HeldOutStatements> {
     let uncertainty = match (
@@ -519,7 +553,8 @@ fn held_out_statements(
         &config.acceptance,
         &per_pose.validation_after,
     );
-    Ok((uncertainty, accuracy, acceptance))
+    let budget = budget_of(uncertainty.as_ref(), identification, stage, conditions);
+    Ok((uncertainty, accuracy, acceptance, budget))
 }
 
 /// The check of a measured plan's verification poses (held out, Table 3 `validation`) against

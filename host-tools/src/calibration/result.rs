@@ -235,6 +235,9 @@ pub struct CalibrationResult {
     /// The held-out poses against the 95 % band predicted from the parameters' covariance (least
     /// squares and held-out poses needed; not for a model with joint maps).
     pub uncertainty: Option<crate::analysis::uncertainty::Coverage>,
+    /// The uncertainty budget of the accuracy statement (GUM, k = 2), with the held-out band's
+    /// inputs.
+    pub budget: Option<crate::analysis::budget::UncertaintyBudget>,
     /// The identified parameters' covariance (mm and rad, in the order of `parameters`), from
     /// least squares.
     pub covariance: Option<nalgebra::DMatrix<f64>>,
@@ -309,6 +312,7 @@ impl CalibrationResult {
             held_out: self.held_out.clone(),
             acceptance: self.acceptance.clone(),
             uncertainty: self.uncertainty.clone(),
+            budget: self.budget.clone(),
             significance: self.significance.clone(),
             conditions: self.conditions.clone(),
             caveats: self.caveats.clone(),
@@ -454,6 +458,10 @@ pub struct Report {
     /// The held-out poses against their predicted 95 % band (parameters' covariance and noise).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub uncertainty: Option<crate::analysis::uncertainty::Coverage>,
+    /// The uncertainty budget of the accuracy statement (GUM: components, combined, expanded
+    /// with k = 2, the held-out coordinates within it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub budget: Option<crate::analysis::budget::UncertaintyBudget>,
     /// The identified parameters' covariance from least squares.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub covariance: Option<Covariance>,

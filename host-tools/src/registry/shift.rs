@@ -321,11 +321,15 @@ fn noise_of(record: &Record, settings: ShiftSettings) -> crate::Result<f64> {
     let rms = report["calibration"]["after"]["position_mm"]["rms"].as_f64();
     let rows = report["least_squares"]["rows"].as_f64();
     let parameters = report["parameters"].as_object().map(|p| p.len() as f64);
-    match (rms, rows, parameters) {
-        (Some(rms), Some(rows), Some(p)) if rms > 0.0 && rows > p => {
-            Ok(rms / 3f64.sqrt() * (rows / (rows - p)).sqrt())
+    let estimate = match (rms, rows, parameters) {
+        (Some(rms), Some(rows), Some(p)) => {
+            crate::analysis::budget::residual_noise_mm(rms, rows, p)
         }
-        _ => Err(crate::refused!(option "--noise-mm";
+        _ => None,
+    };
+    match estimate {
+        Some(noise) => Ok(noise),
+        None => Err(crate::refused!(option "--noise-mm";
             "record {}'s report states no least-squares fit to estimate the noise from: give --noise-mm, the instrument's noise per coordinate", record.id)),
     }
 }

@@ -342,6 +342,41 @@ fn uncertainty(page: &mut String, coverage: Option<&Coverage>) -> crate::Result<
     Ok(())
 }
 
+/// The uncertainty budget (GUM): each component with its evaluation type, source and standard
+/// uncertainty, the combined and the expanded uncertainty (k = 2), the held-out check.
+fn budget(
+    page: &mut String,
+    budget: Option<&crate::analysis::budget::UncertaintyBudget>,
+) -> crate::Result<()> {
+    let Some(b) = budget else {
+        return Ok(());
+    };
+    page.push_str("<table>\n<caption>Uncertainty budget (GUM), per coordinate of the position error after calibration</caption>\n<tr><th>component</th><th>type</th><th>source</th><th>u, mm</th></tr>\n");
+    for c in &b.components {
+        writeln!(
+            page,
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            esc(&c.name),
+            esc(&c.evaluation),
+            esc(&c.source),
+            num(c.standard_uncertainty_mm, 4)
+        )?;
+    }
+    writeln!(
+        page,
+        "<tr><td>combined standard uncertainty u<sub>c</sub></td><td></td><td></td><td>{}</td></tr>\n<tr><th>expanded uncertainty U (k = {})</th><th></th><th>held out: {}&nbsp;% of {} coordinates within &plusmn;U</th><th>{}</th></tr>\n</table>",
+        num(b.combined_mm, 4),
+        b.k,
+        num(b.held_out_within_percent, 1),
+        b.held_out_coordinates,
+        num(b.expanded_mm, 4)
+    )?;
+    for n in &b.not_evaluated {
+        writeln!(page, "<p class=\"note\">Not evaluated: {}.</p>", esc(n))?;
+    }
+    Ok(())
+}
+
 /// The acceptance statement (`acceptance`), when criteria were given: PASS or FAIL (the words of
 /// the text report) with each criterion's measured share.
 fn acceptance_stamp(page: &mut String, acceptance: Option<&Acceptance>) -> crate::Result<()> {
@@ -601,6 +636,7 @@ fn accuracy(page: &mut String, report: &Report) -> crate::Result<()> {
         named_rows(&held.largest)
     )?;
     uncertainty(page, report.uncertainty.as_ref())?;
+    budget(page, report.budget.as_ref())?;
     iso9283(page, held.iso9283.as_ref())?;
     workspace_regions(page, held.workspace.as_ref())?;
     checks(page, report)?;

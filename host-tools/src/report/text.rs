@@ -124,6 +124,9 @@ impl CalibrationResult {
             text.push_str("  ");
             text.push_str(&uncertainty.text());
         }
+        if let Some(budget) = &self.budget {
+            text.push_str(&budget.text());
+        }
         if let Some(acceptance) = &self.acceptance {
             text.push_str(&acceptance.text());
         }
