@@ -85,15 +85,9 @@ pub struct PlanOptions {
     /// Write the program in URScript (Universal Robots, 6 joints).
     #[arg(long, value_name = "FILE")]
     pub urscript: Option<PathBuf>,
-    /// URScript: time the robot stands still at each point for the tracker, s (above 0, at most 600).
-    #[arg(long, default_value_t = 2.0, requires = "urscript", allow_hyphen_values = true, value_parser = crate::cli::settle_time)]
-    pub settle_s: f64,
-    /// URScript: joint speed of the moves, rad/s (above 0, at most 3.2).
-    #[arg(long, default_value_t = 0.5, requires = "urscript", allow_hyphen_values = true, value_parser = crate::cli::joint_speed)]
-    pub speed_rad_s: f64,
-    /// URScript: joint acceleration of the moves, rad/s^2 (above 0, at most 40).
-    #[arg(long, default_value_t = 0.5, requires = "urscript", allow_hyphen_values = true, value_parser = crate::cli::joint_acceleration)]
-    pub acceleration_rad_s2: f64,
+    /// How the URScript program moves.
+    #[command(flatten)]
+    pub motion: crate::cli::MotionOptions,
 }
 
 /// `calib iso9283 evaluate`.
@@ -172,12 +166,11 @@ fn plan(o: &PlanOptions) -> anyhow::Result<()> {
         outputs.stage("--joint-targets", path, test.joint_targets().as_bytes())?;
     }
     if let Some(path) = &o.urscript {
-        let motion = host_tools::formats::urscript::Motion {
-            speed_rad_s: o.speed_rad_s,
-            acceleration_rad_s2: o.acceleration_rad_s2,
-            settle_s: o.settle_s,
-        };
-        outputs.stage("--urscript", path, test.urscript(&motion)?.as_bytes())?;
+        outputs.stage(
+            "--urscript",
+            path,
+            test.urscript(&o.motion.motion())?.as_bytes(),
+        )?;
     }
     outputs.commit()?;
     let mut text = format!(

@@ -26,6 +26,32 @@ use host_tools::measurement::dataset::Dataset;
 use std::io::Write;
 use std::path::PathBuf;
 
+/// How a URScript program moves between its targets and waits at each (`calib plan` and `calib
+/// iso9283 plan` with `--urscript`).
+#[derive(Clone, Copy, Debug, clap::Args)]
+pub struct MotionOptions {
+    /// URScript: time the robot stands still at each pose for the tracker, s (above 0, at most 600).
+    #[arg(long, default_value_t = 2.0, requires = "urscript", allow_hyphen_values = true, value_parser = settle_time)]
+    pub settle_s: f64,
+    /// URScript: joint speed of the moves, rad/s (above 0, at most 3.2: a UR wrist joint reaches pi).
+    #[arg(long, default_value_t = 0.5, requires = "urscript", allow_hyphen_values = true, value_parser = joint_speed)]
+    pub speed_rad_s: f64,
+    /// URScript: joint acceleration of the moves, rad/s^2 (above 0, at most 40).
+    #[arg(long, default_value_t = 0.5, requires = "urscript", allow_hyphen_values = true, value_parser = joint_acceleration)]
+    pub acceleration_rad_s2: f64,
+}
+
+impl MotionOptions {
+    /// The motion of the program.
+    pub fn motion(&self) -> host_tools::formats::urscript::Motion {
+        host_tools::formats::urscript::Motion {
+            speed_rad_s: self.speed_rad_s,
+            acceleration_rad_s2: self.acceleration_rad_s2,
+            settle_s: self.settle_s,
+        }
+    }
+}
+
 /// The files a data command reads (`--robot`, `--data`, `--profile`), shared by `calibrate`,
 /// `check`, `evaluate` and `verify`.
 #[derive(Clone, Debug, clap::Args)]

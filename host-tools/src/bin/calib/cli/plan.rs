@@ -95,15 +95,9 @@ pub struct PlanOptions {
     /// default --generate keeps the tool above it (z >= 0), unless --box-mm states the workspace.
     #[arg(long, conflicts_with = "box_mm")]
     pub below_base: bool,
-    /// URScript: time the robot stands still at each pose for the tracker, s (above 0, at most 600).
-    #[arg(long, default_value_t = 2.0, requires = "urscript", allow_hyphen_values = true, value_parser = crate::cli::settle_time)]
-    pub settle_s: f64,
-    /// URScript: joint speed of the moves, rad/s (above 0, at most 3.2: a UR wrist joint reaches pi).
-    #[arg(long, default_value_t = 0.5, requires = "urscript", allow_hyphen_values = true, value_parser = crate::cli::joint_speed)]
-    pub speed_rad_s: f64,
-    /// URScript: joint acceleration of the moves, rad/s^2 (above 0, at most 40).
-    #[arg(long, default_value_t = 0.5, requires = "urscript", allow_hyphen_values = true, value_parser = crate::cli::joint_acceleration)]
-    pub acceleration_rad_s2: f64,
+    /// How the URScript program moves.
+    #[command(flatten)]
+    pub motion: crate::cli::MotionOptions,
 }
 
 impl PlanOptions {
@@ -257,12 +251,7 @@ fn write(options: &PlanOptions, file: &RobotFile, plan: &Plan) -> anyhow::Result
         )?;
     }
     if let Some(path) = &options.urscript {
-        let motion = planning::program::Motion {
-            speed_rad_s: options.speed_rad_s,
-            acceleration_rad_s2: options.acceleration_rad_s2,
-            settle_s: options.settle_s,
-        };
-        let program = planning::program::urscript(plan, &file.name, &motion)?;
+        let program = planning::program::urscript(plan, &file.name, &options.motion.motion())?;
         outputs.stage("--urscript", path, program.as_bytes())?;
     }
     if let Some(path) = &options.joint_targets {
