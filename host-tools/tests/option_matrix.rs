@@ -192,26 +192,9 @@ fn make_fixture(f: &Path) {
          [instrument]\nname = \"a laser tracker\"\nmpe_um = 15.0\nmpe_um_per_m = 6.0\n",
     )
     .unwrap();
-    // An ISO 9283 run of 6 cycles in the base frame.
-    std::fs::write(
-        f.join("iso-targets.csv"),
-        "id,x_mm,y_mm,z_mm,qw,qx,qy,qz\nP1,1000,0,500,1,0,0,0\nP2,900,-100,400,1,0,0,0\nP4,1100,100,600,1,0,0,0\n",
-    )
-    .unwrap();
-    let mut iso_run = String::from(
-        "# frame: base\nid,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,x_mm,y_mm,z_mm\n",
-    );
-    for c in 1..=6 {
-        let dx = 0.05 * c as f64;
-        for (point, x, y, z) in [
-            ("P1", 1000.0 + dx, 0.0, 500.0),
-            ("P4", 1100.3, 100.0, 600.0),
-            ("P2", 900.0, -100.0, 400.0 + dx),
-        ] {
-            iso_run.push_str(&format!("{point}-c{c},0,0,0,0,0,0,{x},{y},{z}\n"));
-        }
-    }
-    std::fs::write(f.join("iso-run.csv"), iso_run).unwrap();
+    // An ISO 9283 run of 6 cycles in the base frame (iso/targets.csv, iso/run.csv).
+    std::fs::create_dir(f.join("iso")).unwrap();
+    common::drifting_run(&f.join("iso"));
     std::fs::write(
         f.join("log-profile-s.toml"),
         "description = \"the robot log, times read as s\"\ndelimiter = \",\"\n\n[columns]\n\
@@ -1202,9 +1185,9 @@ fn the_iso9283_pose_test() {
             bases: &[
                 &[
                     "--targets",
-                    "{F}/iso-targets.csv",
+                    "{F}/iso/targets.csv",
                     "--data",
-                    "{F}/iso-run.csv",
+                    "{F}/iso/run.csv",
                     "--robot",
                     "{R}",
                     "--report",
@@ -1212,9 +1195,9 @@ fn the_iso9283_pose_test() {
                 ],
                 &[
                     "--targets",
-                    "{F}/iso-targets.csv",
+                    "{F}/iso/targets.csv",
                     "--data",
-                    "{F}/iso-run.csv",
+                    "{F}/iso/run.csv",
                     "--robot",
                     "{R}",
                     "--registry",

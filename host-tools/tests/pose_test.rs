@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{ROBOT, calib, ok, simulate};
+use common::{ROBOT, calib, drifting_run, ok, simulate};
 use host_tools::analysis::reference::{self, Mat4};
 use host_tools::io::robot_file::RobotFile;
 use std::path::Path;
@@ -178,29 +178,6 @@ fn the_characteristics_equal_the_reference_kinematics_of_the_true_robot() {
     assert_eq!(drift["block_cycles"], 10);
     assert!(drift["dap_mm"].as_f64().unwrap() < 3.0 * sigma, "{drift}");
     assert!(text.contains("distance P2-P4 (30 cycles)"), "{text}");
-}
-
-/// Three targets and a 6-cycle run in the base frame, noise-free, drifting 0.05 mm per cycle
-/// along x at P1 and along z at P2, P4 off by 0.3 mm in x: (targets, run) in `dir`.
-fn drifting_run(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
-    let targets = dir.join("targets.csv");
-    std::fs::write(
-        &targets,
-        "id,x_mm,y_mm,z_mm,qw,qx,qy,qz\nP1,1000,0,500,1,0,0,0\nP2,900,-100,400,1,0,0,0\nP4,1100,100,600,1,0,0,0\n",
-    )
-    .unwrap();
-    let mut run = String::from(
-        "# frame: base\nid,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,x_mm,y_mm,z_mm\n",
-    );
-    for c in 1..=6 {
-        let dx = 0.05 * c as f64;
-        run.push_str(&format!("P1-c{c},0,0,0,0,0,0,{},0,500\n", 1000.0 + dx));
-        run.push_str(&format!("P4-c{c},0,0,0,0,0,0,1100.3,100,600\n"));
-        run.push_str(&format!("P2-c{c},0,0,0,0,0,0,900,-100,{}\n", 400.0 + dx));
-    }
-    let data = dir.join("run.csv");
-    std::fs::write(&data, run).unwrap();
-    (targets, data)
 }
 
 /// A 6-cycle run drifting 0.05 mm per cycle along x at P1 (noise-free, in the base frame):

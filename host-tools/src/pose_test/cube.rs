@@ -190,41 +190,34 @@ impl TestPlan {
     /// The run to measure, as a tracker CSV whose measurement columns (`x_mm, y_mm, z_mm`, tracker
     /// frame) the tracker software fills: one row per move, ids `P<k>-c<cycle>`, joints in deg.
     pub fn run_csv(&self) -> String {
-        let joints = self.joints.first().map_or(0, Vec::len);
-        let mut text = format!(
-            "# ISO 9283 pose test of {}: {} cycles of P1, P5, P4, P3, P2; fill in the measurement columns (tracker frame)\n",
+        format!(
+            "# ISO 9283 pose test of {}: {} cycles of P1, P5, P4, P3, P2; fill in the measurement columns (tracker frame)\n{}",
             crate::io::text::one_line(&self.robot),
-            self.cycles
-        );
-        text.push_str("id");
-        for i in 1..=joints {
-            let _ = write!(text, ",q{i}_deg");
-        }
-        text.push_str(",x_mm,y_mm,z_mm\n");
-        for (id, q) in self.moves() {
-            text.push_str(&id);
-            for v in q {
-                let _ = write!(text, ",{}", v.to_degrees());
-            }
-            text.push_str(",,,\n");
-        }
-        text
+            self.cycles,
+            self.moves_csv(true)
+        )
     }
 
     /// The program as joint targets for any controller (`id, q1_deg..qN_deg`, one row per move).
     pub fn joint_targets(&self) -> String {
+        self.moves_csv(false)
+    }
+
+    /// One row per move: its id and joints (deg), with empty position columns when `measured`
+    /// (the run to fill in).
+    fn moves_csv(&self, measured: bool) -> String {
         let joints = self.joints.first().map_or(0, Vec::len);
         let mut text = String::from("id");
         for i in 1..=joints {
             let _ = write!(text, ",q{i}_deg");
         }
-        text.push('\n');
+        text.push_str(if measured { ",x_mm,y_mm,z_mm\n" } else { "\n" });
         for (id, q) in self.moves() {
             text.push_str(&id);
             for v in q {
                 let _ = write!(text, ",{}", v.to_degrees());
             }
-            text.push('\n');
+            text.push_str(if measured { ",,,\n" } else { "\n" });
         }
         text
     }

@@ -497,3 +497,27 @@ fn compensate_and_export(dir: &Path, joints: usize, robot: &str, identified: &st
     assert!(out.contains("wrote"), "{out}");
     assert!(std::fs::metadata(&block).unwrap().len() > 0);
 }
+
+/// An ISO 9283 pose test in the base frame, noise-free: three targets (`targets.csv`: P1, P2,
+/// P4) and a 6-cycle run (`run.csv`) drifting 0.05 mm per cycle along x at P1 and along z at P2,
+/// P4 off by 0.3 mm in x, written into `dir`: (targets, run).
+pub fn drifting_run(dir: &Path) -> (PathBuf, PathBuf) {
+    let targets = dir.join("targets.csv");
+    std::fs::write(
+        &targets,
+        "id,x_mm,y_mm,z_mm,qw,qx,qy,qz\nP1,1000,0,500,1,0,0,0\nP2,900,-100,400,1,0,0,0\nP4,1100,100,600,1,0,0,0\n",
+    )
+    .unwrap();
+    let mut run = String::from(
+        "# frame: base\nid,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,x_mm,y_mm,z_mm\n",
+    );
+    for c in 1..=6 {
+        let dx = 0.05 * c as f64;
+        run.push_str(&format!("P1-c{c},0,0,0,0,0,0,{},0,500\n", 1000.0 + dx));
+        run.push_str(&format!("P4-c{c},0,0,0,0,0,0,1100.3,100,600\n"));
+        run.push_str(&format!("P2-c{c},0,0,0,0,0,0,900,-100,{}\n", 400.0 + dx));
+    }
+    let data = dir.join("run.csv");
+    std::fs::write(&data, run).unwrap();
+    (targets, data)
+}
