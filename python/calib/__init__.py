@@ -54,6 +54,7 @@ from ._calib import registry_show_json as _registry_show_json
 from ._calib import registry_compare_json as _registry_compare_json
 from ._calib import registry_verify_json as _registry_verify_json
 from ._calib import check_shift_json as _check_shift_json
+from ._calib import iso9283_evaluate_json as _iso9283_evaluate_json
 
 
 def evaluate(
@@ -279,6 +280,22 @@ def check_shift(
     return parsed
 
 
+def iso9283_evaluate(
+    targets: _Union[str, "_PathLike[str]"],
+    data: _Union[str, "_PathLike[str]"],
+    robot: _Union[str, "_PathLike[str]"],
+    *,
+    profile: _Optional[_Union[str, "_PathLike[str]"]] = None,
+) -> dict[str, _Any]:
+    """``calib iso9283 evaluate``: the ISO 9283 pose characteristics of the measured run
+    ``data`` against the commanded poses ``targets`` (``calib iso9283 plan --targets``), in the
+    measurement setup of the identified robot file ``robot``; as ``--json`` gives it
+    (``result["characteristics"]["points"]`` with ``ap_mm`` and ``rp_mm``, ``distance``,
+    ``drift``)."""
+    parsed: dict[str, _Any] = _json.loads(_iso9283_evaluate_json(targets, data, robot, profile=profile))
+    return parsed
+
+
 __all__ = [
     "CalibError",
     "CalibrationResult",
@@ -304,6 +321,7 @@ __all__ = [
     "evaluate",
     "plan",
     "check_shift",
+    "iso9283_evaluate",
     "registry_add",
     "registry_compare",
     "registry_list",

@@ -38,6 +38,7 @@ __all__ = [
     "registry_compare_json",
     "registry_verify_json",
     "check_shift_json",
+    "iso9283_evaluate_json",
 ]
 
 class CalibError(Exception):
@@ -371,6 +372,15 @@ def check_shift_json(
     db: Optional[Union[str, PathLike[str]]] = None,
 ) -> str:
     """``calib check-shift --json`` as text."""
+
+def iso9283_evaluate_json(
+    targets: Union[str, PathLike[str]],
+    data: Union[str, PathLike[str]],
+    robot: Union[str, PathLike[str]],
+    *,
+    profile: Optional[Union[str, PathLike[str]]] = None,
+) -> str:
+    """``calib iso9283 evaluate --json`` as text."""
 
 @final
 class Plan:

@@ -1999,6 +1999,26 @@ fn check_shift_json(
     .map_err(py_error)
 }
 
+/// `calib iso9283 evaluate --json`: the ISO 9283 characteristics of the measured run `data`
+/// against the commanded poses `targets`, in the measurement setup of the identified robot file
+/// `robot`, as JSON text.
+#[pyfunction]
+#[pyo3(signature = (targets, data, robot, *, profile = None))]
+fn iso9283_evaluate_json(
+    py: Python<'_>,
+    targets: PathBuf,
+    data: PathBuf,
+    robot: PathBuf,
+    profile: Option<PathBuf>,
+) -> PyResult<String> {
+    py.detach(|| -> anyhow::Result<String> {
+        let profile = host_tools::io::profile::DataProfile::load(profile.as_deref())?;
+        let test = host_tools::pose_test::PoseTest::evaluate(&targets, &data, &robot, &profile)?;
+        Ok(serde_json::to_string(&test)?)
+    })
+    .map_err(py_error)
+}
+
 /// The module.
 #[pymodule]
 fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -2016,6 +2036,7 @@ fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(registry_compare_json, m)?)?;
     m.add_function(wrap_pyfunction!(registry_verify_json, m)?)?;
     m.add_function(wrap_pyfunction!(check_shift_json, m)?)?;
+    m.add_function(wrap_pyfunction!(iso9283_evaluate_json, m)?)?;
     m.add_class::<Plan>()?;
     m.add("CalibError", m.py().get_type::<CalibError>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;

@@ -845,3 +845,26 @@ def test_registry_compare_verify_and_shift_check_from_python(tmp_path):
         run_calib("registry", "compare", "--help").stdout
     assert f"[default: {inspect.signature(calib.check_shift).parameters['k'].default:g}]" in \
         run_calib("check-shift", "--help").stdout
+
+
+def test_an_iso9283_pose_test_evaluates_as_the_command_line(tmp_path):
+    """``calib.iso9283_evaluate`` on a planned cube whose run is simulated on a robot with
+    errors gives the command line's JSON, AP of each point in it."""
+    robot = ROOT / "host-tools/robots/er10l-c10.toml"
+    targets, run, measured = tmp_path / "targets.csv", tmp_path / "run.csv", tmp_path / "measured.csv"
+    done = run_calib("iso9283", "plan", "--robot", robot, "--centre-mm", "1200,0,800", "--edge-mm", "400",
+                     "--near-deg", "0,-30,30,0,60,0", "--cycles", "10", "--targets", targets, "--out", run)
+    assert done.returncode == 0, done.stderr
+    done = run_calib("simulate", "--robot", robot, "--errors", "random", "--seed", "5", "--joints-from", run,
+                     "--position-only", "--position-sigma-mm", "0.01", "--out", measured,
+                     "--truth-out", tmp_path / "truth.toml")
+    assert done.returncode == 0, done.stderr
+    tested = calib.iso9283_evaluate(targets, measured, robot)
+    done = run_calib("iso9283", "evaluate", "--targets", targets, "--data", measured, "--robot", robot, "--json")
+    assert done.returncode == 0, done.stderr
+    assert tested == json.loads(done.stdout)
+    points = tested["characteristics"]["points"]
+    assert [p["point"] for p in points] == ["P1", "P2", "P3", "P4", "P5"]
+    assert all(p["cycles"] == 10 and p["ap_mm"] > 0.1 for p in points)
+    with pytest.raises(calib.CalibError, match="not been measured"):
+        calib.iso9283_evaluate(targets, run, robot)

@@ -347,3 +347,61 @@ fn drift(target: &Target, poses: &Attained, setup: &MeasurementSetup) -> Option<
         span_s,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Orientation measured: a point whose attained orientation turns about the base's z axis by
+    /// 0.01, 0.02 and 0.03 deg in three cycles gives `AP_c` 0.02 deg and `RP_c = 3 S` = 0.03 deg,
+    /// `AP_a`, `AP_b` zero; positions on the commanded point give `AP` and `RP` zero.
+    #[test]
+    fn orientation_characteristics_have_their_closed_form() {
+        let commanded = Rotation3::from_euler_angles(0.1, -0.2, 0.3);
+        let target = Target {
+            id: "P1".into(),
+            position_mm: [1000.0, 0.0, 500.0],
+            rotation: *commanded.matrix(),
+        };
+        let records = (1..=3)
+            .map(|c| Record {
+                line: c,
+                id: format!("P1-c{c}"),
+                q: vec![0.0; 6],
+                position: [1000.0, 0.0, 500.0],
+                rotation: Some(
+                    *(Rotation3::from_axis_angle(
+                        &Vector3::z_axis(),
+                        (0.01 * c as f64).to_radians(),
+                    ) * commanded)
+                        .matrix(),
+                ),
+                weight: 1.0,
+                role: None,
+                configuration: None,
+                time_s: None,
+                temperature_c: None,
+            })
+            .collect();
+        let run = TrackerData::from_records(records, true).unwrap();
+        let setup = MeasurementSetup {
+            to_base: Isometry3::identity(),
+            point_in_tool: Isometry3::identity(),
+            text: String::new(),
+        };
+        let c = characteristics(&[target], &run, &setup).unwrap();
+        let p = &c.points[0];
+        assert!(p.ap_mm < 1e-9 && p.rp_mm < 1e-9);
+        let [a, b, cz] = p.ap_abc_deg.unwrap();
+        assert!(
+            a.abs() < 1e-9 && b.abs() < 1e-9 && (cz - 0.02).abs() < 1e-9,
+            "{a} {b} {cz}"
+        );
+        let rp = p.rp_abc_deg.unwrap();
+        assert!(
+            rp[0] < 1e-9 && rp[1] < 1e-9 && (rp[2] - 0.03).abs() < 1e-9,
+            "{rp:?}"
+        );
+        assert!(c.distance.is_none() && c.drift.is_none());
+    }
+}
