@@ -1147,3 +1147,165 @@ fn calibrate_registers_its_calibration() {
     assert_eq!(shown[0]["identified_sha256"], sha256_of(&identified));
     assert_eq!(shown[0]["certificate_sha256"], sha256_of(&html));
 }
+
+/// The fleet page (item 7): two calibrations of ER-7 with a shift check and a pose test, a
+/// calibration from touches of a Panda: one row per robot with its count, last calibration,
+/// due date (a year after it; overdue when judged a century later), last check and pose test as
+/// recorded; the page loads in a headless Chromium with its rows.
+#[test]
+fn the_fleet_page_shows_every_robot() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("fleet.db");
+    er7_files(dir.path(), ("er-7-copy.toml", "ER-7"), |_| {});
+    register_simulated(dir.path(), &db, Path::new(ROBOT), 1);
+    register_simulated(dir.path(), &db, Path::new(ROBOT), 2);
+    let (touches, _, _) = touches_calibration(dir.path());
+    ok(&calib(&[
+        "registry",
+        "add",
+        s(&touches),
+        "--serial",
+        "PANDA-3",
+        "--db",
+        s(&db),
+    ]));
+    ok(&calib(&[
+        "check-shift",
+        "--serial",
+        "ER-7",
+        "--data",
+        s(&dir.path().join("s2.csv")),
+        "--checked-at",
+        "2026-11-29T06:00:00Z",
+        "--db",
+        s(&db),
+    ]));
+    let (targets, run) = common::drifting_run(dir.path());
+    ok(&calib(&[
+        "iso9283",
+        "evaluate",
+        "--targets",
+        s(&targets),
+        "--data",
+        s(&run),
+        "--robot",
+        ROBOT,
+        "--registry",
+        s(&db),
+        "--serial",
+        "ER-7",
+        "--tested-at",
+        "2026-11-29T07:00:00Z",
+    ]));
+    let listed: serde_json::Value =
+        serde_json::from_str(&ok(&calib(&["registry", "list", "--json", "--db", s(&db)]))).unwrap();
+    let tests: serde_json::Value = serde_json::from_str(&ok(&calib(&[
+        "registry",
+        "pose-tests",
+        "--serial",
+        "ER-7",
+        "--json",
+        "--db",
+        s(&db),
+    ])))
+    .unwrap();
+    let page_of = |today: &str| {
+        let out = dir.path().join(format!("fleet-{today}.html"));
+        let said = ok(&calib(&[
+            "registry",
+            "fleet",
+            "--out",
+            s(&out),
+            "--today",
+            today,
+            "--db",
+            s(&db),
+        ]));
+        (std::fs::read_to_string(&out).unwrap(), said, out)
+    };
+    let (page, said, out) = page_of("2026-11-30");
+    assert!(said.contains("2 robots, 0 overdue"), "{said}");
+    let rows: Vec<&str> = page.lines().filter(|l| l.starts_with("<tr><td>")).collect();
+    assert_eq!(rows.len(), 2);
+    let er7 = rows
+        .iter()
+        .find(|r| r.starts_with("<tr><td>ER-7</td>"))
+        .unwrap();
+    let last = listed
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|r| r["serial"] == "ER-7")
+        .last()
+        .unwrap();
+    let calibrated = last["calibrated_at"].as_str().unwrap();
+    let due = humantime::format_rfc3339_seconds(
+        humantime::parse_rfc3339(calibrated).unwrap()
+            + std::time::Duration::from_secs(365 * 86_400),
+    )
+    .to_string();
+    assert!(
+        er7.contains(&format!(
+            "<td>2</td><td>{calibrated} (#{}, tracker)</td>",
+            last["id"]
+        )),
+        "{er7}"
+    );
+    assert!(er7.contains(&format!("<td>{}</td>", &due[..10])), "{er7}");
+    assert!(
+        er7.contains("<td>2026-11-29T06:00:00Z</td>")
+            && er7.contains("<span class=\"ok\">ok</span>"),
+        "{er7}"
+    );
+    let ap = tests[0]["ap_max_mm"].as_f64().unwrap();
+    assert!(
+        er7.contains(&format!("<td>2026-11-29T07:00:00Z</td><td>{ap:.4}</td>")),
+        "{er7}"
+    );
+    assert!(rows.iter().any(|r| r.starts_with("<tr><td>PANDA-3</td>")
+        && r.contains("touches")
+        && r.contains("<td>none</td>")));
+    let (later, said, _) = page_of("2126-01-01");
+    assert!(said.contains("2 robots, 2 overdue"), "{said}");
+    assert_eq!(later.matches("OVERDUE").count(), 2);
+    // A bad day and a registry that is not there are refused, nothing written.
+    let bad = calib(&[
+        "registry",
+        "fleet",
+        "--out",
+        s(&dir.path().join("x.html")),
+        "--today",
+        "2026-02-30",
+        "--db",
+        s(&db),
+    ]);
+    assert!(!bad.status.success() && String::from_utf8_lossy(&bad.stderr).contains("--today"));
+    assert!(!dir.path().join("x.html").exists());
+    // In a real browser: the page loads and its table has the two robots.
+    let Some(browser) = host_tools::report::pdf::browser() else {
+        assert!(
+            std::env::var("CALIB_REQUIRE_CHROMIUM").as_deref() != Ok("1"),
+            "no chromium"
+        );
+        return;
+    };
+    let profile = tempfile::tempdir().unwrap();
+    let dom = std::process::Command::new(browser)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+        ])
+        .arg(format!("--user-data-dir={}", profile.path().display()))
+        .arg("--dump-dom")
+        .arg(format!("file://{}", out.display()))
+        .output()
+        .unwrap();
+    let dom = String::from_utf8_lossy(&dom.stdout);
+    assert_eq!(dom.matches("<tr><td>").count(), 2, "{dom}");
+    assert!(dom.contains("<h1>Fleet</h1>"));
+}

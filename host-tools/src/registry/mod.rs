@@ -18,6 +18,7 @@
 
 pub mod compare;
 pub mod export;
+pub mod fleet;
 pub mod pose_tests;
 pub mod record;
 pub mod shift;
@@ -386,12 +387,22 @@ impl Registry {
 
     /// Robot `serial`'s shift checks, oldest first.
     pub fn checks(&self, serial: &str) -> crate::Result<Vec<shift::CheckSummary>> {
+        self.checks_of(Some(serial))
+    }
+
+    /// Every robot's shift checks, by robot, oldest first.
+    pub fn all_checks(&self) -> crate::Result<Vec<shift::CheckSummary>> {
+        self.checks_of(None)
+    }
+
+    /// The shift checks of robot `serial`, or of every robot with `None`.
+    fn checks_of(&self, serial: Option<&str>) -> crate::Result<Vec<shift::CheckSummary>> {
         let failed =
             |e: &rusqlite::Error| database_error(&self.path, "cannot list its shift checks", e);
         let mut statement = (self.connection)
             .prepare(
                 "SELECT id, calibration_id, serial, checked_at, poses, mean_mm, max_mm, drifted, cause
-                 FROM shift_check WHERE serial = ?1 ORDER BY checked_at, id",
+                 FROM shift_check WHERE ?1 IS NULL OR serial = ?1 ORDER BY serial, checked_at, id",
             )
             .map_err(|e| failed(&e))?;
         let rows = statement

@@ -91,12 +91,22 @@ impl Registry {
 
     /// Robot `serial`'s pose tests, oldest first.
     pub fn pose_tests(&self, serial: &str) -> crate::Result<Vec<PoseTestSummary>> {
+        self.pose_tests_of(Some(serial))
+    }
+
+    /// Every robot's pose tests, by robot, oldest first.
+    pub fn all_pose_tests(&self) -> crate::Result<Vec<PoseTestSummary>> {
+        self.pose_tests_of(None)
+    }
+
+    /// The pose tests of robot `serial`, or of every robot with `None`.
+    fn pose_tests_of(&self, serial: Option<&str>) -> crate::Result<Vec<PoseTestSummary>> {
         let failed =
             |e: &rusqlite::Error| database_error(&self.path, "cannot list its pose tests", e);
         let mut statement = (self.connection)
             .prepare(
                 "SELECT id, serial, tested_at, cycles, ap_max_mm, rp_max_mm
-                 FROM pose_test WHERE serial = ?1 ORDER BY tested_at, id",
+                 FROM pose_test WHERE ?1 IS NULL OR serial = ?1 ORDER BY serial, tested_at, id",
             )
             .map_err(|e| failed(&e))?;
         let rows = statement

@@ -3,7 +3,7 @@
 
 pub mod html;
 pub mod job;
-mod markup;
+pub(crate) mod markup;
 pub mod pdf;
 pub mod plots;
 pub mod pose_test;

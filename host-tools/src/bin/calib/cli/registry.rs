@@ -52,6 +52,9 @@ pub enum RegistryCommand {
     /// List a robot's ISO 9283 pose tests (calib iso9283 evaluate --registry): cycles, the
     /// largest AP and RP; one whole with --id.
     PoseTests(PoseTestsOptions),
+    /// Write the fleet page: one static HTML page of every robot, its last calibration and
+    /// accuracy, when it falls due, its last shift check and drift state, its last pose test.
+    Fleet(FleetOptions),
     /// Plot one robot over time: its calibrations' held-out figures and its shift checks' mean
     /// errors against the date, with the drift rate (SVG).
     Trend(TrendOptions),
@@ -80,6 +83,23 @@ pub struct ChecksOptions {
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// The registry.
+    #[command(flatten)]
+    pub db: Db,
+}
+
+/// `calib registry fleet`.
+#[derive(Debug, clap::Args)]
+pub struct FleetOptions {
+    /// The page to write (HTML).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Days from a calibration until the robot is due again.
+    #[arg(long, value_name = "DAYS", default_value_t = host_tools::registry::fleet::DEFAULT_INTERVAL_DAYS)]
+    pub interval_days: u32,
+    /// Judge due dates on this day, YYYY-MM-DD (default: today).
+    #[arg(long, value_name = "DATE")]
+    pub today: Option<String>,
     /// The registry.
     #[command(flatten)]
     pub db: Db,
@@ -308,6 +328,7 @@ fn text_of(options: &RegistryOptions) -> anyhow::Result<String> {
         RegistryCommand::Trend(o) => trend(o)?,
         RegistryCommand::Checks(o) => checks(o)?,
         RegistryCommand::PoseTests(o) => pose_tests(o)?,
+        RegistryCommand::Fleet(o) => fleet(o)?,
         RegistryCommand::Export(o) => {
             let records = Registry::open(&o.db.db, Access::Read)?.all()?;
             let text = match o.format {
@@ -493,4 +514,33 @@ fn pose_tests(o: &PoseTestsOptions) -> anyhow::Result<String> {
         (false, true) => format!("no pose tests of robot {} recorded\n", o.serial),
         (false, false) => tests.iter().map(|t| t.line() + "\n").collect(),
     })
+}
+
+fn fleet(o: &FleetOptions) -> anyhow::Result<String> {
+    use host_tools::registry::fleet;
+    let today = match &o.today {
+        Some(day) => {
+            host_tools::io::dates::date(day).map_err(|e| anyhow::anyhow!("--today {day}: {e}"))?;
+            humantime::parse_rfc3339(&format!("{day}T00:00:00Z"))?
+        }
+        None => std::time::SystemTime::now(),
+    };
+    let registry = Registry::open(&o.db.db, Access::Read)?;
+    let rows = fleet::rows(&registry, o.interval_days, today)?;
+    let generated = humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string();
+    let page = fleet::html(
+        &rows,
+        &generated,
+        &o.db.db.display().to_string(),
+        o.interval_days,
+    );
+    let mut outputs = Outputs::new(&[("--db", o.db.db.as_path())]);
+    outputs.stage("--out", &o.out, page.as_bytes())?;
+    outputs.commit()?;
+    let overdue = rows.iter().filter(|r| r.due.1).count();
+    Ok(format!(
+        "wrote {}: {} robots, {overdue} overdue\n",
+        o.out.display(),
+        rows.len()
+    ))
 }
