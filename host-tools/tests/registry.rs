@@ -1235,8 +1235,7 @@ fn the_fleet_page_shows_every_robot() {
         .as_array()
         .unwrap()
         .iter()
-        .filter(|r| r["serial"] == "ER-7")
-        .last()
+        .rfind(|r| r["serial"] == "ER-7")
         .unwrap();
     let calibrated = last["calibrated_at"].as_str().unwrap();
     let due = humantime::format_rfc3339_seconds(
