@@ -188,18 +188,18 @@ pub(crate) fn held_out_coverage(
         }
     };
     let actual = Kinematics::new(&validation.robot.model.robot, errors)?;
-    let poses: Vec<_> = (validation.measurements().iter())
+    // Each pose's error, and its distance from the base: the predicted point less the base
+    // frame's origin (one forward kinematics for both).
+    let base = nalgebra::Vector3::from(validation.robot.model.robot.base.xyz);
+    let (poses, reach): (Vec<_>, Vec<f64>) = (validation.measurements().iter())
         .zip(&validation.data.records)
         .map(|(m, r)| {
-            let error = m.error_of(&actual.forward_angles(&m.angles)).position;
-            (m.angles, error, r.line, noise(validation, m))
+            let predicted = actual.forward_angles(&m.angles);
+            let error = m.error_of(&predicted).position;
+            let reach = (predicted.translation.vector - base).norm();
+            ((m.angles, error, r.line, noise(validation, m)), reach)
         })
-        .collect();
-    // The distance from the base: the predicted point less the base frame's origin.
-    let base = nalgebra::Vector3::from(validation.robot.model.robot.base.xyz);
-    let reach = (validation.measurements().iter())
-        .map(|m| (actual.forward_angles(&m.angles).translation.vector - base).norm())
-        .collect();
+        .unzip();
     let instrument_rms =
         (poses.iter().map(|p| p.3 * p.3).sum::<f64>() / poses.len().max(1) as f64).sqrt();
     let described = instrument.map(|i| {

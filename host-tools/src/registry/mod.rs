@@ -548,6 +548,21 @@ fn record_of_row(row: &rusqlite::Row<'_>) -> rusqlite::Result<Record> {
     })
 }
 
+/// When something was measured: `given` (RFC 3339, checked; named by `option` in the refusal)
+/// or now, as RFC 3339 to the second.
+fn time_or_now(given: Option<&str>, option: &'static str) -> crate::Result<String> {
+    match given {
+        Some(t) => {
+            humantime::parse_rfc3339_weak(t).map_err(|e| {
+                crate::refused!(option option;
+                    "{option} {t}: {e}; give a time such as 2026-11-29T06:00:00Z")
+            })?;
+            Ok(t.to_string())
+        }
+        None => Ok(humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string()),
+    }
+}
+
 /// Creates an empty file at `path` readable and writable by its owner only (another process
 /// creating it at the same moment is fine: the file then exists).
 fn create_private(path: &Path) -> crate::Result<()> {

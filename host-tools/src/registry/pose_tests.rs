@@ -147,19 +147,9 @@ impl Registry {
     }
 }
 
-/// The time a run was measured: `given` (RFC 3339, checked) or now. Refused: a time that is not
-/// RFC 3339.
+/// The time a run was measured: `given` (RFC 3339, checked; `--tested-at`) or now.
 pub fn tested_at(given: Option<&str>) -> crate::Result<String> {
-    match given {
-        Some(t) => {
-            humantime::parse_rfc3339_weak(t).map_err(|e| {
-                crate::refused!(option "--tested-at";
-                    "--tested-at {t}: {e}; give a time such as 2026-11-29T06:00:00Z")
-            })?;
-            Ok(t.to_string())
-        }
-        None => Ok(humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string()),
-    }
+    super::time_or_now(given, "--tested-at")
 }
 
 /// The serial a pose test is recorded under: `given`, else the robot file's. Refused: neither.

@@ -637,16 +637,7 @@ pub fn check_and_record(
     (record, checked_at): (Option<i64>, Option<&str>),
     settings: ShiftSettings,
 ) -> crate::Result<Recorded> {
-    let checked_at = match checked_at {
-        Some(t) => {
-            humantime::parse_rfc3339_weak(t).map_err(|e| {
-                crate::refused!(option "--checked-at";
-                    "--checked-at {t}: {e}; give a time such as 2026-11-29T06:00:00Z")
-            })?;
-            t.to_string()
-        }
-        None => humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string(),
-    };
+    let checked_at = super::time_or_now(checked_at, "--checked-at")?;
     let mut registry = super::Registry::open(db, super::Access::Write)?;
     let records = registry.robot(serial)?;
     let chosen = match record {
