@@ -360,6 +360,73 @@ fn foreign_newer_damaged_and_read_only_files_are_refused_and_left_alone() {
     assert!(!none.exists());
 }
 
+/// A full disk while registering (issue 55, must hold): the registration runs under a file-size
+/// limit (`ulimit -f`, with SIGXFSZ ignored, so that a write past it fails as on a full disk) at
+/// several sizes, failing while the journal is written or the database grows: each is refused
+/// with what to do, the records read afterwards (read-only, through an interrupted write's
+/// journal left beside the file) are those before, the file passes SQLite's integrity check, and
+/// with room again the registration lands under the next number.
+#[test]
+fn a_full_disk_loses_no_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let (touches, _, _) = touches_calibration(dir.path());
+    let (tracker, _) = tracker_calibration(dir.path());
+    let db = dir.path().join("full.db");
+    for serial in ["P1", "P2", "P3", "P4"] {
+        ok(&calib(&[
+            "registry",
+            "add",
+            s(&touches),
+            "--serial",
+            serial,
+            "--db",
+            s(&db),
+        ]));
+    }
+    let listed = || ok(&calib(&["registry", "list", "--json", "--db", s(&db)]));
+    let before = listed();
+    let size_kib = std::fs::metadata(&db).unwrap().len() / 1024;
+    let journal = dir.path().join("full.db-journal");
+    let mut journals_left = 0;
+    for limit_kib in [1, size_kib / 2, size_kib] {
+        let out = std::process::Command::new("bash")
+            .args([
+                "-c",
+                &format!("trap '' XFSZ; ulimit -f {limit_kib}; exec \"$0\" registry add \"$1\" --db \"$2\""),
+                env!("CARGO_BIN_EXE_calib"),
+                s(&tracker),
+                s(&db),
+            ])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        println!("limit {limit_kib} KiB: {stderr}");
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains("the disk refused a write") && stderr.contains("nothing was written"),
+            "{stderr}"
+        );
+        journals_left += usize::from(journal.exists());
+        assert_eq!(
+            listed(),
+            before,
+            "the records after a failed write at {limit_kib} KiB"
+        );
+        assert!(
+            !journal.exists(),
+            "the interrupted write rolled back when read"
+        );
+    }
+    assert!(journals_left > 0, "no limit interrupted a write midway");
+    let c = rusqlite::Connection::open(&db).unwrap();
+    let check: String = c
+        .query_row("PRAGMA integrity_check", [], |r| r.get(0))
+        .unwrap();
+    assert_eq!(check, "ok");
+    let out = ok(&calib(&["registry", "add", s(&tracker), "--db", s(&db)]));
+    assert!(out.contains("record 5"), "{out}");
+}
+
 /// Two processes registering at once: every registration lands, numbered once each.
 #[test]
 fn two_processes_register_at_once() {
@@ -1307,4 +1374,228 @@ fn the_fleet_page_shows_every_robot() {
     let dom = String::from_utf8_lossy(&dom.stdout);
     assert_eq!(dom.matches("<tr><td>").count(), 2, "{dom}");
     assert!(dom.contains("<h1>Fleet</h1>"));
+}
+
+/// The JSON report at `path` without what differs between two runs of one calibration: when
+/// and how long it ran, the command line and the run's file names.
+fn report_without_run(path: &Path) -> serde_json::Value {
+    let mut report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    for key in [
+        "calibrated_at",
+        "seconds",
+        "command_line",
+        "inputs",
+        "robot",
+        "data",
+    ] {
+        report.as_object_mut().unwrap().remove(key);
+    }
+    report
+}
+
+/// Batch calibration (item 7): three robots from one manifest, two calibrated and registered,
+/// one refused (two poses) with its reason and nothing written for it; each calibrated robot's
+/// report equals `calib calibrate` run alone with the same options, the summary states its
+/// figures, the registry its files' hashes. A manifest error refuses the batch before anything is
+/// calibrated; an acceptance criterion failed on one robot gives exit status 3.
+#[test]
+fn a_batch_calibrates_each_robot_of_its_manifest() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let text = std::fs::read_to_string(ROBOT).unwrap();
+    for serial in ["ER-A", "ER-B", "ER-C"] {
+        std::fs::write(
+            d.join(format!("{serial}.toml")),
+            format!("serial = \"{serial}\"\n{text}"),
+        )
+        .unwrap();
+    }
+    let noise = ["--position-sigma-mm", "0.02"];
+    simulate(
+        d,
+        "a",
+        &[&["--poses", "60", "--seed", "1"][..], &noise].concat(),
+    );
+    simulate(
+        d,
+        "b",
+        &[&["--poses", "60", "--seed", "2"][..], &noise].concat(),
+    );
+    simulate(d, "c", &["--poses", "2", "--seed", "3"]);
+    let manifest = |robots: &str| {
+        let path = d.join("cell.toml");
+        std::fs::write(
+            &path,
+            format!("[calibrate]\nmethod = \"lm\"\nvalidate = 0.25\naccept = [\"95% <= 0.5 mm\"]\n{robots}"),
+        )
+        .unwrap();
+        path
+    };
+    let robot = |serial: &str, data: &str, extra: &str| {
+        format!("\n[[robot]]\nrobot = \"{serial}.toml\"\ndata = \"{data}.csv\"\n{extra}")
+    };
+    let three = [
+        robot("ER-A", "a", ""),
+        robot("ER-B", "b", "validate_seed = 3"),
+        robot("ER-C", "c", ""),
+    ]
+    .concat();
+    let (out_dir, db) = (d.join("results"), d.join("cell.db"));
+    let batch = |manifest: &Path, out_dir: &Path| {
+        calib(&[
+            "batch",
+            s(manifest),
+            "--out-dir",
+            s(out_dir),
+            "--registry",
+            s(&db),
+            "--quiet",
+        ])
+    };
+    // Refused before anything is calibrated: a key calibrate does not know, an output key,
+    // two robots of one serial.
+    let refusals = [
+        (
+            robot("ER-A", "a", "modle = \"lm\""),
+            "unexpected argument '--modle'",
+        ),
+        (
+            robot("ER-A", "a", "report = \"r.json\""),
+            "report: set by calib batch itself",
+        ),
+        (
+            [robot("ER-A", "a", ""), robot("ER-A", "b", "")].concat(),
+            "robots 1 and 2 are both serial ER-A",
+        ),
+        (robot("ER-A", "missing", ""), "--data"),
+    ];
+    for (robots, expected) in refusals {
+        let out = batch(&manifest(&robots), &out_dir);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && stderr.contains(expected),
+            "{expected}: {stderr}"
+        );
+        assert!(
+            !out_dir.exists() && !db.exists(),
+            "nothing written: {stderr}"
+        );
+    }
+    let out = batch(&manifest(&three), &out_dir);
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    println!("{stdout}{stderr}");
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("1 of 3 robots were refused"), "{stderr}");
+    assert!(
+        stdout.contains("refused: 1 poses give 6 equations"),
+        "{stdout}"
+    );
+    assert!(
+        !out_dir.join("ER-C").exists(),
+        "nothing written for the refused robot"
+    );
+    let summary: Vec<std::collections::HashMap<String, String>> =
+        csv::Reader::from_path(out_dir.join("summary.csv"))
+            .unwrap()
+            .deserialize()
+            .map(Result::unwrap)
+            .collect();
+    let status: Vec<&str> = summary.iter().map(|r| r["status"].as_str()).collect();
+    assert_eq!(status, ["PASS", "PASS", "refused"]);
+    for (i, (serial, data, seed)) in [("ER-A", "a", "0"), ("ER-B", "b", "3")]
+        .into_iter()
+        .enumerate()
+    {
+        // The same calibration alone.
+        let alone = d.join(format!("{serial}-alone.json"));
+        ok(&calib_in(
+            d,
+            &[
+                "calibrate",
+                "--robot",
+                &format!("{serial}.toml"),
+                "--data",
+                &format!("{data}.csv"),
+                "--method",
+                "lm",
+                "--validate",
+                "0.25",
+                "--validate-seed",
+                seed,
+                "--accept",
+                "95% <= 0.5 mm",
+                "--report",
+                s(&alone),
+                "--quiet",
+            ],
+        ));
+        let report = out_dir.join(serial).join("report.json");
+        assert_eq!(
+            report_without_run(&report),
+            report_without_run(&alone),
+            "{serial}"
+        );
+        let expected = report_without_run(&alone);
+        let held = &expected["held_out"]["after"];
+        let number = |key: &str| summary[i][key].parse::<f64>().unwrap();
+        assert_eq!(
+            number("held_out_p95_mm"),
+            held["position"]["p95_mm"].as_f64().unwrap()
+        );
+        assert_eq!(
+            number("held_out_max_mm"),
+            held["position"]["max_mm"].as_f64().unwrap()
+        );
+        assert_eq!(
+            number("expanded_uncertainty_mm"),
+            expected["budget"]["expanded_mm"].as_f64().unwrap()
+        );
+        let shown: serde_json::Value = serde_json::from_str(&ok(&calib(&[
+            "registry",
+            "show",
+            &(i + 1).to_string(),
+            "--json",
+            "--db",
+            s(&db),
+        ])))
+        .unwrap();
+        assert_eq!(shown[0]["serial"], serial);
+        assert_eq!(shown[0]["report_sha256"], sha256_of(&report));
+        assert_eq!(
+            shown[0]["certificate_sha256"],
+            sha256_of(&out_dir.join(serial).join("certificate.html"))
+        );
+        assert_eq!(
+            shown[0]["identified_sha256"],
+            sha256_of(&out_dir.join(serial).join("identified.toml"))
+        );
+    }
+    // An acceptance criterion failed on one robot, none refused: status 3, every file written.
+    let strict = [
+        robot("ER-A", "a", ""),
+        robot("ER-B", "b", "accept = [\"95% <= 0.001 mm\"]"),
+    ]
+    .concat();
+    let out = calib(&[
+        "batch",
+        s(&manifest(&strict)),
+        "--out-dir",
+        s(&d.join("strict")),
+        "--quiet",
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary = std::fs::read_to_string(d.join("strict/summary.csv")).unwrap();
+    assert!(
+        summary.contains("\nER-A,PASS,") && summary.contains("\nER-B,FAIL,"),
+        "{summary}"
+    );
 }

@@ -170,6 +170,22 @@ impl Registry {
             return Err(crate::refused!(output path;
                 "{}: the registry is read-only (its mode has no write bit): make it writable (chmod u+w) or name another with --db; nothing was written", path.display()));
         }
+        let mut registry = Self::connect(path, access)?;
+        if access == Access::Read && registry.interrupted_write() {
+            if read_only {
+                return Err(crate::refused!(input path.display();
+                    "{}: a write was interrupted (a crash, a full disk) and left its journal beside it, which only a writable file can roll back: make it writable (chmod u+w) and read it again; the records before that write are intact", path.display()));
+            }
+            // Opened for writing, SQLite rolls the interrupted write back as it reads.
+            registry = Self::connect(path, Access::Write)?;
+        }
+        registry.check_and_migrate(access)?;
+        Ok(registry)
+    }
+
+    /// The connection to `path` for `access` (read-only for reading), waiting up to
+    /// [`BUSY_TIMEOUT`] for another process's write.
+    fn connect(path: &Path, access: Access) -> crate::Result<Self> {
         let flags = match access {
             Access::Read => OpenFlags::SQLITE_OPEN_READ_ONLY,
             Access::Write => OpenFlags::SQLITE_OPEN_READ_WRITE,
@@ -179,12 +195,20 @@ impl Registry {
         connection
             .busy_timeout(BUSY_TIMEOUT)
             .map_err(|e| database_error(path, "cannot open it", &e))?;
-        let mut registry = Self {
+        Ok(Self {
             connection,
             path: path.to_owned(),
-        };
-        registry.check_and_migrate(access)?;
-        Ok(registry)
+        })
+    }
+
+    /// Whether a read-only connection finds the journal of an interrupted write (a process
+    /// killed or a disk full while it wrote) that must be rolled back before anything is read.
+    fn interrupted_write(&self) -> bool {
+        let read = (self.connection).query_row("SELECT count(*) FROM sqlite_master", [], |row| {
+            row.get::<_, i64>(0)
+        });
+        matches!(read, Err(rusqlite::Error::SqliteFailure(e, _))
+            if e.extended_code == rusqlite::ffi::SQLITE_READONLY_ROLLBACK)
     }
 
     /// The file.
@@ -596,6 +620,9 @@ fn database_error(path: &Path, doing: &str, error: &rusqlite::Error) -> crate::E
         }
         Some(ErrorCode::DiskFull) => {
             "the disk is full: free space and register again (nothing was written)"
+        }
+        Some(ErrorCode::SystemIoFailure) => {
+            "the disk refused a write (full, a file-size limit, or failing): free space or check the disk and try again; nothing was written, and what was begun is rolled back the next time the registry is opened"
         }
         Some(ErrorCode::DatabaseBusy) | Some(ErrorCode::DatabaseLocked) => {
             "another process held it too long: try again"

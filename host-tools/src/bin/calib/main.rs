@@ -50,6 +50,11 @@ enum Command {
     Simulate(Simulation),
     /// Identify the robot's parameter errors from tracker data.
     Calibrate(CalibrateOptions),
+    /// Calibrate many robots from a manifest (TOML: calibrate's options for each robot), each
+    /// as calibrate would alone: its identified file, report and certificate in --out-dir
+    /// SERIAL/, optionally registered, and a summary of all. Exits with status 1 when a robot was
+    /// refused, 3 when an acceptance criterion failed.
+    Batch(crate::cli::batch::BatchOptions),
     /// Choose the poses to measure (a D-optimal core, random fill and verification poses) from
     /// candidate joint configurations, predict the accuracy they give, and write the plan as a
     /// tracker CSV to be filled by the tracker software.
@@ -152,6 +157,31 @@ fn calibrate_command(mut options: CalibrateOptions) -> anyhow::Result<()> {
         let _ = std::io::Write::write_all(
             &mut std::io::stderr(),
             b"Error: the acceptance criterion is not met (FAIL above and in the reports); the files were written\n",
+        );
+        std::process::exit(ACCEPTANCE_FAILED);
+    }
+    Ok(())
+}
+
+/// `calib batch`: calibrates every robot of the manifest, prints the summary; an error when a
+/// robot was refused, exit status [`ACCEPTANCE_FAILED`] when an acceptance criterion failed
+/// (after every file is written).
+fn batch_command(options: &crate::cli::batch::BatchOptions) -> anyhow::Result<()> {
+    let batch = crate::cli::batch::batch(options)?;
+    print(&batch.text)?;
+    let refused = batch.rows.iter().filter(|r| r.status == "refused").count();
+    if refused > 0 {
+        anyhow::bail!(
+            "{refused} of {} robots were refused (the reasons above and in {}); the others' files were written",
+            batch.rows.len(),
+            options.out_dir.join(crate::cli::batch::SUMMARY).display()
+        );
+    }
+    if batch.rows.iter().any(|r| r.status == "FAIL") {
+        let _ = std::io::Write::flush(&mut std::io::stdout());
+        let _ = std::io::Write::write_all(
+            &mut std::io::stderr(),
+            b"Error: an acceptance criterion is not met (FAIL above and in the reports); the files were written\n",
         );
         std::process::exit(ACCEPTANCE_FAILED);
     }
@@ -272,6 +302,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         Command::CheckShift(options) => crate::cli::check_shift::run(&options)?,
         Command::Iso9283(options) => crate::cli::iso9283::run(&options)?,
         Command::Calibrate(options) => calibrate_command(options)?,
+        Command::Batch(options) => batch_command(&options)?,
     }
     Ok(())
 }

@@ -177,31 +177,34 @@ pub fn calibrate_and_write(options: &CalibrateOptions) -> anyhow::Result<Written
     for path in written {
         text.push_str(&format!("wrote {}\n", path.display()));
     }
+    let mut record = None;
     if let Some(registry) = &mut registry {
         use host_tools::registry::record::{NewRecord, RecordFiles};
-        let record = NewRecord::from_files(&RecordFiles {
+        let new = NewRecord::from_files(&RecordFiles {
             report: options.report.as_deref(),
             identified: options.out.as_deref(),
             certificate: options.html.as_deref(),
             ..RecordFiles::default()
         })?;
-        let id = registry.add(&record)?;
+        let id = registry.add(&new)?;
         text.push_str(&format!(
             "registered record {id}: robot {} in {}\n",
-            record.serial,
+            new.serial,
             registry.path().display()
         ));
+        record = Some(id);
     }
     Ok(Written {
         text,
         accepted: calibrated.accepted(),
+        record,
     })
 }
 
 /// The registry `--registry` names, opened (created when new) before anything is calibrated,
 /// so that a file that is not a registry is refused first. Refused: no `--report` (the registry
 /// keeps the report and its SHA-256), a robot file stating no serial.
-fn registry_of(
+pub(crate) fn registry_of(
     options: &CalibrateOptions,
 ) -> anyhow::Result<Option<host_tools::registry::Registry>> {
     use host_tools::registry::{Access, Registry};
@@ -250,6 +253,8 @@ pub struct Written {
     pub text: String,
     /// With acceptance criteria (`--accept`): whether all are met.
     pub accepted: Option<bool>,
+    /// With `--registry`: the id of the record registered.
+    pub record: Option<i64>,
 }
 
 /// Runs `calib calibrate` without writing anything: reads the files, calibrates.

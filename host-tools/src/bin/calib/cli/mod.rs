@@ -1,6 +1,7 @@
 //! The `calib` command line at the edge of the library: each command's clap options and a thin
 //! run function (read the files, call the library, return what the binary prints and writes).
 
+pub mod batch;
 pub mod calibrate;
 pub mod check;
 pub mod check_shift;
