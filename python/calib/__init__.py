@@ -55,6 +55,9 @@ from ._calib import registry_compare_json as _registry_compare_json
 from ._calib import registry_verify_json as _registry_verify_json
 from ._calib import check_shift_json as _check_shift_json
 from ._calib import iso9283_evaluate_json as _iso9283_evaluate_json
+from ._calib import registry_checks_json as _registry_checks_json
+from ._calib import registry_pose_tests_json as _registry_pose_tests_json
+from ._calib import registry_fleet_html as _registry_fleet_html
 
 
 def evaluate(
@@ -255,6 +258,40 @@ def registry_verify(
     return parsed
 
 
+def registry_checks(serial: str, db: _Union[str, "_PathLike[str]"] = "calib.db") -> dict[str, _Any]:
+    """Robot ``serial``'s shift checks in ``db``, oldest first, as ``calib registry checks --json``
+    gives them: ``checks`` (one dict per check: ``checked_at``, ``mean_mm``, ``max_mm``,
+    ``drifted``, ``cause``, ...) and ``drift_rate`` (mm per 30 days with its standard error, or
+    ``None``). A pandas frame is ``pandas.DataFrame(calib.registry_checks(serial, db)["checks"])``."""
+    parsed: dict[str, _Any] = _json.loads(_registry_checks_json(serial, db))
+    return parsed
+
+
+def registry_pose_tests(serial: str, db: _Union[str, "_PathLike[str]"] = "calib.db") -> list[dict[str, _Any]]:
+    """Robot ``serial``'s ISO 9283 pose tests in ``db``, oldest first, as ``calib registry
+    pose-tests --json`` gives them (``id``, ``tested_at``, ``cycles``, the largest ``ap_mm`` and
+    ``rp_mm``, ...); a pandas frame is ``pandas.DataFrame(calib.registry_pose_tests(serial, db))``.
+    One test whole: :func:`registry_pose_test`."""
+    parsed: list[dict[str, _Any]] = _json.loads(_registry_pose_tests_json(serial, None, db))
+    return parsed
+
+
+def registry_pose_test(serial: str, id: int, db: _Union[str, "_PathLike[str]"] = "calib.db") -> dict[str, _Any]:
+    """Robot ``serial``'s ISO 9283 pose test ``id`` whole, as ``calib registry pose-tests --id ID
+    --json`` gives it (each point's AP and RP, distance and drift characteristics)."""
+    parsed: dict[str, _Any] = _json.loads(_registry_pose_tests_json(serial, id, db))
+    return parsed
+
+
+def registry_fleet(
+    db: _Union[str, "_PathLike[str]"] = "calib.db", interval_days: int = 365, today: _Optional[str] = None
+) -> str:
+    """The fleet page of ``db`` as HTML text (``calib registry fleet``): every robot with its last
+    calibration, when it falls due (``interval_days`` after it; overdue before ``today``,
+    ``YYYY-MM-DD``, default today), its last shift check and pose test."""
+    return _registry_fleet_html(db, interval_days, today)
+
+
 def check_shift(
     serial: str,
     data: _Union[str, "_PathLike[str]"],
@@ -323,8 +360,12 @@ __all__ = [
     "check_shift",
     "iso9283_evaluate",
     "registry_add",
+    "registry_checks",
     "registry_compare",
+    "registry_fleet",
     "registry_list",
+    "registry_pose_test",
+    "registry_pose_tests",
     "registry_show",
     "registry_verify",
     "__version__",

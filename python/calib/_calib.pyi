@@ -39,6 +39,9 @@ __all__ = [
     "registry_verify_json",
     "check_shift_json",
     "iso9283_evaluate_json",
+    "registry_checks_json",
+    "registry_pose_tests_json",
+    "registry_fleet_html",
 ]
 
 class CalibError(Exception):
@@ -372,6 +375,19 @@ def check_shift_json(
     db: Optional[Union[str, PathLike[str]]] = None,
 ) -> str:
     """``calib check-shift --json`` as text."""
+
+def registry_checks_json(serial: str, db: Optional[Union[str, PathLike[str]]] = None) -> str:
+    """``calib registry checks --json`` as text."""
+
+def registry_pose_tests_json(
+    serial: str, id: Optional[int] = None, db: Optional[Union[str, PathLike[str]]] = None
+) -> str:
+    """``calib registry pose-tests --json`` as text."""
+
+def registry_fleet_html(
+    db: Optional[Union[str, PathLike[str]]] = None, interval_days: int = 365, today: Optional[str] = None
+) -> str:
+    """``calib registry fleet``: the page as HTML text."""
 
 def iso9283_evaluate_json(
     targets: Union[str, PathLike[str]],

@@ -2019,6 +2019,74 @@ fn iso9283_evaluate_json(
     .map_err(py_error)
 }
 
+/// `calib registry checks --json`: robot `serial`'s shift checks, oldest first, and its drift
+/// rate, as JSON text (the package's `registry_checks` returns the dict).
+#[pyfunction]
+#[pyo3(signature = (serial, db = None))]
+fn registry_checks_json(py: Python<'_>, serial: String, db: Option<PathBuf>) -> PyResult<String> {
+    let db = db.unwrap_or_else(|| PathBuf::from(host_tools::registry::DEFAULT_PATH));
+    use host_tools::registry::{Access, Registry};
+    py.detach(|| -> anyhow::Result<String> {
+        let checks = Registry::open(&db, Access::Read)?.checks(&serial)?;
+        let rate = host_tools::registry::shift::drift_rate(&checks);
+        Ok(serde_json::to_string(
+            &serde_json::json!({"checks": checks, "drift_rate": rate}),
+        )?)
+    })
+    .map_err(py_error)
+}
+
+/// `calib registry pose-tests --json`: robot `serial`'s ISO 9283 pose tests, oldest first, as
+/// JSON text; with `id`, that test whole (the package's `registry_pose_tests` returns the dicts).
+#[pyfunction]
+#[pyo3(signature = (serial, id = None, db = None))]
+fn registry_pose_tests_json(
+    py: Python<'_>,
+    serial: String,
+    id: Option<i64>,
+    db: Option<PathBuf>,
+) -> PyResult<String> {
+    let db = db.unwrap_or_else(|| PathBuf::from(host_tools::registry::DEFAULT_PATH));
+    use host_tools::registry::{Access, Registry};
+    py.detach(|| -> anyhow::Result<String> {
+        let registry = Registry::open(&db, Access::Read)?;
+        let tests = registry.pose_tests(&serial)?;
+        let Some(id) = id else {
+            return Ok(serde_json::to_string(&tests)?);
+        };
+        let test = match tests.iter().any(|t| t.id == id) {
+            true => registry.pose_test(id)?,
+            false => None,
+        };
+        let test =
+            test.ok_or_else(|| anyhow::anyhow!("id {id}: no pose test {id} of robot {serial}"))?;
+        Ok(serde_json::to_string(&test)?)
+    })
+    .map_err(py_error)
+}
+
+/// `calib registry fleet`: the fleet page of `db` as HTML text, due `interval_days` after each
+/// robot's last calibration, judged on `today` (`YYYY-MM-DD`, default today).
+#[pyfunction]
+#[pyo3(signature = (db = None, interval_days = 365, today = None))]
+fn registry_fleet_html(
+    py: Python<'_>,
+    db: Option<PathBuf>,
+    interval_days: u32,
+    today: Option<String>,
+) -> PyResult<String> {
+    let db = db.unwrap_or_else(|| PathBuf::from(host_tools::registry::DEFAULT_PATH));
+    use host_tools::registry::{Access, Registry};
+    py.detach(|| -> host_tools::Result<String> {
+        let registry = Registry::open(&db, Access::Read)?;
+        let source = db.display().to_string();
+        let (page, _) =
+            host_tools::registry::fleet::page(&registry, &source, interval_days, today.as_deref())?;
+        Ok(page)
+    })
+    .map_err(|e| py_error(e.into()))
+}
+
 /// The module.
 #[pymodule]
 fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -2037,6 +2105,9 @@ fn _calib(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(registry_verify_json, m)?)?;
     m.add_function(wrap_pyfunction!(check_shift_json, m)?)?;
     m.add_function(wrap_pyfunction!(iso9283_evaluate_json, m)?)?;
+    m.add_function(wrap_pyfunction!(registry_checks_json, m)?)?;
+    m.add_function(wrap_pyfunction!(registry_pose_tests_json, m)?)?;
+    m.add_function(wrap_pyfunction!(registry_fleet_html, m)?)?;
     m.add_class::<Plan>()?;
     m.add("CalibError", m.py().get_type::<CalibError>())?;
     m.add("InputError", m.py().get_type::<InputError>())?;

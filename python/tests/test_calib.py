@@ -839,6 +839,22 @@ def test_registry_compare_verify_and_shift_check_from_python(tmp_path):
     done = run_calib("registry", "checks", "--serial", "UR10-IPA", "--json", "--db", db)
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout)["checks"][0]["mean_mm"] == checked["result"]["mean_mm"]
+    import pandas
+    import re
+    checks = calib.registry_checks("UR10-IPA", db=db)
+    assert checks == json.loads(done.stdout)
+    assert pandas.DataFrame(checks["checks"])["mean_mm"].tolist() == [checked["result"]["mean_mm"]]
+    # The fleet page: the robot, its shift check's drift, due a year after its last calibration
+    # and overdue when judged in 2100; the command line's page but for the time it was generated.
+    page = calib.registry_fleet(db=db, today="2100-01-01")
+    done = run_calib("registry", "fleet", "--today", "2100-01-01", "--out", tmp_path / "fleet.html", "--db", db)
+    assert done.returncode == 0, done.stderr
+    generated = re.compile(r"Generated \S+")
+    written = (tmp_path / "fleet.html").read_text()
+    assert generated.sub("", page) == generated.sub("", written)
+    assert "UR10-IPA" in page and "OVERDUE" in page and "DRIFT" in page
+    with pytest.raises(calib.InputError, match="not a day of the calendar"):
+        calib.registry_fleet(db=db, today="2100-13-01")
     # The defaults written out in the Python signatures are the command line's.
     import inspect
     assert f"[default: {inspect.signature(calib.registry_compare).parameters['poses'].default}]" in \
@@ -868,3 +884,16 @@ def test_an_iso9283_pose_test_evaluates_as_the_command_line(tmp_path):
     assert all(p["cycles"] == 10 and p["ap_mm"] > 0.1 for p in points)
     with pytest.raises(calib.CalibError, match="not been measured"):
         calib.iso9283_evaluate(targets, run, robot)
+    # Recorded by the command line, read from Python: the list and the test whole.
+    db = tmp_path / "cell.db"
+    done = run_calib("iso9283", "evaluate", "--targets", targets, "--data", measured, "--robot", robot,
+                     "--registry", db, "--serial", "ER-9", "--tested-at", "2026-11-29T10:00:00Z")
+    assert done.returncode == 0, done.stderr
+    listed = calib.registry_pose_tests("ER-9", db=db)
+    done = run_calib("registry", "pose-tests", "--serial", "ER-9", "--json", "--db", db)
+    assert listed == json.loads(done.stdout)
+    assert [t["tested_at"] for t in listed] == ["2026-11-29T10:00:00Z"]
+    whole = calib.registry_pose_test("ER-9", listed[0]["id"], db=db)
+    assert [p["ap_mm"] for p in whole["characteristics"]["points"]] == [p["ap_mm"] for p in points]
+    with pytest.raises(calib.CalibError, match="no pose test 99"):
+        calib.registry_pose_test("ER-9", 99, db=db)

@@ -30,6 +30,33 @@ pub struct FleetRow {
     pub last_pose_test: Option<PoseTestSummary>,
 }
 
+/// The start (midnight, UTC) of `day`, `YYYY-MM-DD`: the "today" a page is judged on, when given.
+pub fn day_start(day: &str) -> Result<SystemTime, String> {
+    crate::io::dates::date(day)?;
+    humantime::parse_rfc3339(&format!("{day}T00:00:00Z")).map_err(|e| e.to_string())
+}
+
+/// The page of `registry` (named `source` on it), due `interval_days` after each last
+/// calibration, judged on `today` (`YYYY-MM-DD`; now when `None`), generated now; with its rows.
+/// Refused: a `today` that is not a date.
+pub fn page(
+    registry: &Registry,
+    source: &str,
+    interval_days: u32,
+    today: Option<&str>,
+) -> crate::Result<(String, Vec<FleetRow>)> {
+    let now = SystemTime::now();
+    let today = match today {
+        Some(day) => {
+            day_start(day).map_err(|e| crate::refused!(option "--today"; "--today {day}: {e}"))?
+        }
+        None => now,
+    };
+    let rows = rows(registry, interval_days, today)?;
+    let generated = humantime::format_rfc3339_seconds(now).to_string();
+    Ok((html(&rows, &generated, source, interval_days), rows))
+}
+
 /// Every robot of `registry`, by serial: due `interval_days` after its last calibration, judged
 /// on `today`.
 pub fn rows(

@@ -517,23 +517,10 @@ fn pose_tests(o: &PoseTestsOptions) -> anyhow::Result<String> {
 }
 
 fn fleet(o: &FleetOptions) -> anyhow::Result<String> {
-    use host_tools::registry::fleet;
-    let today = match &o.today {
-        Some(day) => {
-            host_tools::io::dates::date(day).map_err(|e| anyhow::anyhow!("--today {day}: {e}"))?;
-            humantime::parse_rfc3339(&format!("{day}T00:00:00Z"))?
-        }
-        None => std::time::SystemTime::now(),
-    };
     let registry = Registry::open(&o.db.db, Access::Read)?;
-    let rows = fleet::rows(&registry, o.interval_days, today)?;
-    let generated = humantime::format_rfc3339_seconds(std::time::SystemTime::now()).to_string();
-    let page = fleet::html(
-        &rows,
-        &generated,
-        &o.db.db.display().to_string(),
-        o.interval_days,
-    );
+    let source = o.db.db.display().to_string();
+    let (page, rows) =
+        host_tools::registry::fleet::page(&registry, &source, o.interval_days, o.today.as_deref())?;
     let mut outputs = Outputs::new(&[("--db", o.db.db.as_path())]);
     outputs.stage("--out", &o.out, page.as_bytes())?;
     outputs.commit()?;
