@@ -349,3 +349,101 @@ fn the_expanded_uncertainty_covers_95_percent_of_held_out_coordinates() {
         }
     }
 }
+
+/// A calibration from touches (the bundled Panda, `panda_3` trained on `frontcenter`) signed
+/// like a tracker's: with `--job` its certificate has the job's fields under the title, the
+/// certificate's number in every printed page's header, and the approval section between the
+/// touches' own sections and the software; without, its sections as before. `--pose-test` is
+/// refused, naming why, and nothing is written.
+#[test]
+fn a_certificate_from_touches_carries_the_job() {
+    let dir = tempfile::tempdir().unwrap();
+    let panda = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/franka-panda.toml");
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/data/mukca-sockets/panda_3");
+    ok(&calib_in(
+        dir.path(),
+        &[
+            "sockets",
+            "--robot",
+            panda,
+            "--data",
+            data,
+            "--ball-mm",
+            "0.025171,-0.084766,133.528298",
+            "--train",
+            "frontcenter",
+            "--distance",
+            "50",
+            "--report",
+            "t.json",
+        ],
+    ));
+    std::fs::write(dir.path().join("job.toml"), JOB).unwrap();
+    ok(&calib_in(
+        dir.path(),
+        &[
+            "report", "--from", "t.json", "--job", "job.toml", "--html", "c.html",
+        ],
+    ));
+    let page = std::fs::read_to_string(dir.path().join("c.html")).unwrap();
+    for value in [
+        "CAL-2026-0142",
+        "ACME Automotive",
+        "Cell 14, spot welding",
+        "J. Doe",
+    ] {
+        assert!(page.contains(&format!("<td>{value}</td>")), "{value}");
+    }
+    assert!(page.contains("content:\"Certificate CAL-2026-0142 - Robot calibration (touches): "));
+    assert!(page.contains("<tr><td>approved by</td><td>M. Muster</td>"));
+    let mut expected = host_tools::report::touch_certificate::SECTIONS.to_vec();
+    expected.insert(
+        expected.len() - 1,
+        host_tools::report::html::APPROVAL_SECTION,
+    );
+    let ids: Vec<&str> = section_ids(&page)
+        .into_iter()
+        .filter(|id| expected.contains(id))
+        .collect();
+    assert_eq!(ids, expected);
+    ok(&calib_in(
+        dir.path(),
+        &["report", "--from", "t.json", "--html", "plain.html"],
+    ));
+    let plain = std::fs::read_to_string(dir.path().join("plain.html")).unwrap();
+    assert!(!section_ids(&plain).contains(&"approval") && !plain.contains("CAL-2026-0142"));
+    let (targets, run) = common::drifting_run(dir.path());
+    ok(&calib_in(
+        dir.path(),
+        &[
+            "iso9283",
+            "evaluate",
+            "--targets",
+            targets.to_str().unwrap(),
+            "--data",
+            run.to_str().unwrap(),
+            "--robot",
+            ROBOT,
+            "--report",
+            "test.json",
+        ],
+    ));
+    let out = calib_in(
+        dir.path(),
+        &[
+            "report",
+            "--from",
+            "t.json",
+            "--pose-test",
+            "test.json",
+            "--html",
+            "p.html",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("--pose-test"),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("p.html").exists());
+}

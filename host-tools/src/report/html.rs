@@ -90,8 +90,7 @@ pub struct Additions<'a> {
     pub job: Option<&'a super::job::Job>,
 }
 
-/// The section of the signature lines, before `software` when the page has a job.
-pub const APPROVAL_SECTION: &str = "approval";
+pub use super::job::APPROVAL_SECTION;
 
 /// The page for `report` with `additions`.
 pub fn render_with(
@@ -104,11 +103,11 @@ pub fn render_with(
     let data = esc(&report.data);
     writeln!(
         page,
-        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>Calibration report: {robot}</title>\n<style>{STYLE}</style>\n<style>@page{{@top-left{{content:\"{}\";font-family:sans-serif;font-size:8pt;color:#555}}}}</style>\n</head>\n<body>\n<h1>Robot calibration report</h1>",
-        super::markup::css_string(&page_header(report, additions.job))
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>Calibration report: {robot}</title>\n<style>{STYLE}</style>\n{}</head>\n<body>\n<h1>Robot calibration report</h1>",
+        super::job::page_header_style(&page_header(report, additions.job))
     )?;
     if let Some(job) = additions.job {
-        job_table(&mut page, job)?;
+        page.push_str(&job.table_html());
     }
     summary(&mut page, report, &robot, &data)?;
     let measured_on = additions.job.and_then(|j| j.measured_on.as_deref());
@@ -126,7 +125,7 @@ pub fn render_with(
     frames(&mut page, report)?;
     settings(&mut page, report)?;
     if let Some(job) = additions.job {
-        approval(&mut page, job)?;
+        page.push_str(&job.approval_html());
     }
     let command_line = command_line_html(&report.command_line);
     writeln!(
@@ -257,48 +256,6 @@ fn page_header(report: &Report, job: Option<&super::job::Job>) -> String {
         report.robot,
         serial.map_or(String::new(), |s| format!(", serial {s}"))
     )
-}
-
-/// A job's field, or a line to fill in by hand.
-fn field(value: Option<&String>) -> String {
-    value.map_or_else(
-        || "<span class=\"note\">not stated</span>".to_string(),
-        |v| esc(v),
-    )
-}
-
-/// The job under the title: certificate, customer, site, cell, operator, day of measurement.
-fn job_table(page: &mut String, job: &super::job::Job) -> crate::Result<()> {
-    writeln!(
-        page,
-        "<table>\n<tr><td>certificate</td><td>{}</td></tr>\n<tr><td>customer</td><td>{}</td></tr>\n<tr><td>site</td><td>{}</td></tr>\n\
-         <tr><td>cell</td><td>{}</td></tr>\n<tr><td>operator</td><td>{}</td></tr>\n<tr><td>measured on</td><td>{}</td></tr>\n</table>",
-        field(job.certificate.as_ref()),
-        field(job.customer.as_ref()),
-        field(job.site.as_ref()),
-        field(job.cell.as_ref()),
-        field(job.operator.as_ref()),
-        field(job.measured_on.as_ref())
-    )?;
-    Ok(())
-}
-
-/// The signature lines: measured by, approved by, accepted by the customer.
-fn approval(page: &mut String, job: &super::job::Job) -> crate::Result<()> {
-    let name = |v: Option<&String>| v.map_or(String::new(), |v| esc(v));
-    writeln!(
-        page,
-        "<h2 id=\"{APPROVAL_SECTION}\">Approval</h2>\n<table class=\"sign\">\n<tr><th>role</th><th>name</th><th>date</th><th>signature</th></tr>\n\
-         <tr><td>measured by</td><td>{}</td><td>{}</td><td></td></tr>\n<tr><td>approved by</td><td>{}</td><td></td><td></td></tr>\n\
-         <tr><td>accepted for {}</td><td></td><td></td><td></td></tr>\n</table>",
-        name(job.operator.as_ref()),
-        name(job.measured_on.as_ref()),
-        name(job.approver.as_ref()),
-        job.customer
-            .as_deref()
-            .map_or_else(|| "the customer".to_string(), esc)
-    )?;
-    Ok(())
 }
 
 /// The instrument's own calibration: its certificate and due date, said to be overdue when it

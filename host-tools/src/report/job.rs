@@ -16,6 +16,7 @@
 //! Every field is optional: one not stated is left as a line to fill in by hand on the printed
 //! certificate, never guessed.
 
+use super::markup::{css_string, esc};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -83,4 +84,55 @@ impl Job {
         }
         Ok(job)
     }
+    /// The job under a certificate's title: certificate, customer, site, cell, operator, day of
+    /// measurement; a field not stated is a line to fill in by hand.
+    pub(crate) fn table_html(&self) -> String {
+        format!(
+            "<table>\n<tr><td>certificate</td><td>{}</td></tr>\n<tr><td>customer</td><td>{}</td></tr>\n<tr><td>site</td><td>{}</td></tr>\n\
+             <tr><td>cell</td><td>{}</td></tr>\n<tr><td>operator</td><td>{}</td></tr>\n<tr><td>measured on</td><td>{}</td></tr>\n</table>\n",
+            field(self.certificate.as_ref()),
+            field(self.customer.as_ref()),
+            field(self.site.as_ref()),
+            field(self.cell.as_ref()),
+            field(self.operator.as_ref()),
+            field(self.measured_on.as_ref())
+        )
+    }
+
+    /// The signature lines ([`APPROVAL_SECTION`]): measured by, approved by, accepted for the
+    /// customer.
+    pub(crate) fn approval_html(&self) -> String {
+        let name = |v: Option<&String>| v.map_or(String::new(), |v| esc(v));
+        format!(
+            "<h2 id=\"{APPROVAL_SECTION}\">Approval</h2>\n<table class=\"sign\">\n<tr><th>role</th><th>name</th><th>date</th><th>signature</th></tr>\n\
+             <tr><td>measured by</td><td>{}</td><td>{}</td><td></td></tr>\n<tr><td>approved by</td><td>{}</td><td></td><td></td></tr>\n\
+             <tr><td>accepted for {}</td><td></td><td></td><td></td></tr>\n</table>\n",
+            name(self.operator.as_ref()),
+            name(self.measured_on.as_ref()),
+            name(self.approver.as_ref()),
+            self.customer
+                .as_deref()
+                .map_or_else(|| "the customer".to_string(), esc)
+        )
+    }
+}
+
+/// The section of a certificate's signature lines, before its `software` when it has a job.
+pub const APPROVAL_SECTION: &str = "approval";
+
+/// A job's field, or a line to fill in by hand.
+fn field(value: Option<&String>) -> String {
+    value.map_or_else(
+        || "<span class=\"note\">not stated</span>".to_string(),
+        |v| esc(v),
+    )
+}
+
+/// The style that prints `header` at the top left of every page of a certificate (the page
+/// number is in the certificate's own style, bottom right).
+pub(crate) fn page_header_style(header: &str) -> String {
+    format!(
+        "<style>@page{{@top-left{{content:\"{}\";font-family:sans-serif;font-size:8pt;color:#555}}}}</style>\n",
+        css_string(header)
+    )
 }

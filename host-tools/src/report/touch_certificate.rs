@@ -26,18 +26,43 @@ pub const SECTIONS: [&str; 6] = [
 
 /// The page for `report` (the JSON report of a calibration from touches).
 pub fn render(report: &TouchReport, rendering: &Rendering) -> crate::Result<String> {
+    render_with(report, rendering, None)
+}
+
+/// The page for `report` with the job it certifies (`calib report --job`): the job under the
+/// title, the certificate's number in the header of every printed page, and the
+/// [`APPROVAL_SECTION`](super::job::APPROVAL_SECTION) with its signature lines before the
+/// software.
+pub fn render_with(
+    report: &TouchReport,
+    rendering: &Rendering,
+    job: Option<&super::job::Job>,
+) -> crate::Result<String> {
     let mut page = String::new();
     let robot = esc(&report.robot.display().to_string());
+    let number = job.and_then(|j| j.certificate.as_deref());
+    let header = format!(
+        "{}Robot calibration (touches): {}",
+        number.map_or(String::new(), |n| format!("Certificate {n} - ")),
+        report.robot.display()
+    );
     writeln!(
         page,
-        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>Calibration certificate (touches): {robot}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n<h1>Robot calibration certificate: touches in sockets, no instrument</h1>"
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>Calibration certificate (touches): {robot}</title>\n<style>{STYLE}</style>\n{}</head>\n<body>\n<h1>Robot calibration certificate: touches in sockets, no instrument</h1>",
+        super::job::page_header_style(&header)
     )?;
+    if let Some(job) = job {
+        page.push_str(&job.table_html());
+    }
     summary(&mut page, report, &robot)?;
     consistency(&mut page, report)?;
     undetermined(&mut page, report)?;
     parameters(&mut page, report)?;
     torsion(&mut page, report)?;
     identifiability(&mut page, report)?;
+    if let Some(job) = job {
+        page.push_str(&job.approval_html());
+    }
     let command_line = command_line_html(&report.command_line);
     let software = match report.software.as_str() {
         "" => "-".to_string(),

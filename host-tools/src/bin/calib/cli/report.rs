@@ -25,7 +25,7 @@ pub struct ReportOptions {
     pub pose_test: Option<PathBuf>,
     /// The job (TOML: certificate, customer, site, cell, operator, measured_on, approver): under
     /// the title, in every printed page's header, and the approval's signature lines (tracker
-    /// calibrations).
+    /// calibrations and calibrations from touches).
     #[arg(long, value_name = "FILE")]
     pub job: Option<PathBuf>,
 }
@@ -82,14 +82,18 @@ fn page(
             if !String::from_utf8_lossy(&bytes).contains("\"fitted_placements\"") {
                 return Err(tracker.into());
             }
-            if additions.pose_test.is_some() || additions.job.is_some() {
+            if additions.pose_test.is_some() {
                 anyhow::bail!(
-                    "--pose-test and --job: {} is a calibration from touches, whose certificate shows neither yet; drop them",
+                    "--pose-test: {} is a calibration from touches, whose certificate states consistency, not the accuracy a pose test measures; render the pose test with the tracker calibration it belongs to, or drop --pose-test",
                     from.display()
                 );
             }
             let report = host_tools::calibration::touches::TouchReport::read(from)?;
-            Ok(touch_certificate::render(&report, &rendering)?)
+            Ok(touch_certificate::render_with(
+                &report,
+                &rendering,
+                additions.job,
+            )?)
         }
     }
 }
