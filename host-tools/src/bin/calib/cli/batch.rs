@@ -34,9 +34,9 @@ use std::path::{Path, PathBuf};
 /// `calib batch`'s options.
 #[derive(Clone, Debug, clap::Args)]
 pub struct BatchOptions {
-    /// The manifest (TOML): a [calibrate] table of the options every robot shares and one
-    /// [[robot]] table per robot (robot, data and any other option of calib calibrate, named
-    /// without the leading dashes); files relative to the manifest.
+    /// The manifest (TOML): a table "calibrate" of the options every robot shares and one
+    /// table "robot" per robot (an array of tables: robot, data and any other option of calib
+    /// calibrate, named without the leading dashes); files relative to the manifest.
     #[arg(value_name = "MANIFEST")]
     pub manifest: PathBuf,
     /// Directory of the results: SERIAL/identified.toml, SERIAL/report.json and
