@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{ROBOT, calib_in, ok, simulate};
+use common::{ROBOT, arg, calib_in, ok, simulate};
 use std::path::Path;
 
 const JOB: &str = "certificate = \"CAL-2026-0142\"\ncustomer = \"ACME Automotive\"\nsite = \"Plant 2, Wolfsburg\"\n\
@@ -358,31 +358,18 @@ fn the_expanded_uncertainty_covers_95_percent_of_held_out_coordinates() {
 #[test]
 fn a_certificate_from_touches_carries_the_job() {
     let dir = tempfile::tempdir().unwrap();
-    let panda = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/franka-panda.toml");
-    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/data/mukca-sockets/panda_3");
-    ok(&calib_in(
-        dir.path(),
-        &[
-            "sockets",
-            "--robot",
-            panda,
-            "--data",
-            data,
-            "--ball-mm",
-            "0.025171,-0.084766,133.528298",
-            "--train",
-            "frontcenter",
-            "--distance",
-            "50",
-            "--report",
-            "t.json",
-        ],
-    ));
+    let (report, _, _) = common::touches_calibration(dir.path());
     std::fs::write(dir.path().join("job.toml"), JOB).unwrap();
     ok(&calib_in(
         dir.path(),
         &[
-            "report", "--from", "t.json", "--job", "job.toml", "--html", "c.html",
+            "report",
+            "--from",
+            arg(&report),
+            "--job",
+            "job.toml",
+            "--html",
+            "c.html",
         ],
     ));
     let page = std::fs::read_to_string(dir.path().join("c.html")).unwrap();
@@ -408,7 +395,7 @@ fn a_certificate_from_touches_carries_the_job() {
     assert_eq!(ids, expected);
     ok(&calib_in(
         dir.path(),
-        &["report", "--from", "t.json", "--html", "plain.html"],
+        &["report", "--from", arg(&report), "--html", "plain.html"],
     ));
     let plain = std::fs::read_to_string(dir.path().join("plain.html")).unwrap();
     assert!(!section_ids(&plain).contains(&"approval") && !plain.contains("CAL-2026-0142"));
@@ -433,7 +420,7 @@ fn a_certificate_from_touches_carries_the_job() {
         &[
             "report",
             "--from",
-            "t.json",
+            arg(&report),
             "--pose-test",
             "test.json",
             "--html",

@@ -5,12 +5,9 @@
 
 mod common;
 
-use common::{ROBOT, calib, calib_in, ok, simulate};
+use common::{ROBOT, calib, calib_in, ok, simulate, touches_calibration};
 use sha2::Digest as _;
 use std::path::{Path, PathBuf};
-
-const PANDA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/franka-panda.toml");
-const PANDA_3: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/mukca-sockets/panda_3");
 
 fn sha256_of(path: &Path) -> String {
     sha2::Sha256::digest(std::fs::read(path).unwrap())
@@ -21,36 +18,6 @@ fn sha256_of(path: &Path) -> String {
 
 fn s(path: &Path) -> &str {
     path.to_str().unwrap()
-}
-
-/// A calibration from touches (`panda_3` on `frontcenter`) with its report, identified file and
-/// certificate in `dir`.
-fn touches_calibration(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
-    let (report, identified, html) = (
-        dir.join("touches.json"),
-        dir.join("panda-3.toml"),
-        dir.join("panda-3.html"),
-    );
-    ok(&calib(&[
-        "sockets",
-        "--robot",
-        PANDA,
-        "--data",
-        PANDA_3,
-        "--ball-mm",
-        "0.025171,-0.084766,133.528298",
-        "--train",
-        "frontcenter",
-        "--distance",
-        "50",
-        "--report",
-        s(&report),
-        "--out",
-        s(&identified),
-        "--html",
-        s(&html),
-    ]));
-    (report, identified, html)
 }
 
 /// A tracker calibration of simulated ER10L-C10 data, its robot file stating the serial

@@ -2050,17 +2050,12 @@ fn registry_pose_tests_json(
     use host_tools::registry::{Access, Registry};
     py.detach(|| -> anyhow::Result<String> {
         let registry = Registry::open(&db, Access::Read)?;
-        let tests = registry.pose_tests(&serial)?;
         let Some(id) = id else {
-            return Ok(serde_json::to_string(&tests)?);
+            return Ok(serde_json::to_string(&registry.pose_tests(&serial)?)?);
         };
-        let test = match tests.iter().any(|t| t.id == id) {
-            true => registry.pose_test(id)?,
-            false => None,
-        };
-        let test =
-            test.ok_or_else(|| anyhow::anyhow!("id {id}: no pose test {id} of robot {serial}"))?;
-        Ok(serde_json::to_string(&test)?)
+        Ok(serde_json::to_string(
+            &registry.robot_pose_test(&serial, id)?,
+        )?)
     })
     .map_err(py_error)
 }

@@ -125,6 +125,18 @@ impl Registry {
             .map_err(|e| failed(&e))
     }
 
+    /// Robot `serial`'s pose test `id` whole. Refused: no pose test `id` of that robot.
+    pub fn robot_pose_test(&self, serial: &str, id: i64) -> crate::Result<PoseTest> {
+        let of_robot = self.pose_tests(serial)?.iter().any(|t| t.id == id);
+        let test = match of_robot {
+            true => self.pose_test(id)?,
+            false => None,
+        };
+        test.ok_or_else(
+            || crate::refused!(option "--id"; "--id {id}: no pose test {id} of robot {serial}"),
+        )
+    }
+
     /// Pose test `id`, whole; `None` when there is none of that number.
     pub fn pose_test(&self, id: i64) -> crate::Result<Option<PoseTest>> {
         let failed =

@@ -29,6 +29,11 @@ pub const POSITION: &str = concat!(
     "/profiles/ipa-ur10-lasertracker-position.toml"
 );
 
+/// The nominal Franka Panda robot file.
+pub const PANDA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/robots/franka-panda.toml");
+/// MUKCa's touches of the Panda's `panda_3` set (six placements of the sockets).
+pub const PANDA_3: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/mukca-sockets/panda_3");
+
 /// Runs the `calib` binary with `args` in the current directory.
 pub fn calib(args: &[&str]) -> Output {
     calib_in(Path::new("."), args)
@@ -520,4 +525,34 @@ pub fn drifting_run(dir: &Path) -> (PathBuf, PathBuf) {
     let data = dir.join("run.csv");
     std::fs::write(&data, run).unwrap();
     (targets, data)
+}
+
+/// A calibration from touches (`panda_3` on `frontcenter`) with its report, identified file and
+/// certificate in `dir`.
+pub fn touches_calibration(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
+    let (report, identified, html) = (
+        dir.join("touches.json"),
+        dir.join("panda-3.toml"),
+        dir.join("panda-3.html"),
+    );
+    ok(&calib(&[
+        "sockets",
+        "--robot",
+        PANDA,
+        "--data",
+        PANDA_3,
+        "--ball-mm",
+        "0.025171,-0.084766,133.528298",
+        "--train",
+        "frontcenter",
+        "--distance",
+        "50",
+        "--report",
+        arg(&report),
+        "--out",
+        arg(&identified),
+        "--html",
+        arg(&html),
+    ]));
+    (report, identified, html)
 }

@@ -153,12 +153,7 @@ fn calibrate_command(mut options: CalibrateOptions) -> anyhow::Result<()> {
     let written = calibrate::calibrate_and_write(&options)?;
     print(&written.text)?;
     if written.accepted == Some(false) {
-        let _ = std::io::Write::flush(&mut std::io::stdout());
-        let _ = std::io::Write::write_all(
-            &mut std::io::stderr(),
-            b"Error: the acceptance criterion is not met (FAIL above and in the reports); the files were written\n",
-        );
-        std::process::exit(ACCEPTANCE_FAILED);
+        acceptance_failed();
     }
     Ok(())
 }
@@ -178,14 +173,20 @@ fn batch_command(options: &crate::cli::batch::BatchOptions) -> anyhow::Result<()
         );
     }
     if batch.rows.iter().any(|r| r.status == "FAIL") {
-        let _ = std::io::Write::flush(&mut std::io::stdout());
-        let _ = std::io::Write::write_all(
-            &mut std::io::stderr(),
-            b"Error: an acceptance criterion is not met (FAIL above and in the reports); the files were written\n",
-        );
-        std::process::exit(ACCEPTANCE_FAILED);
+        acceptance_failed();
     }
     Ok(())
+}
+
+/// Ends the process with [`ACCEPTANCE_FAILED`] after what was printed, saying so on standard
+/// error (the files were written: a failed criterion is a result, not a refusal).
+fn acceptance_failed() -> ! {
+    let _ = std::io::Write::flush(&mut std::io::stdout());
+    let _ = std::io::Write::write_all(
+        &mut std::io::stderr(),
+        b"Error: an acceptance criterion is not met (FAIL above and in the reports); the files were written\n",
+    );
+    std::process::exit(ACCEPTANCE_FAILED);
 }
 
 /// `calib simulate`: simulates, writes, says what it wrote.

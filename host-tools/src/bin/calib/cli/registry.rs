@@ -498,12 +498,7 @@ fn pose_tests(o: &PoseTestsOptions) -> anyhow::Result<String> {
     let registry = Registry::open(&o.db.db, Access::Read)?;
     let tests = registry.pose_tests(&o.serial)?;
     if let Some(id) = o.id {
-        let test = match tests.iter().any(|t| t.id == id) {
-            true => registry.pose_test(id)?,
-            false => None,
-        };
-        let test = test
-            .ok_or_else(|| anyhow::anyhow!("--id {id}: no pose test {id} of robot {}", o.serial))?;
+        let test = registry.robot_pose_test(&o.serial, id)?;
         return Ok(match o.json {
             true => format!("{}\n", serde_json::to_string_pretty(&test)?),
             false => test.text(),
