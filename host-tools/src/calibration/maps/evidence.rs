@@ -561,8 +561,7 @@ fn evidence(
         // The covariance (L L^T)^-1 = L^-T L^-1 is needed for its diagonal (each step) and the
         // joints' blocks (the last step's): both from L^-1, not the whole inverse.
         let l_inv = lower_triangular_inverse(&cholesky.l());
-        let variance =
-            DVector::from_iterator(l_inv.ncols(), l_inv.column_iter().map(|c| c.norm_squared()));
+        let variance = covariance_diagonal(&l_inv);
         // |r - Phi m|^2 = r^T r - 2 m^T Phi^T r + m^T G m.
         let misfit =
             (residual_squared - 2.0 * mean.dot(projected) + (gram * &mean).dot(&mean)).max(0.0);
@@ -597,12 +596,7 @@ fn evidence(
         *beta = new_beta;
         let last_step = converged || iteration + 1 == EVIDENCE_ITERATIONS;
         let blocks = match last_step {
-            true => (0..alpha.len())
-                .map(|j| {
-                    let columns = l_inv.columns(geometry + j * per_joint, per_joint);
-                    columns.transpose() * columns
-                })
-                .collect(),
+            true => joint_blocks(&l_inv, geometry, per_joint, alpha.len()),
             false => Vec::new(),
         };
         last = Some(Posterior {
@@ -617,6 +611,28 @@ fn evidence(
         }
     }
     last.ok_or_else(|| crate::numerical!("joint maps: no evidence iteration ran"))
+}
+
+/// The diagonal of the covariance `(L L^T)^-1 = L^-T L^-1` from `l_inv = L^-1`: the squared
+/// norms of its columns.
+fn covariance_diagonal(l_inv: &DMatrix<f64>) -> DVector<f64> {
+    DVector::from_iterator(l_inv.ncols(), l_inv.column_iter().map(|c| c.norm_squared()))
+}
+
+/// The covariance blocks of the `joints` joints' `per_joint` coefficients (after the `geometry`
+/// unknowns) from `l_inv = L^-1`: `(L^-1)_j^T (L^-1)_j` of each joint's columns.
+fn joint_blocks(
+    l_inv: &DMatrix<f64>,
+    geometry: usize,
+    per_joint: usize,
+    joints: usize,
+) -> Vec<DMatrix<f64>> {
+    (0..joints)
+        .map(|j| {
+            let columns = l_inv.columns(geometry + j * per_joint, per_joint);
+            columns.transpose() * columns
+        })
+        .collect()
 }
 
 /// Below this size [`lower_triangular_inverse`] substitutes column by column; above, it splits.
