@@ -552,15 +552,15 @@ fn evidence(
                 precision[(i, i)] += a;
             }
         }
-        let Some(cholesky) = precision.cholesky() else {
+        // The precision's Cholesky factor L and its inverse: the covariance (L L^T)^-1 =
+        // L^-T L^-1 is needed for the mean, its diagonal (each step) and the joints' blocks (the
+        // last step's), all from L^-1, not the whole inverse.
+        let Some((factor, l_inv)) = cholesky_and_inverse(&precision) else {
             return Err(crate::refused!(undetermined Vec::<String>::new();
                 "joint maps: the posterior is singular (a geometric parameter is not determined)"
             ));
         };
-        let mean = cholesky.solve(projected) * *beta;
-        // The covariance (L L^T)^-1 = L^-T L^-1 is needed for its diagonal (each step) and the
-        // joints' blocks (the last step's): both from L^-1, not the whole inverse.
-        let l_inv = lower_triangular_inverse(&cholesky.l());
+        let mean = l_inv.tr_mul(&(&l_inv * projected)) * *beta;
         let variance = covariance_diagonal(&l_inv);
         // |r - Phi m|^2 = r^T r - 2 m^T Phi^T r + m^T G m.
         let misfit =
@@ -585,7 +585,7 @@ fn evidence(
                 new_alpha[j] = SWITCHED_OFF;
             }
         }
-        let log_det: f64 = cholesky.l().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
+        let log_det: f64 = factor.diagonal().iter().map(|d| 2.0 * d.ln()).sum();
         let log_evidence = 0.5 * log_alpha + 0.5 * rows as f64 * beta.ln()
             - 0.5 * (*beta * misfit + prior_energy)
             - 0.5 * log_det
@@ -635,33 +635,41 @@ fn joint_blocks(
         .collect()
 }
 
-/// Below this size [`lower_triangular_inverse`] substitutes column by column; above, it splits.
-const TRIANGULAR_BLOCK: usize = 64;
-
-/// The inverse of the lower-triangular `l` (a Cholesky factor: its diagonal positive). Split in
-/// halves, `[A 0; B C]^-1 = [A^-1 0; -C^-1 B A^-1 C^-1]`, so that most of the work is two matrix
-/// products (blocked, vectorised); blocks of at most [`TRIANGULAR_BLOCK`] are inverted by forward
-/// substitution column by column from the diagonal down. About n^3/3 multiply-adds where the whole
-/// inverse of `L L^T` by triangular solves takes about n^3, and at the speed of the products.
-fn lower_triangular_inverse(l: &DMatrix<f64>) -> DMatrix<f64> {
-    let n = l.nrows();
+/// The Cholesky factor `L` of the symmetric positive definite `a` (`a = L L^T`) and its inverse;
+/// `None` when `a` is not positive definite. Split in halves, `L11 L11^T = A11`,
+/// `L21 = A21 L11^-T`, `L22 L22^T = A22 - L21 L21^T`, so that most of the work is matrix products;
+/// blocks of at most [`TRIANGULAR_BLOCK`] are factored by nalgebra.
+fn cholesky_and_inverse(a: &DMatrix<f64>) -> Option<(DMatrix<f64>, DMatrix<f64>)> {
+    let n = a.nrows();
     if n <= TRIANGULAR_BLOCK {
-        return substituted_inverse(l);
+        let l = a.clone().cholesky()?.l();
+        let inverse = substituted_inverse(&l);
+        return Some((l, inverse));
     }
     let half = n / 2;
-    let a_inv = lower_triangular_inverse(&l.view((0, 0), (half, half)).into_owned());
-    let c_inv = lower_triangular_inverse(&l.view((half, half), (n - half, n - half)).into_owned());
-    let below = -(&c_inv * (l.view((half, 0), (n - half, half)) * &a_inv));
+    let (l11, l11_inv) = cholesky_and_inverse(&a.view((0, 0), (half, half)).into_owned())?;
+    let l21 = a.view((half, 0), (n - half, half)) * l11_inv.transpose();
+    let schur = a.view((half, half), (n - half, n - half)) - &l21 * l21.transpose();
+    let (l22, l22_inv) = cholesky_and_inverse(&schur)?;
+    let below = -(&l22_inv * (&l21 * &l11_inv));
+    let mut l = DMatrix::<f64>::zeros(n, n);
+    l.view_mut((0, 0), (half, half)).copy_from(&l11);
+    l.view_mut((half, 0), (n - half, half)).copy_from(&l21);
+    l.view_mut((half, half), (n - half, n - half))
+        .copy_from(&l22);
     let mut inverse = DMatrix::<f64>::zeros(n, n);
-    inverse.view_mut((0, 0), (half, half)).copy_from(&a_inv);
-    inverse
-        .view_mut((half, half), (n - half, n - half))
-        .copy_from(&c_inv);
+    inverse.view_mut((0, 0), (half, half)).copy_from(&l11_inv);
     inverse
         .view_mut((half, 0), (n - half, half))
         .copy_from(&below);
     inverse
+        .view_mut((half, half), (n - half, n - half))
+        .copy_from(&l22_inv);
+    Some((l, inverse))
 }
+
+/// Below this size [`cholesky_and_inverse`] factors and substitutes directly; above, it splits.
+const TRIANGULAR_BLOCK: usize = 64;
 
 /// The inverse of a small lower-triangular `l` by forward substitution, column by column from
 /// its diagonal down (the zeros above it are not computed).
@@ -896,24 +904,31 @@ mod tests {
         (design.clone(), design * truth + noise)
     }
 
-    /// The split inverse of a lower-triangular factor (sizes below, at and above the block, odd
-    /// and even halves): `L L^-1 = I` to rounding, and zeros above the diagonal.
+    /// The split Cholesky factor and its inverse (sizes below, at and above the block, odd and
+    /// even halves): `L L^T = A` and `L L^-1 = I` to rounding, both lower triangular; a matrix
+    /// that is not positive definite has none.
     #[test]
-    fn the_lower_triangular_inverse_inverts() {
+    fn the_split_cholesky_factor_and_its_inverse_are_exact() {
         for n in [1, 7, TRIANGULAR_BLOCK, TRIANGULAR_BLOCK + 1, 301] {
             let m = DMatrix::<f64>::from_fn(n, n, |r, c| ((r * 7 + c * 3) % 11) as f64 - 5.0);
             let spd = &m * m.transpose() + DMatrix::<f64>::identity(n, n) * n as f64;
-            let l = spd.cholesky().unwrap().l();
-            let inverse = lower_triangular_inverse(&l);
-            let product = &l * &inverse;
-            let worst = (&product - DMatrix::<f64>::identity(n, n)).amax();
+            let (l, inverse) = cholesky_and_inverse(&spd).unwrap();
+            let refactored = (&l * l.transpose() - &spd).amax() / spd.amax();
+            assert!(
+                refactored < 1e-14,
+                "n = {n}: |L L^T - A| / |A| = {refactored:e}"
+            );
+            let worst = (&l * &inverse - DMatrix::<f64>::identity(n, n)).amax();
             assert!(worst < 1e-12, "n = {n}: |L L^-1 - I| = {worst:e}");
             for r in 0..n {
                 for c in r + 1..n {
-                    assert_eq!(inverse[(r, c)], 0.0);
+                    assert_eq!((l[(r, c)], inverse[(r, c)]), (0.0, 0.0));
                 }
             }
         }
+        let mut indefinite = DMatrix::<f64>::identity(200, 200);
+        indefinite[(150, 150)] = -1.0;
+        assert!(cholesky_and_inverse(&indefinite).is_none());
     }
 
     #[test]
