@@ -19,7 +19,7 @@ use calib_core::identify::objective::{DEFAULT_K, Objective};
 use calib_core::{ParameterErrors, ParameterSet};
 use criterion::{Criterion, criterion_group, criterion_main};
 use host_tools::measurement::dataset::Dataset;
-use host_tools::runtime::swarm_team::{LaneObjective, SwarmTeam};
+use host_tools::runtime::swarm_team::{LaneObjective, SwarmTeam, team_size};
 use nalgebra::{DVector, Dyn};
 use std::path::Path;
 
@@ -52,35 +52,23 @@ fn paper_run(c: &mut Criterion) {
     let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
     let settings = IpsoSettings::paper();
     let swarm = |threads: usize| {
-        SwarmTeam::run(&lanes, threads, settings.seed, |team, pairs| {
+        SwarmTeam::run(&lanes, threads, |team| {
             let mut x: [DVector<f64>; 20] = std::array::from_fn(|_| DVector::zeros(24));
             let (mut v, mut best) = (x.clone(), x.clone());
             let (mut costs, mut best_costs) = ([0.0; 20], [0.0; 20]);
             let memory =
                 ipso::SwarmMemory::new(&mut x, &mut v, &mut best, &mut costs, &mut best_costs)
                     .unwrap();
-            team.optimize(memory, pairs, &space, &settings, &mut Silent)
+            team.optimize(memory, &space, &settings, &mut Silent)
                 .unwrap()
         })
     };
     group.bench_function("ipso_20x24x2000_32_poses_f64_all_cores", |b| {
-        b.iter(|| swarm(cores))
+        b.iter(|| swarm(team_size(cores, 20)))
     });
     group.bench_function("ipso_20x24x2000_32_poses_f64_one_thread", |b| {
         b.iter(|| swarm(1))
     });
-    // The same team, the random pairs drawn by the swarm itself during its update (as before
-    // the pairs were drawn ahead by a helper).
-    group.bench_function(
-        "ipso_20x24x2000_32_poses_f64_all_cores_pairs_in_update",
-        |b| {
-            b.iter(|| {
-                SwarmTeam::run(&lanes, cores, settings.seed, |team, _| {
-                    ipso::optimize::<f64, 20, Dyn>(team, &space, &settings, &mut Silent).unwrap()
-                })
-            })
-        },
-    );
     group.finish();
 
     // End to end, as `calib calibrate --robot robots/er10l-c10.toml --data

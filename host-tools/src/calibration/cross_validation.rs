@@ -135,7 +135,12 @@ fn on_all_cores<R: Send>(count: usize, work: impl Fn(usize) -> R + Sync) -> Vec<
     };
     let done: Vec<(usize, R)> = std::thread::scope(|scope| {
         let helpers: Vec<_> = (1..threads)
-            .filter_map(|_| crate::runtime::helper_threads::spawn(scope, "calib-folds", take))
+            .filter_map(|_| {
+                std::thread::Builder::new()
+                    .name("calib-folds".into())
+                    .spawn_scoped(scope, take)
+                    .ok()
+            })
             .collect();
         let mut all = take();
         for helper in helpers {

@@ -10,7 +10,7 @@ use super::{
 };
 use crate::kinematics::actual::ActualRobot;
 use crate::measurement::dataset::{Dataset, Seen};
-use crate::runtime::swarm_team::{LaneObjective, SwarmTeam};
+use crate::runtime::swarm_team::{LaneObjective, SwarmTeam, team_size};
 
 use calib_core::identify::ipso::{self, Control, IpsoSettings, SearchSpace};
 use calib_core::identify::lm::{LeastSquares, LmError, LmResult, LmSettings};
@@ -289,9 +289,8 @@ fn run_swarm(
         &mut best_costs,
     )?;
     let lanes = LaneObjective::new(objective);
-    let threads = cores().min(particles);
-    let result = SwarmTeam::run(&lanes, threads, settings.seed, |team, pairs| {
-        team.optimize(memory, pairs, &space, &settings, &mut observer)
+    let result = SwarmTeam::run(&lanes, team_size(cores(), particles), |team| {
+        team.optimize(memory, &space, &settings, &mut observer)
     })?;
     bar.finish_and_clear();
     let summary = SwarmSummary {

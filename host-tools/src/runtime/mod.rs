@@ -1,5 +1,5 @@
-//! How the host runs the identification fast: the swarm team (particles evaluated in SIMD lanes
-//! across worker threads) and the helper threads it and the cross-validation start.
+//! How the host runs the identification fast: the swarm's cost evaluated in vector lanes
+//! (AVX-512 where the CPU has it) and the swarm team (particles evaluated on several cores).
 
-pub(crate) mod helper_threads;
+pub mod lanes;
 pub mod swarm_team;
