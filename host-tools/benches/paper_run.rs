@@ -19,7 +19,8 @@ use calib_core::identify::objective::{DEFAULT_K, Objective};
 use calib_core::{ParameterErrors, ParameterSet};
 use criterion::{Criterion, criterion_group, criterion_main};
 use host_tools::measurement::dataset::Dataset;
-use host_tools::runtime::swarm_team::{LaneObjective, SwarmTeam, Vectors, team_size};
+use host_tools::runtime::lanes::{LaneObjective, Vectors};
+use host_tools::runtime::swarm_team::{SwarmTeam, team_size};
 use nalgebra::{DVector, Dyn};
 use std::path::Path;
 

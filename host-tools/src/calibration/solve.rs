@@ -10,7 +10,8 @@ use super::{
 };
 use crate::kinematics::actual::ActualRobot;
 use crate::measurement::dataset::{Dataset, Seen};
-use crate::runtime::swarm_team::{LaneObjective, SwarmTeam, team_size};
+use crate::runtime::lanes::LaneObjective;
+use crate::runtime::swarm_team::{SwarmTeam, team_size};
 
 use calib_core::identify::ipso::{self, Control, IpsoSettings, SearchSpace};
 use calib_core::identify::lm::{LeastSquares, LmError, LmResult, LmSettings};

@@ -23,7 +23,7 @@
 //! ([`std::thread::available_parallelism`], which follows `taskset` and a container's CPU quota)
 //! but no more than gives each a block of [`MIN_BLOCK`] particles ([`team_size`]).
 
-pub use super::lanes::{LaneObjective, Vectors};
+use super::lanes::{LaneObjective, Vectors};
 use calib_core::identify::ipso::{
     self, CostFunction, IpsoError, IpsoResult, IpsoSettings, Observer, RandomStream, SearchSpace,
     SwarmMemory,
