@@ -68,6 +68,9 @@ const ONE_BELOW: f64 = 1.0 - f64::EPSILON / 2.0;
 /// Writes Halton point `index` (the paper's k) into `point`, coordinate i in base `PRIMES[i]`.
 /// Dimensions beyond [`MAX_DIMENSION`] are set to 0.5 (they never occur with the swarm's const
 /// check).
+// One copy for the swarm's two calls (positions and velocities: controller flash; it runs only
+// at the start).
+#[cfg_attr(target_arch = "arm", inline(never))]
 pub fn halton_point(index: u64, scrambling: Scrambling, point: &mut [f64]) {
     for (i, value) in point.iter_mut().enumerate() {
         *value = PRIMES
