@@ -46,7 +46,7 @@ pub const SLEEP_AFTER: Duration = Duration::from_micros(50);
 pub const MIN_BLOCK: usize = 4;
 
 /// The most generations the caller evaluates alone after its helpers were late
-/// ([`SwarmTeam`]'s back-off): 64 generations of the paper's swarm are about 0.6 ms.
+/// ([`SwarmTeam`]'s back-off): 256 generations of the paper's swarm are about 2.5 ms.
 pub const MAX_ALONE: u32 = 256;
 
 /// The members (threads, the caller included) a team for a swarm of `particles` has on a machine
@@ -67,6 +67,24 @@ fn generation_of(word: u64) -> u64 {
 
 fn low_of(word: u64) -> usize {
     (word & 0xFFFF_FFFF) as usize
+}
+
+/// Checks `ready` until it holds, with a spin hint between checks, for at most `limit` counted
+/// from `since` (set at the first check that fails, when not set yet); returns whether it held.
+/// Every wait of the team is one of these: a helper then sleeps or gives its block up, the
+/// caller evaluates a late block itself.
+fn spin_until(
+    since: &mut Option<Instant>,
+    limit: Duration,
+    mut ready: impl FnMut() -> bool,
+) -> bool {
+    while !ready() {
+        if since.get_or_insert_with(Instant::now).elapsed() > limit {
+            return false;
+        }
+        std::hint::spin_loop();
+    }
+    true
 }
 
 /// An atomic on cache lines of its own (128 bytes: two lines, which some CPUs fetch in pairs), so
@@ -247,15 +265,10 @@ fn helper(objective: &LaneObjective<'_, '_>, board: &Board, member: usize) {
             );
             continue;
         }
-        let idle = Instant::now();
-        while !board.work_or_stop(Ordering::Acquire) {
-            if idle.elapsed() < SLEEP_AFTER {
-                for _ in 0..64 {
-                    std::hint::spin_loop();
-                }
-            } else {
-                board.sleep(member);
-            }
+        if !spin_until(&mut None, SLEEP_AFTER, || {
+            board.work_or_stop(Ordering::Acquire)
+        }) {
+            board.sleep(member);
         }
     }
 }
@@ -276,20 +289,14 @@ fn evaluate_block(
         *particle = DVector::zeros(d);
     }
     for i in slots.range(b) {
-        let mut since = None;
-        loop {
-            // Acquire: the coordinates stored before `ready` passed `i` are visible.
-            let ready = board.ready.load(Ordering::Acquire);
-            if generation_of(ready) != generation {
-                return;
-            }
-            if low_of(ready) > i {
-                break;
-            }
-            if since.get_or_insert_with(Instant::now).elapsed() > SLEEP_AFTER {
-                return;
-            }
-            std::hint::spin_loop();
+        // Acquire: the coordinates stored before `ready` passed `i` are visible.
+        let ready = || board.ready.load(Ordering::Acquire);
+        let published = spin_until(&mut None, SLEEP_AFTER, || {
+            let ready = ready();
+            generation_of(ready) != generation || low_of(ready) > i
+        });
+        if !published || generation_of(ready()) != generation {
+            return;
         }
         let Some(coordinates) = slots.coordinates.get(i * d..(i + 1) * d) else {
             return;
@@ -468,19 +475,13 @@ impl<'o, 'p> SwarmTeam<'_, 'o, 'p> {
             let (Some(xs), Some(out)) = (xs.get(range.clone()), out.get_mut(range.clone())) else {
                 continue;
             };
-            let done = slots.done.get(b);
-            let member = loop {
-                // Acquire: the costs stored before the tag are visible.
-                let tag = done.map_or(0, |d| d.load(Ordering::Acquire));
-                if generation_of(tag) == self.generation {
-                    break Some(low_of(tag));
-                }
-                if since.get_or_insert_with(Instant::now).elapsed() > patience {
-                    break None;
-                }
-                std::hint::spin_loop();
-            };
-            match member {
+            // Acquire: the costs stored before the tag are visible. Only this generation's
+            // helper moves the tag on to it, and nothing moves it further before the next.
+            let tag = || slots.done.get(b).map_or(0, |d| d.load(Ordering::Acquire));
+            let done = spin_until(&mut since, patience, || {
+                generation_of(tag()) == self.generation
+            });
+            match done.then(|| low_of(tag())) {
                 Some(m) => {
                     for (c, i) in out.iter_mut().zip(range) {
                         let bits = slots.cost(m, i).map(|c| c.load(Ordering::Relaxed));
