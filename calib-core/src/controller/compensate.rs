@@ -20,6 +20,7 @@
 //! (manipulability of the scaled Jacobian below a threshold).
 
 use crate::KinematicsError;
+use crate::math::{cholesky, norm};
 use crate::kinematics::pose_error::PoseError;
 use crate::kinematics::{Kinematics, MappedKinematics, Pose};
 use crate::model::JointLimits;
@@ -258,7 +259,7 @@ impl<T: Real, N: JointCount, const C: usize, G: Borrow<Kinematics<T, N>>> Actual
         let (q, _) = self.maps.readings(&solution.q, tolerance);
         let pose = self.forward(&q).map_err(CompensationError::Kinematics)?;
         let error = PoseError::between(target, &pose);
-        let (dp, dr) = (error.position.norm(), error.rotation.norm());
+        let (dp, dr) = (norm(&error.position), norm(&error.rotation));
         if !(dp <= settings.position_tolerance && dr <= settings.rotation_tolerance) {
             return Err(CompensationError::NoConvergence);
         }
@@ -337,8 +338,8 @@ pub fn compensate_joints_from<T: Real, N: JointCount>(
         .forward(&solution.q)
         .map_err(CompensationError::Kinematics)?;
     let correction = PoseError::between(&after, &before);
-    if correction.position.norm() > settings.max_correction_mm
-        || correction.rotation.norm() > settings.max_correction_rad
+    if norm(&correction.position) > settings.max_correction_mm
+        || norm(&correction.rotation) > settings.max_correction_rad
     {
         return Err(CompensationError::CorrectionTooLarge);
     }
@@ -379,7 +380,7 @@ pub fn solve_joints<T: Real, N: JointCount>(
     let mut lambda = settings.damping;
     let mut iterations = 0;
     loop {
-        let (dp, dr) = (error.position.norm(), error.rotation.norm());
+        let (dp, dr) = (norm(&error.position), norm(&error.rotation));
         if dp <= settings.position_tolerance && dr <= settings.rotation_tolerance {
             return Ok(Compensated {
                 q,
@@ -398,19 +399,15 @@ pub fn solve_joints<T: Real, N: JointCount>(
         let jjt = scaled.outer_product_sum();
         // Manipulability sqrt(det(J J^T)) = product of the Cholesky factor's diagonal (no LU,
         // whose pivoting code has panicking bounds checks).
-        let Some(factor) = jjt.cholesky() else {
+        let Some(factor) = cholesky::factor(&jjt) else {
             return Err(CompensationError::NearSingular);
         };
-        let manipulability = factor
-            .l_dirty()
-            .diagonal()
-            .iter()
-            .fold(T::one(), |p, d| p * *d);
+        let manipulability = factor.diagonal_product();
         if !manipulability.finite() || manipulability < settings.min_manipulability {
             return Err(CompensationError::NearSingular);
         }
         let damped = jjt + SMatrix::<T, 6, 6>::identity() * (lambda * lambda);
-        let Some(cholesky) = damped.cholesky() else {
+        let Some(cholesky) = cholesky::factor(&damped) else {
             return Err(CompensationError::NearSingular);
         };
         let mut dq = q;
@@ -470,7 +467,7 @@ pub fn predistort<T: Real, N: JointCount>(
         q = planned.q;
         let reached = actual.forward(&q).map_err(CompensationError::Kinematics)?;
         let error = PoseError::between(target, &reached);
-        let (dp, dr) = (error.position.norm(), error.rotation.norm());
+        let (dp, dr) = (norm(&error.position), norm(&error.rotation));
         if dp <= settings.position_tolerance && dr <= settings.rotation_tolerance {
             return Ok((
                 command,

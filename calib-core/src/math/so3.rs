@@ -48,7 +48,7 @@ pub fn log<T: Real>(r: &Matrix3<T>) -> Vector3<T> {
     let two = T::of(2.0);
     // v = 2 sin(theta) n, trace - 1 = 2 cos(theta).
     let v = Vector3::new(r.m32 - r.m23, r.m13 - r.m31, r.m21 - r.m12);
-    let two_sin = v.norm();
+    let two_sin = super::norm(&v);
     let two_cos = r.m11 + r.m22 + r.m33 - T::one();
     let theta = two_sin.atan2(two_cos);
     if theta < T::of(SMALL_ANGLE) {
@@ -72,7 +72,7 @@ pub fn log<T: Real>(r: &Matrix3<T>) -> Vector3<T> {
     } else {
         (s.column(2), s.m33, Vector3::z())
     };
-    let nk = ((diagonal - cos) / one_minus_cos).max(T::zero()).sqrt();
+    let nk = ((diagonal - cos) / one_minus_cos).max(T::zero()).sqrt_ieee();
     // Off-diagonal entries give n_j = S_kj / ((1 - cos) n_k); the k-th entry is n_k itself.
     let off_diagonal = column.into_owned() - axis * diagonal;
     let mut n = off_diagonal / (one_minus_cos * nk) + axis * nk;
@@ -86,7 +86,7 @@ pub fn log<T: Real>(r: &Matrix3<T>) -> Vector3<T> {
 /// and, for angles up to 0.1 rad, without any libm call: `|a - b|_F^2 = 8 sin^2(angle / 2)`, then
 /// `angle = 2 asin(x)` by its series (first omitted term below 2e-19 for x <= 0.05), libm beyond.
 pub fn angle_between<T: Real>(a: &Matrix3<T>, b: &Matrix3<T>) -> T {
-    let x = ((a - b).norm_squared() / T::of(8.0)).sqrt();
+    let x = ((a - b).norm_squared() / T::of(8.0)).sqrt_ieee();
     if x > T::of(0.05) {
         return T::of(2.0) * x.min(T::one()).asin();
     }
@@ -112,7 +112,7 @@ pub fn angle_squared_between<T: Real>(a: &Matrix3<T>, b: &Matrix3<T>) -> T {
 pub fn angle_squared_from_chord<T: Real>(chord_squared: T) -> T {
     let x2 = chord_squared / T::of(8.0);
     if x2 > T::of(0.05 * 0.05) {
-        let angle = T::of(2.0) * x2.sqrt().min(T::one()).asin();
+        let angle = T::of(2.0) * x2.sqrt_ieee().min(T::one()).asin();
         return angle * angle;
     }
     let series = T::one()
@@ -128,7 +128,7 @@ pub fn angle_squared_from_chord<T: Real>(chord_squared: T) -> T {
 ///
 /// With it, `log(E exp([eta]x)) = log(E) + Jr^-1(log E) eta + O(eta^2)`.
 pub fn right_jacobian_inverse<T: Real>(phi: &Vector3<T>) -> Matrix3<T> {
-    let theta = phi.norm();
+    let theta = super::norm(phi);
     let k = skew(phi);
     let coefficient = if theta < T::of(JACOBIAN_SERIES_ANGLE) {
         // 1/12 + theta^2/720 + theta^4/30240; the next term is below 1e-12 here.

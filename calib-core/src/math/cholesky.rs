@@ -1,0 +1,154 @@
+//! The Cholesky factorisation `A = L L^T` of a small symmetric positive-definite matrix of fixed
+//! size, and the solve of `A x = b` with it: the damped least-squares step of on-line
+//! compensation (`controller::compensate::solve_joints`, a 6 x 6 system per iteration).
+//!
+//! Why not nalgebra's `Cholesky`: on the controller the compensation's cost and the firmware's
+//! flash depend on how this small factorisation is compiled. Here it is always inlined into its
+//! caller, whatever LLVM's inlining threshold, and its square roots are the FPU's
+//! ([`Real::sqrt_ieee`]) instead of libm's software `sqrtf`. The operations and their order are
+//! nalgebra's (`Cholesky::new`, then `solve`: forward substitution by columns, back substitution
+//! by dot products summed from zero in row order), and both square roots are correctly rounded,
+//! so the bits are nalgebra's (test `factor_and_solve_equal_nalgebra_bit_for_bit`).
+
+use nalgebra::{SMatrix, SVector};
+
+use crate::scalar::Real;
+
+/// The lower-triangular factor `L` of `A = L L^T` (only the entries on and below the diagonal
+/// are meaningful).
+#[derive(Clone, Copy, Debug)]
+pub struct Factor<T, const D: usize> {
+    /// Column-major: `columns[c][r]` is `L[(r, c)]`, as in nalgebra's storage.
+    columns: [[T; D]; D],
+}
+
+/// Factors `a` (only its lower triangle is read). `None` when a pivot is zero, negative or NaN:
+/// `a` is not positive definite (as nalgebra's `cholesky()`).
+#[inline(always)]
+pub fn factor<T: Real, const D: usize>(a: &SMatrix<T, D, D>) -> Option<Factor<T, D>> {
+    let mut l = a.data.0;
+    for j in 0..D {
+        for k in 0..j {
+            // Column j from row j down, minus L[(j, k)] times column k (nalgebra's `axpy`).
+            let minus_factor = -l[k][j];
+            for i in j..D {
+                let x = l[k][i];
+                l[j][i] = minus_factor * x + l[j][i];
+            }
+        }
+        let diagonal = l[j][j];
+        // nalgebra's `try_sqrt` takes the root of `x >= 0` only; a zero pivot is refused first.
+        #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN must be refused as well
+        if diagonal == T::zero() || !(diagonal >= T::zero()) {
+            return None;
+        }
+        let root = diagonal.sqrt_ieee();
+        l[j][j] = root;
+        for i in j + 1..D {
+            l[j][i] /= root;
+        }
+    }
+    Some(Factor { columns: l })
+}
+
+impl<T: Real, const D: usize> Factor<T, D> {
+    /// The product of the diagonal of `L`, first to last: `sqrt(det A)`.
+    #[inline(always)]
+    pub fn diagonal_product(&self) -> T {
+        let mut product = T::one();
+        for (j, column) in self.columns.iter().enumerate() {
+            if let Some(d) = column.get(j) {
+                product *= *d;
+            }
+        }
+        product
+    }
+
+    /// The solution `x` of `A x = b`: `L y = b` forward, then `L^T x = y` backward.
+    #[inline(always)]
+    pub fn solve(&self, b: &SVector<T, D>) -> SVector<T, D> {
+        let l = &self.columns;
+        let mut x = b.data.0[0];
+        for i in 0..D {
+            let coefficient = x[i] / l[i][i];
+            x[i] = coefficient;
+            let minus_coefficient = -coefficient;
+            for k in i + 1..D {
+                x[k] = minus_coefficient * l[i][k] + x[k];
+            }
+        }
+        for i in (0..D).rev() {
+            let mut dot = T::zero();
+            for k in i + 1..D {
+                dot += l[i][k] * x[k];
+            }
+            x[i] = (x[i] - dot) / l[i][i];
+        }
+        SVector::from(x)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Matrix6, Vector6};
+    use rand_core::{Rng, SeedableRng};
+    use rand_xoshiro::Xoshiro256PlusPlus;
+
+    /// `J J^T + lambda^2 I` of a random 6 x 7 Jacobian-like matrix, as the compensation forms it.
+    fn damped_gram<T: Real>(rng: &mut Xoshiro256PlusPlus, lambda: f64) -> (Matrix6<T>, Vector6<T>) {
+        let mut unit = || T::of(T::unit_from_bits(rng.next_u64()).to_f64() * 2.0 - 1.0);
+        let j = SMatrix::<T, 6, 7>::from_fn(|_, _| unit());
+        let b = Vector6::from_fn(|_, _| unit());
+        let a = j * j.transpose() + Matrix6::identity() * T::of(lambda * lambda);
+        (a, b)
+    }
+
+    fn equal_nalgebra<T: Real>(seed: u64) {
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+        for case in 0..2000 {
+            let lambda = [0.0, 1e-3, 0.1, 1.0][case % 4];
+            let (a, b) = damped_gram::<T>(&mut rng, lambda);
+            let ours = factor(&a).expect("positive definite");
+            let theirs = a.cholesky().expect("positive definite");
+            let l = theirs.l_dirty();
+            for c in 0..6 {
+                for r in c..6 {
+                    assert_eq!(ours.columns[c][r], l[(r, c)], "L[({r}, {c})], case {case}");
+                }
+            }
+            let product = l.diagonal().iter().fold(T::one(), |p, d| p * *d);
+            assert_eq!(ours.diagonal_product(), product);
+            assert_eq!(ours.solve(&b), theirs.solve(&b), "case {case}");
+        }
+    }
+
+    #[test]
+    fn factor_and_solve_equal_nalgebra_bit_for_bit() {
+        equal_nalgebra::<f64>(1);
+        equal_nalgebra::<f32>(2);
+    }
+
+    #[test]
+    fn solves_a_known_system() {
+        // A = L L^T with L = [[2, 0], [1, 3]]: A = [[4, 2], [2, 10]]; A x = b for x = (1, -2).
+        let a = SMatrix::<f64, 2, 2>::new(4.0, 2.0, 2.0, 10.0);
+        let f = factor(&a).unwrap();
+        // The upper triangle keeps A's entry, as nalgebra's `l_dirty`.
+        assert_eq!(f.columns, [[2.0, 1.0], [2.0, 3.0]]);
+        assert_eq!(f.diagonal_product(), 6.0); // sqrt(det A) = sqrt(36)
+        let x = f.solve(&SVector::<f64, 2>::new(0.0, -18.0));
+        assert_eq!(x, SVector::<f64, 2>::new(1.0, -2.0));
+    }
+
+    #[test]
+    fn refuses_what_is_not_positive_definite() {
+        let singular = SMatrix::<f32, 2, 2>::new(1.0, 1.0, 1.0, 1.0);
+        assert!(factor(&singular).is_none());
+        let indefinite = SMatrix::<f32, 2, 2>::new(1.0, 2.0, 2.0, 1.0);
+        assert!(factor(&indefinite).is_none());
+        let nan = SMatrix::<f32, 2, 2>::new(f32::NAN, 0.0, 0.0, 1.0);
+        assert!(factor(&nan).is_none());
+        assert!(singular.cholesky().is_none() && indefinite.cholesky().is_none());
+    }
+}
