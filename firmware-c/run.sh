@@ -16,7 +16,7 @@ out=../target/firmware-c
 mkdir -p "$out"
 # The Rust firmware's code-size settings (firmware/.cargo/config.toml): no partial or runtime
 # loop unrolling.
-export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_RUSTFLAGS="-C llvm-args=-unroll-allow-partial=false -C llvm-args=-unroll-runtime=false"
+export CARGO_TARGET_THUMBV7EM_NONE_EABIHF_RUSTFLAGS="-C llvm-args=-unroll-threshold=100 -C llvm-args=-unroll-allow-partial=false -C llvm-args=-unroll-runtime=false"
 # Only the static library (with the rlib as well, rustc would not run LTO).
 cargo rustc --quiet --manifest-path ../Cargo.toml -p calib-ffi --lib --crate-type staticlib \
     --target thumbv7em-none-eabihf \

@@ -82,8 +82,13 @@ pub(crate) unsafe fn filled<'a, O: Opaque>(p: *const O) -> Result<&'a O::Value, 
 /// `p` is NULL or points to the caller's writable `O` that no other argument points into.
 pub(crate) unsafe fn cleared<'a, O: Opaque>(p: *mut O) -> Result<&'a mut O::Value, CalibStatus> {
     check(p.cast_const())?;
-    // SAFETY: writable `O`; all-zero bytes are a valid value (plain numbers) and no valid tag.
-    unsafe { p.write_bytes(0, 1) };
+    // As 32-bit words: the compiler clears them with `__aeabi_memclr4`, which the library links
+    // anyway, instead of linking `__aeabi_memclr8` as well for the 8-aligned `O` (174 bytes).
+    let words = core::mem::size_of::<O>() / 4;
+    // SAFETY: writable `O`, at least 4-aligned and a whole number of 32-bit words (asserted for
+    // every opaque type in `model`), so `words` aligned u32 cover it exactly; all-zero bytes are
+    // a valid value (plain numbers) and no valid tag.
+    unsafe { p.cast::<u32>().write_bytes(0, words) };
     let tagged = p.cast::<Tagged<O::Value>>();
     // SAFETY: as in `filled`; the value's bytes are now initialised.
     Ok(unsafe { &mut (*tagged).value })

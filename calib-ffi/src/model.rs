@@ -243,13 +243,16 @@ impl Opaque for CalibModelF64 {
 }
 
 /// Each opaque type holds its tagged value, exactly (the header's sizes are not larger than
-/// needed by more than one word), and is aligned for it.
+/// needed by more than one word), and is aligned for it and cleared as whole 32-bit words
+/// (`access::cleared`).
 const fn fits<O, V>() -> bool {
     let need = core::mem::size_of::<Tagged<V>>();
     let have = core::mem::size_of::<O>();
     need <= have
         && have < need + 8
         && core::mem::align_of::<Tagged<V>>() <= core::mem::align_of::<O>()
+        && have % 4 == 0
+        && core::mem::align_of::<O>() >= 4
 }
 const _: () = assert!(fits::<CalibRobotF32, <CalibRobotF32 as Opaque>::Value>());
 const _: () = assert!(fits::<CalibRobotF64, <CalibRobotF64 as Opaque>::Value>());

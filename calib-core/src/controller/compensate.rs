@@ -20,9 +20,9 @@
 //! (manipulability of the scaled Jacobian below a threshold).
 
 use crate::KinematicsError;
-use crate::math::{cholesky, norm};
 use crate::kinematics::pose_error::PoseError;
 use crate::kinematics::{Kinematics, MappedKinematics, Pose};
+use crate::math::{cholesky, norm};
 use crate::model::JointLimits;
 use crate::model::{JacobianColumns, JointCount, JointTable};
 use crate::scalar::Real;

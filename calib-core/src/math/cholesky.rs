@@ -24,7 +24,7 @@ pub struct Factor<T, const D: usize> {
 
 /// Factors `a` (only its lower triangle is read). `None` when a pivot is zero, negative or NaN:
 /// `a` is not positive definite (as nalgebra's `cholesky()`).
-#[inline(always)]
+#[inline(never)]
 pub fn factor<T: Real, const D: usize>(a: &SMatrix<T, D, D>) -> Option<Factor<T, D>> {
     let mut l = a.data.0;
     for j in 0..D {

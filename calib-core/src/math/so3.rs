@@ -72,7 +72,9 @@ pub fn log<T: Real>(r: &Matrix3<T>) -> Vector3<T> {
     } else {
         (s.column(2), s.m33, Vector3::z())
     };
-    let nk = ((diagonal - cos) / one_minus_cos).max(T::zero()).sqrt_ieee();
+    let nk = ((diagonal - cos) / one_minus_cos)
+        .max(T::zero())
+        .sqrt_ieee();
     // Off-diagonal entries give n_j = S_kj / ((1 - cos) n_k); the k-th entry is n_k itself.
     let off_diagonal = column.into_owned() - axis * diagonal;
     let mut n = off_diagonal / (one_minus_cos * nk) + axis * nk;
