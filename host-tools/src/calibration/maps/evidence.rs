@@ -750,8 +750,6 @@ fn log_det(cholesky: &nalgebra::Cholesky<f64, Dyn>) -> f64 {
 struct JointPosterior {
     /// Mean of its coefficients, `m_j = s_j^2 Phi_j^T P r`.
     mean: DVector<f64>,
-    /// Covariance of its coefficients, `Sigma_j = s_j^2 I - s_j^4 Phi_j^T P Phi_j`.
-    block: DMatrix<f64>,
     /// How many of its coefficients the data determine, `gamma_j = s_j^2 tr(P Phi_j Phi_j^T)`.
     determined: f64,
     /// The prior variance at the evidence maximum (0 when negligible or undetermined).
@@ -759,7 +757,8 @@ struct JointPosterior {
 }
 
 /// The posterior of the joint with design columns `phi` (`kernel = phi phi^T`) and prior
-/// variance `s2`, given `P` and `P r`.
+/// variance `s2`, given `P` and `P r`. Its covariance, the one product of the size of `P` times
+/// the joint's columns, is [`joint_covariance`], needed at the last iteration only.
 fn joint_posterior(
     phi: &DMatrix<f64>,
     kernel: &DMatrix<f64>,
@@ -767,11 +766,8 @@ fn joint_posterior(
     pr: &DVector<f64>,
     s2: f64,
 ) -> JointPosterior {
-    let per_joint = phi.ncols();
     let u = phi.transpose() * pr;
     let trace = p.component_mul(kernel).sum();
-    let block = DMatrix::<f64>::identity(per_joint, per_joint) * s2
-        - (phi.transpose() * p * phi) * (s2 * s2);
     let determined = s2 * trace;
     let mut prior_variance = if trace > 0.0 {
         s2 * u.norm_squared() / trace
@@ -785,10 +781,16 @@ fn joint_posterior(
     }
     JointPosterior {
         mean: &u * s2,
-        block,
         determined,
         prior_variance,
     }
+}
+
+/// The covariance of one joint's coefficients, `Sigma_j = s_j^2 I - s_j^4 Phi_j^T P Phi_j`, for
+/// its design columns `phi` and prior variance `s2`.
+fn joint_covariance(phi: &DMatrix<f64>, p: &DMatrix<f64>, s2: f64) -> DMatrix<f64> {
+    let per_joint = phi.ncols();
+    DMatrix::<f64>::identity(per_joint, per_joint) * s2 - (phi.transpose() * p * phi) * (s2 * s2)
 }
 
 /// The same posterior and evidence as [`evidence`], computed in the space of the `N` equations
@@ -837,15 +839,10 @@ fn evidence_function_space(
             .copy_from(&m_chol.inverse().diagonal());
         let mut determined = JointVec::<f64>::from_fn(alpha.len(), |_| 0.0);
         let mut new_prior = variance_prior;
-        let mut blocks = Vec::with_capacity(alpha.len());
         for j in 0..alpha.len() {
             let joint = joint_posterior(&phi[j], &kernels[j], &p, &pr, variance_prior[j]);
-            let offset = geometry + j * per_joint;
-            mean.rows_mut(offset, per_joint).copy_from(&joint.mean);
-            for c in 0..per_joint {
-                variance[offset + c] = joint.block[(c, c)].max(0.0);
-            }
-            blocks.push(joint.block);
+            mean.rows_mut(geometry + j * per_joint, per_joint)
+                .copy_from(&joint.mean);
             determined[j] = joint.determined;
             new_prior[j] = joint.prior_variance;
         }
@@ -859,6 +856,20 @@ fn evidence_function_space(
             (&variance_prior.map(prior_precision), 1.0 / noise),
             (&new_prior.map(prior_precision), 1.0 / new_noise),
         );
+        let last_step = converged || iteration + 1 == EVIDENCE_ITERATIONS;
+        // The joints' covariances are the posterior's at the last step only: the iterations
+        // before need their means and traces alone (at 100 poses, 480 coefficients, most of
+        // the work).
+        let mut blocks = Vec::new();
+        if last_step {
+            for (j, phi) in phi.iter().enumerate() {
+                let block = joint_covariance(phi, &p, variance_prior[j]);
+                for c in 0..per_joint {
+                    variance[geometry + j * per_joint + c] = block[(c, c)].max(0.0);
+                }
+                blocks.push(block);
+            }
+        }
         variance_prior = new_prior;
         noise = new_noise;
         last = Some(Posterior {
@@ -868,7 +879,7 @@ fn evidence_function_space(
             log_evidence,
             determined,
         });
-        if converged || iteration + 1 == EVIDENCE_ITERATIONS {
+        if last_step {
             break;
         }
     }
