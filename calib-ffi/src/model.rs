@@ -251,7 +251,7 @@ const fn fits<O, V>() -> bool {
     need <= have
         && have < need + 8
         && core::mem::align_of::<Tagged<V>>() <= core::mem::align_of::<O>()
-        && have % 4 == 0
+        && have.is_multiple_of(4)
         && core::mem::align_of::<O>() >= 4
 }
 const _: () = assert!(fits::<CalibRobotF32, <CalibRobotF32 as Opaque>::Value>());

@@ -196,6 +196,72 @@ fn series_b_fifty_poses_with_joint_maps() {
     assert!(with_maps <= 0.25, "{with_maps}");
 }
 
+/// `--harmonics` (issue 56): the count the evidence chose, given, is the same identification
+/// (every map coefficient and the log evidence to the bit), with that one count tried; another
+/// count gives other maps; a count out of 1-60, or with the geometric model, is refused.
+#[test]
+fn given_harmonics_are_the_evidence_s_choice_or_another_model() {
+    let run = |harmonics: Option<usize>| {
+        let config = CalibrationConfig {
+            model: ErrorModel::JointMaps,
+            harmonics,
+            method: Method::Lm,
+            auto_mask: true,
+            ..CalibrationConfig::default()
+        };
+        let fraction = (SERIES_B_POSES - 50) as f64 / SERIES_B_POSES as f64;
+        common::calibrate_files((ROBOT, DATA_B, Some(POSITION)), config, Some((fraction, 0)))
+    };
+    let chosen = run(None).unwrap();
+    let maps = chosen.result.joint_maps.clone().unwrap();
+    assert!(
+        !maps.harmonics_given && maps.evidence.len() >= 2,
+        "{:?}",
+        maps.evidence
+    );
+    let given = run(Some(maps.harmonics)).unwrap();
+    let given_maps = given.result.joint_maps.clone().unwrap();
+    assert!(given_maps.harmonics_given);
+    assert_eq!(given_maps.harmonics, maps.harmonics);
+    assert_eq!(
+        given_maps.evidence,
+        vec![(maps.harmonics, maps.log_evidence)]
+    );
+    // The identified files are equal but for the time they were written.
+    let untimed = |c: &host_tools::calibration::Calibrated| {
+        (c.robot_toml().lines())
+            .filter(|l| !l.starts_with("calibrated_at") && !l.starts_with("registered_at"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    assert_eq!(untimed(&given), untimed(&chosen));
+    assert!(
+        given
+            .text()
+            .contains("harmonics per joint as given (--harmonics)")
+    );
+    let other = run(Some(maps.harmonics + 7)).unwrap();
+    let other_maps = other.result.joint_maps.clone().unwrap();
+    assert_eq!(other_maps.harmonics, maps.harmonics + 7);
+    assert_ne!(other_maps.log_evidence, maps.log_evidence);
+    for (harmonics, flag) in [(0, "--harmonics"), (61, "--harmonics")] {
+        let error = run(Some(harmonics)).unwrap_err().to_string();
+        assert!(error.contains(flag) && error.contains("1 to 60"), "{error}");
+    }
+    let geometric = CalibrationConfig {
+        harmonics: Some(30),
+        method: Method::Lm,
+        ..CalibrationConfig::default()
+    };
+    let error = common::calibrate_files((ROBOT, DATA_B, Some(POSITION)), geometric, None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("--harmonics") && error.contains("--model"),
+        "{error}"
+    );
+}
+
 /// M = 50, 5 seeds, 6-DoF data: the maps also use the orientation rows (weighted by the
 /// geometric fit's position-to-orientation residual ratio). Measured: 0.4205 -> 0.2207 mm.
 #[test]

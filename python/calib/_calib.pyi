@@ -267,6 +267,7 @@ def calibrate(
     frames: Optional[str] = None,
     identify: Optional[str] = None,
     model: Optional[str] = None,
+    harmonics: Optional[int] = None,
     k: Optional[float] = None,
     lm_iterations: Optional[int] = None,
     loss: Optional[str] = None,

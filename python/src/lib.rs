@@ -1097,7 +1097,8 @@ fn choice<T: clap::ValueEnum>(name: &str, value: Option<&str>) -> PyResult<Optio
 #[pyfunction]
 #[pyo3(signature = (
     robot, data, holdout = None, *, validate = None, validate_seed = None, method = None,
-    frames = None, identify = None, model = None, k = None, lm_iterations = None, loss = None,
+    frames = None, identify = None, model = None, harmonics = None, k = None, lm_iterations = None,
+    loss = None,
     loss_scale_mm = None, auto_mask = false, keep_ill_conditioned = false,
     accept_implausible = false, accept = None, payload_kg = None, swarm = None,
     generations = None, c1 = None, c2 = None, seed = None, init_angle_rad = None,
@@ -1116,6 +1117,7 @@ fn calibrate(
     frames: Option<&str>,
     identify: Option<&str>,
     model: Option<&str>,
+    harmonics: Option<usize>,
     k: Option<f64>,
     lm_iterations: Option<u32>,
     loss: Option<&str>,
@@ -1166,6 +1168,7 @@ fn calibrate(
         frames: choice("frames", frames)?,
         identify: choice("identify", identify)?.unwrap_or(d.identify),
         model: choice("model", model)?.unwrap_or(d.model),
+        harmonics,
         k: k.unwrap_or(d.k),
         swarm: swarm.config(),
         lm_iterations: lm_iterations.unwrap_or(d.lm_iterations),

@@ -30,22 +30,27 @@ pub fn factor<T: Real, const D: usize>(a: &SMatrix<T, D, D>) -> Option<Factor<T,
     for j in 0..D {
         for k in 0..j {
             // Column j from row j down, minus L[(j, k)] times column k (nalgebra's `axpy`).
-            let minus_factor = -l[k][j];
-            for i in j..D {
-                let x = l[k][i];
-                l[j][i] = minus_factor * x + l[j][i];
+            let (left, right) = l.split_at_mut(j);
+            let (Some(column_k), Some(column_j)) = (left.get(k), right.first_mut()) else {
+                return None;
+            };
+            let minus_factor = -*column_k.get(j)?;
+            for (y, x) in column_j.iter_mut().zip(column_k).skip(j) {
+                *y = minus_factor * *x + *y;
             }
         }
-        let diagonal = l[j][j];
+        let column = l.get_mut(j)?;
+        let diagonal = *column.get(j)?;
         // nalgebra's `try_sqrt` takes the root of `x >= 0` only; a zero pivot is refused first.
         #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN must be refused as well
         if diagonal == T::zero() || !(diagonal >= T::zero()) {
             return None;
         }
         let root = diagonal.sqrt_ieee();
-        l[j][j] = root;
-        for i in j + 1..D {
-            l[j][i] /= root;
+        let (above, below) = column.split_at_mut(j + 1);
+        *above.last_mut()? = root;
+        for v in below {
+            *v /= root;
         }
     }
     Some(Factor { columns: l })
@@ -67,22 +72,29 @@ impl<T: Real, const D: usize> Factor<T, D> {
     /// The solution `x` of `A x = b`: `L y = b` forward, then `L^T x = y` backward.
     #[inline(always)]
     pub fn solve(&self, b: &SVector<T, D>) -> SVector<T, D> {
-        let l = &self.columns;
-        let mut x = b.data.0[0];
-        for i in 0..D {
-            let coefficient = x[i] / l[i][i];
-            x[i] = coefficient;
+        let [mut x] = b.data.0;
+        // Forward, by columns: x_i /= L_ii, then the rows below minus x_i times column i.
+        for (i, column) in self.columns.iter().enumerate() {
+            let (Some(diagonal), Some(xi)) = (column.get(i), x.get_mut(i)) else {
+                continue;
+            };
+            let coefficient = *xi / *diagonal;
+            *xi = coefficient;
             let minus_coefficient = -coefficient;
-            for k in i + 1..D {
-                x[k] = minus_coefficient * l[i][k] + x[k];
+            for (xk, lk) in x.iter_mut().zip(column).skip(i + 1) {
+                *xk = minus_coefficient * *lk + *xk;
             }
         }
-        for i in (0..D).rev() {
+        // Backward, by dot products of column i below the diagonal, summed from zero.
+        for (i, column) in self.columns.iter().enumerate().rev() {
             let mut dot = T::zero();
-            for k in i + 1..D {
-                dot += l[i][k] * x[k];
+            for (lk, xk) in column.iter().zip(x.iter()).skip(i + 1) {
+                dot += *lk * *xk;
             }
-            x[i] = (x[i] - dot) / l[i][i];
+            let (Some(diagonal), Some(xi)) = (column.get(i), x.get_mut(i)) else {
+                continue;
+            };
+            *xi = (*xi - dot) / *diagonal;
         }
         SVector::from(x)
     }

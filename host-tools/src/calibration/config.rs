@@ -331,6 +331,10 @@ pub struct CalibrationConfig {
     pub identify: Identify,
     /// The error model: geometric, or with joint maps.
     pub model: ErrorModel,
+    /// Harmonics per joint of the joint maps (`--harmonics`, 1 to
+    /// [`super::maps::evidence::MAX_HARMONICS`]); `None`: chosen by the evidence among 10, 20,
+    /// ..., 60.
+    pub harmonics: Option<usize>,
     /// Orientation weight k of eq. (7), mm^2/rad^2.
     pub k: f64,
     /// The swarm's settings.
@@ -396,6 +400,7 @@ impl Default for CalibrationConfig {
             frames: None,
             identify: Identify::Geometry,
             model: ErrorModel::Geometric,
+            harmonics: None,
             k: calib_core::identify::objective::DEFAULT_K,
             swarm: SwarmConfig::default(),
             lm_iterations: 100,
@@ -453,6 +458,20 @@ impl CalibrationConfig {
             return Err(crate::refused!(option "--loss-scale-mm";
                 "--loss-scale-mm must be a finite number > 0, got {scale}"
             ));
+        }
+        if let Some(harmonics) = self.harmonics {
+            if !self.model.maps() {
+                return Err(crate::Error::conflict(
+                    &["--harmonics", "--model"],
+                    "--harmonics sets the joint maps' harmonics: give --model joint-maps or joint-maps+compliance, or drop --harmonics",
+                ));
+            }
+            let most = super::maps::evidence::MAX_HARMONICS;
+            if !(1..=most).contains(&harmonics) {
+                return Err(crate::refused!(option "--harmonics";
+                    "--harmonics {harmonics} is out of range; choose 1 to {most} harmonics per joint (or leave it to the evidence)"
+                ));
+            }
         }
         if self.model.maps() && self.identify == Identify::Frames {
             return Err(crate::Error::conflict(

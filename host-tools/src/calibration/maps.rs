@@ -62,8 +62,11 @@ pub const CURVE_STEP_DEG: f64 = 0.5;
 /// What the joint-maps stage found.
 #[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct JointMapsReport {
-    /// Harmonics per joint, chosen by the evidence.
+    /// Harmonics per joint, chosen by the evidence (or given: [`Self::harmonics_given`]).
     pub harmonics: usize,
+    /// Whether the harmonics were given (`--harmonics`) rather than chosen by the evidence.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub harmonics_given: bool,
     /// Log evidence of every harmonic count tried: `[harmonics, log evidence]`.
     pub evidence: Vec<(usize, f64)>,
     /// Log evidence of the chosen model (up to a constant of the poses and parameters).
@@ -306,7 +309,14 @@ pub(crate) fn add_joint_maps(
         orientation_scale_mm,
         gravity: gravity.as_ref(),
     };
-    let (mut found, evidence) = evidence::identify_best(&problem)?;
+    let (mut found, evidence) = match config.harmonics {
+        Some(harmonics) => {
+            let found = evidence::identify(&problem, harmonics)?;
+            let tried = vec![(harmonics, found.log_evidence)];
+            (found, tried)
+        }
+        None => evidence::identify_best(&problem)?,
+    };
     let cross_validation = identification.cross_validation.and_then(|geometric| {
         let (folds, maps_mean_mm) =
             maps_cross_validation(&seen, &kept, &problem, found.maps.harmonics)?;
@@ -333,6 +343,7 @@ pub(crate) fn add_joint_maps(
     let report = JointMapsReport {
         curves,
         harmonics: found.maps.harmonics,
+        harmonics_given: config.harmonics.is_some(),
         evidence,
         log_evidence: found.log_evidence,
         noise_mm: found.noise_mm,
@@ -525,9 +536,13 @@ impl JointMapsReport {
     /// statistics for comparison.
     pub fn text(&self) -> String {
         let mut text = format!(
-            "\njoint maps (the tables above include them): {} harmonics per joint chosen by the evidence \
+            "\njoint maps (the tables above include them): {} harmonics per joint {} \
              (log evidence {}), noise {:.4} mm per coordinate\n",
             self.harmonics,
+            match self.harmonics_given {
+                true => "as given (--harmonics)",
+                false => "chosen by the evidence",
+            },
             self.evidence
                 .iter()
                 .map(|(h, e)| format!("H={h}: {e:.1}"))

@@ -27,7 +27,7 @@ pub(crate) const HARMONICS_STEP: usize = 10;
 
 /// The most harmonics per joint [`identify_best`] tries (the published joint-map study used 40-60;
 /// on UR10 Series B with 50 poses the evidence prefers 30).
-pub(crate) const MAX_HARMONICS: usize = 60;
+pub const MAX_HARMONICS: usize = 60;
 
 /// Relinearisations of the geometry around the current estimate.
 const LINEARISATIONS: usize = 3;

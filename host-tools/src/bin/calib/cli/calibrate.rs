@@ -38,6 +38,11 @@ pub struct CalibrateOptions {
     /// prior; the maps go into the identified file's `[joint_maps]`).
     #[arg(long, value_enum, default_value_t = CalibrationConfig::default().model)]
     pub model: ErrorModel,
+    /// Harmonics per joint of the joint maps (--model joint-maps or joint-maps+compliance), 1 to
+    /// 60, instead of the evidence's choice among 10, 20, ..., 60: each count tried is a whole
+    /// identification, so a fixed count is faster when it is known (a gear train's ratio).
+    #[arg(long, value_name = "H")]
+    pub harmonics: Option<usize>,
     /// Identification method: the paper's swarm, least squares, or the swarm then least squares.
     #[arg(long, value_enum, default_value_t = CalibrationConfig::default().method)]
     pub method: Method,
@@ -132,6 +137,7 @@ impl CalibrateOptions {
             frames: self.frames,
             identify: self.identify,
             model: self.model,
+            harmonics: self.harmonics,
             k: self.k.unwrap_or(calib_core::identify::objective::DEFAULT_K),
             swarm: self.swarm.config(),
             lm_iterations: self.lm_iterations,
