@@ -276,6 +276,20 @@ pub(crate) struct KeptMaps {
     pub compliance: Option<crate::model::compliance::ComplianceSection>,
 }
 
+/// The maps of `problem` with the `harmonics` given, or with the count the evidence chooses;
+/// and the log evidence of each count tried.
+fn identified(
+    problem: &evidence::MapsProblem<'_>,
+    harmonics: Option<usize>,
+) -> crate::Result<(MapIdentification, Vec<(usize, f64)>)> {
+    let Some(harmonics) = harmonics else {
+        return evidence::identify_best(problem);
+    };
+    let found = evidence::identify(problem, harmonics)?;
+    let tried = vec![(harmonics, found.log_evidence)];
+    Ok((found, tried))
+}
+
 /// The joint maps stage: the joint maps identified with the geometry on top of the geometric
 /// identification `identification` of `robot` (its frames registered; the given robot passed
 /// [`check_robot_file`]) on `dataset`, with the geometric calibration's statistics `geometric`
@@ -309,14 +323,7 @@ pub(crate) fn add_joint_maps(
         orientation_scale_mm,
         gravity: gravity.as_ref(),
     };
-    let (mut found, evidence) = match config.harmonics {
-        Some(harmonics) => {
-            let found = evidence::identify(&problem, harmonics)?;
-            let tried = vec![(harmonics, found.log_evidence)];
-            (found, tried)
-        }
-        None => evidence::identify_best(&problem)?,
-    };
+    let (mut found, evidence) = identified(&problem, config.harmonics)?;
     let cross_validation = identification.cross_validation.and_then(|geometric| {
         let (folds, maps_mean_mm) =
             maps_cross_validation(&seen, &kept, &problem, found.maps.harmonics)?;

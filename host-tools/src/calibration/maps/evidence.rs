@@ -791,11 +791,67 @@ fn joint_posterior(
     }
 }
 
-/// The covariance of one joint's coefficients, `Sigma_j = s_j^2 I - s_j^4 Phi_j^T P Phi_j`, for
-/// its design columns `phi` and prior variance `s2`.
-fn joint_covariance(phi: &DMatrix<f64>, p: &DMatrix<f64>, s2: f64) -> DMatrix<f64> {
-    let per_joint = phi.ncols();
-    DMatrix::<f64>::identity(per_joint, per_joint) * s2 - (phi.transpose() * p * phi) * (s2 * s2)
+/// Every joint's posterior ([`joint_posterior`]) for its design columns and kernel `phi`,
+/// `kernels` and prior variance in `s2`, given `P` and `P r`: the means into `mean` (the joints'
+/// coefficients, joint 1 first), and each joint's determined coefficients and prior variance at
+/// the evidence maximum.
+fn joint_posteriors(
+    (phi, kernels): (&[DMatrix<f64>], &[DMatrix<f64>]),
+    (p, pr): (&DMatrix<f64>, &DVector<f64>),
+    s2: &JointVec<f64>,
+    mut mean: nalgebra::DVectorViewMut<'_, f64>,
+) -> (JointVec<f64>, JointVec<f64>) {
+    let mut determined = s2.map(|_| 0.0);
+    let mut new_prior = *s2;
+    for (j, ((phi, kernel), s2)) in phi.iter().zip(kernels).zip(s2.iter()).enumerate() {
+        let joint = joint_posterior(phi, kernel, p, pr, *s2);
+        mean.rows_mut(j * phi.ncols(), phi.ncols())
+            .copy_from(&joint.mean);
+        determined[j] = joint.determined;
+        new_prior[j] = joint.prior_variance;
+    }
+    (determined, new_prior)
+}
+
+/// The covariance of each joint's coefficients, `Sigma_j = s_j^2 I - s_j^4 Phi_j^T P Phi_j`, for
+/// their design columns `phi` and prior variances `s2`; their diagonals, clamped at zero, into
+/// `variance` (the joints' coefficients, joint 1 first).
+fn joint_covariances(
+    phi: &[DMatrix<f64>],
+    p: &DMatrix<f64>,
+    s2: &JointVec<f64>,
+    mut variance: nalgebra::DVectorViewMut<'_, f64>,
+) -> Vec<DMatrix<f64>> {
+    let mut diagonal = variance.iter_mut();
+    (phi.iter().zip(s2.iter()))
+        .map(|(phi, s2)| {
+            let per_joint = phi.ncols();
+            let block = DMatrix::<f64>::identity(per_joint, per_joint) * *s2
+                - (phi.transpose() * p * phi) * (s2 * s2);
+            for (v, b) in diagonal.by_ref().zip(block.diagonal().iter()) {
+                *v = b.max(0.0);
+            }
+            block
+        })
+        .collect()
+}
+
+/// `K^-1` for the covariance of the equations ([`pose_covariance`]) and `log |K|`. `K^-1 = L^-T
+/// L^-1` from the split factorisation and one matrix product, not by substituting the identity's
+/// columns (two thirds of a run at 100 poses).
+fn pose_covariance_inverse(
+    kernels: &[DMatrix<f64>],
+    s2: &JointVec<f64>,
+    noise: f64,
+) -> crate::Result<(DMatrix<f64>, f64)> {
+    let Some((factor, factor_inv)) = cholesky_and_inverse(&pose_covariance(kernels, s2, noise))
+    else {
+        return Err(crate::numerical!(
+            "joint maps: the covariance of the poses is singular"
+        ));
+    };
+    let log_det = factor.diagonal().iter().map(|d| 2.0 * d.ln()).sum();
+    Ok((factor_inv.transpose() * &factor_inv, log_det))
 }
 
 /// The same posterior and evidence as [`evidence`], computed in the space of the `N` equations
@@ -815,9 +871,12 @@ fn evidence_function_space(
 ) -> crate::Result<Posterior> {
     let rows = design.nrows();
     let a = design.columns(0, geometry).into_owned();
-    let joint_columns = |j: usize| design.columns(geometry + j * per_joint, per_joint);
     let phi: Vec<DMatrix<f64>> = (0..alpha.len())
-        .map(|j| joint_columns(j).into_owned())
+        .map(|j| {
+            design
+                .columns(geometry + j * per_joint, per_joint)
+                .into_owned()
+        })
         .collect();
     let kernels: Vec<DMatrix<f64>> = phi.iter().map(|p| p * p.transpose()).collect();
     // Prior variances s_j^2 and noise variance sigma^2.
@@ -825,37 +884,23 @@ fn evidence_function_space(
     let mut noise = 1.0 / *beta;
     let mut last = None;
     for iteration in 0..EVIDENCE_ITERATIONS {
-        // K^-1 = L^-T L^-1 from the split factorisation (matrix products), not by substituting
-        // the identity's columns (two thirds of the run at 100 poses).
-        let Some((k_factor, k_factor_inv)) =
-            cholesky_and_inverse(&pose_covariance(&kernels, &variance_prior, noise))
-        else {
-            return Err(crate::numerical!(
-                "joint maps: the covariance of the poses is singular"
-            ));
-        };
-        let k_log_det: f64 = k_factor.diagonal().iter().map(|d| 2.0 * d.ln()).sum();
+        let (k_inv, k_log_det) = pose_covariance_inverse(&kernels, &variance_prior, noise)?;
         let Restricted {
             m_chol,
             p,
             pr,
             dtheta,
-        } = restricted(&(k_factor_inv.transpose() * &k_factor_inv), &a, residual)?;
-        let mut mean = DVector::<f64>::zeros(geometry + alpha.len() * per_joint);
-        mean.rows_mut(0, geometry).copy_from(&dtheta);
-        let mut variance = DVector::<f64>::zeros(geometry + alpha.len() * per_joint);
-        variance
-            .rows_mut(0, geometry)
-            .copy_from(&m_chol.inverse().diagonal());
-        let mut determined = JointVec::<f64>::from_fn(alpha.len(), |_| 0.0);
-        let mut new_prior = variance_prior;
-        for j in 0..alpha.len() {
-            let joint = joint_posterior(&phi[j], &kernels[j], &p, &pr, variance_prior[j]);
-            mean.rows_mut(geometry + j * per_joint, per_joint)
-                .copy_from(&joint.mean);
-            determined[j] = joint.determined;
-            new_prior[j] = joint.prior_variance;
-        }
+        } = restricted(&k_inv, &a, residual)?;
+        // The geometry's part, then the joints' coefficients.
+        let unknowns = geometry + alpha.len() * per_joint;
+        let mut mean = dtheta.resize_vertically(unknowns, 0.0);
+        let mut variance = m_chol.inverse().diagonal().resize_vertically(unknowns, 0.0);
+        let (determined, new_prior) = joint_posteriors(
+            (&phi, &kernels),
+            (&p, &pr),
+            &variance_prior,
+            mean.rows_mut(geometry, phi.len() * per_joint),
+        );
         let gamma = geometry as f64 + determined.iter().sum::<f64>();
         let log_evidence = -0.5 * residual.dot(&pr)
             - 0.5 * k_log_det
@@ -867,19 +912,17 @@ fn evidence_function_space(
             (&new_prior.map(prior_precision), 1.0 / new_noise),
         );
         let last_step = converged || iteration + 1 == EVIDENCE_ITERATIONS;
-        // The joints' covariances are the posterior's at the last step only: the iterations
-        // before need their means and traces alone (at 100 poses, 480 coefficients, most of
-        // the work).
-        let mut blocks = Vec::new();
-        if last_step {
-            for (j, phi) in phi.iter().enumerate() {
-                let block = joint_covariance(phi, &p, variance_prior[j]);
-                for c in 0..per_joint {
-                    variance[geometry + j * per_joint + c] = block[(c, c)].max(0.0);
-                }
-                blocks.push(block);
-            }
-        }
+        // The joints' covariances at the last step only: the steps before need their means and
+        // traces alone (at 100 poses, 480 coefficients, most of the work).
+        let blocks = match last_step {
+            true => joint_covariances(
+                &phi,
+                &p,
+                &variance_prior,
+                variance.rows_mut(geometry, phi.len() * per_joint),
+            ),
+            false => Vec::new(),
+        };
         variance_prior = new_prior;
         noise = new_noise;
         last = Some(Posterior {
