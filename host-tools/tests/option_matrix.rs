@@ -542,6 +542,12 @@ fn calibrate() {
         ("--frames", Value("base")),
         ("--identify", Value("frames")),
         ("--model", Value("joint-maps")),
+        (
+            "--harmonics",
+            Exempt(
+                "refused without --model joint-maps; the maps it gives are tested in joint_maps.rs",
+            ),
+        ),
         ("--method", Value("ipso+lm|lm")),
         ("--lm-iterations", Value("2")),
         ("--loss", Value("cauchy")),

@@ -35,7 +35,10 @@ pub fn factor<T: Real, const D: usize>(a: &SMatrix<T, D, D>) -> Option<Factor<T,
                 return None;
             };
             let minus_factor = -*column_k.get(j)?;
-            for (y, x) in column_j.iter_mut().zip(column_k).skip(j) {
+            let (Some(ys), Some(xs)) = (column_j.get_mut(j..), column_k.get(j..)) else {
+                return None;
+            };
+            for (y, x) in ys.iter_mut().zip(xs) {
                 *y = minus_factor * *x + *y;
             }
         }
@@ -70,31 +73,41 @@ impl<T: Real, const D: usize> Factor<T, D> {
     }
 
     /// The solution `x` of `A x = b`: `L y = b` forward, then `L^T x = y` backward.
-    #[inline(always)]
+    #[inline]
     pub fn solve(&self, b: &SVector<T, D>) -> SVector<T, D> {
         let [mut x] = b.data.0;
+        let l = &self.columns;
         // Forward, by columns: x_i /= L_ii, then the rows below minus x_i times column i.
-        for (i, column) in self.columns.iter().enumerate() {
-            let (Some(diagonal), Some(xi)) = (column.get(i), x.get_mut(i)) else {
+        for i in 0..D {
+            let (Some(column), Some(xi)) = (l.get(i), x.get_mut(i)) else {
+                continue;
+            };
+            let Some(diagonal) = column.get(i) else {
                 continue;
             };
             let coefficient = *xi / *diagonal;
             *xi = coefficient;
             let minus_coefficient = -coefficient;
-            for (xk, lk) in x.iter_mut().zip(column).skip(i + 1) {
-                *xk = minus_coefficient * *lk + *xk;
+            for k in i + 1..D {
+                if let (Some(xk), Some(lk)) = (x.get_mut(k), column.get(k)) {
+                    *xk = minus_coefficient * *lk + *xk;
+                }
             }
         }
         // Backward, by dot products of column i below the diagonal, summed from zero.
-        for (i, column) in self.columns.iter().enumerate().rev() {
-            let mut dot = T::zero();
-            for (lk, xk) in column.iter().zip(x.iter()).skip(i + 1) {
-                dot += *lk * *xk;
-            }
-            let (Some(diagonal), Some(xi)) = (column.get(i), x.get_mut(i)) else {
+        for i in (0..D).rev() {
+            let Some(column) = l.get(i) else {
                 continue;
             };
-            *xi = (*xi - dot) / *diagonal;
+            let mut dot = T::zero();
+            for k in i + 1..D {
+                if let (Some(lk), Some(xk)) = (column.get(k), x.get(k)) {
+                    dot += *lk * *xk;
+                }
+            }
+            if let (Some(diagonal), Some(xi)) = (column.get(i), x.get_mut(i)) {
+                *xi = (*xi - dot) / *diagonal;
+            }
         }
         SVector::from(x)
     }

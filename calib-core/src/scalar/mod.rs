@@ -106,6 +106,9 @@ impl Real for f64 {
 /// its own. The hard-float procedure call standard passes the argument and the result in `s0`,
 /// so a call is the whole cost (an inline sequence would move the value through a core register
 /// and save `s0` around it: 20 bytes at every use instead of 4).
+// SAFETY (the naked body): it keeps the procedure call standard for `extern "C" fn(f32) -> f32`
+// on eabihf: it reads its argument from `s0`, leaves the result in `s0`, touches no other
+// register, no memory and no flags but the FPU's status, and returns with `bx lr`.
 #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
 #[unsafe(naked)]
 extern "C" fn vsqrt_f32(_x: f32) -> f32 {

@@ -828,7 +828,8 @@ fn joint_covariances(
             let per_joint = phi.ncols();
             let block = DMatrix::<f64>::identity(per_joint, per_joint) * *s2
                 - (phi.transpose() * p * phi) * (s2 * s2);
-            for (v, b) in diagonal.by_ref().zip(block.diagonal().iter()) {
+            // The block's diagonal first: `zip` stops on it without taking the next joint's slot.
+            for (b, v) in block.diagonal().iter().zip(diagonal.by_ref()) {
                 *v = b.max(0.0);
             }
             block
