@@ -25,8 +25,8 @@ use nalgebra::{DMatrix, DVector, Vector3};
 /// [`HARMONICS_STEP`] up to [`MAX_HARMONICS`].
 pub(crate) const HARMONICS_STEP: usize = 10;
 
-/// The most harmonics per joint [`identify_best`] tries (the published joint-map study used 40-60;
-/// on UR10 Series B with 50 poses the evidence prefers 30).
+/// The most harmonics per joint that the evidence's choice tries and `--harmonics` accepts (the
+/// published joint-map study used 40-60; on UR10 Series B with 50 poses the evidence prefers 30).
 pub const MAX_HARMONICS: usize = 60;
 
 /// Relinearisations of the geometry around the current estimate.
