@@ -3,12 +3,14 @@
 //! compensation (`controller::compensate::solve_joints`, a 6 x 6 system per iteration).
 //!
 //! Why not nalgebra's `Cholesky`: on the controller the compensation's cost and the firmware's
-//! flash depend on how this small factorisation is compiled. Here it is always inlined into its
-//! caller, whatever LLVM's inlining threshold, and its square roots are the FPU's
-//! ([`Real::sqrt_ieee`]) instead of libm's software `sqrtf`. The operations and their order are
-//! nalgebra's (`Cholesky::new`, then `solve`: forward substitution by columns, back substitution
-//! by dot products summed from zero in row order), and both square roots are correctly rounded,
-//! so the bits are nalgebra's (test `factor_and_solve_equal_nalgebra_bit_for_bit`).
+//! flash depend on how this small factorisation is compiled, and nalgebra's took libm's software
+//! `sqrtf` and was inlined or not as LLVM's inlining threshold decided. Here the factorisation is
+//! one copy out of line (the two factorisations of an iteration share it), the solve is left to
+//! the inliner, and the square roots are the FPU's ([`Real::sqrt_ieee`]). The operations and
+//! their order are nalgebra's (`Cholesky::new`, then `solve`: forward substitution by columns,
+//! back substitution by dot products summed from zero in row order), and both square roots are
+//! correctly rounded, so the bits are nalgebra's (test
+//! `factor_and_solve_equal_nalgebra_bit_for_bit`).
 
 use nalgebra::{SMatrix, SVector};
 
@@ -24,7 +26,7 @@ pub struct Factor<T, const D: usize> {
 
 /// Factors `a` (only its lower triangle is read). `None` when a pivot is zero, negative or NaN:
 /// `a` is not positive definite (as nalgebra's `cholesky()`).
-#[inline(never)]
+#[inline(never)] // one copy for both factorisations of a compensation step (controller flash)
 pub fn factor<T: Real, const D: usize>(a: &SMatrix<T, D, D>) -> Option<Factor<T, D>> {
     let mut l = a.data.0;
     for j in 0..D {

@@ -345,21 +345,24 @@ fn frame_slot<T>(frame: &mut FrameErrors<T>, kind: FrameParameter) -> &mut T {
 /// docs).
 pub fn all_parameters<N: JointCount>(joints: N) -> impl Iterator<Item = Parameter> {
     let count = joints.value();
+    let total = JointParameter::ALL.len() * count + 2 * FrameParameter::ALL.len();
     // One index over the whole order rather than chained iterators: on the controller the
     // chain's `next` alone took 302 bytes of flash.
-    (0..5 * count + 12).filter_map(move |i| canonical_parameter(count, i))
+    (0..total).filter_map(move |i| canonical_parameter(count, i))
 }
 
-/// The `i`-th parameter (from 0) of the canonical order for `count` joints.
+/// The `i`-th parameter (from 0) of the canonical order for `count` joints: the joints' kinds
+/// (each for joints 1 to `count`), then the base's and the tool's frame parameters.
 fn canonical_parameter(count: usize, i: usize) -> Option<Parameter> {
+    let frames = FrameParameter::ALL.len();
     let frame = |k: usize| FrameParameter::ALL.get(k).copied();
-    match i.checked_sub(5 * count) {
+    match i.checked_sub(JointParameter::ALL.len() * count) {
         None => Some(Parameter::Joint {
             joint: crate::model::joint_number(i.checked_rem(count)?),
             kind: *JointParameter::ALL.get(i.checked_div(count)?)?,
         }),
-        Some(k) if k < 6 => frame(k).map(Parameter::Base),
-        Some(k) => frame(k - 6).map(Parameter::Tool),
+        Some(k) if k < frames => frame(k).map(Parameter::Base),
+        Some(k) => frame(k - frames).map(Parameter::Tool),
     }
 }
 
