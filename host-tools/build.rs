@@ -15,14 +15,17 @@ fn main() {
         .filter(|s| !s.is_empty())
         .unwrap_or_else(|| "unknown".to_string());
     println!("cargo:rustc-env=CALIB_COMMIT={commit}");
-    // Built again when HEAD moves: HEAD itself, the branch it names, and packed refs.
+    // Built again when HEAD moves: HEAD itself, the branch it names, and packed refs. Only files
+    // that exist are watched: cargo takes a missing one as changed and would build the tool again
+    // on every command (a fresh `git init` has no packed-refs; after `git gc` a branch has no file).
     let git = Path::new("../.git");
-    for file in ["HEAD", "packed-refs"] {
-        println!("cargo:rerun-if-changed={}", git.join(file).display());
-    }
+    let mut watched = vec![git.join("HEAD"), git.join("packed-refs")];
     if let Ok(head) = std::fs::read_to_string(git.join("HEAD"))
         && let Some(branch) = head.trim().strip_prefix("ref: ")
     {
-        println!("cargo:rerun-if-changed={}", git.join(branch).display());
+        watched.push(git.join(branch));
+    }
+    for file in watched.iter().filter(|file| file.exists()) {
+        println!("cargo:rerun-if-changed={}", file.display());
     }
 }
