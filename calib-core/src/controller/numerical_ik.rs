@@ -40,7 +40,7 @@ pub struct NumericalIkSettings<T> {
 impl<T: Real> Default for NumericalIkSettings<T> {
     /// 1e-4 mm and 1e-7 rad in f64 (1e-2 mm and 1e-5 rad in f32), 100 iterations per run, 128
     /// seeds (the Franka Panda's narrow limits needed up to 102 for 1,000 random targets:
-    /// `host-tools/tests/numerical_ik.rs`), manipulability at least 1e-9.
+    /// `host-tools/tests/integration/numerical_ik.rs`), manipulability at least 1e-9.
     fn default() -> Self {
         let f64_scalar = T::BYTES >= 8;
         Self {

@@ -1,6 +1,6 @@
 //! Held-out validation (`--validate`, `--holdout`) and `calib evaluate`.
 
-mod common;
+use crate::common;
 use common::{ROBOT, calib, ok};
 
 use serde_json::Value;

@@ -1,6 +1,6 @@
 //! `calib fk` end to end: the printed pose matches the independent f64 reference.
 
-mod common;
+use crate::common;
 use common::{ROBOT, calib};
 
 use host_tools::analysis::reference;

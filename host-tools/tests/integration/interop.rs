@@ -2,7 +2,7 @@
 //! against forward kinematics computed independently of the export (the `k` crate's URDF loader
 //! and kinematics; the YAML's transforms composed here).
 
-mod common;
+use crate::common;
 
 use calib_core::{Kinematics, Robot};
 use common::{UR10, calib_in, ok};

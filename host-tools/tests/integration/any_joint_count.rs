@@ -6,7 +6,7 @@
 //! must give back.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
+use crate::common;
 use common::{at, calib, ok};
 
 use std::path::Path;

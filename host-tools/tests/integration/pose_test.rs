@@ -4,7 +4,7 @@
 //! the true robot (AP, AD: noise-free closed forms; RP: the noise's), and the refusals leave no
 //! file behind.
 
-mod common;
+use crate::common;
 
 use common::{ROBOT, calib, drifting_run, ok, simulate};
 use host_tools::analysis::reference::{self, Mat4};

@@ -3,7 +3,7 @@
 //! calibrated, and judged on poses no plan could see.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
+use crate::common;
 use common::{calib, ok};
 
 use host_tools::calibration::{self, CalibrationConfig, ErrorModel, HoldOut, Method};

@@ -1,7 +1,7 @@
 //! `calib simulate` and `calib calibrate --method ipso` end to end: the paper's noise-free
 //! scenario is recovered, the outputs are complete, bad input writes nothing.
 
-mod common;
+use crate::common;
 use common::{ROBOT, calib, ok};
 
 use host_tools::io::robot_file::RobotFile;

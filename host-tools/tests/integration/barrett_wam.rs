@@ -8,7 +8,7 @@
 //! 2.19 mm (4.22 mm with the frames only). The goals: at most 3.15 mm and 2.25 mm.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
+use crate::common;
 use common::{calib, ok};
 
 use host_tools::calibration::Calibrated as Calibration;

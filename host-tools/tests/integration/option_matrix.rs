@@ -10,7 +10,7 @@
 //! tested here the day it is added. The few options that may rightly change nothing on these
 //! data (a limit the inputs stay within, a permission the result does not need) say why.
 
-mod common;
+use crate::common;
 
 use common::ROBOT;
 use std::collections::BTreeMap;

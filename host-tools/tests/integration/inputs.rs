@@ -1,7 +1,7 @@
 //! Input files are read as meant or refused with what to do (issue 13, defects 7, 11, 13, 17 and
 //! 18): each test is named after the defect it reproduces and fails on the code before the fix.
 
-mod common;
+use crate::common;
 use common::{ROBOT, calib};
 use host_tools::io::robot_file::{ER10L_C10_TOML, RobotFile};
 use host_tools::io::tracker_data::TrackerData;

@@ -4,7 +4,7 @@
 //! due date, overdue on the day of measurement); a job file that cannot be stood behind is
 //! refused with nothing written.
 
-mod common;
+use crate::common;
 
 use common::{ROBOT, arg, calib_in, ok, simulate};
 use std::path::Path;

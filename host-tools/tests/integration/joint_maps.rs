@@ -2,7 +2,7 @@
 //! joint-maps`) on the real UR10 data: calibrate on M random poses of Series B, validate on all
 //! the others.
 
-mod common;
+use crate::common;
 use host_tools::calibration::{CalibrationConfig, ErrorModel, Identify, Method};
 use host_tools::io::robot_file::{RobotFile, RobotModel};
 use host_tools::measurement::frames::Frames;
@@ -155,7 +155,7 @@ fn series_a_fifty_and_two_hundred_poses_with_joint_maps() {
 
 /// Series A, M = 1000 (seed 0). The study: 0.404 -> 0.087 mm; goal: within 10 % (0.0957 mm).
 /// Measured: 0.3994 -> 0.0900 mm. About 15 s:
-/// `cargo test --release -p host-tools --test joint_maps -- --ignored series_a_thousand`.
+/// `cargo test --release -p host-tools --test integration joint_maps:: -- --ignored series_a_thousand`.
 #[test]
 #[ignore = "slow: 1000 calibration poses, 10,911 held out"]
 fn series_a_thousand_poses_with_joint_maps() {

@@ -4,7 +4,7 @@
 //! error is compared with the independent float64 reference optimiser started at the true frames
 //! and parameters.
 
-mod common;
+use crate::common;
 use common::ROBOT;
 
 use host_tools::analysis::reference;

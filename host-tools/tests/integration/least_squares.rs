@@ -2,7 +2,7 @@
 //! functions behind `calib simulate`, `calib calibrate` and `calib check`, checked against the
 //! independent float64 reference optimiser and the known truth.
 
-mod common;
+use crate::common;
 use common::{ROBOT, simulate};
 
 use host_tools::analysis::identifiability::IdentifiabilityReport;

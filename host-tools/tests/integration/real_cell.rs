@@ -4,7 +4,7 @@
 //! The identified file must carry the controller's frames (the robot file's base and tool), not
 //! the tracker registration and the reflector, which are the measurement setup.
 
-mod common;
+use crate::common;
 use calib_core::Kinematics;
 use common::{ROBOT, calib_in, ok};
 use host_tools::io::robot_file::{ER10L_C10_TOML, RobotFile};

@@ -2,7 +2,7 @@
 //! known truth: the cross-validation estimate flags small pose sets whose calibration makes the
 //! robot less accurate.
 
-mod common;
+use crate::common;
 use common::{ROBOT, calib_in, ok};
 use serde_json::Value;
 

@@ -1,6 +1,6 @@
 //! `calib demo` and `calib verify` through the binary.
 
-mod common;
+use crate::common;
 use common::{FULL_POSE, POSITION, SERIES_B, UR10, calib_in};
 
 #[test]

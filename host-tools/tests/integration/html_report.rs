@@ -2,7 +2,7 @@
 //! number it shows against the JSON report, no external reference; rendered in headless
 //! Chromium where it is installed (required with `CALIB_REQUIRE_CHROMIUM=1`, as `.ci/run` sets).
 
-mod common;
+use crate::common;
 
 use common::{FULL_POSE, POSITION, SERIES_B, UR10, calib_in, ok};
 use scraper::{Html, Selector};

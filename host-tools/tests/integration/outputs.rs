@@ -1,7 +1,7 @@
 //! Output files and standard output are never lost or damaged (issue 13, defects 2 to 6): each
 //! test is named after the defect it reproduces and fails on the code before the fix.
 
-mod common;
+use crate::common;
 use common::{ROBOT, calib};
 use std::os::unix::fs::{FileTypeExt, PermissionsExt};
 use std::path::Path;

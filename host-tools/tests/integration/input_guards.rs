@@ -2,7 +2,7 @@
 //! input, a named pipe), joints outside the robot's limits are refused by every command that
 //! takes joints, and a recorded covariance beyond any calibration's is refused.
 
-mod common;
+use crate::common;
 use common::{UR10 as ROBOT, calib, ok};
 use host_tools::io::robot_file::RobotFile;
 use sha2::Digest as _;

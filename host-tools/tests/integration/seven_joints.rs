@@ -5,7 +5,7 @@
 //! exported and compensated.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
+use crate::common;
 use common::{at, calib, ok};
 
 use host_tools::io::robot_file::RobotFile;

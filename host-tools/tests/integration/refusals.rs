@@ -3,7 +3,7 @@
 //! from a bad file, an unsupported robot, too few poses or a refused output without reading the
 //! message; the message stays the one the command line prints.
 
-mod common;
+use crate::common;
 
 use common::{FULL_POSE, SERIES_B, UR10};
 use host_tools::Error;

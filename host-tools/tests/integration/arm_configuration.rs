@@ -12,7 +12,7 @@
 //! degrees, the by 159 deg) and the signs of the joints whose zero aligns two axes (joints 2, 4 and 6 of both) kept. Every other
 //! row is a refusal that names the bound that stopped it.
 
-mod common;
+use crate::common;
 use common::calib;
 
 use host_tools::analysis::reference::{self, RefModel};

@@ -6,7 +6,7 @@
 //! whatever they accept must be usable (finite numbers, unit quaternions, valid robots).
 //!
 //! CI runs the default number of cases; the 10-minute run recorded in the README is
-//! `PROPTEST_CASES=1300000 cargo test -p host-tools --test fuzz_readers -- --test-threads=1` (the test
+//! `PROPTEST_CASES=1300000 cargo test -p host-tools --test integration fuzz_readers:: -- --test-threads=1` (the test
 //! profile keeps overflow checks, which found `q0_deg` underflowing a joint index).
 
 use host_tools::formats::ur_calibration::UrCalibration;

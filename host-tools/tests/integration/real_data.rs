@@ -2,7 +2,7 @@
 //! data/ipa-ur10-lasertracker/), read through the shipped data profiles, calibrated with the
 //! tracker and tool frames identified, and validated on the poses not used.
 
-mod common;
+use crate::common;
 
 use host_tools::calibration::Calibrated as Calibration;
 use host_tools::calibration::{CalibrationConfig, Identify, LossChoice, Method};

@@ -3,7 +3,7 @@
 //! damaged and read-only files refused and left as they were; two processes registering at once;
 //! a registration killed in the middle.
 
-mod common;
+use crate::common;
 
 use common::{ROBOT, calib, calib_in, ok, simulate, touches_calibration};
 use sha2::Digest as _;

@@ -1,6 +1,6 @@
 //! `calib compensate` and `calib export` end to end, checked with the independent reference.
 
-mod common;
+use crate::common;
 use common::{ROBOT, calib};
 
 use host_tools::analysis::reference::{self, RefModel};
