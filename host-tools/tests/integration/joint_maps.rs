@@ -155,7 +155,7 @@ fn series_a_fifty_and_two_hundred_poses_with_joint_maps() {
 
 /// Series A, M = 1000 (seed 0). The study: 0.404 -> 0.087 mm; goal: within 10 % (0.0957 mm).
 /// Measured: 0.3994 -> 0.0900 mm. About 15 s:
-/// `cargo test --release -p host-tools --test integration joint_maps:: -- --ignored series_a_thousand`.
+/// `cargo test --release -p host-tools --test integration joint_maps::series_a_thousand -- --ignored`.
 #[test]
 #[ignore = "slow: 1000 calibration poses, 10,911 held out"]
 fn series_a_thousand_poses_with_joint_maps() {
