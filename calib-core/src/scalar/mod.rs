@@ -29,9 +29,9 @@ pub trait Real: RealField + Copy + Loggable {
     /// single-precision routine `scalar::sin_cos_f32` for `f32` (no f64 arithmetic, which
     /// the Cortex-M4F emulates in software). Identical bits on every target.
     fn sin_cos_fast(self) -> (Self, Self);
-    /// The correctly rounded square root (IEEE 754): libm on a PC, the FPU's `VSQRT.F32` on a
-    /// Cortex-M with a single-precision FPU (libm's software `sqrtf` costs far more there). Both
-    /// are exact to the last bit, so they agree bit for bit.
+    /// The correctly rounded square root (IEEE 754): the SSE2 intrinsic on x86-64, the FPU's
+    /// `VSQRT.F32` on a Cortex-M with a single-precision FPU (libm's software `sqrtf` costs far
+    /// more there), libm elsewhere. All are exact to the last bit, so they agree bit for bit.
     fn sqrt_ieee(self) -> Self;
     /// Converts an `f64` constant or input to this scalar (rounding to nearest for `f32`).
     fn of(value: f64) -> Self;
@@ -63,7 +63,14 @@ impl Real for f64 {
     }
     #[inline]
     fn sqrt_ieee(self) -> Self {
-        libm::sqrt(self)
+        #[cfg(target_arch = "x86_64")]
+        {
+            x86_64_sqrt::sqrt_f64(self)
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            libm::sqrt(self)
+        }
     }
     #[inline]
     fn of(value: f64) -> Self {
@@ -102,6 +109,38 @@ impl Real for f64 {
     }
 }
 
+/// The square root on x86-64 by the compiler's SSE2 intrinsic, not by libm.
+///
+/// libm's x86 `sqrt` and `sqrtf` are inline assembly (`sqrtsd`, `sqrtss`), which the assembler
+/// emits in the legacy SSE encoding even inside code compiled for AVX2 or AVX-512 (the swarm's
+/// lanes, `host_tools::runtime::lanes`). A legacy SSE instruction while the upper halves of the
+/// vector registers are in use costs a state transition on some processors; on one of this
+/// project's machines the paper's swarm ran several times slower, nearly all of it at the square
+/// roots of the objective (docs/RESULTS.md, "The swarm's runtime"). The intrinsic is an ordinary floating-point square root
+/// to the compiler, encoded as `vsqrtsd` in AVX code and `sqrtsd` elsewhere; it is the same
+/// correctly rounded operation, so the bits do not change.
+#[cfg(target_arch = "x86_64")]
+mod x86_64_sqrt {
+    use core::arch::x86_64::{
+        _mm_cvtsd_f64, _mm_cvtss_f32, _mm_set_sd, _mm_set_ss, _mm_sqrt_pd, _mm_sqrt_ps,
+    };
+
+    /// `sqrt(x)` of an `f64`, correctly rounded.
+    #[inline(always)]
+    pub(super) fn sqrt_f64(x: f64) -> f64 {
+        // SAFETY: the intrinsics need SSE2, which every x86-64 processor has (the target's
+        // baseline); they touch no memory.
+        unsafe { _mm_cvtsd_f64(_mm_sqrt_pd(_mm_set_sd(x))) }
+    }
+
+    /// `sqrt(x)` of an `f32`, correctly rounded.
+    #[inline(always)]
+    pub(super) fn sqrt_f32(x: f32) -> f32 {
+        // SAFETY: the intrinsics need SSE, part of the x86-64 baseline; they touch no memory.
+        unsafe { _mm_cvtss_f32(_mm_sqrt_ps(_mm_set_ss(x))) }
+    }
+}
+
 /// `VSQRT.F32 s0, s0`, then return: the FPU's correctly rounded square root as a function of
 /// its own. The hard-float procedure call standard passes the argument and the result in `s0`,
 /// so a call is the whole cost (an inline sequence would move the value through a core register
@@ -135,7 +174,14 @@ impl Real for f32 {
         {
             vsqrt_f32(self)
         }
-        #[cfg(not(all(target_arch = "arm", target_abi = "eabihf")))]
+        #[cfg(target_arch = "x86_64")]
+        {
+            x86_64_sqrt::sqrt_f32(self)
+        }
+        #[cfg(not(any(
+            all(target_arch = "arm", target_abi = "eabihf"),
+            target_arch = "x86_64"
+        )))]
         {
             libm::sqrtf(self)
         }
@@ -176,5 +222,77 @@ impl Real for f32 {
     fn read_le(bytes: &[u8]) -> Option<Self> {
         let array: [u8; 4] = bytes.get(..4)?.try_into().ok()?;
         Some(Self::from_le_bytes(array))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Real;
+
+    /// Values that exercise every case of a square root: signed zeros, subnormals, the extremes,
+    /// exact squares, values between squares, infinities, NaN and negatives (NaN results).
+    fn f64_cases() -> impl Iterator<Item = f64> {
+        let special = [
+            0.0,
+            -0.0,
+            f64::MIN_POSITIVE,
+            f64::MIN_POSITIVE / 3.0,
+            5e-324,
+            f64::MAX,
+            f64::EPSILON,
+            1.0,
+            2.0,
+            4.0,
+            1e-300,
+            1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            -1.0,
+            -5e-324,
+        ];
+        // A deterministic spread over many binades (a multiplicative walk with an odd factor).
+        let walk = (0..4000).scan(1e-310_f64, |x, _| {
+            *x *= 1.37_f64 + 1e-9;
+            Some(*x)
+        });
+        special
+            .into_iter()
+            .chain(walk.take_while(|x| x.is_finite()))
+    }
+
+    /// `sqrt_ieee` is the correctly rounded square root: bit for bit libm's (the implementation
+    /// it replaces on x86-64) for every case, NaN for NaN.
+    #[test]
+    fn f64_square_root_equals_libm_bit_for_bit() {
+        let mut count = 0;
+        for x in f64_cases() {
+            let (ours, libm) = (x.sqrt_ieee(), libm::sqrt(x));
+            if libm.is_nan() {
+                assert!(ours.is_nan(), "sqrt({x:e}) = {ours:e}, expected NaN");
+            } else {
+                assert_eq!(ours.to_bits(), libm.to_bits(), "sqrt({x:e})");
+            }
+            count += 1;
+        }
+        assert!(count > 1000, "only {count} cases");
+        assert_eq!(9.0_f64.sqrt_ieee(), 3.0);
+        assert_eq!((-0.0_f64).sqrt_ieee().to_bits(), (-0.0_f64).to_bits());
+    }
+
+    /// The same for `f32`, against libm's `sqrtf`, over the `f64` cases rounded to `f32` and
+    /// every 4099th bit pattern of the positive `f32`s.
+    #[test]
+    fn f32_square_root_equals_libm_bit_for_bit() {
+        let patterns = (0..0x7f80_0000_u32).step_by(4099).map(f32::from_bits);
+        for x in f64_cases().map(|x| x as f32).chain(patterns) {
+            let (ours, libm) = (x.sqrt_ieee(), libm::sqrtf(x));
+            if libm.is_nan() {
+                assert!(ours.is_nan(), "sqrt({x:e}) = {ours:e}, expected NaN");
+            } else {
+                assert_eq!(ours.to_bits(), libm.to_bits(), "sqrt({x:e})");
+            }
+        }
+        assert_eq!(2.25_f32.sqrt_ieee(), 1.5);
     }
 }
