@@ -7,8 +7,6 @@
 #   firmware-c/run.sh --size   also print each ELF's sections (arm-none-eabi-size -A); the linker
 #                              maps (target/firmware-c/*.map) give the library's share, which
 #                              tests/tests/firmware_c_qemu.rs sums and checks
-#   firmware-c/run.sh --build-only
-#                              build both, run nothing (CI builds them beside the host's build)
 #
 # Variants: calib-firmware-c-compensation (COMPENSATION_ONLY: load a block, compensate, check)
 # and calib-firmware-c (every check of src/checks.c). Exits with the first non-zero status.
@@ -16,8 +14,8 @@ set -euo pipefail
 cd "$(dirname "$0")"
 mode="${1:-}"
 case "$mode" in
-    "" | --size | --build-only) ;;
-    *) echo "usage: run.sh [--size | --build-only]" >&2; exit 2 ;;
+    "" | --size) ;;
+    *) echo "usage: run.sh [--size]" >&2; exit 2 ;;
 esac
 out=../target/firmware-c
 mkdir -p "$out"
@@ -44,7 +42,6 @@ for variant in calib-firmware-c-compensation calib-firmware-c; do
     arm-none-eabi-gcc "${cflags[@]}" "${defines[@]}" -nostdlib -T link.ld -L.. \
         -Wl,--gc-sections -Wl,-z,noexecstack -Wl,-Map="$out/$variant.map" \
         src/startup.c src/main.c src/checks.c "$lib" -lgcc -o "$elf"
-    [[ "$mode" == --build-only ]] && continue
     echo "== $variant"
     if [[ "$mode" == "--size" ]]; then
         arm-none-eabi-size -A "$elf" | grep -E '^\.(vector_table|text|rodata|ARM.exidx|data|bss) '
