@@ -115,10 +115,10 @@ impl Real for f64 {
 /// emits in the legacy SSE encoding even inside code compiled for AVX2 or AVX-512 (the swarm's
 /// lanes, `host_tools::runtime::lanes`). A legacy SSE instruction while the upper halves of the
 /// vector registers are in use costs a state transition on some processors; on one of this
-/// project's machines the paper's swarm ran several times slower, nearly all of it at the square
-/// roots of the objective (docs/RESULTS.md, "The swarm's runtime"). The intrinsic is an ordinary floating-point square root
-/// to the compiler, encoded as `vsqrtsd` in AVX code and `sqrtsd` elsewhere; it is the same
-/// correctly rounded operation, so the bits do not change.
+/// project's machines the paper's swarm ran several times slower, nearly all of it at the
+/// square roots of the objective (docs/RESULTS.md, "The swarm's runtime"). The intrinsic is an
+/// ordinary floating-point square root to the compiler, encoded as `vsqrtsd` in AVX code and
+/// `sqrtsd` elsewhere; it is the same correctly rounded operation, so the bits do not change.
 #[cfg(target_arch = "x86_64")]
 mod x86_64_sqrt {
     use core::arch::x86_64::{
@@ -251,8 +251,9 @@ mod tests {
             -1.0,
             -5e-324,
         ];
-        // A deterministic spread over many binades (a multiplicative walk with an odd factor).
-        let walk = (0..4000).scan(1e-310_f64, |x, _| {
+        // A deterministic spread over every binade from the subnormals to the largest values (a
+        // multiplicative walk whose factor is not a power of two, so the mantissas vary).
+        let walk = (0..5000).scan(1e-310_f64, |x, _| {
             *x *= 1.37_f64 + 1e-9;
             Some(*x)
         });
