@@ -1,6 +1,6 @@
 //! The controller's calibration job (`calib-onboard`, f32) on the host: its outcome is the
 //! expected value the firmware checks bit for bit (`onboard/expected.bin`, regenerated with
-//! `CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test onboard`), and it is checked here
+//! `CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test cross_crate -- onboard::`), and it is checked here
 //! against the true errors of the simulation and against the f64 core on the same data.
 
 use calib_core::Problem;
@@ -22,7 +22,7 @@ fn the_job_is_accurate_and_its_encoding_is_the_firmwares_expectation() {
     } else {
         assert!(
             encoded.as_slice() == EXPECTED,
-            "onboard/expected.bin is stale: regenerate it with CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test onboard"
+            "onboard/expected.bin is stale: regenerate it with CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test cross_crate -- onboard::"
         );
     }
     println!("{outcome:?}");
@@ -142,7 +142,7 @@ fn model_job_matches_the_f64_core(block: &[u8], file: &str, expected_file: &str,
     } else {
         assert!(
             outcome.matches(expected),
-            "onboard/{expected_file} is stale: regenerate it with CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test onboard"
+            "onboard/{expected_file} is stale: regenerate it with CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test cross_crate -- onboard::"
         );
     }
     println!("{outcome:?}");
