@@ -1,7 +1,8 @@
 //! The controller's calibration job (`calib-onboard`, f32) on the host: its outcome is the
 //! expected value the firmware checks bit for bit (`onboard/expected.bin`, regenerated with
-//! `CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test cross_crate -- onboard::`), and it is checked here
-//! against the true errors of the simulation and against the f64 core on the same data.
+//! `CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test cross_crate -- onboard::`), and it
+//! is checked here against the true errors of the simulation and against the f64 core on the
+//! same data.
 
 use calib_core::Problem;
 use calib_core::identify::lm::{LeastSquares, LmSettings};
