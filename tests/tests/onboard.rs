@@ -13,6 +13,10 @@ use calib_onboard::{D, EXPECTED, NoMarks, run};
 use nalgebra::SVector;
 use nalgebra::U6;
 
+/// The command that writes the expected outcomes again (named in the messages when one is stale).
+const REGENERATE: &str =
+    "CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test cross_crate -- onboard::";
+
 #[test]
 fn the_job_is_accurate_and_its_encoding_is_the_firmwares_expectation() {
     let outcome = run(&mut NoMarks).unwrap();
@@ -23,7 +27,7 @@ fn the_job_is_accurate_and_its_encoding_is_the_firmwares_expectation() {
     } else {
         assert!(
             encoded.as_slice() == EXPECTED,
-            "onboard/expected.bin is stale: regenerate it with CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test cross_crate -- onboard::"
+            "onboard/expected.bin is stale: regenerate it with {REGENERATE}"
         );
     }
     println!("{outcome:?}");
@@ -143,7 +147,7 @@ fn model_job_matches_the_f64_core(block: &[u8], file: &str, expected_file: &str,
     } else {
         assert!(
             outcome.matches(expected),
-            "onboard/{expected_file} is stale: regenerate it with CALIB_UPDATE_EXPECTED=1 cargo test -p calib-tests --test cross_crate -- onboard::"
+            "onboard/{expected_file} is stale: regenerate it with {REGENERATE}"
         );
     }
     println!("{outcome:?}");
